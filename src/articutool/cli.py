@@ -1,0 +1,111 @@
+"""The ``articutool`` command line.
+
+Exit codes everywhere: 0 success, 1 the job ran and said no (e.g. infeasible), 2 bad input.
+Subsystems contribute subcommands through an ``add_commands(subparsers)`` function in the
+modules listed in ``_COMMAND_MODULES``; each handler imports its heavy dependencies lazily so
+``articutool --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import sys
+from collections.abc import Sequence
+
+from articutool.spec import Spec, SpecError, load_spec
+from articutool.trajectory import TrajectoryError
+
+__all__ = ["main"]
+
+_COMMAND_MODULES: tuple[str, ...] = ("articutool.verify.cli",)
+
+
+class UsageError(Exception):
+    """Bad input from the user: printed as ``error: …`` with exit code 2."""
+
+
+def add_spec_option(p: argparse.ArgumentParser) -> None:
+    """The ``--spec FILE`` option every hardware-facing command takes."""
+    p.add_argument("--spec", metavar="FILE", default=None,
+                   help="hardware spec TOML (default: the packaged spec)")
+
+
+def spec_from_args(args: argparse.Namespace) -> Spec:
+    """Load the spec named by ``--spec`` (SpecError propagates as bad input)."""
+    return load_spec(args.spec)
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    spec = spec_from_args(args)
+    if args.json:
+        print(json.dumps(spec.model_dump(mode="json"), indent=1))
+        return 0
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    w = spec.wrist
+    console.print(f"[bold]Articutool hardware spec[/] (version {spec.version})")
+    t = Table(title="Wrist (joint order [pitch, roll])")
+    for col in ("item", "value"):
+        t.add_column(col)
+    t.add_row("pitch limits (rad)", f"[{w.pitch_limits[0]:.4f}, {w.pitch_limits[1]:.4f}]")
+    t.add_row("roll limits (rad)", f"[{w.roll_limits[0]:.4f}, {w.roll_limits[1]:.4f}]")
+    t.add_row("roll net-turn budget", f"±{w.roll_turn_budget:g} turns")
+    t.add_row("max joint velocity (rad/s)", ", ".join(f"{v:g}" for v in w.max_velocity))
+    t.add_row("motor no-load speed (rad/s)", f"{w.motor_max_velocity:g}")
+    t.add_row("loop rate (Hz)", f"{w.loop_rate_hz:g}")
+    t.add_row("F0 mount xyz / rpy", f"{list(w.mount_xyz)} / {[round(a, 4) for a in w.mount_rpy]}")
+    for name, u in spec.utensils.items():
+        t.add_row(f"utensil {name} tip (x, z)", f"({u.tip_x:g}, {u.tip_z:g})")
+    console.print(t)
+    a = Table(title=f"Arm {spec.arm.model}")
+    for col in ("joint", "lower", "upper", "max vel", "max acc", "effort"):
+        a.add_column(col)
+    for j in spec.arm.joints:
+        a.add_row(j.name, f"{j.lower:.4f}", f"{j.upper:.4f}", f"{j.max_velocity:g}",
+                  f"{j.max_acceleration:g}", f"{j.effort:g}")
+    console.print(a)
+    for name, q in spec.arm.configurations.items():
+        console.print(f"  {name}: {[round(x, 5) for x in q]}")
+    for name, pose in spec.arm.poses.items():
+        console.print(f"  {name} (pose): p={list(pose.position)} q_wxyz={list(pose.orientation_wxyz)}")
+    c = spec.controller
+    console.print(f"controller: kp={c.kp} ki={c.ki} kd={c.kd} clamp={c.integral_clamp} "
+                  f"deadband={c.deadband} rcond={c.pinv_rcond}")
+    f = spec.filter
+    console.print(f"filter: gain_acc={f.gain_acc} bias_alpha={f.bias_alpha} "
+                  f"adaptive_gain={f.adaptive_gain} bias_estimation={f.bias_estimation}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full argument parser."""
+    parser = argparse.ArgumentParser(prog="articutool", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    p = sub.add_parser("info", help="print the hardware spec")
+    add_spec_option(p)
+    p.add_argument("--json", action="store_true", help="print the spec as JSON")
+    p.set_defaults(func=_cmd_info)
+    for mod in _COMMAND_MODULES:
+        importlib.import_module(mod).add_commands(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``articutool``; returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except (SpecError, UsageError, TrajectoryError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

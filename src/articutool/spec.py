@@ -1,0 +1,318 @@
+"""The hardware spec: one validated TOML file holds every limit, rate and geometry number.
+
+The packaged default is ``articutool/data/hardware.toml`` (values from
+``shared/reference/hardware-facts.md``). ``load_spec(path)`` reads another file of the same
+shape; unknown keys, NaN/inf, negative speeds and inverted limits fail with a message naming
+the field.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    model_validator,
+)
+
+__all__ = [
+    "ArmJointSpec",
+    "ArmSpec",
+    "ControllerSpec",
+    "FilterSpec",
+    "SpecError",
+    "Spec",
+    "UtensilSpec",
+    "WristSpec",
+    "default_spec_path",
+    "load_spec",
+]
+
+
+class SpecError(ValueError):
+    """A hardware spec file is missing, malformed or holds an invalid value."""
+
+
+def _finite(v: float) -> float:
+    if not math.isfinite(v):
+        raise ValueError("must be a finite number (got NaN or inf)")
+    return v
+
+
+Finite = Annotated[float, AfterValidator(_finite)]
+Positive = Annotated[float, AfterValidator(_finite), Field(gt=0)]
+NonNegative = Annotated[float, AfterValidator(_finite), Field(ge=0)]
+Unit = Annotated[float, AfterValidator(_finite), Field(ge=0, le=1)]
+Vec3 = tuple[Finite, Finite, Finite]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def _check_interval(lo: float, hi: float, name: str) -> None:
+    if not lo < hi:
+        raise ValueError(f"{name}: lower ({lo}) must be below upper ({hi})")
+
+
+class ArmJointSpec(_Strict):
+    """One Jaco joint as in Kinova's URDF: origin in the parent frame, rotation about local z."""
+
+    name: str
+    xyz: Vec3
+    rpy: Vec3
+    lower: Finite
+    upper: Finite
+    continuous: bool
+    max_velocity: Positive
+    max_acceleration: Positive
+    effort: Positive
+
+    @model_validator(mode="after")
+    def _limits(self) -> ArmJointSpec:
+        _check_interval(self.lower, self.upper, f"joint {self.name} limits")
+        return self
+
+
+class PoseSpec(_Strict):
+    """A pose in the arm base frame; quaternion order (w, x, y, z)."""
+
+    position: Vec3
+    orientation_wxyz: tuple[Finite, Finite, Finite, Finite]
+
+    @model_validator(mode="after")
+    def _unit(self) -> PoseSpec:
+        n = math.sqrt(sum(c * c for c in self.orientation_wxyz))
+        if abs(n - 1.0) > 1e-3:
+            raise ValueError(f"orientation_wxyz must be a unit quaternion (norm {n:.4f})")
+        return self
+
+
+class ArmSpec(_Strict):
+    """Kinova Jaco 2 (j2n6s200): joint table, end-effector frame, named configurations."""
+
+    model: str
+    base_frame: str
+    ee_frame: str
+    ee_xyz: Vec3
+    ee_rpy: Vec3
+    joints: list[ArmJointSpec] = Field(min_length=6, max_length=6)
+    configurations: dict[str, tuple[Finite, Finite, Finite, Finite, Finite, Finite]]
+    poses: dict[str, PoseSpec] = Field(default_factory=dict)
+
+    @property
+    def joint_names(self) -> list[str]:
+        """Arm joint names in chain order."""
+        return [j.name for j in self.joints]
+
+    @property
+    def lower(self) -> np.ndarray:
+        """Lower position limits (rad), shape (6,)."""
+        return np.array([j.lower for j in self.joints])
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Upper position limits (rad), shape (6,)."""
+        return np.array([j.upper for j in self.joints])
+
+    @property
+    def max_velocity(self) -> np.ndarray:
+        """Joint speed limits (rad/s), shape (6,)."""
+        return np.array([j.max_velocity for j in self.joints])
+
+    @property
+    def max_acceleration(self) -> np.ndarray:
+        """Joint acceleration limits (rad/s²), shape (6,)."""
+        return np.array([j.max_acceleration for j in self.joints])
+
+    def configuration(self, name: str) -> np.ndarray:
+        """A named joint configuration, e.g. ``"AbovePlate"``."""
+        if name not in self.configurations:
+            raise KeyError(
+                f"unknown configuration {name!r}; known: {sorted(self.configurations)}"
+            )
+        return np.array(self.configurations[name])
+
+
+class WristSpec(_Strict):
+    """The Articutool's 2-DOF pitch/roll wrist (joint order everywhere: [pitch, roll])."""
+
+    joint_names: tuple[str, str]
+    mount_xyz: Vec3
+    mount_rpy: Vec3
+    pitch_z: NonNegative
+    roll_dz: NonNegative
+    utensil_mount_dz: NonNegative
+    mass_kg: Positive
+    pitch_limits: tuple[Finite, Finite]
+    roll_limits: tuple[Finite, Finite]
+    roll_turn_budget: Positive
+    max_velocity: tuple[Positive, Positive]
+    motor_max_velocity: Positive
+    loop_rate_hz: Positive
+
+    @model_validator(mode="after")
+    def _consistent(self) -> WristSpec:
+        _check_interval(*self.pitch_limits, "wrist.pitch_limits")
+        _check_interval(*self.roll_limits, "wrist.roll_limits")
+        for name, v in zip(self.joint_names, self.max_velocity, strict=True):
+            if v > self.motor_max_velocity:
+                raise ValueError(
+                    f"wrist.max_velocity for {name} ({v} rad/s) exceeds "
+                    f"wrist.motor_max_velocity ({self.motor_max_velocity} rad/s)"
+                )
+        return self
+
+    @property
+    def limits(self) -> np.ndarray:
+        """Leveling/verification limits as a (2, 2) array [[pitch_lo, pitch_hi], [roll_lo, roll_hi]]."""
+        return np.array([self.pitch_limits, self.roll_limits])
+
+    @property
+    def velocity_limits(self) -> np.ndarray:
+        """Commandable joint speed (rad/s), shape (2,)."""
+        return np.array(self.max_velocity)
+
+    @property
+    def period(self) -> float:
+        """Control loop period (s)."""
+        return 1.0 / self.loop_rate_hz
+
+
+class UtensilSpec(_Strict):
+    """Utensil tip offset from the utensil mount, in the roll-link frame (x up at zero, z out)."""
+
+    tip_x: Finite
+    tip_z: Positive
+
+
+class ControllerSpec(_Strict):
+    """Leveling controller gains (thesis Alg. 1; hardware-facts §5)."""
+
+    kp: NonNegative
+    ki: NonNegative
+    kd: NonNegative
+    integral_clamp: NonNegative
+    deadband: NonNegative
+    pinv_rcond: Annotated[float, AfterValidator(_finite), Field(gt=0, lt=1)]
+    damping_threshold: Annotated[float, AfterValidator(_finite), Field(gt=0, le=1)]
+    damping_power: Positive
+
+
+class FilterSpec(_Strict):
+    """Complementary filter parameters (Valenti et al. 2015; hardware-facts §4)."""
+
+    gain_acc: Unit
+    bias_alpha: Unit
+    adaptive_gain: bool
+    bias_estimation: bool
+
+
+class MotorSpec(_Strict):
+    """Dynamixel bus and unit conversions."""
+
+    model: str
+    port: str
+    baudrate: Annotated[int, Field(gt=0)]
+    protocol: float
+    pitch_id: Annotated[int, Field(ge=0, le=252)]
+    roll_id: Annotated[int, Field(ge=0, le=252)]
+    ticks_per_rev: Annotated[int, Field(gt=0)]
+    velocity_unit_rpm: Positive
+    voltage_unit_v: Positive
+    supply_v: Positive
+
+
+class ImuSpec(_Strict):
+    """OpenLog Artemis IMU stream."""
+
+    port: str
+    baudrate: Annotated[int, Field(gt=0)]
+    rate_hz: Positive
+    gravity: Positive
+    gyro_noise_dps_rthz: NonNegative
+    accel_noise_ug_rthz: NonNegative
+
+
+class FTSpec(_Strict):
+    """Resense HEX21 force/torque stream."""
+
+    port: str
+    baudrate: Annotated[int, Field(gt=0)]
+    rate_hz: Positive
+    tare_samples: Annotated[int, Field(gt=0)]
+
+
+class PowerSpec(_Strict):
+    """Measured power budget (thesis §3.1)."""
+
+    idle_w: Positive
+    leveling_w: Positive
+    peak_w: Positive
+    battery_wh: Positive
+
+
+class Spec(_Strict):
+    """The whole hardware spec."""
+
+    version: Annotated[int, Field(ge=1, le=1)]
+    arm: ArmSpec
+    wrist: WristSpec
+    utensils: dict[str, UtensilSpec] = Field(min_length=1)
+    controller: ControllerSpec
+    filter: FilterSpec
+    motors: MotorSpec
+    imu: ImuSpec
+    ft: FTSpec
+    power: PowerSpec
+
+    def utensil(self, name: str) -> UtensilSpec:
+        """The named utensil; unknown names list the known ones."""
+        if name not in self.utensils:
+            raise SpecError(f"unknown utensil {name!r}; known: {sorted(self.utensils)}")
+        return self.utensils[name]
+
+
+def default_spec_path() -> Path:
+    """Path of the spec shipped with the package."""
+    return Path(str(resources.files("articutool") / "data" / "hardware.toml"))
+
+
+def _format_errors(err: ValidationError, source: str) -> str:
+    lines = [f"invalid hardware spec {source}:"]
+    for e in err.errors():
+        loc = ".".join(str(p) for p in e["loc"]) or "(top level)"
+        msg = e["msg"].removeprefix("Value error, ")
+        lines.append(f"  {loc}: {msg}")
+    return "\n".join(lines)
+
+
+def parse_spec(data: dict, source: str = "<dict>") -> Spec:
+    """Validate a spec given as a mapping (e.g. parsed TOML)."""
+    try:
+        return Spec.model_validate(data)
+    except ValidationError as err:
+        raise SpecError(_format_errors(err, source)) from None
+
+
+def load_spec(path: str | Path | None = None) -> Spec:
+    """Load and validate a hardware spec; ``None`` loads the packaged default."""
+    p = Path(path) if path is not None else default_spec_path()
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as err:
+        raise SpecError(f"cannot read hardware spec {p}: {err.strerror}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise SpecError(f"hardware spec {p} is not valid TOML: {err}") from None
+    return parse_spec(data, str(p))

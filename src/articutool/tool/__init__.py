@@ -1,0 +1,1 @@
+"""The Articutool onboard software: kinematics, filter, controller, primitives, runtime, drivers."""

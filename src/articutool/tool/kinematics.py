@@ -1,0 +1,210 @@
+"""Analytic kinematics of the 2-DOF pitch/roll wrist (thesis §4.1).
+
+Pure NumPy; every function accepts any leading batch shape. Joint order is [pitch, roll].
+
+Model (hardware-facts §3): the tool-tip "up" axis y expressed in the tool base frame F0 is
+Eq. 4.1, ``y = (cos θp cos θr, sin θr, sin θp cos θr)``, and the full tip orientation is
+``R_F0←tip = R_y(−θp) R_z(θr) R_z(−π/2)`` whose second column is Eq. 4.1. The Jacobian
+``∂y/∂q`` is Eq. 4.4. Its columns are orthogonal with norms |cos θr| and 1, so
+``|cos θr|`` is both the manipulability and the singularity measure, and the pseudo-inverse
+has a closed form.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "IKSolutions",
+    "jacobian",
+    "jacobian_pinv",
+    "joint_rates_for_rotation",
+    "leveling_solutions",
+    "nearest_leveling_solution",
+    "rotation",
+    "singularity_measure",
+    "up_vector",
+    "wrap_angle",
+]
+
+TWO_PI = 2.0 * np.pi
+_LIMIT_TOL = 1e-12
+
+
+def _as_q(q: ArrayLike, name: str = "q") -> NDArray[np.float64]:
+    a = np.asarray(q, dtype=np.float64)
+    if a.ndim == 0 or a.shape[-1] != 2:
+        raise ValueError(f"{name} must have shape (..., 2) as [pitch, roll]; got {a.shape}")
+    if not np.isfinite(a).all():
+        raise ValueError(f"{name} must be finite (got NaN or inf)")
+    return a
+
+
+def _as_vec3(v: ArrayLike, name: str) -> NDArray[np.float64]:
+    a = np.asarray(v, dtype=np.float64)
+    if a.ndim == 0 or a.shape[-1] != 3:
+        raise ValueError(f"{name} must have shape (..., 3); got {a.shape}")
+    if not np.isfinite(a).all():
+        raise ValueError(f"{name} must be finite (got NaN or inf)")
+    return a
+
+
+def wrap_angle(x: ArrayLike) -> NDArray[np.float64]:
+    """Wrap angles to (−π, π]."""
+    return np.pi - np.mod(np.pi - np.asarray(x, dtype=np.float64), TWO_PI)
+
+
+def up_vector(q: ArrayLike) -> NDArray[np.float64]:
+    """Tool-tip up vector in F0, Eq. 4.1. ``q``: (..., 2) → (..., 3)."""
+    q = _as_q(q)
+    p, r = q[..., 0], q[..., 1]
+    cr = np.cos(r)
+    return np.stack([np.cos(p) * cr, np.sin(r), np.sin(p) * cr], axis=-1)
+
+
+def rotation(q: ArrayLike) -> NDArray[np.float64]:
+    """Full tip orientation ``R_F0←tip`` (hardware-facts §3). ``q``: (..., 2) → (..., 3, 3)."""
+    q = _as_q(q)
+    cp, sp = np.cos(q[..., 0]), np.sin(q[..., 0])
+    cr, sr = np.cos(q[..., 1]), np.sin(q[..., 1])
+    z = np.zeros_like(cp)
+    rows = [
+        np.stack([cp * sr, cp * cr, -sp], axis=-1),
+        np.stack([-cr, sr, z], axis=-1),
+        np.stack([sp * sr, sp * cr, cp], axis=-1),
+    ]
+    return np.stack(rows, axis=-2)
+
+
+def jacobian(q: ArrayLike) -> NDArray[np.float64]:
+    """Jacobian ``∂y/∂[θp, θr]`` of the up vector, Eq. 4.4. ``q``: (..., 2) → (..., 3, 2)."""
+    q = _as_q(q)
+    cp, sp = np.cos(q[..., 0]), np.sin(q[..., 0])
+    cr, sr = np.cos(q[..., 1]), np.sin(q[..., 1])
+    col_p = np.stack([-sp * cr, np.zeros_like(cp), cp * cr], axis=-1)
+    col_r = np.stack([-cp * sr, cr, -sp * sr], axis=-1)
+    return np.stack([col_p, col_r], axis=-1)
+
+
+def singularity_measure(q: ArrayLike) -> NDArray[np.float64]:
+    """``|cos θr|`` ∈ [0, 1]: the Jacobian's smallest singular value (0 = singular)."""
+    q = _as_q(q)
+    return np.abs(np.cos(q[..., 1]))
+
+
+def jacobian_pinv(q: ArrayLike, rcond: float = 1e-3) -> NDArray[np.float64]:
+    """Moore–Penrose pseudo-inverse of Eq. 4.4, (..., 2, 3), in closed form.
+
+    The singular values are |cos θr| (pitch column) and 1 (roll column); as in
+    ``numpy.linalg.pinv``, a singular value below ``rcond`` times the largest is treated as
+    zero, so at the singularity pitch receives no command.
+    """
+    if not 0.0 < rcond < 1.0:
+        raise ValueError(f"rcond must be in (0, 1); got {rcond}")
+    J = jacobian(q)
+    cr = np.cos(_as_q(q)[..., 1])
+    s2 = cr * cr
+    keep = np.abs(cr) > rcond
+    inv = np.divide(1.0, s2, out=np.zeros_like(s2), where=keep)
+    row_p = J[..., :, 0] * inv[..., None]
+    row_r = J[..., :, 1]
+    return np.stack([row_p, row_r], axis=-2)
+
+
+def joint_rates_for_rotation(
+    q: ArrayLike, omega_local: ArrayLike, rcond: float = 1e-3
+) -> NDArray[np.float64]:
+    """Joint velocities that rotate the up vector by ``omega_local`` (Eqs. 4.6–4.7).
+
+    ``v = ω × y(q)`` is the up vector's linear velocity; ``q̇ = J⁺(q) v``. ``omega_local`` is
+    expressed in F0. Shapes: q (..., 2), omega (..., 3) → (..., 2).
+    """
+    omega = _as_vec3(omega_local, "omega_local")
+    v = np.cross(omega, up_vector(q))
+    return np.einsum("...ij,...j->...i", jacobian_pinv(q, rcond), v)
+
+
+class IKSolutions(NamedTuple):
+    """Candidate leveling solutions: ``q`` (..., K, 2) and ``valid`` (..., K).
+
+    Rows with ``valid`` False are placeholders (outside the limits) and must be ignored.
+    """
+
+    q: NDArray[np.float64]
+    valid: NDArray[np.bool_]
+
+
+def _as_limits(limits: ArrayLike) -> NDArray[np.float64]:
+    lim = np.asarray(limits, dtype=np.float64)
+    if lim.shape != (2, 2):
+        raise ValueError(
+            f"limits must be [[pitch_lo, pitch_hi], [roll_lo, roll_hi]]; got shape {lim.shape}"
+        )
+    if not np.isfinite(lim).all():
+        raise ValueError("limits must be finite")
+    for name, (lo, hi) in zip(("pitch", "roll"), lim, strict=True):
+        if not lo < hi:
+            raise ValueError(f"{name} limits: lower ({lo}) must be below upper ({hi})")
+    return lim
+
+
+def _turn_shifts(lo: float, hi: float) -> NDArray[np.float64]:
+    # Every k with (−π, π] + 2πk intersecting [lo, hi].
+    k0 = int(np.ceil((lo - np.pi) / TWO_PI - 1e-12))
+    k1 = int(np.floor((hi + np.pi) / TWO_PI + 1e-12))
+    return TWO_PI * np.arange(k0, k1 + 1, dtype=np.float64)
+
+
+def leveling_solutions(v: ArrayLike, limits: ArrayLike) -> IKSolutions:
+    """Every wrist configuration inside ``limits`` whose up vector points along ``v``.
+
+    Inverts Eq. 4.1 (Eqs. 4.2–4.3) on both branches, ``(atan2(vz, vx), asin(vy))`` and
+    ``(θp + π, π − θr)``, plus whole turns of either joint that stay inside the limits.
+    ``v`` (..., 3) is expressed in F0 and need not be unit length (it must be non-zero).
+    At the singularity (|vy| = 1) pitch is arbitrary; the solution with pitch 0 (or π) is
+    returned.
+    """
+    v = _as_vec3(v, "v")
+    lim = _as_limits(limits)
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    if (n <= 1e-12).any():
+        raise ValueError("v must be a non-zero vector")
+    u = v / n
+    p_a = np.arctan2(u[..., 2], u[..., 0])
+    r_a = np.arcsin(np.clip(u[..., 1], -1.0, 1.0))
+    base = np.stack(
+        [
+            np.stack([p_a, r_a], axis=-1),
+            np.stack([wrap_angle(p_a + np.pi), wrap_angle(np.pi - r_a)], axis=-1),
+        ],
+        axis=-2,
+    )  # (..., 2 branches, 2)
+    sp = _turn_shifts(*lim[0])
+    sr = _turn_shifts(*lim[1])
+    shifts = np.stack(np.meshgrid(sp, sr, indexing="ij"), axis=-1).reshape(-1, 2)  # (S, 2)
+    q = (base[..., :, None, :] + shifts).reshape(*u.shape[:-1], -1, 2)  # (..., 2S, 2)
+    inside = (q >= lim[:, 0] - _LIMIT_TOL) & (q <= lim[:, 1] + _LIMIT_TOL)
+    valid = inside.all(axis=-1)
+    q = np.clip(q, lim[:, 0], lim[:, 1])
+    return IKSolutions(q, valid)
+
+
+def nearest_leveling_solution(
+    v: ArrayLike, limits: ArrayLike, q_ref: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """The valid leveling solution closest (Euclidean, in joint space) to ``q_ref``.
+
+    Returns ``(q, found)`` with shapes (..., 2) and (...); where nothing is valid, ``q`` is
+    ``q_ref`` and ``found`` is False.
+    """
+    sols = leveling_solutions(v, limits)
+    q_ref = np.broadcast_to(_as_q(q_ref, "q_ref"), sols.q.shape[:-2] + (2,))
+    d = np.linalg.norm(sols.q - q_ref[..., None, :], axis=-1)
+    d = np.where(sols.valid, d, np.inf)
+    idx = np.argmin(d, axis=-1)
+    q = np.take_along_axis(sols.q, idx[..., None, None], axis=-2)[..., 0, :]
+    found = sols.valid.any(axis=-1)
+    return np.where(found[..., None], q, q_ref), found

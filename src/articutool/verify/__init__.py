@@ -1,0 +1,1 @@
+"""Plan-then-verify (thesis Alg. 2)."""
