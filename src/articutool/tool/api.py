@@ -1,0 +1,90 @@
+"""The tool's command surface: what the runtime offers and what the link serves.
+
+``ToolRuntime`` (``articutool.tool.runtime``) implements ``ToolAPI``; the network link
+(``articutool.link``) serves any ``ToolAPI`` so link tests can use a small fake. All methods
+are thread-safe and return promptly: motion happens in the runtime's own 50 Hz loop.
+Joint order everywhere is [pitch, roll]; angles in radians unless a name says ``_deg``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import IntEnum
+from typing import Protocol
+
+from articutool.trajectory import JointTrajectory
+
+__all__ = ["Mode", "PrimitiveStatus", "ToolAPI", "ToolState"]
+
+
+class Mode(IntEnum):
+    """Control modes; DISABLED and LEVELING match ``SetOrientationControl`` constants."""
+
+    DISABLED = 0
+    LEVELING = 1
+    PRIMITIVE = 2
+    TRAJECTORY = 3
+
+
+@dataclass(frozen=True)
+class PrimitiveStatus:
+    """Progress of the current (or last) primitive, as the action's feedback and result."""
+
+    name: str
+    percent_complete: float  # 0..100
+    feedback: str
+    current_joint_values: tuple[float, float]
+    done: bool
+    success: bool = False  # meaningful once done
+    message: str = ""  # meaningful once done
+    final_joint_values: tuple[float, ...] = ()  # meaningful once done
+
+
+@dataclass(frozen=True)
+class ToolState:
+    """A snapshot of the tool for telemetry (published at the loop rate)."""
+
+    stamp: float  # monotonic seconds
+    mode: Mode
+    joint_names: tuple[str, str]
+    position: tuple[float, float]
+    velocity: tuple[float, float]
+    orientation_wxyz: tuple[float, float, float, float]  # filtered IMU, sensor in world
+    angular_velocity: tuple[float, float, float]  # rad/s, sensor frame, bias-corrected
+    linear_acceleration: tuple[float, float, float]  # m/s², sensor frame
+    fault: str = ""  # empty when healthy; otherwise why the motors were stopped
+    battery_voltage: float = float("nan")  # V, from the motors' input voltage
+    loop_period_mean: float = float("nan")  # s
+    loop_jitter: float = float("nan")  # s, standard deviation of the period
+    loop_overruns: int = 0
+    extra: dict[str, float] = field(default_factory=dict)
+
+
+class ToolAPI(Protocol):
+    """What the PC can ask of the tool (thesis §3.2.2: service, action, trajectories)."""
+
+    def set_mode(
+        self, mode: Mode, pitch_offset_deg: float = 0.0, roll_offset_deg: float = 0.0
+    ) -> tuple[bool, str]:
+        """Switch mode (DISABLED or LEVELING with offsets); aborts a running primitive."""
+        ...
+
+    def start_primitive(self, name: str, parameters: list[float]) -> tuple[bool, str]:
+        """Start a primitive; refused while leveling, while another runs, or on bad input."""
+        ...
+
+    def primitive_status(self) -> PrimitiveStatus | None:
+        """Progress of the running primitive, or the result of the last one (None if never)."""
+        ...
+
+    def cancel_primitive(self) -> bool:
+        """Cancel the running primitive (motors stop); False if none was running."""
+        ...
+
+    def follow_trajectory(self, trajectory: JointTrajectory) -> tuple[bool, str]:
+        """Enter TRAJECTORY mode and follow a wrist trajectory (joint names [pitch, roll])."""
+        ...
+
+    def state(self) -> ToolState:
+        """The latest state snapshot."""
+        ...
