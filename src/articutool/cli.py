@@ -71,7 +71,8 @@ def _cmd_info(args: argparse.Namespace) -> int:
     for name, q in spec.arm.configurations.items():
         console.print(f"  {name}: {[round(x, 5) for x in q]}")
     for name, pose in spec.arm.poses.items():
-        console.print(f"  {name} (pose): p={list(pose.position)} q_wxyz={list(pose.orientation_wxyz)}")
+        console.print(f"  {name} (pose): p={list(pose.position)} "
+                      f"q_wxyz={list(pose.orientation_wxyz)}")
     c = spec.controller
     console.print(f"controller: kp={c.kp} ki={c.ki} kd={c.kd} clamp={c.integral_clamp} "
                   f"deadband={c.deadband} rcond={c.pinv_rcond}")

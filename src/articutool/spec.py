@@ -27,10 +27,11 @@ from pydantic import (
 __all__ = [
     "ArmJointSpec",
     "ArmSpec",
+    "CollisionSpec",
     "ControllerSpec",
     "FilterSpec",
-    "SpecError",
     "Spec",
+    "SpecError",
     "UtensilSpec",
     "WristSpec",
     "default_spec_path",
@@ -174,7 +175,7 @@ class WristSpec(_Strict):
 
     @property
     def limits(self) -> np.ndarray:
-        """Leveling/verification limits as a (2, 2) array [[pitch_lo, pitch_hi], [roll_lo, roll_hi]]."""
+        """Leveling/verification limits, (2, 2): [[pitch_lo, pitch_hi], [roll_lo, roll_hi]]."""
         return np.array([self.pitch_limits, self.roll_limits])
 
     @property
@@ -193,6 +194,22 @@ class UtensilSpec(_Strict):
 
     tip_x: Finite
     tip_z: Positive
+
+
+class CollisionSpec(_Strict):
+    """Collision primitives (approx.) for ``articutool.arm``: capsule radii and skipped pairs.
+
+    ``link_radii[i]`` is the capsule radius of Jaco link i+1, which runs from joint i+1 to the
+    next joint (link 6, the hand, runs to the end-effector frame). ``excluded_pairs`` names
+    geometry pairs that touch by construction beyond the adjacent ones, e.g. the compact wrist.
+    """
+
+    base_radius: Positive
+    link_radii: tuple[Positive, Positive, Positive, Positive, Positive, Positive]
+    wrist_body_radius: Positive
+    wrist_distal_radius: Positive
+    utensil_radius: Positive
+    excluded_pairs: list[tuple[str, str]] = Field(default_factory=list)
 
 
 class ControllerSpec(_Strict):
@@ -230,6 +247,10 @@ class MotorSpec(_Strict):
     velocity_unit_rpm: Positive
     voltage_unit_v: Positive
     supply_v: Positive
+    # Encoder ticks at which each joint reads 0 rad ([pitch, roll]); calibrate per build.
+    zero_ticks: tuple[
+        Annotated[int, Field(ge=0, le=4095)], Annotated[int, Field(ge=0, le=4095)]
+    ] = (2048, 2048)
 
 
 class ImuSpec(_Strict):
@@ -268,6 +289,7 @@ class Spec(_Strict):
     arm: ArmSpec
     wrist: WristSpec
     utensils: dict[str, UtensilSpec] = Field(min_length=1)
+    collision: CollisionSpec
     controller: ControllerSpec
     filter: FilterSpec
     motors: MotorSpec

@@ -34,7 +34,9 @@ def _time_value(t: Any, where: str) -> float:
         try:
             sec, nsec = t["sec"], t.get("nanosec", 0)
         except (KeyError, TypeError):
-            raise TrajectoryError(f"{where}.time_from_start must have 'sec' and 'nanosec'") from None
+            raise TrajectoryError(
+                f"{where}.time_from_start must have 'sec' and 'nanosec'"
+            ) from None
         if not isinstance(sec, int) or not isinstance(nsec, int) or not 0 <= nsec < 10**9:
             raise TrajectoryError(f"{where}.time_from_start: sec/nanosec must be integers, "
                                   "nanosec in [0, 1e9)")

@@ -1,0 +1,300 @@
+"""Plan-then-verify: can the wrist level the utensil along an arm trajectory? (thesis Alg. 2)
+
+For every sample of the arm trajectory — the waypoints, densified so that the tool base
+rotates at most ``max_step_deg`` between samples — the verifier
+
+1. computes the anti-gravity direction in the tool base frame F0, ``u = R_world←F0ᵀ z``
+   (Alg. 2 line 6);
+2. *kinematic check*: finds the leveling solutions inside the wrist limits (Eqs. 4.2–4.3, both
+   branches) and follows the one nearest to the previous sample (Alg. 2 line 12);
+3. *continuity check*: when the followed solution leaves the limits, the wrist must jump to
+   another one (a branch switch or a whole roll turn); the jump is allowed only if the motors
+   can make it within the sample's time step;
+4. *dynamic check*: the arm's angular velocity ``ω = J_jaco q̇`` gives the correction
+   ``ω_corr = −Rᵀ ω`` (Eq. 4.5), the up vector's velocity ``ω_corr × u`` (Eq. 4.6, the cross
+   product the reference implementation omitted) and the joint rates ``J⁺(q)(ω_corr × u)``
+   (Eq. 4.7), which must stay within the spec's maximum joint velocity.
+
+Everything is vectorised over samples; only branch switches (rare) are handled in a loop.
+The report carries the synchronised leveling trajectory (positions and velocities) that the
+tool's TRAJECTORY mode can execute.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from articutool.spec import Spec
+from articutool.tool.kinematics import joint_rates_for_rotation, wrap_angle
+from articutool.trajectory import JointTrajectory, TrajectoryError
+
+__all__ = ["OrientationModel", "VerificationReport", "densify", "verify_trajectory"]
+
+_WORLD_UP = np.array([0.0, 0.0, 1.0])
+_MAX_SAMPLES = 2_000_000
+
+
+class OrientationModel(Protocol):
+    """What the verifier needs of an arm model (``articutool.arm.ArmModel`` provides it)."""
+
+    def tool_base_rotations(self, q_arm: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(N, 6) arm configurations → (N, 3, 3) rotations of F0 in the arm base frame."""
+        ...
+
+    def tool_base_angular_velocity(
+        self, q_arm: NDArray[np.float64], qd_arm: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """(N, 6), (N, 6) → (N, 3) angular velocity of F0 in the arm base frame."""
+        ...
+
+
+@dataclass(frozen=True)
+class VerificationReport:
+    """Outcome of :func:`verify_trajectory`.
+
+    ``reason`` is one of ``"ok"``, ``"arm_joint_limit"``, ``"no_leveling_solution"``,
+    ``"discontinuity"`` (a branch switch or jump the motors cannot make in the time step) and
+    ``"velocity"`` (Eq. 4.7 rate above the limit). ``velocity_margin`` is
+    ``1 − max_j(max|q̇_j| / q̇max_j)`` over the checked samples: the fraction of motor speed
+    left (negative when infeasible). ``wrist_trajectory`` levels the tool up to the first
+    failure (the whole trajectory when feasible).
+    """
+
+    feasible: bool
+    reason: str
+    message: str
+    first_failure_time: float | None
+    first_failure_index: int | None  # index of the original waypoint at or before the failure
+    max_required_velocity: tuple[float, float]
+    velocity_limits: tuple[float, float]
+    velocity_margin: float
+    min_singularity_measure: float
+    branch_switches: int
+    samples_checked: int
+    waypoints: int
+    max_step_deg: float
+    wrist_trajectory: JointTrajectory | None = field(repr=False, default=None)
+
+    def to_dict(self, include_trajectory: bool = False) -> dict[str, Any]:
+        """JSON-ready summary (the wrist trajectory only when asked)."""
+        d = {k: getattr(self, k) for k in (
+            "feasible", "reason", "message", "first_failure_time", "first_failure_index",
+            "max_required_velocity", "velocity_limits", "velocity_margin",
+            "min_singularity_measure", "branch_switches", "samples_checked", "waypoints",
+            "max_step_deg")}
+        d["max_required_velocity"] = list(self.max_required_velocity)
+        d["velocity_limits"] = list(self.velocity_limits)
+        if include_trajectory and self.wrist_trajectory is not None:
+            d["wrist_trajectory"] = self.wrist_trajectory.to_dict()
+        return d
+
+
+def _step_angles(R: NDArray[np.float64]) -> NDArray[np.float64]:
+    # Rotation angle between consecutive rotations: cos θ = (tr(R_kᵀ R_k+1) − 1) / 2.
+    tr = np.einsum("kij,kij->k", R[:-1], R[1:])
+    return np.arccos(np.clip((tr - 1.0) * 0.5, -1.0, 1.0))
+
+
+def densify(
+    traj: JointTrajectory, model: OrientationModel, max_step_rad: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Sample times at which consecutive tool-base orientations differ by ≤ ``max_step_rad``.
+
+    Starts from the waypoints and subdivides offending intervals (uniformly in time) until
+    every step is small enough. Returns ``(t, q, qd, R)`` at the samples.
+    """
+    t = traj.times.copy()
+    q, qd = traj.positions.copy(), traj.velocities.copy()
+    R = model.tool_base_rotations(q)
+    for _ in range(8):
+        if t.size < 2:
+            break
+        ang = _step_angles(R)
+        n_sub = np.ceil(ang / max_step_rad * (1.0 + 1e-9)).astype(np.int64)
+        if (n_sub <= 1).all():
+            break
+        n_sub = np.maximum(n_sub, 1)
+        total = int(n_sub.sum()) + 1
+        if total > _MAX_SAMPLES:
+            raise TrajectoryError(
+                f"densifying to {np.degrees(max_step_rad):g}° steps needs {total} samples "
+                f"(limit {_MAX_SAMPLES}); use a larger max_step_deg"
+            )
+        seg = np.repeat(np.arange(t.size - 1), n_sub)
+        frac = (np.arange(seg.size) - np.repeat(np.cumsum(n_sub) - n_sub, n_sub)) / n_sub[seg]
+        t_new = np.append(t[seg] + frac * (t[seg + 1] - t[seg]), t[-1])
+        # Keep exact waypoint samples; only new interior points are interpolated.
+        q, qd = traj.sample(t_new)
+        is_wp = np.isin(t_new, traj.times)
+        wp_idx = np.searchsorted(traj.times, t_new[is_wp])
+        q[is_wp], qd[is_wp] = traj.positions[wp_idx], traj.velocities[wp_idx]
+        t = t_new
+        R = model.tool_base_rotations(q)
+    return t, q, qd, R
+
+
+def _branch_curves(u: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Both IK branches (Eqs. 4.2–4.3) made continuous along the samples: (2, N, 2)."""
+    p_a = np.arctan2(u[:, 2], u[:, 0])
+    r_a = np.arcsin(np.clip(u[:, 1], -1.0, 1.0))
+    a = np.stack([p_a, r_a], axis=-1)
+    b = np.stack([wrap_angle(p_a + np.pi), wrap_angle(np.pi - r_a)], axis=-1)
+    return np.unwrap(np.stack([a, b]), axis=1)
+
+
+def _candidate_curves(u: NDArray[np.float64], lim: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Every branch curve shifted by whole turns that enters the limits somewhere: (C, N, 2)."""
+    base = _branch_curves(u)
+    out = []
+    for curve in base:
+        shifts = []
+        for j in range(2):
+            lo_k = np.ceil((lim[j, 0] - curve[:, j].max()) / (2 * np.pi) - 1e-12)
+            hi_k = np.floor((lim[j, 1] - curve[:, j].min()) / (2 * np.pi) + 1e-12)
+            shifts.append(2 * np.pi * np.arange(lo_k, hi_k + 1))
+        for sp in shifts[0]:
+            for sr in shifts[1]:
+                out.append(curve + np.array([sp, sr]))
+    if not out:
+        return np.empty((0,) + u.shape[:1] + (2,))
+    return np.stack(out)
+
+
+def _follow(
+    curves: NDArray[np.float64],
+    valid: NDArray[np.bool_],
+    q_start: NDArray[np.float64],
+    t: NDArray[np.float64],
+    vmax: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], int, int | None, str]:
+    """Follow the nearest valid solution; returns (q, switches, fail_index, fail_reason)."""
+    n = t.size
+    q = np.full((n, 2), np.nan)
+    if curves.shape[0] == 0 or not valid[:, 0].any():
+        return q, 0, 0, "no_leveling_solution"
+    d0 = np.where(valid[:, 0], np.linalg.norm(curves[:, 0] - q_start, axis=-1), np.inf)
+    c = int(np.argmin(d0))
+    k = 0
+    switches = 0
+    while True:
+        bad = np.flatnonzero(~valid[c, k:])
+        end = n if bad.size == 0 else k + int(bad[0])
+        q[k:end] = curves[c, k:end]
+        if end == n:
+            return q, switches, None, ""
+        if not valid[:, end].any():
+            return q, switches, end, "no_leveling_solution"
+        prev = q[end - 1]
+        d = np.where(valid[:, end], np.linalg.norm(curves[:, end] - prev, axis=-1), np.inf)
+        c = int(np.argmin(d))
+        jump = np.abs(curves[c, end] - prev)
+        switches += 1
+        if (jump > vmax * (t[end] - t[end - 1])).any():
+            q[end] = curves[c, end]
+            return q, switches, end, "discontinuity"
+        k = end
+
+
+def verify_trajectory(
+    traj: JointTrajectory,
+    model: OrientationModel,
+    spec: Spec,
+    *,
+    max_step_deg: float = 1.0,
+    q_wrist_start: tuple[float, float] | NDArray[np.float64] = (0.0, 0.0),
+) -> VerificationReport:
+    """Check that the wrist can keep the utensil level along an arm trajectory (Alg. 2).
+
+    ``traj`` holds the arm's joints (any order; names must match ``spec.arm``).
+    ``q_wrist_start`` is the wrist configuration the first sample's solution is chosen
+    nearest to. Raises :class:`TrajectoryError` for malformed input.
+    """
+    if not (np.isfinite(max_step_deg) and 0.0 < max_step_deg <= 45.0):
+        raise TrajectoryError(f"max_step_deg must be in (0, 45] degrees; got {max_step_deg}")
+    q_start = np.asarray(q_wrist_start, dtype=np.float64)
+    if q_start.shape != (2,) or not np.isfinite(q_start).all():
+        raise TrajectoryError("q_wrist_start must be two finite angles [pitch, roll]")
+    arm = traj.reordered(spec.arm.joint_names)
+    wrist = spec.wrist
+    lim = wrist.limits
+    vmax = wrist.velocity_limits
+    max_step = np.radians(max_step_deg)
+
+    def report(feasible: bool, reason: str, message: str, fail: int | None,
+               t: NDArray, qw: NDArray, qdw: NDArray, n_level: int, n_eval: int,
+               switches: int, fail_wp: int | None = None) -> VerificationReport:
+        # n_level: samples the wrist trajectory covers (before the first failure);
+        # n_eval: samples whose required rates were evaluated (peak and margin use them).
+        peak = np.abs(qdw[:n_eval]).max(axis=0) if n_eval else np.zeros(2)
+        sing = np.abs(np.cos(qw[:n_eval, 1]))
+        wp = fail_wp
+        if fail is not None and wp is None:
+            wp = int(np.searchsorted(arm.times, t[fail], side="right") - 1)
+        wtraj = None
+        if n_level >= 1:
+            wtraj = JointTrajectory(wrist.joint_names, t[:n_level], qw[:n_level], qdw[:n_level])
+        return VerificationReport(
+            feasible=feasible, reason=reason, message=message,
+            first_failure_time=None if fail is None else float(t[fail]),
+            first_failure_index=wp,
+            max_required_velocity=(float(peak[0]), float(peak[1])),
+            velocity_limits=(float(vmax[0]), float(vmax[1])),
+            velocity_margin=float(1.0 - (peak / vmax).max()),
+            min_singularity_measure=float(sing.min()) if sing.size else float("nan"),
+            branch_switches=switches, samples_checked=n_eval, waypoints=len(arm),
+            max_step_deg=float(max_step_deg), wrist_trajectory=wtraj,
+        )
+
+    # Arm limits first: outside them the arm itself cannot execute the plan.
+    lo, hi = spec.arm.lower, spec.arm.upper
+    out = (arm.positions < lo - 1e-9) | (arm.positions > hi + 1e-9)
+    if out.any():
+        i, j = (int(x) for x in np.argwhere(out)[0])
+        empty = np.zeros((len(arm), 2))
+        return report(False, "arm_joint_limit",
+                      f"waypoint {i}: {arm.joint_names[j]} = {arm.positions[i, j]:.4f} rad is "
+                      f"outside [{lo[j]:.4f}, {hi[j]:.4f}]",
+                      i, arm.times, empty, empty, 0, 0, 0, fail_wp=i)
+
+    t, q, qd, R = densify(arm, model, max_step)
+    u = np.einsum("kji,j->ki", R, _WORLD_UP)  # Rᵀ z, Alg. 2 line 6
+    curves = _candidate_curves(u, lim)
+    inside = (curves >= lim[:, 0] - 1e-12) & (curves <= lim[:, 1] + 1e-12)
+    valid = inside.all(axis=-1)
+    qw, switches, fail, fail_reason = _follow(curves, valid, q_start, t, vmax)
+
+    omega = model.tool_base_angular_velocity(q, qd)
+    omega_local = -np.einsum("kji,kj->ki", R, omega)  # Eq. 4.5
+    qdw = np.zeros_like(qw)
+    n_ok = t.size if fail is None else fail
+    if n_ok:
+        qdw[:n_ok] = joint_rates_for_rotation(qw[:n_ok], omega_local[:n_ok],
+                                              spec.controller.pinv_rcond)  # Eqs. 4.6-4.7
+    over = np.flatnonzero((np.abs(qdw[:n_ok]) > vmax).any(axis=-1))
+    if over.size:
+        k = int(over[0])
+        j = int(np.argmax(np.abs(qdw[k]) / vmax))
+        msg = (f"t = {t[k]:.3f} s: {wrist.joint_names[j]} must turn at "
+               f"{abs(qdw[k, j]):.3f} rad/s to stay level; limit {vmax[j]:g} rad/s")
+        return report(False, "velocity", msg, k, t, qw, qdw, k, n_ok, switches)
+    if fail is not None:
+        if fail_reason == "no_leveling_solution":
+            msg = (f"t = {t[fail]:.3f} s: no wrist configuration inside the limits "
+                   f"pitch [{lim[0, 0]:.3f}, {lim[0, 1]:.3f}], roll [{lim[1, 0]:.3f}, "
+                   f"{lim[1, 1]:.3f}] rad levels the tool (up in F0 = "
+                   f"{np.array2string(u[fail], precision=3)})")
+        else:
+            dt = t[fail] - t[fail - 1]
+            msg = (f"t = {t[fail]:.3f} s: the leveling solution jumps from "
+                   f"{np.array2string(qw[fail - 1], precision=3)} to "
+                   f"{np.array2string(qw[fail], precision=3)} rad in {dt:.4f} s "
+                   f"(branch switch the motors cannot make at {vmax.tolist()} rad/s)")
+        return report(False, fail_reason, msg, fail, t, qw, qdw, fail, fail, switches)
+    peak = np.abs(qdw).max(axis=0)
+    msg = (f"feasible: {t.size} samples, peak wrist rates {peak[0]:.3f} / {peak[1]:.3f} "
+           f"rad/s (limits {vmax[0]:g} / {vmax[1]:g})")
+    return report(True, "ok", msg, None, t, qw, qdw, t.size, t.size, switches)
