@@ -1,6 +1,7 @@
 """The ``articutool`` command line.
 
-Exit codes everywhere: 0 success, 1 the job ran and said no (e.g. infeasible), 2 bad input.
+Exit codes everywhere: 0 success, 1 the job ran and said no (e.g. infeasible), 2 bad input,
+3 internal error.
 Subsystems contribute subcommands through an ``add_commands(subparsers)`` function in the
 modules listed in ``_COMMAND_MODULES``; each handler imports its heavy dependencies lazily so
 ``articutool --help`` stays fast.
@@ -12,6 +13,7 @@ import argparse
 import importlib
 import json
 import sys
+import traceback
 from collections.abc import Sequence
 
 from articutool.spec import Spec, SpecError, load_spec
@@ -106,6 +108,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:  # output piped into e.g. `head`
+        return 0
+    except Exception:  # a bug, not bad input: keep it distinguishable from exit 1 ("no")
+        traceback.print_exc()
+        print("error: internal error (please report it with the traceback above)",
+              file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ __all__ = ["add_commands"]
 
 
 def _cmd_verify(args: argparse.Namespace) -> int:
-    from articutool.arm import ArmModel
+    from articutool.arm.model import ArmModel
     from articutool.cli import UsageError, spec_from_args
     from articutool.trajectory import JointTrajectory
     from articutool.verify import verify_trajectory
