@@ -30,6 +30,8 @@ __all__ = [
     "CollisionSpec",
     "ControllerSpec",
     "FilterSpec",
+    "PlanningSpec",
+    "PrimitivesSpec",
     "Spec",
     "SpecError",
     "UtensilSpec",
@@ -225,6 +227,15 @@ class ControllerSpec(_Strict):
     damping_power: Positive
 
 
+class PrimitivesSpec(_Strict):
+    """Closed-loop moves inside the primitives (thesis §4.4; hardware-facts §6)."""
+
+    position_gain: Positive
+    position_tolerance: Positive
+    timeout_factor: Annotated[float, AfterValidator(_finite), Field(ge=1)]
+    timeout_margin_s: NonNegative
+
+
 class FilterSpec(_Strict):
     """Complementary filter parameters (Valenti et al. 2015; hardware-facts §4)."""
 
@@ -273,6 +284,14 @@ class FTSpec(_Strict):
     tare_samples: Annotated[int, Field(gt=0)]
 
 
+class PlanningSpec(_Strict):
+    """Transport planning tolerances (thesis §5.2, Exp. 2a; hardware-facts §7)."""
+
+    strict_tolerance_deg: Annotated[float, AfterValidator(_finite), Field(gt=0, lt=90)]
+    loose_roll_deg: Annotated[float, AfterValidator(_finite), Field(gt=0, le=90)]
+    loose_pitch_deg: Annotated[float, AfterValidator(_finite), Field(gt=0, le=180)]
+
+
 class PowerSpec(_Strict):
     """Measured power budget (thesis §3.1)."""
 
@@ -292,10 +311,12 @@ class Spec(_Strict):
     collision: CollisionSpec
     controller: ControllerSpec
     filter: FilterSpec
+    primitives: PrimitivesSpec
     motors: MotorSpec
     imu: ImuSpec
     ft: FTSpec
     power: PowerSpec
+    planning: PlanningSpec
 
     def utensil(self, name: str) -> UtensilSpec:
         """The named utensil; unknown names list the known ones."""

@@ -1,0 +1,246 @@
+"""The planning scene: named collision primitives in the arm base frame (hardware-facts §2).
+
+The packaged default ``articutool/data/scene.toml`` is the seated-user feeding scene (table,
+plate, bowl, the user's head and torso, the wheelchair, the ground). ``Scene.load(path)``
+reads another file of the same shape. Each object is one primitive with a pose ``xyz`` (m)
+plus either ``rpy`` (URDF fixed-axis roll-pitch-yaw, rad) or ``wxyz`` (unit quaternion):
+
+========== ======================== ==========================================
+shape      size fields              geometry in the object's frame
+========== ======================== ==========================================
+box        ``size = [x, y, z]``     centred box, full side lengths
+sphere     ``radius``               centred sphere
+capsule    ``radius``, ``length``   axis along z, ``length`` between the caps
+cylinder   ``radius``, ``length``   axis along z, centred
+halfspace  (none)                   solid below the xy-plane (free side is +z)
+========== ======================== ==========================================
+
+``utensil_contact = true`` marks objects the utensil is meant to touch (plate, bowl: food
+acquisition); the arm and the wrist are still checked against them.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import coal
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from articutool.spec import Finite, Positive, Vec3
+
+__all__ = [
+    "Box",
+    "Capsule",
+    "Cylinder",
+    "Halfspace",
+    "Scene",
+    "SceneError",
+    "SceneObject",
+    "Sphere",
+    "default_scene_path",
+    "rpy_matrix",
+]
+
+
+class SceneError(ValueError):
+    """A scene file is missing, malformed or holds an invalid object."""
+
+
+def rpy_matrix(rpy: NDArray[np.float64] | tuple[float, float, float]) -> NDArray[np.float64]:
+    """URDF fixed-axis roll-pitch-yaw to a rotation matrix: ``Rz(y) @ Ry(p) @ Rx(r)``."""
+    r, p, y = (float(a) for a in rpy)
+    cr, sr, cp, sp, cy, sy = (math.cos(r), math.sin(r), math.cos(p), math.sin(p),
+                              math.cos(y), math.sin(y))
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
+def _quat_matrix(w: float, x: float, y: float, z: float) -> NDArray[np.float64]:
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+class _Object(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    name: Annotated[str, Field(min_length=1)]
+    xyz: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Vec3 | None = None
+    wxyz: tuple[Finite, Finite, Finite, Finite] | None = None
+    utensil_contact: bool = False
+
+    @model_validator(mode="after")
+    def _one_orientation(self) -> _Object:
+        if self.rpy is not None and self.wxyz is not None:
+            raise ValueError("give either rpy or wxyz, not both")
+        if self.wxyz is not None:
+            n = math.sqrt(sum(c * c for c in self.wxyz))
+            if abs(n - 1.0) > 1e-3:
+                raise ValueError(f"wxyz must be a unit quaternion (norm {n:.4f})")
+        return self
+
+    @property
+    def rotation(self) -> NDArray[np.float64]:
+        """Orientation of the object frame in the arm base frame, (3, 3)."""
+        if self.wxyz is not None:
+            q = np.asarray(self.wxyz) / np.linalg.norm(self.wxyz)
+            return _quat_matrix(*q)
+        return rpy_matrix(self.rpy if self.rpy is not None else (0.0, 0.0, 0.0))
+
+    @property
+    def pose(self) -> NDArray[np.float64]:
+        """Homogeneous pose (4, 4) of the object frame in the arm base frame."""
+        T = np.eye(4)
+        T[:3, :3] = self.rotation
+        T[:3, 3] = self.xyz
+        return T
+
+    def geometry(self) -> coal.CollisionGeometry:
+        """The coal primitive of this object, in its own frame."""
+        raise NotImplementedError  # every concrete shape overrides this
+
+
+class Box(_Object):
+    """Axis-aligned (in its own frame) box with full side lengths ``size``."""
+
+    shape: Literal["box"]
+    size: tuple[Positive, Positive, Positive]
+
+    def geometry(self) -> coal.CollisionGeometry:
+        return coal.Box(*self.size)
+
+
+class Sphere(_Object):
+    """Sphere of ``radius`` around the object origin."""
+
+    shape: Literal["sphere"]
+    radius: Positive
+
+    def geometry(self) -> coal.CollisionGeometry:
+        return coal.Sphere(self.radius)
+
+
+class Capsule(_Object):
+    """Capsule along the object's z axis; ``length`` is the cylinder part between the caps."""
+
+    shape: Literal["capsule"]
+    radius: Positive
+    length: Positive
+
+    def geometry(self) -> coal.CollisionGeometry:
+        return coal.Capsule(self.radius, self.length)
+
+
+class Cylinder(_Object):
+    """Cylinder along the object's z axis, centred on the origin."""
+
+    shape: Literal["cylinder"]
+    radius: Positive
+    length: Positive
+
+    def geometry(self) -> coal.CollisionGeometry:
+        return coal.Cylinder(self.radius, self.length)
+
+
+class Halfspace(_Object):
+    """Everything below the object's xy-plane (e.g. the ground); the free side is +z."""
+
+    shape: Literal["halfspace"]
+
+    def geometry(self) -> coal.CollisionGeometry:
+        return coal.Halfspace(np.array([0.0, 0.0, 1.0]), 0.0)
+
+
+SceneObject = Annotated[Box | Sphere | Capsule | Cylinder | Halfspace, Field(discriminator="shape")]
+
+
+def default_scene_path() -> Path:
+    """Path of the scene shipped with the package."""
+    return Path(str(resources.files("articutool") / "data" / "scene.toml"))
+
+
+def _format_errors(err: ValidationError, raw: Any, source: str) -> str:
+    objects = raw.get("objects") if isinstance(raw, dict) else None
+    lines = [f"invalid scene {source}:"]
+    for e in err.errors():
+        loc = list(e["loc"])
+        msg = e["msg"].removeprefix("Value error, ")
+        where = ".".join(str(p) for p in loc) or "(top level)"
+        if len(loc) >= 2 and loc[0] == "objects" and isinstance(loc[1], int):
+            i = loc[1]
+            item = objects[i] if isinstance(objects, list) and i < len(objects) else None
+            name = item.get("name") if isinstance(item, dict) else None
+            rest = loc[2:]
+            # Drop the discriminator tag pydantic puts in the location of a union member.
+            if rest and isinstance(item, dict) and rest[0] == item.get("shape"):
+                rest = rest[1:]
+            field = ".".join(str(p) for p in rest) or "(object)"
+            label = f"object {name!r}" if name else f"object #{i}"
+            where = f"{label} (objects[{i}]) field {field}"
+        lines.append(f"  {where}: {msg}")
+    return "\n".join(lines)
+
+
+class Scene(BaseModel):
+    """A validated set of uniquely named collision objects in the arm base frame."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    version: Annotated[int, Field(ge=1, le=1)] = 1
+    frame: str = "j2n6s200_link_base"
+    objects: list[SceneObject] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _unique(self) -> Scene:
+        seen: set[str] = set()
+        for o in self.objects:
+            if o.name in seen:
+                raise ValueError(f"duplicate object name {o.name!r}")
+            seen.add(o.name)
+        return self
+
+    @property
+    def names(self) -> list[str]:
+        """Object names in file order."""
+        return [o.name for o in self.objects]
+
+    def get(self, name: str) -> _Object:
+        """The named object; unknown names list the known ones."""
+        for o in self.objects:
+            if o.name == name:
+                return o
+        raise KeyError(f"unknown scene object {name!r}; known: {self.names}")
+
+    @classmethod
+    def from_dict(cls, data: Any, source: str = "<dict>") -> Scene:
+        """Validate a scene given as a mapping (e.g. parsed TOML); errors name object and field."""
+        try:
+            return cls.model_validate(data)
+        except ValidationError as err:
+            raise SceneError(_format_errors(err, data, source)) from None
+
+    @classmethod
+    def load(cls, path: str | Path | None = None) -> Scene:
+        """Load and validate a scene file; ``None`` loads the packaged default."""
+        p = Path(path) if path is not None else default_scene_path()
+        try:
+            text = p.read_text(encoding="utf-8")
+        except OSError as err:
+            raise SceneError(f"cannot read scene {p}: {err.strerror}") from None
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as err:
+            raise SceneError(f"scene {p} is not valid TOML: {err}") from None
+        return cls.from_dict(data, str(p))
