@@ -1,0 +1,111 @@
+"""``articutool client …``: command a running Articutool from the PC.
+
+Exit codes: 0 success, 1 the tool said no (``success=false``) or could not be reached,
+2 bad input (argparse errors, bad config, bad mode/offsets).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from typing import Any
+
+__all__ = ["add_commands", "run"]
+
+
+def _finite(s: str) -> float:
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {s!r}") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be finite: {s!r}")
+    return v
+
+
+def add_commands(subparsers: Any) -> None:
+    """Register ``client mode|primitive|state``."""
+    from articutool.link.config import add_config_args
+
+    p = subparsers.add_parser("client", help="command an Articutool over the link (PC side)")
+    add_config_args(p)
+    p.add_argument("--wait", type=float, default=3.0, metavar="S",
+                   help="seconds to wait for the tool to be heard (default 3)")
+    sub = p.add_subparsers(dest="client_command", required=True, metavar="ACTION")
+    pm = sub.add_parser("mode", help="set the control mode (SetOrientationControl)")
+    pm.add_argument("mode", choices=("leveling", "disabled"))
+    pm.add_argument("--pitch-offset", type=_finite, default=0.0, metavar="DEG")
+    pm.add_argument("--roll-offset", type=_finite, default=0.0, metavar="DEG")
+    pp = sub.add_parser("primitive", help="run a primitive (ExecuteArticutoolPrimitive)")
+    pp.add_argument("name")
+    pp.add_argument("params", nargs="*", type=_finite, metavar="P")
+    pp.add_argument("--json", action="store_true", help="print the action result as JSON")
+    pp.add_argument("--timeout", type=float, default=None, metavar="S",
+                    help="cancel the primitive after S seconds")
+    ps = sub.add_parser("state", help="print the latest tool state")
+    ps.add_argument("--json", action="store_true")
+    p.set_defaults(func=run)
+
+
+def _usage(msg: str) -> int:
+    print(f"error: {msg}", file=sys.stderr)
+    return 2
+
+
+def run(args: argparse.Namespace) -> int:
+    """Handler of ``articutool client``."""
+    from articutool.link.client import ArticutoolClient, LinkError
+    from articutool.link.config import ConfigError, config_from_args
+
+    try:
+        cfg = config_from_args(args)
+    except ConfigError as err:
+        return _usage(str(err))
+    client = ArticutoolClient(cfg)
+    try:
+        if not client.wait_for_tool(args.wait):
+            listen, connect = cfg.endpoints("client")
+            print(f"error: no Articutool heard within {args.wait:g} s "
+                  f"(connect={list(connect)}, listen={list(listen)})", file=sys.stderr)
+            return 1
+        cmd = args.client_command
+        if cmd == "mode":
+            ok, msg = client.set_mode(args.mode, args.pitch_offset, args.roll_offset)
+            print(f"{'ok' if ok else 'refused'}: {msg}")
+            return 0 if ok else 1
+        if cmd == "primitive":
+            def show(fb: Any) -> None:
+                if not args.json:
+                    print(f"  {fb.percent_complete:5.1f}%  {fb.feedback}", file=sys.stderr)
+            res = client.run_primitive(args.name, args.params, show, timeout=args.timeout)
+            if args.json:
+                print(json.dumps(res.to_dict()))
+            else:
+                print(f"{'success' if res.success else 'failed'}: {res.message}; final joints "
+                      f"[pitch, roll] = {[round(v, 4) for v in res.final_joint_values]}")
+            return 0 if res.success else 1
+        st = client.latest_state()
+        if st is None:
+            print("error: no joint state received yet", file=sys.stderr)
+            return 1
+        d = {"mode": st.mode.name, "joint_names": list(st.joint_names),
+             "position": list(st.position), "velocity": list(st.velocity),
+             "orientation_wxyz": list(st.orientation_wxyz), "fault": st.fault,
+             "battery_voltage": st.battery_voltage, "loop_period_mean": st.loop_period_mean,
+             "loop_jitter": st.loop_jitter, "loop_overruns": st.loop_overruns}
+        if args.json:  # JSON has no NaN: unknown numbers become null
+            print(json.dumps({k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                              for k, v in d.items()}))
+        else:
+            for k, v in d.items():
+                print(f"{k}: {v}")
+        return 0
+    except ValueError as err:
+        return _usage(str(err))
+    except LinkError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    finally:
+        client.close()

@@ -1,0 +1,305 @@
+"""PC side of the link: ``ArticutoolClient`` (thesis §3.2.2's three command modalities).
+
+The client keeps the latest telemetry, publishes a heartbeat (the tool's link-loss detector
+listens to it) and declares the tool *silent* when nothing has arrived from it for
+``LinkConfig.tool_timeout`` seconds (default 1 s; the tool publishes at 50 Hz, so that is 50
+missed samples). Calls made while the tool is silent raise :class:`ToolSilentError` once their
+own time runs out; the Zenoh session keeps reconnecting, and as soon as the tool is heard
+again the same client works again — nothing needs re-creating.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+import uuid
+from collections.abc import Callable
+from typing import Any
+
+from articutool.link import messages as m
+from articutool.link.config import LinkConfig
+from articutool.link.transport import Endpoint, LinkTimeoutError, Names, Transport
+from articutool.tool.api import Mode, PrimitiveStatus, ToolState
+from articutool.trajectory import JointTrajectory
+
+__all__ = ["ArticutoolClient", "LinkError", "ToolSilentError"]
+
+_log = logging.getLogger(__name__)
+
+
+class LinkError(RuntimeError):
+    """The link failed to carry a command (malformed reply, tool restarted mid-goal, …)."""
+
+
+class ToolSilentError(LinkError):
+    """The tool did not answer, and nothing was heard from it within the silence bound."""
+
+
+def parse_mode(mode: Mode | str | int) -> Mode:
+    """'leveling' / 'disabled' / Mode / 0|1 → Mode (only the two service modes)."""
+    if isinstance(mode, str):
+        key = mode.strip().upper()
+        if key not in ("LEVELING", "DISABLED"):
+            raise ValueError(f"mode must be 'leveling' or 'disabled'; got {mode!r}")
+        return Mode[key]
+    if mode not in (Mode.DISABLED, Mode.LEVELING):
+        raise ValueError(f"mode must be DISABLED (0) or LEVELING (1); got {mode!r}")
+    return Mode(mode)
+
+
+class ArticutoolClient:
+    """Command and monitor an Articutool over the link.
+
+    ``transport`` defaults to a Zenoh session in the client role built from ``config``.
+    """
+
+    def __init__(self, config: LinkConfig | None = None, transport: Transport | None = None,
+                 sender: str | None = None) -> None:
+        self.cfg = config or LinkConfig()
+        if transport is None:
+            from articutool.link.zenoh_transport import ZenohTransport
+            transport = ZenohTransport(self.cfg, "client")
+        self.transport = transport
+        self.names = Names(self.cfg.namespace)
+        self.sender = sender or f"articutool-client-{uuid.uuid4().hex[:8]}"
+        self.counters = {"decode_errors": 0, "received": 0, "joint_states": 0}
+        self._lock = threading.Lock()
+        self._latest: dict[str, Any] = {}
+        self._last_rx: float | None = None
+        self._js_rx: float = float("nan")
+        self._feedback: dict[bytes, tuple[str, Callable[[PrimitiveStatus], None] | None]] = {}
+        self._goal: bytes | None = None
+        self._stop = threading.Event()
+        n = self.names
+        self._handles = [self.transport.subscribe(ep, self._receiver(key, ep))
+                         for key, ep in (("js", n.joint_states), ("imu", n.imu),
+                                         ("health", n.health), ("battery", n.battery),
+                                         ("beat", n.heartbeat), ("status", n.status))]
+        self._handles.append(self.transport.subscribe(n.feedback, self._on_feedback))
+        self._beat = threading.Thread(target=self._heartbeat, name="link-client-beat",
+                                      daemon=True)
+        self._beat.start()
+
+    # ---------------------------------------------------------------- plumbing --
+    def _decode(self, data: bytes, typename: str) -> Any | None:
+        try:
+            return m.decode(data, typename)
+        except m.LinkDecodeError as err:
+            with self._lock:
+                self.counters["decode_errors"] += 1
+            _log.warning("dropped malformed payload: %s", err)
+            return None
+
+    def _receiver(self, key: str, ep: Endpoint) -> Callable[[bytes], None]:
+        def on_data(data: bytes) -> None:
+            obj = self._decode(data, ep.type)
+            if obj is None:
+                return
+            now = time.monotonic()
+            with self._lock:
+                self._latest[key] = obj
+                self._last_rx = now
+                self.counters["received"] += 1
+                if key == "js":
+                    self.counters["joint_states"] += 1
+                    self._js_rx = now
+        return on_data
+
+    def _on_feedback(self, data: bytes) -> None:
+        fb = self._decode(data, self.names.feedback.type)
+        if fb is None:
+            return
+        with self._lock:
+            self._last_rx = time.monotonic()
+            name, cb = self._feedback.get(m.uuid_bytes(fb.goal_id), ("", None))
+        if cb is not None:
+            f = fb.feedback
+            joints = tuple(float(x) for x in f.current_joint_values)
+            try:
+                cb(PrimitiveStatus(name=name, percent_complete=float(f.percent_complete),
+                                   feedback=str(f.feedback_string),
+                                   current_joint_values=joints,  # type: ignore[arg-type]
+                                   done=False))
+            except Exception:
+                _log.exception("feedback callback raised")
+
+    def _heartbeat(self) -> None:
+        ep = self.names.client_heartbeat
+        while not self._stop.is_set():
+            try:
+                self.transport.publish(ep, m.encode(m.heartbeat_msg(time.time(), self.sender),
+                                                    ep.type))
+            except Exception:
+                _log.exception("heartbeat publish failed")
+            self._stop.wait(self.cfg.heartbeat_period)
+
+    def _silence(self) -> str:
+        ago = self.last_heard
+        return "never heard from the tool" if ago is None else \
+            f"last heard from the tool {ago:.1f} s ago"
+
+    def _call(self, ep: Endpoint, request: Any, timeout: float | None = None) -> Any:
+        t = self.cfg.call_timeout if timeout is None else timeout
+        payload = m.encode(request, ep.request_type)
+        try:
+            reply = self.transport.call(ep, payload, t)
+        except LinkTimeoutError as err:
+            raise ToolSilentError(f"{ep.name}: no reply within {t:g} s ({self._silence()}): "
+                                  f"{err}") from None
+        obj = self._decode(reply, ep.response_type)
+        if obj is None:
+            raise LinkError(f"{ep.name}: the tool's reply was malformed")
+        return obj
+
+    # ------------------------------------------------------------------ status --
+    @property
+    def last_heard(self) -> float | None:
+        """Seconds since anything arrived from the tool (None if never)."""
+        with self._lock:
+            last = self._last_rx
+        return None if last is None else time.monotonic() - last
+
+    @property
+    def tool_alive(self) -> bool:
+        """True while the tool was heard within ``tool_timeout``."""
+        ago = self.last_heard
+        return ago is not None and ago < self.cfg.tool_timeout
+
+    def wait_for_tool(self, timeout: float) -> bool:
+        """Block until the tool is heard (True) or ``timeout`` passes (False)."""
+        deadline = time.monotonic() + timeout
+        while not self.tool_alive:
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.02)
+        return True
+
+    def latest_state(self) -> ToolState | None:
+        """The latest telemetry as a ToolState (``stamp`` = local receive time), or None."""
+        with self._lock:
+            js = self._latest.get("js")
+            parts = (self._latest.get("imu"), self._latest.get("health"),
+                     self._latest.get("battery"))
+            stamp = self._js_rx
+        if js is None:
+            return None
+        try:
+            return m.state_from_msgs(js, *parts, stamp=stamp)
+        except m.LinkDecodeError:
+            with self._lock:
+                self.counters["decode_errors"] += 1
+            return None
+
+    # ---------------------------------------------------------------- commands --
+    def set_mode(self, mode: Mode | str | int, pitch_offset_deg: float = 0.0,
+                 roll_offset_deg: float = 0.0) -> tuple[bool, str]:
+        """Call ``set_orientation_control``; returns the tool's (success, message).
+
+        Raises ValueError on bad input (nothing is sent) and ToolSilentError without reply.
+        """
+        req = m.soc_request(parse_mode(mode), float(pitch_offset_deg), float(roll_offset_deg))
+        resp = self._call(self.names.set_orientation_control, req)
+        return bool(resp.success), str(resp.message)
+
+    def run_primitive(self, name: str, params: list[float] | tuple[float, ...] = (),
+                      feedback_cb: Callable[[PrimitiveStatus], None] | None = None,
+                      timeout: float | None = None) -> m.PrimitiveResult:
+        """Run a primitive through the action and wait for its result.
+
+        ``feedback_cb(PrimitiveStatus)`` receives feedback (percent, text, joints). On
+        ``timeout`` the goal is cancelled and a result with ``success=False`` returned. A
+        refusal by the tool is a result with ``success=False`` and the tool's message.
+        Raises ToolSilentError when the tool goes silent while the goal runs.
+        """
+        if not isinstance(name, str) or not name:
+            raise ValueError("primitive name must be a non-empty string")
+        params = [float(p) for p in params]
+        gid = uuid.uuid4().bytes
+        with self._lock:
+            self._feedback[gid] = (name, feedback_cb)
+            self._goal = gid
+        try:
+            resp = self._call(self.names.send_goal, m.send_goal_request(gid, name, params))
+            if not resp.accepted:
+                return m.PrimitiveResult(False, "goal rejected by the tool", (),
+                                         m.GoalStatus.UNKNOWN)
+            return self._await_result(gid, timeout)
+        finally:
+            with self._lock:
+                self._feedback.pop(gid, None)
+                if self._goal == gid:
+                    self._goal = None
+
+    def _await_result(self, gid: bytes, timeout: float | None) -> m.PrimitiveResult:
+        ep = self.names.get_result
+        deadline = None if timeout is None else time.monotonic() + timeout
+        req = m.encode(m.msg(ep.request_type, goal_id=m.goal_uuid(gid)), ep.request_type)
+        while True:
+            left = None if deadline is None else deadline - time.monotonic()
+            if left is not None and left <= 0:
+                self.cancel(gid)
+                try:  # the cancelled goal's own result, if it arrives promptly
+                    res = self._get_result_once(ep, req, self.cfg.call_timeout)
+                    msg = f"timed out after {timeout:g} s; cancelled ({res.message})"
+                    return m.PrimitiveResult(False, msg, res.final_joint_values, res.status)
+                except LinkTimeoutError:
+                    return m.PrimitiveResult(False, f"timed out after {timeout:g} s; "
+                                             "cancel requested", (), m.GoalStatus.UNKNOWN)
+            poll = self.cfg.tool_timeout if left is None else min(left, self.cfg.tool_timeout)
+            t0 = time.monotonic()
+            try:
+                return self._get_result_once(ep, req, poll)
+            except LinkTimeoutError:
+                if not self.tool_alive:
+                    raise ToolSilentError(f"the tool went silent while running the primitive "
+                                          f"({self._silence()})") from None
+                # No queryable reachable makes get return at once: don't spin.
+                time.sleep(max(0.0, min(0.05, poll - (time.monotonic() - t0))))
+
+    def _get_result_once(self, ep: Endpoint, req: bytes, t: float) -> m.PrimitiveResult:
+        obj = self._decode(self.transport.call(ep, req, t), ep.response_type)
+        if obj is None:
+            raise LinkError(f"{ep.name}: the tool's reply was malformed")
+        res = m.result_from_msg(obj)
+        if res.status == m.GoalStatus.UNKNOWN:
+            raise LinkError("the tool does not know this goal (was it restarted?): "
+                            f"{res.message}")
+        return res
+
+    def cancel(self, goal_id: bytes | None = None) -> bool:
+        """Cancel ``goal_id`` (default: this client's running goal, else every goal).
+
+        True if the tool started cancelling a goal.
+        """
+        with self._lock:
+            gid = goal_id if goal_id is not None else self._goal
+        resp = self._call(self.names.cancel_goal, m.cancel_request(gid))
+        return int(resp.return_code) == 0 and len(resp.goals_canceling) > 0
+
+    def follow_trajectory(self, trajectory: JointTrajectory) -> None:
+        """Publish a wrist trajectory (joint names [pitch, roll]) for the tool to follow.
+
+        Fire-and-forget like a ROS topic; raises ToolSilentError if the tool is silent
+        (nothing is sent into the void).
+        """
+        if not isinstance(trajectory, JointTrajectory):
+            raise TypeError("trajectory must be an articutool.trajectory.JointTrajectory")
+        if not self.tool_alive:
+            raise ToolSilentError(f"not sending the trajectory: {self._silence()}")
+        ep = self.names.joint_trajectory
+        self.transport.publish(ep, m.encode(m.trajectory_msg(trajectory, time.time()), ep.type))
+
+    def close(self) -> None:
+        """Stop the heartbeat, undeclare everything and close the transport."""
+        self._stop.set()
+        self._beat.join(timeout=2)
+        for h in self._handles:
+            h.close()
+        self.transport.close()
+
+    def __enter__(self) -> ArticutoolClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,114 @@
+"""In-process transport for unit tests: a bus shared by several ``MemoryTransport`` objects.
+
+Delivery is asynchronous on one dispatcher thread per bus (like a network, a publisher never
+runs its subscribers' code). ``MemoryTransport.connected = False`` cuts one participant off
+the bus, which is how unit tests simulate a lost link.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+from collections.abc import Callable
+
+from articutool.link.transport import Endpoint, Handle, LinkTimeoutError, Responder, Transport
+
+__all__ = ["MemoryBus", "MemoryTransport"]
+
+_log = logging.getLogger(__name__)
+
+
+class _Handle(Handle):
+    def __init__(self, registry: dict, key: str, item: object, lock: threading.Lock) -> None:
+        self._registry, self._key, self._item, self._lock = registry, key, item, lock
+
+    def close(self) -> None:
+        with self._lock:
+            items = self._registry.get(self._key, [])
+            if self._item in items:
+                items.remove(self._item)
+
+
+class MemoryBus:
+    """The shared medium; call :meth:`close` to stop its dispatcher thread."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.subs: dict[str, list[tuple[MemoryTransport, Callable[[bytes], None]]]] = {}
+        self.services: dict[str, list[tuple[MemoryTransport, Callable]]] = {}
+        self._q: queue.Queue[Callable[[], None] | None] = queue.Queue()
+        self._thread = threading.Thread(target=self._run, name="memory-bus", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while (job := self._q.get()) is not None:
+            try:
+                job()
+            except Exception:  # a faulty callback must not stop the bus
+                _log.exception("memory bus callback raised")
+
+    def post(self, job: Callable[[], None]) -> None:
+        """Run ``job`` on the dispatcher thread."""
+        self._q.put(job)
+
+    def close(self) -> None:
+        """Stop the dispatcher."""
+        self._q.put(None)
+        self._thread.join(timeout=5)
+
+
+class MemoryTransport(Transport):
+    """One participant on a :class:`MemoryBus`."""
+
+    def __init__(self, bus: MemoryBus) -> None:
+        self.bus = bus
+        self.connected = True
+
+    def publish(self, ep: Endpoint, payload: bytes) -> None:
+        if not self.connected:
+            return
+        with self.bus.lock:
+            targets = [cb for t, cb in self.bus.subs.get(ep.name, []) if t.connected]
+        data = bytes(payload)
+        for cb in targets:
+            self.bus.post(lambda cb=cb: cb(data))
+
+    def subscribe(self, ep: Endpoint, callback: Callable[[bytes], None]) -> Handle:
+        item = (self, callback)
+        with self.bus.lock:
+            self.bus.subs.setdefault(ep.name, []).append(item)
+        return _Handle(self.bus.subs, ep.name, item, self.bus.lock)
+
+    def serve(self, ep: Endpoint, handler: Callable[[bytes, Responder], None]) -> Handle:
+        item = (self, handler)
+        with self.bus.lock:
+            self.bus.services.setdefault(ep.name, []).append(item)
+        return _Handle(self.bus.services, ep.name, item, self.bus.lock)
+
+    def call(self, ep: Endpoint, payload: bytes, timeout: float) -> bytes:
+        with self.bus.lock:
+            servers = [(t, h) for t, h in self.bus.services.get(ep.name, []) if t.connected]
+        if not self.connected or not servers:
+            raise LinkTimeoutError(f"no server for {ep.name}")
+        done = threading.Event()
+        box: list[bytes] = []
+        server, handler = servers[0]
+
+        def respond(reply: bytes) -> None:
+            if server.connected and self.connected and not done.is_set():
+                box.append(bytes(reply))
+                done.set()
+
+        data = bytes(payload)
+        self.bus.post(lambda: handler(data, respond))
+        if not done.wait(timeout):
+            raise LinkTimeoutError(f"no reply from {ep.name} within {timeout:g} s")
+        return box[0]
+
+    def close(self) -> None:
+        self.connected = False
+        with self.bus.lock:
+            for reg in (self.bus.subs, self.bus.services):
+                for key in reg:
+                    reg[key] = [it for it in reg[key] if it[0] is not self]

@@ -1,0 +1,517 @@
+"""Link message definitions, ROS 2 CDR codecs and conversions to articutool types.
+
+The Articutool interfaces mirror the original ROS 2 package ``articutool_interfaces``
+(thesis §3.2.2: a service sets the control mode, an action runs a primitive with feedback,
+joint trajectories stream to the wrist). Telemetry uses standard types only:
+``sensor_msgs/JointState`` (joint order [pitch, roll]), ``sensor_msgs/Imu`` (filtered
+orientation), ``diagnostic_msgs/DiagnosticArray`` (loop health, fault, mode, link counters),
+``sensor_msgs/BatteryState`` (motor input voltage) and ``std_msgs/Header`` as a heartbeat.
+
+Payloads are serialised with ``rosbags`` as ROS 2 CDR, including the 4-byte encapsulation
+header, i.e. the bytes a ROS 2 node puts on the wire. Every decoder raises
+:class:`LinkDecodeError` on malformed input (never another exception type), so a receiver can
+count and drop bad payloads. This module is pure: no I/O, no threads.
+
+Message definitions (``.msg``/``.srv``/``.action`` text)::
+
+    # articutool_interfaces/srv/SetOrientationControl
+    uint8 MODE_DISABLED=0
+    uint8 MODE_LEVELING=1
+    uint8 control_mode
+    float32 pitch_offset   # degrees
+    float32 roll_offset    # degrees
+    ---
+    bool success
+    string message
+
+    # articutool_interfaces/action/ExecuteArticutoolPrimitive
+    string primitive_name
+    float32[] parameters
+    ---
+    bool success
+    string message
+    float32[] final_joint_values
+    ---
+    string feedback_string
+    float32 percent_complete
+    float32[] current_joint_values
+"""
+
+from __future__ import annotations
+
+import math
+import uuid
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from articutool.tool.api import Mode, PrimitiveStatus, ToolState
+from articutool.trajectory import JointTrajectory, TrajectoryError
+
+__all__ = [
+    "ACTION",
+    "BATTERY_STATE",
+    "CANCEL_GOAL",
+    "DIAGNOSTIC_ARRAY",
+    "FEEDBACK_MESSAGE",
+    "GET_RESULT",
+    "GOAL_STATUS_ARRAY",
+    "HEADER",
+    "IMU",
+    "JOINT_STATE",
+    "JOINT_TRAJECTORY",
+    "SEND_GOAL",
+    "SET_ORIENTATION_CONTROL",
+    "GoalStatus",
+    "LinkDecodeError",
+    "PrimitiveResult",
+    "dds_type_name",
+    "decode",
+    "encode",
+    "goal_uuid",
+    "stamp_to_time",
+    "time_to_stamp",
+    "type_hash",
+    "typestore",
+]
+
+PKG = "articutool_interfaces"
+SET_ORIENTATION_CONTROL = f"{PKG}/srv/SetOrientationControl"
+ACTION = f"{PKG}/action/ExecuteArticutoolPrimitive"
+SEND_GOAL = f"{ACTION}_SendGoal"
+GET_RESULT = f"{ACTION}_GetResult"
+FEEDBACK_MESSAGE = f"{ACTION}_FeedbackMessage"
+CANCEL_GOAL = "action_msgs/srv/CancelGoal"
+GOAL_STATUS_ARRAY = "action_msgs/msg/GoalStatusArray"
+JOINT_STATE = "sensor_msgs/msg/JointState"
+IMU = "sensor_msgs/msg/Imu"
+JOINT_TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
+DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
+BATTERY_STATE = "sensor_msgs/msg/BatteryState"
+HEADER = "std_msgs/msg/Header"
+
+# (final type name, .msg text); names of our own types are rewritten from pkg/msg/X.
+_SRV_SOC = {
+    "SetOrientationControl_Request": (
+        "uint8 MODE_DISABLED=0\nuint8 MODE_LEVELING=1\n"
+        "uint8 control_mode\nfloat32 pitch_offset\nfloat32 roll_offset\n"),
+    "SetOrientationControl_Response": "bool success\nstring message\n",
+}
+_ACTION_MSGS = {
+    "ExecuteArticutoolPrimitive_Goal": "string primitive_name\nfloat32[] parameters\n",
+    "ExecuteArticutoolPrimitive_Result": (
+        "bool success\nstring message\nfloat32[] final_joint_values\n"),
+    "ExecuteArticutoolPrimitive_Feedback": (
+        "string feedback_string\nfloat32 percent_complete\nfloat32[] current_joint_values\n"),
+    "ExecuteArticutoolPrimitive_SendGoal_Request": (
+        "unique_identifier_msgs/UUID goal_id\nExecuteArticutoolPrimitive_Goal goal\n"),
+    "ExecuteArticutoolPrimitive_SendGoal_Response": (
+        "bool accepted\nbuiltin_interfaces/Time stamp\n"),
+    "ExecuteArticutoolPrimitive_GetResult_Request": "unique_identifier_msgs/UUID goal_id\n",
+    "ExecuteArticutoolPrimitive_GetResult_Response": (
+        "int8 status\nExecuteArticutoolPrimitive_Result result\n"),
+    "ExecuteArticutoolPrimitive_FeedbackMessage": (
+        "unique_identifier_msgs/UUID goal_id\nExecuteArticutoolPrimitive_Feedback feedback\n"),
+}
+# action_msgs/srv/CancelGoal is not in rosbags' stores (it only holds messages).
+_CANCEL = {
+    "CancelGoal_Request": "action_msgs/GoalInfo goal_info\n",
+    "CancelGoal_Response": (
+        "int8 ERROR_NONE=0\nint8 ERROR_REJECTED=1\nint8 ERROR_UNKNOWN_GOAL_ID=2\n"
+        "int8 ERROR_GOAL_TERMINATED=3\nint8 return_code\naction_msgs/GoalInfo[] goals_canceling\n"),
+}
+
+
+class LinkDecodeError(ValueError):
+    """A payload is not a valid CDR encoding of the expected message type."""
+
+
+class GoalStatus:
+    """``action_msgs/msg/GoalStatus`` status constants."""
+
+    UNKNOWN = 0
+    ACCEPTED = 1
+    EXECUTING = 2
+    CANCELING = 3
+    SUCCEEDED = 4
+    CANCELED = 5
+    ABORTED = 6
+    TERMINAL = frozenset({4, 5, 6})
+
+
+@dataclass(frozen=True)
+class PrimitiveResult:
+    """The action result plus the terminal goal status (a ``GoalStatus`` constant)."""
+
+    success: bool
+    message: str
+    final_joint_values: tuple[float, ...]
+    status: int = GoalStatus.UNKNOWN
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON form the CLI prints: exactly the action result's fields."""
+        return {"success": self.success, "message": self.message,
+                "final_joint_values": list(self.final_joint_values)}
+
+
+def _rename(obj: Any, mapping: dict[str, str]) -> Any:
+    """Rewrite type-name strings inside rosbags field definitions."""
+    if isinstance(obj, str):
+        return mapping.get(obj, obj)
+    if isinstance(obj, tuple):
+        return tuple(_rename(o, mapping) for o in obj)
+    if isinstance(obj, list):
+        return [_rename(o, mapping) for o in obj]
+    return obj
+
+
+def _parse(pkg: str, kind: str, defs: dict[str, str], also: tuple[str, ...] = ()) -> dict[str, Any]:
+    """Parse .msg texts registered as ``pkg/kind/Name`` (rosbags assumes ``pkg/msg/Name``).
+
+    ``also`` names further ``pkg/kind`` types the texts refer to by their short name.
+    """
+    out: dict[str, Any] = {}
+    for name, text in defs.items():
+        out.update(get_types_from_msg(text, f"{pkg}/msg/{name}"))
+    mapping = {f"{pkg}/msg/{n}": f"{pkg}/{kind}/{n}" for n in (*defs, *also)}
+    return {mapping.get(k, k): _rename(v, mapping) for k, v in out.items()}
+
+
+def _srv_description(pkg: str, kind: str, base: str) -> dict[str, Any]:
+    """REP 2011 service description structs, used only for the service's RIHS01 type hash."""
+    defs = {
+        f"{base}_Event": (f"service_msgs/ServiceEventInfo info\n{base}_Request[<=1] request\n"
+                          f"{base}_Response[<=1] response\n"),
+        base: (f"{base}_Request request_message\n{base}_Response response_message\n"
+               f"{base}_Event event_message\n"),
+    }
+    return _parse(pkg, kind, defs, also=(f"{base}_Request", f"{base}_Response"))
+
+
+_ACTION_DESCRIPTION = (
+    "ExecuteArticutoolPrimitive_Goal goal\nExecuteArticutoolPrimitive_Result result\n"
+    "ExecuteArticutoolPrimitive_Feedback feedback\n"
+    "ExecuteArticutoolPrimitive_SendGoal send_goal_service\n"
+    "ExecuteArticutoolPrimitive_GetResult get_result_service\n"
+    "ExecuteArticutoolPrimitive_FeedbackMessage feedback_message\n")
+
+
+@lru_cache(maxsize=1)
+def typestore() -> Any:
+    """The ROS 2 (Jazzy) type store with the Articutool and action protocol types."""
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    ts.register(_parse(PKG, "srv", _SRV_SOC))
+    ts.register(_parse(PKG, "action", _ACTION_MSGS))
+    ts.register(_parse("action_msgs", "srv", _CANCEL))
+    ts.register(_srv_description(PKG, "srv", "SetOrientationControl"))
+    ts.register(_srv_description("action_msgs", "srv", "CancelGoal"))
+    for sub in ("SendGoal", "GetResult"):
+        ts.register(_srv_description(PKG, "action", f"ExecuteArticutoolPrimitive_{sub}"))
+    ts.register(_parse(PKG, "action", {"ExecuteArticutoolPrimitive": _ACTION_DESCRIPTION},
+                       also=tuple(f"ExecuteArticutoolPrimitive_{p}" for p in (
+                           "Goal", "Result", "Feedback", "SendGoal", "GetResult",
+                           "FeedbackMessage"))))
+    return ts
+
+
+def type_hash(typename: str) -> str:
+    """RIHS01 type hash (REP 2011) of a message, service or action type, via rosbags."""
+    return str(typestore().hash_rihs01(typename))
+
+
+def dds_type_name(typename: str) -> str:
+    """``pkg/msg/Name`` → ``pkg::msg::dds_::Name_`` (the type name rmw_zenoh puts in keys)."""
+    pkg, kind, name = typename.split("/")
+    return f"{pkg}::{kind}::dds_::{name}_"
+
+
+def msg(typename: str, **fields: Any) -> Any:
+    """Build a message instance of ``typename``."""
+    return typestore().types[typename](**fields)
+
+
+def encode(message: Any, typename: str) -> bytes:
+    """Serialise ``message`` as little-endian ROS 2 CDR (with encapsulation header)."""
+    return bytes(typestore().serialize_cdr(message, typename))
+
+
+def decode(data: bytes | bytearray | memoryview, typename: str) -> Any:
+    """Deserialise ROS 2 CDR bytes as ``typename``; raise LinkDecodeError when malformed.
+
+    Checks the encapsulation header (plain CDR, either endianness), that the whole payload is
+    consumed up to CDR alignment padding (a truncated or extended payload is an error), and
+    wraps every decoder failure (bad lengths, bad UTF-8, short buffers) in LinkDecodeError.
+    """
+    raw = bytes(data)
+    if len(raw) < 4 or raw[0] != 0 or raw[1] not in (0, 1):
+        raise LinkDecodeError(
+            f"{typename}: not a CDR payload (need a 4-byte header 00 00|01 ..; got "
+            f"{raw[:4].hex() or 'nothing'})")
+    try:
+        obj = typestore().deserialize_cdr(raw, typename)
+    except Exception as err:  # rosbags raises assorted errors on garbage: normalise them
+        raise LinkDecodeError(f"{typename}: malformed CDR payload ({len(raw)} bytes): "
+                              f"{type(err).__name__}: {err}") from None
+    if raw[1] == 1:  # re-encoding must reproduce the bytes up to trailing padding
+        again = encode(obj, typename)
+        if len(raw) - len(again) not in range(0, 4) or raw[: len(again)] != again:
+            raise LinkDecodeError(f"{typename}: payload has {len(raw)} bytes but the message "
+                                  f"encodes to {len(again)} (trailing or inconsistent data)")
+    return obj
+
+
+# ----------------------------------------------------------------- helpers --
+def time_to_stamp(t: float) -> Any:
+    """Seconds (float, e.g. ``time.time()``) → ``builtin_interfaces/Time``."""
+    sec = math.floor(t)
+    nsec = min(round((t - sec) * 1e9), 999_999_999)
+    return msg("builtin_interfaces/msg/Time", sec=sec, nanosec=nsec)
+
+
+def stamp_to_time(stamp: Any) -> float:
+    """``builtin_interfaces/Time`` → seconds."""
+    return float(stamp.sec) + float(stamp.nanosec) * 1e-9
+
+
+def header(t: float, frame_id: str = "") -> Any:
+    """A ``std_msgs/Header``."""
+    return msg(HEADER, stamp=time_to_stamp(t), frame_id=frame_id)
+
+
+def goal_uuid(goal_id: bytes | None = None) -> Any:
+    """A ``unique_identifier_msgs/UUID`` (random when ``goal_id`` is None)."""
+    raw = uuid.uuid4().bytes if goal_id is None else bytes(goal_id)
+    if len(raw) != 16:
+        raise ValueError(f"goal_id must be 16 bytes; got {len(raw)}")
+    return msg("unique_identifier_msgs/msg/UUID", uuid=np.frombuffer(raw, dtype=np.uint8).copy())
+
+
+def uuid_bytes(u: Any) -> bytes:
+    """The 16 raw bytes of a ``unique_identifier_msgs/UUID``."""
+    return bytes(np.asarray(u.uuid, dtype=np.uint8).tobytes())
+
+
+def _f32(values: Any) -> Any:
+    return np.asarray(list(values), dtype=np.float32)
+
+
+# ------------------------------------------------------------- service/action --
+def soc_request(mode: Mode, pitch_offset_deg: float, roll_offset_deg: float) -> Any:
+    """``SetOrientationControl`` request (only DISABLED and LEVELING exist on the wire)."""
+    if mode not in (Mode.DISABLED, Mode.LEVELING):
+        raise ValueError(f"control_mode must be DISABLED (0) or LEVELING (1); got {mode!r}")
+    for name, v in (("pitch_offset", pitch_offset_deg), ("roll_offset", roll_offset_deg)):
+        if not math.isfinite(v):
+            raise ValueError(f"{name} must be a finite number of degrees; got {v}")
+    return msg(f"{SET_ORIENTATION_CONTROL}_Request", control_mode=int(mode),
+               pitch_offset=float(pitch_offset_deg), roll_offset=float(roll_offset_deg))
+
+
+def soc_response(success: bool, message: str) -> Any:
+    """``SetOrientationControl`` response."""
+    return msg(f"{SET_ORIENTATION_CONTROL}_Response", success=bool(success), message=message)
+
+
+def send_goal_request(goal_id: bytes, name: str, parameters: list[float]) -> Any:
+    """Action ``SendGoal`` request."""
+    goal = msg(f"{ACTION}_Goal", primitive_name=name, parameters=_f32(parameters))
+    return msg(f"{SEND_GOAL}_Request", goal_id=goal_uuid(goal_id), goal=goal)
+
+
+def send_goal_response(accepted: bool, t: float) -> Any:
+    """Action ``SendGoal`` response."""
+    return msg(f"{SEND_GOAL}_Response", accepted=bool(accepted), stamp=time_to_stamp(t))
+
+
+def result_msg(result: PrimitiveResult) -> Any:
+    """Action ``GetResult`` response for ``result``."""
+    r = msg(f"{ACTION}_Result", success=result.success, message=result.message,
+            final_joint_values=_f32(result.final_joint_values))
+    return msg(f"{GET_RESULT}_Response", status=int(result.status), result=r)
+
+
+def result_from_msg(m: Any) -> PrimitiveResult:
+    """``GetResult`` response → PrimitiveResult."""
+    r = m.result
+    return PrimitiveResult(bool(r.success), str(r.message),
+                           tuple(float(x) for x in r.final_joint_values), int(m.status))
+
+
+def feedback_msg(goal_id: bytes, status: PrimitiveStatus) -> Any:
+    """Action feedback message from a PrimitiveStatus."""
+    fb = msg(f"{ACTION}_Feedback", feedback_string=status.feedback,
+             percent_complete=float(status.percent_complete),
+             current_joint_values=_f32(status.current_joint_values))
+    return msg(FEEDBACK_MESSAGE, goal_id=goal_uuid(goal_id), feedback=fb)
+
+
+def status_array(goals: list[tuple[bytes, float, int]]) -> Any:
+    """``GoalStatusArray`` from (goal_id, accept time, status) triples."""
+    items = [msg("action_msgs/msg/GoalStatus",
+                 goal_info=msg("action_msgs/msg/GoalInfo", goal_id=goal_uuid(g),
+                               stamp=time_to_stamp(t)), status=int(s))
+             for g, t, s in goals]
+    return msg(GOAL_STATUS_ARRAY, status_list=items)
+
+
+def cancel_request(goal_id: bytes | None) -> Any:
+    """``CancelGoal`` request; ``None`` cancels all goals (zero id, zero stamp)."""
+    info = msg("action_msgs/msg/GoalInfo", goal_id=goal_uuid(goal_id or bytes(16)),
+               stamp=time_to_stamp(0.0))
+    return msg(f"{CANCEL_GOAL}_Request", goal_info=info)
+
+
+def cancel_response(return_code: int, goals: list[tuple[bytes, float]]) -> Any:
+    """``CancelGoal`` response."""
+    infos = [msg("action_msgs/msg/GoalInfo", goal_id=goal_uuid(g), stamp=time_to_stamp(t))
+             for g, t in goals]
+    return msg(f"{CANCEL_GOAL}_Response", return_code=int(return_code), goals_canceling=infos)
+
+
+# ----------------------------------------------------------------- telemetry --
+def joint_state_msg(state: ToolState, t: float) -> Any:
+    """``sensor_msgs/JointState`` ([pitch, roll]; effort left empty)."""
+    return msg(JOINT_STATE, header=header(t, "articutool"), name=list(state.joint_names),
+               position=np.asarray(state.position, dtype=np.float64),
+               velocity=np.asarray(state.velocity, dtype=np.float64),
+               effort=np.zeros(0, dtype=np.float64))
+
+
+def imu_msg(state: ToolState, t: float, frame_id: str = "articutool_imu") -> Any:
+    """``sensor_msgs/Imu`` carrying the filtered orientation (covariances unknown → 0)."""
+    w, x, y, z = state.orientation_wxyz
+    return msg(IMU, header=header(t, frame_id),
+               orientation=msg("geometry_msgs/msg/Quaternion", x=x, y=y, z=z, w=w),
+               orientation_covariance=np.zeros(9),
+               angular_velocity=msg("geometry_msgs/msg/Vector3", x=state.angular_velocity[0],
+                                    y=state.angular_velocity[1], z=state.angular_velocity[2]),
+               angular_velocity_covariance=np.zeros(9),
+               linear_acceleration=msg("geometry_msgs/msg/Vector3",
+                                       x=state.linear_acceleration[0],
+                                       y=state.linear_acceleration[1],
+                                       z=state.linear_acceleration[2]),
+               linear_acceleration_covariance=np.zeros(9))
+
+
+HEALTH_NAME = "articutool: control loop"
+
+
+def health_msg(state: ToolState, t: float, link_counters: dict[str, int]) -> Any:
+    """``DiagnosticArray`` with one status: OK, or ERROR with the fault as message."""
+    values = {"mode": state.mode.name, "loop_period_mean": repr(state.loop_period_mean),
+              "loop_jitter": repr(state.loop_jitter), "loop_overruns": str(state.loop_overruns),
+              "fault": state.fault}
+    values.update({k: repr(v) for k, v in state.extra.items()})
+    values.update({f"link_{k}": str(v) for k, v in link_counters.items()})
+    kvs = [msg("diagnostic_msgs/msg/KeyValue", key=k, value=v) for k, v in values.items()]
+    level = 2 if state.fault else 0  # DiagnosticStatus.ERROR / OK
+    st = msg("diagnostic_msgs/msg/DiagnosticStatus", level=level, name=HEALTH_NAME,
+             message=state.fault or "OK", hardware_id="articutool", values=kvs)
+    return msg(DIAGNOSTIC_ARRAY, header=header(t), status=[st])
+
+
+def battery_msg(state: ToolState, t: float) -> Any:
+    """``sensor_msgs/BatteryState`` with the motors' input voltage (other fields unknown)."""
+    nan = float("nan")
+    return msg(BATTERY_STATE, header=header(t), voltage=state.battery_voltage,
+               temperature=nan, current=nan, charge=nan, capacity=nan, design_capacity=nan,
+               percentage=nan, power_supply_status=0, power_supply_health=0,
+               power_supply_technology=0, present=math.isfinite(state.battery_voltage),
+               cell_voltage=np.zeros(0, dtype=np.float32),
+               cell_temperature=np.zeros(0, dtype=np.float32), location="articutool",
+               serial_number="")
+
+
+def _fl(s: str) -> float:
+    try:
+        return float(s)
+    except ValueError:
+        return float("nan")
+
+
+def state_from_msgs(js: Any, imu: Any | None, health: Any | None, battery: Any | None,
+                    stamp: float) -> ToolState:
+    """Rebuild a ToolState (``stamp`` = local receive time) from the telemetry messages.
+
+    Raises LinkDecodeError when the joint state does not hold exactly two joints.
+    """
+    if len(js.name) != 2 or len(js.position) != 2:
+        raise LinkDecodeError(f"{JOINT_STATE}: expected 2 joints [pitch, roll]; got {js.name}")
+    vel = tuple(float(v) for v in js.velocity) if len(js.velocity) == 2 else (0.0, 0.0)
+    quat, gyro, acc = (1.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+    if imu is not None:
+        o, g, a = imu.orientation, imu.angular_velocity, imu.linear_acceleration
+        quat, gyro, acc = (o.w, o.x, o.y, o.z), (g.x, g.y, g.z), (a.x, a.y, a.z)
+    kv: dict[str, str] = {}
+    if health is not None:
+        for st in health.status:
+            if st.name == HEALTH_NAME:
+                kv = {k.key: k.value for k in st.values}
+    mode = Mode.__members__.get(kv.get("mode", ""), Mode.DISABLED)
+    known = {"mode", "loop_period_mean", "loop_jitter", "loop_overruns", "fault"}
+    extra = {k: _fl(v) for k, v in kv.items() if k not in known}
+    return ToolState(
+        stamp=stamp, mode=mode, joint_names=(str(js.name[0]), str(js.name[1])),
+        position=(float(js.position[0]), float(js.position[1])), velocity=vel,
+        orientation_wxyz=tuple(float(v) for v in quat),  # type: ignore[arg-type]
+        angular_velocity=tuple(float(v) for v in gyro),  # type: ignore[arg-type]
+        linear_acceleration=tuple(float(v) for v in acc),  # type: ignore[arg-type]
+        fault=kv.get("fault", ""),
+        battery_voltage=float(battery.voltage) if battery is not None else float("nan"),
+        loop_period_mean=_fl(kv.get("loop_period_mean", "nan")),
+        loop_jitter=_fl(kv.get("loop_jitter", "nan")),
+        loop_overruns=int(_fl(kv.get("loop_overruns", "0")) or 0), extra=extra)
+
+
+# -------------------------------------------------------------- trajectories --
+def trajectory_msg(traj: JointTrajectory, t: float = 0.0) -> Any:
+    """articutool JointTrajectory → ``trajectory_msgs/JointTrajectory``."""
+    pts = []
+    for ti, q, v in zip(traj.times, traj.positions, traj.velocities, strict=True):
+        sec = math.floor(ti)
+        nsec = min(round((ti - sec) * 1e9), 999_999_999)
+        pts.append(msg("trajectory_msgs/msg/JointTrajectoryPoint",
+                       positions=np.asarray(q, dtype=np.float64),
+                       velocities=np.asarray(v, dtype=np.float64),
+                       accelerations=np.zeros(0), effort=np.zeros(0),
+                       time_from_start=msg("builtin_interfaces/msg/Duration", sec=int(sec),
+                                           nanosec=nsec)))
+    return msg(JOINT_TRAJECTORY, header=header(t), joint_names=list(traj.joint_names),
+               points=pts)
+
+
+def trajectory_from_msg(m: Any) -> JointTrajectory:
+    """``trajectory_msgs/JointTrajectory`` → articutool JointTrajectory.
+
+    Missing velocities (an empty array, allowed by ROS) become zeros. Raises
+    LinkDecodeError when the message is inconsistent (TrajectoryError names the field).
+    """
+    try:
+        n = len(m.joint_names)
+        times, pos, vel = [], [], []
+        for i, p in enumerate(m.points):
+            times.append(float(p.time_from_start.sec) + float(p.time_from_start.nanosec) * 1e-9)
+            if len(p.positions) != n:
+                raise TrajectoryError(f"points[{i}].positions must have {n} values")
+            pos.append(np.asarray(p.positions, dtype=float))
+            v = np.asarray(p.velocities, dtype=float)
+            if v.size == 0:
+                v = np.zeros(n)
+            if v.size != n:
+                raise TrajectoryError(f"points[{i}].velocities must have {n} values or none")
+            vel.append(v)
+        if not times:
+            raise TrajectoryError("points must be a non-empty list")
+        return JointTrajectory(tuple(str(s) for s in m.joint_names), np.array(times),
+                               np.array(pos), np.array(vel))
+    except TrajectoryError as err:
+        raise LinkDecodeError(f"{JOINT_TRAJECTORY}: {err}") from None
+
+
+def heartbeat_msg(t: float, sender: str) -> Any:
+    """Heartbeat: a ``std_msgs/Header`` whose frame_id names the sender."""
+    return header(t, sender)
+

@@ -1,0 +1,349 @@
+"""Tool side of the link: serves a ``ToolAPI`` over a ``Transport`` (thesis §3.2.2, §4.5).
+
+Served: the ``SetOrientationControl`` service, the ``ExecuteArticutoolPrimitive`` action
+(send_goal / get_result / cancel_goal / feedback / status) and a joint-trajectory subscriber.
+Published at the loop rate (spec ``wrist.loop_rate_hz``, 50 Hz): joint states, filtered IMU
+orientation, health diagnostics (loop period/jitter/overruns, fault, mode, link counters) and
+battery; a heartbeat and the action status every ``heartbeat_period``.
+
+The 50 Hz control loop is the runtime's, not ours: this module only reads snapshots and
+forwards commands, so a slow or lost link never delays the loop, and leveling goes on
+whatever happens to the link.
+
+Refusals: ROS 2's SendGoal response carries no text, so a primitive the tool refuses (unknown
+name, bad parameters, busy, leveling) is *accepted then aborted* at once: get_result returns
+``success=false`` with the tool's message and status ABORTED.
+
+Link-loss policy (``LinkConfig.link_loss_policy``) when no client heartbeat or request has
+arrived for ``client_timeout`` seconds: ``"continue"`` (default) lets a running primitive
+finish; ``"cancel"`` cancels it (motors stop). Continue is the default because primitives are
+short, bounded motions inside the wrist's limits that the tool supervises locally: stopping a
+twirl or scoop halfway leaves food half-acquired and is no safer than finishing it, and the
+PC (which moves the arm) is exactly the party that is gone. Trajectories are finite and run to
+their end either way; leveling always continues (it is the point of the decoupling).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from articutool.link import messages as m
+from articutool.link.config import LinkConfig
+from articutool.link.transport import Handle, Names, Responder, Transport
+from articutool.tool.api import Mode, PrimitiveStatus, ToolAPI
+
+__all__ = ["ToolServer", "serve_forever"]
+
+_log = logging.getLogger(__name__)
+_ZERO_ID = bytes(16)
+_KEEP_GOALS = 32  # finished goals remembered for late get_result calls
+
+
+@dataclass
+class _Goal:
+    goal_id: bytes
+    name: str
+    accepted_at: float  # wall clock, for GoalInfo.stamp
+    status: int
+    prev: PrimitiveStatus | None = None  # primitive_status() before start: not ours
+    seen_running: bool = False
+    cancel_requested: bool = False
+    result: m.PrimitiveResult | None = None
+    waiters: list[Responder] = field(default_factory=list)
+
+
+class ToolServer:
+    """Serve ``api`` on ``transport``; :meth:`start` spawns the publishing thread."""
+
+    def __init__(self, api: ToolAPI, transport: Transport, config: LinkConfig | None = None,
+                 rate_hz: float | None = None) -> None:
+        self.api = api
+        self.transport = transport
+        self.cfg = config or LinkConfig()
+        if rate_hz is None:
+            rate_hz = self.cfg.publish_rate_hz
+        if rate_hz is None:
+            from articutool.spec import load_spec
+            rate_hz = load_spec().wrist.loop_rate_hz
+        self.period = 1.0 / float(rate_hz)
+        self.names = Names(self.cfg.namespace)
+        self.counters: dict[str, int] = {"decode_errors": 0, "handler_errors": 0,
+                                         "rejected_trajectories": 0, "link_losses": 0,
+                                         "ticks": 0}
+        self._lock = threading.RLock()
+        self._goals: OrderedDict[bytes, _Goal] = OrderedDict()
+        self._active: _Goal | None = None
+        self._last_client_rx: float | None = None
+        self._client_alive = False
+        self._handles: list[Handle] = []
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._next_beat = 0.0
+
+    # --------------------------------------------------------------- lifecycle --
+    def start(self) -> None:
+        """Declare the endpoints and start publishing."""
+        n, t = self.names, self.transport
+        self._handles = [
+            t.serve(n.set_orientation_control, self._guarded(self._on_set_mode)),
+            t.serve(n.send_goal, self._guarded(self._on_send_goal)),
+            t.serve(n.get_result, self._guarded(self._on_get_result)),
+            t.serve(n.cancel_goal, self._guarded(self._on_cancel)),
+            t.subscribe(n.joint_trajectory, self._guarded(self._on_trajectory)),
+            t.subscribe(n.client_heartbeat, self._guarded(self._on_client_heartbeat)),
+        ]
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, name="link-server", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop publishing and undeclare the endpoints (pending get_result calls time out)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+        for h in self._handles:
+            h.close()
+        self._handles = []
+
+    @property
+    def client_alive(self) -> bool:
+        """Whether a client was heard from within ``client_timeout``."""
+        return self._client_alive
+
+    # ----------------------------------------------------------------- helpers --
+    def _guarded(self, fn: Callable) -> Callable:
+        """Count malformed payloads and handler failures; never raise into the transport."""
+        def wrapped(*args: object) -> None:
+            try:
+                fn(*args)
+            except m.LinkDecodeError as err:
+                with self._lock:
+                    self.counters["decode_errors"] += 1
+                _log.warning("dropped malformed payload: %s", err)
+            except Exception:
+                with self._lock:
+                    self.counters["handler_errors"] += 1
+                _log.exception("link handler failed")
+        return wrapped
+
+    def _client_seen(self) -> None:
+        with self._lock:
+            self._last_client_rx = time.monotonic()
+
+    def _pub(self, ep_name: str, message: object, typename: str) -> None:
+        self.transport.publish(getattr(self.names, ep_name), m.encode(message, typename))
+
+    def _ask(self, fn: Callable[..., tuple[bool, str]], *args: object) -> tuple[bool, str]:
+        """Call a ToolAPI command; an exception becomes a refusal the client can read."""
+        try:
+            ok, msg = fn(*args)
+            return bool(ok), str(msg)
+        except Exception as err:
+            with self._lock:
+                self.counters["handler_errors"] += 1
+            _log.exception("ToolAPI call failed")
+            return False, f"tool error: {type(err).__name__}: {err}"
+
+    def _joints_now(self) -> tuple[float, ...]:
+        try:
+            return tuple(self.api.state().position)
+        except Exception:
+            return ()
+
+    # ---------------------------------------------------------------- handlers --
+    def _on_set_mode(self, data: bytes, respond: Responder) -> None:
+        req = m.decode(data, self.names.set_orientation_control.request_type)
+        self._client_seen()
+        if req.control_mode not in (Mode.DISABLED, Mode.LEVELING):
+            ok, msg = False, (f"control_mode must be {Mode.DISABLED.value} (DISABLED) or "
+                              f"{Mode.LEVELING.value} (LEVELING); got {req.control_mode}")
+        else:
+            ok, msg = self._ask(self.api.set_mode, Mode(req.control_mode),
+                                float(req.pitch_offset), float(req.roll_offset))
+        respond(m.encode(m.soc_response(ok, msg), self.names.set_orientation_control
+                         .response_type))
+
+    def _on_send_goal(self, data: bytes, respond: Responder) -> None:
+        req = m.decode(data, self.names.send_goal.request_type)
+        self._client_seen()
+        gid = m.uuid_bytes(req.goal_id)
+        name = str(req.goal.primitive_name)
+        params = [float(x) for x in req.goal.parameters]
+        now = time.time()
+        with self._lock:
+            if gid in self._goals:  # a resent goal id is a protocol error: reject it
+                respond(m.encode(m.send_goal_response(False, now),
+                                 self.names.send_goal.response_type))
+                return
+            prev = self.api.primitive_status()
+            ok, msg = self._ask(self.api.start_primitive, name, params)
+            goal = _Goal(gid, name, now, m.GoalStatus.EXECUTING if ok else m.GoalStatus.ABORTED,
+                         prev=prev)
+            if ok:
+                self._active = goal
+            else:
+                goal.result = m.PrimitiveResult(False, msg, self._joints_now(),
+                                                m.GoalStatus.ABORTED)
+            self._goals[gid] = goal
+            while len(self._goals) > _KEEP_GOALS:
+                self._goals.popitem(last=False)
+        respond(m.encode(m.send_goal_response(True, now), self.names.send_goal.response_type))
+        self._publish_status()
+
+    def _on_get_result(self, data: bytes, respond: Responder) -> None:
+        req = m.decode(data, self.names.get_result.request_type)
+        self._client_seen()
+        gid = m.uuid_bytes(req.goal_id)
+        with self._lock:
+            goal = self._goals.get(gid)
+            if goal is not None and goal.result is None:
+                goal.waiters.append(respond)  # long poll: answered when the goal ends
+                return
+            result = goal.result if goal is not None else m.PrimitiveResult(
+                False, "unknown goal id", (), m.GoalStatus.UNKNOWN)
+        respond(m.encode(m.result_msg(result), self.names.get_result.response_type))
+
+    def _on_cancel(self, data: bytes, respond: Responder) -> None:
+        req = m.decode(data, self.names.cancel_goal.request_type)
+        self._client_seen()
+        gid = m.uuid_bytes(req.goal_info.goal_id)
+        R = m.typestore().types[self.names.cancel_goal.response_type]
+        with self._lock:
+            goal = self._active if gid == _ZERO_ID else self._goals.get(gid)
+            if goal is None:
+                code, canceling = (R.ERROR_NONE if gid == _ZERO_ID else
+                                   R.ERROR_UNKNOWN_GOAL_ID), []
+            elif goal.result is not None:
+                code, canceling = R.ERROR_GOAL_TERMINATED, []
+            elif self.api.cancel_primitive():
+                goal.cancel_requested = True
+                goal.status = m.GoalStatus.CANCELING
+                code, canceling = R.ERROR_NONE, [(goal.goal_id, goal.accepted_at)]
+            else:  # finished in between: the next tick reports its result
+                code, canceling = R.ERROR_GOAL_TERMINATED, []
+        respond(m.encode(m.cancel_response(code, canceling),
+                         self.names.cancel_goal.response_type))
+        self._publish_status()
+
+    def _on_trajectory(self, data: bytes) -> None:
+        traj = m.trajectory_from_msg(m.decode(data, self.names.joint_trajectory.type))
+        self._client_seen()
+        ok, msg = self._ask(self.api.follow_trajectory, traj)
+        if not ok:
+            with self._lock:
+                self.counters["rejected_trajectories"] += 1
+            _log.warning("trajectory refused: %s", msg)
+
+    def _on_client_heartbeat(self, data: bytes) -> None:
+        m.decode(data, self.names.client_heartbeat.type)
+        self._client_seen()
+
+    # ---------------------------------------------------------------- the tick --
+    def _finish(self, goal: _Goal, result: m.PrimitiveResult) -> None:
+        with self._lock:
+            goal.result, goal.status = result, result.status
+            waiters, goal.waiters = goal.waiters, []
+            if self._active is goal:
+                self._active = None
+        payload = m.encode(m.result_msg(result), self.names.get_result.response_type)
+        for respond in waiters:
+            respond(payload)
+        self._publish_status()
+
+    def _progress(self) -> None:
+        goal = self._active
+        if goal is None:
+            return
+        st = self.api.primitive_status()
+        if st is None or st.name != goal.name:
+            return
+        if not goal.seen_running and (st is goal.prev or st == goal.prev):
+            return  # still the previous primitive's status
+        if not st.done:
+            goal.seen_running = True
+            self._pub("feedback", m.feedback_msg(goal.goal_id, st), m.FEEDBACK_MESSAGE)
+            return
+        if st.success:
+            status = m.GoalStatus.SUCCEEDED
+        else:
+            status = m.GoalStatus.CANCELED if goal.cancel_requested else m.GoalStatus.ABORTED
+        final = tuple(st.final_joint_values) or tuple(st.current_joint_values)
+        self._finish(goal, m.PrimitiveResult(bool(st.success), st.message, final, status))
+
+    def _check_client(self, now: float) -> None:
+        with self._lock:
+            last = self._last_client_rx
+        alive = last is not None and now - last < self.cfg.client_timeout
+        if self._client_alive and not alive:
+            self.counters["link_losses"] += 1
+            _log.warning("no client heard for %.1f s (policy: %s)", self.cfg.client_timeout,
+                         self.cfg.link_loss_policy)
+            goal = self._active
+            if self.cfg.link_loss_policy == "cancel" and goal is not None \
+                    and self.api.cancel_primitive():
+                goal.cancel_requested = True
+                goal.status = m.GoalStatus.CANCELING
+        self._client_alive = alive
+
+    def _publish_status(self) -> None:
+        with self._lock:
+            goals = [(g.goal_id, g.accepted_at, g.status) for g in self._goals.values()]
+        self._pub("status", m.status_array(goals), m.GOAL_STATUS_ARRAY)
+
+    def tick(self) -> None:
+        """One publishing step (the thread calls it at the loop rate; tests may call it)."""
+        now, wall = time.monotonic(), time.time()
+        self.counters["ticks"] += 1
+        self._check_client(now)
+        self._progress()
+        state = self.api.state()
+        with self._lock:
+            counters = dict(self.counters)
+        self._pub("joint_states", m.joint_state_msg(state, wall), m.JOINT_STATE)
+        self._pub("imu", m.imu_msg(state, wall), m.IMU)
+        self._pub("health", m.health_msg(state, wall, counters), m.DIAGNOSTIC_ARRAY)
+        self._pub("battery", m.battery_msg(state, wall), m.BATTERY_STATE)
+        if now >= self._next_beat:
+            self._next_beat = now + self.cfg.heartbeat_period
+            self._pub("heartbeat", m.heartbeat_msg(wall, "articutool"), m.HEADER)
+            self._publish_status()
+
+    def _run(self) -> None:
+        next_t = time.monotonic()
+        while not self._stop.is_set():
+            try:
+                self.tick()
+            except Exception:  # a failing snapshot or publish must not end telemetry
+                with self._lock:
+                    self.counters["handler_errors"] += 1
+                _log.exception("link tick failed")
+            next_t += self.period
+            delay = next_t - time.monotonic()
+            if delay < 0:  # overrun: re-anchor rather than bursting to catch up
+                next_t, delay = time.monotonic(), 0.0
+            self._stop.wait(delay)
+
+
+def serve_forever(api: ToolAPI, config: LinkConfig | None, stop_event: threading.Event,
+                  transport: Transport | None = None) -> ToolServer:
+    """Serve ``api`` on a Zenoh session (tool role) until ``stop_event`` is set.
+
+    Returns the (stopped) server, whose ``counters`` the caller may report.
+    """
+    cfg = config or LinkConfig()
+    if transport is None:
+        from articutool.link.zenoh_transport import ZenohTransport
+        transport = ZenohTransport(cfg, "tool")
+    server = ToolServer(api, transport, cfg)
+    server.start()
+    try:
+        stop_event.wait()
+    finally:
+        server.stop()
+        transport.close()
+    return server

@@ -1,0 +1,217 @@
+"""Transport interface and the ROS 2 → Zenoh name mapping of the Articutool link.
+
+The tool server and the PC client speak to a :class:`Transport` only, so they do not depend on
+Zenoh: :class:`~articutool.link.zenoh_transport.ZenohTransport` is the real link and
+:class:`~articutool.link.memory_transport.MemoryTransport` an in-process one for unit tests.
+
+Key-expression mapping (after rmw_zenoh's design document, ``ros2/rmw_zenoh`` docs/design.md,
+"Topic and Service name mapping to Zenoh key expressions")::
+
+    <domain_id>/<fully qualified name without leading '/'>/<DDS type name>/<RIHS01 type hash>
+
+e.g. ``0/articutool/joint_states/sensor_msgs::msg::dds_::JointState_/RIHS01_a13e…``.
+Topics are Zenoh publishers/subscribers; services are Zenoh queryables answered by ``get``.
+Payloads are ROS 2 CDR with the 4-byte encapsulation header (see ``messages``).
+
+=====================================  ==========================================  =========
+ROS 2 name                             type (DDS name ``pkg::kind::dds_::Name_``)  kind
+=====================================  ==========================================  =========
+/articutool/set_orientation_control    articutool_interfaces/srv/SetOrientation…   service
+/articutool/execute_primitive/         articutool_interfaces/action/ExecuteArtic…  action:
+  _action/send_goal                    …ExecuteArticutoolPrimitive_SendGoal        service
+  _action/get_result                   …ExecuteArticutoolPrimitive_GetResult       service
+  _action/cancel_goal                  action_msgs/srv/CancelGoal                  service
+  _action/feedback                     …ExecuteArticutoolPrimitive_FeedbackMessage topic
+  _action/status                       action_msgs/msg/GoalStatusArray             topic
+/articutool/joint_trajectory           trajectory_msgs/msg/JointTrajectory         PC → tool
+/articutool/joint_states               sensor_msgs/msg/JointState                  tool → PC
+/articutool/imu/data                   sensor_msgs/msg/Imu (filtered orientation)  tool → PC
+/articutool/health                     diagnostic_msgs/msg/DiagnosticArray         tool → PC
+/articutool/battery                    sensor_msgs/msg/BatteryState                tool → PC
+/articutool/heartbeat                  std_msgs/msg/Header (frame_id = sender)     tool → PC
+/articutool/client_heartbeat           std_msgs/msg/Header (frame_id = sender)     PC → tool
+=====================================  ==========================================  =========
+
+Deviations from rmw_zenoh (interoperability with ROS 2 nodes on rmw_zenoh is by design, but has
+not been tested against a ROS 2 installation):
+
+* No liveliness tokens (``@ros2_lv/...``) are declared, so ``ros2 topic list`` does not see
+  the Articutool's endpoints; data keys are unaffected.
+* rmw_zenoh attaches (sequence number, source timestamp, GID) to every sample and query. Our
+  publishers attach nothing; our service server echoes the request's attachment in its reply
+  so an rmw_zenoh client can match the response.
+* Type hashes are computed with ``rosbags`` (``hash_rihs01``) over REP 2011 type
+  descriptions, for services and actions from hand-built description structs; they have not
+  been cross-checked against ``rosidl`` output. ``type_hash_in_keys=False`` in the config
+  replaces the hash with ``*`` on subscribers/queries if a mismatch ever shows up.
+* The action's ``get_result`` is a long poll as in ROS 2: the server replies when the goal
+  reaches a terminal state; the client re-issues it when the Zenoh query times out.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from articutool.link import messages as m
+
+__all__ = ["Endpoint", "LinkTimeoutError", "Names", "Responder", "Transport", "key_expr"]
+
+Responder = Callable[[bytes], None]
+"""Sends the reply to one service request; may be called later, from any thread, once."""
+
+
+class LinkTimeoutError(TimeoutError):
+    """A service call got no reply in time (no server reachable, or it did not answer)."""
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    """A ROS 2 topic or service: fully qualified name and interface type.
+
+    For a topic ``type`` is the message type it carries; for a service it is the service
+    type (used in the key) and requests/replies are ``type + '_Request'`` / ``'_Response'``.
+    """
+
+    name: str
+    type: str
+    service: bool = False
+
+    @property
+    def request_type(self) -> str:
+        """CDR type of a service request (or the topic's message type)."""
+        return f"{self.type}_Request" if self.service else self.type
+
+    @property
+    def response_type(self) -> str:
+        """CDR type of a service reply."""
+        if not self.service:
+            raise ValueError(f"{self.name} is a topic, not a service")
+        return f"{self.type}_Response"
+
+
+def key_expr(domain_id: int, ep: Endpoint, with_hash: bool = True) -> str:
+    """The Zenoh key expression of ``ep`` (see the module docstring)."""
+    h = m.type_hash(ep.type) if with_hash else "*"
+    return f"{domain_id}/{ep.name.strip('/')}/{m.dds_type_name(ep.type)}/{h}"
+
+
+@dataclass(frozen=True)
+class Names:
+    """All endpoints of one Articutool under ``namespace`` (default ``/articutool``)."""
+
+    namespace: str = "/articutool"
+
+    def _n(self, rel: str) -> str:
+        return f"/{self.namespace.strip('/')}/{rel}" if self.namespace.strip("/") else f"/{rel}"
+
+    @property
+    def set_orientation_control(self) -> Endpoint:
+        """The mode service."""
+        return Endpoint(self._n("set_orientation_control"), m.SET_ORIENTATION_CONTROL, True)
+
+    def _action(self, sub: str) -> str:
+        return self._n(f"execute_primitive/_action/{sub}")
+
+    @property
+    def send_goal(self) -> Endpoint:
+        """Action sub-service: send a goal."""
+        return Endpoint(self._action("send_goal"), m.SEND_GOAL, True)
+
+    @property
+    def get_result(self) -> Endpoint:
+        """Action sub-service: long-poll a goal's result."""
+        return Endpoint(self._action("get_result"), m.GET_RESULT, True)
+
+    @property
+    def cancel_goal(self) -> Endpoint:
+        """Action sub-service: cancel goals."""
+        return Endpoint(self._action("cancel_goal"), m.CANCEL_GOAL, True)
+
+    @property
+    def feedback(self) -> Endpoint:
+        """Action feedback topic."""
+        return Endpoint(self._action("feedback"), m.FEEDBACK_MESSAGE)
+
+    @property
+    def status(self) -> Endpoint:
+        """Action status topic."""
+        return Endpoint(self._action("status"), m.GOAL_STATUS_ARRAY)
+
+    @property
+    def joint_trajectory(self) -> Endpoint:
+        """Wrist trajectories, PC → tool."""
+        return Endpoint(self._n("joint_trajectory"), m.JOINT_TRAJECTORY)
+
+    @property
+    def joint_states(self) -> Endpoint:
+        """Joint states, tool → PC."""
+        return Endpoint(self._n("joint_states"), m.JOINT_STATE)
+
+    @property
+    def imu(self) -> Endpoint:
+        """Filtered IMU orientation, tool → PC."""
+        return Endpoint(self._n("imu/data"), m.IMU)
+
+    @property
+    def health(self) -> Endpoint:
+        """Loop health / fault / mode diagnostics, tool → PC."""
+        return Endpoint(self._n("health"), m.DIAGNOSTIC_ARRAY)
+
+    @property
+    def battery(self) -> Endpoint:
+        """Battery (motor input voltage), tool → PC."""
+        return Endpoint(self._n("battery"), m.BATTERY_STATE)
+
+    @property
+    def heartbeat(self) -> Endpoint:
+        """Tool heartbeat."""
+        return Endpoint(self._n("heartbeat"), m.HEADER)
+
+    @property
+    def client_heartbeat(self) -> Endpoint:
+        """PC heartbeat (the tool's link-loss detector listens to it)."""
+        return Endpoint(self._n("client_heartbeat"), m.HEADER)
+
+
+class Handle(ABC):
+    """A declared subscriber or service; ``close()`` undeclares it."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Undeclare."""
+
+
+class Transport(ABC):
+    """Publish/subscribe and request/reply of CDR payloads on ROS 2-named endpoints.
+
+    Callbacks run on transport threads: they must return promptly and must not raise (an
+    exception is caught and dropped by the transport, but the caller should count it).
+    """
+
+    @abstractmethod
+    def publish(self, ep: Endpoint, payload: bytes) -> None:
+        """Publish on a topic (best effort; never raises for a missing subscriber)."""
+
+    @abstractmethod
+    def subscribe(self, ep: Endpoint, callback: Callable[[bytes], None]) -> Handle:
+        """Call ``callback(payload)`` for every sample published on ``ep``."""
+
+    @abstractmethod
+    def serve(self, ep: Endpoint, handler: Callable[[bytes, Responder], None]) -> Handle:
+        """Serve a service: ``handler(request, respond)``; ``respond(reply)`` may be deferred."""
+
+    @abstractmethod
+    def call(self, ep: Endpoint, payload: bytes, timeout: float) -> bytes:
+        """Call a service and return the reply payload; raise LinkTimeoutError if none arrives."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Release the transport (idempotent)."""
+
+    def __enter__(self) -> Transport:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
