@@ -21,7 +21,10 @@ from articutool.trajectory import TrajectoryError
 
 __all__ = ["main"]
 
-_COMMAND_MODULES: tuple[str, ...] = ("articutool.verify.cli",)
+_COMMAND_MODULES: tuple[str, ...] = (
+    "articutool.verify.cli",
+    "articutool.link.cli",
+)
 
 
 class UsageError(Exception):
