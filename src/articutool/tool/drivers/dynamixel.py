@@ -1,0 +1,489 @@
+"""The pitch/roll motor pair: two Dynamixel XC430-W250-T on one U2D2, protocol 2.0.
+
+Uses ``dynamixel_sdk`` (``PortHandler``, ``PacketHandler(2.0)``, ``GroupSyncWrite`` and the
+packet handler's sync-read primitives). Control-table addresses are those of the X-series
+(hardware-facts §3), checked against the ROBOTIS e-manual control table for the XC430-W250
+family (EEPROM 0–63, RAM 64+). Units: velocity 0.229 rev/min per unit, position 4096 ticks
+per revolution, present values signed 32-bit two's complement, input voltage 0.1 V.
+
+Safety choices:
+- ``open()`` leaves torque off, velocity mode, zero goal velocity, and writes the Velocity
+  Limit register (44) from ``spec.wrist.max_velocity`` so the motors enforce the limit even
+  if the host misbehaves. EEPROM registers are written only when they differ (flash wear).
+- Commands that are non-finite or above the limit raise ``ValueError`` and send nothing
+  (the motor would reject an over-limit Goal Velocity and keep its previous goal).
+- ``stop()`` never raises: the runtime calls it on every fault path.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+
+import numpy as np
+from dynamixel_sdk import (
+    COMM_SUCCESS,
+    GroupSyncWrite,
+    PacketHandler,
+    PortHandler,
+)
+from numpy.typing import ArrayLike, NDArray
+
+from articutool.spec import Spec
+from articutool.tool.drivers.base import (
+    JOINTS,
+    DriverError,
+    MotorDriver,
+    MotorMode,
+    MotorState,
+    validate_position_command,
+    validate_velocity_command,
+)
+
+__all__ = [
+    "ADDR_GOAL_POSITION",
+    "ADDR_GOAL_VELOCITY",
+    "ADDR_HARDWARE_ERROR_STATUS",
+    "ADDR_MAX_POSITION_LIMIT",
+    "ADDR_MIN_POSITION_LIMIT",
+    "ADDR_OPERATING_MODE",
+    "ADDR_PRESENT_INPUT_VOLTAGE",
+    "ADDR_PRESENT_POSITION",
+    "ADDR_PRESENT_TEMPERATURE",
+    "ADDR_PRESENT_VELOCITY",
+    "ADDR_TORQUE_ENABLE",
+    "ADDR_VELOCITY_LIMIT",
+    "OPERATING_MODE_POSITION",
+    "OPERATING_MODE_VELOCITY",
+    "DynamixelDriver",
+    "position_limit_ticks",
+    "rad_s_to_velocity_units",
+    "rad_to_ticks",
+    "ticks_to_rad",
+    "to_signed32",
+    "to_unsigned32",
+    "velocity_limit_units",
+    "velocity_unit_rad_s",
+    "velocity_units_to_rad_s",
+]
+
+# --- X-series control table (protocol 2.0), address: size in bytes ------------------------
+ADDR_OPERATING_MODE = 11  # 1 B, EEPROM
+ADDR_VELOCITY_LIMIT = 44  # 4 B, EEPROM, 0..1023 units
+ADDR_MAX_POSITION_LIMIT = 48  # 4 B, EEPROM, 0..4095 ticks
+ADDR_MIN_POSITION_LIMIT = 52  # 4 B, EEPROM
+ADDR_TORQUE_ENABLE = 64  # 1 B
+ADDR_HARDWARE_ERROR_STATUS = 70  # 1 B
+ADDR_GOAL_VELOCITY = 104  # 4 B, signed
+ADDR_GOAL_POSITION = 116  # 4 B
+ADDR_PRESENT_VELOCITY = 128  # 4 B, signed
+ADDR_PRESENT_POSITION = 132  # 4 B, signed
+ADDR_PRESENT_INPUT_VOLTAGE = 144  # 2 B, 0.1 V
+ADDR_PRESENT_TEMPERATURE = 146  # 1 B, °C
+# One sync read covers Present Velocity .. Present Temperature.
+_STATUS_START = ADDR_PRESENT_VELOCITY
+_STATUS_LEN = ADDR_PRESENT_TEMPERATURE + 1 - ADDR_PRESENT_VELOCITY  # 19 bytes
+
+OPERATING_MODE_VELOCITY = 1
+OPERATING_MODE_POSITION = 3  # single-turn; Min/Max Position Limit registers apply
+_VELOCITY_LIMIT_MAX_UNITS = 1023  # register range (e-manual)
+_POSITION_TICKS_MAX = 4095
+_ERRBIT_ALERT = 0x80  # status-packet error byte: "check Hardware Error Status"
+
+
+# --- pure unit conversions -----------------------------------------------------------------
+def velocity_unit_rad_s(unit_rpm: float) -> float:
+    """rad/s represented by one velocity unit (0.229 rev/min → ≈ 0.02398 rad/s)."""
+    return unit_rpm * 2.0 * math.pi / 60.0
+
+
+def rad_s_to_velocity_units(qd: ArrayLike, unit_rpm: float) -> NDArray[np.int64]:
+    """Joint rate (rad/s) → Goal Velocity units, rounded to nearest."""
+    return np.rint(np.asarray(qd, dtype=np.float64) / velocity_unit_rad_s(unit_rpm)).astype(
+        np.int64
+    )
+
+
+def velocity_units_to_rad_s(units: ArrayLike, unit_rpm: float) -> NDArray[np.float64]:
+    """Present Velocity units → rad/s."""
+    return np.asarray(units, dtype=np.float64) * velocity_unit_rad_s(unit_rpm)
+
+
+def velocity_limit_units(max_velocity: ArrayLike, unit_rpm: float) -> NDArray[np.int64]:
+    """Velocity Limit register value for a joint speed limit (rad/s), rounded *down* so the
+    motor never allows more than the spec; refuses limits beyond the register range."""
+    v = np.asarray(max_velocity, dtype=np.float64)
+    units = np.floor(v / velocity_unit_rad_s(unit_rpm) + 1e-9).astype(np.int64)
+    if (units < 1).any() or (units > _VELOCITY_LIMIT_MAX_UNITS).any():
+        raise ValueError(
+            f"velocity limit {v} rad/s gives {units} units; the register allows "
+            f"1..{_VELOCITY_LIMIT_MAX_UNITS}"
+        )
+    return units
+
+
+def rad_to_ticks(q: ArrayLike, zero_ticks: ArrayLike, ticks_per_rev: int) -> NDArray[np.int64]:
+    """Joint angle (rad) → encoder ticks, given the ticks at which the joint reads 0."""
+    q = np.asarray(q, dtype=np.float64)
+    return np.rint(q * ticks_per_rev / (2.0 * math.pi)).astype(np.int64) + np.asarray(
+        zero_ticks, dtype=np.int64
+    )
+
+
+def ticks_to_rad(
+    ticks: ArrayLike, zero_ticks: ArrayLike, ticks_per_rev: int
+) -> NDArray[np.float64]:
+    """Encoder ticks → joint angle (rad)."""
+    t = np.asarray(ticks, dtype=np.int64) - np.asarray(zero_ticks, dtype=np.int64)
+    return t.astype(np.float64) * (2.0 * math.pi / ticks_per_rev)
+
+
+def to_signed32(x: int) -> int:
+    """Interpret a 32-bit register value as two's complement."""
+    x &= 0xFFFFFFFF
+    return x - (1 << 32) if x & 0x80000000 else x
+
+
+def to_unsigned32(x: int) -> int:
+    """Encode a signed integer as a 32-bit two's-complement register value."""
+    if not -(1 << 31) <= x < (1 << 31):
+        raise ValueError(f"{x} does not fit a signed 32-bit register")
+    return x & 0xFFFFFFFF
+
+
+def position_limit_ticks(
+    limits: ArrayLike, zero_ticks: ArrayLike, ticks_per_rev: int
+) -> NDArray[np.int64]:
+    """(2, 2) joint limits (rad) → (2, 2) [min, max] ticks, clipped to the single-turn
+    range 0..4095 that position mode accepts."""
+    lim = np.asarray(limits, dtype=np.float64)
+    z = np.asarray(zero_ticks, dtype=np.int64)[:, None]
+    ticks = rad_to_ticks(lim, z, ticks_per_rev)
+    return np.clip(ticks, 0, _POSITION_TICKS_MAX)
+
+
+def _le_bytes(value: int, size: int) -> list[int]:
+    return [(value >> (8 * k)) & 0xFF for k in range(size)]
+
+
+def _from_le(data: list[int] | bytes, start: int, size: int) -> int:
+    return int.from_bytes(bytes(data[start : start + size]), "little")
+
+
+class _Port(PortHandler):
+    """``PortHandler`` whose status-packet timeout uses a configurable USB latency.
+
+    The SDK waits ``2 × LATENCY_TIMER + 2`` ms (its module constant, 16 ms: the FTDI default
+    of the U2D2) plus transmission time. A U2D2 set to 1 ms latency can use a shorter wait;
+    a loaded test machine a longer one.
+    """
+
+    def __init__(self, port_name: str, latency_ms: float) -> None:
+        super().__init__(port_name)
+        self.latency_ms = latency_ms
+
+    def setPacketTimeout(self, packet_length: int) -> None:
+        self.packet_start_time = self.getCurrentTime()
+        self.packet_timeout = self.tx_time_per_byte * packet_length + 2.0 * self.latency_ms + 2.0
+
+
+class DynamixelDriver(MotorDriver):
+    """Real XC430 pair (IDs ``spec.motors.pitch_id`` / ``roll_id``) on a U2D2.
+
+    ``port`` overrides ``spec.motors.port``; ``clock`` stamps reads (monotonic seconds);
+    ``latency_ms`` is the USB-serial latency the reply timeout allows for (see ``_Port``).
+    """
+
+    def __init__(
+        self,
+        spec: Spec,
+        port: str | None = None,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+        latency_ms: float = 16.0,
+    ) -> None:
+        if not (math.isfinite(latency_ms) and latency_ms > 0):
+            raise ValueError(f"latency_ms must be > 0; got {latency_ms}")
+        self._latency_ms = float(latency_ms)
+        m = spec.motors
+        if m.protocol != 2.0:
+            raise ValueError(f"motors.protocol must be 2.0 for the X-series; got {m.protocol}")
+        self.port_name = port if port is not None else m.port
+        self._baud = m.baudrate
+        self._ids = (m.pitch_id, m.roll_id)
+        self._clock = clock
+        self._unit_rpm = m.velocity_unit_rpm
+        self._volt_unit = m.voltage_unit_v
+        self._tpr = m.ticks_per_rev
+        self._zero = np.array(m.zero_ticks, dtype=np.int64)
+        self._vel_limits = spec.wrist.velocity_limits
+        self._vel_limit_units = velocity_limit_units(self._vel_limits, self._unit_rpm)
+        self._pos_limit_ticks = position_limit_ticks(spec.wrist.limits, self._zero, self._tpr)
+        # Position commands are checked against what the registers will actually allow.
+        self._pos_limits = ticks_to_rad(self._pos_limit_ticks, self._zero[:, None], self._tpr)
+        self._port: PortHandler | None = None
+        self._ph = PacketHandler(2.0)
+        self._mode: MotorMode = "velocity"
+        self._torque = False
+        self._last_ticks: NDArray[np.int64] | None = None
+        self.model_numbers: tuple[int, int] = (0, 0)
+        self.last_error: str = ""
+
+    # --- low-level helpers ---------------------------------------------------------------
+    def _require_open(self) -> PortHandler:
+        if self._port is None:
+            raise DriverError(f"motor port {self.port_name} is not open")
+        return self._port
+
+    def _check(self, i: int, result: int, error: int, what: str) -> None:
+        who = f"{JOINTS[i]} motor (ID {self._ids[i]})"
+        if result != COMM_SUCCESS:
+            raise DriverError(f"{who}: {self._ph.getTxRxResult(result)} ({what})")
+        if error & ~_ERRBIT_ALERT & 0xFF:
+            raise DriverError(f"{who}: {self._ph.getRxPacketError(error)} ({what})")
+
+    def _write(self, i: int, addr: int, size: int, value: int, what: str) -> None:
+        port = self._require_open()
+        res, err = self._ph.writeTxRx(port, self._ids[i], addr, size, _le_bytes(value, size))
+        self._check(i, res, err, f"writing {what}")
+
+    def _read(self, i: int, addr: int, size: int, what: str) -> int:
+        port = self._require_open()
+        data, res, err = self._ph.readTxRx(port, self._ids[i], addr, size)
+        self._check(i, res, err, f"reading {what}")
+        return _from_le(data, 0, size)
+
+    def _ensure(self, i: int, addr: int, size: int, value: int, what: str) -> None:
+        """Write an EEPROM register only if it differs (limits flash wear)."""
+        if self._read(i, addr, size, what) != value & ((1 << (8 * size)) - 1):
+            self._write(i, addr, size, value, what)
+
+    def _sync_write(self, addr: int, size: int, values: list[int], what: str) -> None:
+        port = self._require_open()
+        gsw = GroupSyncWrite(port, self._ph, addr, size)
+        for dxl_id, v in zip(self._ids, values, strict=True):
+            gsw.addParam(dxl_id, _le_bytes(v, size))
+        res = gsw.txPacket()
+        if res != COMM_SUCCESS:
+            raise DriverError(f"sync write of {what}: {self._ph.getTxRxResult(res)}")
+
+    def _set_torque(self, on: bool) -> None:
+        for i in range(2):
+            self._write(i, ADDR_TORQUE_ENABLE, 1, int(on), "Torque Enable")
+        self._torque = on
+
+    def _hold_targets(self) -> None:
+        """Goal that causes no motion in the current mode: zero velocity or present position."""
+        if self._mode == "velocity":
+            self._sync_write(ADDR_GOAL_VELOCITY, 4, [0, 0], "Goal Velocity")
+        else:
+            ticks = [
+                to_signed32(self._read(i, ADDR_PRESENT_POSITION, 4, "Present Position"))
+                for i in range(2)
+            ]
+            self._sync_write(
+                ADDR_GOAL_POSITION, 4, [to_unsigned32(t) for t in ticks], "Goal Position"
+            )
+
+    # --- MotorDriver -----------------------------------------------------------------------
+    @property
+    def mode(self) -> MotorMode:
+        """The current operating mode."""
+        return self._mode
+
+    @property
+    def torque_enabled(self) -> bool:
+        """Whether torque was last switched on by this driver."""
+        return self._torque
+
+    def open(self) -> None:
+        """Open the port, ping both IDs, torque off, velocity mode, write Velocity Limit."""
+        if self._port is not None:
+            return
+        port = _Port(self.port_name, self._latency_ms)
+        try:
+            ok = port.openPort() and port.setBaudRate(self._baud)
+        except Exception as e:  # pyserial raises SerialException/OSError
+            raise DriverError(f"cannot open motor port {self.port_name}: {e}") from e
+        if not ok:
+            raise DriverError(f"cannot open motor port {self.port_name} at {self._baud} baud")
+        self._port = port
+        try:
+            models = []
+            for i, dxl_id in enumerate(self._ids):
+                model, res, err = self._ph.ping(port, dxl_id)
+                self._check(i, res, err, "ping")
+                models.append(model)
+            self.model_numbers = (models[0], models[1])
+            self._set_torque(False)
+            for i in range(2):
+                self._ensure(i, ADDR_OPERATING_MODE, 1, OPERATING_MODE_VELOCITY, "Operating Mode")
+                self._ensure(
+                    i, ADDR_VELOCITY_LIMIT, 4, int(self._vel_limit_units[i]), "Velocity Limit"
+                )
+            self._mode = "velocity"
+            self._sync_write(ADDR_GOAL_VELOCITY, 4, [0, 0], "Goal Velocity")
+        except Exception:
+            self._close_port()
+            raise
+
+    def _close_port(self) -> None:
+        if self._port is not None:
+            try:
+                self._port.closePort()
+            except Exception as e:
+                self.last_error = f"closing port: {e}"
+            self._port = None
+
+    def close(self) -> None:
+        """Stop, torque off (best effort), close the port."""
+        if self._port is None:
+            return
+        self.stop()
+        try:
+            self._set_torque(False)
+        except Exception as e:
+            self.last_error = str(e)
+        self._close_port()
+
+    def enable_torque(self, on: bool) -> None:
+        """Torque on (after setting a no-motion goal) or off."""
+        self._require_open()
+        if on:
+            self._hold_targets()
+        self._set_torque(bool(on))
+
+    def set_mode(self, mode: MotorMode) -> None:
+        """Stop, torque off, write Operating Mode (and position limits), restore torque."""
+        if mode not in ("velocity", "position"):
+            raise ValueError(f"mode must be 'velocity' or 'position'; got {mode!r}")
+        self._require_open()
+        was_on = self._torque
+        self.stop()
+        self._set_torque(False)  # EEPROM registers are writable only with torque off
+        for i in range(2):
+            if mode == "position":
+                lo, hi = (int(t) for t in self._pos_limit_ticks[i])
+                self._ensure(i, ADDR_MIN_POSITION_LIMIT, 4, lo, "Min Position Limit")
+                self._ensure(i, ADDR_MAX_POSITION_LIMIT, 4, hi, "Max Position Limit")
+            value = OPERATING_MODE_POSITION if mode == "position" else OPERATING_MODE_VELOCITY
+            self._write(i, ADDR_OPERATING_MODE, 1, value, "Operating Mode")
+        self._mode = mode
+        if was_on:
+            self.enable_torque(True)
+
+    def set_velocity(self, qd: ArrayLike) -> None:
+        """Sync-write Goal Velocity (rad/s → 0.229 rev/min units); refuses bad input."""
+        a = validate_velocity_command(qd, self._vel_limits)
+        self._require_open()
+        if self._mode != "velocity":
+            raise DriverError("set_velocity needs velocity mode (call set_mode('velocity'))")
+        # Rounding may land one unit past the floor-rounded register limit: quantisation only.
+        units = np.clip(
+            rad_s_to_velocity_units(a, self._unit_rpm),
+            -self._vel_limit_units,
+            self._vel_limit_units,
+        )
+        self._sync_write(
+            ADDR_GOAL_VELOCITY, 4, [to_unsigned32(int(u)) for u in units], "Goal Velocity"
+        )
+
+    def set_position(self, q: ArrayLike) -> None:
+        """Sync-write Goal Position (rad → ticks) within the position-limit registers."""
+        a = validate_position_command(q, self._pos_limits)
+        self._require_open()
+        if self._mode != "position":
+            raise DriverError("set_position needs position mode (call set_mode('position'))")
+        ticks = rad_to_ticks(a, self._zero, self._tpr)
+        ticks = np.clip(ticks, self._pos_limit_ticks[:, 0], self._pos_limit_ticks[:, 1])
+        self._sync_write(
+            ADDR_GOAL_POSITION, 4, [to_unsigned32(int(t)) for t in ticks], "Goal Position"
+        )
+
+    def read(self) -> MotorState:
+        """One sync read of Present Velocity..Temperature; Hardware Error Status is read
+        only for a motor whose status packet carries the alert bit."""
+        port = self._require_open()
+        res = self._ph.syncReadTx(port, _STATUS_START, _STATUS_LEN, list(self._ids), 2, False)
+        if res != COMM_SUCCESS:
+            raise DriverError(f"sync read: {self._ph.getTxRxResult(res)}")
+        rows: list[list[int]] = []
+        alerts: list[bool] = []
+        for i, dxl_id in enumerate(self._ids):
+            data, res, err = self._ph.readRx(port, dxl_id, _STATUS_LEN)
+            self._check(i, res, err, "sync read of present values")
+            if len(data) != _STATUS_LEN:
+                raise DriverError(
+                    f"{JOINTS[i]} motor (ID {dxl_id}): {len(data)} status bytes, "
+                    f"expected {_STATUS_LEN}"
+                )
+            rows.append(data)
+            alerts.append(bool(err & _ERRBIT_ALERT))
+        hw = tuple(
+            self._read(i, ADDR_HARDWARE_ERROR_STATUS, 1, "Hardware Error Status")
+            if alerts[i]
+            else 0
+            for i in range(2)
+        )
+
+        def field(row: list[int], addr: int, size: int) -> int:
+            return _from_le(row, addr - _STATUS_START, size)
+
+        vel_units = [to_signed32(field(r, ADDR_PRESENT_VELOCITY, 4)) for r in rows]
+        ticks = np.array([to_signed32(field(r, ADDR_PRESENT_POSITION, 4)) for r in rows])
+        volts = [field(r, ADDR_PRESENT_INPUT_VOLTAGE, 2) * self._volt_unit for r in rows]
+        temps = [float(field(r, ADDR_PRESENT_TEMPERATURE, 1)) for r in rows]
+        self._last_ticks = ticks
+        return MotorState(
+            position=ticks_to_rad(ticks, self._zero, self._tpr),
+            velocity=velocity_units_to_rad_s(vel_units, self._unit_rpm),
+            hardware_error=(int(hw[0]), int(hw[1])),
+            input_voltage=min(volts),
+            temperature=max(temps),
+            stamp=self._clock(),
+        )
+
+    def stop(self) -> None:
+        """Zero Goal Velocity (velocity mode) or hold the last read position (position mode).
+
+        Never raises; a failure is kept in ``last_error``. Clears the SDK's port-busy flag
+        first, since a transaction interrupted by an exception leaves it set.
+        """
+        port = self._port
+        if port is None:
+            return
+        port.is_using = False
+        try:
+            if self._mode == "velocity":
+                self._sync_write(ADDR_GOAL_VELOCITY, 4, [0, 0], "Goal Velocity")
+            elif self._last_ticks is not None:
+                self._sync_write(
+                    ADDR_GOAL_POSITION,
+                    4,
+                    [to_unsigned32(int(t)) for t in self._last_ticks],
+                    "Goal Position",
+                )
+        except Exception as e:
+            self.last_error = f"stop failed: {e}"
+
+    def clear_errors(self) -> None:
+        """Reboot each motor whose Hardware Error Status is non-zero; torque comes back off."""
+        port = self._require_open()
+        for i, dxl_id in enumerate(self._ids):
+            if self._read(i, ADDR_HARDWARE_ERROR_STATUS, 1, "Hardware Error Status"):
+                res, err = self._ph.reboot(port, dxl_id)
+                self._check(i, res, err, "reboot")
+                self._torque = False
+                self._wait_for_boot(i)
+
+    def _wait_for_boot(self, i: int, attempts: int = 10) -> None:
+        """After REBOOT the motor is silent while it boots; ping it until it answers (each
+        ping times out after 2 × latency + 2 ms: ~0.35 s in all at 16 ms)."""
+        port = self._require_open()
+        res = COMM_SUCCESS
+        for _ in range(attempts):
+            _, res, _ = self._ph.ping(port, self._ids[i])
+            if res == COMM_SUCCESS:
+                return
+        self._check(i, res, 0, "ping after reboot")

@@ -1,0 +1,528 @@
+"""The simulated wrist: motors, IMU and F/T twin sharing one deterministic world.
+
+``SimWrist`` integrates commanded joint velocities through a first-order motor lag
+(exact discretisation), the motors' velocity-limit registers (``spec.wrist.max_velocity``)
+and the joint position limits (pitch ``spec.wrist.pitch_limits``, roll within
+``±spec.wrist.roll_turn_budget`` turns — the cable wind-up budget, hardware-facts §3).
+Driving a joint into a limit faster than ``hard_stop_velocity`` raises the OVERLOAD hardware
+error bit and drops that motor's torque, as a real XC430 does on a hard stop.
+
+The IMU is mounted on the tool base F0 (``imu_mount`` = R_F0←imu, identity by default). It
+samples at ``spec.imu.rate_hz``: specific force ``R_world←imuᵀ (g ẑ + a_base)`` (m/s²) and
+angular rate ``R_world←imuᵀ ω_base + bias`` (rad/s), plus white noise at the spec's densities
+(σ = density·√rate, the discrete-time equivalent of a white-noise density). The base pose
+is driven by ``set_base_motion(fn)`` with ``fn(t) -> (R_world←F0, ω_world[, a_world])``.
+
+Time advances only in ``step(dt)``; stamps are simulation seconds (use ``sim.clock`` as the
+runtime clock), so closed-loop tests run as fast as the CPU allows and are reproducible
+with a ``seed``.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import deque
+from collections.abc import Callable, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from articutool.spec import Spec
+from articutool.tool import kinematics
+from articutool.tool.drivers.base import (
+    JOINTS,
+    DriverError,
+    FTDriver,
+    FTSample,
+    HardwareError,
+    ImuDriver,
+    ImuSample,
+    MotorDriver,
+    MotorMode,
+    MotorState,
+    validate_position_command,
+    validate_velocity_command,
+)
+
+__all__ = [
+    "BaseMotion",
+    "SimFTDriver",
+    "SimImuDriver",
+    "SimMotorDriver",
+    "SimWrist",
+    "axis_angle_rotation",
+    "constant_rate_motion",
+]
+
+BaseMotion = Callable[[float], Sequence[ArrayLike]]
+# Bits for which the default Shutdown register (52) makes an X-series motor drop torque.
+_SHUTDOWN_BITS = HardwareError.OVERHEATING | HardwareError.ELECTRICAL_SHOCK | HardwareError.OVERLOAD
+_MAX_SUBSTEP = 0.002  # s; resolution of limit contact and position-mode tracking
+_QUEUE_LEN = 256  # samples kept for a driver that is not being read
+
+
+def axis_angle_rotation(axis: ArrayLike, angle: float) -> NDArray[np.float64]:
+    """Rodrigues' formula: rotation by ``angle`` about unit-normalised ``axis``."""
+    a = np.asarray(axis, dtype=np.float64)
+    n = np.linalg.norm(a)
+    if not np.isfinite(a).all() or n == 0.0:
+        raise ValueError(f"axis must be a finite non-zero 3-vector; got {axis!r}")
+    x, y, z = a / n
+    K = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * (K @ K)
+
+
+def constant_rate_motion(
+    omega_world: ArrayLike, R0: ArrayLike | None = None
+) -> Callable[[float], tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    """Base motion rotating at a constant world-frame rate: ``R(t) = exp([ω]× t) R0``."""
+    w = np.asarray(omega_world, dtype=np.float64).copy()
+    R_init = np.eye(3) if R0 is None else np.asarray(R0, dtype=np.float64).copy()
+    speed = float(np.linalg.norm(w))
+
+    def motion(t: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        if speed == 0.0:
+            return R_init, w
+        return axis_angle_rotation(w, speed * t) @ R_init, w
+
+    return motion
+
+
+def _check_rotation(R: ArrayLike, name: str) -> NDArray[np.float64]:
+    a = np.asarray(R, dtype=np.float64)
+    if a.shape != (3, 3) or not np.isfinite(a).all():
+        raise ValueError(f"{name} must be a finite (3, 3) rotation matrix; got shape {a.shape}")
+    if np.abs(a.T @ a - np.eye(3)).max() > 1e-6 or np.linalg.det(a) < 0:
+        raise ValueError(f"{name} must be a proper rotation (orthonormal, det +1)")
+    return a
+
+
+def _vec3(v: ArrayLike, name: str) -> NDArray[np.float64]:
+    a = np.asarray(v, dtype=np.float64)
+    if a.shape != (3,) or not np.isfinite(a).all():
+        raise ValueError(f"{name} must be a finite 3-vector; got {v!r}")
+    return a
+
+
+class SimWrist:
+    """One simulated Articutool: two motors, a base-mounted IMU and a F/T sensor.
+
+    Parameters are simulation choices, not hardware facts: ``motor_lag`` (s, first-order
+    time constant), ``gyro_bias`` (rad/s, constant), ``noise`` (False for exact signals),
+    ``seed``, ``imu_mount`` (R_F0←imu), ``hard_stop_velocity`` (rad/s at which hitting a
+    limit trips OVERLOAD), ``position_gain`` (1/s, position-mode tracking),
+    ``motor_temperature`` (°C), ``ft_offset`` (raw F/T offset [F, M] that tare removes).
+    """
+
+    def __init__(
+        self,
+        spec: Spec,
+        *,
+        q0: ArrayLike = (0.0, 0.0),
+        motor_lag: float = 0.03,
+        gyro_bias: ArrayLike = (0.0, 0.0, 0.0),
+        noise: bool = True,
+        seed: int | None = None,
+        imu_mount: ArrayLike | None = None,
+        hard_stop_velocity: float = 0.5,
+        position_gain: float = 10.0,
+        motor_temperature: float = 35.0,
+        ft_offset: ArrayLike = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+    ) -> None:
+        if not (math.isfinite(motor_lag) and motor_lag >= 0):
+            raise ValueError(f"motor_lag must be >= 0 s; got {motor_lag}")
+        if not (math.isfinite(hard_stop_velocity) and hard_stop_velocity > 0):
+            raise ValueError(f"hard_stop_velocity must be > 0 rad/s; got {hard_stop_velocity}")
+        if not (math.isfinite(position_gain) and position_gain > 0):
+            raise ValueError(f"position_gain must be > 0 1/s; got {position_gain}")
+        self.spec = spec
+        w = spec.wrist
+        turns = w.roll_turn_budget * 2.0 * math.pi
+        self.position_limits = np.array([w.pitch_limits, (-turns, turns)], dtype=np.float64)
+        self.velocity_limits = w.velocity_limits
+        q = validate_position_command(q0, self.position_limits)
+        self._lock = threading.RLock()
+        self._t = 0.0
+        self._q = q.copy()
+        self._qd = np.zeros(2)
+        self._cmd_vel = np.zeros(2)
+        self._cmd_pos = q.copy()
+        self._mode: MotorMode = "velocity"
+        self._torque = np.zeros(2, dtype=bool)
+        self._hw = [0, 0]
+        self._tau = float(motor_lag)
+        self._hard_stop = float(hard_stop_velocity)
+        self._kp = float(position_gain)
+        self._motor_temp = float(motor_temperature)
+        self._battery_v0 = spec.motors.supply_v
+        self._battery_sag = 0.0
+        self._battery_t0 = 0.0
+        # IMU
+        self._imu_mount = (
+            np.eye(3) if imu_mount is None else _check_rotation(imu_mount, "imu_mount")
+        )
+        self._gyro_bias = _vec3(gyro_bias, "gyro_bias")
+        self._noise = bool(noise)
+        self._rng = np.random.default_rng(seed)
+        g = spec.imu.gravity
+        rate = spec.imu.rate_hz
+        self._gravity_up = np.array([0.0, 0.0, g])
+        self._accel_sigma = spec.imu.accel_noise_ug_rthz * 1e-6 * g * math.sqrt(rate)
+        self._gyro_sigma = math.radians(spec.imu.gyro_noise_dps_rthz) * math.sqrt(rate)
+        self._imu_period = 1.0 / rate
+        self._next_imu = self._imu_period
+        self._imu_stale = False
+        self._imu_queue: deque[ImuSample] = deque(maxlen=_QUEUE_LEN)
+        self.imu_temperature = 30.0
+        # F/T
+        self._ft_period = 1.0 / spec.ft.rate_hz
+        self._next_ft = self._ft_period
+        self._ft_queue: deque[FTSample] = deque(maxlen=_QUEUE_LEN)
+        self._ft_offset = np.asarray(ft_offset, dtype=np.float64).reshape(6)
+        self._wrench = np.zeros(6)
+        self.ft_noise_sigma = np.array([0.02, 0.02, 0.02, 2e-4, 2e-4, 2e-4])
+        self.ft_temperature = 32.0
+        # base
+        self._base: BaseMotion = lambda t: (np.eye(3), np.zeros(3))
+
+    # ------------------------------------------------------------------ world accessors --
+    @property
+    def time(self) -> float:
+        """Simulation time (s)."""
+        return self._t
+
+    def clock(self) -> float:
+        """Simulation time as a clock callable, for the runtime's staleness checks."""
+        return self._t
+
+    @property
+    def q(self) -> NDArray[np.float64]:
+        """True joint positions [pitch, roll] (rad)."""
+        return self._q.copy()
+
+    @property
+    def qd(self) -> NDArray[np.float64]:
+        """True joint velocities (rad/s)."""
+        return self._qd.copy()
+
+    def set_joint_positions(self, q: ArrayLike) -> None:
+        """Teleport the joints (test setup); velocities are zeroed."""
+        with self._lock:
+            self._q = validate_position_command(q, self.position_limits).copy()
+            self._qd = np.zeros(2)
+            self._cmd_pos = self._q.copy()
+
+    def base_state(self, t: float | None = None) -> tuple[NDArray, NDArray, NDArray]:
+        """(R_world←F0, ω_world, a_world) of the base at time ``t`` (default now)."""
+        out = self._base(self._t if t is None else t)
+        if len(out) not in (2, 3):
+            raise ValueError("base motion must return (R, omega) or (R, omega, accel)")
+        R = _check_rotation(out[0], "base rotation")
+        w = _vec3(out[1], "base angular velocity")
+        a = _vec3(out[2], "base linear acceleration") if len(out) == 3 else np.zeros(3)
+        return R, w, a
+
+    def set_base_motion(self, fn: BaseMotion) -> None:
+        """Drive the base: ``fn(t) -> (R_world←F0 (3,3), ω_world (3,)[, a_world (3,)])``."""
+        if not callable(fn):
+            raise ValueError("base motion must be callable t -> (R, omega[, accel])")
+        with self._lock:
+            self._base = fn
+            self.base_state()  # fail now, not inside step()
+
+    def set_base_pose(
+        self, R: ArrayLike, omega_world: ArrayLike = (0, 0, 0), accel_world: ArrayLike = (0, 0, 0)
+    ) -> None:
+        """Hold the base at a fixed pose (with optional constant rate/acceleration readings)."""
+        Rc = _check_rotation(R, "R").copy()
+        w, a = _vec3(omega_world, "omega_world").copy(), _vec3(accel_world, "accel_world").copy()
+        self.set_base_motion(lambda t: (Rc, w, a))
+
+    def tool_up_world(self) -> NDArray[np.float64]:
+        """Ground truth: the utensil's up vector in world, ``R_world←F0 · up_vector(q)``."""
+        R, _, _ = self.base_state()
+        return R @ kinematics.up_vector(self._q)
+
+    def tilt_error(self) -> float:
+        """Ground-truth angle (rad) between the utensil's up vector and world z."""
+        return float(math.acos(float(np.clip(self.tool_up_world()[2], -1.0, 1.0))))
+
+    # ------------------------------------------------------------------ fault injection --
+    def set_imu_stale(self, stale: bool = True) -> None:
+        """Stop (or resume) IMU samples, as when the USB serial link stalls."""
+        self._imu_stale = bool(stale)
+
+    def set_hardware_error(self, joint: int | str, bits: int = HardwareError.OVERLOAD) -> None:
+        """Raise hardware-error bits on one motor; shutdown bits drop its torque."""
+        i = JOINTS.index(joint) if isinstance(joint, str) else int(joint)
+        if i not in (0, 1):
+            raise ValueError(f"joint must be 0/1 or one of {JOINTS}; got {joint!r}")
+        with self._lock:
+            self._hw[i] |= int(bits)
+            if int(bits) & _SHUTDOWN_BITS:
+                self._torque[i] = False
+
+    def set_battery(self, voltage: float, sag_v_per_s: float = 0.0) -> None:
+        """Battery model for the motors' input voltage: ``voltage − sag·(t − now)``."""
+        if not (math.isfinite(voltage) and voltage >= 0):
+            raise ValueError(f"voltage must be a finite value >= 0 V; got {voltage}")
+        if not (math.isfinite(sag_v_per_s) and sag_v_per_s >= 0):
+            raise ValueError(f"sag_v_per_s must be >= 0 V/s; got {sag_v_per_s}")
+        with self._lock:
+            self._battery_v0, self._battery_sag, self._battery_t0 = voltage, sag_v_per_s, self._t
+
+    def input_voltage(self) -> float:
+        """Present motor input voltage (V)."""
+        return max(0.0, self._battery_v0 - self._battery_sag * (self._t - self._battery_t0))
+
+    def set_external_wrench(self, force: ArrayLike, torque: ArrayLike = (0, 0, 0)) -> None:
+        """The wrench the F/T sensor feels (N, N·m, sensor frame), before its raw offset."""
+        self._wrench = np.concatenate([_vec3(force, "force"), _vec3(torque, "torque")])
+
+    # ------------------------------------------------------------------------ dynamics --
+    def step(self, dt: float) -> None:
+        """Advance the world by ``dt`` seconds, emitting IMU/F-T samples at their rates."""
+        if not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be a finite number > 0 s; got {dt}")
+        with self._lock:
+            t_end = self._t + dt
+            while self._t < t_end - 1e-12:
+                t_next = min(t_end, self._next_imu, self._next_ft, self._t + _MAX_SUBSTEP)
+                self._integrate(t_next - self._t)
+                self._t = t_next
+                if self._t >= self._next_imu - 1e-12:
+                    if not self._imu_stale:
+                        self._imu_queue.append(self._imu_sample(self._next_imu))
+                    self._next_imu += self._imu_period
+                if self._t >= self._next_ft - 1e-12:
+                    self._ft_queue.append(self._ft_sample(self._next_ft))
+                    self._next_ft += self._ft_period
+
+    def _integrate(self, h: float) -> None:
+        if h <= 0:
+            return
+        vmax = self.velocity_limits
+        if self._mode == "velocity":
+            target = self._cmd_vel.copy()
+        else:
+            target = self._kp * (self._cmd_pos - self._q)
+        target = np.where(self._torque, np.clip(target, -vmax, vmax), 0.0)
+        if self._tau > 0:
+            a = math.exp(-h / self._tau)
+            q_new = self._q + target * h + (self._qd - target) * self._tau * (1.0 - a)
+            qd_new = target + (self._qd - target) * a
+        else:
+            q_new = self._q + target * h
+            qd_new = target
+        lo, hi = self.position_limits[:, 0], self.position_limits[:, 1]
+        for i in range(2):
+            if not lo[i] <= q_new[i] <= hi[i]:
+                q_new[i] = min(max(q_new[i], lo[i]), hi[i])
+                if abs(qd_new[i]) > self._hard_stop or abs(self._qd[i]) > self._hard_stop:
+                    self._hw[i] |= int(HardwareError.OVERLOAD)
+                    self._torque[i] = False
+                qd_new[i] = 0.0
+        self._q, self._qd = q_new, qd_new
+
+    def _imu_sample(self, ts: float) -> ImuSample:
+        R, w, a = self.base_state(ts)
+        R_wi = R @ self._imu_mount
+        accel = R_wi.T @ (self._gravity_up + a)
+        gyro = R_wi.T @ w + self._gyro_bias
+        if self._noise:
+            accel = accel + self._rng.normal(0.0, self._accel_sigma, 3)
+            gyro = gyro + self._rng.normal(0.0, self._gyro_sigma, 3)
+        return ImuSample(accel=accel, gyro=gyro, stamp=ts, temperature=self.imu_temperature)
+
+    def _ft_sample(self, ts: float) -> FTSample:
+        w = self._wrench + self._ft_offset
+        if self._noise:
+            w = w + self._rng.normal(0.0, 1.0, 6) * self.ft_noise_sigma
+        return FTSample(force=w[:3], torque=w[3:], temperature=self.ft_temperature, stamp=ts)
+
+    # ----------------------------------------------------------------- driver plumbing --
+    def motor_driver(self) -> SimMotorDriver:
+        """A ``MotorDriver`` acting on this world."""
+        return SimMotorDriver(self)
+
+    def imu_driver(self) -> SimImuDriver:
+        """An ``ImuDriver`` reading this world's IMU."""
+        return SimImuDriver(self)
+
+    def ft_driver(self) -> SimFTDriver:
+        """An ``FTDriver`` reading this world's F/T sensor."""
+        return SimFTDriver(self)
+
+    def _drain_imu(self) -> list[ImuSample]:
+        with self._lock:
+            out = list(self._imu_queue)
+            self._imu_queue.clear()
+        return out
+
+    def _drain_ft(self) -> list[FTSample]:
+        with self._lock:
+            out = list(self._ft_queue)
+            self._ft_queue.clear()
+        return out
+
+
+class SimMotorDriver(MotorDriver):
+    """The twin of ``DynamixelDriver``: same checks, same state machine, simulated motors."""
+
+    def __init__(self, sim: SimWrist) -> None:
+        self.sim = sim
+        self._open = False
+        self.last_error = ""
+
+    def _require_open(self) -> SimWrist:
+        if not self._open:
+            raise DriverError("simulated motors are not open")
+        return self.sim
+
+    @property
+    def mode(self) -> MotorMode:
+        """The current operating mode."""
+        return self.sim._mode
+
+    @property
+    def torque_enabled(self) -> bool:
+        """True when both motors hold torque."""
+        return bool(self.sim._torque.all())
+
+    def open(self) -> None:
+        """Torque off, velocity mode, zero goal."""
+        s = self.sim
+        with s._lock:
+            s._torque[:] = False
+            s._mode = "velocity"
+            s._cmd_vel = np.zeros(2)
+        self._open = True
+
+    def close(self) -> None:
+        """Stop and torque off."""
+        if self._open:
+            self.stop()
+            self.sim._torque[:] = False
+            self._open = False
+
+    def enable_torque(self, on: bool) -> None:
+        """Torque on (no-motion goal first) or off; a motor in shutdown stays off."""
+        s = self._require_open()
+        with s._lock:
+            s._cmd_vel = np.zeros(2)
+            s._cmd_pos = s._q.copy()
+            for i in range(2):
+                s._torque[i] = bool(on) and not (s._hw[i] & _SHUTDOWN_BITS)
+
+    def set_mode(self, mode: MotorMode) -> None:
+        """Stop, switch mode, keep torque as it was."""
+        if mode not in ("velocity", "position"):
+            raise ValueError(f"mode must be 'velocity' or 'position'; got {mode!r}")
+        s = self._require_open()
+        with s._lock:
+            s._cmd_vel = np.zeros(2)
+            s._cmd_pos = s._q.copy()
+            s._mode = mode
+
+    def set_velocity(self, qd: ArrayLike) -> None:
+        """Command joint velocities; non-finite or over-limit input raises ``ValueError``."""
+        a = validate_velocity_command(qd, self.sim.velocity_limits)
+        s = self._require_open()
+        if s._mode != "velocity":
+            raise DriverError("set_velocity needs velocity mode (call set_mode('velocity'))")
+        with s._lock:
+            s._cmd_vel = a.copy()
+
+    def set_position(self, q: ArrayLike) -> None:
+        """Command joint positions within ``spec.wrist`` limits (single-turn, as the motors)."""
+        a = validate_position_command(q, self.sim.spec.wrist.limits)
+        s = self._require_open()
+        if s._mode != "position":
+            raise DriverError("set_position needs position mode (call set_mode('position'))")
+        with s._lock:
+            s._cmd_pos = a.copy()
+
+    def read(self) -> MotorState:
+        """Present state of the simulated motors (stamped with simulation time)."""
+        s = self._require_open()
+        with s._lock:
+            return MotorState(
+                position=s._q.copy(),
+                velocity=s._qd.copy(),
+                hardware_error=(s._hw[0], s._hw[1]),
+                input_voltage=s.input_voltage(),
+                temperature=s._motor_temp,
+                stamp=s._t,
+            )
+
+    def stop(self) -> None:
+        """Zero velocity / hold position. Never raises."""
+        s = self.sim
+        with s._lock:
+            s._cmd_vel = np.zeros(2)
+            s._cmd_pos = s._q.copy()
+
+    def clear_errors(self) -> None:
+        """Reboot: clear hardware errors; torque comes back off."""
+        s = self._require_open()
+        with s._lock:
+            for i in range(2):
+                if s._hw[i]:
+                    s._hw[i] = 0
+                    s._torque[i] = False
+                    s._cmd_vel[i] = 0.0
+
+
+class SimImuDriver(ImuDriver):
+    """The twin of ``OpenLogImuDriver``: samples synthesised by ``SimWrist.step``."""
+
+    def __init__(self, sim: SimWrist) -> None:
+        self.sim = sim
+        self._open = False
+        self.lines_ok = 0
+        self.lines_bad = 0
+
+    def open(self) -> None:
+        """Start receiving (drops samples produced before opening)."""
+        self.sim._drain_imu()
+        self._open = True
+
+    def close(self) -> None:
+        """Stop receiving."""
+        self._open = False
+
+    def read_all(self) -> list[ImuSample]:
+        """Samples produced since the last call, oldest first."""
+        if not self._open:
+            raise DriverError("simulated IMU is not open")
+        out = self.sim._drain_imu()
+        self.lines_ok += len(out)
+        return out
+
+
+class SimFTDriver(FTDriver):
+    """The twin of ``ResenseFTDriver``: raw samples carry ``ft_offset``; tare removes it."""
+
+    def __init__(self, sim: SimWrist) -> None:
+        super().__init__(sim.spec.ft.tare_samples)
+        self.sim = sim
+        self._open = False
+        self.frames_ok = 0
+        self.frames_bad = 0
+
+    def open(self) -> None:
+        """Start receiving."""
+        self.sim._drain_ft()
+        self._open = True
+
+    def close(self) -> None:
+        """Stop receiving."""
+        self._open = False
+
+    def _read_raw(self) -> list[FTSample]:
+        if not self._open:
+            raise DriverError("simulated F/T sensor is not open")
+        out = self.sim._drain_ft()
+        self.frames_ok += len(out)
+        return out

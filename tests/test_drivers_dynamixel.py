@@ -1,0 +1,452 @@
+"""The Dynamixel driver against a fake protocol-2.0 bus on a pseudo-terminal.
+
+The real ``DynamixelDriver`` (and the real ``dynamixel_sdk`` PortHandler/pyserial underneath)
+opens the pty's slave path; a thread on the master side plays two XC430s with a register
+file each. The fake computes its own CRC-16 (bitwise, poly 0x8005) so a packet-building bug
+in either side would show up as a timeout or a CRC mismatch.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import select
+import threading
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from articutool import load_spec
+from articutool.tool.drivers.base import DriverError, HardwareError
+from articutool.tool.drivers.dynamixel import (
+    ADDR_GOAL_POSITION,
+    ADDR_GOAL_VELOCITY,
+    ADDR_HARDWARE_ERROR_STATUS,
+    ADDR_MAX_POSITION_LIMIT,
+    ADDR_MIN_POSITION_LIMIT,
+    ADDR_OPERATING_MODE,
+    ADDR_PRESENT_INPUT_VOLTAGE,
+    ADDR_PRESENT_POSITION,
+    ADDR_PRESENT_TEMPERATURE,
+    ADDR_PRESENT_VELOCITY,
+    ADDR_TORQUE_ENABLE,
+    ADDR_VELOCITY_LIMIT,
+    DynamixelDriver,
+    rad_s_to_velocity_units,
+    rad_to_ticks,
+    ticks_to_rad,
+    to_signed32,
+    to_unsigned32,
+    velocity_limit_units,
+    velocity_units_to_rad_s,
+)
+
+SPEC = load_spec()
+M = SPEC.motors
+IDS = (M.pitch_id, M.roll_id)
+RAD_PER_UNIT = M.velocity_unit_rpm * 2 * math.pi / 60  # independent of the driver's helper
+RAD_PER_TICK = 2 * math.pi / M.ticks_per_rev
+MODEL = 1160  # what the fake answers to PING; the driver only records it
+# Reply timeout headroom for a loaded test machine (the fake answers within a few ms).
+LATENCY_MS = 100.0
+
+
+# ----------------------------------------------------------------- fake protocol 2.0 bus --
+def crc16(data: bytes) -> int:
+    """CRC-16/BUYPASS (poly 0x8005, init 0), bit by bit, as the protocol 2.0 spec defines."""
+    crc = 0
+    for b in data:
+        crc ^= b << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x8005) if crc & 0x8000 else (crc << 1)
+            crc &= 0xFFFF
+    return crc
+
+
+def stuff(body: bytes) -> bytes:
+    out = bytearray()
+    for b in body:
+        out.append(b)
+        if len(out) >= 3 and out[-3:] == b"\xff\xff\xfd":
+            out.append(0xFD)
+    return bytes(out)
+
+
+def unstuff(body: bytes) -> bytes:
+    out = bytearray()
+    i = 0
+    while i < len(body):
+        out.append(body[i])
+        if (
+            len(out) >= 3
+            and out[-3:] == b"\xff\xff\xfd"
+            and i + 1 < len(body)
+            and (body[i + 1] == 0xFD)
+        ):
+            i += 1  # drop the stuffed byte
+        i += 1
+    return bytes(out)
+
+
+class FakeBus:
+    """Two X-series motors: register files, PING/READ/WRITE/SYNC_WRITE/SYNC_READ/REBOOT."""
+
+    def __init__(self, master_fd: int) -> None:
+        self.fd = master_fd
+        self.regs = {i: bytearray(700) for i in IDS}
+        for r in self.regs.values():
+            r[ADDR_OPERATING_MODE] = 3  # factory default: position mode
+            r[ADDR_VELOCITY_LIMIT : ADDR_VELOCITY_LIMIT + 4] = (275).to_bytes(4, "little")
+            r[ADDR_MAX_POSITION_LIMIT : ADDR_MAX_POSITION_LIMIT + 4] = (4095).to_bytes(4, "little")
+            r[ADDR_PRESENT_INPUT_VOLTAGE : ADDR_PRESENT_INPUT_VOLTAGE + 2] = (120).to_bytes(
+                2, "little"
+            )
+            r[ADDR_PRESENT_TEMPERATURE] = 31
+        self.lock = threading.Lock()
+        self.writes: list[tuple[str, int, int, bytes]] = []  # (kind, id, addr, data)
+        self.instructions: list[int] = []
+        self.silent = False
+        self.corrupt_crc = False
+        self._buf = bytearray()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    # register helpers
+    def get(self, dxl_id: int, addr: int, size: int) -> int:
+        with self.lock:
+            return int.from_bytes(self.regs[dxl_id][addr : addr + size], "little")
+
+    def set(self, dxl_id: int, addr: int, size: int, value: int) -> None:
+        with self.lock:
+            self.regs[dxl_id][addr : addr + size] = (value & ((1 << (8 * size)) - 1)).to_bytes(
+                size, "little"
+            )
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2)
+
+    # protocol
+    def _send_status(self, dxl_id: int, err: int, params: bytes = b"") -> None:
+        if self.silent:
+            return
+        if self.regs[dxl_id][ADDR_HARDWARE_ERROR_STATUS]:
+            err |= 0x80  # alert bit
+        body = stuff(bytes([0x55, err]) + params)
+        pkt = bytes([0xFF, 0xFF, 0xFD, 0x00, dxl_id]) + (len(body) + 2).to_bytes(2, "little")
+        pkt += body
+        crc = crc16(pkt)
+        if self.corrupt_crc:
+            crc ^= 0x1234
+        os.write(self.fd, pkt + crc.to_bytes(2, "little"))
+
+    def _write_reg(self, dxl_id: int, addr: int, data: bytes, kind: str) -> int:
+        r = self.regs[dxl_id]
+        if addr < 64 and r[ADDR_TORQUE_ENABLE]:
+            return 7  # access error: EEPROM locked while torque is on
+        if addr == ADDR_GOAL_VELOCITY:
+            limit = int.from_bytes(r[ADDR_VELOCITY_LIMIT : ADDR_VELOCITY_LIMIT + 4], "little")
+            if abs(to_signed32(int.from_bytes(data, "little"))) > limit:
+                return 6  # data limit error: the goal is ignored
+        r[addr : addr + len(data)] = data
+        if addr == ADDR_GOAL_VELOCITY and r[ADDR_TORQUE_ENABLE]:
+            r[ADDR_PRESENT_VELOCITY : ADDR_PRESENT_VELOCITY + 4] = data  # ideal motor
+        self.writes.append((kind, dxl_id, addr, bytes(data)))
+        return 0
+
+    def _handle(self, dxl_id: int, inst: int, p: bytes) -> None:
+        self.instructions.append(inst)
+        with self.lock:
+            if inst == 0x01 and dxl_id in self.regs:  # PING
+                self._send_status(dxl_id, 0, MODEL.to_bytes(2, "little") + b"\x2d")
+            elif inst == 0x02 and dxl_id in self.regs:  # READ
+                addr, n = int.from_bytes(p[0:2], "little"), int.from_bytes(p[2:4], "little")
+                self._send_status(dxl_id, 0, bytes(self.regs[dxl_id][addr : addr + n]))
+            elif inst == 0x03 and dxl_id in self.regs:  # WRITE
+                addr = int.from_bytes(p[0:2], "little")
+                err = self._write_reg(dxl_id, addr, p[2:], "write")
+                self._send_status(dxl_id, err)
+            elif inst == 0x08 and dxl_id in self.regs:  # REBOOT
+                self._send_status(dxl_id, 0)
+                self.regs[dxl_id][ADDR_HARDWARE_ERROR_STATUS] = 0
+                self.regs[dxl_id][ADDR_TORQUE_ENABLE] = 0
+            elif inst == 0x83 and dxl_id == 0xFE:  # SYNC_WRITE
+                addr, n = int.from_bytes(p[0:2], "little"), int.from_bytes(p[2:4], "little")
+                for k in range(4, len(p), n + 1):
+                    if p[k] in self.regs:
+                        self._write_reg(p[k], addr, p[k + 1 : k + 1 + n], "sync")
+            elif inst == 0x82 and dxl_id == 0xFE:  # SYNC_READ
+                addr, n = int.from_bytes(p[0:2], "little"), int.from_bytes(p[2:4], "little")
+                for i in p[4:]:
+                    if i in self.regs:
+                        self._send_status(i, 0, bytes(self.regs[i][addr : addr + n]))
+
+    def _parse(self) -> None:
+        while True:
+            start = self._buf.find(b"\xff\xff\xfd\x00")
+            if start < 0:
+                del self._buf[:-3]
+                return
+            del self._buf[:start]
+            if len(self._buf) < 7:
+                return
+            total = 7 + int.from_bytes(self._buf[5:7], "little")
+            if len(self._buf) < total:
+                return
+            pkt = bytes(self._buf[:total])
+            del self._buf[:total]
+            if crc16(pkt[:-2]) != int.from_bytes(pkt[-2:], "little"):
+                continue  # a real motor drops a packet with a bad CRC
+            body = unstuff(pkt[7:-2])
+            self._handle(pkt[4], body[0], body[1:])
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            r, _, _ = select.select([self.fd], [], [], 0.02)
+            if r:
+                try:
+                    self._buf += os.read(self.fd, 4096)
+                except OSError:
+                    return
+                self._parse()
+
+
+@pytest.fixture
+def bus() -> Iterator[tuple[FakeBus, str]]:
+    master, slave = os.openpty()
+    fake = FakeBus(master)
+    yield fake, os.ttyname(slave)
+    fake.close()
+    os.close(slave)
+    os.close(master)
+
+
+@pytest.fixture
+def driver(bus: tuple[FakeBus, str]) -> Iterator[tuple[DynamixelDriver, FakeBus]]:
+    fake, path = bus
+    drv = DynamixelDriver(SPEC, port=path, latency_ms=LATENCY_MS)
+    drv.open()
+    yield drv, fake
+    drv.close()
+
+
+def sync_goal_velocity_writes(fake: FakeBus) -> list[tuple[int, int]]:
+    return [
+        (i, to_signed32(int.from_bytes(d, "little")))
+        for kind, i, a, d in fake.writes
+        if kind == "sync" and a == ADDR_GOAL_VELOCITY
+    ]
+
+
+# ------------------------------------------------------------------------------- tests --
+def test_open_configures_motors_safely(driver: tuple[DynamixelDriver, FakeBus]) -> None:
+    drv, fake = driver
+    expected_limit = [math.floor(v / RAD_PER_UNIT) for v in SPEC.wrist.max_velocity]
+    for i, lim in zip(IDS, expected_limit, strict=True):
+        assert fake.get(i, ADDR_VELOCITY_LIMIT, 4) == lim  # the motor enforces the limit
+        assert fake.get(i, ADDR_OPERATING_MODE, 1) == 1  # velocity mode
+        assert fake.get(i, ADDR_TORQUE_ENABLE, 1) == 0  # torque stays off until asked
+        assert fake.get(i, ADDR_GOAL_VELOCITY, 4) == 0
+    assert lim * RAD_PER_UNIT <= SPEC.wrist.max_velocity[1]
+    assert drv.model_numbers == (MODEL, MODEL)
+    assert drv.mode == "velocity"
+    assert 0x01 in fake.instructions  # pinged
+
+
+def test_open_skips_eeprom_writes_when_already_set(bus: tuple[FakeBus, str]) -> None:
+    fake, path = bus
+    with DynamixelDriver(SPEC, port=path, latency_ms=LATENCY_MS):
+        pass
+    n_writes = sum(1 for k, _, a, _ in fake.writes if k == "write" and a < 64)
+    with DynamixelDriver(SPEC, port=path, latency_ms=LATENCY_MS):
+        pass
+    assert n_writes > 0
+    assert sum(1 for k, _, a, _ in fake.writes if k == "write" and a < 64) == n_writes
+
+
+def test_velocity_command_unit_conversion(driver: tuple[DynamixelDriver, FakeBus]) -> None:
+    drv, fake = driver
+    drv.enable_torque(True)
+    assert all(fake.get(i, ADDR_TORQUE_ENABLE, 1) == 1 for i in IDS)
+    qd = np.array([1.0, -2.5])
+    drv.set_velocity(qd)
+    drv.read()  # a round trip: the (unanswered) sync write has been processed
+    got = [to_signed32(fake.get(i, ADDR_GOAL_VELOCITY, 4)) for i in IDS]
+    assert got == [round(v / RAD_PER_UNIT) for v in qd]  # 0.229 rev/min per unit
+    state = drv.read()  # the fake's ideal motor reports its goal as present velocity
+    np.testing.assert_allclose(state.velocity, qd, atol=RAD_PER_UNIT / 2)
+
+
+def test_command_at_the_limit_is_accepted_and_stays_within_the_register(
+    driver: tuple[DynamixelDriver, FakeBus],
+) -> None:
+    drv, fake = driver
+    drv.enable_torque(True)
+    vmax = np.array(SPEC.wrist.max_velocity)
+    drv.set_velocity(-vmax)
+    drv.read()
+    for i in IDS:
+        limit = fake.get(i, ADDR_VELOCITY_LIMIT, 4)
+        assert to_signed32(fake.get(i, ADDR_GOAL_VELOCITY, 4)) == -limit
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [[math.nan, 0.0], [0.0, math.inf], [0.0, -math.inf], [0.0, 100.0], [1.0], "fast"],
+)
+def test_bad_velocity_commands_are_refused_and_nothing_is_sent(
+    driver: tuple[DynamixelDriver, FakeBus], bad: object
+) -> None:
+    drv, fake = driver
+    drv.enable_torque(True)
+    drv.set_velocity([0.5, 0.5])
+    drv.read()  # round trip: the sync write above has been processed
+    before = len(sync_goal_velocity_writes(fake))
+    with pytest.raises(ValueError, match=r"qd"):
+        drv.set_velocity(bad)  # type: ignore[arg-type]
+    drv.read()  # a full round trip: every earlier byte has been processed
+    assert len(sync_goal_velocity_writes(fake)) == before
+    assert [to_signed32(fake.get(i, ADDR_GOAL_VELOCITY, 4)) for i in IDS] == [
+        round(0.5 / RAD_PER_UNIT)
+    ] * 2
+
+
+def test_read_converts_signed_present_values(driver: tuple[DynamixelDriver, FakeBus]) -> None:
+    drv, fake = driver
+    zero = M.zero_ticks
+    fake.set(IDS[0], ADDR_PRESENT_POSITION, 4, zero[0] - 1000)
+    fake.set(IDS[1], ADDR_PRESENT_POSITION, 4, zero[1] - 3 * 4096 - 17)  # multi-turn, < 0
+    fake.set(IDS[0], ADDR_PRESENT_VELOCITY, 4, -40)
+    fake.set(IDS[1], ADDR_PRESENT_VELOCITY, 4, 7)
+    fake.set(IDS[0], ADDR_PRESENT_INPUT_VOLTAGE, 2, 118)
+    fake.set(IDS[1], ADDR_PRESENT_TEMPERATURE, 1, 44)
+    s = drv.read()
+    np.testing.assert_allclose(s.position, [-1000 * RAD_PER_TICK, (-3 * 4096 - 17) * RAD_PER_TICK])
+    np.testing.assert_allclose(s.velocity, [-40 * RAD_PER_UNIT, 7 * RAD_PER_UNIT])
+    assert s.input_voltage == pytest.approx(11.8)
+    assert s.temperature == 44
+    assert s.hardware_error == (0, 0)
+    assert not s.has_hardware_error
+
+
+def test_hardware_error_is_reported_and_cleared_by_reboot(
+    driver: tuple[DynamixelDriver, FakeBus],
+) -> None:
+    drv, fake = driver
+    fake.set(IDS[1], ADDR_HARDWARE_ERROR_STATUS, 1, int(HardwareError.OVERLOAD))
+    s = drv.read()
+    assert s.hardware_error == (0, int(HardwareError.OVERLOAD))
+    assert s.has_hardware_error
+    assert "roll" in s.describe_errors() and "OVERLOAD" in s.describe_errors()
+    drv.clear_errors()
+    assert 0x08 in fake.instructions
+    assert drv.read().hardware_error == (0, 0)
+    assert not drv.torque_enabled
+
+
+def test_position_mode_writes_limits_and_ticks(driver: tuple[DynamixelDriver, FakeBus]) -> None:
+    drv, fake = driver
+    drv.enable_torque(True)
+    drv.set_mode("position")
+    zero = np.array(M.zero_ticks)
+    lim = np.array(SPEC.wrist.limits)
+    for k, i in enumerate(IDS):
+        assert fake.get(i, ADDR_OPERATING_MODE, 1) == 3
+        lo = min(max(round(lim[k, 0] / RAD_PER_TICK) + zero[k], 0), 4095)
+        hi = min(max(round(lim[k, 1] / RAD_PER_TICK) + zero[k], 0), 4095)
+        assert fake.get(i, ADDR_MIN_POSITION_LIMIT, 4) == lo
+        assert fake.get(i, ADDR_MAX_POSITION_LIMIT, 4) == hi
+        assert fake.get(i, ADDR_TORQUE_ENABLE, 1) == 1  # torque restored
+    drv.set_position([0.3, -1.0])
+    drv.read()
+    assert [fake.get(i, ADDR_GOAL_POSITION, 4) for i in IDS] == [
+        round(0.3 / RAD_PER_TICK) + zero[0],
+        round(-1.0 / RAD_PER_TICK) + zero[1],
+    ]
+    with pytest.raises(ValueError, match=r"q\[pitch\]"):
+        drv.set_position([3.0, 0.0])
+    with pytest.raises(DriverError, match="velocity mode"):
+        drv.set_velocity([0.1, 0.1])
+    drv.set_mode("velocity")
+    assert fake.get(IDS[0], ADDR_OPERATING_MODE, 1) == 1
+
+
+def test_silent_bus_raises_driver_error_and_stop_is_still_safe(
+    driver: tuple[DynamixelDriver, FakeBus],
+) -> None:
+    drv, fake = driver
+    drv.enable_torque(True)
+    drv.set_velocity([1.0, 1.0])
+    fake.silent = True
+    with pytest.raises(DriverError, match="pitch motor"):
+        drv.read()
+    drv.stop()  # sync write needs no answer: it still lands
+    fake.silent = False
+    drv.read()
+    assert [fake.get(i, ADDR_GOAL_VELOCITY, 4) for i in IDS] == [0, 0]
+
+
+def test_corrupt_status_packets_raise_driver_error(
+    driver: tuple[DynamixelDriver, FakeBus],
+) -> None:
+    drv, fake = driver
+    fake.corrupt_crc = True
+    with pytest.raises(DriverError, match=r"[Ii]ncorrect status packet"):
+        drv.read()
+    fake.corrupt_crc = False
+    assert drv.read().input_voltage == pytest.approx(12.0)
+
+
+def test_missing_port_and_not_open_are_clear_errors(tmp_path: object) -> None:
+    drv = DynamixelDriver(SPEC, port="/dev/definitely-not-a-port")
+    with pytest.raises(DriverError, match="cannot open motor port"):
+        drv.open()
+    with pytest.raises(DriverError, match="not open"):
+        drv.read()
+    drv.stop()  # safe before open
+    drv.close()
+
+
+def test_missing_motor_fails_open(bus: tuple[FakeBus, str]) -> None:
+    fake, path = bus
+    del fake.regs[IDS[1]]
+    drv = DynamixelDriver(SPEC, port=path, latency_ms=LATENCY_MS)
+    with pytest.raises(DriverError, match=r"roll motor \(ID 2\).*ping"):
+        drv.open()
+
+
+# -------------------------------------------------------------- pure conversion helpers --
+@given(st.integers(-(2**31), 2**31 - 1))
+def test_signed32_roundtrip(x: int) -> None:
+    u = to_unsigned32(x)
+    assert 0 <= u < 2**32
+    assert to_signed32(u) == x
+
+
+@given(st.floats(-6.8, 6.8))
+def test_velocity_units_roundtrip_within_half_a_unit(v: float) -> None:
+    back = velocity_units_to_rad_s(
+        rad_s_to_velocity_units(v, M.velocity_unit_rpm), M.velocity_unit_rpm
+    )
+    assert abs(float(back) - v) <= RAD_PER_UNIT / 2 + 1e-12
+
+
+@given(st.floats(-40.0, 40.0))
+def test_ticks_roundtrip_within_half_a_tick(q: float) -> None:
+    t = rad_to_ticks(q, M.zero_ticks[0], M.ticks_per_rev)
+    assert (
+        abs(float(ticks_to_rad(t, M.zero_ticks[0], M.ticks_per_rev)) - q)
+        <= RAD_PER_TICK / 2 + 1e-12
+    )
+
+
+def test_velocity_limit_never_exceeds_spec_and_rejects_out_of_register() -> None:
+    units = velocity_limit_units(SPEC.wrist.max_velocity, M.velocity_unit_rpm)
+    assert (units * RAD_PER_UNIT <= np.array(SPEC.wrist.max_velocity)).all()
+    assert ((units + 1) * RAD_PER_UNIT > np.array(SPEC.wrist.max_velocity)).all()
+    with pytest.raises(ValueError, match=r"1\.\.1023"):
+        velocity_limit_units([100.0, 1.0], M.velocity_unit_rpm)
