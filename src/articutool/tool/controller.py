@@ -1,0 +1,296 @@
+"""Yaw-invariant leveling controller (thesis §4.2, Algorithm 1; hardware-facts §5).
+
+Pure and stateful: :class:`LevelingController` holds only the PID memory (integral and last
+error) and the chosen offsets; it reads no sensor and drives no motor. Each 50 Hz tick the
+runtime hands it the tool-base orientation in the gravity-aligned world frame and the measured
+joints, and gets back a joint velocity command ``[pitch, roll]`` in rad/s.
+
+One tick (Algorithm 1, with the reference tuning of hardware-facts §5):
+
+1. ``y_world = R_world←F0 · y(q)``, the tool's up vector (Eq. 4.1) in the world.
+2. Error: the axis-angle rotation taking ``y_world`` onto world +z (Alg. 1 lines 8–10). The
+   angle is ``atan2(|y × z|, y · z)``, which, unlike ``arccos``, stays accurate near 0 and π.
+3. Deadband: below ``deadband`` the command is zero and the integral is reset.
+4. PID on the world-frame error vector; integral clamped per component to ±``integral_clamp``;
+   derivative of the error (no kick on the first tick after a reset).
+5. ``ω_local = R⁻¹ ω_world``; ``q̇ = J⁺(q) (ω_local × y(q))`` (Eqs. 4.6–4.7, via
+   :func:`~articutool.tool.kinematics.joint_rates_for_rotation`).
+6. Singularity damping: where ``|cos θr|`` < ``damping_threshold`` the pitch command is scaled
+   by ``(|cos θr| / damping_threshold) ** damping_power``. The singularity is ``cos θr = 0``,
+   where the up vector lies along the pitch axis (F0 y) and pitch no longer moves it.
+7. Predictive joint limits: ``q_next = clip(q + q̇ dt)``, ``q̇ = (q_next − q) / dt``. A joint
+   already outside its limits may move back in but is never driven further out, nor snapped.
+8. Per-joint clip to the commandable speed ``spec.wrist.max_velocity``.
+
+**Offsets** (hold a chosen tilt). With offsets ``o = (a, b)`` the controller levels the
+*virtual* wrist ``q − o``: it drives ``R · y(q − o)`` to world +z, so at rest
+``q = q_level + o`` where ``q_level`` is a leveling solution (Eqs. 4.2–4.3) for the current
+base. In words: the tool is levelled, then turned a further ``a`` in pitch and ``b`` in roll
+about its own joints. Steps 1–6 use ``q − o``; the joint limits (step 7) apply to the
+physical ``q``.
+
+**Rate feed-forward** (optional, beyond Alg. 1). Pure feedback lags a base turning at ω by
+about ω/Kp (0.84 rad/s / 5 ≈ 10°). If the runtime passes the base's angular velocity in F0
+(the bias-corrected gyro, see :meth:`LevelingController.tool_base_rate`), the controller adds
+the correction of Eq. 4.5, ``−ω_base``, to ``ω_local`` outside the deadband.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from articutool.spec import Spec
+from articutool.tool.kinematics import joint_rates_for_rotation, up_vector
+
+__all__ = ["LevelingController", "quaternion_to_matrix"]
+
+_Z = np.array([0.0, 0.0, 1.0])
+_X = np.array([1.0, 0.0, 0.0])
+_TINY = 1e-12
+
+
+def quaternion_to_matrix(wxyz: ArrayLike) -> NDArray[np.float64]:
+    """Rotation matrix of a Hamilton quaternion ``(w, x, y, z)`` (normalised first).
+
+    With the filter's output (sensor in the gravity-aligned world, hardware-facts §4) this is
+    ``R_world←imu``.
+    """
+    q = np.asarray(wxyz, dtype=np.float64)
+    if q.shape != (4,) or not np.isfinite(q).all():
+        raise ValueError(f"quaternion must be 4 finite numbers (w, x, y, z); got {q!r}")
+    n = math.sqrt(float(q @ q))
+    if n < 1e-9:
+        raise ValueError("quaternion must be non-zero")
+    w, x, y, z = (q / n).tolist()
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _check(
+    name: str, value: float, lo: float, hi: float = math.inf, lo_open: bool = False
+) -> float:
+    v = float(value)
+    ok = math.isfinite(v) and (v > lo if lo_open else v >= lo) and v <= hi
+    if not ok:
+        bracket = "(" if lo_open else "["
+        raise ValueError(f"{name} must be in {bracket}{lo}, {hi}]; got {value}")
+    return v
+
+
+def _rotation_matrix(R: ArrayLike, name: str) -> NDArray[np.float64]:
+    a = np.asarray(R, dtype=np.float64)
+    if a.shape != (3, 3):
+        raise ValueError(f"{name} must be a 3x3 rotation matrix; got shape {a.shape}")
+    if not np.isfinite(a).all():
+        raise ValueError(f"{name} must be finite (got NaN or inf)")
+    return a
+
+
+class LevelingController:
+    """PID leveling of the tool's up vector against gravity (thesis Alg. 1; hardware-facts §5).
+
+    Parameters are the reference tuning (``spec.controller``) and the wrist's leveling limits
+    and commandable speeds (``spec.wrist``); :meth:`from_spec` reads them. ``imu_to_base`` is
+    the fixed mounting rotation ``R_imu←F0`` of the IMU on the tool base (identity: the IMU
+    axes are F0's axes).
+    """
+
+    def __init__(
+        self,
+        kp: float,
+        ki: float,
+        kd: float,
+        integral_clamp: float,
+        deadband: float,
+        limits: ArrayLike,
+        max_velocity: ArrayLike,
+        rcond: float = 1e-3,
+        damping_threshold: float = 0.6,
+        damping_power: float = 5.0,
+        imu_to_base: ArrayLike | None = None,
+    ) -> None:
+        self.kp = _check("kp", kp, 0.0)
+        self.ki = _check("ki", ki, 0.0)
+        self.kd = _check("kd", kd, 0.0)
+        self.integral_clamp = _check("integral_clamp", integral_clamp, 0.0)
+        self.deadband = _check("deadband", deadband, 0.0, math.pi)
+        self.rcond = _check("rcond", rcond, 0.0, 1.0, lo_open=True)
+        self.damping_threshold = _check("damping_threshold", damping_threshold, 0.0, 1.0, True)
+        self.damping_power = _check("damping_power", damping_power, 0.0, lo_open=True)
+        lim = np.array(limits, dtype=np.float64)
+        if lim.shape != (2, 2) or not np.isfinite(lim).all() or not (lim[:, 0] < lim[:, 1]).all():
+            raise ValueError(
+                "limits must be finite [[pitch_lo, pitch_hi], [roll_lo, roll_hi]] with lo < hi; "
+                f"got {limits!r}"
+            )
+        vmax = np.array(max_velocity, dtype=np.float64)
+        if vmax.shape != (2,) or not np.isfinite(vmax).all() or not (vmax > 0).all():
+            raise ValueError(f"max_velocity must be two finite speeds > 0 rad/s; got {vmax!r}")
+        self._lo, self._hi = lim[:, 0].copy(), lim[:, 1].copy()
+        self._vmax = vmax
+        if imu_to_base is None:
+            self._R_imu_base = np.eye(3)
+        else:
+            m = _rotation_matrix(imu_to_base, "imu_to_base")
+            if not np.allclose(m @ m.T, np.eye(3), atol=1e-6) or np.linalg.det(m) < 0:
+                raise ValueError("imu_to_base must be a proper rotation (orthonormal, det +1)")
+            self._R_imu_base = m.copy()
+        self._offsets = np.zeros(2)
+        self._integral = np.zeros(3)
+        self._last_error: NDArray[np.float64] | None = None
+        self._error_angle = math.nan
+
+    @classmethod
+    def from_spec(cls, spec: Spec, imu_to_base: ArrayLike | None = None) -> LevelingController:
+        """A controller with the spec's gains (``controller``) and limits/speeds (``wrist``)."""
+        c = spec.controller
+        return cls(
+            kp=c.kp,
+            ki=c.ki,
+            kd=c.kd,
+            integral_clamp=c.integral_clamp,
+            deadband=c.deadband,
+            limits=spec.wrist.limits,
+            max_velocity=spec.wrist.velocity_limits,
+            rcond=c.pinv_rcond,
+            damping_threshold=c.damping_threshold,
+            damping_power=c.damping_power,
+            imu_to_base=imu_to_base,
+        )
+
+    # ----------------------------------------------------------------- state --
+    @property
+    def offsets(self) -> tuple[float, float]:
+        """The held tilt ``(pitch_offset, roll_offset)`` in rad (see the module docstring)."""
+        return float(self._offsets[0]), float(self._offsets[1])
+
+    @property
+    def integral(self) -> NDArray[np.float64]:
+        """The PID integral (world frame, rad·s), a copy."""
+        return self._integral.copy()
+
+    @property
+    def error_angle(self) -> float:
+        """Tilt error (rad) seen by the last :meth:`update`; NaN before the first."""
+        return self._error_angle
+
+    def set_offsets(self, pitch_offset_rad: float, roll_offset_rad: float) -> None:
+        """Hold the tool at the level configuration plus these joint offsets; resets the PID."""
+        self._offsets = np.array(
+            [
+                _check("pitch_offset_rad", pitch_offset_rad, -math.inf),
+                _check("roll_offset_rad", roll_offset_rad, -math.inf),
+            ]
+        )
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the integral and the last error (call when leveling is (re)engaged)."""
+        self._integral[:] = 0.0
+        self._last_error = None
+        self._error_angle = math.nan
+
+    # --------------------------------------------------------------- helpers --
+    def tool_base_orientation(self, R_world_imu: ArrayLike) -> NDArray[np.float64]:
+        """``R_world←F0 = R_world←imu · R_imu←F0`` (Alg. 1 line 6)."""
+        return _rotation_matrix(R_world_imu, "R_world_imu") @ self._R_imu_base
+
+    def tool_base_rate(self, gyro_imu: ArrayLike) -> NDArray[np.float64]:
+        """The base's angular velocity in F0 from the (bias-corrected) gyro in the IMU frame."""
+        w = np.asarray(gyro_imu, dtype=np.float64)
+        if w.shape != (3,) or not np.isfinite(w).all():
+            raise ValueError(f"gyro_imu must be 3 finite rates (rad/s); got {gyro_imu!r}")
+        return self._R_imu_base.T @ w
+
+    def tilt_error(self, R_world_tool_base: ArrayLike, q: ArrayLike) -> NDArray[np.float64]:
+        """World axis-angle error (3,) taking the (offset) up vector to +z (Alg. 1 l. 8–10)."""
+        R = _rotation_matrix(R_world_tool_base, "R_world_tool_base")
+        qv = self._joints(q)
+        return self._error(R @ up_vector(qv - self._offsets))[0]
+
+    @staticmethod
+    def _joints(q: ArrayLike) -> NDArray[np.float64]:
+        a = np.asarray(q, dtype=np.float64)
+        if a.shape != (2,) or not np.isfinite(a).all():
+            raise ValueError(f"q must be two finite joint angles [pitch, roll]; got {q!r}")
+        return a
+
+    @staticmethod
+    def _error(y_world: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
+        # y × z = (y1, −y0, 0): written out, np.cross costs ~15 µs.
+        y0, y1, y2 = y_world.tolist()
+        s = math.hypot(y0, y1)
+        angle = math.atan2(s, y2)
+        if s > _TINY:
+            k = angle / s
+            return np.array([y1 * k, -y0 * k, 0.0]), angle
+        if y2 > 0.0:
+            return np.zeros(3), 0.0
+        return _X * math.pi, math.pi  # upside down: any horizontal axis will do
+
+    # ---------------------------------------------------------------- update --
+    def update(
+        self,
+        R_world_tool_base: ArrayLike,
+        q: ArrayLike,
+        dt: float,
+        base_rate: ArrayLike | None = None,
+    ) -> NDArray[np.float64]:
+        """One tick of Algorithm 1: the joint velocity command ``[pitch, roll]`` (rad/s).
+
+        ``R_world_tool_base`` (3, 3) is ``R_world←F0``; ``q`` (2,) the measured joints; ``dt``
+        the tick length (s). ``base_rate`` (optional, (3,), rad/s in F0) enables the rate
+        feed-forward. Non-finite input or ``dt <= 0`` raises ``ValueError`` (state unchanged).
+        """
+        R = _rotation_matrix(R_world_tool_base, "R_world_tool_base")
+        qm = self._joints(q)
+        dt = float(dt)
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"dt must be a finite number > 0 s; got {dt}")
+        ff = None
+        if base_rate is not None:
+            ff = np.asarray(base_rate, dtype=np.float64)
+            if ff.shape != (3,) or not np.isfinite(ff).all():
+                raise ValueError(f"base_rate must be 3 finite rates (rad/s); got {base_rate!r}")
+
+        qv = qm - self._offsets  # the virtual wrist that is levelled
+        y_local = up_vector(qv)
+        err, angle = self._error(R @ y_local)
+        self._error_angle = angle
+        if angle < self.deadband:
+            self._integral[:] = 0.0
+            self._last_error = err
+            return np.zeros(2)
+
+        integral = self._integral
+        integral += err * dt
+        np.clip(integral, -self.integral_clamp, self.integral_clamp, out=integral)
+        last = self._last_error
+        self._last_error = err
+        omega_world = self.kp * err + self.ki * integral
+        if last is not None and self.kd > 0.0:
+            omega_world += (self.kd / dt) * (err - last)
+
+        omega_local = R.T @ omega_world
+        if ff is not None:
+            omega_local -= ff  # Eq. 4.5: cancel the base's own rotation
+        qdot = joint_rates_for_rotation(qv, omega_local, self.rcond)
+
+        c = abs(math.cos(float(qv[1])))
+        if c < self.damping_threshold:
+            qdot[0] *= (c / self.damping_threshold) ** self.damping_power
+
+        # Predictive limits; the bounds widen to q itself so a joint outside is never yanked.
+        lo = np.minimum(self._lo, qm)
+        hi = np.maximum(self._hi, qm)
+        q_next = np.clip(qm + qdot * dt, lo, hi)
+        qdot = (q_next - qm) / dt
+        return np.clip(qdot, -self._vmax, self._vmax, out=qdot)

@@ -1,0 +1,629 @@
+"""Food primitives: parameterised, stateful wrist motions (thesis §4.4; hardware-facts §6).
+
+Pure: a primitive is built from its parameters, the spec and the joints at the start, then
+stepped once per control tick with the *measured* joints; it returns a joint velocity command
+``[pitch, roll]`` (rad/s) and keeps percent complete, feedback and, once done, a result.
+
+Primitives (parameters in order; angles in rad unless ``_deg``):
+
+- ``TWIRL_CW`` / ``TWIRL_CCW`` (rotations, speed_rad_s): roll ±2π·rotations.
+- ``VIBRATE_ROLL`` (frequency_hz, amplitude_rad, duration_s): roll A·sin(2πft) about the start
+  roll for the duration, then back to the start roll.
+- ``TILT`` (target_roll_rad, velocity_rad_s, hold_s): roll to start + target, hold, roll back.
+- ``NOODLE_SHED`` (pitch_up_deg, pitch_speed_rad_s, delay_s, vibrate_frequency_hz,
+  vibrate_amplitude_deg, vibrate_duration_s): pitch up, wait, vibrate roll, pitch (and roll)
+  back to the start.
+- ``HOMING`` (speed_rad_s): both joints to zero.
+
+Conventions. CW is +roll: clockwise seen from the wrist looking along the utensil (+z of F0,
+right-hand rule), the way a screw turns going in. TILT's target is relative to the roll at the
+start (the levelled tool), and "back" is that start roll. NOODLE_SHED's "pitch up" raises the
+utensil tip towards the tool's up vector (Eq. 4.1): pitch moves by −pitch_up when |θr| < π/2
+at the start (since ∂(tip·up)/∂θp = −cos θr), by +pitch_up otherwise.
+
+Closed loop. Moves and returns are position-controlled on the measured joints: velocity =
+``spec.primitives.position_gain`` × error, capped at the primitive's speed, done within
+``position_tolerance``; joints not being moved are held the same way. TWIRL thus stops when the
+measured roll travel (integrated tick by tick, robust to a wrapped reading) reaches 2π·rotations.
+VIBRATE's command is the exact per-tick increment of A·sin(2πft) divided by dt, i.e. the tick
+average of A·2πf·cos(2πft), so a zero-order-hold motor does not drift; its peak A·2πf must be
+within the roll speed limit. A primitive running longer than ``timeout_factor`` × its nominal
+duration + ``timeout_margin_s`` stops and fails (a stalled joint).
+
+Safety (every tick, after the primitive's own command): per-joint clip to
+``spec.wrist.max_velocity``; pitch kept within ``spec.wrist.pitch_limits`` and roll within the
+cable budget ``±spec.wrist.roll_turn_budget`` turns, predictively (``q + q̇·dt`` clipped; a
+joint already outside may only move back). Bad parameters raise :class:`PrimitiveError` naming
+the parameter and the allowed range, before any motion.
+
+A new primitive is one class: subclass :class:`Primitive`, set ``name`` and
+``parameter_names``, implement ``_plan`` (validate, return the phases) and decorate it with
+:func:`register_primitive`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import ClassVar, TypeVar
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from articutool.spec import Spec
+from articutool.tool.api import PrimitiveStatus
+from articutool.tool.kinematics import wrap_angle
+
+__all__ = [
+    "Homing",
+    "NoodleShed",
+    "Phase",
+    "Primitive",
+    "PrimitiveError",
+    "Tilt",
+    "TwirlCCW",
+    "TwirlCW",
+    "VibrateRoll",
+    "get_primitive",
+    "make_primitive",
+    "primitive_names",
+    "register_primitive",
+    "unregister_primitive",
+]
+
+TWO_PI = 2.0 * math.pi
+_EPS_WEIGHT = 1e-3  # s: keeps zero-length phases in the progress weighting
+
+
+class PrimitiveError(ValueError):
+    """A primitive request was refused (unknown name, bad parameters, beyond a limit)."""
+
+
+# ------------------------------------------------------------------------ phases --
+class Phase:
+    """One segment of a primitive. ``step`` → (command (2,), fraction done 0..1, finished).
+
+    Every phase drives both joints: joints it does not move are held at ``target``.
+    """
+
+    def __init__(self, label: str, target: ArrayLike, speed: ArrayLike, nominal: float) -> None:
+        self.label = label
+        self.target = np.array(target, dtype=np.float64)
+        self.speed = np.array(speed, dtype=np.float64)
+        self.nominal = float(nominal)
+
+    def step(
+        self, prim: Primitive, t: float, q: NDArray[np.float64], dt: float
+    ) -> tuple[NDArray[np.float64], float, bool]:
+        raise NotImplementedError
+
+
+class Move(Phase):
+    """Both joints to ``target`` (P on the measured error, capped at ``speed``)."""
+
+    def __init__(
+        self, label: str, start: ArrayLike, target: ArrayLike, speed: ArrayLike, gain: float
+    ) -> None:
+        dist = np.abs(np.asarray(target, float) - np.asarray(start, float))
+        super().__init__(label, target, speed, float(np.max(dist / speed)) + 3.0 / gain)
+        self._dist: NDArray[np.float64] | None = None
+
+    def step(self, prim, t, q, dt):
+        err = self.target - q
+        if self._dist is None:
+            self._dist = np.abs(err)
+        if (np.abs(err) <= prim.tolerance).all():
+            return np.zeros(2), 1.0, True
+        moving = self._dist > prim.tolerance  # held joints do not count towards progress
+        frac = 0.0
+        if moving.any():
+            frac = float(np.clip(1.0 - np.max(np.abs(err[moving]) / self._dist[moving]), 0, 1))
+        return prim.track(err, self.speed), frac, False
+
+
+class Hold(Phase):
+    """Hold ``target`` for ``duration`` seconds."""
+
+    def __init__(self, label: str, target: ArrayLike, speed: ArrayLike, duration: float) -> None:
+        super().__init__(label, target, speed, duration)
+        self.duration = float(duration)
+
+    def step(self, prim, t, q, dt):
+        if t >= self.duration:
+            return np.zeros(2), 1.0, True
+        return prim.track(self.target - q, self.speed), t / self.duration, False
+
+
+class Vibrate(Phase):
+    """Roll ``target[1] + A·sin(2πft)`` for ``duration`` s; pitch held at ``target[0]``."""
+
+    def __init__(
+        self,
+        label: str,
+        target: ArrayLike,
+        speed: ArrayLike,
+        frequency: float,
+        amplitude: float,
+        duration: float,
+    ) -> None:
+        super().__init__(label, target, speed, duration)
+        self.w = TWO_PI * float(frequency)
+        self.amplitude = float(amplitude)
+        self.duration = float(duration)
+
+    def step(self, prim, t, q, dt):
+        if t >= self.duration:
+            return np.zeros(2), 1.0, True
+        cmd = prim.track(self.target - q, self.speed)
+        t1 = min(t + dt, self.duration)
+        # Exact increment of A·sin(ωt) over the tick: the tick average of A·ω·cos(ωt).
+        cmd[1] = self.amplitude * (math.sin(self.w * t1) - math.sin(self.w * t)) / dt
+        return cmd, t / self.duration, False
+
+
+# --------------------------------------------------------------------- base class --
+class Primitive:
+    """A parameterised, stateful wrist motion (thesis §4.4). Build with :func:`make_primitive`.
+
+    Subclasses set ``name`` and ``parameter_names`` and implement :meth:`_plan`.
+    """
+
+    name: ClassVar[str] = ""
+    parameter_names: ClassVar[tuple[str, ...]] = ()
+
+    def __init__(self, params: Sequence[float], spec: Spec, q_start: ArrayLike) -> None:
+        values = self._parse(params)
+        w, p = spec.wrist, spec.primitives
+        self.spec = spec
+        self.vmax = w.velocity_limits
+        self.gain = p.position_gain
+        self.tolerance = p.position_tolerance
+        self.roll_bound = w.roll_turn_budget * TWO_PI
+        self._lo = np.array([w.pitch_limits[0], -self.roll_bound])
+        self._hi = np.array([w.pitch_limits[1], self.roll_bound])
+        q0 = np.asarray(q_start, dtype=np.float64)
+        if q0.shape != (2,) or not np.isfinite(q0).all():
+            raise PrimitiveError(
+                f"q_start must be two finite joint angles [pitch, roll]; got {q_start!r}"
+            )
+        self.q_start = q0.copy()
+        self.params = values
+        self.phases: list[Phase] = self._plan(*values)
+        nominal = sum(ph.nominal for ph in self.phases)
+        self.timeout = p.timeout_factor * nominal + p.timeout_margin_s
+        w8 = np.array([ph.nominal + _EPS_WEIGHT for ph in self.phases])
+        self._cum = np.concatenate([[0.0], np.cumsum(w8)]) / w8.sum()
+        # Running state.
+        self._q_raw = q0.copy()  # last measured joints, as measured
+        self._q = q0.copy()  # same, with roll unwrapped tick by tick
+        self._index = 0
+        self._t_phase = 0.0
+        self.elapsed = 0.0
+        self._percent = 0.0
+        self._done = False
+        self._success = False
+        self._message = ""
+
+    # -- parameters ------------------------------------------------------------
+    @classmethod
+    def _parse(cls, params: Sequence[float]) -> tuple[float, ...]:
+        names = cls.parameter_names
+        try:
+            values = [float(v) for v in params]
+        except (TypeError, ValueError):
+            raise PrimitiveError(
+                f"{cls.name}: parameters must be numbers {list(names)}; got {params!r}"
+            ) from None
+        if len(values) != len(names):
+            raise PrimitiveError(
+                f"{cls.name} takes {len(names)} parameter(s) {list(names)}; got {len(values)}"
+            )
+        for n, v in zip(names, values, strict=True):
+            if not math.isfinite(v):
+                raise PrimitiveError(f"{cls.name}: parameter '{n}' must be finite; got {v}")
+        return tuple(values)
+
+    def _require(
+        self,
+        pname: str,
+        v: float,
+        lo: float,
+        hi: float,
+        *,
+        lo_open: bool = False,
+        hi_open: bool = False,
+        unit: str = "",
+        why: str = "",
+    ) -> float:
+        """Refuse ``v`` outside the interval, naming the parameter and the range."""
+        ok = (v > lo if lo_open else v >= lo) and (v < hi if hi_open else v <= hi)
+        if not ok:
+            if math.isinf(hi):
+                rng = f"{'>' if lo_open else '≥'} {lo:g}"
+            else:
+                rng = f"in {'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+            note = f" ({why})" if why else ""
+            raise PrimitiveError(
+                f"{self.name}: parameter '{pname}' must be {rng}{' ' + unit if unit else ''}"
+                f"{note}; got {v:g}"
+            )
+        return v
+
+    def _speed(self, pname: str, v: float, joint: int) -> float:
+        j = ("pitch", "roll")[joint]
+        return self._require(
+            pname,
+            v,
+            0.0,
+            float(self.vmax[joint]),
+            lo_open=True,
+            unit="rad/s",
+            why=f"{j} speed limit, spec.wrist.max_velocity",
+        )
+
+    def _roll_in_budget(self, pname: str, roll_end: float, hint: str = "") -> None:
+        if abs(roll_end) > self.roll_bound + 1e-12:
+            b = self.spec.wrist.roll_turn_budget
+            raise PrimitiveError(
+                f"{self.name}: parameter '{pname}' would take the roll to "
+                f"{roll_end / TWO_PI:+.2f} turns from the current net "
+                f"{self.q_start[1] / TWO_PI:+.2f} turns, beyond the cable budget of "
+                f"±{b:g} turns (spec.wrist.roll_turn_budget){hint}"
+            )
+
+    def _plan(self, *values: float) -> list[Phase]:
+        """Validate the parameters (raise :class:`PrimitiveError`) and return the phases."""
+        raise NotImplementedError
+
+    # -- helpers for phases ----------------------------------------------------
+    def track(self, err: NDArray[np.float64], speed: NDArray[np.float64]) -> NDArray[np.float64]:
+        """P command toward a position error, capped per joint at ``speed``."""
+        return np.clip(self.gain * err, -speed, speed)
+
+    def move(self, label: str, start: ArrayLike, target: ArrayLike, speed: ArrayLike) -> Move:
+        return Move(label, start, target, np.broadcast_to(speed, (2,)), self.gain)
+
+    # -- running ---------------------------------------------------------------
+    def step(self, q_measured: ArrayLike, dt: float) -> NDArray[np.float64]:
+        """One tick: the joint velocity command (rad/s) for the measured joints ``q``.
+
+        Non-finite joints or ``dt <= 0`` raise ``ValueError`` (state unchanged); once done
+        (finished, failed or cancelled) the command is zero.
+        """
+        q = np.asarray(q_measured, dtype=np.float64)
+        if q.shape != (2,) or not np.isfinite(q).all():
+            raise ValueError(f"q_measured must be two finite joint angles; got {q_measured!r}")
+        dt = float(dt)
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"dt must be a finite number > 0 s; got {dt}")
+        if self._done:
+            self._q_raw = q.copy()
+            return np.zeros(2)
+        d_roll = float(wrap_angle(q[1] - self._q_raw[1]))
+        self._q = np.array([q[0], self._q[1] + d_roll])
+        self._q_raw = q.copy()
+        if self.elapsed > self.timeout:
+            ph = self.phases[self._index]
+            self._finish(
+                False,
+                f"timed out after {self.elapsed:.1f} s in phase '{ph.label}' "
+                f"(a joint did not reach its target)",
+            )
+            return np.zeros(2)
+        self.elapsed += dt
+        while True:
+            ph = self.phases[self._index]
+            cmd, frac, finished = ph.step(self, self._t_phase, self._q, dt)
+            if not finished:
+                self._t_phase += dt
+                break
+            self._index += 1
+            self._t_phase = 0.0
+            if self._index == len(self.phases):
+                self._finish(True, self._success_message())
+                return np.zeros(2)
+        i = self._index
+        pct = 100.0 * (self._cum[i] + frac * (self._cum[i + 1] - self._cum[i]))
+        self._percent = max(self._percent, min(pct, 99.9))
+        return self._safe(cmd, dt)
+
+    def _safe(self, cmd: NDArray[np.float64], dt: float) -> NDArray[np.float64]:
+        q = self._q
+        cmd = np.clip(cmd, -self.vmax, self.vmax)
+        q_next = np.clip(q + cmd * dt, np.minimum(self._lo, q), np.maximum(self._hi, q))
+        return (q_next - q) / dt
+
+    def _finish(self, success: bool, message: str) -> None:
+        self._done = True
+        self._success = success
+        self._message = message
+        if success:
+            self._percent = 100.0
+
+    def _success_message(self) -> str:
+        return f"{self.name} complete"
+
+    def cancel(self) -> bool:
+        """Stop now: done, failed with "cancelled"; later commands are zero. False if done."""
+        if self._done:
+            return False
+        self._finish(False, "cancelled")
+        return True
+
+    # -- reporting -------------------------------------------------------------
+    @property
+    def done(self) -> bool:
+        """True once finished, failed (timeout) or cancelled."""
+        return self._done
+
+    @property
+    def percent_complete(self) -> float:
+        """Progress 0..100, monotonic; 100 only on success."""
+        return self._percent
+
+    @property
+    def feedback(self) -> str:
+        """A short human-readable progress line."""
+        if self._done:
+            return self._message
+        return f"{self.phases[self._index].label} ({self._percent:.0f}%)"
+
+    @property
+    def joints(self) -> tuple[float, float]:
+        """The last measured joints [pitch, roll] (rad)."""
+        return float(self._q_raw[0]), float(self._q_raw[1])
+
+    def result(self) -> tuple[bool, str, tuple[float, float]]:
+        """``(success, message, final_joint_values)``; only once :attr:`done`."""
+        if not self._done:
+            raise RuntimeError(f"{self.name} is still running")
+        return self._success, self._message, self.joints
+
+    def status(self) -> PrimitiveStatus:
+        """Feedback/result as the action reports it (``articutool.tool.api``)."""
+        return PrimitiveStatus(
+            name=self.name,
+            percent_complete=self._percent,
+            feedback=self.feedback,
+            current_joint_values=self.joints,
+            done=self._done,
+            success=self._success,
+            message=self._message,
+            final_joint_values=self.joints if self._done else (),
+        )
+
+
+# ----------------------------------------------------------------------- registry --
+_REGISTRY: dict[str, type[Primitive]] = {}
+P = TypeVar("P", bound=type[Primitive])
+
+
+def register_primitive(cls: P) -> P:
+    """Class decorator: make ``cls`` available to :func:`make_primitive` under ``cls.name``."""
+    if not (isinstance(cls, type) and issubclass(cls, Primitive)):
+        raise TypeError(f"{cls!r} is not a Primitive subclass")
+    if not cls.name or not isinstance(cls.name, str):
+        raise ValueError(f"{cls.__name__}.name must be a non-empty string")
+    if not all(isinstance(n, str) and n for n in cls.parameter_names):
+        raise ValueError(f"{cls.__name__}.parameter_names must be a tuple of names")
+    if cls.name in _REGISTRY and _REGISTRY[cls.name] is not cls:
+        raise ValueError(f"a primitive named {cls.name!r} is already registered")
+    _REGISTRY[cls.name] = cls
+    return cls
+
+
+def unregister_primitive(name: str) -> None:
+    """Remove a registered primitive (for plug-ins and tests)."""
+    _REGISTRY.pop(name, None)
+
+
+def primitive_names() -> list[str]:
+    """The registered primitive names, sorted."""
+    return sorted(_REGISTRY)
+
+
+def get_primitive(name: str) -> type[Primitive]:
+    """The class registered as ``name``; unknown names list the known ones."""
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise PrimitiveError(
+            f"unknown primitive {name!r}; known: {', '.join(primitive_names())}"
+        ) from None
+
+
+def make_primitive(name: str, params: Sequence[float], spec: Spec, q_start: ArrayLike) -> Primitive:
+    """Build primitive ``name`` for a wrist now at ``q_start``; refusals raise PrimitiveError."""
+    return get_primitive(name)(params, spec, q_start)
+
+
+# --------------------------------------------------------------------- primitives --
+class _Twirl(Primitive):
+    parameter_names = ("rotations", "speed_rad_s")
+    direction: ClassVar[float] = 1.0
+
+    def _plan(self, rotations: float, speed: float) -> list[Phase]:
+        self._require("rotations", rotations, 0.0, math.inf, lo_open=True, unit="turns")
+        self._speed("speed_rad_s", speed, 1)
+        end = self.q_start + np.array([0.0, self.direction * TWO_PI * rotations])
+        room = max(self.roll_bound - self.direction * self.q_start[1], 0.0) / TWO_PI
+        self._roll_in_budget("rotations", float(end[1]), f"; at most {room:.2f} turns this way")
+        return [self.move("twirl", self.q_start, end, speed)]
+
+    @property
+    def turns(self) -> float:
+        """Measured roll travel so far, in turns, in the twirl's direction."""
+        return self.direction * (self._q[1] - self.q_start[1]) / TWO_PI
+
+    @property
+    def feedback(self) -> str:
+        if self._done:
+            return self._message
+        return f"twirl {self.turns:.2f}/{self.params[0]:g} turns"
+
+    def _success_message(self) -> str:
+        return f"{self.name} complete: {self.turns:.2f} turns"
+
+
+@register_primitive
+class TwirlCW(_Twirl):
+    """Twirl clockwise (+roll) by ``rotations`` turns at ``speed_rad_s``."""
+
+    name = "TWIRL_CW"
+    direction = 1.0
+
+
+@register_primitive
+class TwirlCCW(_Twirl):
+    """Twirl counter-clockwise (−roll) by ``rotations`` turns at ``speed_rad_s``."""
+
+    name = "TWIRL_CCW"
+    direction = -1.0
+
+
+def _vibration_checks(
+    prim: Primitive, f_name: str, a_name: str, f: float, a: float, a_unit: str, a_scale: float
+) -> None:
+    nyquist = 0.5 * prim.spec.wrist.loop_rate_hz
+    prim._require(
+        f_name,
+        f,
+        0.0,
+        nyquist,
+        lo_open=True,
+        hi_open=True,
+        unit="Hz",
+        why="below half the control loop rate",
+    )
+    amp = a * a_scale
+    vmax = float(prim.vmax[1])
+    prim._require(a_name, a, 0.0, math.inf, lo_open=True, unit=a_unit)
+    peak = amp * TWO_PI * f
+    if peak > vmax:
+        raise PrimitiveError(
+            f"{prim.name}: parameters '{a_name}' × 2π × '{f_name}' give a peak roll speed of "
+            f"{peak:.3g} rad/s, above the roll speed limit {vmax:g} rad/s "
+            f"(spec.wrist.max_velocity); '{a_name}' must be ≤ {vmax / (TWO_PI * f) / a_scale:.4g} "
+            f"{a_unit} at this frequency"
+        )
+    for s in (1.0, -1.0):
+        prim._roll_in_budget(a_name, float(prim.q_start[1] + s * amp))
+
+
+@register_primitive
+class VibrateRoll(Primitive):
+    """Roll vibration A·sin(2πft) about the start roll for a duration, then back to it."""
+
+    name = "VIBRATE_ROLL"
+    parameter_names = ("frequency_hz", "amplitude_rad", "duration_s")
+
+    def _plan(self, f: float, a: float, duration: float) -> list[Phase]:
+        _vibration_checks(self, "frequency_hz", "amplitude_rad", f, a, "rad", 1.0)
+        self._require("duration_s", duration, 0.0, math.inf, unit="s")
+        peak = a * TWO_PI * f
+        q0 = self.q_start
+        return [
+            Vibrate("vibrate", q0, [peak, peak], f, a, duration),
+            self.move("return", q0 + [0.0, a], q0, peak),
+        ]
+
+
+@register_primitive
+class Tilt(Primitive):
+    """Roll by ``target_roll_rad`` from the start, hold ``hold_s``, roll back (thesis §4.4)."""
+
+    name = "TILT"
+    parameter_names = ("target_roll_rad", "velocity_rad_s", "hold_s")
+
+    def _plan(self, target: float, velocity: float, hold: float) -> list[Phase]:
+        lo, hi = self.spec.wrist.roll_limits
+        self._require(
+            "target_roll_rad",
+            target,
+            lo,
+            hi,
+            unit="rad",
+            why="relative to the start roll, spec.wrist.roll_limits",
+        )
+        self._speed("velocity_rad_s", velocity, 1)
+        self._require("hold_s", hold, 0.0, math.inf, unit="s")
+        q0 = self.q_start
+        tilted = q0 + [0.0, target]
+        self._roll_in_budget("target_roll_rad", float(tilted[1]))
+        return [
+            self.move("tilt", q0, tilted, velocity),
+            Hold("hold", tilted, [velocity, velocity], hold),
+            self.move("return", tilted, q0, velocity),
+        ]
+
+
+@register_primitive
+class NoodleShed(Primitive):
+    """Pitch up, wait, vibrate roll, return pitch and roll to the start (thesis §4.4)."""
+
+    name = "NOODLE_SHED"
+    parameter_names = (
+        "pitch_up_deg",
+        "pitch_speed_rad_s",
+        "delay_s",
+        "vibrate_frequency_hz",
+        "vibrate_amplitude_deg",
+        "vibrate_duration_s",
+    )
+
+    def _plan(
+        self,
+        up_deg: float,
+        pitch_speed: float,
+        delay: float,
+        f: float,
+        a_deg: float,
+        vib_duration: float,
+    ) -> list[Phase]:
+        q0 = self.q_start
+        lo, hi = self.spec.wrist.pitch_limits
+        sign = -1.0 if math.cos(q0[1]) >= 0.0 else 1.0  # see the module docstring
+        room = (q0[0] - lo) if sign < 0 else (hi - q0[0])
+        deg = math.degrees
+        why = f"from pitch {deg(q0[0]):.1f}° within spec.wrist.pitch_limits "
+        why += f"[{deg(lo):.1f}°, {deg(hi):.1f}°]"
+        self._require(
+            "pitch_up_deg", up_deg, 0.0, max(deg(room), 0.0), lo_open=True, unit="deg", why=why
+        )
+        self._speed("pitch_speed_rad_s", pitch_speed, 0)
+        self._require("delay_s", delay, 0.0, math.inf, unit="s")
+        _vibration_checks(
+            self, "vibrate_frequency_hz", "vibrate_amplitude_deg", f, a_deg, "deg", math.pi / 180.0
+        )
+        self._require("vibrate_duration_s", vib_duration, 0.0, math.inf, unit="s")
+        a = math.radians(a_deg)
+        peak = a * TWO_PI * f
+        up = q0 + [sign * math.radians(up_deg), 0.0]
+        speeds = [pitch_speed, peak]
+        return [
+            self.move("pitch up", q0, up, speeds),
+            Hold("settle", up, speeds, delay),
+            Vibrate("vibrate", up, speeds, f, a, vib_duration),
+            self.move("return", up + [0.0, a], q0, speeds),
+        ]
+
+
+@register_primitive
+class Homing(Primitive):
+    """Both joints to zero (roll to zero net turns: unwinds the cable)."""
+
+    name = "HOMING"
+    parameter_names = ("speed_rad_s",)
+
+    def _plan(self, speed: float) -> list[Phase]:
+        vmax = float(self.vmax.min())
+        self._require(
+            "speed_rad_s",
+            speed,
+            0.0,
+            vmax,
+            lo_open=True,
+            unit="rad/s",
+            why="both joints' speed limit, spec.wrist.max_velocity",
+        )
+        return [self.move("homing", self.q_start, np.zeros(2), speed)]
