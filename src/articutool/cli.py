@@ -23,7 +23,9 @@ __all__ = ["main"]
 
 _COMMAND_MODULES: tuple[str, ...] = (
     "articutool.verify.cli",
+    "articutool.tool.cli",
     "articutool.link.cli",
+    "articutool.sim.demo",
 )
 
 

@@ -10,6 +10,7 @@ import argparse
 import json
 import math
 import sys
+import time
 from typing import Any
 
 __all__ = ["add_commands", "run"]
@@ -86,6 +87,10 @@ def run(args: argparse.Namespace) -> int:
                 print(f"{'success' if res.success else 'failed'}: {res.message}; final joints "
                       f"[pitch, roll] = {[round(v, 4) for v in res.final_joint_values]}")
             return 0 if res.success else 1
+        # The streams arrive independently: give each a few periods before printing.
+        deadline = time.monotonic() + 1.0
+        while time.monotonic() < deadline and not client.has_all_streams():
+            time.sleep(0.02)
         st = client.latest_state()
         if st is None:
             print("error: no joint state received yet", file=sys.stderr)

@@ -175,6 +175,11 @@ class ArticutoolClient:
             time.sleep(0.02)
         return True
 
+    def has_all_streams(self) -> bool:
+        """True once joint states, IMU, health and battery have each been received."""
+        with self._lock:
+            return all(k in self._latest for k in ("js", "imu", "health", "battery"))
+
     def latest_state(self) -> ToolState | None:
         """The latest telemetry as a ToolState (``stamp`` = local receive time), or None."""
         with self._lock:

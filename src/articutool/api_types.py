@@ -1,0 +1,28 @@
+"""Structural types shared across subsystems (so pure modules need not import Pinocchio)."""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ["ArmKinematics"]
+
+
+class ArmKinematics(Protocol):
+    """The arm-model calls the verifier and the simulation use (``ArmModel`` provides them)."""
+
+    def tool_base_pose(self, q_arm: ArrayLike) -> NDArray[np.float64]:
+        """(6,) arm configuration → (4, 4) pose of F0 in the arm base frame."""
+        ...
+
+    def tool_base_rotations(self, q_arm: ArrayLike) -> NDArray[np.float64]:
+        """(..., 6) → (..., 3, 3) rotations of F0 in the arm base frame."""
+        ...
+
+    def tool_base_kinematics(
+        self, q_arm: ArrayLike, qd_arm: ArrayLike
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(..., 6), (..., 6) → rotations (..., 3, 3) and angular velocities (..., 3) of F0."""
+        ...

@@ -1,0 +1,1 @@
+"""Simulation: transports executed against the simulated wrist and its onboard loop."""

@@ -1,0 +1,277 @@
+"""``articutool tool``: run the onboard tool loop in the foreground (issue 3, deliverable 6).
+
+::
+
+    articutool tool [--driver sim|hardware] [--spec FILE] [--duration S] [--level/--no-level]
+
+The runtime's 50 Hz loop runs in its own thread; the main thread only draws the status line
+and waits, so Ctrl-C (SIGINT) or SIGTERM never interrupts a tick halfway through a bus write:
+it sets the stop event, the loop stops the motors, and the drivers are closed (torque off).
+Exit code 0 after a clean stop, 1 if the drivers cannot be opened, 2 for bad input.
+
+``--driver sim`` (the default) runs against :class:`~articutool.tool.drivers.sim.SimWrist`
+advanced in real time by a background service, on a base that tilts and turns gently so
+leveling is visible. ``--driver hardware`` opens the Dynamixel pair, the IMU and the F/T
+sensor on the ports in the spec.
+
+Background services: anything that must run alongside the loop (the simulated world, the
+network link) is a :data:`Service`, ``fn(api, stop_event)``, run in a daemon thread until
+``stop_event`` is set. :func:`background_services` builds the list; the network link of
+issue 4 plugs in there (see the comment in it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable, Sequence
+from typing import TextIO
+
+import numpy as np
+
+from articutool.spec import Spec
+from articutool.tool.api import Mode, ToolAPI, ToolState
+
+__all__ = [
+    "Service",
+    "add_commands",
+    "background_services",
+    "format_status",
+    "gentle_base_motion",
+    "main",
+    "run_tool",
+]
+
+Service = Callable[[ToolAPI, threading.Event], None]
+
+_STATUS_HZ = 5.0  # status line refresh
+_SIM_STEP = 0.002  # s, real-time stepping of the simulated world
+_LEVEL_WAIT = 5.0  # s to wait for fresh IMU data before giving up on --level
+
+
+def add_commands(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``articutool tool``."""
+    from articutool.cli import add_spec_option
+
+    p = subparsers.add_parser(
+        "tool", help="run the onboard tool loop (50 Hz) in the foreground",
+        description="Run the tool runtime with a live status line; Ctrl-C stops the motors.")
+    add_spec_option(p)
+    p.add_argument("--driver", choices=("sim", "hardware"), default="sim",
+                   help="simulated wrist (default) or the real motors, IMU and F/T sensor")
+    p.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="stop after S seconds (default: run until Ctrl-C)")
+    p.add_argument("--level", action=argparse.BooleanOptionalAction, default=None,
+                   help="engage LEVELING once the IMU is ready (default: on with --driver sim, "
+                        "off with --driver hardware)")
+    p.add_argument("--serve", action=argparse.BooleanOptionalAction, default=True,
+                   help="serve the Articutool API over Zenoh (default: on, loopback unless "
+                        "--listen/--link-config say otherwise)")
+    from articutool.link.config import add_config_args
+
+    add_config_args(p)
+    p.set_defaults(func=_cmd_tool)
+
+
+def gentle_base_motion(t: float) -> tuple[np.ndarray, np.ndarray]:
+    """A slow demo motion of the tool base for ``--driver sim``: F0's +x (the wrist's up at
+    zero) starts along world up; the base yaws ±40° and tilts ±20° about a tilted axis
+    (periods 20 s and 8 s, peak rate ≈ 0.3 rad/s). Returns (R_world←F0, ω_world)."""
+    from articutool.tool.drivers.sim import axis_angle_rotation
+
+    z = np.array([0.0, 0.0, 1.0])
+    axis = np.array([1.0, 0.5, 0.3]) / math.sqrt(1.34)
+    w1, w2 = 2 * math.pi / 20.0, 2 * math.pi / 8.0
+    a1, a2 = math.radians(40.0), math.radians(20.0)
+    psi, dpsi = a1 * math.sin(w1 * t), a1 * w1 * math.cos(w1 * t)
+    phi, dphi = a2 * math.sin(w2 * t), a2 * w2 * math.cos(w2 * t)
+    Rz = axis_angle_rotation(z, psi)
+    R0 = axis_angle_rotation([0.0, 1.0, 0.0], -math.pi / 2)
+    R = Rz @ axis_angle_rotation(axis, phi) @ R0
+    return R, dpsi * z + dphi * (Rz @ axis)
+
+
+def _sim_stepper(sim: object) -> Service:
+    """Advance the simulated world by the real elapsed time until stopped."""
+
+    def step(api: ToolAPI, stop: threading.Event) -> None:
+        last = time.monotonic()
+        while not stop.wait(_SIM_STEP):
+            now = time.monotonic()
+            sim.step(max(now - last, 1e-6))  # type: ignore[attr-defined]
+            last = now
+
+    return step
+
+
+def background_services(args: argparse.Namespace, spec: Spec, sim: object | None) -> list[
+        tuple[str, Service]]:
+    """The services started with the runtime, as (name, service) pairs."""
+    services: list[tuple[str, Service]] = []
+    if sim is not None:
+        services.append(("sim", _sim_stepper(sim)))
+    if getattr(args, "serve", False):
+        from articutool.link.config import config_from_args
+        from articutool.link.server import serve_forever
+
+        config = config_from_args(args)  # validated before the loop starts
+        services.append(("link", lambda api, stop: serve_forever(api, config, stop)))
+    return services
+
+
+def format_status(s: ToolState) -> str:
+    """One status line: mode, joints, tilt, loop period/jitter, battery, fault."""
+    deg = math.degrees
+    ex = s.extra
+    tilt = ex.get("tilt_deg", math.nan)
+    parts = [
+        f"{s.mode.name:<10}",
+        f"pitch {deg(s.position[0]):+7.2f}° roll {deg(s.position[1]):+8.2f}°",
+        f"tilt {tilt:5.2f}°",
+        f"loop {s.loop_period_mean * 1e3:5.2f} ms ±{s.loop_jitter * 1e3:4.2f}"
+        f" ({s.loop_overruns} overruns)",
+        f"battery {s.battery_voltage:4.1f} V ~{ex.get('battery_remaining_pct', math.nan):3.0f}%",
+    ]
+    if ex.get("imu_stale", 0.0):
+        parts.append("IMU stale")
+    parts.append(f"FAULT: {s.fault}" if s.fault else "ok")
+    return " | ".join(parts)
+
+
+def run_tool(
+    runtime: object,
+    *,
+    duration: float | None = None,
+    level: bool = False,
+    services: Sequence[tuple[str, Service]] = (),
+    out: TextIO | None = None,
+    stop_event: threading.Event | None = None,
+) -> int:
+    """Open ``runtime``, start the services and the loop, show status until ``duration``
+    elapses, ``stop_event`` is set or Ctrl-C; then stop the motors and close. Returns 0.
+
+    ``runtime`` is a :class:`~articutool.tool.runtime.ToolRuntime` (open/run/close + ToolAPI).
+    """
+    out = sys.stdout if out is None else out
+    stop = threading.Event() if stop_event is None else stop_event
+    tty = out.isatty()
+    rt = runtime
+    rt.open()  # type: ignore[attr-defined]
+    threads = [threading.Thread(target=fn, args=(rt, stop), name=f"tool-{name}", daemon=True)
+               for name, fn in services]
+    loop = rt.run  # type: ignore[attr-defined]
+    threads.append(threading.Thread(target=loop, args=(stop,), name="tool-loop", daemon=True))
+    previous = _install_sigterm(stop)
+    t_start = time.monotonic()
+    leveled = not level
+    last_line = ""
+    try:
+        for th in threads:
+            th.start()
+        interval = 1.0 / _STATUS_HZ if tty else 1.0  # logs get one line a second
+        next_print = t_start
+        while not stop.is_set():
+            now = time.monotonic()
+            if duration is not None and now - t_start >= duration:
+                break
+            if not leveled:
+                ok, msg = rt.set_mode(Mode.LEVELING)  # type: ignore[attr-defined]
+                if ok or now - t_start > _LEVEL_WAIT:
+                    leveled = True
+                    print(msg if ok else f"could not engage leveling: {msg}", file=out)
+            if now >= next_print:
+                line = format_status(rt.state())  # type: ignore[attr-defined]
+                if tty:
+                    out.write("\r" + line.ljust(len(last_line)))
+                    out.flush()
+                else:
+                    print(line, file=out, flush=True)
+                last_line = line
+                next_print += interval
+            stop.wait(0.05)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        stop.set()
+        for th in threads:
+            th.join(timeout=2.0)
+        final = rt.state()  # type: ignore[attr-defined]
+        rt.close()  # type: ignore[attr-defined]
+        _restore_sigterm(previous)
+        if tty:
+            out.write("\n")
+        print(format_status(final), file=out)
+        print("stopped: motors stopped, torque off, drivers closed", file=out)
+    return 0
+
+
+def _install_sigterm(stop: threading.Event) -> object:
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, lambda *_: stop.set())
+
+
+def _restore_sigterm(previous: object) -> None:
+    if previous is not None and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, previous)  # type: ignore[arg-type]
+
+
+def _cmd_tool(args: argparse.Namespace) -> int:
+    from articutool.cli import UsageError, spec_from_args
+    from articutool.tool.drivers import make_drivers
+    from articutool.tool.runtime import ToolRuntime
+
+    spec = spec_from_args(args)
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
+        raise UsageError(f"--duration must be a number of seconds > 0; got {args.duration}")
+    level = args.level if args.level is not None else args.driver == "sim"
+    from articutool.link.config import ConfigError
+
+    sim = None
+    clock: Callable[[], float] = time.monotonic
+    if args.driver == "sim":
+        from articutool.tool.drivers.sim import SimWrist
+
+        sim = SimWrist(spec, gyro_bias=(0.005, -0.004, 0.003))
+        sim.set_base_motion(gentle_base_motion)
+        clock = sim.clock
+    try:
+        motors, imu, ft = make_drivers(spec, args.driver, sim=sim)
+    except Exception as err:  # hardware drivers import dynamixel_sdk / pyserial lazily
+        print(f"error: cannot create the {args.driver} drivers: {err}", file=sys.stderr)
+        return 1
+    try:
+        services = background_services(args, spec, sim)
+    except ConfigError as err:
+        raise UsageError(str(err)) from None
+    runtime = ToolRuntime(spec, motors, imu, ft, clock=clock)
+    try:
+        return run_tool(runtime, duration=args.duration, level=level, services=services)
+    except Exception as err:  # opening the drivers failed (port missing, motors silent)
+        runtime.close()
+        print(f"error: {args.driver} drivers failed: {type(err).__name__}: {err}",
+              file=sys.stderr)
+        return 1
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``articutool tool`` on its own (``python -m articutool.tool.cli``)."""
+    from articutool.cli import UsageError
+    from articutool.spec import SpecError
+
+    parser = argparse.ArgumentParser(prog="articutool")
+    add_commands(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(["tool", *(sys.argv[1:] if argv is None else argv)])
+    try:
+        return int(args.func(args))
+    except (SpecError, UsageError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,840 @@
+"""The onboard tool runtime: the 50 Hz loop and its mode state machine (thesis §3.2, §4.2, §4.4).
+
+:class:`ToolRuntime` implements :class:`~articutool.tool.api.ToolAPI`. It is the imperative
+shell around the pure pieces: each tick it reads the drivers, runs the complementary filter
+(``filter.py``) and, depending on the mode, the leveling controller (``controller.py``,
+Alg. 1), a primitive (``primitives.py``) or a wrist trajectory, and writes one joint velocity
+command.
+
+Modes (``Mode``):
+
+- ``DISABLED``: the motors are commanded to zero velocity every tick; torque stays on, so
+  the joints hold where they are (a hardware error may have dropped torque on one motor).
+- ``LEVELING``: filter + :class:`LevelingController` with the pitch/roll offsets (degrees)
+  given to :meth:`ToolRuntime.set_mode`. The bias-corrected gyro is fed forward (Eq. 4.5) to
+  cancel the base's own rotation unless ``rate_feedforward=False``.
+- ``PRIMITIVE``: a primitive from :func:`~articutool.tool.primitives.make_primitive`; when it
+  finishes the runtime returns to ``DISABLED`` and keeps its result.
+- ``TRAJECTORY``: follows a wrist :class:`~articutool.trajectory.JointTrajectory` (e.g. the
+  verifier's synchronised leveling trajectory): ``q̇ = q̇_ref(t) + K (q_ref(t) − q)`` with
+  ``K = spec.primitives.position_gain``, then holds the last point until the mode changes.
+
+Rules (thesis §4.4, hardware-facts §6): a primitive is refused while leveling, while another
+runs and while a fault is set; any mode change aborts a running primitive (its result is
+``success=False``, message "aborted by mode change to …").
+
+Safety — every fault stops the motors, switches to ``DISABLED`` and sets ``fault`` (the first
+cause is kept, sticky):
+
+- motor hardware error (any mode) or a failed motor read;
+- joint-limit violation (any mode): a measured joint outside the safety envelope, pitch
+  ``spec.wrist.pitch_limits`` and roll ``±spec.wrist.roll_turn_budget`` turns (the cable), each
+  widened by the distance one tick covers at the commandable speed (``max_velocity / rate``,
+  i.e. one tick of overshoot). The per-mode limits (leveling's ``roll_limits``, trajectory
+  validation, the primitives' budget) are tighter and enforced by the mode itself;
+- IMU data older than two loop periods **while LEVELING** (the only mode whose command uses
+  the IMU). In the other modes a stale IMU is reported (``extra["imu_stale"]``) but does not
+  stop a primitive or a trajectory, which run on the joint encoders; entering LEVELING with a
+  stale IMU is refused;
+- a non-finite command, or any exception raised inside the tick (no exception escapes the
+  loop; the traceback is logged).
+
+The fault is cleared by the next successful :meth:`~ToolRuntime.set_mode` only when its cause
+is gone (fresh IMU, no hardware error, motors answering). ``set_mode(DISABLED)`` always
+succeeds but keeps a fault whose cause persists; for a hardware error it also asks the next
+tick to reboot the motors (``MotorDriver.clear_errors``) and re-enable torque, so a second
+call can clear it. For a limit violation ``set_mode`` clears the fault and arms a recovery:
+while a joint is outside the envelope, commands that drive it further out fault again, while
+commands that bring it back are allowed (e.g. LEVELING, HOMING).
+
+Threading: every public method and :meth:`tick` hold one re-entrant lock, so API calls from
+the link's threads are serialised with the loop and may safely touch the drivers (e.g. stop
+the motors at once when a primitive is cancelled). A tick costs well under a millisecond
+(``benchmarks/test_bench_tick.py``), so callers wait at most that.
+
+Timing: :meth:`tick` does one deterministic iteration at a given time (tests step the
+simulated wrist and the runtime alternately, faster than real time); :meth:`run` is the
+real-time loop (absolute deadlines on ``time.monotonic``, no drift; a late tick counts as an
+overrun and skips the missed periods instead of bursting).
+
+Power: ``battery_voltage`` is the motors' input voltage. ``extra`` carries an energy
+estimate from the spec's power budget (thesis §3.1: idle in DISABLED, leveling in LEVELING,
+peak — an upper bound — in PRIMITIVE/TRAJECTORY), integrated since start:
+``battery_used_wh`` and ``battery_remaining_pct`` (assumes the bank held
+``battery_start_pct`` at start; the 12 V supply is regulated, so the voltage alone says little
+about the charge) and ``battery_runtime_h`` at the present mode's power.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import numbers
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from articutool.spec import Spec
+from articutool.tool.api import Mode, PrimitiveStatus, ToolState
+from articutool.tool.controller import LevelingController, quaternion_to_matrix
+from articutool.tool.drivers.base import FTDriver, ImuDriver, ImuSample, MotorDriver, MotorState
+from articutool.tool.filter import ComplementaryFilter
+from articutool.tool.kinematics import up_vector
+from articutool.tool.primitives import Primitive, PrimitiveError, make_primitive
+from articutool.trajectory import JointTrajectory, TrajectoryError
+
+__all__ = ["STALE_IMU_PERIODS", "LoopStats", "ToolRuntime"]
+
+log = logging.getLogger(__name__)
+
+STALE_IMU_PERIODS = 2.0  # issue 3: IMU data older than two loop periods is stale
+_TWO_PI = 2.0 * math.pi
+
+
+class LoopStats:
+    """Loop timing: period mean and standard deviation (jitter, Welford), max, overruns, and
+    the compute time of a tick (mean, max)."""
+
+    def __init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget all samples."""
+        self.count = 0
+        self.mean = math.nan
+        self._m2 = 0.0
+        self.max = math.nan
+        self.overruns = 0
+        self.ticks = 0
+        self.compute_mean = math.nan
+        self.compute_max = math.nan
+
+    def add_period(self, p: float) -> None:
+        """Record one measured period (s)."""
+        self.count += 1
+        if self.count == 1:
+            self.mean, self._m2, self.max = p, 0.0, p
+            return
+        d = p - self.mean
+        self.mean += d / self.count
+        self._m2 += d * (p - self.mean)
+        self.max = max(self.max, p)
+
+    def add_compute(self, c: float) -> None:
+        """Record the compute time (s) of one tick."""
+        self.ticks += 1
+        if self.ticks == 1:
+            self.compute_mean = self.compute_max = c
+            return
+        self.compute_mean += (c - self.compute_mean) / self.ticks
+        self.compute_max = max(self.compute_max, c)
+
+    @property
+    def jitter(self) -> float:
+        """Standard deviation of the period (s); NaN with fewer than two periods."""
+        return math.sqrt(self._m2 / (self.count - 1)) if self.count > 1 else math.nan
+
+
+class ToolRuntime:
+    """The 50 Hz tool loop and mode state machine; implements ``ToolAPI`` (see module doc).
+
+    Args:
+        spec: the hardware spec (rates, limits, gains, power budget).
+        motors, imu, ft: drivers (``articutool.tool.drivers``); ``ft`` is optional. They are
+            opened by :meth:`open` (or ``with runtime:``), not by the constructor.
+        clock: monotonic seconds; must be the clock of the drivers' sample stamps (the
+            simulated wrist's ``sim.clock`` with the sim drivers, ``time.monotonic`` on the
+            hardware).
+        imu_to_base: mounting rotation ``R_imu←F0`` (identity: IMU axes are F0's).
+        rate_feedforward: add the gyro feed-forward (Eq. 4.5) to the leveling controller.
+        battery_start_pct: assumed charge at start for the energy estimate.
+    """
+
+    def __init__(
+        self,
+        spec: Spec,
+        motors: MotorDriver,
+        imu: ImuDriver,
+        ft: FTDriver | None = None,
+        clock: Callable[[], float] = time.monotonic,
+        *,
+        imu_to_base: NDArray[np.float64] | None = None,
+        rate_feedforward: bool = True,
+        battery_start_pct: float = 100.0,
+    ) -> None:
+        if not (math.isfinite(battery_start_pct) and 0.0 <= battery_start_pct <= 100.0):
+            raise ValueError(f"battery_start_pct must be in [0, 100]; got {battery_start_pct}")
+        self.spec = spec
+        self.motors = motors
+        self.imu = imu
+        self.ft = ft
+        self.clock = clock
+        w = spec.wrist
+        self.period = w.period
+        self.joint_names: tuple[str, str] = (w.joint_names[0], w.joint_names[1])
+        self._vmax = w.velocity_limits
+        self._limits = w.limits
+        turns = w.roll_turn_budget * _TWO_PI
+        tol = self._vmax * self.period  # one tick of travel at the commandable speed
+        self._envelope = np.array(
+            [[w.pitch_limits[0] - tol[0], w.pitch_limits[1] + tol[0]],
+             [-turns - tol[1], turns + tol[1]]]
+        )
+        self._stale_after = STALE_IMU_PERIODS * self.period
+        self._imu_dt_max = 4.0 / spec.imu.rate_hz  # longer gaps re-initialise the filter
+        self._track_gain = spec.primitives.position_gain
+        self._rate_ff = bool(rate_feedforward)
+        self._battery_start_wh = spec.power.battery_wh * battery_start_pct / 100.0
+        self._mode_power = {
+            Mode.DISABLED: spec.power.idle_w,
+            Mode.LEVELING: spec.power.leveling_w,
+            Mode.PRIMITIVE: spec.power.peak_w,
+            Mode.TRAJECTORY: spec.power.peak_w,
+        }
+
+        self.filter = ComplementaryFilter.from_spec(spec.filter)
+        self.controller = LevelingController.from_spec(spec, imu_to_base=imu_to_base)
+        self.stats = LoopStats()
+        self._lock = threading.RLock()
+        self._opened = False
+        self._wall_timing = False
+
+        self._mode = Mode.DISABLED
+        self._fault = ""
+        self._fault_kind = ""
+        self._faults_total = 0
+        self._reboot_requested = False
+        self._limit_recovery = np.zeros(2, dtype=bool)
+        # sensing
+        self._motor_state: MotorState | None = None
+        self._motor_read_ok = False
+        self._last_imu: ImuSample | None = None
+        self._last_imu_stamp = math.nan
+        self._imu_fresh = False
+        self._imu_bad = 0
+        self._imu_resets = 0
+        self._gyro_corrected = np.zeros(3)
+        self._ft_last: tuple[float, ...] | None = None
+        self._ft_errors = 0
+        self._tilt = math.nan
+        # modes
+        self._offsets_deg = (0.0, 0.0)
+        self._primitive: Primitive | None = None
+        self._primitive_status: PrimitiveStatus | None = None
+        self._traj: JointTrajectory | None = None
+        self._traj_t0: float | None = None
+        self._traj_progress = math.nan
+        self._traj_error = math.nan
+        # loop bookkeeping
+        self._last_now: float | None = None
+        self._command = np.zeros(2)
+        self._energy_wh = 0.0
+        self._snapshot: ToolState | None = None
+
+    # ----------------------------------------------------------------- lifecycle --
+    def open(self) -> None:
+        """Open the drivers; motors in velocity mode, zero goal, torque on (holding)."""
+        with self._lock:
+            self.motors.open()
+            self.motors.set_mode("velocity")
+            self.motors.enable_torque(True)
+            self.imu.open()
+            if self.ft is not None:
+                self.ft.open()
+                self.ft.tare()
+            self._opened = True
+
+    def close(self) -> None:
+        """Stop the motors, torque off, close every driver (best effort, never raises)."""
+        with self._lock:
+            self._abort_primitive("aborted: runtime shutting down")
+            self._traj = None
+            self._mode = Mode.DISABLED
+            self._stop_motors()
+            for what, fn in (
+                ("torque off", lambda: self.motors.enable_torque(False)),
+                ("close motors", self.motors.close),
+                ("close IMU", self.imu.close),
+                ("close F/T", self.ft.close if self.ft is not None else lambda: None),
+            ):
+                try:
+                    fn()
+                except Exception:
+                    log.exception("%s failed during shutdown", what)
+            self._opened = False
+
+    def __enter__(self) -> ToolRuntime:
+        self.open()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------- ToolAPI --
+    def set_mode(
+        self, mode: Mode | int, pitch_offset_deg: float = 0.0, roll_offset_deg: float = 0.0
+    ) -> tuple[bool, str]:
+        """Switch to DISABLED or LEVELING (offsets in degrees); aborts a running primitive.
+
+        Refused, with no change, for other modes, bad offsets, a persisting fault (except
+        DISABLED) or, for LEVELING, no fresh IMU data or joint state.
+        """
+        try:
+            mode = Mode(int(mode))
+        except (TypeError, ValueError):
+            return False, (f"mode must be {int(Mode.DISABLED)} (DISABLED) or "
+                           f"{int(Mode.LEVELING)} (LEVELING); got {mode!r}")
+        if mode is Mode.PRIMITIVE:
+            return False, "mode PRIMITIVE is entered with start_primitive, not set_mode"
+        if mode is Mode.TRAJECTORY:
+            return False, "mode TRAJECTORY is entered with follow_trajectory, not set_mode"
+        offsets = (0.0, 0.0)
+        if mode is Mode.LEVELING:
+            try:
+                offsets = self._check_offsets(pitch_offset_deg, roll_offset_deg)
+            except ValueError as err:
+                return False, str(err)
+        with self._lock:
+            note = ""
+            if self._fault:
+                cause = self._fault_cause()
+                if cause:
+                    if self._fault_kind == "hardware":
+                        self._reboot_requested = True
+                        cause += "; rebooting the motors on the next tick, then call set_mode again"
+                    if mode is Mode.LEVELING:
+                        return False, f"refused: fault persists: {cause}"
+                    self._enter(Mode.DISABLED)
+                    return True, f"DISABLED; fault persists: {cause}"
+                note = f" (cleared fault: {self._fault})"
+                self._clear_fault()
+            if mode is Mode.LEVELING:
+                if self._motor_state is None:
+                    return False, "refused: no joint state yet (the loop has not run)"
+                if not self._imu_fresh or not self.filter.initialized:
+                    return False, ("refused: no fresh IMU data (older than "
+                                   f"{STALE_IMU_PERIODS:g} loop periods); cannot level")
+                self.controller.set_offsets(math.radians(offsets[0]), math.radians(offsets[1]))
+                self._offsets_deg = offsets
+                self._enter(Mode.LEVELING)
+                return True, (f"LEVELING with offsets pitch {offsets[0]:g}°, "
+                              f"roll {offsets[1]:g}°{note}")
+            self._enter(Mode.DISABLED)
+            return True, f"DISABLED{note}"
+
+    def start_primitive(self, name: str, parameters: list[float]) -> tuple[bool, str]:
+        """Start primitive ``name``; refused while leveling, while another runs, while a
+        fault is set, before the first tick, or when the primitive refuses its parameters."""
+        with self._lock:
+            if self._fault:
+                return False, (f"refused: fault active ({self._fault}); "
+                               "clear it with set_mode first")
+            if self._mode is Mode.LEVELING:
+                return False, "refused while leveling; set_mode(DISABLED) first"
+            if self._primitive is not None:
+                return False, f"refused: primitive {self._primitive.name} is running"
+            if self._motor_state is None:
+                return False, "refused: no joint state yet (the loop has not run)"
+            try:
+                prim = make_primitive(str(name), list(parameters), self.spec,
+                                      self._motor_state.position.copy())
+            except (PrimitiveError, ValueError, TypeError) as err:
+                return False, str(err)
+            self._enter(Mode.PRIMITIVE)
+            self._primitive = prim
+            self._primitive_status = prim.status()
+            return True, f"started {prim.name} {list(prim.params)}"
+
+    def primitive_status(self) -> PrimitiveStatus | None:
+        """Progress of the running primitive, or the result of the last (None if never)."""
+        with self._lock:
+            return self._primitive_status
+
+    def cancel_primitive(self) -> bool:
+        """Cancel the running primitive: motors stop now, mode DISABLED. False if none ran."""
+        with self._lock:
+            if self._primitive is None:
+                return False
+            self._abort_primitive("cancelled")
+            self._enter(Mode.DISABLED)
+            return True
+
+    def follow_trajectory(self, trajectory: JointTrajectory) -> tuple[bool, str]:
+        """Enter TRAJECTORY and follow ``trajectory`` (joints: the wrist's [pitch, roll]).
+
+        Refused, with no motion, when a fault is set, before the first tick, or when the
+        trajectory is invalid: other joint names, a position outside ``spec.wrist`` limits or
+        a velocity above ``spec.wrist.max_velocity`` (waypoints and the interpolated spline),
+        or a first point at t = 0 farther than one tick's travel from the present joints
+        (give it a later ``time_from_start`` and the runtime moves there smoothly).
+        """
+        with self._lock:
+            if self._fault:
+                return False, (f"refused: fault active ({self._fault}); "
+                               "clear it with set_mode first")
+            if self._motor_state is None:
+                return False, "refused: no joint state yet (the loop has not run)"
+            try:
+                traj = self._validated_trajectory(trajectory, self._motor_state.position)
+            except (TrajectoryError, ValueError, TypeError) as err:
+                return False, f"trajectory refused: {err}"
+            self._enter(Mode.TRAJECTORY)
+            self._traj = traj
+            self._traj_t0 = None
+            self._traj_progress = 0.0
+            return True, (f"following {len(traj)} points over {traj.duration:.3f} s, "
+                          "then holding the last point")
+
+    def state(self) -> ToolState:
+        """The latest snapshot (mode and fault are current even between ticks)."""
+        with self._lock:
+            snap = self._snapshot if self._snapshot is not None else self._make_state(
+                self.clock())
+            if snap.mode is not self._mode or snap.fault != self._fault:
+                snap = replace(snap, mode=self._mode, fault=self._fault)
+            return snap
+
+    # ------------------------------------------------------------ extra queries --
+    @property
+    def mode(self) -> Mode:
+        """The current mode."""
+        return self._mode
+
+    @property
+    def fault(self) -> str:
+        """Why the motors were stopped; empty when healthy."""
+        return self._fault
+
+    def reset_stats(self) -> None:
+        """Forget the loop timing statistics (e.g. after start-up)."""
+        with self._lock:
+            self.stats.reset()
+
+    # ----------------------------------------------------------------- the loop --
+    def run(self, stop_event: threading.Event) -> None:
+        """The real-time loop: :meth:`tick` every ``spec.wrist.period`` until ``stop_event``.
+
+        Absolute deadlines on ``time.monotonic`` (no drift); a tick that ends after the next
+        deadline is an overrun and the missed periods are skipped. While it runs, the period
+        statistics are the wake-up intervals on ``time.monotonic`` (real jitter), not the
+        differences of ``clock()`` stamps that :meth:`tick` alone uses. The motors are stopped on
+        the way out (the caller closes the drivers).
+        """
+        period = self.period
+        deadline = time.monotonic()
+        last_wake: float | None = None
+        self._wall_timing = True  # periods from the wall clock, not from clock() stamps
+        try:
+            while not stop_event.is_set():
+                wake = time.monotonic()
+                if last_wake is not None:
+                    with self._lock:
+                        self.stats.add_period(wake - last_wake)
+                last_wake = wake
+                self.tick()
+                deadline += period
+                late = time.monotonic() - deadline
+                if late > 0.0:
+                    with self._lock:
+                        self.stats.overruns += 1
+                    deadline += (math.floor(late / period) + 1) * period
+                stop_event.wait(max(0.0, deadline - time.monotonic()))
+        finally:
+            self._wall_timing = False
+            with self._lock:
+                self._stop_motors()
+
+    def tick(self, now: float | None = None, dt: float | None = None) -> ToolState:
+        """One loop iteration at time ``now`` (default ``clock()``) with controller step
+        ``dt`` (default: the time since the previous tick, or the nominal period).
+
+        Reads the drivers, runs the filter and the mode's command, writes it, and returns the
+        new snapshot. Never raises (an exception becomes a fault).
+        """
+        with self._lock:
+            t_start = time.perf_counter()
+            try:
+                now = float(self.clock() if now is None else now)
+                if self._last_now is not None:
+                    elapsed = now - self._last_now
+                    if elapsed > 0.0 and not self._wall_timing:
+                        self.stats.add_period(elapsed)
+                    if dt is None:
+                        dt = elapsed
+                if dt is None or not (math.isfinite(dt) and dt > 0.0):
+                    dt = self.period
+                dt = min(float(dt), 2.0 * self.period)
+                self._last_now = now
+                self._step(now, dt)
+            except Exception as exc:
+                log.exception("tool loop tick failed")
+                self._set_fault("exception", f"exception in control loop: "
+                                f"{type(exc).__name__}: {exc}")
+            try:
+                self._snapshot = self._make_state(self._last_now or 0.0)
+            except Exception as exc:  # telemetry must never take the loop down
+                log.exception("building the state snapshot failed")
+                self._set_fault("exception", f"exception building state: {exc}")
+            self.stats.add_compute(time.perf_counter() - t_start)
+            return self._snapshot if self._snapshot is not None else self.state()
+
+    # ---------------------------------------------------------------- internals --
+    def _step(self, now: float, dt: float) -> None:
+        if self._reboot_requested:
+            self._reboot_requested = False
+            self.motors.clear_errors()
+            self.motors.enable_torque(True)
+
+        # 1. motors
+        try:
+            ms = self.motors.read()
+        except Exception as exc:
+            self._motor_read_ok = False
+            self._set_fault("motor_read", f"motor read failed: {type(exc).__name__}: {exc}")
+            return
+        self._motor_read_ok = True
+        self._motor_state = ms
+        q = np.asarray(ms.position, dtype=np.float64)
+        if q.shape != (2,) or not np.isfinite(q).all():
+            self._set_fault("motor_read", f"motor read gave invalid joints {q!r}")
+            return
+
+        # 2. IMU → filter (every sample since the last tick, in order)
+        self._read_imu(now)
+        # 3. F/T (telemetry only: a failing F/T sensor never stops the tool)
+        self._read_ft()
+        self._energy_wh += self._mode_power[self._mode] * dt / 3600.0
+        self._tilt = self._tool_tilt(q)
+
+        # 4. safety
+        if ms.has_hardware_error:
+            self._set_fault("hardware", f"motor hardware error: {ms.describe_errors()}")
+            return
+        outside = self._outside_envelope(q)
+        if outside and not all(self._limit_recovery[j] for j in outside):
+            self._set_fault("limit", self._limit_message(q, outside))
+            return
+        self._limit_recovery[[j for j in (0, 1) if j not in outside]] = False
+        if self._mode is Mode.LEVELING and not self._imu_fresh:
+            self._set_fault("imu_stale", self._stale_message(now))
+            return
+
+        # 5. the mode's command
+        if self._mode is Mode.DISABLED:
+            self._command = np.zeros(2)
+            self._stop_motors()
+            return
+        if self._mode is Mode.LEVELING:
+            cmd = self._leveling_command(q, dt)
+        elif self._mode is Mode.PRIMITIVE:
+            cmd = self._primitive_command(q, dt)
+            if cmd is None:  # finished: back to DISABLED
+                return
+        else:
+            cmd = self._trajectory_command(q, now)
+
+        # 6. last checks, then write
+        cmd = np.asarray(cmd, dtype=np.float64)
+        if cmd.shape != (2,) or not np.isfinite(cmd).all():
+            self._set_fault("command",
+                            f"non-finite joint command {cmd!r} in mode {self._mode.name}")
+            return
+        cmd = np.clip(cmd, -self._vmax, self._vmax)
+        for j in outside:  # recovering: only moves back towards the envelope are allowed
+            lo, hi = self._envelope[j]
+            if (q[j] > hi and cmd[j] > 0.0) or (q[j] < lo and cmd[j] < 0.0):
+                self._set_fault("limit", self._limit_message(q, [j]) + " and the "
+                                f"{self._mode.name} command drives it further out")
+                return
+        self.motors.set_velocity(cmd)
+        self._command = cmd
+
+    def _read_imu(self, now: float) -> None:
+        try:
+            samples = self.imu.read_all()
+        except Exception as exc:  # staleness (and its fault while leveling) follows
+            self._imu_bad += 1
+            log.debug("IMU read failed: %s", exc)
+            samples = []
+        # The IMU samples on its own timer at spec.imu.rate_hz; the stamps are reception
+        # times (a batch read at once shares one), so the filter integrates the nominal
+        # period and only a real gap in the stream re-initialises it.
+        dt_imu = 1.0 / self.spec.imu.rate_hz
+        for s in samples:
+            stamp = float(s.stamp)
+            if self.filter.initialized and stamp - self._last_imu_stamp > self._imu_dt_max:
+                self._imu_resets += 1
+                self.filter.reset()
+            try:
+                self.filter.update(s.accel, s.gyro, dt_imu)
+            except ValueError:
+                self._imu_bad += 1
+                continue
+            self._last_imu = s
+            self._last_imu_stamp = stamp
+            self._gyro_corrected = np.asarray(s.gyro, dtype=np.float64) - self.filter.bias
+        age = now - self._last_imu_stamp
+        self._imu_fresh = bool(self.filter.initialized and age <= self._stale_after * (1 + 1e-9))
+
+    def _read_ft(self) -> None:
+        if self.ft is None:
+            return
+        try:
+            s = self.ft.read()
+        except Exception:
+            self._ft_errors += 1
+            return
+        if s is not None:
+            self._ft_last = (*np.asarray(s.force).tolist(), *np.asarray(s.torque).tolist())
+
+    def _tool_tilt(self, q: NDArray[np.float64]) -> float:
+        if not self.filter.initialized:
+            return math.nan
+        R = self.controller.tool_base_orientation(quaternion_to_matrix(self.filter.orientation))
+        y = R @ up_vector(q)
+        return math.atan2(math.hypot(y[0], y[1]), y[2])
+
+    def _leveling_command(self, q: NDArray[np.float64], dt: float) -> NDArray[np.float64]:
+        R = self.controller.tool_base_orientation(quaternion_to_matrix(self.filter.orientation))
+        rate = self.controller.tool_base_rate(self._gyro_corrected) if self._rate_ff else None
+        return self.controller.update(R, q, dt, base_rate=rate)
+
+    def _primitive_command(self, q: NDArray[np.float64], dt: float) -> NDArray[np.float64] | None:
+        prim = self._primitive
+        assert prim is not None
+        cmd = prim.step(q, dt)
+        self._primitive_status = prim.status()
+        if prim.done:
+            self._primitive = None
+            self._enter(Mode.DISABLED)
+            return None
+        return cmd
+
+    def _trajectory_command(self, q: NDArray[np.float64], now: float) -> NDArray[np.float64]:
+        traj = self._traj
+        assert traj is not None
+        if self._traj_t0 is None:
+            self._traj_t0 = now
+        t = now - self._traj_t0
+        pos, vel = traj.sample(t)
+        if t >= traj.duration:
+            vel = np.zeros(2)  # hold the last point
+        self._traj_progress = 100.0 * min(1.0, t / traj.duration) if traj.duration > 0 else 100.0
+        err = pos - q
+        self._traj_error = float(np.abs(err).max())
+        return vel + self._track_gain * err
+
+    # -- trajectory validation --
+    def _validated_trajectory(
+        self, trajectory: JointTrajectory, q_now: NDArray[np.float64]
+    ) -> JointTrajectory:
+        if not isinstance(trajectory, JointTrajectory):
+            raise TypeError(f"expected a JointTrajectory; got {type(trajectory).__name__}")
+        names = list(self.joint_names)
+        if sorted(trajectory.joint_names) != sorted(names):
+            raise TrajectoryError(f"joint_names must be the wrist's {names}; "
+                                  f"got {list(trajectory.joint_names)}")
+        traj = trajectory.reordered(names)
+        lim, vmax = self._limits, self._vmax
+
+        def check(t: NDArray, pos: NDArray, vel: NDArray, what: str) -> None:
+            for j, name in enumerate(names):
+                lo, hi = lim[j]
+                bad = np.flatnonzero((pos[:, j] < lo - 1e-9) | (pos[:, j] > hi + 1e-9))
+                if bad.size:
+                    k = int(bad[0])
+                    raise TrajectoryError(
+                        f"{what} at t = {t[k]:.3f} s: {name} = {pos[k, j]:.4f} rad is outside "
+                        f"[{lo:.4f}, {hi:.4f}] rad (spec.wrist limits)")
+                bad = np.flatnonzero(np.abs(vel[:, j]) > vmax[j] * (1 + 1e-9))
+                if bad.size:
+                    k = int(bad[0])
+                    raise TrajectoryError(
+                        f"{what} at t = {t[k]:.3f} s: {name} velocity {vel[k, j]:.4f} rad/s is "
+                        f"outside [{-vmax[j]:g}, {vmax[j]:g}] rad/s (spec.wrist.max_velocity)")
+
+        check(traj.times, traj.positions, traj.velocities, "waypoint")
+        if traj.times[0] > 0.0:
+            # Start from where the wrist is: the spline moves it to the first point in time.
+            traj = JointTrajectory(
+                traj.joint_names, np.concatenate([[0.0], traj.times]),
+                np.vstack([q_now, traj.positions]), np.vstack([np.zeros(2), traj.velocities]))
+        else:
+            gap = np.abs(traj.positions[0] - q_now)
+            reach = vmax * self.period
+            j = int(np.argmax(gap / reach))
+            if gap[j] > reach[j]:
+                raise TrajectoryError(
+                    f"the first point (t = 0) is {gap[j]:.4f} rad from the present {names[j]} "
+                    f"({q_now[j]:.4f} rad), more than one tick's travel ({reach[j]:.4f} rad); "
+                    "give the first point a time_from_start > 0 to move there")
+        # The spline between waypoints can overshoot; check it densely (4 samples per tick).
+        n = max(2, math.ceil(traj.duration / (self.period / 4)) + 1)
+        ts = np.unique(np.concatenate([np.linspace(0.0, traj.duration, n), traj.times]))
+        pos, vel = traj.sample(ts)
+        check(ts, pos, vel, "interpolated trajectory")
+        return traj
+
+    # -- modes and faults --
+    def _enter(self, mode: Mode) -> None:
+        """Switch mode (lock held): abort a running primitive, drop a trajectory, and stop
+        the motors when the new mode is DISABLED."""
+        if self._primitive is not None and mode is not Mode.PRIMITIVE:
+            self._abort_primitive(f"aborted by mode change to {mode.name}")
+        if mode is not Mode.TRAJECTORY:
+            self._traj = None
+            self._traj_t0 = None
+        if mode is Mode.DISABLED:
+            self._stop_motors()
+        if mode is Mode.LEVELING and self._mode is not Mode.LEVELING:
+            self.controller.reset()
+        self._mode = mode
+
+    def _abort_primitive(self, message: str) -> None:
+        prim = self._primitive
+        if prim is None:
+            return
+        self._primitive = None
+        prim.cancel()
+        self._primitive_status = replace(prim.status(), done=True, success=False, message=message)
+        self._stop_motors()
+
+    def _stop_motors(self) -> None:
+        self._command = np.zeros(2)
+        try:
+            self.motors.stop()
+        except Exception:  # stop() must not raise; be defensive anyway
+            log.exception("motors.stop() raised")
+
+    def _set_fault(self, kind: str, message: str) -> None:
+        """Safe state: stop, DISABLED, keep the first cause."""
+        if not self._fault:
+            self._faults_total += 1
+            self._fault, self._fault_kind = message, kind
+            log.error("tool fault: %s", message)
+        try:
+            self._abort_primitive(f"aborted by fault: {message}")
+        except Exception:  # a broken primitive must not keep the motors running
+            log.exception("aborting the primitive failed")
+            self._primitive = None
+        self._traj = None
+        self._traj_t0 = None
+        self._mode = Mode.DISABLED
+        self._stop_motors()
+
+    def _clear_fault(self) -> None:
+        if self._fault_kind == "limit" and self._motor_state is not None:
+            q = np.asarray(self._motor_state.position, dtype=np.float64)
+            for j in self._outside_envelope(q):
+                self._limit_recovery[j] = True
+        self._fault = ""
+        self._fault_kind = ""
+
+    def _fault_cause(self) -> str:
+        """Why the current fault cannot be cleared yet; empty when its cause is gone."""
+        kind = self._fault_kind
+        ms = self._motor_state
+        if kind == "motor_read" and not self._motor_read_ok:
+            return "the motors do not answer"
+        if kind == "hardware" and ms is not None and ms.has_hardware_error:
+            return f"motor hardware error: {ms.describe_errors()}"
+        if kind == "imu_stale" and not self._imu_fresh:
+            return "IMU data still stale"
+        return ""
+
+    def _outside_envelope(self, q: NDArray[np.float64]) -> list[int]:
+        env = self._envelope
+        return [j for j in (0, 1) if not env[j, 0] <= q[j] <= env[j, 1]]
+
+    def _limit_message(self, q: NDArray[np.float64], joints: list[int]) -> str:
+        parts = []
+        for j in joints:
+            lo, hi = self._envelope[j]
+            parts.append(f"{self.joint_names[j]} = {q[j]:.4f} rad outside the safety envelope "
+                         f"[{lo:.4f}, {hi:.4f}] rad")
+        return "joint limit violation: " + "; ".join(parts)
+
+    def _stale_message(self, now: float) -> str:
+        age = now - self._last_imu_stamp
+        age_txt = (f"last sample {age * 1e3:.0f} ms ago" if math.isfinite(age)
+                   else "no sample yet")
+        return (f"IMU data stale while leveling ({age_txt}; limit "
+                f"{self._stale_after * 1e3:.0f} ms = {STALE_IMU_PERIODS:g} loop periods)")
+
+    def _check_offsets(self, pitch_deg: float, roll_deg: float) -> tuple[float, float]:
+        out = []
+        for name, v, (lo, hi) in (("pitch_offset_deg", pitch_deg, self._limits[0]),
+                                  ("roll_offset_deg", roll_deg, self._limits[1])):
+            lo_d, hi_d = math.degrees(lo), math.degrees(hi)
+            ok = isinstance(v, numbers.Real) and not isinstance(v, bool)
+            x = float(v) if ok else math.nan
+            if not (math.isfinite(x) and lo_d <= x <= hi_d):
+                raise ValueError(f"{name} must be a number in [{lo_d:g}, {hi_d:g}] degrees "
+                                 f"(spec.wrist limits); got {v!r}")
+            out.append(x)
+        return out[0], out[1]
+
+    # -- telemetry --
+    def _make_state(self, now: float) -> ToolState:
+        ms = self._motor_state
+        pos = (math.nan, math.nan) if ms is None else tuple(float(x) for x in ms.position)
+        vel = (math.nan, math.nan) if ms is None else tuple(float(x) for x in ms.velocity)
+        s = self._last_imu
+        acc = (math.nan,) * 3 if s is None else tuple(float(x) for x in s.accel)
+        gyr = (math.nan,) * 3 if s is None else tuple(float(x) for x in self._gyro_corrected)
+        quat = tuple(float(x) for x in self.filter.orientation)
+        volts = math.nan if ms is None else float(ms.input_voltage)
+        used = self._energy_wh
+        left = max(0.0, self._battery_start_wh - used)
+        extra: dict[str, float] = {
+            "tilt_deg": math.degrees(self._tilt),
+            "imu_age_s": now - self._last_imu_stamp,
+            "imu_stale": 0.0 if self._imu_fresh else 1.0,
+            "imu_bad": float(self._imu_bad),
+            "imu_filter_resets": float(self._imu_resets),
+            "steady_state": 1.0 if self.filter.steady_state else 0.0,
+            "command_pitch": float(self._command[0]),
+            "command_roll": float(self._command[1]),
+            "singularity": abs(math.cos(pos[1])) if ms is not None else math.nan,
+            "loop_period_max": self.stats.max,
+            "tick_compute_mean_s": self.stats.compute_mean,
+            "tick_compute_max_s": self.stats.compute_max,
+            "faults_total": float(self._faults_total),
+            "battery_used_wh": used,
+            "battery_remaining_pct": 100.0 * left / self.spec.power.battery_wh,
+            "battery_runtime_h": left / self._mode_power[self._mode],
+            "power_w_est": self._mode_power[self._mode],
+            "pitch_offset_deg": self._offsets_deg[0],
+            "roll_offset_deg": self._offsets_deg[1],
+        }
+        if ms is not None:
+            extra["motor_temperature"] = float(ms.temperature)
+        if self._mode is Mode.TRAJECTORY:
+            extra["trajectory_progress_pct"] = self._traj_progress
+            extra["trajectory_error"] = self._traj_error
+        if self._ft_last is not None:
+            for k, v in zip(("ft_fx", "ft_fy", "ft_fz", "ft_tx", "ft_ty", "ft_tz"),
+                            self._ft_last, strict=True):
+                extra[k] = v
+        if self._ft_errors:
+            extra["ft_errors"] = float(self._ft_errors)
+        return ToolState(
+            stamp=now,
+            mode=self._mode,
+            joint_names=self.joint_names,
+            position=(pos[0], pos[1]),
+            velocity=(vel[0], vel[1]),
+            orientation_wxyz=(quat[0], quat[1], quat[2], quat[3]),
+            angular_velocity=(gyr[0], gyr[1], gyr[2]),
+            linear_acceleration=(acc[0], acc[1], acc[2]),
+            fault=self._fault,
+            battery_voltage=volts,
+            loop_period_mean=self.stats.mean,
+            loop_jitter=self.stats.jitter,
+            loop_overruns=self.stats.overruns,
+            extra=extra,
+        )

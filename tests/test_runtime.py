@@ -1,0 +1,635 @@
+"""The tool runtime on the simulated wrist: mode rules, faults, trajectories, statistics,
+threads and the ``articutool tool`` command.
+
+The simulation and the loop are stepped alternately (``sim.step(DT)``, ``rt.tick(sim.time,
+DT)``), so everything but the real-time tests runs faster than real time.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from articutool import load_spec
+from articutool.tool.api import Mode, ToolAPI
+from articutool.tool.cli import background_services, format_status, main, run_tool
+from articutool.tool.drivers.base import DriverError, HardwareError, ImuSample
+from articutool.tool.drivers.sim import (
+    SimImuDriver,
+    SimMotorDriver,
+    SimWrist,
+    axis_angle_rotation,
+)
+from articutool.tool.runtime import ToolRuntime
+from articutool.trajectory import JointTrajectory
+from articutool.verify import verify_trajectory
+
+SPEC = load_spec()
+DT = SPEC.wrist.period
+PITCH, ROLL = SPEC.wrist.joint_names
+R0 = axis_angle_rotation([0.0, 1.0, 0.0], -math.pi / 2)  # F0 +x (up at q = 0) along world z
+
+
+class SpyMotors(SimMotorDriver):
+    """The simulated motors, recording commands; ``fail_reads`` makes ``read`` raise."""
+
+    def __init__(self, sim: SimWrist) -> None:
+        super().__init__(sim)
+        self.commands: list[np.ndarray] = []
+        self.stops = 0
+        self.fail_reads = False
+
+    def set_velocity(self, qd) -> None:
+        super().set_velocity(qd)
+        self.commands.append(np.asarray(qd, dtype=float).copy())
+
+    def stop(self) -> None:
+        super().stop()
+        self.stops += 1
+
+    def read(self):
+        if self.fail_reads:
+            raise DriverError("no status packet from ID 2")
+        return super().read()
+
+
+def make(spec=SPEC, q0=(0.0, 0.0), base=R0, **kw):
+    sim = SimWrist(SPEC, q0=q0, seed=3, gyro_bias=(0.01, -0.01, 0.005))
+    sim.set_base_pose(base)
+    motors = SpyMotors(sim)
+    rt = ToolRuntime(spec, motors, sim.imu_driver(), sim.ft_driver(), clock=sim.clock, **kw)
+    rt.open()
+    return sim, rt, motors
+
+
+def run(sim, rt, seconds):
+    for _ in range(round(seconds / DT)):
+        sim.step(DT)
+        rt.tick(sim.time, DT)
+    return rt.state()
+
+
+def ready(**kw):
+    """A runtime that has run 0.5 s in DISABLED (filter initialised, joints known)."""
+    sim, rt, motors = make(**kw)
+    run(sim, rt, 0.5)
+    return sim, rt, motors
+
+
+def assert_stopped(sim, rt, motors):
+    """Safe state: DISABLED, the last motor write a stop, and the joints come to rest."""
+    assert rt.mode is Mode.DISABLED
+    n = len(motors.commands)
+    stops = motors.stops
+    q = sim.q
+    run(sim, rt, 0.3)
+    assert len(motors.commands) == n  # no velocity command since the fault
+    assert motors.stops > stops  # the motors are told to stop every tick
+    assert np.abs(sim.qd).max() < 1e-3  # at rest (the motor lag decays as exp(-t/30 ms))
+    return q
+
+
+# ------------------------------------------------------------------------ protocol --
+def test_runtime_implements_the_tool_api():
+    _, rt, _ = make()
+    api: ToolAPI = rt
+    for name in ("set_mode", "start_primitive", "primitive_status", "cancel_primitive",
+                 "follow_trajectory", "state"):
+        assert callable(getattr(api, name))
+    st = rt.state()
+    assert st.mode is Mode.DISABLED and st.joint_names == (PITCH, ROLL) and st.fault == ""
+
+
+def test_nothing_is_allowed_before_the_first_tick():
+    _, rt, motors = make()
+    assert rt.set_mode(Mode.LEVELING)[0] is False
+    ok, msg = rt.start_primitive("HOMING", [1.0])
+    assert not ok and "joint state" in msg
+    assert not motors.commands
+
+
+# ---------------------------------------------------------------------- mode rules --
+def test_leveling_levels_a_tilted_tool_and_holds_offsets():
+    base = axis_angle_rotation([1.0, 0.3, 0.0], 0.4) @ R0
+    sim, rt, _ = ready(base=base)
+    assert math.degrees(sim.tilt_error()) > 15
+    ok, msg = rt.set_mode(Mode.LEVELING)
+    assert ok, msg
+    st = run(sim, rt, 2.0)
+    assert st.mode is Mode.LEVELING and math.degrees(sim.tilt_error()) < 1.5
+    assert abs(st.extra["tilt_deg"] - math.degrees(sim.tilt_error())) < 1.0
+    q_level = sim.q
+    ok, msg = rt.set_mode(Mode.LEVELING, pitch_offset_deg=0.0, roll_offset_deg=20.0)
+    assert ok, msg
+    run(sim, rt, 2.0)
+    # The roll offset is applied about the roll joint on top of the level configuration.
+    assert abs(math.degrees(sim.q[1] - q_level[1]) - 20.0) < 1.5
+    assert abs(math.degrees(sim.tilt_error()) - 20.0) < 2.0
+
+
+@pytest.mark.parametrize(("pitch", "roll", "field"), [
+    (120.0, 0.0, "pitch_offset_deg"), (0.0, float("nan"), "roll_offset_deg"),
+    (0.0, "x", "roll_offset_deg")])
+def test_bad_offsets_are_refused_naming_the_field(pitch, roll, field):
+    sim, rt, motors = ready()
+    ok, msg = rt.set_mode(Mode.LEVELING, pitch, roll)
+    assert not ok and field in msg and "degrees" in msg
+    assert rt.mode is Mode.DISABLED
+    run(sim, rt, 0.2)
+    assert not motors.commands
+
+
+@pytest.mark.parametrize("mode", [Mode.PRIMITIVE, Mode.TRAJECTORY, 7, "LEVELING"])
+def test_set_mode_refuses_other_modes(mode):
+    _, rt, _ = ready()
+    ok, msg = rt.set_mode(mode)
+    assert not ok and msg
+    assert rt.mode is Mode.DISABLED
+
+
+def test_primitive_is_refused_while_leveling():
+    _, rt, _ = ready()
+    assert rt.set_mode(Mode.LEVELING)[0]
+    ok, msg = rt.start_primitive("TWIRL_CW", [1.0, 2.0])
+    assert not ok and "leveling" in msg
+    assert rt.mode is Mode.LEVELING and rt.primitive_status() is None
+
+
+def test_primitive_is_refused_while_another_runs():
+    sim, rt, _ = ready()
+    ok, msg = rt.start_primitive("TWIRL_CW", [1.0, 2.0])
+    assert ok, msg
+    run(sim, rt, 0.2)
+    ok, msg = rt.start_primitive("HOMING", [1.0])
+    assert not ok and "TWIRL_CW" in msg and "running" in msg
+    assert rt.primitive_status().name == "TWIRL_CW" and not rt.primitive_status().done
+
+
+def test_primitive_runs_to_completion_then_disables():
+    sim, rt, _ = ready()
+    ok, _ = rt.start_primitive("TWIRL_CCW", [1.0, 3.0])
+    assert ok and rt.mode is Mode.PRIMITIVE
+    run(sim, rt, 0.5)
+    mid = rt.primitive_status()
+    assert not mid.done and 0 < mid.percent_complete < 100
+    run(sim, rt, 4.0)
+    st = rt.primitive_status()
+    assert st.done and st.success and st.percent_complete == 100
+    assert st.final_joint_values[1] == pytest.approx(-2 * math.pi, abs=0.05)
+    assert rt.mode is Mode.DISABLED and np.abs(sim.qd).max() < 1e-3
+
+
+@pytest.mark.parametrize("change", ["leveling", "disabled", "trajectory"])
+def test_mode_change_aborts_a_running_primitive(change):
+    sim, rt, _ = ready()
+    assert rt.start_primitive("TWIRL_CW", [2.0, 3.0])[0]
+    run(sim, rt, 0.5)
+    if change == "leveling":
+        assert rt.set_mode(Mode.LEVELING)[0]
+        target = "LEVELING"
+    elif change == "disabled":
+        assert rt.set_mode(Mode.DISABLED)[0]
+        target = "DISABLED"
+    else:
+        q = sim.q
+        tr = JointTrajectory((PITCH, ROLL), np.array([0.5]), q[None, :], np.zeros((1, 2)))
+        ok, msg = rt.follow_trajectory(tr)
+        assert ok, msg
+        target = "TRAJECTORY"
+    st = rt.primitive_status()
+    assert st.done and not st.success
+    assert st.message == f"aborted by mode change to {target}"
+    assert rt.mode.name == target
+    run(sim, rt, 0.5)
+    assert rt.primitive_status() == st  # a dead primitive stays dead
+
+
+def test_cancel_primitive_stops_the_motors():
+    sim, rt, motors = ready()
+    assert rt.cancel_primitive() is False
+    assert rt.start_primitive("VIBRATE_ROLL", [2.0, 0.1, 3.0])[0]
+    run(sim, rt, 0.3)
+    stops = motors.stops
+    assert rt.cancel_primitive() is True
+    assert motors.stops > stops  # at once, not at the next tick
+    st = rt.primitive_status()
+    assert st.done and not st.success and st.message == "cancelled"
+    assert_stopped(sim, rt, motors)
+    assert rt.cancel_primitive() is False
+
+
+@pytest.mark.parametrize(("name", "params", "word"), [
+    ("TWIRL_CW", [1.0], "parameter"), ("TWIRL_CW", [1.0, 99.0], "speed_rad_s"),
+    ("SPIN", [1.0], "unknown primitive"), ("TWIRL_CW", [float("nan"), 1.0], "rotations"),
+    ("TWIRL_CW", [10.0, 1.0], "budget")])
+def test_bad_primitive_requests_are_refused_without_motion(name, params, word):
+    sim, rt, motors = ready()
+    ok, msg = rt.start_primitive(name, params)
+    assert not ok and word in msg
+    assert rt.mode is Mode.DISABLED
+    run(sim, rt, 0.2)
+    assert not motors.commands and rt.primitive_status() is None
+
+
+# ------------------------------------------------------------------------- faults --
+def test_stale_imu_while_leveling_stops_the_motors():
+    sim, rt, motors = ready(base=axis_angle_rotation([1.0, 0.0, 0.0], 0.3) @ R0)
+    assert rt.set_mode(Mode.LEVELING)[0]
+    run(sim, rt, 0.2)
+    sim.set_imu_stale(True)
+    ticks = 0
+    while not rt.fault and ticks < 10:
+        sim.step(DT)
+        st = rt.tick(sim.time, DT)
+        ticks += 1
+    assert "IMU data stale" in st.fault and st.mode is Mode.DISABLED
+    assert ticks == 3  # the first tick more than two periods after the last sample
+    assert_stopped(sim, rt, motors)
+    ok, msg = rt.set_mode(Mode.LEVELING)
+    assert not ok and "stale" in msg
+    ok, msg = rt.set_mode(Mode.DISABLED)  # always possible, but the fault stays
+    assert ok and "persists" in msg and rt.fault
+    sim.set_imu_stale(False)
+    run(sim, rt, 0.2)
+    ok, msg = rt.set_mode(Mode.LEVELING)
+    assert ok and "cleared fault" in msg and rt.fault == ""
+    run(sim, rt, 1.0)
+    assert rt.mode is Mode.LEVELING and math.degrees(sim.tilt_error()) < 1.5
+
+
+def test_stale_imu_does_not_stop_a_primitive_which_runs_on_the_encoders():
+    sim, rt, _ = ready()
+    assert rt.start_primitive("TWIRL_CW", [1.0, 3.0])[0]
+    sim.set_imu_stale(True)
+    st = run(sim, rt, 0.5)
+    assert st.fault == "" and st.mode is Mode.PRIMITIVE and st.extra["imu_stale"] == 1.0
+    assert "IMU stale" in format_status(st)
+
+
+def test_motor_hardware_error_stops_and_reboot_clears_it():
+    sim, rt, motors = ready(base=axis_angle_rotation([1.0, 0.0, 0.0], 0.3) @ R0)
+    assert rt.set_mode(Mode.LEVELING)[0]
+    run(sim, rt, 0.2)
+    sim.set_hardware_error("roll", HardwareError.OVERHEATING)
+    st = run(sim, rt, DT)
+    assert st.fault == "motor hardware error: roll: OVERHEATING"
+    assert_stopped(sim, rt, motors)
+    ok, msg = rt.set_mode(Mode.LEVELING)
+    assert not ok and "rebooting" in msg
+    run(sim, rt, DT)  # the loop reboots the motors and re-enables torque
+    assert motors.torque_enabled
+    ok, msg = rt.set_mode(Mode.LEVELING)
+    assert ok and rt.fault == ""
+    run(sim, rt, 1.0)
+    assert math.degrees(sim.tilt_error()) < 1.5
+
+
+def test_failed_motor_read_is_a_fault_until_the_motors_answer():
+    sim, rt, motors = ready()
+    assert rt.start_primitive("TWIRL_CW", [1.0, 2.0])[0]
+    run(sim, rt, 0.2)
+    motors.fail_reads = True
+    st = run(sim, rt, DT)
+    assert "motor read failed" in st.fault and st.mode is Mode.DISABLED
+    assert rt.primitive_status().message.startswith("aborted by fault")
+    assert not rt.set_mode(Mode.LEVELING)[0]
+    motors.fail_reads = False
+    run(sim, rt, DT)
+    assert rt.set_mode(Mode.LEVELING)[0] and rt.fault == ""
+
+
+def _narrow_spec(pitch_limit):
+    w = SPEC.wrist.model_copy(update={"pitch_limits": (-pitch_limit, pitch_limit)})
+    return SPEC.model_copy(update={"wrist": w})
+
+
+def test_joint_limit_violation_stops_and_recovery_only_moves_back():
+    # The runtime's limits are narrower than the simulated hardware's: like a pitch encoder
+    # zero that is off by 0.5 rad, the wrist reads beyond the envelope.
+    spec = _narrow_spec(1.0)
+    sim, rt, motors = ready(spec=spec)
+    sim.set_joint_positions([1.3, 0.0])
+    st = run(sim, rt, DT)
+    assert st.fault.startswith("joint limit violation: atool_pitch = 1.3")
+    assert_stopped(sim, rt, motors)
+    assert not rt.start_primitive("HOMING", [1.0])[0]  # refused while the fault is set
+    # Acknowledging the fault arms a recovery: commands back inside are allowed ...
+    assert rt.set_mode(Mode.DISABLED)[0] and rt.fault == ""
+    assert rt.start_primitive("HOMING", [1.0])[0]
+    run(sim, rt, 3.0)
+    assert rt.fault == "" and rt.primitive_status().success
+    assert np.abs(sim.q).max() < 0.02
+    # ... and one that drives a joint further out faults again.
+    sim.set_joint_positions([1.3, 0.0])
+    run(sim, rt, DT)
+    assert rt.fault and rt.set_mode(Mode.LEVELING)[0]
+    rt.controller.update = lambda *a, **k: np.array([0.5, 0.0])
+    st = run(sim, rt, DT)
+    assert "further out" in st.fault and st.mode is Mode.DISABLED
+
+
+def test_exception_in_the_controller_is_caught_and_stops_the_motors():
+    sim, rt, motors = ready()
+    assert rt.set_mode(Mode.LEVELING)[0]
+    run(sim, rt, 0.2)
+    original = rt.controller.update
+
+    def boom(*args, **kwargs):
+        raise RuntimeError("boom")
+
+    rt.controller.update = boom
+    st = rt.tick(sim.time + DT, DT)  # returns normally
+    assert st.fault == "exception in control loop: RuntimeError: boom"
+    assert_stopped(sim, rt, motors)
+    rt.controller.update = original
+    assert rt.set_mode(Mode.LEVELING)[0] and rt.fault == ""
+
+
+def test_non_finite_command_is_a_fault():
+    sim, rt, motors = ready()
+    assert rt.set_mode(Mode.LEVELING)[0]
+    rt.controller.update = lambda *a, **k: np.array([np.nan, 0.0])
+    st = run(sim, rt, DT)
+    assert "non-finite joint command" in st.fault
+    assert_stopped(sim, rt, motors)
+
+
+class BatchStampedImu(SimImuDriver):
+    """Stamps every sample of a read with the read time, as the serial IMU driver does."""
+
+    def read_all(self):
+        return [ImuSample(s.accel, s.gyro, self.sim.time) for s in super().read_all()]
+
+
+def test_imu_batches_with_one_stamp_are_fused_and_gaps_reinitialise_the_filter():
+    sim = SimWrist(SPEC, seed=5)
+    sim.set_base_pose(axis_angle_rotation([1.0, 0.0, 0.0], 0.3) @ R0)
+    rt = ToolRuntime(SPEC, SimMotorDriver(sim), BatchStampedImu(sim), clock=sim.clock)
+    rt.open()
+    for _ in range(40):  # two samples per read, sharing one stamp
+        sim.step(2 * DT)
+        rt.tick(sim.time, 2 * DT)
+    st = rt.state()
+    assert st.extra["imu_filter_resets"] == 0 and st.extra["imu_stale"] == 0.0
+    assert st.extra["tilt_deg"] == pytest.approx(math.degrees(sim.tilt_error()), abs=1.0)
+    sim.set_imu_stale(True)
+    run(sim, rt, 0.3)
+    sim.set_imu_stale(False)
+    st = run(sim, rt, 0.3)
+    assert st.extra["imu_filter_resets"] == 1 and st.fault == ""  # DISABLED: no fault
+
+
+def test_first_fault_is_kept_and_others_are_counted_once():
+    sim, rt, _ = ready()
+    assert rt.set_mode(Mode.LEVELING)[0]
+    sim.set_imu_stale(True)
+    run(sim, rt, 0.2)
+    sim.set_hardware_error("pitch", HardwareError.OVERLOAD)
+    st = run(sim, rt, 0.2)
+    assert "IMU" in st.fault and st.extra["faults_total"] == 1.0
+
+
+# -------------------------------------------------------------------- trajectories --
+def _rot(axis, angle):
+    return axis_angle_rotation(np.eye(3)[axis], angle)
+
+
+class GimbalArm:
+    """Tool base R = Rz(q1) Ry(q2) Rx(q3) R0 (the verifier's OrientationModel protocol)."""
+
+    def tool_base_rotations(self, q):
+        return np.stack([_rot(2, a) @ _rot(1, b) @ _rot(0, c) @ R0 for a, b, c in q[:, :3]])
+
+    def tool_base_angular_velocity(self, q, qd):
+        out = []
+        for (a, b, _), (da, db, dc) in zip(q[:, :3], qd[:, :3], strict=True):
+            out.append(np.array([0, 0, da]) + _rot(2, a) @ np.array([0, db, 0])
+                       + _rot(2, a) @ _rot(1, b) @ np.array([dc, 0, 0]))
+        return np.stack(out)
+
+
+def _arm_transport(duration=4.0):
+    """An arm trajectory (joints 1-3 drive the gimbal) tilting and turning at ≤ 0.6 rad/s;
+    the remaining joints sit mid-range so the arm's limits are respected."""
+    t = np.linspace(0.0, duration, 41)
+    w = 2 * math.pi / duration
+    amp = np.array([0.5, 0.35, 0.4])  # rad
+    g = amp * (1 - np.cos(w * t))[:, None] / 2
+    gd = amp * (w * np.sin(w * t))[:, None] / 2
+    mid = (SPEC.arm.lower + SPEC.arm.upper) / 2
+    q = np.tile(mid, (t.size, 1))
+    qd = np.zeros_like(q)
+    q[:, :3] += g
+    qd[:, :3] = gd
+
+    class Centred(GimbalArm):
+        def tool_base_rotations(self, q):
+            return super().tool_base_rotations(q[:, :3] - mid[:3])
+
+        def tool_base_angular_velocity(self, q, qd):
+            return super().tool_base_angular_velocity(q[:, :3] - mid[:3], qd)
+
+    return JointTrajectory(tuple(SPEC.arm.joint_names), t, q, qd), Centred()
+
+
+def test_trajectory_mode_follows_the_verifiers_wrist_trajectory():
+    arm, model = _arm_transport()
+    rep = verify_trajectory(arm, model, SPEC)
+    assert rep.feasible, rep.message
+    wtraj = rep.wrist_trajectory
+    sim, rt, _ = ready(q0=tuple(wtraj.positions[0]))
+    t_start = sim.time + DT  # the first TRAJECTORY tick
+
+    def base(t):  # the arm executes its trajectory in sync with the wrist
+        s = t - t_start
+        qa = arm.sample(s)[0][None, :]
+        qda = arm.sample(s)[1][None, :] if 0 <= s <= arm.duration else np.zeros((1, 6))
+        return model.tool_base_rotations(qa)[0], model.tool_base_angular_velocity(qa, qda)[0]
+
+    sim.set_base_motion(base)
+    ok, msg = rt.follow_trajectory(wtraj)
+    assert ok, msg
+    errs, tilts = [], []
+    while sim.time < t_start + wtraj.duration + 1.0:
+        sim.step(DT)
+        st = rt.tick(sim.time, DT)
+        ref = wtraj.sample(sim.time - t_start)[0]  # where the wrist should be now
+        errs.append(np.abs(st.position - ref).max())
+        tilts.append(sim.tilt_error())
+    print(f"\ntrajectory: {len(wtraj)} points, {wtraj.duration:.1f} s: tracking error max "
+          f"{math.degrees(max(errs)):.2f}°, utensil tilt max {math.degrees(max(tilts)):.2f}°")
+    assert rt.fault == "" and rt.mode is Mode.TRAJECTORY
+    # Velocity feed-forward + P: tracking within a degree of the reference, and the
+    # utensil level (the wrist trajectory is the verifier's leveling solution).
+    assert max(errs) < math.radians(1.0)
+    assert math.degrees(max(tilts)) < 1.5
+    st = run(sim, rt, 1.0)  # holds the last point
+    np.testing.assert_allclose(st.position, wtraj.positions[-1], atol=0.01)
+    assert st.extra["trajectory_progress_pct"] == 100.0
+
+
+def test_trajectory_starting_later_moves_smoothly_from_where_the_wrist_is():
+    sim, rt, motors = ready()
+    tr = JointTrajectory((ROLL, PITCH), np.array([1.0, 2.0]),  # columns in another order
+                         np.array([[0.5, 0.2], [0.6, 0.3]]), np.zeros((2, 2)))
+    ok, msg = rt.follow_trajectory(tr)
+    assert ok, msg
+    st = run(sim, rt, 3.0)
+    np.testing.assert_allclose(st.position, [0.3, 0.6], atol=0.01)
+    assert max(np.abs(c).max() for c in motors.commands) < 1.0  # no jump to the start
+
+
+def _traj(names=(PITCH, ROLL), t=(0.0, 1.0), q=((0.0, 0.0), (0.3, 0.3)), v=None):
+    q = np.array(q, dtype=float)
+    return JointTrajectory(tuple(names), np.array(t), q, np.zeros_like(q) if v is None else
+                           np.array(v, dtype=float))
+
+
+@pytest.mark.parametrize(("traj", "words"), [
+    (_traj(names=("j1", "j2")), ["joint_names", PITCH]),
+    (_traj(q=((0.0, 0.0), (2.0, 0.0))), [PITCH, "outside", "limits"]),
+    (_traj(v=((0.0, 0.0), (0.0, 5.0))), [ROLL, "velocity", "max_velocity"]),
+    (_traj(t=(0.0, 0.05), q=((0.0, 0.0), (0.0, 1.0))), ["interpolated", ROLL, "velocity"]),
+    (_traj(q=((0.5, 0.0), (0.5, 0.0))), ["first point", "time_from_start"]),
+    ("not a trajectory", ["JointTrajectory"]),
+])
+def test_bad_trajectories_are_refused_with_no_motion(traj, words):
+    sim, rt, motors = ready()
+    ok, msg = rt.follow_trajectory(traj)
+    assert not ok
+    for w in words:
+        assert w in msg
+    assert rt.mode is Mode.DISABLED
+    q = sim.q
+    run(sim, rt, 0.3)
+    assert not motors.commands and np.abs(sim.q - q).max() < 1e-9
+
+
+# ------------------------------------------------------------------- telemetry --
+def test_loop_statistics_are_the_period_mean_and_jitter():
+    sim, rt, _ = make()
+    rng = np.random.default_rng(1)
+    periods = DT + rng.normal(0.0, 0.002, 200).clip(-0.01, 0.01)
+    t = 0.0
+    for p in periods:
+        sim.step(p)
+        t += p
+        st = rt.tick(t)
+    # The first tick has no period before it.
+    assert st.loop_period_mean == pytest.approx(periods[1:].mean(), rel=1e-9)
+    assert st.loop_jitter == pytest.approx(periods[1:].std(ddof=1), rel=1e-6)
+    assert st.extra["loop_period_max"] == pytest.approx(periods[1:].max())
+    assert st.loop_overruns == 0
+    assert st.extra["tick_compute_max_s"] >= st.extra["tick_compute_mean_s"] > 0
+
+
+def test_battery_telemetry_from_the_motor_voltage_and_the_power_budget():
+    sim, rt, _ = make()
+    sim.set_battery(11.4)
+    st = run(sim, rt, 10.0)
+    assert st.battery_voltage == pytest.approx(11.4)
+    used = SPEC.power.idle_w * 10.0 / 3600.0  # DISABLED draws the idle power
+    assert st.extra["battery_used_wh"] == pytest.approx(used, rel=1e-6)
+    assert st.extra["battery_remaining_pct"] == pytest.approx(
+        100 * (1 - used / SPEC.power.battery_wh), rel=1e-9)
+    assert st.extra["battery_runtime_h"] == pytest.approx(
+        (SPEC.power.battery_wh - used) / SPEC.power.idle_w, rel=1e-9)
+
+
+def test_state_carries_filter_and_ft_telemetry():
+    sim, rt, _ = ready(base=axis_angle_rotation([1.0, 0.0, 0.0], 0.2) @ R0)
+    sim.set_external_wrench([0.0, 0.0, -1.5])
+    st = run(sim, rt, 1.0)
+    assert st.extra["ft_fz"] == pytest.approx(-1.5, abs=0.1)
+    assert np.linalg.norm(st.linear_acceleration) == pytest.approx(9.81, abs=0.1)
+    assert np.linalg.norm(st.orientation_wxyz) == pytest.approx(1.0)
+    assert st.extra["tilt_deg"] == pytest.approx(math.degrees(sim.tilt_error()), abs=1.0)
+
+
+# ----------------------------------------------------------------------- threads --
+def test_run_in_a_thread_with_concurrent_commands():
+    """~1 s of real time: the loop thread, the simulated world advancing in real time and
+    this thread hammering the API. No fault, no exception, statistics populated."""
+    sim, rt, motors = make(base=axis_angle_rotation([1.0, 0.0, 0.0], 0.2) @ R0)
+    stop = threading.Event()
+    errors: list[BaseException] = []
+
+    def guarded(fn):
+        def inner(*args):
+            try:
+                fn(*args)
+            except BaseException as e:  # pragma: no cover - reported below
+                errors.append(e)
+        return inner
+
+    services = background_services(None, SPEC, sim)
+    threads = [threading.Thread(target=guarded(fn), args=(rt, stop)) for _, fn in services]
+    threads.append(threading.Thread(target=guarded(rt.run), args=(stop,)))
+    for th in threads:
+        th.start()
+    t_end = time.monotonic() + 1.0
+    stamps, answers = [], []
+    while time.monotonic() < t_end:
+        answers.append(rt.set_mode(Mode.LEVELING, 0.0, 5.0)[0])
+        answers.append(rt.start_primitive("TILT", [0.2, 1.0, 0.0])[0])  # refused: leveling
+        rt.primitive_status()
+        stamps.append(rt.state().stamp)
+        answers.append(rt.set_mode(Mode.DISABLED)[0])
+        time.sleep(0.003)
+    stop.set()
+    for th in threads:
+        th.join(timeout=5.0)
+    assert not errors and not any(th.is_alive() for th in threads)
+    st = rt.state()
+    assert st.fault == "" and any(answers)
+    assert np.all(np.diff(stamps) >= 0)
+    assert st.loop_period_mean > 0 and math.isfinite(st.loop_jitter)
+    assert rt.stats.count > 10
+    rt.close()
+    assert not motors.torque_enabled
+
+
+# --------------------------------------------------------------------------- CLI --
+def test_run_tool_levels_the_sim_and_stops_cleanly():
+    sim = SimWrist(SPEC, seed=0)
+    sim.set_base_pose(axis_angle_rotation([1.0, 0.0, 0.0], 0.3) @ R0)
+    motors = SpyMotors(sim)
+    rt = ToolRuntime(SPEC, motors, sim.imu_driver(), sim.ft_driver(), clock=sim.clock)
+    out = io.StringIO()
+    rc = run_tool(rt, duration=1.2, level=True, services=background_services(None, SPEC, sim),
+                  out=out)
+    text = out.getvalue()
+    assert rc == 0
+    assert "LEVELING with offsets" in text and "stopped: motors stopped" in text
+    assert "FAULT" not in text
+    assert not motors.torque_enabled and not motors._open
+
+
+def test_tool_command_rejects_a_bad_duration():
+    assert main(["--duration", "-1"]) == 2
+
+
+def test_tool_command_exits_0_on_sigint():
+    code = "import sys; from articutool.tool.cli import main; sys.exit(main(sys.argv[1:]))"
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    p = subprocess.Popen([sys.executable, "-c", code, "--driver", "sim"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        first = p.stdout.readline()  # the first status line: the loop is running
+        assert "DISABLED" in first or "LEVELING" in first
+        p.send_signal(signal.SIGINT)
+        out, err = p.communicate(timeout=20)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == 0, err
+    assert "stopped: motors stopped, torque off, drivers closed" in out
