@@ -1,0 +1,312 @@
+"""Exp. 2a runner: every system on every task, in parallel, resumable (thesis §5.2.1).
+
+A *trial* is one ``(system, task, seed, tolerance)``; :func:`run_trial` (top-level, picklable)
+plans it with :func:`articutool.planning.api.plan` in a worker process and returns a flat
+JSON record. The runner appends each finished trial to a JSON-lines log, flushed and
+fsync'ed line by line, so a crash loses no finished trial; on restart it skips the trials
+already in the log. A torn last line (the crash hit mid-write) is ignored, counted and cut
+off before appending. ``run.json`` beside the log pins the settings that make trials
+comparable (task set, timeout, planner, utensil, spec); a resume with other settings is
+refused rather than mixing incomparable trials.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import os
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from articutool.bench.executors import Executor
+from articutool.planning.api import PLANNERS, SYSTEMS, PlanRequest, PlanResult, TransportTask
+from articutool.spec import Spec, load_spec
+
+__all__ = [
+    "DEFAULT_TOLERANCES_DEG",
+    "LogState",
+    "RunConfig",
+    "RunConfigError",
+    "RunSummary",
+    "Trial",
+    "append_record",
+    "make_trials",
+    "parse_systems",
+    "read_log",
+    "record_key",
+    "run_trial",
+    "run_trials",
+]
+
+DEFAULT_TOLERANCES_DEG = (5.0, 10.0, 15.0, 20.0, 30.0, 45.0)
+PlanFn = Callable[[PlanRequest, Spec], PlanResult]
+
+
+class RunConfigError(ValueError):
+    """Bad runner input (unknown system, timeout ≤ 0, …) or a resume with other settings."""
+
+
+# ----------------------------------------------------------------- trials --
+@dataclass(frozen=True)
+class Trial:
+    """One planning run: a system on a task with a seed (and, for the sweep, a tolerance)."""
+
+    system: str
+    task: TransportTask
+    seed: int
+    timeout_s: float
+    planner: str = "rrtconnect"
+    tolerance_deg: float | None = None
+    utensil: str = "spoon"
+    wrist_aware_timing: bool = True
+    spec_path: str | None = None
+
+    @property
+    def key(self) -> tuple[str, int, int, float | None]:
+        """Identity in the log: ``(system, task_id, seed, tolerance_deg)``."""
+        return (self.system, self.task.task_id, self.seed, self.tolerance_deg)
+
+
+def parse_systems(text: str | Sequence[str]) -> tuple[str, ...]:
+    """``"decoupled,strict6"`` → validated, de-duplicated tuple in the given order."""
+    names = [s.strip() for s in text.split(",")] if isinstance(text, str) else list(text)
+    names = [n for n in names if n]
+    if not names:
+        raise RunConfigError(f"--systems must name at least one of {', '.join(SYSTEMS)}")
+    for n in names:
+        if n not in SYSTEMS:
+            raise RunConfigError(f"--systems: unknown system {n!r}; allowed: {', '.join(SYSTEMS)}")
+    return tuple(dict.fromkeys(names))
+
+
+def _check_timeout(timeout_s: float) -> None:
+    if (isinstance(timeout_s, bool) or not isinstance(timeout_s, int | float)
+            or not math.isfinite(timeout_s) or timeout_s <= 0):
+        raise RunConfigError(f"--timeout must be a finite number of seconds > 0; got {timeout_s!r}")
+
+
+def make_trials(
+    tasks: Sequence[TransportTask],
+    systems: Sequence[str],
+    timeout_s: float,
+    seed: int = 0,
+    planner: str = "rrtconnect",
+    tolerances_deg: Sequence[float | None] = (None,),
+    utensil: str = "spoon",
+    spec_path: str | None = None,
+) -> list[Trial]:
+    """All trials, task-major (every system on task 0, then task 1, …) so a partial run is
+    balanced across systems. Validates everything first (raises :class:`RunConfigError`)."""
+    systems = parse_systems(systems)
+    _check_timeout(timeout_s)
+    if planner not in PLANNERS:
+        raise RunConfigError(f"--planner must be one of {', '.join(PLANNERS)}; got {planner!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise RunConfigError(f"--seed must be an integer >= 0; got {seed!r}")
+    for tol in tolerances_deg:
+        if tol is not None and not (math.isfinite(tol) and 0 < tol < 90):
+            raise RunConfigError(f"tolerances must be in (0, 90) degrees; got {tol!r}")
+    return [
+        Trial(system, task, seed, float(timeout_s), planner, tol, utensil, True, spec_path)
+        for tol in tolerances_deg for task in tasks for system in systems
+    ]
+
+
+# ----------------------------------------------------------------- worker --
+@functools.lru_cache(maxsize=4)
+def _spec(path: str | None) -> Spec:
+    return load_spec(path)
+
+
+def _real_plan(request: PlanRequest, spec: Spec) -> PlanResult:
+    from articutool.planning.api import plan
+
+    return plan(request, spec)
+
+
+def run_trial(trial: Trial, plan_fn: PlanFn | None = None) -> dict[str, Any]:
+    """Plan one trial (in a worker process) and return its JSON record.
+
+    Calls :func:`articutool.planning.api.plan` unless ``plan_fn`` is given (tests inject a
+    stand-in). A planner exception becomes a failed record with ``error`` set, so one bad
+    trial does not stop the benchmark.
+    """
+    request = PlanRequest(
+        system=trial.system, task=trial.task, timeout_s=trial.timeout_s, planner=trial.planner,
+        seed=trial.seed, tolerance_deg=trial.tolerance_deg,
+        wrist_aware_timing=trial.wrist_aware_timing, utensil=trial.utensil,
+    )
+    fn = plan_fn or _real_plan
+    error = None
+    try:
+        rec = fn(request, _spec(trial.spec_path)).to_record()
+    except Exception as err:  # a planner bug must not take the whole benchmark down
+        error = f"{type(err).__name__}: {err}"
+        rec = {"system": trial.system, "task_id": trial.task.task_id, "success": False,
+               "planning_time_s": None, "attempts": 0, "verification_rejections": 0,
+               "path_length": None, "max_tilt_deg": None, "verified": None,
+               "message": error, "duration_s": None}
+    rec.update({"seed": trial.seed, "tolerance_deg": trial.tolerance_deg,
+                "planner": trial.planner, "timeout_s": trial.timeout_s, "error": error})
+    return rec
+
+
+# -------------------------------------------------------------------- log --
+def record_key(rec: dict[str, Any]) -> tuple[str, int, int, float | None]:
+    """The trial identity of a log record (see :attr:`Trial.key`)."""
+    tol = rec.get("tolerance_deg")
+    return (rec["system"], int(rec["task_id"]), int(rec["seed"]),
+            None if tol is None else float(tol))
+
+
+@dataclass
+class LogState:
+    """What :func:`read_log` found: valid records, a torn tail, unreadable middle lines."""
+
+    records: list[dict[str, Any]] = field(default_factory=list)
+    torn: int = 0  # an incomplete last line (0 or 1)
+    corrupt: int = 0  # complete lines that are not a valid record
+    valid_bytes: int = 0  # length of the file up to the end of the last complete line
+
+    @property
+    def done(self) -> set[tuple[str, int, int, float | None]]:
+        """Keys of the finished trials."""
+        return {record_key(r) for r in self.records}
+
+
+def read_log(path: str | Path) -> LogState:
+    """Read a results log; a missing file is an empty log."""
+    p = Path(path)
+    state = LogState()
+    try:
+        data = p.read_bytes()
+    except FileNotFoundError:
+        return state
+    end = data.rfind(b"\n") + 1  # everything after the last newline is a torn write
+    state.valid_bytes = end
+    if end < len(data):
+        state.torn = 1
+    for line in data[:end].splitlines():
+        if not line.strip():
+            continue
+        try:
+            rec = json.loads(line)
+            record_key(rec)
+        except (ValueError, KeyError, TypeError):
+            state.corrupt += 1
+            continue
+        state.records.append(rec)
+    return state
+
+
+def append_record(fd: int, rec: dict[str, Any]) -> None:
+    """Append one record as a JSON line and make it durable (write + fsync)."""
+    line = (json.dumps(rec, allow_nan=False) + "\n").encode()
+    view = memoryview(line)
+    while view:
+        view = view[os.write(fd, view):]
+    os.fsync(fd)
+
+
+# ----------------------------------------------------------------- config --
+@dataclass(frozen=True)
+class RunConfig:
+    """Settings that make trials in one log comparable (stored as ``run.json``)."""
+
+    tasks_sha256: str
+    timeout_s: float
+    planner: str
+    utensil: str
+    spec_hash: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"tasks_sha256": self.tasks_sha256, "timeout_s": self.timeout_s,
+                "planner": self.planner, "utensil": self.utensil, "spec_hash": self.spec_hash}
+
+    def check_or_write(self, path: Path) -> None:
+        """Write ``path`` on a fresh run; on a resume refuse differing settings."""
+        if path.exists():
+            try:
+                old = json.loads(path.read_text(encoding="utf-8"))
+            except (OSError, ValueError) as err:
+                raise RunConfigError(f"{path} is unreadable ({err}); use another --out") from None
+            new = self.to_dict()
+            diff = [k for k in new if old.get(k) != new[k]]
+            if diff:
+                parts = ", ".join(f"{k} {old.get(k)!r} → {new[k]!r}" for k in diff)
+                raise RunConfigError(
+                    f"{path.parent} holds results of a run with other settings ({parts}); "
+                    "use the same settings to resume it, or another --out")
+            return
+        path.write_text(json.dumps(self.to_dict(), indent=1) + "\n", encoding="utf-8")
+
+
+# ----------------------------------------------------------------- runner --
+@dataclass
+class RunSummary:
+    """Outcome of :func:`run_trials`."""
+
+    records: list[dict[str, Any]]  # every record in the log (old and new), log order
+    ran: int  # trials run now
+    skipped: int  # trials already in the log
+    torn: int  # torn last lines found (and cut off)
+    corrupt: int  # unreadable complete lines (ignored)
+    lost: list[tuple[Trial, str]]  # trials whose worker failed (not logged; rerun resumes)
+
+
+def run_trials(
+    trials: Sequence[Trial],
+    log_path: str | Path,
+    executor: Executor,
+    plan_fn: PlanFn | None = None,
+    on_result: Callable[[dict[str, Any]], None] | None = None,
+    on_start: Callable[[int, int], None] | None = None,
+) -> RunSummary:
+    """Run the trials not yet in ``log_path`` on ``executor``, appending each as it finishes.
+
+    ``on_start(pending, skipped)`` is called once before any work, ``on_result(rec)`` after
+    each trial is durably logged (progress bars).
+    """
+    log_path = Path(log_path)
+    state = read_log(log_path)
+    done = state.done
+    pending = [t for t in trials if t.key not in done]
+    # Unique keys only: a duplicate trial in the input would be run twice.
+    pending = list({t.key: t for t in pending}.values())
+    skipped = len(trials) - len(pending)
+    if on_start is not None:
+        on_start(len(pending), skipped)
+    log_path.parent.mkdir(parents=True, exist_ok=True)
+    fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+    lost: list[tuple[Trial, str]] = []
+    records = list(state.records)
+    try:
+        if state.torn:
+            os.ftruncate(fd, state.valid_bytes)  # drop the torn tail before appending
+        worker = run_trial if plan_fn is None else functools.partial(run_trial, plan_fn=plan_fn)
+        for trial, rec, err in executor.run(worker, pending):
+            if err is not None:
+                lost.append((trial, f"{type(err).__name__}: {err}"))
+                continue
+            append_record(fd, rec)
+            records.append(rec)
+            if on_result is not None:
+                on_result(rec)
+    finally:
+        os.close(fd)
+    return RunSummary(records, len(pending) - len(lost), skipped, state.torn, state.corrupt,
+                      lost)
+
+
+def select(records: Iterable[dict[str, Any]], trials: Sequence[Trial]) -> list[dict[str, Any]]:
+    """The records of ``trials`` (a log may hold more, e.g. other seeds or systems)."""
+    wanted = {t.key for t in trials}
+    out: dict[tuple[str, int, int, float | None], dict[str, Any]] = {}
+    for r in records:
+        k = record_key(r)
+        if k in wanted:
+            out[k] = r
+    return list(out.values())
