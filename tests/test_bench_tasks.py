@@ -12,16 +12,15 @@ from hypothesis import strategies as st
 
 import articutool.cli as cli
 from articutool import load_spec
+from articutool.arm.ik import IKSettings, solve_pose_ik
 from articutool.arm.model import ArmModel
 from articutool.arm.scene import Scene
 from articutool.bench.tasks import (
     FILE_VERSION,
-    IKSettings,
     TaskFileError,
     generate_tasks,
     load_task_set,
     save_task_set,
-    solve_pose_ik,
     tip_tilt_deg,
 )
 from articutool.tool.kinematics import nearest_leveling_solution

@@ -37,11 +37,11 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-import pinocchio as pin
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from articutool.arm.model import TOOL_BASE_FRAME, ArmModel, tip_frame_name
+from articutool.arm.ik import IKSettings, solve_pose_ik
+from articutool.arm.model import ArmModel
 from articutool.arm.scene import Scene
 from articutool.planning.api import SYSTEMS, TransportTask
 from articutool.spec import Spec
@@ -51,7 +51,6 @@ __all__ = [
     "FILE_FORMAT",
     "FILE_VERSION",
     "GENERATOR_VERSION",
-    "IKSettings",
     "TaskFileError",
     "TaskSet",
     "default_tasks_path",
@@ -59,7 +58,6 @@ __all__ = [
     "load_task_set",
     "save_task_set",
     "scene_hash",
-    "solve_pose_ik",
     "spec_hash",
     "tip_tilt_deg",
 ]
@@ -96,62 +94,6 @@ def scene_hash(scene: Scene) -> str:
 
 
 # ----------------------------------------------------------------------- IK --
-@dataclass(frozen=True)
-class IKSettings:
-    """CLIK parameters: success tolerances, iteration cap, damping, random seeds per target."""
-
-    position_tol_m: float = 1e-4
-    rotation_tol_rad: float = 1e-3
-    max_iterations: int = 300
-    damping: float = 1e-4
-    max_step_rad: float = 0.5
-    random_seeds: int = 6
-
-
-def solve_pose_ik(
-    model: ArmModel,
-    frame: str,
-    target: NDArray[np.float64],
-    q0: NDArray[np.float64],
-    settings: IKSettings,
-    free: int | None = None,
-) -> NDArray[np.float64] | None:
-    """Closed-loop IK of ``frame`` onto the (4, 4) ``target`` pose from ``q0``.
-
-    Damped least squares on the frame's SE(3) log error, ``dq = −Jᵀ(JJᵀ + λI)⁻¹ e`` with
-    ``J = −Jlog6 · J_local`` (the standard Pinocchio CLIK), steps capped at ``max_step_rad``
-    and clipped to the joint limits. ``free`` limits the update to the first ``free`` joints
-    (the arm only). Returns the configuration, or ``None`` when it does not converge.
-    """
-    pm, data = model.model, model.data
-    name = {"tip": tip_frame_name(model.utensil), "tool_base": TOOL_BASE_FRAME}.get(frame, frame)
-    if not pm.existFrame(name):
-        raise ValueError(f"unknown frame {frame!r}; use 'tip', 'tool_base' or a model frame")
-    fid = pm.getFrameId(name)
-    oMdes = pin.SE3(target[:3, :3], target[:3, 3])
-    lo, hi = model.lower, model.upper
-    n = pm.nv if free is None else free
-    q = np.clip(np.asarray(q0, dtype=float), lo, hi)
-    eye = settings.damping * np.eye(6)
-    for _ in range(settings.max_iterations):
-        pin.forwardKinematics(pm, data, q)
-        pin.updateFramePlacement(pm, data, fid)
-        iMd = data.oMf[fid].actInv(oMdes)
-        err = pin.log6(iMd).vector
-        if (np.linalg.norm(err[:3]) < settings.position_tol_m
-                and np.linalg.norm(err[3:]) < settings.rotation_tol_rad):
-            return q
-        J = pin.computeFrameJacobian(pm, data, q, fid, pin.ReferenceFrame.LOCAL)[:, :n]
-        J = -pin.Jlog6(iMd.inverse()) @ J
-        dq = -J.T @ np.linalg.solve(J @ J.T + eye, err)
-        step = np.abs(dq).max()
-        if step > settings.max_step_rad:
-            dq *= settings.max_step_rad / step
-        q = q.copy()
-        q[:n] = np.clip(q[:n] + dq, lo[:n], hi[:n])
-    return None
-
-
 def tip_tilt_deg(model: ArmModel, q: Sequence[float]) -> float:
     """Angle (deg) between the utensil's up axis (tip frame y, Eq. 4.1) and world up."""
     y = model.tip_pose(np.asarray(q, dtype=float))[:3, 1]

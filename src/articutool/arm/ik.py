@@ -1,0 +1,69 @@
+"""Numerical inverse kinematics on the arm models (damped least squares CLIK, Pinocchio)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from articutool.arm.model import TOOL_BASE_FRAME, ArmModel, tip_frame_name
+
+__all__ = ["IKSettings", "solve_pose_ik"]
+
+
+@dataclass(frozen=True)
+class IKSettings:
+    """CLIK parameters: success tolerances, iteration cap, damping, random seeds per target."""
+
+    position_tol_m: float = 1e-4
+    rotation_tol_rad: float = 1e-3
+    max_iterations: int = 300
+    damping: float = 1e-4
+    max_step_rad: float = 0.5
+    random_seeds: int = 6
+
+
+def solve_pose_ik(
+    model: ArmModel,
+    frame: str,
+    target: NDArray[np.float64],
+    q0: NDArray[np.float64],
+    settings: IKSettings,
+    free: int | None = None,
+) -> NDArray[np.float64] | None:
+    """Closed-loop IK of ``frame`` onto the (4, 4) ``target`` pose from ``q0``.
+
+    Damped least squares on the frame's SE(3) log error, ``dq = −Jᵀ(JJᵀ + λI)⁻¹ e`` with
+    ``J = −Jlog6 · J_local`` (the standard Pinocchio CLIK), steps capped at ``max_step_rad``
+    and clipped to the joint limits. ``free`` limits the update to the first ``free`` joints
+    (the arm only). Returns the configuration, or ``None`` when it does not converge.
+    """
+    pm, data = model.model, model.data
+    name = {"tip": tip_frame_name(model.utensil), "tool_base": TOOL_BASE_FRAME}.get(frame, frame)
+    if not pm.existFrame(name):
+        raise ValueError(f"unknown frame {frame!r}; use 'tip', 'tool_base' or a model frame")
+    fid = pm.getFrameId(name)
+    oMdes = pin.SE3(target[:3, :3], target[:3, 3])
+    lo, hi = model.lower, model.upper
+    n = pm.nv if free is None else free
+    q = np.clip(np.asarray(q0, dtype=float), lo, hi)
+    eye = settings.damping * np.eye(6)
+    for _ in range(settings.max_iterations):
+        pin.forwardKinematics(pm, data, q)
+        pin.updateFramePlacement(pm, data, fid)
+        iMd = data.oMf[fid].actInv(oMdes)
+        err = pin.log6(iMd).vector
+        if (np.linalg.norm(err[:3]) < settings.position_tol_m
+                and np.linalg.norm(err[3:]) < settings.rotation_tol_rad):
+            return q
+        J = pin.computeFrameJacobian(pm, data, q, fid, pin.ReferenceFrame.LOCAL)[:, :n]
+        J = -pin.Jlog6(iMd.inverse()) @ J
+        dq = -J.T @ np.linalg.solve(J @ J.T + eye, err)
+        step = np.abs(dq).max()
+        if step > settings.max_step_rad:
+            dq *= settings.max_step_rad / step
+        q = q.copy()
+        q[:n] = np.clip(q[:n] + dq, lo[:n], hi[:n])
+    return None
