@@ -14,8 +14,7 @@ $(VENV)/.installed: pyproject.toml | $(BIN)/python
 	touch $@
 
 demo: $(VENV)/.installed
-	$(BIN)/articutool info
-	$(BIN)/articutool verify examples/transport_feasible.json
+	$(BIN)/articutool demo
 
 test: $(VENV)/.installed
 	$(BIN)/ruff check src tests benchmarks

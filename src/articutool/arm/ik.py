@@ -41,9 +41,10 @@ def solve_pose_ik(
     (the arm only). Returns the configuration, or ``None`` when it does not converge.
     """
     pm, data = model.model, model.data
-    name = {"tip": tip_frame_name(model.utensil), "tool_base": TOOL_BASE_FRAME}.get(frame, frame)
+    name = {"tip": tip_frame_name(model.utensil), "tool_base": TOOL_BASE_FRAME,
+            "ee": model.spec.arm.ee_frame}.get(frame, frame)
     if not pm.existFrame(name):
-        raise ValueError(f"unknown frame {frame!r}; use 'tip', 'tool_base' or a model frame")
+        raise ValueError(f"unknown frame {frame!r}; use 'tip', 'tool_base', 'ee' or a model frame")
     fid = pm.getFrameId(name)
     oMdes = pin.SE3(target[:3, :3], target[:3, 3])
     lo, hi = model.lower, model.upper

@@ -24,27 +24,41 @@ from articutool.spec import Spec
 __all__ = ["add_commands", "run_demo", "staging_configuration"]
 
 
-def staging_configuration(spec: Spec, model: Any) -> np.ndarray:
-    """Arm configuration for the spec's Staging pose (end-effector IK), collision-free."""
+def staging_configuration(spec: Spec, model: Any, seed: int = 0) -> tuple[np.ndarray, float]:
+    """Arm configuration for the spec's Staging pose (end-effector IK), collision-free.
+
+    The reference system's Staging pose was taught for a shorter tool; with the Articutool's
+    geometry it puts the utensil into the head of the default scene. The end effector is
+    therefore backed off along its approach axis (1 cm steps, up to 20 cm) until the whole
+    tool is clear. Returns the configuration and the back-off distance (m).
+    """
+    import pinocchio as pin
+
     from articutool.arm.ik import IKSettings, solve_pose_ik
 
     pose = spec.arm.poses["Staging"]
-    w, x, y, z = pose.orientation_wxyz
-    R = np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
-    target = np.eye(4)
-    target[:3, :3] = R / np.linalg.norm(R, axis=0)
-    target[:3, 3] = pose.position
-    settings = IKSettings()
-    for seed_name in ("Home", "Resting", "AbovePlate"):
-        q0 = np.r_[spec.arm.configuration(seed_name), np.zeros(model.nq - 6)]
-        q = solve_pose_ik(model, "ee", target, q0, settings, free=6)
-        if q is not None and not model.in_collision(q):
-            return np.asarray(q[:6])
-    raise RuntimeError("no collision-free IK solution for the Staging pose")
+    R = pin.Quaternion(*pose.orientation_wxyz).normalized().toRotationMatrix()
+    rng = np.random.default_rng(seed)
+    seeds = [spec.arm.configuration(n) for n in ("Home", "Resting", "AbovePlate")]
+    seeds += list(rng.uniform(spec.arm.lower, spec.arm.upper, size=(24, 6)))
+    settings = IKSettings(max_iterations=500)
+    for back in np.arange(0.0, 0.2001, 0.01):
+        target = np.eye(4)
+        target[:3, :3] = R
+        target[:3, 3] = np.asarray(pose.position) - back * R[:, 2]
+        best = None
+        for q0 in seeds:
+            q = solve_pose_ik(model, "ee", target, np.r_[q0, np.zeros(model.nq - 6)],
+                              settings, free=6)
+            if q is None or model.in_collision(q):
+                continue
+            # Prefer the solution closest to Resting: a short, natural transport.
+            d = np.linalg.norm(q[:6] - spec.arm.configuration("Resting"))
+            if best is None or d < best[0]:
+                best = (d, q[:6])
+        if best is not None:
+            return np.asarray(best[1]), float(back)
+    raise RuntimeError("no collision-free IK solution near the Staging pose")
 
 
 def run_demo(
@@ -63,14 +77,15 @@ def run_demo(
 
     model = ArmModel(spec, utensil=utensil)
     start = spec.arm.configuration("Resting")
-    goal = staging_configuration(spec, model)
+    goal, backoff = staging_configuration(spec, model, seed)
     task = TransportTask(task_id=0, start=tuple(start), goal=tuple(goal))
     t0 = time.perf_counter()
     result = plan(PlanRequest(system="decoupled", task=task, timeout_s=timeout_s, seed=seed,
                               utensil=utensil), spec)
     plan_time = time.perf_counter() - t0
     figures: dict[str, Any] = {
-        "start": "Resting", "goal": "Staging", "utensil": utensil, "seed": seed,
+        "start": "Resting", "goal": "Staging", "staging_backoff_m": backoff,
+        "utensil": utensil, "seed": seed,
         "plan_success": result.success, "plan_time_s": plan_time,
         "planner_reported_time_s": result.planning_time_s, "attempts": result.attempts,
         "verification_rejections": result.verification_rejections,
