@@ -9,7 +9,6 @@ the field.
 from __future__ import annotations
 
 import math
-import tomllib
 from importlib import resources
 from pathlib import Path
 from typing import Annotated
@@ -23,6 +22,8 @@ from pydantic import (
     ValidationError,
     model_validator,
 )
+
+from articutool.datafile import format_validation_error, read_document
 
 __all__ = [
     "ArmJointSpec",
@@ -330,32 +331,16 @@ def default_spec_path() -> Path:
     return Path(str(resources.files("articutool") / "data" / "hardware.toml"))
 
 
-def _format_errors(err: ValidationError, source: str) -> str:
-    lines = [f"invalid hardware spec {source}:"]
-    for e in err.errors():
-        loc = ".".join(str(p) for p in e["loc"]) or "(top level)"
-        msg = e["msg"].removeprefix("Value error, ")
-        lines.append(f"  {loc}: {msg}")
-    return "\n".join(lines)
-
-
 def parse_spec(data: dict, source: str = "<dict>") -> Spec:
     """Validate a spec given as a mapping (e.g. parsed TOML)."""
     try:
         return Spec.model_validate(data)
     except ValidationError as err:
-        raise SpecError(_format_errors(err, source)) from None
+        raise SpecError(format_validation_error(err, f"invalid hardware spec {source}:")) from None
 
 
 def load_spec(path: str | Path | None = None) -> Spec:
     """Load and validate a hardware spec; ``None`` loads the packaged default."""
     p = Path(path) if path is not None else default_spec_path()
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as err:
-        raise SpecError(f"cannot read hardware spec {p}: {err.strerror}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        raise SpecError(f"hardware spec {p} is not valid TOML: {err}") from None
+    data = read_document(p, "hardware spec", SpecError)
     return parse_spec(data, str(p))

@@ -22,7 +22,6 @@ acquisition); the arm and the wrist are still checked against them.
 from __future__ import annotations
 
 import math
-import tomllib
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -32,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from articutool.datafile import read_document
 from articutool.spec import Finite, Positive, Vec3
 
 __all__ = [
@@ -235,12 +235,5 @@ class Scene(BaseModel):
     def load(cls, path: str | Path | None = None) -> Scene:
         """Load and validate a scene file; ``None`` loads the packaged default."""
         p = Path(path) if path is not None else default_scene_path()
-        try:
-            text = p.read_text(encoding="utf-8")
-        except OSError as err:
-            raise SceneError(f"cannot read scene {p}: {err.strerror}") from None
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as err:
-            raise SceneError(f"scene {p} is not valid TOML: {err}") from None
+        data = read_document(p, "scene", SceneError)
         return cls.from_dict(data, str(p))

@@ -43,6 +43,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from articutool.arm.ik import IKSettings, solve_pose_ik
 from articutool.arm.model import ArmModel
 from articutool.arm.scene import Scene
+from articutool.datafile import format_validation_error, read_document
 from articutool.planning.api import SYSTEMS, TransportTask
 from articutool.spec import Spec
 from articutool.tool.kinematics import nearest_leveling_solution
@@ -362,15 +363,6 @@ def default_tasks_path() -> Path:
     return Path(str(resources.files("articutool") / "data" / "transport_tasks_v1.json"))
 
 
-def _format_errors(err: ValidationError, source: str) -> str:
-    lines = [f"invalid tasks file {source}:"]
-    for e in err.errors():
-        loc = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in e["loc"]).lstrip(".")
-        msg = e["msg"].removeprefix("Value error, ")
-        lines.append(f"  {loc or '(top level)'}: {msg}")
-    return "\n".join(lines)
-
-
 def parse_task_set(data: Any, source: str = "<dict>") -> TaskSet:
     """Validate a parsed task document; errors name the field (e.g. ``tasks[3].start``)."""
     if isinstance(data, dict) and "version" in data and data["version"] != FILE_VERSION:
@@ -379,7 +371,7 @@ def parse_task_set(data: Any, source: str = "<dict>") -> TaskSet:
     try:
         doc = _TaskFile.model_validate(data)
     except ValidationError as err:
-        raise TaskFileError(_format_errors(err, source)) from None
+        raise TaskFileError(format_validation_error(err, f"invalid tasks file {source}:")) from None
     tasks = tuple(TransportTask(t.task_id, tuple(t.start), tuple(t.goal), tuple(t.start_wrist),
                                 tuple(t.goal_wrist)) for t in doc.tasks)
     extras = tuple(t.model_dump(include={"start_tip", "goal_tip", "source"}, exclude_none=True)
@@ -393,14 +385,7 @@ def parse_task_set(data: Any, source: str = "<dict>") -> TaskSet:
 def load_task_set(path: str | Path | None = None) -> TaskSet:
     """Read and validate a task file; ``None`` loads the packaged default."""
     p = Path(path) if path is not None else default_tasks_path()
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as err:
-        raise TaskFileError(f"cannot read tasks file {p}: {err.strerror}") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise TaskFileError(f"tasks file {p} is not valid JSON: {err}") from None
+    data = read_document(p, "tasks file", TaskFileError)
     return parse_task_set(data, str(p))
 
 
