@@ -1,0 +1,469 @@
+"""OMPL planners for the three Exp. 2a transport systems (imperative shell over OMPL).
+
+* ``decoupled``: 6-DOF arm in a plain joint space; the loose F0 constraint
+  (:class:`~articutool.planning.constraints.LooseConstraint`) and collisions are checked in
+  the state validity checker, motions at ``resolution`` rad steps (the loose band is wide,
+  so most samples are valid: rejection is cheap here). The path is time-parameterised
+  (wrist-aware by default) and verified (Alg. 2); a rejected plan is re-planned within the
+  time budget.
+* ``strict6`` / ``strict8``: OMPL constrained planning — a ``ProjectedStateSpace`` over the
+  6-/8-DOF joint space with a *dead-zone* constraint on the tip tilt
+  (:meth:`StrictConstraint.deadzone`: zero inside ±tol, Newton projection onto the band's
+  edge outside). Samples are projected into the band and every motion is a chain of projected
+  steps ``delta`` rad apart, so the whole path stays inside (``method="projection"``). The
+  default, ``method="rejection"``, plans the strict systems like ``decoupled`` (validity
+  checker with the tolerance band + fine motion checks): it measured faster and more
+  reliable on the benchmark tasks (see :func:`plan_transport`).
+
+Every accepted trajectory is checked again after time parameterisation, sampled at most
+``check_step`` rad apart (joint limits, collisions, the strict tolerance); a failure counts
+as a rejection and triggers a re-plan. Planning uses a band 10 % tighter than the requested
+tolerance so the time-parameterised spline stays inside the requested one.
+
+Determinism: OMPL's global seed is reset (``ompl.util.RNG.setSeed``) before every attempt
+and all OMPL objects are built afterwards, so a (request, seed) pair replays the same plan
+(unless the wall-clock timeout cuts a search at a different point).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+from ompl import base as ob
+from ompl import geometric as og
+from ompl import util as ou
+
+from articutool.arm.model import TOOL_BASE_FRAME, ArmModel, tip_frame_name
+from articutool.planning.api import PlanRequest, PlanResult
+from articutool.planning.constraints import LooseConstraint, StrictConstraint, tip_tilt_deg
+from articutool.planning.timing import time_parameterize, wrist_rate_profile
+from articutool.spec import Spec
+from articutool.tool.kinematics import rotation as wrist_rotation
+from articutool.trajectory import JointTrajectory
+from articutool.verify.verifier import verify_trajectory
+
+__all__ = ["METHODS", "PlannerSettings", "level_configuration", "plan_transport"]
+
+METHODS = ("projection", "rejection")
+_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+_TWO_PI = 2.0 * math.pi
+
+ou.setLogLevel(ou.LOG_NONE)  # OMPL's console chatter (reseeding notices) is not ours to show
+
+
+@dataclass(frozen=True)
+class PlannerSettings:
+    """Tuning knobs (not part of the request; defaults chosen by measurement)."""
+
+    resolution: float = 0.02  # rad, motion check step for plain spaces
+    delta: float = 0.03  # rad, projected-space step (ProjectedStateSpace.setDelta)
+    check_step: float = 0.025  # rad, final dense check of the time-parameterised trajectory
+    plan_margin: float = 0.9  # strict: plan inside tol * plan_margin
+    strict_range: float = 1.0  # rad, RRT-Connect extension range in projected spaces
+    wrist_velocity_margin: float = 0.95  # wrist-aware timing uses this fraction of the limit
+    simplify_time: float = 0.2  # s, cap on path simplification per attempt
+
+
+def _fail(req: PlanRequest, t0: float, attempts: int, rejections: int, msg: str,
+          verified: bool | None = None) -> PlanResult:
+    return PlanResult(req.system, req.task.task_id, False, time.perf_counter() - t0, attempts,
+                      rejections, math.nan, math.nan, verified, msg, None, None)
+
+
+class _Kin:
+    """Per-request kinematics on one ``ArmModel``: validity, tilt, projection Jacobians."""
+
+    def __init__(self, model: ArmModel, frame: str) -> None:
+        self.arm = model
+        self.m, self.d = model.model, model.data
+        self.gm, self.gd = model.geometry_model, model.geometry_data
+        if not model.model.existFrame(frame):
+            raise ValueError(f"unknown frame {frame!r}")
+        self.fid = model.model.getFrameId(frame)
+        self.n = model.nq
+        self.lo, self.hi = model.lower, model.upper
+
+    def rotation(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        pin.forwardKinematics(self.m, self.d, q)
+        return pin.updateFramePlacement(self.m, self.d, self.fid).rotation
+
+    def rotation_and_jacobian(
+        self, q: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        pin.computeJointJacobians(self.m, self.d, q)
+        R = pin.updateFramePlacement(self.m, self.d, self.fid).rotation
+        J = pin.getFrameJacobian(self.m, self.d, self.fid, _LWA)
+        return R, J[3:]
+
+    def collides(self, q: NDArray[np.float64]) -> bool:
+        return bool(pin.computeCollisions(self.m, self.d, self.gm, self.gd, q, True))
+
+    def in_bounds(self, q: NDArray[np.float64]) -> bool:
+        return bool(np.all(q >= self.lo - 1e-9) and np.all(q <= self.hi + 1e-9))
+
+
+class _DeadzoneConstraint(ob.Constraint):
+    """OMPL constraint ``f(q) = deadzone(tip tilt)`` (2 rows) with the analytic Jacobian."""
+
+    def __init__(self, kin: _Kin, strict: StrictConstraint) -> None:
+        super().__init__(kin.n, 2)
+        self.kin, self.strict = kin, strict
+        self._b = strict.bound
+
+    # Scalar forms of StrictConstraint.deadzone / deadzone_jacobian: OMPL calls these tens
+    # of thousands of times per query, so NumPy call overhead dominates otherwise.
+    def function(self, x, out) -> None:
+        w0, _, w2 = self.kin.rotation(np.asarray(x, dtype=np.float64))[2].tolist()
+        b = self._b
+        out[0] = math.copysign(max(abs(w2) - b, 0.0), w2)
+        out[1] = math.copysign(max(abs(w0) - b, 0.0), w0)
+
+    def jacobian(self, x, out) -> None:
+        R, Jw = self.kin.rotation_and_jacobian(np.asarray(x, dtype=np.float64))
+        out[:, :] = self.strict.deadzone_jacobian(R, Jw)
+
+
+def level_configuration(
+    model: ArmModel, q0: NDArray[np.float64], *, iterations: int = 50, tol: float = 1e-10
+) -> NDArray[np.float64] | None:
+    """Project ``q0`` (nq,) to a configuration with the tip exactly level (Gauss–Newton).
+
+    Drives ``w_x = w_z = 0`` (see :mod:`~articutool.planning.constraints`) with minimum-norm
+    steps. Returns ``None`` if it does not converge, ends upside down or leaves the joint
+    limits. Does not check collisions. Useful for making level test/benchmark tasks.
+    """
+    kin = _Kin(model, tip_frame_name(model.utensil))
+    exact = StrictConstraint(1e-9)
+    q = np.asarray(q0, dtype=np.float64).copy()
+    for _ in range(iterations):
+        R, Jw = kin.rotation_and_jacobian(q)
+        w = R[2]
+        e = np.array([w[2], w[0]])
+        if e @ e < tol and w[1] > 0:
+            return q if kin.in_bounds(q) else None
+        J = exact.deadzone_jacobian(R, Jw) if np.abs(e).max() > 1e-9 else None
+        if J is None:
+            break
+        q = q - np.linalg.lstsq(J, e, rcond=None)[0]
+    return None
+
+
+@dataclass
+class _Problem:
+    """Everything one request needs: model, checkers, start/goal, final checks."""
+
+    req: PlanRequest
+    spec: Spec
+    settings: PlannerSettings
+    method: str
+
+    def __post_init__(self) -> None:
+        req, spec = self.req, self.spec
+        self.strict8 = req.system == "strict8"
+        dof = 8 if self.strict8 else 6
+        self.model = ArmModel(spec, utensil=req.utensil, dof=dof)
+        task = req.task
+        wrist_s = list(task.start_wrist) if self.strict8 else []
+        wrist_g = list(task.goal_wrist) if self.strict8 else []
+        self.start = np.array(list(task.start) + wrist_s, dtype=np.float64)
+        self.goal = np.array(list(task.goal) + wrist_g, dtype=np.float64)
+        pl = spec.planning
+        if req.system == "decoupled":
+            self.kin = _Kin(self.model, TOOL_BASE_FRAME)
+            self.loose = LooseConstraint.from_start(
+                self.kin.rotation(self.start), task.start_wrist,
+                math.radians(pl.loose_pitch_deg), math.radians(pl.loose_roll_deg))
+            self.strict = None
+            self.band = None
+        else:
+            self.kin = _Kin(self.model, tip_frame_name(req.utensil))
+            tol = math.radians(req.tolerance_deg if req.tolerance_deg is not None
+                               else pl.strict_tolerance_deg)
+            self.strict = StrictConstraint(tol)
+            # Plan in a tighter band, widened if an endpoint already sits outside it.
+            ends = max(float(tip_tilt_deg(self.kin.rotation(q))) for q in (self.start, self.goal))
+            self.band = StrictConstraint(min(max(tol * self.settings.plan_margin,
+                                                 math.radians(ends) + 1e-6), tol))
+            self.loose = None
+            self._band_bound = self.band.bound + 1e-6
+
+    # -------------------------------------------------------------- state checks --
+    def constraint_ok(self, q: NDArray[np.float64]) -> bool:
+        """Scalar fast path of ``LooseConstraint.satisfied`` / ``StrictConstraint.satisfied``.
+
+        Called for every checked state: plain ``math`` on three numbers is ~10× cheaper than
+        the vectorised NumPy form (which the final trajectory check uses).
+        """
+        u0, u1, u2 = self.kin.rotation(q)[2].tolist()  # Rᵀ ẑ
+        if self.loose is not None:
+            c = self.loose
+            p, r = math.atan2(u2, u0), math.asin(min(1.0, max(-1.0, u1)))
+            if c.branch:
+                p, r = p + math.pi, math.pi - r
+            dp = (p - c.reference[0] + math.pi) % _TWO_PI - math.pi
+            dr = (r - c.reference[1] + math.pi) % _TWO_PI - math.pi
+            return abs(dp) <= c.pitch_tol and abs(dr) <= c.roll_tol
+        b = self._band_bound
+        return u1 > 0.0 and abs(u0) <= b and abs(u2) <= b
+
+    def valid(self, q: NDArray[np.float64]) -> bool:
+        return self.constraint_ok(q) and not self.kin.collides(q)
+
+    def valid_bounded(self, q: NDArray[np.float64]) -> bool:
+        # Projection can push a state past the joint limits; plain samplers cannot.
+        return self.kin.in_bounds(q) and self.valid(q)
+
+    def endpoint_problem(self) -> str | None:
+        """Why the start or the goal cannot be planned from/to (``None`` when both are fine)."""
+        for name, q in (("start", self.start), ("goal", self.goal)):
+            if not self.kin.in_bounds(q):
+                return (f"{name} is outside the joint limits "
+                        f"[{np.array2string(self.kin.lo, precision=3)}, "
+                        f"{np.array2string(self.kin.hi, precision=3)}] rad")
+            if self.model.in_collision(q):
+                pairs = self.model.colliding_pairs(q)[:3]
+                return f"{name} is in collision ({', '.join('/'.join(p) for p in pairs)})"
+            if not self.constraint_ok(q):
+                R = self.kin.rotation(q)
+                if self.loose is not None:
+                    dev = np.degrees(self.loose.deviation(R))
+                    return (f"{name} violates the loose tool-base constraint: pitch/roll "
+                            f"deviation {dev[0]:.1f}°/{dev[1]:.1f}° from the start's level "
+                            f"reference (allowed ±{self.spec.planning.loose_pitch_deg:g}°/"
+                            f"±{self.spec.planning.loose_roll_deg:g}°)")
+                assert self.strict is not None
+                return (f"{name} tip tilt {float(tip_tilt_deg(R)):.1f}° exceeds "
+                        f"±{math.degrees(self.strict.tol):g}°")
+        return None
+
+    # ------------------------------------------------------------------- OMPL --
+    def solve(self, seed: int, budget: float) -> tuple[NDArray[np.float64] | None, str]:
+        """One OMPL query; dense waypoints (N, n) of the simplified path, or a reason."""
+        ou.RNG.setSeed(seed)  # before any OMPL object is built: their RNGs draw from it
+        n, st = self.kin.n, self.settings
+        space = ob.RealVectorStateSpace(n)
+        bounds = ob.RealVectorBounds(n)
+        for i in range(n):
+            bounds.setLow(i, float(self.kin.lo[i]))
+            bounds.setHigh(i, float(self.kin.hi[i]))
+        space.setBounds(bounds)
+        projected = self.strict is not None and self.method == "projection"
+        valid = self.valid_bounded if projected else self.valid
+
+        def checker(s) -> bool:
+            return valid(np.array([s[i] for i in range(n)]))
+
+        keep: list[object] = [checker]
+        if projected:
+            assert self.band is not None
+            con = _DeadzoneConstraint(self.kin, self.band)
+            css = ob.ProjectedStateSpace(space, con)
+            css.setDelta(st.delta)
+            si = ob.ConstrainedSpaceInformation(css)
+            ss = og.SimpleSetup(si)
+            keep += [con, css]
+            state_space = css
+        else:
+            ss = og.SimpleSetup(space)
+            si = ss.getSpaceInformation()
+            state_space = space
+        ss.setStateValidityChecker(checker)
+        if not projected:
+            si.setStateValidityCheckingResolution(st.resolution / space.getMaximumExtent())
+        a, b = state_space.allocState(), state_space.allocState()
+        if projected:
+            a.copy(self.start.tolist())
+            b.copy(self.goal.tolist())
+        else:
+            for i in range(n):
+                a[i], b[i] = float(self.start[i]), float(self.goal[i])
+        ss.setStartAndGoalStates(a, b)
+        planner = og.RRTstar(si) if self.req.planner == "rrtstar" else og.RRTConnect(si)
+        if projected:
+            planner.setRange(st.strict_range)
+        ss.setPlanner(planner)
+        ss.setup()
+        t_start = time.perf_counter()
+        if self.req.planner == "rrtstar":
+            # RRT* refines until the budget ends or it has refined for as long as it took to
+            # find the first solution (bounded anytime behaviour, so benchmarks finish).
+            pdef = ss.getProblemDefinition()
+            first: list[float] = []
+
+            def stop() -> bool:
+                now = time.perf_counter()
+                if not first and pdef.hasExactSolution():
+                    first.append(now - t_start)
+                return now - t_start >= budget or (bool(first) and now - t_start >= 2 * first[0])
+
+            status = ss.solve(ob.PlannerTerminationCondition(stop))
+        else:
+            status = ss.solve(budget)
+        if not ss.haveExactSolutionPath():
+            return None, f"no path found within {budget:.3g} s ({status.asString()})"
+        remaining = budget - (time.perf_counter() - t_start)
+        if remaining > 0:
+            ss.simplifySolution(min(remaining, st.simplify_time))
+        path = ss.getSolutionPath()
+        path.interpolate()
+        states = path.getStates()
+        q = np.array([[s[i] for i in range(n)] for s in states])
+        del keep
+        return _densify(q, st.resolution), ""
+
+    # ------------------------------------------------------------ final checks --
+    def tip_rotations(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Tip rotations along (N, nq) samples, vectorised (F0 chain × wrist, hw-facts §3)."""
+        R0 = self.model.tool_base_rotations(q[:, :6])
+        qw = q[:, 6:8] if self.strict8 else np.zeros((q.shape[0], 2))
+        return R0 @ wrist_rotation(qw)
+
+    def check_trajectory(self, traj: JointTrajectory) -> str | None:
+        """Dense check of the executed trajectory: limits, tolerance, collisions."""
+        t = _dense_times(traj, self.settings.check_step)
+        q, _ = traj.sample(t)
+        lo, hi = self.kin.lo, self.kin.hi
+        out = np.flatnonzero(((q < lo - 1e-9) | (q > hi + 1e-9)).any(axis=1))
+        if out.size:
+            return f"t = {t[out[0]]:.3f} s: joint limit exceeded"
+        if self.strict is not None:
+            ok = self.strict.satisfied(self.tip_rotations(q))
+            if not ok.all():
+                k = int(np.flatnonzero(~ok)[0])
+                return f"t = {t[k]:.3f} s: tip tilt exceeds the tolerance"
+        elif self.loose is not None:
+            ok = self.loose.satisfied(self.model.tool_base_rotations(q))
+            if not ok.all():
+                k = int(np.flatnonzero(~ok)[0])
+                return f"t = {t[k]:.3f} s: tool base leaves the loose constraint"
+        for k in range(q.shape[0]):
+            if self.kin.collides(q[k]):
+                return f"t = {t[k]:.3f} s: collision"
+        return None
+
+    def sdot_limit(self) -> Callable[[NDArray[np.float64], NDArray[np.float64]],
+                                     NDArray[np.float64]]:
+        """Largest path speed the wrist can follow at each grid point (wrist-aware timing)."""
+        spec = self.spec
+        vmax = spec.wrist.velocity_limits * self.settings.wrist_velocity_margin
+        kinematics = self.model.tool_base_kinematics
+
+        def sdot_max(q: NDArray[np.float64], dq: NDArray[np.float64]) -> NDArray[np.float64]:
+            A = wrist_rate_profile(q, dq, kinematics, spec.controller.pinv_rcond)
+            ratio = (np.abs(A) / vmax).max(axis=1)
+            return np.divide(1.0, ratio, out=np.full(ratio.shape, np.inf), where=ratio > 1e-12)
+
+        return sdot_max
+
+
+def _densify(q: NDArray[np.float64], step: float) -> NDArray[np.float64]:
+    """Insert linear samples so that consecutive rows differ by at most ``step`` (max-norm)."""
+    out = [q[:1]]
+    for a, b in itertools.pairwise(q):
+        k = max(int(np.ceil(np.abs(b - a).max() / step)), 1)
+        f = np.arange(1, k + 1)[:, None] / k
+        out.append(a + f * (b - a))
+    return np.concatenate(out)
+
+
+def _dense_times(traj: JointTrajectory, step: float) -> NDArray[np.float64]:
+    """Sample times with joint steps ≲ ``step``: each interval split by its velocity bound."""
+    t = traj.times
+    dt = np.diff(t)
+    vpeak = np.maximum(np.abs(traj.velocities[:-1]), np.abs(traj.velocities[1:])).max(axis=1)
+    dpos = np.abs(np.diff(traj.positions, axis=0)).max(axis=1)
+    k = np.maximum(np.ceil(np.maximum(dpos, 1.5 * vpeak * dt) / step), 1).astype(int)
+    parts = [t[i] + dt[i] * np.arange(k[i]) / k[i] for i in range(dt.size)]
+    return np.concatenate(parts + [t[-1:]])
+
+
+def _path_length(q: NDArray[np.float64]) -> float:
+    return float(np.linalg.norm(np.diff(q, axis=0), axis=1).sum())
+
+
+def _seed(seed: int, attempt: int) -> int:
+    # OMPL seeds must be positive 32-bit; distinct per (seed, attempt).
+    return (seed * 1009 + attempt) % 2_147_483_646 + 1
+
+
+def plan_transport(
+    request: PlanRequest, spec: Spec, *, method: str = "rejection",
+    settings: PlannerSettings | None = None,
+) -> PlanResult:
+    """Plan one (validated) request; see :func:`articutool.planning.api.plan`.
+
+    ``method`` selects the strict systems' constraint handling: ``"rejection"`` (validity
+    checker + motion checks every ``resolution`` rad; the default because it measured best:
+    first 10 tasks of transport_tasks_v1, 20 s: strict6 100 % / median 0.36 s, strict8 100 % /
+    1.65 s) or ``"projection"`` (OMPL ProjectedStateSpace with the dead-zone constraint:
+    strict6 40 % / 6.0 s, strict8 70 % / 1.5 s on the same tasks).
+    """
+    t0 = time.perf_counter()
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}; got {method!r}")
+    req = request
+    deadline = t0 + req.timeout_s
+    prob = _Problem(req, spec, settings or PlannerSettings(), method)
+    bad = prob.endpoint_problem()
+    if bad is not None:
+        return _fail(req, t0, 0, 0, f"invalid task: {bad}")
+    arm = spec.arm
+    vmax, amax = prob.model.velocity_limits, arm.max_acceleration
+    if prob.strict8:
+        # The wrist's acceleration is not in the spec; bound it like the arm's fastest joint.
+        amax = np.concatenate([amax, np.full(2, amax.max())])
+    names = tuple(prob.model.joint_names)
+    attempts = rejections = 0
+    last = "timeout before the first attempt"
+    while True:
+        remaining = deadline - time.perf_counter()
+        if remaining <= 0:
+            break
+        attempts += 1
+        waypoints, why = prob.solve(_seed(req.seed, attempts), remaining)
+        if waypoints is None:
+            last = why
+            break
+        sdot = (prob.sdot_limit() if req.system == "decoupled" and req.wrist_aware_timing
+                else None)
+        traj = time_parameterize(waypoints, names, vmax, amax, sdot_max=sdot)
+        if traj is None:
+            rejections += 1
+            last = "time parameterisation failed"
+            continue
+        problem = prob.check_trajectory(traj)
+        if problem is not None:
+            rejections += 1
+            last = f"trajectory check failed: {problem}"
+            continue
+        length = _path_length(waypoints)
+        if req.system != "decoupled":
+            q, _ = traj.sample(_dense_times(traj, prob.settings.check_step))
+            tilt = float(tip_tilt_deg(prob.tip_rotations(q)).max())
+            return PlanResult(req.system, req.task.task_id, True, time.perf_counter() - t0,
+                              attempts, rejections, length, tilt, None,
+                              f"planned in {attempts} attempt(s)", traj, None)
+        rep = verify_trajectory(traj, prob.model, spec, q_wrist_start=req.task.start_wrist)
+        if not rep.feasible:
+            rejections += 1
+            last = f"verification rejected the plan: {rep.reason}: {rep.message}"
+            continue
+        wt = rep.wrist_trajectory
+        assert wt is not None
+        q_arm, _ = traj.sample(wt.times)
+        tilt_R = prob.model.tool_base_rotations(q_arm) @ wrist_rotation(wt.positions)
+        tilt = float(tip_tilt_deg(tilt_R).max())
+        return PlanResult(req.system, req.task.task_id, True, time.perf_counter() - t0,
+                          attempts, rejections, length, tilt, True,
+                          f"planned and verified in {attempts} attempt(s); "
+                          f"velocity margin {rep.velocity_margin:.3f}", traj, wt)
+    verified = False if req.system == "decoupled" and rejections else None
+    return _fail(req, t0, attempts, rejections, f"failed after {attempts} attempt(s): {last}",
+                 verified)

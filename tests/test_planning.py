@@ -1,0 +1,236 @@
+"""Transport planners (issue 5): constraints math, OMPL planners, toppra timing, API errors."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from articutool import load_spec
+from articutool.arm.model import ArmModel
+from articutool.planning.api import PlanRequest, TransportTask, plan
+from articutool.planning.constraints import (
+    LooseConstraint,
+    StrictConstraint,
+    f0_leveling_angles,
+    tip_tilt,
+)
+from articutool.planning.ompl_planner import _dense_times, level_configuration, plan_transport
+from articutool.planning.timing import time_parameterize
+from articutool.tool.kinematics import rotation as wrist_rotation
+from articutool.verify.verifier import verify_trajectory
+
+SPEC = load_spec()
+angles = st.floats(-math.pi, math.pi, allow_nan=False)
+
+
+def _rz(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _rx(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+# A level tip: y axis up. Columns (x, y, z) = (x̂, ẑ, −ŷ).
+_LEVEL = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+
+
+@given(angles)
+def test_level_tip_has_zero_tilt_for_any_yaw(yaw: float) -> None:
+    pitch, roll, up = tip_tilt(_rz(yaw) @ _LEVEL)
+    assert abs(pitch) < 1e-12 and abs(roll) < 1e-12 and up
+
+
+@given(angles, st.floats(-1.2, 1.2))
+def test_pitch_about_lateral_axis_is_shaft_elevation(yaw: float, a: float) -> None:
+    # Rotating the tip about its own x (lateral) axis raises the shaft by `a`.
+    R = _rz(yaw) @ _LEVEL @ _rx(a)
+    pitch, roll, _ = tip_tilt(R)
+    assert abs(abs(pitch) - abs(a)) < 1e-9 and abs(roll) < 1e-9
+    c = StrictConstraint(math.radians(10))
+    assert bool(c.satisfied(R)) == (abs(a) <= math.radians(10) + 1e-12)
+    dz = c.deadzone(R)
+    assert (np.abs(dz) > 0).any() == (abs(math.sin(a)) > c.bound)
+
+
+@given(angles, angles, angles)
+def test_leveling_angles_level_the_tool(p: float, r: float, yaw: float) -> None:
+    # F0 oriented so that wrist angles (p, r) level the tip: F0 = R_level_tip · rotation(q)ᵀ.
+    q = np.array([p * 0.5, r * 0.45])  # inside pitch ±90°, roll ±81°: branch A
+    R_f0 = _rz(yaw) @ _LEVEL @ wrist_rotation(q).T
+    assert np.allclose(f0_leveling_angles(R_f0), q, atol=1e-9)
+    c = LooseConstraint(math.radians(90), math.radians(45))
+    assert bool(c.satisfied(R_f0)) == (abs(q[1]) <= math.radians(45))
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.floats(-0.5, 0.5), min_size=6, max_size=6))
+def test_deadzone_jacobian_matches_finite_differences(dq: list[float]) -> None:
+    m = ArmModel(SPEC, dof=6)
+    q = SPEC.arm.configuration("Home") + np.array(dq)
+    c = StrictConstraint(math.radians(1))
+    J = m.frame_jacobian(q, "tip")[3:]
+    R = m.tip_pose(q)[:3, :3]
+    Jd = c.deadzone_jacobian(R, J)
+    eps = 1e-6
+    num = np.empty((2, 6))
+    for i in range(6):
+        e = np.zeros(6)
+        e[i] = eps
+        Rp, Rm = m.tip_pose(q + e)[:3, :3], m.tip_pose(q - e)[:3, :3]
+        wp, wm = Rp[2], Rm[2]
+        num[:, i] = (np.array([wp[2], wp[0]]) - np.array([wm[2], wm[0]])) / (2 * eps)
+    w = R[2]
+    active = np.abs([w[2], w[0]]) > c.bound
+    assert np.allclose(Jd[active], num[active], atol=1e-6)
+    assert np.all(Jd[~active] == 0)
+
+
+def test_vectorised_tip_rotation_matches_pinocchio() -> None:
+    m8 = ArmModel(SPEC, dof=8)
+    rng = np.random.default_rng(1)
+    q = SPEC.arm.configuration("Home")
+    for _ in range(5):
+        q8 = np.concatenate([q + rng.uniform(-1, 1, 6), rng.uniform(-1.5, 1.5, 2)])
+        R = m8.tool_base_rotations(q8[None, :6])[0] @ wrist_rotation(q8[6:])
+        assert np.allclose(R, m8.tip_pose(q8)[:3, :3], atol=1e-9)
+
+
+# ----------------------------------------------------------------- planning --
+def _tasks(n: int, seed: int = 0) -> list[TransportTask]:
+    m = ArmModel(SPEC, dof=6)
+    rng = np.random.default_rng(seed)
+    home = SPEC.arm.configuration("Home")
+
+    def pick() -> np.ndarray:
+        while True:
+            q = level_configuration(m, home + rng.uniform(-0.6, 0.6, 6))
+            if q is not None and not m.in_collision(q):
+                return q
+
+    return [TransportTask(i, tuple(pick()), tuple(pick())) for i in range(n)]
+
+
+TASK = _tasks(1)[0]
+
+
+def _check_trajectory(traj, system: str, tol_deg: float) -> None:
+    dof = 8 if system == "strict8" else 6
+    m = ArmModel(SPEC, dof=dof)
+    t = _dense_times(traj, 0.01)
+    q, qd = traj.sample(t)
+    task_start = np.array(TASK.start + ((0.0, 0.0) if dof == 8 else ()))
+    task_goal = np.array(TASK.goal + ((0.0, 0.0) if dof == 8 else ()))
+    assert np.allclose(q[0], task_start) and np.allclose(q[-1], task_goal)
+    assert (q >= m.lower - 1e-9).all() and (q <= m.upper + 1e-9).all()
+    assert not any(m.in_collision(x) for x in q)
+    assert (np.abs(qd) <= m.velocity_limits * 1.02).all()
+    acc = np.diff(traj.velocities, axis=0) / np.diff(traj.times)[:, None]
+    assert (np.abs(acc[:, :6]) <= SPEC.arm.max_acceleration * 1.05).all()
+    if system != "decoupled":
+        R = m.tool_base_rotations(q[:, :6]) @ wrist_rotation(
+            q[:, 6:] if dof == 8 else np.zeros((len(q), 2)))
+        assert StrictConstraint(math.radians(tol_deg)).satisfied(R).all()
+
+
+@pytest.mark.parametrize("system", ["decoupled", "strict6", "strict8"])
+def test_each_system_plans_a_level_transport(system: str) -> None:
+    r = plan(PlanRequest(system, TASK, timeout_s=30.0, seed=1))
+    assert r.success, r.message
+    assert r.trajectory is not None and r.attempts >= 1
+    assert r.path_length > 0 and math.isfinite(r.max_tilt_deg)
+    _check_trajectory(r.trajectory, system, 10.0)
+    rec = r.to_record()
+    assert rec["success"] is True and "trajectory" not in rec
+    if system == "decoupled":
+        assert r.verified is True and r.wrist_trajectory is not None
+        rep = verify_trajectory(r.trajectory, ArmModel(SPEC, dof=6), SPEC)
+        assert rep.feasible, rep.message
+        assert r.max_tilt_deg < 1.0
+    else:
+        assert r.verified is None and r.max_tilt_deg <= 10.0
+
+
+def test_strict_tolerance_parameter_is_respected() -> None:
+    r = plan(PlanRequest("strict6", TASK, timeout_s=30.0, tolerance_deg=5.0))
+    assert r.success, r.message
+    _check_trajectory(r.trajectory, "strict6", 5.0)
+
+
+@pytest.mark.parametrize("system", ["strict6", "strict8"])
+def test_projected_state_space_method_keeps_the_tip_level(system: str) -> None:
+    r = plan_transport(PlanRequest(system, TASK, timeout_s=30.0, seed=2), SPEC,
+                       method="projection")
+    assert r.success, r.message
+    _check_trajectory(r.trajectory, system, 10.0)
+
+
+def test_rrtstar_is_selectable() -> None:
+    r = plan(PlanRequest("decoupled", TASK, timeout_s=10.0, planner="rrtstar"))
+    assert r.success, r.message
+    assert r.planning_time_s <= 10.0 + 1.0  # stops within its budget (not a speed test)
+
+
+def test_same_seed_same_plan() -> None:
+    a = plan(PlanRequest("decoupled", TASK, seed=7))
+    b = plan(PlanRequest("decoupled", TASK, seed=7))
+    assert a.success and b.success
+    assert np.array_equal(a.trajectory.positions, b.trajectory.positions)
+
+
+def test_time_parameterisation_respects_limits_and_wrist_rates() -> None:
+    m = ArmModel(SPEC, dof=6)
+    wp = np.linspace(TASK.start, TASK.goal, 40)
+    traj = time_parameterize(wp, SPEC.arm.joint_names, SPEC.arm.max_velocity,
+                             SPEC.arm.max_acceleration)
+    assert traj is not None
+    assert (np.abs(traj.velocities) <= SPEC.arm.max_velocity * 1.02).all()
+    # A tighter artificial wrist limit slows the trajectory down.
+    slow = time_parameterize(wp, SPEC.arm.joint_names, SPEC.arm.max_velocity,
+                             SPEC.arm.max_acceleration,
+                             sdot_max=lambda q, dq: np.full(len(q), 0.05))
+    assert slow is not None and slow.times[-1] > traj.times[-1]
+    assert verify_trajectory(slow, m, SPEC).feasible
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        ({"system": "strict7"}, "system"),
+        ({"planner": "prm"}, "planner"),
+        ({"timeout_s": 0.0}, "timeout_s"),
+        ({"timeout_s": -1.0}, "timeout_s"),
+        ({"timeout_s": math.nan}, "timeout_s"),
+        ({"tolerance_deg": 0.0}, "tolerance_deg"),
+        ({"task": dataclasses.replace(TASK, goal=(math.nan,) * 6)}, "task.goal"),
+        ({"task": dataclasses.replace(TASK, start=(0.0,) * 5)}, "task.start"),
+    ],
+)
+def test_bad_requests_are_refused(change: dict, field: str) -> None:
+    req = dataclasses.replace(PlanRequest("decoupled", TASK), **change)
+    with pytest.raises(ValueError, match=field):
+        plan(req)
+
+
+def test_goal_in_collision_fails_cleanly() -> None:
+    m = ArmModel(SPEC, dof=6)
+    rng = np.random.default_rng(3)
+    home = SPEC.arm.configuration("Home")
+    while True:
+        q = home + rng.uniform(-2.5, 2.5, 6)
+        q = np.clip(q, m.lower, m.upper)
+        if m.in_collision(q):
+            break
+    task = dataclasses.replace(TASK, goal=tuple(q))
+    for system in ("decoupled", "strict6"):
+        r = plan(PlanRequest(system, task, timeout_s=2.0))
+        assert not r.success and "collision" in r.message
+        assert r.trajectory is None and math.isnan(r.path_length)
+        assert r.to_record()["path_length"] is None
