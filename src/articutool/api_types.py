@@ -7,18 +7,28 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["ArmKinematics"]
+__all__ = ["ArmKinematics", "OrientationModel"]
 
 
-class ArmKinematics(Protocol):
-    """The arm-model calls the verifier and the simulation use (``ArmModel`` provides them)."""
-
-    def tool_base_pose(self, q_arm: ArrayLike) -> NDArray[np.float64]:
-        """(6,) arm configuration → (4, 4) pose of F0 in the arm base frame."""
-        ...
+class OrientationModel(Protocol):
+    """What the verifier needs of an arm model (``articutool.arm.ArmModel`` provides it)."""
 
     def tool_base_rotations(self, q_arm: ArrayLike) -> NDArray[np.float64]:
         """(..., 6) → (..., 3, 3) rotations of F0 in the arm base frame."""
+        ...
+
+    def tool_base_angular_velocity(
+        self, q_arm: ArrayLike, qd_arm: ArrayLike
+    ) -> NDArray[np.float64]:
+        """(..., 6), (..., 6) → (..., 3) angular velocity of F0 in the arm base frame."""
+        ...
+
+
+class ArmKinematics(OrientationModel, Protocol):
+    """What the transport simulation needs of an arm model (``ArmModel`` provides it)."""
+
+    def tool_base_pose(self, q_arm: ArrayLike) -> NDArray[np.float64]:
+        """(6,) arm configuration → (4, 4) pose of F0 in the arm base frame."""
         ...
 
     def tool_base_kinematics(

@@ -70,6 +70,7 @@ def run_demo(
     plot_path: Path | None = None,
 ) -> dict[str, Any]:
     """Run the demo; returns the figures (see module docstring)."""
+    import articutool.planning.ompl_planner  # noqa: F401  (import OMPL/toppra before timing)
     from articutool.arm import ArmModel
     from articutool.planning.api import PlanRequest, TransportTask, plan
     from articutool.sim.transport import simulate_transport

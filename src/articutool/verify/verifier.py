@@ -23,33 +23,20 @@ tool's TRAJECTORY mode can execute.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from articutool.api_types import OrientationModel
 from articutool.spec import Spec
 from articutool.tool.kinematics import joint_rates_for_rotation, wrap_angle
 from articutool.trajectory import JointTrajectory, TrajectoryError
 
-__all__ = ["OrientationModel", "VerificationReport", "densify", "verify_trajectory"]
+__all__ = ["VerificationReport", "densify", "verify_trajectory"]
 
 _WORLD_UP = np.array([0.0, 0.0, 1.0])
 _MAX_SAMPLES = 2_000_000
-
-
-class OrientationModel(Protocol):
-    """What the verifier needs of an arm model (``articutool.arm.ArmModel`` provides it)."""
-
-    def tool_base_rotations(self, q_arm: NDArray[np.float64]) -> NDArray[np.float64]:
-        """(N, 6) arm configurations → (N, 3, 3) rotations of F0 in the arm base frame."""
-        ...
-
-    def tool_base_angular_velocity(
-        self, q_arm: NDArray[np.float64], qd_arm: NDArray[np.float64]
-    ) -> NDArray[np.float64]:
-        """(N, 6), (N, 6) → (N, 3) angular velocity of F0 in the arm base frame."""
-        ...
 
 
 @dataclass(frozen=True)
