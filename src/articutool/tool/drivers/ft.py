@@ -37,6 +37,7 @@ import serial
 
 from articutool.spec import Spec
 from articutool.tool.drivers.base import DriverError, FTDriver, FTSample
+from articutool.tool.drivers.serial_port import open_nonblocking
 
 __all__ = [
     "FRAME_LEN",
@@ -128,12 +129,7 @@ class ResenseFTDriver(FTDriver):
         """Open the port non-blocking; alignment is searched afresh."""
         if self._ser is not None:
             return
-        try:
-            self._ser = serial.Serial(self.port_name, self._baud, timeout=0)
-            self._ser.reset_input_buffer()
-        except (serial.SerialException, OSError) as e:
-            self._ser = None
-            raise DriverError(f"cannot open F/T port {self.port_name}: {e}") from e
+        self._ser = open_nonblocking(self.port_name, self._baud, "F/T")
         self._buf.clear()
         self._locked = False
 

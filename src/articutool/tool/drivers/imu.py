@@ -21,6 +21,7 @@ import serial
 
 from articutool.spec import Spec
 from articutool.tool.drivers.base import DriverError, ImuDriver, ImuSample
+from articutool.tool.drivers.serial_port import open_nonblocking
 
 __all__ = [
     "ACCEL_FULL_SCALE_MG",
@@ -94,12 +95,7 @@ class OpenLogImuDriver(ImuDriver):
         """Open the port non-blocking and drop anything buffered before now."""
         if self._ser is not None:
             return
-        try:
-            self._ser = serial.Serial(self.port_name, self._baud, timeout=0)
-            self._ser.reset_input_buffer()
-        except (serial.SerialException, OSError) as e:
-            self._ser = None
-            raise DriverError(f"cannot open IMU port {self.port_name}: {e}") from e
+        self._ser = open_nonblocking(self.port_name, self._baud, "IMU")
         self._buf.clear()
 
     def close(self) -> None:
