@@ -36,8 +36,8 @@ import numpy as np
 import serial
 
 from articutool.spec import Spec
-from articutool.tool.drivers.base import DriverError, FTDriver, FTSample
-from articutool.tool.drivers.serial_port import open_nonblocking
+from articutool.tool.drivers.base import FTDriver, FTSample
+from articutool.tool.drivers.serial_port import open_nonblocking, read_available
 
 __all__ = [
     "FRAME_LEN",
@@ -166,14 +166,7 @@ class ResenseFTDriver(FTDriver):
         return None if best is None else best[1]
 
     def _read_raw(self) -> list[FTSample]:
-        if self._ser is None:
-            raise DriverError(f"F/T port {self.port_name} is not open")
-        try:
-            n = self._ser.in_waiting
-            data = self._ser.read(n) if n else b""
-        except (serial.SerialException, OSError) as e:
-            raise DriverError(f"F/T port {self.port_name}: {e}") from e
-        self._buf += data
+        self._buf += read_available(self._ser, self.port_name, "F/T")
         p = self.plausibility
         out: list[FTSample] = []
         now = self._clock()

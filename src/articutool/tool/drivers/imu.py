@@ -20,8 +20,8 @@ import numpy as np
 import serial
 
 from articutool.spec import Spec
-from articutool.tool.drivers.base import DriverError, ImuDriver, ImuSample
-from articutool.tool.drivers.serial_port import open_nonblocking
+from articutool.tool.drivers.base import ImuDriver, ImuSample
+from articutool.tool.drivers.serial_port import open_nonblocking, read_available
 
 __all__ = [
     "ACCEL_FULL_SCALE_MG",
@@ -108,14 +108,7 @@ class OpenLogImuDriver(ImuDriver):
 
     def read_all(self) -> list[ImuSample]:
         """Every complete line received since the last call, parsed, oldest first."""
-        if self._ser is None:
-            raise DriverError(f"IMU port {self.port_name} is not open")
-        try:
-            n = self._ser.in_waiting
-            data = self._ser.read(n) if n else b""
-        except (serial.SerialException, OSError) as e:
-            raise DriverError(f"IMU port {self.port_name}: {e}") from e
-        self._buf += data
+        self._buf += read_available(self._ser, self.port_name, "IMU")
         *lines, tail = self._buf.split(b"\n")
         if len(tail) > _MAX_LINE:
             self.lines_bad += 1

@@ -6,7 +6,7 @@ import serial
 
 from articutool.tool.drivers.base import DriverError
 
-__all__ = ["open_nonblocking"]
+__all__ = ["open_nonblocking", "read_available"]
 
 
 def open_nonblocking(port: str, baudrate: int, what: str) -> serial.Serial:
@@ -20,3 +20,14 @@ def open_nonblocking(port: str, baudrate: int, what: str) -> serial.Serial:
     except (serial.SerialException, OSError) as e:
         raise DriverError(f"cannot open {what} port {port}: {e}") from e
     return ser
+
+
+def read_available(ser: serial.Serial | None, port: str, what: str) -> bytes:
+    """Every byte waiting on ``ser`` without blocking; I/O errors raise :class:`DriverError`."""
+    if ser is None:
+        raise DriverError(f"{what} port {port} is not open")
+    try:
+        n = ser.in_waiting
+        return ser.read(n) if n else b""
+    except (serial.SerialException, OSError) as e:
+        raise DriverError(f"{what} port {port}: {e}") from e
