@@ -74,10 +74,7 @@ def pool():
 
 
 @pytest.fixture
-def run_cli(monkeypatch):
-    if "articutool.bench.cli" not in cli._COMMAND_MODULES:
-        monkeypatch.setattr(cli, "_COMMAND_MODULES",
-                            (*cli._COMMAND_MODULES, "articutool.bench.cli"))
+def run_cli():
     return cli.main
 
 
