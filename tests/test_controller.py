@@ -194,8 +194,8 @@ def test_bad_base_rate_and_gains_are_refused():
         LevelingController(1, 0, 0, 1, 0.01, LIMITS, [1.0, 0.0])
     with pytest.raises(ValueError, match="pitch_offset_rad"):
         ctrl.set_offsets(math.nan, 0.0)
-    with pytest.raises(ValueError, match="imu_to_base"):
-        LevelingController.from_spec(SPEC, imu_to_base=np.diag([1.0, 1.0, -1.0]))
+    with pytest.raises(ValueError, match="R_base_imu"):
+        LevelingController.from_spec(SPEC, R_base_imu=np.diag([1.0, 1.0, -1.0]))
 
 
 # ---------------------------------------------------------------- closed loop --
@@ -345,13 +345,13 @@ def closed_loop(ctrl, R, q0, w, duration, lag=0.03):
 
 
 def test_imu_mounting_rotation_is_applied():
-    mount = rot([0.0, 0.0, math.pi / 2])  # R_imu←F0: the IMU turned 90° about F0 z
-    ctrl = LevelingController.from_spec(SPEC, imu_to_base=mount)
+    mount = rot([0.3, -0.2, math.pi / 2])  # R_F0←imu: the IMU axes expressed in F0
+    ctrl = LevelingController.from_spec(SPEC, R_base_imu=mount)
     R_world_base = rot([0.2, 0.1, 0.3]) @ R_LEVEL
-    R_world_imu = R_world_base @ mount.T
+    R_world_imu = R_world_base @ mount
     np.testing.assert_allclose(ctrl.tool_base_orientation(R_world_imu), R_world_base, atol=1e-12)
     w_base = np.array([0.1, -0.2, 0.3])
-    np.testing.assert_allclose(ctrl.tool_base_rate(mount @ w_base), w_base, atol=1e-12)
+    np.testing.assert_allclose(ctrl.tool_base_rate(mount.T @ w_base), w_base, atol=1e-12)
     quat = Rotation.from_matrix(R_world_imu).as_quat(scalar_first=True)
     np.testing.assert_allclose(quaternion_to_matrix(quat), R_world_imu, atol=1e-12)
     np.testing.assert_allclose(quaternion_to_matrix(3.0 * quat), R_world_imu, atol=1e-12)
@@ -403,3 +403,37 @@ def test_output_is_always_finite_within_speed_and_never_leaves_the_limits(seq, d
         q_next = q + qdot * dt
         lo, hi = np.minimum(LIMITS[:, 0], q), np.maximum(LIMITS[:, 1], q)
         assert (q_next >= lo - 1e-9).all() and (q_next <= hi + 1e-9).all()
+
+
+def test_engage_levels_around_the_nearest_turn_within_the_cable_budget():
+    ctrl = LevelingController.from_spec(SPEC)
+    lo, hi = LIMITS[1]
+    assert ctrl.roll_window == (lo, hi)  # before engaging: spec.wrist.roll_limits
+    turn = 2 * math.pi
+    budget = SPEC.wrist.roll_turn_budget * turn
+    # After a twirl of 1.02 turns (and of 0.52: the level solution 2π is the nearest).
+    for roll in (1.02 * turn, 0.52 * turn):
+        ctrl.engage(R_LEVEL, [0.0, roll])
+        assert ctrl.roll_window == pytest.approx((lo + turn, hi + turn))
+        R = R_LEVEL @ rot([0.0, 0.0, 0.4])  # the base rolls: the roll must go above 2π
+        q = np.array([0.0, turn])
+        assert ctrl.update(R, q, DT)[1] != 0.0
+    # At the end of the budget the window is moved inside it.
+    ctrl.engage(R_LEVEL, [0.0, budget - 0.2])
+    assert ctrl.roll_window == pytest.approx((budget - (hi - lo), budget))
+    ctrl.engage(R_LEVEL, [0.0, -budget + 0.2])
+    assert ctrl.roll_window == pytest.approx((-budget, -budget + (hi - lo)))
+    # The nearest level configuration: within half a turn of roll, pitch inside its limits.
+    np.testing.assert_allclose(ctrl.nearest_level(R_LEVEL, [0.3, 2.9 * turn]), [0.0, 3 * turn],
+                               atol=1e-9)
+
+
+def test_joints_slow_down_approaching_a_limit():
+    ctrl = LevelingController.from_spec(SPEC)
+    R = R_LEVEL @ rot([0.0, -2.0, 0.0])  # level needs pitch beyond its limit
+    hi = LIMITS[0, 1]
+    for gap in (0.5, 0.1, 0.01):
+        q = np.array([hi - gap, 0.0])
+        ctrl.reset()
+        v = ctrl.update(R, q, DT)
+        assert 0.0 < abs(v[0]) <= C.limit_gain * gap + 1e-12

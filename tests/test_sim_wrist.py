@@ -210,7 +210,7 @@ def test_rotating_tilted_base_gives_rate_in_sensor_frame() -> None:
     mount = axis_angle_rotation([0, 0, 1], math.pi / 2)
     omega = np.array([0.1, -0.3, 0.6])  # about Jaco joint speeds
     bias = np.array([0.01, 0.0, -0.02])
-    sim = SimWrist(SPEC, gyro_bias=bias, imu_mount=mount, seed=2)
+    sim = SimWrist(SPEC, gyro_bias=bias, R_base_imu=mount, seed=2)
     sim.set_base_motion(constant_rate_motion(omega, R0))
     imu = sim.imu_driver()
     imu.open()
@@ -221,7 +221,7 @@ def test_rotating_tilted_base_gives_rate_in_sensor_frame() -> None:
     sig_g = math.radians(SPEC.imu.gyro_noise_dps_rthz) * math.sqrt(RATE)
     np.testing.assert_allclose(gyr.mean(axis=0), expected, atol=5 * sig_g / math.sqrt(len(gyr)))
     # specific force follows the rotating frame exactly (noise-free twin)
-    quiet = SimWrist(SPEC, imu_mount=mount, noise=False)
+    quiet = SimWrist(SPEC, R_base_imu=mount, noise=False)
     quiet.set_base_motion(constant_rate_motion(omega, R0))
     qimu = quiet.imu_driver()
     qimu.open()

@@ -216,3 +216,155 @@ def test_leveling_degrades_gracefully_near_the_singularity():
     assert e_sing > 2 * e_reg  # degrades ...
     assert e_sing < 12.0  # ... but stays bounded by about the wobble (10°)
     assert err[after].max() < 1.5  # and recovers
+
+
+# ------------------------------------------------ leveling from any roll (issue 8) --
+def base_roll_both_ways(t0, amplitude=0.6, ramp=1.0, hold=2.0):
+    """The base rolls about the utensil axis (F0 z) to +amplitude and back, then to
+    −amplitude and back (raised-cosine ramps, ``hold`` s at each extreme), from ``t0``."""
+    plus = ramp_hold_ramp(amplitude, ramp, hold)
+    minus = ramp_hold_ramp(-amplitude, ramp, hold)
+    span = 2 * ramp + hold
+    axis_world = R0 @ Z  # F0 z in the world at rest
+
+    def motion(t):
+        s = t - t0
+        a, da = plus(s) if s < span else minus(s - span)
+        return R0 @ axis_angle_rotation(Z, a), axis_world * da
+
+    return motion, 2 * span
+
+
+def twirl_then_level(rotations, base=R0, seed=0):
+    """Twirl from q = 0 on a still base, wait until done, then ask for LEVELING."""
+    sim, rt = make(seed)
+    sim.set_base_pose(base)
+    run_loop(sim, rt, 0.5)
+    ok, msg = rt.start_primitive("TWIRL_CW" if rotations > 0 else "TWIRL_CCW",
+                                 [abs(rotations), 3.0])
+    assert ok, msg
+    while rt.mode is Mode.PRIMITIVE:
+        run_loop(sim, rt, DT)
+    assert rt.primitive_status().success, rt.primitive_status().message
+    q_twirled = sim.q
+    assert q_twirled[1] == pytest.approx(rotations * 2 * math.pi, abs=0.02)
+    return sim, rt, rt.set_mode(Mode.LEVELING)
+
+
+def assert_levels_through_base_roll(sim, rt, label):
+    """Settle, roll the base both ways and back: level throughout, no fault, joints inside."""
+    rec = []
+    run_loop(sim, rt, 3.0, rec)  # converge on the still base
+    settled = math.degrees(sim.tilt_error())
+    motion, span = base_roll_both_ways(sim.time)
+    sim.set_base_motion(motion)
+    run_loop(sim, rt, span + 2.0, rec)
+    qs = np.array([q for _, _, _, q in rec])
+    err = np.degrees([e for _, e, _, _ in rec[round(3.0 / DT):]])
+    lo, hi = SPEC.wrist.pitch_limits
+    print(f"\n{label}: roll {qs[0, 1] / (2 * math.pi):+.2f} → "
+          f"{qs[-1, 1] / (2 * math.pi):+.2f} turns, settled tilt {settled:.2f}°, tilt under "
+          f"±0.6 rad base roll max {err.max():.2f}°, pitch range "
+          f"[{math.degrees(qs[:, 0].min()):.1f}°, {math.degrees(qs[:, 0].max()):.1f}°]")
+    assert rt.fault == "" and all(s.mode is Mode.LEVELING for _, _, s, _ in rec)
+    assert lo <= qs[:, 0].min() and qs[:, 0].max() <= hi
+    assert settled < 1.5
+    assert err.max() < 3.0  # the base rolls at up to 0.94 rad/s; feed-forward keeps up
+    assert err[-round(1.0 / DT):].max() < 1.5
+
+
+@pytest.mark.parametrize("rotations", [1.0, -1.0, 2.0])
+def test_leveling_after_whole_turns_of_twirl_levels_around_that_turn(rotations):
+    """After TWIRL_CW 1 the roll sits at 2π: level, i.e. the nearest leveling solution modulo
+    2π, is right there, and a rolling base needs the roll both above and below it. Leveling
+    must use the turn it is on (within the cable budget), not the ±π of a fresh start."""
+    sim, rt, (ok, msg) = twirl_then_level(rotations)
+    assert ok, msg
+    assert_levels_through_base_roll(sim, rt, f"after TWIRL {rotations:+g} turns")
+
+
+def test_leveling_from_half_a_turn_levels_without_driving_pitch_into_its_stop():
+    """TWIRL_CW 0.52 leaves the roll at 187°: the utensil hangs upside down and the nearest
+    level configuration is half a turn of roll away (at 2π, outside ±π). Leveling gets there
+    with pitch inside its limits and no OVERLOAD at the pitch stop."""
+    sim, rt, (ok, msg) = twirl_then_level(0.52)
+    assert ok, msg
+    assert math.degrees(sim.tilt_error()) > 170.0  # really upside down
+    assert_levels_through_base_roll(sim, rt, "after TWIRL 0.52 turns")
+    assert abs(sim.q[1] - 2 * math.pi) < 0.7  # levelled at the nearest turn
+
+
+@pytest.mark.parametrize("base_pitch", [2.0, -2.0, 2.5])
+def test_level_beyond_the_pitch_limit_never_drives_pitch_into_its_stop(base_pitch):
+    """The base pitches so far that level would need |pitch| > π/2: the controller may only
+    approach the limit, slowing down as it nears it, so the motors' lag cannot carry the
+    joint into the stop (OVERLOAD) — the predictive limit holds the joint inside its range."""
+    sim, rt = make()
+    sim.set_base_pose(R0)
+    run_loop(sim, rt, 0.5)
+    assert rt.set_mode(Mode.LEVELING)[0]
+    run_loop(sim, rt, 1.0)
+    pitch_down = raised_cosine(base_pitch, 4.0)  # 0 → base_pitch → 0 over 4 s
+    t0 = sim.time
+    y_world = R0 @ np.array([0.0, 1.0, 0.0])
+
+    def motion(t):
+        a, da = pitch_down(min(t - t0, 2.0))  # up to base_pitch, then hold
+        return axis_angle_rotation(y_world, a) @ R0, y_world * da
+
+    sim.set_base_motion(motion)
+    rec = []
+    run_loop(sim, rt, 5.0, rec)
+    qs = np.array([q for _, _, _, q in rec])
+    lo, hi = SPEC.wrist.pitch_limits
+    assert rt.fault == "" and rt.mode is Mode.LEVELING
+    assert lo <= qs[:, 0].min() and qs[:, 0].max() <= hi
+    assert abs(abs(qs[-1, 0]) - hi) < 0.01  # pressed against the limit, as close as it can
+
+
+def test_leveling_that_would_need_roll_beyond_the_cable_budget_is_refused():
+    """Near the end of the cable's net-turn budget, the nearest level configuration can lie
+    beyond it: refused with a message naming the budget, and nothing moves."""
+    budget = SPEC.wrist.roll_turn_budget * 2 * math.pi
+    sim = SimWrist(SPEC, seed=0, q0=(0.0, budget - 0.3))
+    rt = ToolRuntime(SPEC, sim.motor_driver(), sim.imu_driver(), sim.ft_driver(),
+                     clock=sim.clock)
+    rt.open()
+    # Base rolled so that level needs roll ≡ +0.5 rad (mod 2π): budget + 0.2 is nearest.
+    sim.set_base_pose(R0 @ axis_angle_rotation(Z, -0.5))
+    run_loop(sim, rt, 0.5)
+    q = sim.q
+    ok, msg = rt.set_mode(Mode.LEVELING)
+    assert not ok and "roll_turn_budget" in msg and "unwind" in msg
+    run_loop(sim, rt, 1.0)
+    assert rt.mode is Mode.DISABLED and np.abs(sim.q - q).max() < 1e-6
+    # The other way round the target is inside the budget: accepted, and it levels.
+    sim.set_base_pose(R0 @ axis_angle_rotation(Z, 0.5))
+    run_loop(sim, rt, 0.5)
+    ok, msg = rt.set_mode(Mode.LEVELING)
+    assert ok, msg
+    run_loop(sim, rt, 3.0)
+    assert math.degrees(sim.tilt_error()) < 1.5 and rt.fault == ""
+
+
+def test_a_rotated_imu_mount_is_one_matrix_for_the_sim_and_the_runtime():
+    """The IMU sits on the tool base turned by a non-trivial rotation ``R_base_imu`` (its axes
+    expressed in F0). Given that same matrix, the simulated wrist produces the readings and the
+    runtime undoes them, so the utensil levels while the base moves."""
+    R_base_imu = axis_angle_rotation([0.3, -0.5, 0.8], 1.1)  # not symmetric: R ≠ Rᵀ
+    assert np.abs(R_base_imu - R_base_imu.T).max() > 0.5
+    sim = SimWrist(SPEC, seed=4, gyro_bias=(0.012, -0.02, 0.015), R_base_imu=R_base_imu)
+    rt = ToolRuntime(SPEC, sim.motor_driver(), sim.imu_driver(), sim.ft_driver(),
+                     clock=sim.clock, R_base_imu=R_base_imu)
+    rt.open()
+    motion, _, duration = transport_motion(2.0, 6.0, JACO_MAX_RATE)
+    sim.set_base_motion(lambda t: motion(t) if t >= 2.0 else (R0, np.zeros(3)))
+    run_loop(sim, rt, 1.0)
+    assert rt.set_mode(Mode.LEVELING)[0]
+    run_loop(sim, rt, 1.0)
+    rec = []
+    run_loop(sim, rt, duration + 1.0, rec)
+    err = np.degrees([e for _, e, _, _ in rec])
+    assert rt.fault == "" and rt.mode is Mode.LEVELING
+    # The same bounds as the identity mount (CASES["ff-rotation+accel"]).
+    assert err.max() < 5.0 and np.sqrt(np.mean(err**2)) < 3.0 and err[-25:].max() < 1.5

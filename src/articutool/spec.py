@@ -226,6 +226,7 @@ class ControllerSpec(_Strict):
     pinv_rcond: Annotated[float, AfterValidator(_finite), Field(gt=0, lt=1)]
     damping_threshold: Annotated[float, AfterValidator(_finite), Field(gt=0, le=1)]
     damping_power: Positive
+    limit_gain: Positive  # 1/s: speed towards a joint limit ≤ limit_gain × distance left
 
 
 class PrimitivesSpec(_Strict):

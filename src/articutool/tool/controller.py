@@ -18,9 +18,21 @@ One tick (Algorithm 1, with the reference tuning of hardware-facts §5):
 6. Singularity damping: where ``|cos θr|`` < ``damping_threshold`` the pitch command is scaled
    by ``(|cos θr| / damping_threshold) ** damping_power``. The singularity is ``cos θr = 0``,
    where the up vector lies along the pitch axis (F0 y) and pitch no longer moves it.
-7. Predictive joint limits: ``q_next = clip(q + q̇ dt)``, ``q̇ = (q_next − q) / dt``. A joint
-   already outside its limits may move back in but is never driven further out, nor snapped.
+7. Predictive joint limits: the speed towards a limit is at most ``limit_gain`` × the distance
+   left (so a joint slows exponentially, time constant 1/``limit_gain``, and the motors' own
+   velocity lag cannot carry it into the stop), and never more than reaches the limit in one
+   tick (``q + q̇ dt`` stays inside). A joint already outside its limits may move back in but
+   is never driven further out, nor snapped.
 8. Per-joint clip to the commandable speed ``spec.wrist.max_velocity``.
+
+**Roll window** (level around the current turn). The up vector depends on roll only modulo
+2π, so any roll window as wide as ``spec.wrist.roll_limits`` holds a leveling solution for
+every base orientation (with pitch inside its limits). :meth:`LevelingController.engage`
+shifts that window by whole turns to centre it on the nearest level configuration (within
+half a turn of the present roll), then inside the cable's net-turn budget ``±roll_budget``:
+after a twirl the tool levels at the nearest turn, with half a turn of room either way for the
+base to roll, instead of being pinned against ``roll_limits``. Before the first ``engage`` the
+window is ``roll_limits``.
 
 **Offsets** (hold a chosen tilt). With offsets ``o = (a, b)`` the controller levels the
 *virtual* wrist ``q − o``: it drives ``R · y(q − o)`` to world +z, so at rest
@@ -43,7 +55,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from articutool.spec import Spec
-from articutool.tool.kinematics import joint_rates_for_rotation, up_vector
+from articutool.tool.kinematics import (
+    TWO_PI,
+    joint_rates_for_rotation,
+    nearest_leveling_solution,
+    up_vector,
+)
 
 __all__ = ["LevelingController", "quaternion_to_matrix"]
 
@@ -98,9 +115,12 @@ class LevelingController:
     """PID leveling of the tool's up vector against gravity (thesis Alg. 1; hardware-facts §5).
 
     Parameters are the reference tuning (``spec.controller``) and the wrist's leveling limits
-    and commandable speeds (``spec.wrist``); :meth:`from_spec` reads them. ``imu_to_base`` is
-    the fixed mounting rotation ``R_imu←F0`` of the IMU on the tool base (identity: the IMU
-    axes are F0's axes).
+    and commandable speeds (``spec.wrist``); :meth:`from_spec` reads them. ``R_base_imu`` is
+    the fixed mounting rotation of the IMU on the tool base, ``R_F0←imu``: its columns are the
+    IMU axes expressed in F0 (identity: the IMU axes are F0's axes). ``roll_budget`` (rad) is
+    the net roll either side of zero that :meth:`engage` may shift the roll window to
+    (default: the window stays ``limits``); ``limit_gain`` (1/s) bounds the speed towards a
+    joint limit (default: only the one-tick prediction).
     """
 
     def __init__(
@@ -115,7 +135,9 @@ class LevelingController:
         rcond: float = 1e-3,
         damping_threshold: float = 0.6,
         damping_power: float = 5.0,
-        imu_to_base: ArrayLike | None = None,
+        R_base_imu: ArrayLike | None = None,
+        roll_budget: float | None = None,
+        limit_gain: float = math.inf,
     ) -> None:
         self.kp = _check("kp", kp, 0.0)
         self.ki = _check("ki", ki, 0.0)
@@ -135,22 +157,29 @@ class LevelingController:
         if vmax.shape != (2,) or not np.isfinite(vmax).all() or not (vmax > 0).all():
             raise ValueError(f"max_velocity must be two finite speeds > 0 rad/s; got {vmax!r}")
         self._lo, self._hi = lim[:, 0].copy(), lim[:, 1].copy()
+        self._roll_limits = (float(lim[1, 0]), float(lim[1, 1]))
         self._vmax = vmax
-        if imu_to_base is None:
+        self.roll_budget = (math.inf if roll_budget is None
+                            else _check("roll_budget", roll_budget, 0.0, lo_open=True))
+        self.limit_gain = float(limit_gain)
+        if not self.limit_gain > 0.0:  # inf: only the one-tick prediction
+            raise ValueError(f"limit_gain must be > 0 1/s (inf allowed); got {limit_gain}")
+        if R_base_imu is None:
             self._R_imu_base = np.eye(3)
         else:
-            m = _rotation_matrix(imu_to_base, "imu_to_base")
+            m = _rotation_matrix(R_base_imu, "R_base_imu")
             if not np.allclose(m @ m.T, np.eye(3), atol=1e-6) or np.linalg.det(m) < 0:
-                raise ValueError("imu_to_base must be a proper rotation (orthonormal, det +1)")
-            self._R_imu_base = m.copy()
+                raise ValueError("R_base_imu must be a proper rotation (orthonormal, det +1)")
+            self._R_imu_base = m.T.copy()  # R_imu←F0, what Alg. 1 line 6 multiplies by
         self._offsets = np.zeros(2)
         self._integral = np.zeros(3)
         self._last_error: NDArray[np.float64] | None = None
         self._error_angle = math.nan
 
     @classmethod
-    def from_spec(cls, spec: Spec, imu_to_base: ArrayLike | None = None) -> LevelingController:
-        """A controller with the spec's gains (``controller``) and limits/speeds (``wrist``)."""
+    def from_spec(cls, spec: Spec, R_base_imu: ArrayLike | None = None) -> LevelingController:
+        """A controller with the spec's gains (``controller``), limits, speeds and net-turn
+        budget (``wrist``)."""
         c = spec.controller
         return cls(
             kp=c.kp,
@@ -163,7 +192,9 @@ class LevelingController:
             rcond=c.pinv_rcond,
             damping_threshold=c.damping_threshold,
             damping_power=c.damping_power,
-            imu_to_base=imu_to_base,
+            R_base_imu=R_base_imu,
+            roll_budget=spec.wrist.roll_turn_budget * 2.0 * math.pi,
+            limit_gain=c.limit_gain,
         )
 
     # ----------------------------------------------------------------- state --
@@ -190,6 +221,45 @@ class LevelingController:
                 _check("roll_offset_rad", roll_offset_rad, -math.inf),
             ]
         )
+        self.reset()
+
+    @property
+    def roll_window(self) -> tuple[float, float]:
+        """The roll range (rad) leveling may use now (see the module docstring)."""
+        return float(self._lo[1]), float(self._hi[1])
+
+    def nearest_level(
+        self, R_world_tool_base: ArrayLike, q: ArrayLike
+    ) -> NDArray[np.float64] | None:
+        """The physical joints nearest ``q`` at which the offset tool is level (Eqs. 4.2–4.3):
+        pitch inside its limits, roll within half a turn of ``q``'s, whatever the budget.
+        None if no pitch inside the limits levels it."""
+        R = _rotation_matrix(R_world_tool_base, "R_world_tool_base")
+        qm = self._joints(q)
+        o = self._offsets
+        half = 0.5 * (self._roll_limits[1] - self._roll_limits[0])
+        lim = np.array([[self._lo[0] - o[0], self._hi[0] - o[0]],
+                        [qm[1] - half - o[1], qm[1] + half - o[1]]])
+        sol, found = nearest_leveling_solution(R.T @ _Z, lim, qm - o)
+        return sol + o if bool(found) else None
+
+    def engage(self, R_world_tool_base: ArrayLike, q: ArrayLike) -> None:
+        """Start leveling from joints ``q`` under the base orientation ``R_world_tool_base``:
+        reset the PID and choose the roll window, ``roll_limits`` shifted by the whole turns
+        that centre it best on :meth:`nearest_level` (targets modulo 2π), then moved (or
+        narrowed) to stay within ``±roll_budget``."""
+        qm = self._joints(q)
+        target = self.nearest_level(R_world_tool_base, qm)
+        lo_rel, hi_rel = self._roll_limits
+        aim = float(qm[1] if target is None else target[1])
+        lo = lo_rel + TWO_PI * round((aim - 0.5 * (lo_rel + hi_rel)) / TWO_PI)
+        hi = lo + (hi_rel - lo_rel)
+        if not math.isinf(self.roll_budget):
+            b = self.roll_budget
+            width = min(hi - lo, 2.0 * b)
+            lo = min(max(lo, -b), b - width)
+            hi = lo + width
+        self._lo[1], self._hi[1] = lo, hi
         self.reset()
 
     def reset(self) -> None:
@@ -289,8 +359,10 @@ class LevelingController:
             qdot[0] *= (c / self.damping_threshold) ** self.damping_power
 
         # Predictive limits; the bounds widen to q itself so a joint outside is never yanked.
+        # Approaching a limit at k × the distance left lets the motors' lagging velocity loop
+        # stop short of it (arriving at full speed in one tick overshoots into the stop).
         lo = np.minimum(self._lo, qm)
         hi = np.maximum(self._hi, qm)
-        q_next = np.clip(qm + qdot * dt, lo, hi)
-        qdot = (q_next - qm) / dt
+        k = min(self.limit_gain, 1.0 / dt)
+        qdot = np.clip(qdot, k * (lo - qm), k * (hi - qm))
         return np.clip(qdot, -self._vmax, self._vmax, out=qdot)

@@ -149,7 +149,9 @@ class ToolRuntime:
         clock: monotonic seconds; must be the clock of the drivers' sample stamps (the
             simulated wrist's ``sim.clock`` with the sim drivers, ``time.monotonic`` on the
             hardware).
-        imu_to_base: mounting rotation ``R_imu←F0`` (identity: IMU axes are F0's).
+        R_base_imu: mounting rotation of the IMU on the tool base, ``R_F0←imu`` (its columns
+            are the IMU axes expressed in F0; identity: IMU axes are F0's). ``SimWrist`` takes
+            the same matrix under the same name.
         rate_feedforward: add the gyro feed-forward (Eq. 4.5) to the leveling controller.
         battery_start_pct: assumed charge at start for the energy estimate.
     """
@@ -162,7 +164,7 @@ class ToolRuntime:
         ft: FTDriver | None = None,
         clock: Callable[[], float] = time.monotonic,
         *,
-        imu_to_base: NDArray[np.float64] | None = None,
+        R_base_imu: NDArray[np.float64] | None = None,
         rate_feedforward: bool = True,
         battery_start_pct: float = 100.0,
     ) -> None:
@@ -197,7 +199,7 @@ class ToolRuntime:
         }
 
         self.filter = ComplementaryFilter.from_spec(spec.filter)
-        self.controller = LevelingController.from_spec(spec, imu_to_base=imu_to_base)
+        self.controller = LevelingController.from_spec(spec, R_base_imu=R_base_imu)
         self.stats = LoopStats()
         self._lock = threading.RLock()
         self._opened = False
@@ -318,7 +320,16 @@ class ToolRuntime:
                 if not self._imu_fresh or not self.filter.initialized:
                     return False, ("refused: no fresh IMU data (older than "
                                    f"{STALE_IMU_PERIODS:g} loop periods); cannot level")
+                q = np.asarray(self._motor_state.position, dtype=np.float64)
+                R = self.controller.tool_base_orientation(
+                    quaternion_to_matrix(self.filter.orientation))
+                previous = self.controller.offsets
                 self.controller.set_offsets(math.radians(offsets[0]), math.radians(offsets[1]))
+                refusal = self._leveling_out_of_budget(R, q)
+                if refusal:
+                    self.controller.set_offsets(*previous)
+                    return False, refusal
+                self.controller.engage(R, q)
                 self._offsets_deg = offsets
                 self._enter(Mode.LEVELING)
                 return True, (f"LEVELING with offsets pitch {offsets[0]:g}°, "
@@ -678,6 +689,22 @@ class ToolRuntime:
         pos, vel = traj.sample(ts)
         check(ts, pos, vel, "interpolated trajectory")
         return traj
+
+    def _leveling_out_of_budget(self, R: NDArray[np.float64], q: NDArray[np.float64]) -> str:
+        """Why leveling cannot start from ``q`` under the base orientation ``R``, or "".
+
+        The up vector repeats every roll turn, so the nearest level configuration is at most
+        half a turn of roll away; leveling is refused only when that one lies beyond the
+        cable's net-turn budget (the roll would be pinned against the budget, tilted).
+        """
+        target = self.controller.nearest_level(R, q)
+        b = self.spec.wrist.roll_turn_budget
+        tol = self.controller.deadband  # pinned that close to the budget is level enough
+        if target is None or abs(target[1]) <= b * _TWO_PI + tol:
+            return ""
+        return (f"refused: leveling from roll {q[1] / _TWO_PI:+.2f} turns needs roll "
+                f"{target[1] / _TWO_PI:+.2f} turns, beyond the cable budget of ±{b:g} turns "
+                "(spec.wrist.roll_turn_budget); unwind first (HOMING or TWIRL)")
 
     # -- modes and faults --
     def _enter(self, mode: Mode) -> None:

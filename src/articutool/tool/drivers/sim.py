@@ -7,7 +7,8 @@ and the joint position limits (pitch ``spec.wrist.pitch_limits``, roll within
 Driving a joint into a limit faster than ``hard_stop_velocity`` raises the OVERLOAD hardware
 error bit and drops that motor's torque, as a real XC430 does on a hard stop.
 
-The IMU is mounted on the tool base F0 (``imu_mount`` = R_F0←imu, identity by default). It
+The IMU is mounted on the tool base F0 (``R_base_imu`` = R_F0←imu, the IMU axes expressed in
+F0, identity by default; ``ToolRuntime`` takes the same matrix under the same name). It
 samples at ``spec.imu.rate_hz``: specific force ``R_world←imuᵀ (g ẑ + a_base)`` (m/s²) and
 angular rate ``R_world←imuᵀ ω_base + bias`` (rad/s), plus white noise at the spec's densities
 (σ = density·√rate, the discrete-time equivalent of a white-noise density). The base pose
@@ -110,7 +111,7 @@ class SimWrist:
 
     Parameters are simulation choices, not hardware facts: ``motor_lag`` (s, first-order
     time constant), ``gyro_bias`` (rad/s, constant), ``noise`` (False for exact signals),
-    ``seed``, ``imu_mount`` (R_F0←imu), ``hard_stop_velocity`` (rad/s at which hitting a
+    ``seed``, ``R_base_imu`` (R_F0←imu), ``hard_stop_velocity`` (rad/s at which hitting a
     limit trips OVERLOAD), ``position_gain`` (1/s, position-mode tracking),
     ``motor_temperature`` (°C), ``ft_offset`` (raw F/T offset [F, M] that tare removes).
     """
@@ -124,7 +125,7 @@ class SimWrist:
         gyro_bias: ArrayLike = (0.0, 0.0, 0.0),
         noise: bool = True,
         seed: int | None = None,
-        imu_mount: ArrayLike | None = None,
+        R_base_imu: ArrayLike | None = None,
         hard_stop_velocity: float = 0.5,
         position_gain: float = 10.0,
         motor_temperature: float = 35.0,
@@ -160,7 +161,7 @@ class SimWrist:
         self._battery_t0 = 0.0
         # IMU
         self._imu_mount = (
-            np.eye(3) if imu_mount is None else _check_rotation(imu_mount, "imu_mount")
+            np.eye(3) if R_base_imu is None else _check_rotation(R_base_imu, "R_base_imu")
         )
         self._gyro_bias = _vec3(gyro_bias, "gyro_bias")
         self._noise = bool(noise)
