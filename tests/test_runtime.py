@@ -46,6 +46,7 @@ class SpyMotors(SimMotorDriver):
         super().__init__(sim)
         self.commands: list[np.ndarray] = []
         self.stops = 0
+        self.reboots = 0
         self.fail_reads = False
 
     def set_velocity(self, qd) -> None:
@@ -55,6 +56,10 @@ class SpyMotors(SimMotorDriver):
     def stop(self) -> None:
         super().stop()
         self.stops += 1
+
+    def clear_errors(self) -> None:
+        super().clear_errors()
+        self.reboots += 1
 
     def read(self):
         if self.fail_reads:
@@ -275,22 +280,54 @@ def test_stale_imu_does_not_stop_a_primitive_which_runs_on_the_encoders():
     assert "IMU stale" in format_status(st)
 
 
-def test_motor_hardware_error_stops_and_reboot_clears_it():
+def test_motor_hardware_error_stops_and_only_an_explicit_clear_reboots():
     sim, rt, motors = ready(base=axis_angle_rotation([1.0, 0.0, 0.0], 0.3) @ R0)
     assert rt.set_mode(Mode.LEVELING)[0]
     run(sim, rt, 0.2)
-    sim.set_hardware_error("roll", HardwareError.OVERHEATING)
+    sim.set_hardware_error("roll", HardwareError.OVERLOAD)
     st = run(sim, rt, DT)
-    assert st.fault == "motor hardware error: roll: OVERHEATING"
+    assert st.fault == "motor hardware error: roll: OVERLOAD"
     assert_stopped(sim, rt, motors)
-    ok, msg = rt.set_mode(Mode.LEVELING)
-    assert not ok and "rebooting" in msg
+    for _ in range(3):  # neither a refused LEVELING nor DISABLED reboots the motors
+        ok, msg = rt.set_mode(Mode.LEVELING)
+        assert not ok and "clear_fault" in msg
+        assert rt.set_mode(Mode.DISABLED)[0]
+        run(sim, rt, 0.1)
+    assert motors.reboots == 0 and rt.fault
+    ok, msg = rt.clear_fault()
+    assert ok and "reboot" in msg
     run(sim, rt, DT)  # the loop reboots the motors and re-enables torque
-    assert motors.torque_enabled
+    assert motors.reboots == 1 and motors.torque_enabled
     ok, msg = rt.set_mode(Mode.LEVELING)
     assert ok and rt.fault == ""
     run(sim, rt, 1.0)
     assert math.degrees(sim.tilt_error()) < 1.5
+
+
+def test_an_overheated_motor_is_not_rebooted_until_it_has_cooled():
+    """At 80 °C the XC430 shuts down (OVERHEATING). Requests of any kind must not reboot it
+    while it is still hot; an explicit clear once it has cooled does."""
+    sim, rt, motors = ready()
+    sim.set_motor_temperature(80.0)
+    sim.set_hardware_error("pitch", HardwareError.OVERHEATING)
+    run(sim, rt, DT)
+    assert "OVERHEATING" in rt.fault
+    for _ in range(2):
+        assert not rt.set_mode(Mode.LEVELING)[0]
+        run(sim, rt, DT)
+    ok, msg = rt.clear_fault()
+    assert not ok and "80" in msg and "reboot_below_c" in msg
+    run(sim, rt, 0.1)
+    assert motors.reboots == 0 and "OVERHEATING" in rt.fault
+    sim.set_motor_temperature(SPEC.motors.reboot_below_c - 5.0)
+    run(sim, rt, DT)  # the runtime reads the cooler temperature
+    ok, msg = rt.clear_fault()
+    assert ok, msg
+    run(sim, rt, DT)
+    assert motors.reboots == 1
+    assert rt.set_mode(Mode.DISABLED) == (True, "DISABLED (cleared fault: motor hardware "
+                                                "error: pitch: OVERHEATING)")
+    assert rt.clear_fault() == (False, "no fault to clear")
 
 
 def test_failed_motor_read_is_a_fault_until_the_motors_answer():

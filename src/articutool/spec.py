@@ -264,6 +264,7 @@ class MotorSpec(_Strict):
     zero_ticks: tuple[
         Annotated[int, Field(ge=0, le=4095)], Annotated[int, Field(ge=0, le=4095)]
     ] = (2048, 2048)
+    reboot_below_c: Finite  # °C: an overheated motor is rebooted only below this
 
 
 class ImuSpec(_Strict):

@@ -69,6 +69,11 @@ class ToolAPI(Protocol):
         """Switch mode (DISABLED or LEVELING with offsets); aborts a running primitive."""
         ...
 
+    def clear_fault(self) -> tuple[bool, str]:
+        """Explicitly clear the fault (the only request that reboots faulted motors, and only
+        once the cause is gone, e.g. an overheated motor has cooled); the mode stays DISABLED."""
+        ...
+
     def start_primitive(self, name: str, parameters: list[float]) -> tuple[bool, str]:
         """Start a primitive; refused while leveling, while another runs, or on bad input."""
         ...

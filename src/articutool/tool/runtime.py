@@ -41,11 +41,13 @@ cause is kept, sticky):
 
 The fault is cleared by the next successful :meth:`~ToolRuntime.set_mode` only when its cause
 is gone (fresh IMU, no hardware error, motors answering). ``set_mode(DISABLED)`` always
-succeeds but keeps a fault whose cause persists; for a hardware error it also asks the next
-tick to reboot the motors (``MotorDriver.clear_errors``) and re-enable torque, so a second
-call can clear it. For a limit violation ``set_mode`` clears the fault and arms a recovery:
-while a joint is outside the envelope, commands that drive it further out fault again, while
-commands that bring it back are allowed (e.g. LEVELING, HOMING).
+succeeds but keeps a fault whose cause persists. A motor hardware error persists until the
+motors are rebooted, and only an explicit :meth:`~ToolRuntime.clear_fault` does that (the next
+tick calls ``MotorDriver.clear_errors`` and re-enables torque), refused while a motor is at or
+above ``spec.motors.reboot_below_c`` (an overheating shutdown stays until it has cooled); no
+mode request reboots anything. For a limit violation ``set_mode`` clears the fault and arms a
+recovery: while a joint is outside the envelope, commands that drive it further out fault
+again, while commands that bring it back are allowed (e.g. LEVELING, HOMING).
 
 Threading: every public method and :meth:`tick` hold one re-entrant lock, so API calls from
 the link's threads are serialised with the loop and may safely touch the drivers (e.g. stop
@@ -306,8 +308,7 @@ class ToolRuntime:
                 cause = self._fault_cause()
                 if cause:
                     if self._fault_kind == "hardware":
-                        self._reboot_requested = True
-                        cause += "; rebooting the motors on the next tick, then call set_mode again"
+                        cause += "; clear_fault reboots the motors (once the cause is gone)"
                     if mode is Mode.LEVELING:
                         return False, f"refused: fault persists: {cause}"
                     self._enter(Mode.DISABLED)
@@ -337,13 +338,41 @@ class ToolRuntime:
             self._enter(Mode.DISABLED)
             return True, f"DISABLED{note}"
 
+    def clear_fault(self) -> tuple[bool, str]:
+        """Explicitly clear the fault; the mode stays DISABLED.
+
+        A fault whose cause is gone is cleared now. A motor hardware error needs a reboot: it
+        is requested for the next tick (``MotorDriver.clear_errors``, then torque on) unless a
+        motor is still at or above ``spec.motors.reboot_below_c``; the fault clears at the next
+        ``set_mode`` once the motors report no error. Other persisting causes are refused.
+        """
+        with self._lock:
+            if not self._fault:
+                return False, "no fault to clear"
+            cause = self._fault_cause()
+            if not cause:
+                message = f"cleared fault: {self._fault}"
+                self._clear_fault()
+                return True, message
+            if self._fault_kind != "hardware":
+                return False, f"refused: fault persists: {cause}"
+            ms = self._motor_state
+            limit = self.spec.motors.reboot_below_c
+            if ms is not None and ms.temperature >= limit:
+                return False, (f"refused: a motor is at {ms.temperature:.0f} °C; it is rebooted "
+                               f"only below {limit:g} °C (spec.motors.reboot_below_c): let it "
+                               "cool, then clear_fault again")
+            self._reboot_requested = True
+            return True, ("rebooting the motors on the next tick; set_mode clears the fault "
+                          "once they report no error")
+
     def start_primitive(self, name: str, parameters: list[float]) -> tuple[bool, str]:
         """Start primitive ``name``; refused while leveling, while another runs, while a
         fault is set, before the first tick, or when the primitive refuses its parameters."""
         with self._lock:
             if self._fault:
                 return False, (f"refused: fault active ({self._fault}); "
-                               "clear it with set_mode first")
+                               "clear it first (set_mode; clear_fault for a hardware error)")
             if self._mode is Mode.LEVELING:
                 return False, "refused while leveling; set_mode(DISABLED) first"
             if self._primitive is not None:
@@ -386,7 +415,7 @@ class ToolRuntime:
         with self._lock:
             if self._fault:
                 return False, (f"refused: fault active ({self._fault}); "
-                               "clear it with set_mode first")
+                               "clear it first (set_mode; clear_fault for a hardware error)")
             if self._motor_state is None:
                 return False, "refused: no joint state yet (the loop has not run)"
             try:

@@ -264,6 +264,13 @@ class SimWrist:
             if int(bits) & _SHUTDOWN_BITS:
                 self._torque[i] = False
 
+    def set_motor_temperature(self, celsius: float) -> None:
+        """The motors' present temperature (°C), as read back (e.g. an overheated motor)."""
+        if not math.isfinite(celsius):
+            raise ValueError(f"celsius must be finite; got {celsius}")
+        with self._lock:
+            self._motor_temp = float(celsius)
+
     def set_battery(self, voltage: float, sag_v_per_s: float = 0.0) -> None:
         """Battery model for the motors' input voltage: ``voltage − sag·(t − now)``."""
         if not (math.isfinite(voltage) and voltage >= 0):
