@@ -525,6 +525,33 @@ def test_trajectory_starting_later_moves_smoothly_from_where_the_wrist_is():
     assert max(np.abs(c).max() for c in motors.commands) < 1.0  # no jump to the start
 
 
+def test_trajectory_stamped_in_the_future_starts_at_that_stamp():
+    """A JointTrajectory whose header.stamp lies ahead (synchronised with the arm) holds the
+    present position until then and then follows the timing from that stamp, as ROS
+    trajectory controllers do."""
+    sim, rt, _ = ready()
+    q0 = sim.q
+    tr = JointTrajectory((PITCH, ROLL), np.array([0.0, 1.0, 2.0]),
+                         np.array([q0, [0.3, 0.4], [0.3, 0.4]]), np.zeros((3, 2)))
+    delay = 1.5
+    t_start = sim.time + delay
+    ok, msg = rt.follow_trajectory(tr, start_delay=delay)
+    assert ok and "in 1.500 s" in msg
+    run(sim, rt, delay - 2 * DT)  # before the stamp: holding still
+    assert rt.mode is Mode.TRAJECTORY and np.abs(sim.q - q0).max() < 1e-3
+    assert rt.state().extra["trajectory_progress_pct"] == 0.0
+    errs = []
+    while sim.time < t_start + tr.duration:
+        sim.step(DT)
+        st = rt.tick(sim.time, DT)
+        errs.append(np.abs(st.position - tr.sample(max(sim.time - t_start, 0.0))[0]).max())
+    assert max(errs) < math.radians(1.0)  # on the stamp's timing, not the call's
+    np.testing.assert_allclose(sim.q, [0.3, 0.4], atol=0.01)
+    for bad in (math.nan, math.inf, "soon"):
+        ok, msg = rt.follow_trajectory(tr, start_delay=bad)
+        assert not ok and "start_delay" in msg
+
+
 def _traj(names=(PITCH, ROLL), t=(0.0, 1.0), q=((0.0, 0.0), (0.3, 0.3)), v=None):
     q = np.array(q, dtype=float)
     return JointTrajectory(tuple(names), np.array(t), q, np.zeros_like(q) if v is None else

@@ -86,8 +86,14 @@ class ToolAPI(Protocol):
         """Cancel the running primitive (motors stop); False if none was running."""
         ...
 
-    def follow_trajectory(self, trajectory: JointTrajectory) -> tuple[bool, str]:
-        """Enter TRAJECTORY mode and follow a wrist trajectory (joint names [pitch, roll])."""
+    def follow_trajectory(
+        self, trajectory: JointTrajectory, start_delay: float = 0.0
+    ) -> tuple[bool, str]:
+        """Enter TRAJECTORY mode and follow a wrist trajectory (joint names [pitch, roll]).
+
+        ``start_delay`` (s) starts it that long after the call (a ``header.stamp`` in the
+        future: ``stamp − now``), holding the present position until then; ≤ 0 starts now.
+        """
         ...
 
     def state(self) -> ToolState:

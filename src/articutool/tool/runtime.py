@@ -18,6 +18,8 @@ Modes (``Mode``):
 - ``TRAJECTORY``: follows a wrist :class:`~articutool.trajectory.JointTrajectory` (e.g. the
   verifier's synchronised leveling trajectory): ``q̇ = q̇_ref(t) + K (q_ref(t) − q)`` with
   ``K = spec.primitives.position_gain``, then holds the last point until the mode changes.
+  A ``start_delay`` (a ``header.stamp`` in the future, synchronised with the arm) holds the
+  present position until then, as ROS trajectory controllers do.
 
 Rules (thesis §4.4, hardware-facts §6): a primitive is refused while leveling, while another
 runs and while a fault is set; any mode change aborts a running primitive (its result is
@@ -231,6 +233,7 @@ class ToolRuntime:
         self._primitive_status: PrimitiveStatus | None = None
         self._traj: JointTrajectory | None = None
         self._traj_t0: float | None = None
+        self._traj_hold = np.zeros(2)
         self._traj_progress = math.nan
         self._traj_error = math.nan
         # loop bookkeeping
@@ -403,8 +406,14 @@ class ToolRuntime:
             self._enter(Mode.DISABLED)
             return True
 
-    def follow_trajectory(self, trajectory: JointTrajectory) -> tuple[bool, str]:
+    def follow_trajectory(
+        self, trajectory: JointTrajectory, start_delay: float = 0.0
+    ) -> tuple[bool, str]:
         """Enter TRAJECTORY and follow ``trajectory`` (joints: the wrist's [pitch, roll]).
+
+        ``start_delay`` (s): the trajectory's time 0 is that long after this call (a
+        ``header.stamp`` in the future); until then the wrist holds its present position. Zero
+        or negative starts at the next tick.
 
         Refused, with no motion, when a fault is set, before the first tick, or when the
         trajectory is invalid: other joint names, a position outside ``spec.wrist`` limits or
@@ -419,15 +428,24 @@ class ToolRuntime:
             if self._motor_state is None:
                 return False, "refused: no joint state yet (the loop has not run)"
             try:
+                delay = float(start_delay)
+            except (TypeError, ValueError):
+                delay = math.nan
+            if not math.isfinite(delay):
+                return False, f"trajectory refused: start_delay must be finite; got {start_delay!r}"
+            try:
                 traj = self._validated_trajectory(trajectory, self._motor_state.position)
             except (TrajectoryError, ValueError, TypeError) as err:
                 return False, f"trajectory refused: {err}"
             self._enter(Mode.TRAJECTORY)
             self._traj = traj
-            self._traj_t0 = None
+            # Without a delay, time 0 is the first TRAJECTORY tick; with one, it is absolute.
+            self._traj_t0 = float(self.clock()) + delay if delay > 0.0 else None
+            self._traj_hold = traj.positions[0].copy()  # where the wrist is (see validation)
             self._traj_progress = 0.0
-            return True, (f"following {len(traj)} points over {traj.duration:.3f} s, "
-                          "then holding the last point")
+            when = f"in {delay:.3f} s" if delay > 0.0 else "now"
+            return True, (f"following {len(traj)} points over {traj.duration:.3f} s starting "
+                          f"{when}, then holding the last point")
 
     def state(self) -> ToolState:
         """The latest snapshot (mode and fault are current even between ticks)."""
@@ -660,10 +678,14 @@ class ToolRuntime:
         if self._traj_t0 is None:
             self._traj_t0 = now
         t = now - self._traj_t0
-        pos, vel = traj.sample(t)
+        if t < 0.0:  # not started yet (start_delay): hold where the wrist was
+            pos, vel = self._traj_hold, np.zeros(2)
+        else:
+            pos, vel = traj.sample(t)
         if t >= traj.duration:
             vel = np.zeros(2)  # hold the last point
-        self._traj_progress = 100.0 * min(1.0, t / traj.duration) if traj.duration > 0 else 100.0
+        self._traj_progress = (100.0 * min(1.0, max(t, 0.0) / traj.duration)
+                               if traj.duration > 0 else 100.0)
         err = pos - q
         self._traj_error = float(np.abs(err).max())
         return vel + self._track_gain * err
