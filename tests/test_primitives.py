@@ -425,3 +425,46 @@ def test_any_accepted_request_runs_safely_to_completion(name, raw, q0):
     assert (np.diff(r.pct) >= 0).all()
     assert r.prim.result()[0], r.prim.result()[1]
     assert (np.abs(r.qs[:, 1]) <= max(BUDGET, abs(q0[1])) + 0.05).all()
+
+
+# ------------------------------------------------------- bounded primitives (issue 8) --
+P = SPEC.primitives
+
+
+@pytest.mark.parametrize(("name", "params", "pname", "key"), [
+    ("VIBRATE_ROLL", [5.0, 0.1, 1e9], "duration_s", "max_vibrate_s"),
+    ("TILT", [0.5, 1.0, 1e9], "hold_s", "max_hold_s"),
+    ("NOODLE_SHED", [20.0, 1.0, 1e9, 5.0, 3.0, 1.0], "delay_s", "max_hold_s"),
+    ("NOODLE_SHED", [20.0, 1.0, 1.0, 5.0, 3.0, 1e9], "vibrate_duration_s", "max_vibrate_s"),
+])
+def test_waits_and_vibrations_are_bounded_by_the_spec(name, params, pname, key):
+    """A primitive that runs for ever would keep the tool moving after the PC is gone (the
+    default link-loss policy lets a primitive finish): each duration has a maximum."""
+    limit = getattr(P, key)
+    with pytest.raises(PrimitiveError, match=f"'{pname}'") as e:
+        make_primitive(name, params, SPEC, (0.0, 0.0))
+    assert f"[0, {limit:g}] s" in str(e.value) and f"spec.primitives.{key}" in str(e.value)
+    i = params.index(1e9)
+    params[i] = limit  # the maximum itself is allowed
+    make_primitive(name, params, SPEC, (0.0, 0.0))
+
+
+@pytest.mark.parametrize(("name", "params", "pname"), [
+    ("TWIRL_CW", [2.0, 1e-6], "speed_rad_s"),
+    ("TILT", [1.0, 1e-6, 0.0], "velocity_rad_s"),
+    ("HOMING", [1e-7], "speed_rad_s"),
+    ("NOODLE_SHED", [20.0, 1e-7, 1.0, 5.0, 3.0, 1.0], "pitch_speed_rad_s"),
+])
+def test_slow_speeds_cannot_stretch_a_primitive_beyond_its_maximum_duration(name, params, pname):
+    with pytest.raises(PrimitiveError, match=f"'{pname}'") as e:
+        make_primitive(name, params, SPEC, (0.5, 2.0))
+    msg = str(e.value)
+    assert "spec.primitives.max_duration_s" in msg and f"{P.max_duration_s:g} s" in msg
+
+
+def test_every_accepted_primitive_stops_within_its_bounded_timeout():
+    """The longest primitive the spec allows still ends: its timeout is finite and bounded."""
+    longest = make_primitive("NOODLE_SHED", [20.0, 1.0, P.max_hold_s, 5.0, 3.0,
+                                             P.max_vibrate_s], SPEC, (0.0, 0.0))
+    bound = P.timeout_factor * P.max_duration_s + P.timeout_margin_s
+    assert longest.timeout <= bound

@@ -235,7 +235,10 @@ def test_cancel_primitive_stops_the_motors():
 @pytest.mark.parametrize(("name", "params", "word"), [
     ("TWIRL_CW", [1.0], "parameter"), ("TWIRL_CW", [1.0, 99.0], "speed_rad_s"),
     ("SPIN", [1.0], "unknown primitive"), ("TWIRL_CW", [float("nan"), 1.0], "rotations"),
-    ("TWIRL_CW", [10.0, 1.0], "budget")])
+    ("TWIRL_CW", [10.0, 1.0], "budget"),
+    ("VIBRATE_ROLL", [5.0, 0.1, 1e9], "max_vibrate_s"), ("TILT", [0.5, 1.0, 1e9], "max_hold_s"),
+    ("NOODLE_SHED", [20.0, 1.0, 1e9, 5.0, 3.0, 1.0], "max_hold_s"),
+    ("TWIRL_CW", [1.0, 1e-6], "max_duration_s")])
 def test_bad_primitive_requests_are_refused_without_motion(name, params, word):
     sim, rt, motors = ready()
     ok, msg = rt.start_primitive(name, params)

@@ -43,6 +43,11 @@ def test_default_spec_has_the_reference_values():
         ("gain_acc = 0.1", "gain_acc = 1.5", "filter.gain_acc"),
         ("tip_z = 0.070", "tip_z = -0.070", "utensils.fork.tip_z"),
         ("kp = 5.0", "kp = 5.0\nkq = 1.0", "controller.kq"),
+        ("max_hold_s = 30.0", "max_hold_s = 1e9", "primitives.max_hold_s"),
+        ("max_duration_s = 120.0", "max_duration_s = inf", "primitives.max_duration_s"),
+        ("max_vibrate_s = 30.0", "max_vibrate_s = 0.0", "primitives.max_vibrate_s"),
+        ("limit_gain = 10.0", "limit_gain = -1.0", "controller.limit_gain"),
+        ("reboot_below_c = 70.0", "reboot_below_c = nan", "motors.reboot_below_c"),
     ],
 )
 def test_bad_values_name_the_field(tmp_path, old, new, field):

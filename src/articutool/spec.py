@@ -236,6 +236,17 @@ class PrimitivesSpec(_Strict):
     position_tolerance: Positive
     timeout_factor: Annotated[float, AfterValidator(_finite), Field(ge=1)]
     timeout_margin_s: NonNegative
+    max_hold_s: Positive  # longest wait inside a primitive (TILT hold, NOODLE_SHED delay)
+    max_vibrate_s: Positive  # longest vibration (VIBRATE_ROLL, NOODLE_SHED)
+    max_duration_s: Positive  # longest nominal duration of a whole primitive
+
+    @model_validator(mode="after")
+    def _bounded(self) -> PrimitivesSpec:
+        for key in ("max_hold_s", "max_vibrate_s"):
+            if getattr(self, key) > self.max_duration_s:
+                raise ValueError(f"primitives.{key} ({getattr(self, key)} s) exceeds "
+                                 f"primitives.max_duration_s ({self.max_duration_s} s)")
+        return self
 
 
 class FilterSpec(_Strict):

@@ -36,6 +36,12 @@ cable budget ``±spec.wrist.roll_turn_budget`` turns, predictively (``q + q̇·d
 joint already outside may only move back). Bad parameters raise :class:`PrimitiveError` naming
 the parameter and the allowed range, before any motion.
 
+Every primitive ends: a wait (TILT ``hold_s``, NOODLE_SHED ``delay_s``) is at most
+``spec.primitives.max_hold_s``, a vibration at most ``max_vibrate_s``, and the whole nominal
+motion at most ``max_duration_s`` (a slow speed cannot stretch it), so with the timeout no
+primitive runs longer than ``timeout_factor × max_duration_s + timeout_margin_s``. That is what
+lets the link's default policy finish a running primitive when the PC goes silent.
+
 A new primitive is one class: subclass :class:`Primitive`, set ``name`` and
 ``parameter_names``, implement ``_plan`` (validate, return the phases) and decorate it with
 :func:`register_primitive`.
@@ -190,6 +196,13 @@ class Primitive:
         self.params = values
         self.phases: list[Phase] = self._plan(*values)
         nominal = sum(ph.nominal for ph in self.phases)
+        if nominal > p.max_duration_s:
+            speeds = [f"'{n}'" for n in self.parameter_names if "speed" in n or "velocity" in n]
+            raise PrimitiveError(
+                f"{self.name}: these parameters make a {nominal:.3g} s motion, above the "
+                f"maximum {p.max_duration_s:g} s (spec.primitives.max_duration_s)"
+                + (f"; raise {' or '.join(speeds)}" if speeds else "")
+            )
         self.timeout = p.timeout_factor * nominal + p.timeout_margin_s
         w8 = np.array([ph.nominal + _EPS_WEIGHT for ph in self.phases])
         self._cum = np.concatenate([[0.0], np.cumsum(w8)]) / w8.sum()
@@ -260,6 +273,11 @@ class Primitive:
             unit="rad/s",
             why=f"{j} speed limit, spec.wrist.max_velocity",
         )
+
+    def _max_duration(self, pname: str, v: float, key: str) -> float:
+        """A duration in [0, spec.primitives.<key>] s: every primitive ends."""
+        limit = getattr(self.spec.primitives, key)
+        return self._require(pname, v, 0.0, limit, unit="s", why=f"spec.primitives.{key}")
 
     def _roll_in_budget(self, pname: str, roll_end: float, hint: str = "") -> None:
         if abs(roll_end) > self.roll_bound + 1e-12:
@@ -519,7 +537,7 @@ class VibrateRoll(Primitive):
 
     def _plan(self, f: float, a: float, duration: float) -> list[Phase]:
         _vibration_checks(self, "frequency_hz", "amplitude_rad", f, a, "rad", 1.0)
-        self._require("duration_s", duration, 0.0, math.inf, unit="s")
+        self._max_duration("duration_s", duration, "max_vibrate_s")
         peak = a * TWO_PI * f
         q0 = self.q_start
         return [
@@ -546,7 +564,7 @@ class Tilt(Primitive):
             why="relative to the start roll, spec.wrist.roll_limits",
         )
         self._speed("velocity_rad_s", velocity, 1)
-        self._require("hold_s", hold, 0.0, math.inf, unit="s")
+        self._max_duration("hold_s", hold, "max_hold_s")
         q0 = self.q_start
         tilted = q0 + [0.0, target]
         self._roll_in_budget("target_roll_rad", float(tilted[1]))
@@ -591,11 +609,11 @@ class NoodleShed(Primitive):
             "pitch_up_deg", up_deg, 0.0, max(deg(room), 0.0), lo_open=True, unit="deg", why=why
         )
         self._speed("pitch_speed_rad_s", pitch_speed, 0)
-        self._require("delay_s", delay, 0.0, math.inf, unit="s")
+        self._max_duration("delay_s", delay, "max_hold_s")
         _vibration_checks(
             self, "vibrate_frequency_hz", "vibrate_amplitude_deg", f, a_deg, "deg", math.pi / 180.0
         )
-        self._require("vibrate_duration_s", vib_duration, 0.0, math.inf, unit="s")
+        self._max_duration("vibrate_duration_s", vib_duration, "max_vibrate_s")
         a = math.radians(a_deg)
         peak = a * TWO_PI * f
         up = q0 + [sign * math.radians(up_deg), 0.0]
