@@ -13,12 +13,17 @@ __all__ = ["field_path", "format_validation_error", "read_document"]
 
 
 def read_document(path: str | Path, what: str, error: type[Exception]) -> Any:
-    """Parse a TOML or JSON file (by suffix); unreadable or malformed files raise ``error``."""
+    """Parse a TOML or JSON file (by suffix); unreadable, non-UTF-8 or malformed files raise
+    ``error`` with a message naming the file."""
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8")
     except OSError as err:
         raise error(f"cannot read {what} {p}: {err.strerror}") from None
+    except UnicodeDecodeError as err:
+        bad = err.object[err.start:err.end].hex(" ", 1).replace(" ", " 0x")
+        raise error(f"{what} {p} is not UTF-8 text (byte 0x{bad} at offset {err.start}); "
+                    "save it as UTF-8") from None
     if p.suffix.lower() == ".json":
         try:
             return json.loads(text)

@@ -166,6 +166,9 @@ class WristSpec(_Strict):
 
     @model_validator(mode="after")
     def _consistent(self) -> WristSpec:
+        if self.joint_names[0] == self.joint_names[1]:
+            raise ValueError("wrist.joint_names must be two different names [pitch, roll]; "
+                             f"got {list(self.joint_names)}")
         _check_interval(*self.pitch_limits, "wrist.pitch_limits")
         _check_interval(*self.roll_limits, "wrist.roll_limits")
         for name, v in zip(self.joint_names, self.max_velocity, strict=True):
@@ -331,6 +334,17 @@ class Spec(_Strict):
     ft: FTSpec
     power: PowerSpec
     planning: PlanningSpec
+
+    @model_validator(mode="after")
+    def _distinct_joints(self) -> Spec:
+        names = self.arm.joint_names
+        if len(set(names)) != len(names):
+            raise ValueError(f"arm.joints names must be distinct; got {names}")
+        shared = sorted(set(names) & set(self.wrist.joint_names))
+        if shared:
+            raise ValueError(f"wrist.joint_names must differ from the arm's joint names; "
+                             f"{shared} is in both")
+        return self
 
     def utensil(self, name: str) -> UtensilSpec:
         """The named utensil; unknown names list the known ones."""
