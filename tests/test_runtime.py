@@ -105,13 +105,61 @@ def assert_stopped(sim, rt, motors):
 
 # ------------------------------------------------------------------------ protocol --
 def test_runtime_implements_the_tool_api():
-    _, rt, _ = make()
+    """Every ToolAPI method, called on the runtime driving the simulated wrist, does what the
+    protocol says: observable in the joints, the mode, the fault and the telemetry."""
+    api_methods = {n for n in vars(ToolAPI) if not n.startswith("_")}
+    covered = set()
+    sim, rt, motors = ready(base=axis_angle_rotation([1.0, 0.0, 0.0], 0.4) @ R0)
     api: ToolAPI = rt
-    for name in ("set_mode", "start_primitive", "primitive_status", "cancel_primitive",
-                 "follow_trajectory", "state"):
-        assert callable(getattr(api, name))
-    st = rt.state()
-    assert st.mode is Mode.DISABLED and st.joint_names == (PITCH, ROLL) and st.fault == ""
+
+    st0 = api.state()  # state: a fresh snapshot of the real joints at each tick
+    covered.add("state")
+    assert st0.mode is Mode.DISABLED and st0.joint_names == (PITCH, ROLL) and st0.fault == ""
+    np.testing.assert_allclose(st0.position, sim.q, atol=1e-9)
+    assert run(sim, rt, 0.1).stamp == pytest.approx(st0.stamp + 0.1)
+
+    assert api.set_mode(Mode.LEVELING)[0]  # set_mode: LEVELING levels the tilted tool...
+    covered.add("set_mode")
+    tilt0 = sim.tilt_error()
+    assert run(sim, rt, 1.5).mode is Mode.LEVELING
+    assert math.degrees(tilt0) > 20.0 and math.degrees(sim.tilt_error()) < 1.5
+    assert api.set_mode(Mode.DISABLED)[0]  # ...and DISABLED stops the motors
+    assert_stopped(sim, rt, motors)
+
+    assert api.primitive_status() is None  # primitive_status: None before any primitive
+    covered.add("primitive_status")
+    q = sim.q
+    assert api.start_primitive("TILT", [0.5, 1.0, 2.0])[0]  # start_primitive: the roll tilts
+    covered.add("start_primitive")
+    run(sim, rt, 0.6)
+    status = api.primitive_status()
+    assert api.state().mode is Mode.PRIMITIVE and status.name == "TILT" and not status.done
+    assert 0.0 < status.percent_complete < 100.0 and sim.q[1] - q[1] > 0.4
+    assert api.cancel_primitive()  # cancel_primitive: stops it, with a failed result
+    covered.add("cancel_primitive")
+    status = api.primitive_status()
+    assert status.done and not status.success and status.message == "cancelled"
+    assert_stopped(sim, rt, motors)
+    assert not api.cancel_primitive()
+
+    q = sim.q
+    traj = JointTrajectory((PITCH, ROLL), np.array([0.0, 1.0]), np.array([q, q + [0.2, -0.3]]),
+                           np.zeros((2, 2)))
+    assert api.follow_trajectory(traj)[0]  # follow_trajectory: the joints follow it
+    covered.add("follow_trajectory")
+    st = run(sim, rt, 1.5)
+    assert st.mode is Mode.TRAJECTORY
+    np.testing.assert_allclose(st.position, q + [0.2, -0.3], atol=0.01)
+
+    assert api.clear_fault() == (False, "no fault to clear")  # clear_fault: reboots on request
+    covered.add("clear_fault")
+    sim.set_hardware_error("pitch", HardwareError.OVERLOAD)
+    assert "OVERLOAD" in run(sim, rt, DT).fault
+    assert api.clear_fault()[0] and motors.reboots == 0
+    run(sim, rt, DT)
+    assert motors.reboots == 1 and api.set_mode(Mode.DISABLED)[0] and api.state().fault == ""
+
+    assert covered == api_methods  # a new ToolAPI method needs its behaviour checked here
 
 
 def test_nothing_is_allowed_before_the_first_tick():
