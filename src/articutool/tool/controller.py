@@ -232,8 +232,8 @@ class LevelingController:
         self, R_world_tool_base: ArrayLike, q: ArrayLike
     ) -> NDArray[np.float64] | None:
         """The physical joints nearest ``q`` at which the offset tool is level (Eqs. 4.2–4.3):
-        pitch inside its limits, roll within half a turn of ``q``'s, whatever the budget.
-        None if no pitch inside the limits levels it."""
+        pitch inside its limits, roll within half the width of ``roll_limits`` of ``q``'s (half
+        a turn with ±π), whatever the budget. None if no such configuration levels it."""
         R = _rotation_matrix(R_world_tool_base, "R_world_tool_base")
         qm = self._joints(q)
         o = self._offsets
