@@ -46,7 +46,7 @@ def test_default_spec_has_the_reference_values():
         ("max_hold_s = 30.0", "max_hold_s = 1e9", "primitives.max_hold_s"),
         ("max_duration_s = 120.0", "max_duration_s = inf", "primitives.max_duration_s"),
         ("max_vibrate_s = 30.0", "max_vibrate_s = 0.0", "primitives.max_vibrate_s"),
-        ("limit_gain = 10.0", "limit_gain = -1.0", "controller.limit_gain"),
+        ("limit_gain = 5.0", "limit_gain = -1.0", "controller.limit_gain"),
         ("reboot_below_c = 70.0", "reboot_below_c = nan", "motors.reboot_below_c"),
     ],
 )
