@@ -46,7 +46,7 @@ from articutool.arm.scene import Scene
 from articutool.datafile import format_validation_error, read_document
 from articutool.planning.api import SYSTEMS, TransportTask
 from articutool.spec import Spec
-from articutool.tool.kinematics import nearest_leveling_solution
+from articutool.tool.kinematics import nearest_leveling_solution, tilt_from_vertical
 
 __all__ = [
     "FILE_FORMAT",
@@ -97,9 +97,7 @@ def scene_hash(scene: Scene) -> str:
 # ----------------------------------------------------------------------- IK --
 def tip_tilt_deg(model: ArmModel, q: Sequence[float]) -> float:
     """Angle (deg) between the utensil's up axis (tip frame y, Eq. 4.1) and world up."""
-    y = model.tip_pose(np.asarray(q, dtype=float))[:3, 1]
-    # atan2 of |y × z| and y · z: accurate near level, where arccos is not.
-    return float(np.degrees(np.arctan2(np.linalg.norm(np.cross(y, _WORLD_UP)), y @ _WORLD_UP)))
+    return float(np.degrees(tilt_from_vertical(model.tip_pose(np.asarray(q, dtype=float))[:3, 1])))
 
 
 def _level_tip_rotation(heading: float) -> NDArray[np.float64]:

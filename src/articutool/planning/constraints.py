@@ -7,7 +7,13 @@ Conventions (arm base frame, z up = against gravity):
   direction in the tip frame, the tip's **pitch** is the shaft's elevation above the horizontal,
   ``asin(w_z)``, and its **roll** the lateral axis' elevation, ``asin(w_x)`` (the tilt an
   accelerometer on the tip reads). The tip is level when both are 0 and ``w_y > 0``; the strict
-  constraint is ``|pitch| ≤ tol`` and ``|roll| ≤ tol``, i.e. ``|w_z|, |w_x| ≤ sin(tol)``.
+  constraint is ``|pitch| ≤ tol`` and ``|roll| ≤ tol``, i.e. ``|w_z|, |w_x| ≤ sin(tol)``: a
+  *per-axis* tolerance, as MoveIt's orientation constraints (and so the thesis' baselines)
+  bound each axis separately. With both axes at the bound the utensil is tilted up to
+  ``acos(√(1 − 2 sin² tol))`` from vertical (14.2° for ±10°), so every *reported* tilt is the true
+  angle between the utensil's up vector and vertical (:func:`tip_tilt_deg`, built on
+  :func:`articutool.tool.kinematics.tilt_from_vertical`); :func:`tip_axis_tilt_deg` is the
+  per-axis quantity the tolerance bounds.
 * **Tool base tilt** (decoupled). With ``u = R_F0ᵀ ẑ`` the up direction in F0, the wrist
   angles that level the tool are Eqs. 4.2–4.3: ``θp = atan2(u_z, u_x)``, ``θr = asin(u_y)``
   (branch A; branch B is ``(θp + π, π − θr)``). These *leveling angles* are F0's pitch and roll
@@ -25,12 +31,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from articutool.tool.kinematics import wrap_angle
+from articutool.tool.kinematics import tilt_from_vertical, wrap_angle
 
 __all__ = [
     "LooseConstraint",
     "StrictConstraint",
     "f0_leveling_angles",
+    "tip_axis_tilt_deg",
     "tip_tilt",
     "tip_tilt_deg",
 ]
@@ -47,14 +54,23 @@ def tip_tilt(R_tip: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]
     return pitch, roll, w[..., 1] > 0.0
 
 
-def tip_tilt_deg(R_tip: ArrayLike) -> NDArray[np.float64]:
-    """``max(|pitch|, |roll|)`` in degrees, the quantity the strict tolerance bounds.
+def tip_axis_tilt_deg(R_tip: ArrayLike) -> NDArray[np.float64]:
+    """``max(|pitch|, |roll|)`` in degrees, the per-axis quantity the strict tolerance bounds.
 
-    An upside-down tip (``w_y ≤ 0``) reports 180°.
+    An upside-down tip (``w_y ≤ 0``) reports 180°. Not a tilt angle: report
+    :func:`tip_tilt_deg`.
     """
     pitch, roll, up = tip_tilt(R_tip)
     t = np.degrees(np.maximum(np.abs(pitch), np.abs(roll)))
     return np.where(up, t, 180.0)
+
+
+def tip_tilt_deg(R_tip: ArrayLike) -> NDArray[np.float64]:
+    """Tilt (deg) of tip rotations ``R_base←tip`` (..., 3, 3): the angle between the
+    utensil's up vector (tip y) and vertical
+    (:func:`~articutool.tool.kinematics.tilt_from_vertical`)."""
+    R = np.asarray(R_tip, dtype=np.float64)
+    return np.degrees(tilt_from_vertical(R[..., :, 1]))
 
 
 def f0_leveling_angles(R_f0: ArrayLike, branch: int = 0) -> NDArray[np.float64]:

@@ -3,9 +3,13 @@
 * ``decoupled``: 6-DOF arm in a plain joint space; the loose F0 constraint
   (:class:`~articutool.planning.constraints.LooseConstraint`) and collisions are checked in
   the state validity checker, motions at ``resolution`` rad steps (the loose band is wide,
-  so most samples are valid: rejection is cheap here). The path is time-parameterised
-  (wrist-aware by default) and verified (Alg. 2); a rejected plan is re-planned within the
-  time budget.
+  so most samples are valid: rejection is cheap here). Collisions are checked *as executed*:
+  the 8-DOF model at the arm configuration and the wrist angles that level the tool there
+  (Eqs. 4.2–4.3 on the loose reference's branch, a closed form), since the leveling wrist
+  swings the utensil by up to ~90° from where a locked wrist would hold it. The path is
+  time-parameterised (wrist-aware by default) and verified (Alg. 2); the dense re-check then
+  uses the verifier's synchronised wrist trajectory, i.e. exactly what the tool will do. A
+  rejected plan is re-planned within the time budget.
 * ``strict6`` / ``strict8``: OMPL constrained planning — a ``ProjectedStateSpace`` over the
   6-/8-DOF joint space with a *dead-zone* constraint on the tip tilt
   (:meth:`StrictConstraint.deadzone`: zero inside ±tol, Newton projection onto the band's
@@ -42,7 +46,12 @@ from ompl import util as ou
 
 from articutool.arm.model import TOOL_BASE_FRAME, ArmModel, tip_frame_name
 from articutool.planning.api import PlanRequest, PlanResult
-from articutool.planning.constraints import LooseConstraint, StrictConstraint, tip_tilt_deg
+from articutool.planning.constraints import (
+    LooseConstraint,
+    StrictConstraint,
+    tip_axis_tilt_deg,
+    tip_tilt_deg,
+)
 from articutool.planning.timing import time_parameterize, wrist_rate_profile
 from articutool.spec import Spec
 from articutool.tool.kinematics import rotation as wrist_rotation
@@ -178,8 +187,10 @@ class _Problem:
         self.start = np.array(list(task.start) + wrist_s, dtype=np.float64)
         self.goal = np.array(list(task.goal) + wrist_g, dtype=np.float64)
         pl = spec.planning
+        self.executed: _Kin | None = None  # decoupled: the 8-DOF model the tool executes
         if req.system == "decoupled":
             self.kin = _Kin(self.model, TOOL_BASE_FRAME)
+            self.executed = _Kin(ArmModel(spec, utensil=req.utensil, dof=8), TOOL_BASE_FRAME)
             self.loose = LooseConstraint.from_start(
                 self.kin.rotation(self.start), task.start_wrist,
                 math.radians(pl.loose_pitch_deg), math.radians(pl.loose_roll_deg))
@@ -191,32 +202,47 @@ class _Problem:
                                else pl.strict_tolerance_deg)
             self.strict = StrictConstraint(tol)
             # Plan in a tighter band, widened if an endpoint already sits outside it.
-            ends = max(float(tip_tilt_deg(self.kin.rotation(q))) for q in (self.start, self.goal))
+            ends = max(float(tip_axis_tilt_deg(self.kin.rotation(q)))
+                       for q in (self.start, self.goal))
             self.band = StrictConstraint(min(max(tol * self.settings.plan_margin,
                                                  math.radians(ends) + 1e-6), tol))
             self.loose = None
             self._band_bound = self.band.bound + 1e-6
 
     # -------------------------------------------------------------- state checks --
-    def constraint_ok(self, q: NDArray[np.float64]) -> bool:
-        """Scalar fast path of ``LooseConstraint.satisfied`` / ``StrictConstraint.satisfied``.
+    def leveling_wrist(self, q: NDArray[np.float64]) -> tuple[float, float] | None:
+        """Decoupled: the wrist angles that level the tool at arm configuration ``q``
+        (Eqs. 4.2–4.3 on the loose reference's branch, continuous about the reference), or
+        ``None`` outside the loose constraint.
 
-        Called for every checked state: plain ``math`` on three numbers is ~10× cheaper than
-        the vectorised NumPy form (which the final trajectory check uses).
+        Scalar fast path of ``LooseConstraint.satisfied``: called for every checked state,
+        plain ``math`` on three numbers is ~10× cheaper than the vectorised NumPy form (which
+        the final trajectory check uses).
         """
+        assert self.loose is not None
         u0, u1, u2 = self.kin.rotation(q)[2].tolist()  # Rᵀ ẑ
+        c = self.loose
+        p, r = math.atan2(u2, u0), math.asin(min(1.0, max(-1.0, u1)))
+        if c.branch:
+            p, r = p + math.pi, math.pi - r
+        dp = (p - c.reference[0] + math.pi) % _TWO_PI - math.pi
+        dr = (r - c.reference[1] + math.pi) % _TWO_PI - math.pi
+        if abs(dp) <= c.pitch_tol and abs(dr) <= c.roll_tol:
+            return c.reference[0] + dp, c.reference[1] + dr
+        return None
+
+    def constraint_ok(self, q: NDArray[np.float64]) -> bool:
+        """Scalar fast path of ``LooseConstraint.satisfied`` / ``StrictConstraint.satisfied``."""
         if self.loose is not None:
-            c = self.loose
-            p, r = math.atan2(u2, u0), math.asin(min(1.0, max(-1.0, u1)))
-            if c.branch:
-                p, r = p + math.pi, math.pi - r
-            dp = (p - c.reference[0] + math.pi) % _TWO_PI - math.pi
-            dr = (r - c.reference[1] + math.pi) % _TWO_PI - math.pi
-            return abs(dp) <= c.pitch_tol and abs(dr) <= c.roll_tol
+            return self.leveling_wrist(q) is not None
+        u0, u1, u2 = self.kin.rotation(q)[2].tolist()  # Rᵀ ẑ
         b = self._band_bound
         return u1 > 0.0 and abs(u0) <= b and abs(u2) <= b
 
     def valid(self, q: NDArray[np.float64]) -> bool:
+        if self.executed is not None:  # decoupled: collide the arm with the leveling wrist
+            w = self.leveling_wrist(q)
+            return w is not None and not self.executed.collides(np.append(q, w))
         return self.constraint_ok(q) and not self.kin.collides(q)
 
     def valid_bounded(self, q: NDArray[np.float64]) -> bool:
@@ -230,8 +256,12 @@ class _Problem:
                 return (f"{name} is outside the joint limits "
                         f"[{np.array2string(self.kin.lo, precision=3)}, "
                         f"{np.array2string(self.kin.hi, precision=3)}] rad")
-            if self.model.in_collision(q):
-                pairs = self.model.colliding_pairs(q)[:3]
+            model, qc = self.model, q
+            w = self.leveling_wrist(q) if self.loose is not None else None
+            if w is not None:  # decoupled: as executed, with the leveling wrist
+                model, qc = self.executed.arm, np.append(q, w)
+            if model.in_collision(qc):
+                pairs = model.colliding_pairs(qc)[:3]
                 return f"{name} is in collision ({', '.join('/'.join(p) for p in pairs)})"
             if not self.constraint_ok(q):
                 R = self.kin.rotation(q)
@@ -242,7 +272,7 @@ class _Problem:
                             f"reference (allowed ±{self.spec.planning.loose_pitch_deg:g}°/"
                             f"±{self.spec.planning.loose_roll_deg:g}°)")
                 assert self.strict is not None
-                return (f"{name} tip tilt {float(tip_tilt_deg(R)):.1f}° exceeds "
+                return (f"{name} tip pitch/roll {float(tip_axis_tilt_deg(R)):.1f}° exceeds "
                         f"±{math.degrees(self.strict.tol):g}°")
         return None
 
@@ -328,8 +358,14 @@ class _Problem:
         qw = q[:, 6:8] if self.strict8 else np.zeros((q.shape[0], 2))
         return R0 @ wrist_rotation(qw)
 
-    def check_trajectory(self, traj: JointTrajectory) -> str | None:
-        """Dense check of the executed trajectory: limits, tolerance, collisions."""
+    def check_trajectory(
+        self, traj: JointTrajectory, wrist: JointTrajectory | None = None
+    ) -> str | None:
+        """Dense check of the executed trajectory: limits, tolerance, collisions.
+
+        ``wrist`` (decoupled): the verifier's synchronised leveling trajectory; collisions
+        are then checked on the 8-DOF model with the wrist where it will be.
+        """
         t = _dense_times(traj, self.settings.check_step)
         q, _ = traj.sample(t)
         lo, hi = self.kin.lo, self.kin.hi
@@ -346,9 +382,15 @@ class _Problem:
             if not ok.all():
                 k = int(np.flatnonzero(~ok)[0])
                 return f"t = {t[k]:.3f} s: tool base leaves the loose constraint"
+        kin = self.kin
+        if wrist is not None:
+            assert self.executed is not None
+            kin = self.executed
+            q = np.hstack([q, wrist.sample(t)[0]])
         for k in range(q.shape[0]):
-            if self.kin.collides(q[k]):
-                return f"t = {t[k]:.3f} s: collision"
+            if kin.collides(q[k]):
+                pairs = kin.arm.colliding_pairs(q[k])[:3]
+                return f"t = {t[k]:.3f} s: collision ({', '.join('/'.join(p) for p in pairs)})"
         return None
 
     def sdot_limit(self) -> Callable[[NDArray[np.float64], NDArray[np.float64]],
@@ -442,12 +484,12 @@ def plan_transport(
         if traj is None:
             last = "time parameterisation failed"
             continue
-        problem = prob.check_trajectory(traj)
-        if problem is not None:
-            last = f"trajectory check failed: {problem}"
-            continue
         length = _path_length(waypoints)
         if req.system != "decoupled":
+            problem = prob.check_trajectory(traj)
+            if problem is not None:
+                last = f"trajectory check failed: {problem}"
+                continue
             q, _ = traj.sample(_dense_times(traj, prob.settings.check_step))
             tilt = float(tip_tilt_deg(prob.tip_rotations(q)).max())
             return PlanResult(req.system, req.task.task_id, True, time.perf_counter() - t0,
@@ -460,6 +502,10 @@ def plan_transport(
             continue
         wt = rep.wrist_trajectory
         assert wt is not None
+        problem = prob.check_trajectory(traj, wrist=wt)
+        if problem is not None:
+            last = f"trajectory check failed: {problem}"
+            continue
         q_arm, _ = traj.sample(wt.times)
         tilt_R = prob.model.tool_base_rotations(q_arm) @ wrist_rotation(wt.positions)
         tilt = float(tip_tilt_deg(tilt_R).max())

@@ -26,6 +26,7 @@ __all__ = [
     "nearest_leveling_solution",
     "rotation",
     "singularity_measure",
+    "tilt_from_vertical",
     "up_vector",
     "wrap_angle",
 ]
@@ -63,6 +64,19 @@ def up_vector(q: ArrayLike) -> NDArray[np.float64]:
     p, r = q[..., 0], q[..., 1]
     cr = np.cos(r)
     return np.stack([np.cos(p) * cr, np.sin(r), np.sin(p) * cr], axis=-1)
+
+
+def tilt_from_vertical(up_world: ArrayLike) -> NDArray[np.float64]:
+    """Tilt (rad, in [0, π]) of the utensil: the angle between its up vector (tip y, Eq. 4.1)
+    expressed in the world frame and world +z. ``up_world``: (..., 3) → (...).
+
+    The one definition of "tilt" in this project: every reported tilt (controller state,
+    simulation, planners, benchmarks) is this angle, whatever constraint bounded the motion.
+    Computed as ``atan2(|v × ẑ|, v · ẑ)``, accurate near level where ``arccos`` is not; ``v``
+    need not be unit length.
+    """
+    v = _as_vec3(up_world, "up_world")
+    return np.arctan2(np.hypot(v[..., 0], v[..., 1]), v[..., 2])
 
 
 def rotation(q: ArrayLike) -> NDArray[np.float64]:

@@ -87,7 +87,7 @@ from articutool.tool.api import Mode, PrimitiveStatus, ToolState
 from articutool.tool.controller import LevelingController, quaternion_to_matrix
 from articutool.tool.drivers.base import FTDriver, ImuDriver, ImuSample, MotorDriver, MotorState
 from articutool.tool.filter import ComplementaryFilter
-from articutool.tool.kinematics import up_vector
+from articutool.tool.kinematics import tilt_from_vertical, up_vector
 from articutool.tool.primitives import Primitive, PrimitiveError, make_primitive
 from articutool.trajectory import JointTrajectory, TrajectoryError
 
@@ -653,8 +653,7 @@ class ToolRuntime:
         if not self.filter.initialized:
             return math.nan
         R = self.controller.tool_base_orientation(quaternion_to_matrix(self.filter.orientation))
-        y = R @ up_vector(q)
-        return math.atan2(math.hypot(y[0], y[1]), y[2])
+        return float(tilt_from_vertical(R @ up_vector(q)))
 
     def _leveling_command(self, q: NDArray[np.float64], dt: float) -> NDArray[np.float64]:
         R = self.controller.tool_base_orientation(quaternion_to_matrix(self.filter.orientation))

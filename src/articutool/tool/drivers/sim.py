@@ -246,8 +246,8 @@ class SimWrist:
         return R @ kinematics.up_vector(self._q)
 
     def tilt_error(self) -> float:
-        """Ground-truth angle (rad) between the utensil's up vector and world z."""
-        return float(math.acos(float(np.clip(self.tool_up_world()[2], -1.0, 1.0))))
+        """Ground-truth tilt (rad): the utensil's up vector vs world z (``tilt_from_vertical``)."""
+        return float(kinematics.tilt_from_vertical(self.tool_up_world()))
 
     # ------------------------------------------------------------------ fault injection --
     def set_imu_stale(self, stale: bool = True) -> None:
