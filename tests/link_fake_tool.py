@@ -6,7 +6,9 @@ two-process tests::
     python tests/link_fake_tool.py --listen tcp/127.0.0.1:PORT [--policy cancel]
 
 Primitives: ``TWIRL [turns]`` (1 parameter in [-2, 2], rolls that many turns in
-``TWIRL_S`` seconds) and ``SLOW`` (no parameters, 5 s of pitch motion, for cancel tests).
+``TWIRL_S`` seconds), ``SLOW`` (no parameters, 5 s of pitch motion, for cancel tests) and
+``HOMING [speed]`` (both joints to zero at ``speed`` rad/s in (0, 4]; at home it is done at
+once, with the same result every time, as the runtime's HOMING).
 Primitives are refused while LEVELING, while another runs, for unknown names and bad
 parameters, with messages like the runtime's. On exit (stdin closed) it prints
 ``CALLS`` and the API calls it received, so tests can check what reached the tool.
@@ -63,12 +65,17 @@ class FakeTool:
                     return False, "TWIRL takes 1 parameter: turns in [-2, 2]"
                 goal = (self.q0[0], self.q0[1] + 2 * math.pi * parameters[0])
                 dur = TWIRL_S
+            elif name == "HOMING":
+                if len(parameters) != 1 or not 0 < parameters[0] <= 4:
+                    return False, "HOMING takes 1 parameter: speed_rad_s in (0, 4]"
+                goal = (0.0, 0.0)
+                dur = max(abs(v) for v in self.q0) / parameters[0]
             elif name == "SLOW":
                 if parameters:
                     return False, "SLOW takes no parameters"
                 goal, dur = (self.q0[0] + 0.5, self.q0[1]), SLOW_S
             else:
-                return False, f"unknown primitive {name!r}; known: TWIRL, SLOW"
+                return False, f"unknown primitive {name!r}; known: TWIRL, SLOW, HOMING"
             self._prim = (name, time.monotonic(), self.q0, goal)
             self._dur = dur
             self._cancelled = False
@@ -85,6 +92,8 @@ class FakeTool:
 
     def _pct_locked(self) -> float:
         assert self._prim is not None
+        if self._dur <= 0:  # nothing to do: done at once
+            return 100.0
         return min(100.0, 100.0 * (time.monotonic() - self._prim[1]) / self._dur)
 
     def _q_locked(self) -> tuple[float, float]:

@@ -14,6 +14,13 @@ Refusals: ROS 2's SendGoal response carries no text, so a primitive the tool ref
 name, bad parameters, busy, leveling) is *accepted then aborted* at once: get_result returns
 ``success=false`` with the tool's message and status ABORTED.
 
+Goals are identified by their goal id, never by comparing primitive statuses: the server is
+the only caller of ``start_primitive`` on its ``ToolAPI``, so after it starts goal G every
+status the tool reports is G's, until the server starts the next goal. Before starting one it
+settles the current goal (a goal that ended between two ticks gets its result then), and while
+its goal still runs it refuses the new one itself, so no goal's final status is ever
+overwritten unseen.
+
 Link-loss policy (``LinkConfig.link_loss_policy``) when no client heartbeat or request has
 arrived for ``client_timeout`` seconds: ``"continue"`` (default) lets a running primitive
 finish; ``"cancel"`` cancels it (motors stop). Continue is the default because primitives are
@@ -50,8 +57,6 @@ class _Goal:
     name: str
     accepted_at: float  # wall clock, for GoalInfo.stamp
     status: int
-    prev: PrimitiveStatus | None = None  # primitive_status() before start: not ours
-    seen_running: bool = False
     cancel_requested: bool = False
     result: m.PrimitiveResult | None = None
     waiters: list[Responder] = field(default_factory=list)
@@ -180,18 +185,24 @@ class ToolServer:
                 respond(m.encode(m.send_goal_response(False, now),
                                  self.names.send_goal.response_type))
                 return
-            prev = self.api.primitive_status()
-            ok, msg = self._ask(self.api.start_primitive, name, params)
-            goal = _Goal(gid, name, now, m.GoalStatus.EXECUTING if ok else m.GoalStatus.ABORTED,
-                         prev=prev)
+            ended = self._settle()  # the running goal may have ended since the last tick
+            running = self._active
+            if running is not None:  # ours still runs: starting now could hide its result
+                ok, msg = False, (f"busy: primitive {running.name} is running (goal "
+                                  f"{running.goal_id.hex()})")
+            else:
+                ok, msg = self._ask(self.api.start_primitive, name, params)
+            goal = _Goal(gid, name, now, m.GoalStatus.EXECUTING if ok else m.GoalStatus.ABORTED)
             if ok:
                 self._active = goal
             else:
                 goal.result = m.PrimitiveResult(False, msg, self._joints_now(),
                                                 m.GoalStatus.ABORTED)
             self._goals[gid] = goal
-            while len(self._goals) > _KEEP_GOALS:
-                self._goals.popitem(last=False)
+            done = [k for k, g in self._goals.items() if g.result is not None]
+            for k in done[:max(0, len(self._goals) - _KEEP_GOALS)]:  # never a running goal
+                del self._goals[k]
+        self._answer(ended)
         respond(m.encode(m.send_goal_response(True, now), self.names.send_goal.response_type))
         self._publish_status()
 
@@ -244,36 +255,47 @@ class ToolServer:
         self._client_seen()
 
     # ---------------------------------------------------------------- the tick --
-    def _finish(self, goal: _Goal, result: m.PrimitiveResult) -> None:
-        with self._lock:
-            goal.result, goal.status = result, result.status
-            waiters, goal.waiters = goal.waiters, []
-            if self._active is goal:
-                self._active = None
+    def _settle(self) -> tuple[list[Responder], m.PrimitiveResult] | PrimitiveStatus | None:
+        """Read the tool's status for the active goal (lock held). The status is the active
+        goal's, since only this server starts primitives. If the goal ended, record its
+        result and return its waiters with it (answered outside the lock by
+        :meth:`_answer`); if it runs, return the status (for feedback); else None."""
+        goal = self._active
+        if goal is None:
+            return None
+        st = self.api.primitive_status()
+        if st is None:
+            return None
+        if not st.done:
+            return st
+        if st.success:
+            status = m.GoalStatus.SUCCEEDED
+        else:
+            status = m.GoalStatus.CANCELED if goal.cancel_requested else m.GoalStatus.ABORTED
+        final = tuple(st.final_joint_values) or tuple(st.current_joint_values)
+        result = m.PrimitiveResult(bool(st.success), st.message, final, status)
+        goal.result, goal.status = result, status
+        waiters, goal.waiters = goal.waiters, []
+        self._active = None
+        return waiters, result
+
+    def _answer(self, ended: object) -> None:
+        """Answer the get_result waiters of a goal :meth:`_settle` found ended."""
+        if not isinstance(ended, tuple):
+            return
+        waiters, result = ended
         payload = m.encode(m.result_msg(result), self.names.get_result.response_type)
         for respond in waiters:
             respond(payload)
         self._publish_status()
 
     def _progress(self) -> None:
-        goal = self._active
-        if goal is None:
-            return
-        st = self.api.primitive_status()
-        if st is None or st.name != goal.name:
-            return
-        if not goal.seen_running and (st is goal.prev or st == goal.prev):
-            return  # still the previous primitive's status
-        if not st.done:
-            goal.seen_running = True
-            self._pub("feedback", m.feedback_msg(goal.goal_id, st), m.FEEDBACK_MESSAGE)
-            return
-        if st.success:
-            status = m.GoalStatus.SUCCEEDED
-        else:
-            status = m.GoalStatus.CANCELED if goal.cancel_requested else m.GoalStatus.ABORTED
-        final = tuple(st.final_joint_values) or tuple(st.current_joint_values)
-        self._finish(goal, m.PrimitiveResult(bool(st.success), st.message, final, status))
+        with self._lock:
+            goal = self._active
+            ended = self._settle()
+        if isinstance(ended, PrimitiveStatus) and goal is not None:
+            self._pub("feedback", m.feedback_msg(goal.goal_id, ended), m.FEEDBACK_MESSAGE)
+        self._answer(ended)
 
     def _check_client(self, now: float) -> None:
         with self._lock:
@@ -283,11 +305,12 @@ class ToolServer:
             self.counters["link_losses"] += 1
             _log.warning("no client heard for %.1f s (policy: %s)", self.cfg.client_timeout,
                          self.cfg.link_loss_policy)
-            goal = self._active
-            if self.cfg.link_loss_policy == "cancel" and goal is not None \
-                    and self.api.cancel_primitive():
-                goal.cancel_requested = True
-                goal.status = m.GoalStatus.CANCELING
+            with self._lock:
+                goal = self._active
+                if self.cfg.link_loss_policy == "cancel" and goal is not None \
+                        and self.api.cancel_primitive():
+                    goal.cancel_requested = True
+                    goal.status = m.GoalStatus.CANCELING
         self._client_alive = alive
 
     def _publish_status(self) -> None:
