@@ -1,5 +1,7 @@
 """Plan-then-verify (Alg. 2) against an analytic arm whose tool-base motion is known exactly."""
 
+import tomllib
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -11,7 +13,20 @@ from articutool.tool.kinematics import up_vector
 from articutool.trajectory import JointTrajectory, TrajectoryError
 from articutool.verify import densify, verify_trajectory
 
-SPEC = load_spec()
+
+def _gimbal_spec(**wrist: object):
+    """The spec with arm joints that may turn at 100 rad/s: the analytic gimbal arm below is
+    not the Jaco (0.63 rad/s), and these tests drive it fast to exercise the wrist's limits;
+    the Jaco's own limits are checked in test_verify_arm_limits.py."""
+    raw = tomllib.loads(default_spec_path().read_text())
+    for joint in raw["arm"]["joints"]:
+        joint["max_velocity"] = 100.0
+    raw["wrist"].update(wrist)
+    return parse_spec(raw)
+
+
+SPEC = _gimbal_spec()
+assert load_spec().wrist == SPEC.wrist
 NAMES = SPEC.arm.joint_names
 
 
@@ -164,12 +179,7 @@ def test_branch_switch_is_a_discontinuity():
 
 
 def _narrow_spec():
-    import tomllib
-
-    raw = tomllib.loads(default_spec_path().read_text())
-    raw["wrist"]["roll_limits"] = [-0.5, 0.5]
-    raw["wrist"]["pitch_limits"] = [-0.5, 0.5]
-    return parse_spec(raw)
+    return _gimbal_spec(roll_limits=[-0.5, 0.5], pitch_limits=[-0.5, 0.5])
 
 
 def test_no_leveling_solution_inside_narrow_limits():
