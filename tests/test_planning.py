@@ -18,9 +18,11 @@ from articutool.planning.constraints import (
     StrictConstraint,
     f0_leveling_angles,
     tip_tilt,
+    tip_tilt_deg,
 )
 from articutool.planning.ompl_planner import _dense_times, level_configuration, plan_transport
 from articutool.planning.timing import time_parameterize
+from articutool.sim.transport import simulate_transport
 from articutool.tool.kinematics import rotation as wrist_rotation
 from articutool.verify.verifier import verify_trajectory
 
@@ -121,6 +123,13 @@ def _tasks(n: int, seed: int = 0) -> list[TransportTask]:
 TASK = _tasks(1)[0]
 
 
+def _tip_rotations(system: str, q: np.ndarray) -> np.ndarray:
+    """Tip rotations along (N, 6|8) strict-system samples (wrist locked at 0 for strict6)."""
+    m = ArmModel(SPEC, dof=6)
+    qw = q[:, 6:8] if system == "strict8" else np.zeros((len(q), 2))
+    return m.tool_base_rotations(q[:, :6]) @ wrist_rotation(qw)
+
+
 def _check_trajectory(traj, system: str, tol_deg: float) -> None:
     dof = 8 if system == "strict8" else 6
     m = ArmModel(SPEC, dof=dof)
@@ -153,9 +162,16 @@ def test_each_system_plans_a_level_transport(system: str) -> None:
         assert r.verified is True and r.wrist_trajectory is not None
         rep = verify_trajectory(r.trajectory, ArmModel(SPEC, dof=6), SPEC)
         assert rep.feasible, rep.message
-        assert r.max_tilt_deg < 1.0
+        # Executed by the tool's own loop (filter + Alg. 1 on the simulated IMU, nothing
+        # from the plan reaches it), the spoon stays level along the planned arm motion.
+        sim = simulate_transport(r.trajectory, ArmModel(SPEC, dof=6), SPEC, seed=1)
+        assert not sim.faults and sim.max_tilt_error_deg < 5.0
     else:
-        assert r.verified is None and r.max_tilt_deg <= 10.0
+        # The per-axis band allows up to 14.2° of true tilt; the planner reports that.
+        assert r.verified is None and r.max_tilt_deg <= 14.3
+        q, _ = r.trajectory.sample(_dense_times(r.trajectory, 0.025))
+        tilt = tip_tilt_deg(_tip_rotations(system, q)).max()
+        assert abs(r.max_tilt_deg - tilt) < 0.1
 
 
 def test_strict_tolerance_parameter_is_respected() -> None:
@@ -173,9 +189,13 @@ def test_projected_state_space_method_keeps_the_tip_level(system: str) -> None:
 
 
 def test_rrtstar_is_selectable() -> None:
-    r = plan(PlanRequest("decoupled", TASK, timeout_s=10.0, planner="rrtstar"))
-    assert r.success, r.message
-    assert r.planning_time_s <= 10.0 + 1.0  # stops within its budget (not a speed test)
+    # RRT* keeps refining after its first solution (here: for as long as that took), so its
+    # path is no longer than RRT-Connect's on the same seed, and it stops within its budget.
+    star = plan(PlanRequest("decoupled", TASK, timeout_s=10.0, planner="rrtstar", seed=3))
+    connect = plan(PlanRequest("decoupled", TASK, timeout_s=10.0, seed=3))
+    assert star.success and connect.success, (star.message, connect.message)
+    assert star.planner == "RRTstar" and connect.planner == "RRTConnect"
+    assert star.planning_time_s <= 10.0 + 1.0
 
 
 def test_same_seed_same_plan() -> None:

@@ -73,6 +73,7 @@ class PlanResult:
     message: str
     trajectory: JointTrajectory | None  # time-parameterised arm (6 or 8 joints)
     wrist_trajectory: JointTrajectory | None  # decoupled: leveling trajectory from the verifier
+    planner: str = ""  # OMPL's name of the planner that found the path (e.g. "RRTConnect")
 
     def to_record(self) -> dict[str, Any]:
         """JSON-serialisable summary without the trajectories (NaN becomes ``None``)."""

@@ -319,6 +319,7 @@ class _Problem:
                 a[i], b[i] = float(self.start[i]), float(self.goal[i])
         ss.setStartAndGoalStates(a, b)
         planner = og.RRTstar(si) if self.req.planner == "rrtstar" else og.RRTConnect(si)
+        self.planner_name = planner.getName()
         if projected:
             planner.setRange(st.strict_range)
         ss.setPlanner(planner)
@@ -494,7 +495,8 @@ def plan_transport(
             tilt = float(tip_tilt_deg(prob.tip_rotations(q)).max())
             return PlanResult(req.system, req.task.task_id, True, time.perf_counter() - t0,
                               attempts, rejections, length, tilt, None,
-                              f"planned in {attempts} attempt(s)", traj, None)
+                              f"planned in {attempts} attempt(s)", traj, None,
+                              prob.planner_name)
         rep = verify_trajectory(traj, prob.model, spec, q_wrist_start=req.task.start_wrist)
         if not rep.feasible:
             rejections += 1
@@ -512,7 +514,8 @@ def plan_transport(
         return PlanResult(req.system, req.task.task_id, True, time.perf_counter() - t0,
                           attempts, rejections, length, tilt, True,
                           f"planned and verified in {attempts} attempt(s); "
-                          f"velocity margin {rep.velocity_margin:.3f}", traj, wt)
+                          f"velocity margin {rep.velocity_margin:.3f}", traj, wt,
+                          prob.planner_name)
     verified = False if req.system == "decoupled" and rejections else None
     return _fail(req, t0, attempts, rejections, f"failed after {attempts} attempt(s): {last}",
                  verified)
