@@ -51,12 +51,13 @@ def _cmd_info(args: argparse.Namespace) -> int:
         print(json.dumps(spec.model_dump(mode="json"), indent=1))
         return 0
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
 
     console = Console()
     w = spec.wrist
     console.print(f"[bold]Articutool hardware spec[/] (version {spec.version})")
-    t = Table(title="Wrist (joint order [pitch, roll])")
+    t = Table(title=escape("Wrist (joint order [pitch, roll])"))  # [..] is rich markup
     for col in ("item", "value"):
         t.add_column(col)
     t.add_row("pitch limits (rad)", f"[{w.pitch_limits[0]:.4f}, {w.pitch_limits[1]:.4f}]")

@@ -187,6 +187,10 @@ class JointTrajectory:
             data = json.loads(p.read_text(encoding="utf-8"))
         except OSError as err:
             raise TrajectoryError(f"cannot read {p}: {err.strerror}") from None
+        except UnicodeDecodeError as err:
+            raise TrajectoryError(f"trajectory file {p} is not UTF-8 text (byte "
+                                  f"0x{err.object[err.start]:02x} at offset {err.start}); "
+                                  "save it as UTF-8") from None
         except json.JSONDecodeError as err:
             raise TrajectoryError(f"{p} is not valid JSON: {err}") from None
         return cls.from_dict(data)

@@ -92,7 +92,12 @@ def _cmd_transport(args: argparse.Namespace) -> int:
         run_trials,
         select,
     )
-    from articutool.bench.tasks import TaskFileError, load_task_set, spec_hash
+    from articutool.bench.tasks import (
+        TaskFileError,
+        check_task_limits,
+        load_task_set,
+        spec_hash,
+    )
     from articutool.cli import spec_from_args
 
     # ---- validate everything before any work ----
@@ -118,6 +123,10 @@ def _cmd_transport(args: argparse.Namespace) -> int:
     if ts.utensil not in spec.utensils:
         raise _usage(f"tasks file utensil {ts.utensil!r} is not in the spec "
                      f"({sorted(spec.utensils)})")
+    try:
+        check_task_limits(ts, spec)
+    except TaskFileError as err:
+        raise _usage(f"invalid tasks file {args.tasks or 'packaged'}: {err}") from None
     tasks = list(ts.tasks[: args.limit] if args.limit else ts.tasks)
     if not tasks:
         raise _usage("the tasks file holds no tasks")

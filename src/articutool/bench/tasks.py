@@ -54,6 +54,7 @@ __all__ = [
     "GENERATOR_VERSION",
     "TaskFileError",
     "TaskSet",
+    "check_task_limits",
     "default_tasks_path",
     "generate_tasks",
     "load_task_set",
@@ -385,6 +386,25 @@ def load_task_set(path: str | Path | None = None) -> TaskSet:
     p = Path(path) if path is not None else default_tasks_path()
     data = read_document(p, "tasks file", TaskFileError)
     return parse_task_set(data, str(p))
+
+
+def check_task_limits(task_set: TaskSet, spec: Spec) -> None:
+    """Raise :class:`TaskFileError` naming the first task joint outside the spec's limits.
+
+    Such a task is bad input, not a planning problem: no trial may count it as a failure.
+    """
+    arm = [(j.name, j.lower, j.upper) for j in spec.arm.joints]
+    wrist = [(n, lo, hi) for n, (lo, hi) in zip(spec.wrist.joint_names, spec.wrist.limits,
+                                                strict=True)]
+    for i, t in enumerate(task_set.tasks):
+        for field_name, joints in (("start", arm), ("goal", arm), ("start_wrist", wrist),
+                                   ("goal_wrist", wrist)):
+            for j, (x, (name, lo, hi)) in enumerate(zip(getattr(t, field_name), joints,
+                                                        strict=True)):
+                if not lo <= x <= hi:
+                    raise TaskFileError(
+                        f"tasks[{i}].{field_name}[{j}] (task_id {t.task_id}) = {x:.4f} rad is "
+                        f"outside the limits [{lo:.4f}, {hi:.4f}] rad of {name}")
 
 
 def save_task_set(task_set: TaskSet, path: str | Path) -> None:

@@ -23,6 +23,8 @@ from articutool.spec import Spec
 
 __all__ = ["add_commands", "run_demo", "staging_configuration"]
 
+_DEFAULT_PLOT = Path("results/demo_transport.png")
+
 
 def staging_configuration(spec: Spec, model: Any, seed: int = 0) -> tuple[np.ndarray, float]:
     """Arm configuration for the spec's Staging pose (end-effector IK), collision-free.
@@ -144,6 +146,25 @@ def _plot(sim: Any, path: Path) -> None:
     plt.close(fig)
 
 
+def _plot_path(arg: str) -> Path:
+    """Where ``--plot`` says: a file, or ``demo_transport.png`` inside a directory (an
+    existing one, or one written with a trailing slash). Checked before any planning."""
+    from matplotlib.figure import Figure
+
+    from articutool.cli import UsageError
+
+    p = Path(arg)
+    if p.is_dir() or arg.endswith(("/", "\\")):
+        p = p / _DEFAULT_PLOT.name
+    formats = Figure().canvas.get_supported_filetypes()
+    if p.suffix.lstrip(".").lower() not in formats:
+        raise UsageError(f"--plot {arg}: the file name must end in one of "
+                         f"{', '.join('.' + f for f in sorted(formats))} (e.g. .png)")
+    if p.parent.exists() and not p.parent.is_dir():
+        raise UsageError(f"--plot {arg}: {p.parent} is not a directory")
+    return p
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from articutool.cli import UsageError, spec_from_args
 
@@ -152,7 +173,9 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         raise UsageError(f"--utensil must be one of {sorted(spec.utensils)}; got {args.utensil!r}")
     if not (math.isfinite(args.timeout) and args.timeout > 0):
         raise UsageError(f"--timeout must be a number of seconds > 0; got {args.timeout}")
-    plot = None if args.no_plot else Path(args.plot)
+    if args.seed < 0:
+        raise UsageError(f"--seed must be an integer >= 0; got {args.seed}")
+    plot = None if args.no_plot else _plot_path(args.plot)
     figures = run_demo(spec, utensil=args.utensil, seed=args.seed, timeout_s=args.timeout,
                        plot_path=plot)
     if args.json:
@@ -192,8 +215,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--utensil", default="spoon", help="utensil (default: spoon)")
     p.add_argument("--seed", type=int, default=0, help="planner and simulation seed")
     p.add_argument("--timeout", type=float, default=10.0, help="planning budget (s)")
-    p.add_argument("--plot", default="results/demo_transport.png",
-                   help="where to save the plot (default: results/demo_transport.png)")
+    p.add_argument("--plot", default=str(_DEFAULT_PLOT),
+                   help=f"where to save the plot: a .png/.pdf/.svg file, or a directory to "
+                        f"write {_DEFAULT_PLOT.name} into (default: {_DEFAULT_PLOT})")
     p.add_argument("--no-plot", action="store_true", help="do not save a plot")
     p.add_argument("--json", action="store_true", help="machine-readable figures")
     add_spec_option(p)

@@ -18,8 +18,12 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     spec = spec_from_args(args)
     if args.utensil not in spec.utensils:
         raise UsageError(f"--utensil must be one of {sorted(spec.utensils)}; got {args.utensil!r}")
-    if args.wrist_out is not None and Path(args.wrist_out).exists():
-        raise UsageError(f"--wrist-out {args.wrist_out} exists; refusing to overwrite it")
+    if args.wrist_out is not None:
+        out = Path(args.wrist_out)
+        if out.exists():
+            raise UsageError(f"--wrist-out {out} exists; refusing to overwrite it")
+        if not out.parent.is_dir():
+            raise UsageError(f"--wrist-out {out}: directory {out.parent} does not exist")
     traj = JointTrajectory.load(args.trajectory)
     model = ArmModel(spec, utensil=args.utensil)
     rep = verify_trajectory(traj, model, spec, max_step_deg=args.max_step_deg)
