@@ -21,6 +21,7 @@ from articutool.api_types import ArmKinematics
 from articutool.spec import Spec
 from articutool.tool.api import Mode
 from articutool.tool.drivers.sim import SimWrist
+from articutool.tool.kinematics import tilt_from_vertical, up_vector
 from articutool.tool.runtime import ToolRuntime
 from articutool.trajectory import JointTrajectory
 
@@ -110,6 +111,7 @@ def simulate_transport(
     wrist = np.empty((n, 2))
     base_tilt = np.empty(n)
     faults: list[str] = []
+    rigid_up = up_vector(np.zeros(2))  # the utensil's up in F0 with the wrist at zero
     with runtime:
         for k in range(n):
             sim.step(period)
@@ -124,5 +126,5 @@ def simulate_transport(
             tilt[k] = np.degrees(sim.tilt_error())
             wrist[k] = sim.q
             R, _, _ = sim.base_state()
-            base_tilt[k] = np.degrees(np.arccos(np.clip(R[2, 0], -1.0, 1.0)))
+            base_tilt[k] = np.degrees(tilt_from_vertical(R @ rigid_up))
     return TransportSimResult(times, tilt, wrist, base_tilt, traj.duration, tuple(faults))
