@@ -15,21 +15,50 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
 __all__ = ["DEFAULT_ENDPOINT", "ConfigError", "LinkConfig", "add_config_args",
-           "config_from_args", "load_config"]
+           "check_endpoint", "config_from_args", "load_config"]
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
 
 class ConfigError(ValueError):
     """A link configuration value is invalid (the message names the field)."""
+
+
+# Zenoh locators: <protocol>/<address>[?metadata][#config]. IP protocols take host:port.
+_IP_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
+_ENDPOINT_FORM = (f"'<protocol>/<host>:<port>' with protocol one of {', '.join(_IP_PROTOCOLS)} "
+                  f"and port in [0, 65535] (e.g. '{DEFAULT_ENDPOINT}'), or "
+                  "'unixsock-stream/<path>'")
+
+
+def check_endpoint(endpoint: object, field_name: str) -> str:
+    """Check the syntax of one zenoh endpoint; ConfigError names ``field_name`` and the form.
+
+    Whether the address can be used (free, on this host) is only known when the session
+    opens: that failure is :class:`~articutool.link.transport.LinkOpenError`.
+    """
+    bad = ConfigError(f"{field_name} must be a zenoh endpoint {_ENDPOINT_FORM}; "
+                      f"got {endpoint!r}")
+    if not isinstance(endpoint, str):
+        raise bad
+    proto, sep, rest = endpoint.partition("/")
+    address = rest.split("?", 1)[0].split("#", 1)[0]
+    if not sep or not address:
+        raise bad
+    if proto == "unixsock-stream":
+        return endpoint
+    if proto not in _IP_PROTOCOLS:
+        raise bad
+    host, colon, port = address.rpartition(":")
+    if not colon or not host or not port.isdigit() or int(port) > 65535:
+        raise bad
+    return endpoint
 
 
 @dataclass(frozen=True)
@@ -66,9 +95,11 @@ class LinkConfig:
             v = getattr(self, name)
             if v is None:
                 continue
-            if isinstance(v, str) or not all(isinstance(e, str) and "/" in e for e in v):
+            if isinstance(v, str) or not isinstance(v, list | tuple):
                 raise ConfigError(f"{name} must be a list of zenoh endpoints like "
-                                  f"'tcp/127.0.0.1:7447'; got {v!r}")
+                                  f"'{DEFAULT_ENDPOINT}'; got {v!r}")
+            for i, e in enumerate(v):
+                check_endpoint(e, f"{name}[{i}]")
             object.__setattr__(self, name, tuple(v))
         if isinstance(self.domain_id, bool) or not isinstance(self.domain_id, int) \
                 or not 0 <= self.domain_id <= 232:
@@ -117,18 +148,11 @@ def _from_mapping(data: Any, where: str) -> LinkConfig:
 
 
 def load_config(path: str | Path) -> LinkConfig:
-    """Read a TOML (``.toml``) or JSON (anything else) link config file."""
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as err:
-        raise ConfigError(f"cannot read link config {p}: {err.strerror}") from None
-    try:
-        data = tomllib.loads(text) if p.suffix == ".toml" else json.loads(text)
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as err:
-        raise ConfigError(f"{p} is not valid {'TOML' if p.suffix == '.toml' else 'JSON'}: "
-                          f"{err}") from None
-    return _from_mapping(data, str(p))
+    """Read a link config file: JSON (``.json``) or TOML (anything else), with the common
+    reader of the spec and task files (unreadable, non-UTF-8 or malformed: ConfigError)."""
+    from articutool.datafile import read_document
+
+    return _from_mapping(read_document(path, "link config", ConfigError), str(path))
 
 
 def add_config_args(p: argparse.ArgumentParser) -> None:

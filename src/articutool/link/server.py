@@ -354,11 +354,14 @@ class ToolServer:
 
 def serve_forever(api: ToolAPI, config: LinkConfig | None, stop_event: threading.Event,
                   transport: Transport | None = None) -> ToolServer:
-    """Serve ``api`` on a Zenoh session (tool role) until ``stop_event`` is set.
+    """Serve ``api`` until ``stop_event`` is set, on ``transport`` or else on a Zenoh session
+    (tool role) opened here (LinkOpenError if it cannot be). A transport passed in is left
+    open for its owner to close; one opened here is closed.
 
     Returns the (stopped) server, whose ``counters`` the caller may report.
     """
     cfg = config or LinkConfig()
+    owned = transport is None
     if transport is None:
         from articutool.link.zenoh_transport import ZenohTransport
         transport = ZenohTransport(cfg, "tool")
@@ -368,5 +371,6 @@ def serve_forever(api: ToolAPI, config: LinkConfig | None, stop_event: threading
         stop_event.wait()
     finally:
         server.stop()
-        transport.close()
+        if owned:
+            transport.close()
     return server

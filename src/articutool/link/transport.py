@@ -56,10 +56,15 @@ from dataclasses import dataclass
 
 from articutool.link import messages as m
 
-__all__ = ["Endpoint", "LinkTimeoutError", "Names", "Responder", "Transport", "key_expr"]
+__all__ = ["Endpoint", "LinkOpenError", "LinkTimeoutError", "Names", "Responder", "Transport",
+           "key_expr"]
 
 Responder = Callable[[bytes], None]
 """Sends the reply to one service request; may be called later, from any thread, once."""
+
+
+class LinkOpenError(RuntimeError):
+    """The transport cannot be opened (an endpoint in use, an address not on this host, …)."""
 
 
 class LinkTimeoutError(TimeoutError):

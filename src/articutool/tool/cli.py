@@ -6,8 +6,11 @@
 
 The runtime's 50 Hz loop runs in its own thread; the main thread only draws the status line
 and waits, so Ctrl-C (SIGINT) or SIGTERM never interrupts a tick halfway through a bus write:
-it sets the stop event, the loop stops the motors, and the drivers are closed (torque off).
-Exit code 0 after a clean stop, 1 if the drivers cannot be opened, 2 for bad input.
+it sets the stop event, the loop stops the motors, and the drivers are closed (torque off);
+the link is closed last. Exit code 0 after a clean stop, 2 for bad input, a link that cannot
+be served (endpoint in use, address not on this host) or drivers that cannot be opened (no
+hardware): each is one line on stderr, and nothing moves, since they are all checked before
+the loop starts.
 
 ``--driver sim`` (the default) runs against :class:`~articutool.tool.drivers.sim.SimWrist`
 advanced in real time by a background service, on a base that tilts and turns gently so
@@ -17,24 +20,28 @@ sensor on the ports in the spec.
 Background services: anything that must run alongside the loop (the simulated world, the
 network link) is a :data:`Service`, ``fn(api, stop_event)``, run in a daemon thread until
 ``stop_event`` is set. :func:`background_services` builds the list; the network link of
-issue 4 plugs in there (see the comment in it).
+issue 4 plugs in there.
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 import signal
 import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 import numpy as np
 
 from articutool.spec import Spec
 from articutool.tool.api import Mode, ToolAPI, ToolState
+
+if TYPE_CHECKING:
+    from articutool.link.transport import Transport
 
 __all__ = [
     "Service",
@@ -108,18 +115,20 @@ def _sim_stepper(sim: object) -> Service:
     return step
 
 
-def background_services(args: argparse.Namespace, spec: Spec, sim: object | None) -> list[
-        tuple[str, Service]]:
-    """The services started with the runtime, as (name, service) pairs."""
+def background_services(args: argparse.Namespace | None, spec: Spec, sim: object | None,
+                        link: Transport | None = None) -> list[tuple[str, Service]]:
+    """The services started with the runtime, as (name, service) pairs: the simulated world
+    (with ``sim``) and the link served on ``link``, an open transport whose config is
+    ``link.cfg`` (the caller opens it first, so a link that cannot be served stops the tool
+    before anything moves, and closes it after the loop)."""
     services: list[tuple[str, Service]] = []
     if sim is not None:
         services.append(("sim", _sim_stepper(sim)))
-    if getattr(args, "serve", False):
-        from articutool.link.config import config_from_args
+    if link is not None:
         from articutool.link.server import serve_forever
 
-        config = config_from_args(args)  # validated before the loop starts
-        services.append(("link", lambda api, stop: serve_forever(api, config, stop)))
+        cfg = getattr(link, "cfg", None)
+        services.append(("link", lambda api, stop: serve_forever(api, cfg, stop, link)))
     return services
 
 
@@ -150,9 +159,11 @@ def run_tool(
     services: Sequence[tuple[str, Service]] = (),
     out: TextIO | None = None,
     stop_event: threading.Event | None = None,
+    opened: bool = False,
 ) -> int:
-    """Open ``runtime``, start the services and the loop, show status until ``duration``
-    elapses, ``stop_event`` is set or Ctrl-C; then stop the motors and close. Returns 0.
+    """Open ``runtime`` (unless ``opened``), start the services and the loop, show status
+    until ``duration`` elapses, ``stop_event`` is set or Ctrl-C; then stop the motors and
+    close. Returns 0.
 
     ``runtime`` is a :class:`~articutool.tool.runtime.ToolRuntime` (open/run/close + ToolAPI).
     """
@@ -160,7 +171,8 @@ def run_tool(
     stop = threading.Event() if stop_event is None else stop_event
     tty = out.isatty()
     rt = runtime
-    rt.open()  # type: ignore[attr-defined]
+    if not opened:
+        rt.open()  # type: ignore[attr-defined]
     threads = [threading.Thread(target=fn, args=(rt, stop), name=f"tool-{name}", daemon=True)
                for name, fn in services]
     loop = rt.run  # type: ignore[attr-defined]
@@ -220,17 +232,50 @@ def _restore_sigterm(previous: object) -> None:
         signal.signal(signal.SIGTERM, previous)  # type: ignore[arg-type]
 
 
+def _close_failed(runtime: object) -> None:
+    """Close a runtime whose ``open`` failed: its drivers are partly or not open, so the
+    close errors are expected; the one-line error already says why (no tracebacks)."""
+    logger = logging.getLogger(type(runtime).__module__)
+    was = logger.disabled
+    logger.disabled = True
+    try:
+        runtime.close()  # type: ignore[attr-defined]
+    finally:
+        logger.disabled = was
+
+
 def _cmd_tool(args: argparse.Namespace) -> int:
     from articutool.cli import UsageError, spec_from_args
-    from articutool.tool.drivers import make_drivers
-    from articutool.tool.runtime import ToolRuntime
 
     spec = spec_from_args(args)
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UsageError(f"--duration must be a number of seconds > 0; got {args.duration}")
-    level = args.level if args.level is not None else args.driver == "sim"
-    from articutool.link.config import ConfigError
+    link = None
+    if args.serve:  # open the link before anything moves: a tool that cannot serve says so
+        from articutool.link.config import ConfigError, config_from_args
+        from articutool.link.transport import LinkOpenError
+        from articutool.link.zenoh_transport import ZenohTransport
 
+        try:
+            link = ZenohTransport(config_from_args(args), "tool")
+        except ConfigError as err:
+            raise UsageError(str(err)) from None
+        except LinkOpenError as err:
+            raise UsageError(f"cannot serve the link: {err} (is another articutool tool "
+                             "running on that endpoint?)") from None
+    try:
+        return _run_with_drivers(args, spec, link)
+    finally:
+        if link is not None:
+            link.close()  # last: after the loop stopped and the motors are off
+
+
+def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: Transport | None) -> int:
+    from articutool.cli import UsageError
+    from articutool.tool.drivers import make_drivers
+    from articutool.tool.runtime import ToolRuntime
+
+    level = args.level if args.level is not None else args.driver == "sim"
     sim = None
     clock: Callable[[], float] = time.monotonic
     if args.driver == "sim":
@@ -242,20 +287,16 @@ def _cmd_tool(args: argparse.Namespace) -> int:
     try:
         motors, imu, ft = make_drivers(spec, args.driver, sim=sim)
     except Exception as err:  # hardware drivers import dynamixel_sdk / pyserial lazily
-        print(f"error: cannot create the {args.driver} drivers: {err}", file=sys.stderr)
-        return 1
-    try:
-        services = background_services(args, spec, sim)
-    except ConfigError as err:
-        raise UsageError(str(err)) from None
+        raise UsageError(f"cannot create the {args.driver} drivers: {err}") from None
     runtime = ToolRuntime(spec, motors, imu, ft, clock=clock)
     try:
-        return run_tool(runtime, duration=args.duration, level=level, services=services)
-    except Exception as err:  # opening the drivers failed (port missing, motors silent)
-        runtime.close()
-        print(f"error: {args.driver} drivers failed: {type(err).__name__}: {err}",
-              file=sys.stderr)
-        return 1
+        runtime.open()
+    except Exception as err:  # port missing, motors silent: before the loop, nothing moved
+        _close_failed(runtime)
+        raise UsageError(f"cannot open the {args.driver} drivers: {err}") from None
+    services = background_services(args, spec, sim, link)
+    return run_tool(runtime, duration=args.duration, level=level, services=services,
+                    opened=True)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

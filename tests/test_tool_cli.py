@@ -1,0 +1,213 @@
+"""``articutool tool`` and ``articutool client`` as real processes on loopback (issue 8, items
+5, 7, 9, 12, 13): repeated identical goals, a tool that cannot serve, bad input, Ctrl-C.
+
+Every wait is bounded (subprocess timeouts, bounded polls), so a failure cannot hang the suite.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from articutool import load_spec
+from articutool.link.client import ArticutoolClient
+from articutool.link.config import LinkConfig
+from articutool.tool.api import Mode
+
+HERE = Path(__file__).parent
+ENV = dict(os.environ, PYTHONPATH=str(HERE.parent / "src"), PYTHONUNBUFFERED="1")
+# What the ``articutool`` console script runs (``-m articutool.cli`` would import the CLI
+# module twice, as __main__ and as articutool.cli).
+CLI = [sys.executable, "-c", "import sys; from articutool.cli import main; sys.exit(main())"]
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def run(*argv: str, timeout: float = 60.0) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*CLI, *argv], capture_output=True, text=True, env=ENV,
+                          timeout=timeout)
+
+
+class Tool:
+    """``articutool tool --driver sim --no-level`` listening on a free loopback port."""
+
+    def __init__(self, port: int, *extra: str) -> None:
+        self.port = port
+        self.endpoint = f"tcp/127.0.0.1:{port}"
+        self.proc = subprocess.Popen([*CLI, "tool", "--no-level", "--listen", self.endpoint,
+                                      *extra], stdout=subprocess.PIPE,
+                                     stderr=subprocess.PIPE, text=True, env=ENV)
+        first = self.proc.stdout.readline()  # the first status line: loop and link are up
+        assert "DISABLED" in first, (first, self.proc.stderr.read() if not first else "")
+
+    def interrupt(self, timeout: float = 30.0) -> tuple[int, str, str]:
+        """SIGINT (Ctrl-C); returns (exit code, stdout, stderr)."""
+        self.proc.send_signal(signal.SIGINT)
+        out, err = self.proc.communicate(timeout=timeout)
+        return self.proc.returncode, out, err
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.communicate(timeout=10)
+
+
+@pytest.fixture
+def tool() -> Iterator[Tool]:
+    t = Tool(free_port())
+    yield t
+    t.kill()
+
+
+def client_cfg(tool: Tool) -> LinkConfig:
+    return LinkConfig(connect=(tool.endpoint,), listen=(), tool_timeout=1.0,
+                      heartbeat_period=0.05, call_timeout=5.0)
+
+
+def test_identical_goals_twice_in_a_row_each_return(tool: Tool) -> None:
+    """Item 9: HOMING while at home never returned the second time (4 of 4 runs)."""
+    for _ in range(3):
+        r = run("client", "--connect", tool.endpoint, "--wait", "20", "primitive", "HOMING",
+                "2.0", "--json")
+        assert r.returncode == 0, r
+        assert '"success": true' in r.stdout
+
+
+def test_a_second_tool_on_the_same_endpoint_exits_2_before_any_motion(tool: Tool) -> None:
+    r = run("tool", "--listen", tool.endpoint, "--duration", "30")
+    assert r.returncode == 2, r
+    assert tool.endpoint in r.stderr and "in use" in r.stderr
+    assert "Traceback" not in r.stderr + r.stdout
+    assert "LEVELING" not in r.stdout and "stopped" not in r.stdout  # the loop never ran
+    # ... and the first tool still serves.
+    with ArticutoolClient(client_cfg(tool)) as c:
+        assert c.wait_for_tool(20.0)
+        assert c.set_mode("disabled")[0]
+
+
+@pytest.mark.parametrize("argv, field", [
+    (("tool", "--listen", "tcp/127.0.0.1:notaport", "--duration", "30"), "listen"),
+    (("tool", "--listen", "foo/bar", "--duration", "30"), "listen"),
+    (("client", "--connect", "foo/bar", "state"), "connect"),
+])
+def test_a_malformed_endpoint_exits_2_naming_the_field(argv: tuple[str, ...],
+                                                       field: str) -> None:
+    r = run(*argv)
+    assert r.returncode == 2, r
+    assert field in r.stderr and "tcp/127.0.0.1:7447" in r.stderr  # the allowed form
+    assert "Traceback" not in r.stderr and r.stdout == ""
+
+
+def test_a_non_utf8_link_config_exits_2(tmp_path: Path) -> None:
+    f = tmp_path / "link.toml"
+    f.write_bytes(b'listen = ["tcp/127.0.0.1:7447"]\n# \xff\xfe\n')
+    for argv in (("client", "--link-config", str(f), "state"),
+                 ("tool", "--link-config", str(f), "--duration", "30")):
+        r = run(*argv)
+        assert r.returncode == 2, r
+        assert str(f) in r.stderr and "UTF-8" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_hardware_driver_without_hardware_is_one_clear_line() -> None:
+    r = run("tool", "--driver", "hardware", "--no-serve", "--duration", "30")
+    assert r.returncode == 2, r
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and "port" in lines[0], r.stderr
+
+
+@pytest.mark.parametrize("argv, field", [
+    (("--wait", "nan", "state"), "--wait"),
+    (("--wait", "0", "state"), "--wait"),
+    (("--wait", "-1", "state"), "--wait"),
+    (("primitive", "HOMING", "2.0", "--timeout", "0"), "--timeout"),
+    (("primitive", "HOMING", "2.0", "--timeout", "nan"), "--timeout"),
+    (("primitive", "HOMING", "2.0", "--timeout", "-3"), "--timeout"),
+    (("mode", "leveling", "--pitch-offset", "1e39"), "--pitch-offset"),
+    (("mode", "leveling", "--roll-offset=-1e39"), "--roll-offset"),
+])
+def test_bad_client_numbers_exit_2_before_anything_is_sent(argv: tuple[str, ...],
+                                                           field: str) -> None:
+    port = free_port()
+    fake = subprocess.Popen([sys.executable, str(HERE / "link_fake_tool.py"), "--listen",
+                             f"tcp/127.0.0.1:{port}"], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True, env=ENV)
+    try:
+        r = run("client", "--connect", f"tcp/127.0.0.1:{port}", *argv, timeout=30)
+        calls, _ = fake.communicate(input="", timeout=20)
+    finally:
+        if fake.poll() is None:
+            fake.kill()
+            fake.communicate(timeout=10)
+    assert r.returncode == 2, r
+    assert field in r.stderr and "Traceback" not in r.stderr
+    assert "start" not in calls and "set_mode" not in calls, calls  # nothing reached the tool
+
+
+def test_offset_range_in_the_message_comes_from_the_spec() -> None:
+    lo, hi = (math.degrees(v) for v in load_spec().wrist.limits[0])
+    r = run("client", "--connect", f"tcp/127.0.0.1:{free_port()}", "--wait", "1", "mode",
+            "leveling", "--pitch-offset", "1e39")
+    assert r.returncode == 2 and f"[{lo:g}, {hi:g}]" in r.stderr, r
+
+
+def test_ctrl_c_on_client_primitive_cancels_it(tool: Tool) -> None:
+    c = subprocess.Popen([*CLI, "client", "--connect", tool.endpoint, "--wait", "20",
+                          "primitive", "TWIRL_CW", "1", "0.5"], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, env=ENV)
+    try:
+        line = c.stderr.readline()  # the first feedback line: the twirl is running
+        assert "%" in line, line
+        c.send_signal(signal.SIGINT)
+        out, err = c.communicate(timeout=30)
+    finally:
+        if c.poll() is None:
+            c.kill()
+            c.communicate(timeout=10)
+    assert c.returncode == 130, (out, err)
+    assert "cancel" in (out + err)
+    with ArticutoolClient(client_cfg(tool)) as cl:
+        assert cl.wait_for_tool(20.0)
+        deadline = time.monotonic() + 10
+        st = cl.latest_state()
+        while (st is None or st.mode is not Mode.DISABLED) and time.monotonic() < deadline:
+            time.sleep(0.05)
+            st = cl.latest_state()
+        assert st is not None and st.mode is Mode.DISABLED, st
+        assert max(abs(v) for v in st.velocity) < 0.05, st  # the wrist stopped
+
+
+def _cpu_hog() -> subprocess.Popen[bytes]:
+    return subprocess.Popen([sys.executable, "-c", "while True: pass"])
+
+
+@pytest.mark.parametrize("load", [False, True])
+def test_sigint_stops_the_tool_cleanly(load: bool) -> None:
+    """Item 7: Ctrl-C aborted with SIGABRT ('FATAL: exception not rethrown') under load."""
+    hog = _cpu_hog() if load else None
+    try:
+        for _ in range(3):
+            t = Tool(free_port())
+            try:
+                code, out, err = t.interrupt()
+            finally:
+                t.kill()
+            assert code == 0, err[-2000:]
+            assert "stopped: motors stopped, torque off, drivers closed" in out
+            assert "Traceback" not in err
+    finally:
+        if hog is not None:
+            hog.kill()
+            hog.wait(timeout=10)
