@@ -1,7 +1,9 @@
 """``articutool client …``: command a running Articutool from the PC.
 
 Exit codes: 0 success, 1 the tool said no (``success=false``) or could not be reached,
-2 bad input (argparse errors, bad config, bad mode/offsets).
+2 bad input (argparse errors, bad config, bad mode/offsets, an endpoint that cannot be
+opened), 130 interrupted (Ctrl-C during ``primitive`` first cancels the primitive it started).
+Every number is checked before anything is sent.
 """
 
 from __future__ import annotations
@@ -26,24 +28,35 @@ def _finite(s: str) -> float:
     return v
 
 
+def _seconds(s: str) -> float:
+    v = _finite(s)
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"must be a number of seconds > 0: {s!r}")
+    return v
+
+
 def add_commands(subparsers: Any) -> None:
     """Register ``client mode|primitive|state``."""
+    from articutool.cli import add_spec_option
     from articutool.link.config import add_config_args
 
     p = subparsers.add_parser("client", help="command an Articutool over the link (PC side)")
     add_config_args(p)
-    p.add_argument("--wait", type=float, default=3.0, metavar="S",
+    add_spec_option(p)  # the wrist limits that bound the leveling offsets
+    p.add_argument("--wait", type=_seconds, default=3.0, metavar="S",
                    help="seconds to wait for the tool to be heard (default 3)")
     sub = p.add_subparsers(dest="client_command", required=True, metavar="ACTION")
     pm = sub.add_parser("mode", help="set the control mode (SetOrientationControl)")
     pm.add_argument("mode", choices=("leveling", "disabled"))
-    pm.add_argument("--pitch-offset", type=_finite, default=0.0, metavar="DEG")
-    pm.add_argument("--roll-offset", type=_finite, default=0.0, metavar="DEG")
+    pm.add_argument("--pitch-offset", type=_finite, default=0.0, metavar="DEG",
+                    help="within the pitch joint's limits (spec.wrist)")
+    pm.add_argument("--roll-offset", type=_finite, default=0.0, metavar="DEG",
+                    help="within the roll joint's limits (spec.wrist)")
     pp = sub.add_parser("primitive", help="run a primitive (ExecuteArticutoolPrimitive)")
     pp.add_argument("name")
     pp.add_argument("params", nargs="*", type=_finite, metavar="P")
     pp.add_argument("--json", action="store_true", help="print the action result as JSON")
-    pp.add_argument("--timeout", type=float, default=None, metavar="S",
+    pp.add_argument("--timeout", type=_seconds, default=None, metavar="S",
                     help="cancel the primitive after S seconds")
     ps = sub.add_parser("state", help="print the latest tool state")
     ps.add_argument("--json", action="store_true")
@@ -55,16 +68,32 @@ def _usage(msg: str) -> int:
     return 2
 
 
+def _check_offsets(args: argparse.Namespace) -> None:
+    """``--pitch-offset``/``--roll-offset`` within the spec's wrist joint limits (degrees)."""
+    from articutool.cli import UsageError, spec_from_args
+
+    limits = spec_from_args(args).wrist.limits
+    for flag, v, (lo, hi) in (("--pitch-offset", args.pitch_offset, limits[0]),
+                              ("--roll-offset", args.roll_offset, limits[1])):
+        lo_d, hi_d = math.degrees(lo), math.degrees(hi)
+        if not lo_d <= v <= hi_d:
+            raise UsageError(f"{flag} must be in [{lo_d:g}, {hi_d:g}] degrees (spec.wrist "
+                             f"limits); got {v:g}")
+
+
 def run(args: argparse.Namespace) -> int:
     """Handler of ``articutool client``."""
     from articutool.link.client import ArticutoolClient, LinkError
     from articutool.link.config import ConfigError, config_from_args
+    from articutool.link.transport import LinkOpenError
 
+    if args.client_command == "mode":
+        _check_offsets(args)
     try:
         cfg = config_from_args(args)
-    except ConfigError as err:
+        client = ArticutoolClient(cfg)
+    except (ConfigError, LinkOpenError) as err:
         return _usage(str(err))
-    client = ArticutoolClient(cfg)
     try:
         if not client.wait_for_tool(args.wait):
             listen, connect = cfg.endpoints("client")
@@ -80,7 +109,11 @@ def run(args: argparse.Namespace) -> int:
             def show(fb: Any) -> None:
                 if not args.json:
                     print(f"  {fb.percent_complete:5.1f}%  {fb.feedback}", file=sys.stderr)
-            res = client.run_primitive(args.name, args.params, show, timeout=args.timeout)
+            try:
+                res = client.run_primitive(args.name, args.params, show, timeout=args.timeout)
+            except KeyboardInterrupt:  # run_primitive cancelled the goal on the way out
+                print(f"interrupted: cancel of {args.name} requested", file=sys.stderr)
+                return 130
             if args.json:
                 print(json.dumps(res.to_dict()))
             else:

@@ -215,7 +215,9 @@ class ArticutoolClient:
         ``feedback_cb(PrimitiveStatus)`` receives feedback (percent, text, joints). On
         ``timeout`` the goal is cancelled and a result with ``success=False`` returned. A
         refusal by the tool is a result with ``success=False`` and the tool's message.
-        Raises ToolSilentError when the tool goes silent while the goal runs.
+        Raises ToolSilentError when the tool goes silent while the goal runs. If the wait is
+        interrupted (KeyboardInterrupt, any exception), the goal is cancelled before the
+        exception propagates, so a goal this call started never outlives it unattended.
         """
         if not isinstance(name, str) or not name:
             raise ValueError("primitive name must be a non-empty string")
@@ -229,7 +231,11 @@ class ArticutoolClient:
             if not resp.accepted:
                 return m.PrimitiveResult(False, "goal rejected by the tool", (),
                                          m.GoalStatus.UNKNOWN)
-            return self._await_result(gid, timeout)
+            try:
+                return self._await_result(gid, timeout)
+            except BaseException:
+                self._cancel_quietly(gid)
+                raise
         finally:
             with self._lock:
                 self._feedback.pop(gid, None)
@@ -271,6 +277,15 @@ class ArticutoolClient:
             raise LinkError("the tool does not know this goal (was it restarted?): "
                             f"{res.message}")
         return res
+
+    def _cancel_quietly(self, gid: bytes) -> None:
+        """Cancel ``gid`` on the way out of an interrupted wait; a second Ctrl-C or a silent
+        tool must not replace the exception being raised."""
+        try:
+            if self.cancel(gid):
+                _log.info("cancelled goal %s", gid.hex())
+        except BaseException:  # best effort while another exception propagates
+            _log.warning("could not cancel goal %s", gid.hex())
 
     def cancel(self, goal_id: bytes | None = None) -> bool:
         """Cancel ``goal_id`` (default: this client's running goal, else every goal).
