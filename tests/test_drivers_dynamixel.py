@@ -12,6 +12,8 @@ import math
 import os
 import select
 import threading
+import time
+import tomllib
 from collections.abc import Iterator
 
 import numpy as np
@@ -20,8 +22,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from articutool import load_spec
+from articutool.spec import SpecError, default_spec_path, parse_spec
 from articutool.tool.drivers.base import DriverError, HardwareError
 from articutool.tool.drivers.dynamixel import (
+    ADDR_BUS_WATCHDOG,
     ADDR_GOAL_POSITION,
     ADDR_GOAL_VELOCITY,
     ADDR_HARDWARE_ERROR_STATUS,
@@ -35,11 +39,13 @@ from articutool.tool.drivers.dynamixel import (
     ADDR_TORQUE_ENABLE,
     ADDR_VELOCITY_LIMIT,
     DynamixelDriver,
+    bus_watchdog_units,
     rad_s_to_velocity_units,
     rad_to_ticks,
     ticks_to_rad,
     to_signed32,
     to_unsigned32,
+    turns_lost_in_reboot,
     velocity_limit_units,
     velocity_units_to_rad_s,
 )
@@ -52,6 +58,13 @@ RAD_PER_TICK = 2 * math.pi / M.ticks_per_rev
 MODEL = 1160  # what the fake answers to PING; the driver only records it
 # Reply timeout headroom for a loaded test machine (the fake answers within a few ms).
 LATENCY_MS = 100.0
+WATCHDOG_UNIT_S = 0.020  # Bus Watchdog (98) unit, ROBOTIS e-manual (X-series control table)
+GOAL_REGISTERS = range(100, 120)  # Goal PWM .. Goal Position: read-only after a watchdog stop
+# The driver under test gets a longer bus watchdog than the spec's 0.1 s, so that a loaded
+# test machine pausing between two calls does not trip it in tests about something else.
+BUS_SPEC = SPEC.model_copy(
+    update={"motors": SPEC.motors.model_copy(update={"bus_watchdog_s": 1.0})}
+)
 
 
 # ----------------------------------------------------------------- fake protocol 2.0 bus --
@@ -92,7 +105,16 @@ def unstuff(body: bytes) -> bytes:
 
 
 class FakeBus:
-    """Two X-series motors: register files, PING/READ/WRITE/SYNC_WRITE/SYNC_READ/REBOOT."""
+    """Two X-series motors: register files, PING/READ/WRITE/SYNC_WRITE/SYNC_READ/REBOOT.
+
+    An ideal motor: Present Velocity follows Goal Velocity while torque is on; Present
+    Position is set by the test. Bus Watchdog (98), as the e-manual describes it: with torque
+    on and 98 = 1..127, no instruction packet for 98 × 20 ms stops the motor and sets 98 to
+    -1; Goal registers then refuse writes (Data Range Error) until 98 is written 0. Writing 0
+    lets the motor follow its (old) goal again, the pessimistic reading. REBOOT resets RAM
+    and the multi-turn count (Present Position comes back within one turn). ``deaf`` cuts
+    the bus: packets from the host are lost, as with an unplugged cable.
+    """
 
     def __init__(self, master_fd: int) -> None:
         self.fd = master_fd
@@ -109,7 +131,10 @@ class FakeBus:
         self.writes: list[tuple[str, int, int, bytes]] = []  # (kind, id, addr, data)
         self.instructions: list[int] = []
         self.silent = False
+        self.deaf = False
         self.corrupt_crc = False
+        self.watchdog_trips = 0
+        self.last_packet = {i: time.monotonic() for i in IDS}
         self._buf = bytearray()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
@@ -130,6 +155,34 @@ class FakeBus:
         self._stop.set()
         self._thread.join(timeout=2)
 
+    # the motor
+    def _follow(self, dxl_id: int) -> None:
+        """Present Velocity = Goal Velocity with torque on and no watchdog stop, else 0."""
+        r = self.regs[dxl_id]
+        moving = r[ADDR_TORQUE_ENABLE] and r[ADDR_BUS_WATCHDOG] != 0xFF
+        goal = r[ADDR_GOAL_VELOCITY : ADDR_GOAL_VELOCITY + 4] if moving else bytes(4)
+        r[ADDR_PRESENT_VELOCITY : ADDR_PRESENT_VELOCITY + 4] = goal
+
+    def _watchdog(self) -> None:
+        now = time.monotonic()
+        with self.lock:
+            for i, r in self.regs.items():
+                wd = r[ADDR_BUS_WATCHDOG]
+                quiet = now - self.last_packet[i]
+                if r[ADDR_TORQUE_ENABLE] and 1 <= wd <= 127 and quiet > wd * WATCHDOG_UNIT_S:
+                    r[ADDR_BUS_WATCHDOG] = 0xFF  # -1: Bus Watchdog Error
+                    self.watchdog_trips += 1
+                    self._follow(i)
+
+    def _reboot(self, dxl_id: int) -> None:
+        r = self.regs[dxl_id]
+        ticks = to_signed32(int.from_bytes(r[ADDR_PRESENT_POSITION : ADDR_PRESENT_POSITION + 4],
+                                           "little"))
+        r[64:ADDR_PRESENT_POSITION] = bytes(ADDR_PRESENT_POSITION - 64)  # RAM to defaults
+        r[ADDR_PRESENT_POSITION : ADDR_PRESENT_POSITION + 4] = (ticks % 4096).to_bytes(
+            4, "little"
+        )  # the multi-turn count is lost
+
     # protocol
     def _send_status(self, dxl_id: int, err: int, params: bytes = b"") -> None:
         if self.silent:
@@ -148,19 +201,35 @@ class FakeBus:
         r = self.regs[dxl_id]
         if addr < 64 and r[ADDR_TORQUE_ENABLE]:
             return 7  # access error: EEPROM locked while torque is on
+        if addr in GOAL_REGISTERS and r[ADDR_BUS_WATCHDOG] == 0xFF:
+            return 4  # data range error: goals are read-only after a watchdog stop
         if addr == ADDR_GOAL_VELOCITY:
             limit = int.from_bytes(r[ADDR_VELOCITY_LIMIT : ADDR_VELOCITY_LIMIT + 4], "little")
             if abs(to_signed32(int.from_bytes(data, "little"))) > limit:
                 return 6  # data limit error: the goal is ignored
         r[addr : addr + len(data)] = data
-        if addr == ADDR_GOAL_VELOCITY and r[ADDR_TORQUE_ENABLE]:
-            r[ADDR_PRESENT_VELOCITY : ADDR_PRESENT_VELOCITY + 4] = data  # ideal motor
+        self._follow(dxl_id)
         self.writes.append((kind, dxl_id, addr, bytes(data)))
         return 0
 
+    def _heard(self, ids: object) -> None:
+        now = time.monotonic()
+        for i in ids:  # type: ignore[attr-defined]
+            if i in self.regs:
+                self.last_packet[i] = now
+
     def _handle(self, dxl_id: int, inst: int, p: bytes) -> None:
+        if self.deaf:
+            return
         self.instructions.append(inst)
         with self.lock:
+            if dxl_id == 0xFE and inst == 0x83:
+                n = int.from_bytes(p[2:4], "little")
+                self._heard(p[k] for k in range(4, len(p), n + 1))
+            elif dxl_id == 0xFE and inst == 0x82:
+                self._heard(p[4:])
+            else:
+                self._heard([dxl_id])
             if inst == 0x01 and dxl_id in self.regs:  # PING
                 self._send_status(dxl_id, 0, MODEL.to_bytes(2, "little") + b"\x2d")
             elif inst == 0x02 and dxl_id in self.regs:  # READ
@@ -172,8 +241,7 @@ class FakeBus:
                 self._send_status(dxl_id, err)
             elif inst == 0x08 and dxl_id in self.regs:  # REBOOT
                 self._send_status(dxl_id, 0)
-                self.regs[dxl_id][ADDR_HARDWARE_ERROR_STATUS] = 0
-                self.regs[dxl_id][ADDR_TORQUE_ENABLE] = 0
+                self._reboot(dxl_id)
             elif inst == 0x83 and dxl_id == 0xFE:  # SYNC_WRITE
                 addr, n = int.from_bytes(p[0:2], "little"), int.from_bytes(p[2:4], "little")
                 for k in range(4, len(p), n + 1):
@@ -206,13 +274,14 @@ class FakeBus:
 
     def _run(self) -> None:
         while not self._stop.is_set():
-            r, _, _ = select.select([self.fd], [], [], 0.02)
+            r, _, _ = select.select([self.fd], [], [], 0.005)
             if r:
                 try:
                     self._buf += os.read(self.fd, 4096)
                 except OSError:
                     return
                 self._parse()
+            self._watchdog()
 
 
 @pytest.fixture
@@ -228,7 +297,7 @@ def bus() -> Iterator[tuple[FakeBus, str]]:
 @pytest.fixture
 def driver(bus: tuple[FakeBus, str]) -> Iterator[tuple[DynamixelDriver, FakeBus]]:
     fake, path = bus
-    drv = DynamixelDriver(SPEC, port=path, latency_ms=LATENCY_MS)
+    drv = DynamixelDriver(BUS_SPEC, port=path, latency_ms=LATENCY_MS)
     drv.open()
     yield drv, fake
     drv.close()
@@ -240,6 +309,20 @@ def sync_goal_velocity_writes(fake: FakeBus) -> list[tuple[int, int]]:
         for kind, i, a, d in fake.writes
         if kind == "sync" and a == ADDR_GOAL_VELOCITY
     ]
+
+
+def wait_for(cond: object, timeout: float = 5.0) -> bool:
+    """Poll ``cond()`` until true (a generous bound for a loaded machine, not a timing test)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if cond():  # type: ignore[operator]
+            return True
+        time.sleep(0.005)
+    return False
+
+
+def present_velocities(fake: FakeBus) -> list[int]:
+    return [to_signed32(fake.get(i, ADDR_PRESENT_VELOCITY, 4)) for i in IDS]
 
 
 # ------------------------------------------------------------------------------- tests --
@@ -384,10 +467,90 @@ def test_silent_bus_raises_driver_error_and_stop_is_still_safe(
     fake.silent = True
     with pytest.raises(DriverError, match="pitch motor"):
         drv.read()
-    drv.stop()  # sync write needs no answer: it still lands
+    with pytest.raises(DriverError, match="stop"):
+        drv.stop()  # the motors cannot confirm it
     fake.silent = False
+    drv.stop()  # confirmed now (clearing the watchdog if the silence let it expire)
     drv.read()
     assert [fake.get(i, ADDR_GOAL_VELOCITY, 4) for i in IDS] == [0, 0]
+    assert present_velocities(fake) == [0, 0]
+
+
+def test_torque_on_arms_the_bus_watchdog_from_the_spec(
+    driver: tuple[DynamixelDriver, FakeBus],
+) -> None:
+    drv, fake = driver
+    drv.enable_torque(True)
+    units = round(BUS_SPEC.motors.bus_watchdog_s / WATCHDOG_UNIT_S)
+    assert 1 <= units <= 127
+    assert [fake.get(i, ADDR_BUS_WATCHDOG, 1) for i in IDS] == [units, units]
+
+
+def test_motors_stop_on_their_own_when_the_host_goes_quiet_and_stop_recovers(
+    driver: tuple[DynamixelDriver, FakeBus],
+) -> None:
+    drv, fake = driver
+    drv.enable_torque(True)
+    drv.set_velocity([1.0, -1.0])
+    drv.read()
+    assert all(v != 0 for v in present_velocities(fake))
+    # The host says nothing: the motors' own watchdog stops them.
+    assert wait_for(lambda: fake.watchdog_trips == 2)
+    assert present_velocities(fake) == [0, 0]
+    with pytest.raises(DriverError, match="watchdog"):
+        drv.read()  # the runtime learns of it as a failed read (a fault)
+    drv.stop()  # clears the watchdog without resuming the old goal, re-arms it
+    assert present_velocities(fake) == [0, 0]
+    assert [to_signed32(fake.get(i, ADDR_GOAL_VELOCITY, 4)) for i in IDS] == [0, 0]
+    assert all(fake.get(i, ADDR_BUS_WATCHDOG, 1) not in (0, 0xFF) for i in IDS)
+    assert all(fake.get(i, ADDR_TORQUE_ENABLE, 1) == 1 for i in IDS)
+    drv.read()
+    drv.set_velocity([0.5, 0.5])  # commands are accepted again
+    drv.read()
+    assert present_velocities(fake) == [round(0.5 / RAD_PER_UNIT)] * 2
+
+
+def test_a_stop_the_motors_never_receive_raises_and_the_watchdog_stops_them(
+    driver: tuple[DynamixelDriver, FakeBus],
+) -> None:
+    drv, fake = driver
+    drv.enable_torque(True)
+    drv.set_velocity([1.0, 1.0])
+    drv.read()
+    fake.deaf = True  # the cable is cut: the zero goal never arrives
+    with pytest.raises(DriverError, match="stop"):
+        drv.stop()
+    assert wait_for(lambda: fake.watchdog_trips == 2)
+    assert present_velocities(fake) == [0, 0]
+    with pytest.raises(DriverError):
+        drv.close()  # the failed stop is reported on the way out too; the port is closed
+    with pytest.raises(DriverError, match="not open"):
+        drv.read()
+
+
+def test_turn_count_survives_a_reboot(driver: tuple[DynamixelDriver, FakeBus]) -> None:
+    drv, fake = driver
+    zero = M.zero_ticks[1]
+    turns = 2.3
+    fake.set(IDS[1], ADDR_PRESENT_POSITION, 4, zero + round(turns * 4096))
+    assert drv.read().position[1] / (2 * math.pi) == pytest.approx(turns, abs=1e-3)
+    fake.set(IDS[1], ADDR_HARDWARE_ERROR_STATUS, 1, int(HardwareError.OVERLOAD))
+    drv.clear_errors()
+    # The motor lost its multi-turn count (the fake reports within one turn) ...
+    assert 0 <= fake.get(IDS[1], ADDR_PRESENT_POSITION, 4) < 4096
+    # ... the driver did not.
+    s = drv.read()
+    assert s.hardware_error == (0, 0)
+    assert s.position[1] / (2 * math.pi) == pytest.approx(turns, abs=1e-3)
+    # Later motion keeps counting from there: one more turn is +3.3, beyond the budget.
+    raw = to_signed32(fake.get(IDS[1], ADDR_PRESENT_POSITION, 4))
+    fake.set(IDS[1], ADDR_PRESENT_POSITION, 4, raw + 4096)
+    assert drv.read().position[1] / (2 * math.pi) == pytest.approx(turns + 1, abs=1e-3)
+    assert drv.read().position[1] > SPEC.wrist.roll_turn_budget * 2 * math.pi
+    # A second reboot keeps the offset too.
+    fake.set(IDS[1], ADDR_HARDWARE_ERROR_STATUS, 1, int(HardwareError.OVERHEATING))
+    drv.clear_errors()
+    assert drv.read().position[1] / (2 * math.pi) == pytest.approx(turns + 1, abs=1e-3)
 
 
 def test_corrupt_status_packets_raise_driver_error(
@@ -450,3 +613,26 @@ def test_velocity_limit_never_exceeds_spec_and_rejects_out_of_register() -> None
     assert ((units + 1) * RAD_PER_UNIT > np.array(SPEC.wrist.max_velocity)).all()
     with pytest.raises(ValueError, match=r"1\.\.1023"):
         velocity_limit_units([100.0, 1.0], M.velocity_unit_rpm)
+
+
+def test_bus_watchdog_timeout_fits_the_register_and_outlasts_a_late_tick() -> None:
+    units = bus_watchdog_units(SPEC.motors.bus_watchdog_s)
+    assert units * WATCHDOG_UNIT_S == pytest.approx(SPEC.motors.bus_watchdog_s)
+    for bad in (0.0, 0.01, 0.03, 2.56, math.nan):
+        with pytest.raises(ValueError, match="bus watchdog"):
+            bus_watchdog_units(bad)
+    data = tomllib.loads(default_spec_path().read_text())
+    data["motors"]["bus_watchdog_s"] = SPEC.wrist.period  # one late tick would stop the motors
+    with pytest.raises(SpecError, match=r"motors\.bus_watchdog_s.*two loop periods"):
+        parse_spec(data)
+
+
+@given(st.integers(-50_000, 50_000), st.integers(0, 4095), st.integers(-1000, 1000))
+def test_turns_lost_in_reboot_restores_the_unwrapped_position(
+    before: int, zero: int, moved: int
+) -> None:
+    tpr = M.ticks_per_rev
+    after = (before + moved) % tpr  # the motor reboots within one turn, the joint moved a bit
+    offset = turns_lost_in_reboot(before, after, tpr)
+    assert offset % tpr == 0
+    assert after + offset == before + moved

@@ -279,6 +279,8 @@ class MotorSpec(_Strict):
         Annotated[int, Field(ge=0, le=4095)], Annotated[int, Field(ge=0, le=4095)]
     ] = (2048, 2048)
     reboot_below_c: Finite  # °C: an overheated motor is rebooted only below this
+    # s: the motors stop themselves after this long without a packet (Bus Watchdog, 98)
+    bus_watchdog_s: Positive
 
 
 class ImuSpec(_Strict):
@@ -344,6 +346,10 @@ class Spec(_Strict):
         if shared:
             raise ValueError(f"wrist.joint_names must differ from the arm's joint names; "
                              f"{shared} is in both")
+        if self.motors.bus_watchdog_s < 2.0 * self.wrist.period:
+            raise ValueError(f"motors.bus_watchdog_s ({self.motors.bus_watchdog_s} s) must be at "
+                             f"least two loop periods ({2.0 * self.wrist.period:g} s): one late "
+                             "tick must not stop the motors")
         return self
 
     def utensil(self, name: str) -> UtensilSpec:

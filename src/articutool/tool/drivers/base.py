@@ -194,11 +194,16 @@ class MotorDriver(ABC):
 
     @abstractmethod
     def stop(self) -> None:
-        """Zero velocity (or hold position). Never raises; safe before open and after errors."""
+        """Zero velocity (or hold position); does nothing before ``open()``.
+
+        Raises ``DriverError`` when the motors may still be moving (the stop could not be sent
+        or was not confirmed): the caller must treat that as a fault, not as stopped.
+        """
 
     @abstractmethod
     def clear_errors(self) -> None:
-        """Reboot motors that report a hardware error (torque comes back off)."""
+        """Reboot motors that report a hardware error (torque comes back off). The reported
+        joint positions stay continuous across the reboot (whole roll turns included)."""
 
     def __enter__(self) -> MotorDriver:
         self.open()

@@ -12,7 +12,15 @@ Safety choices:
   if the host misbehaves. EEPROM registers are written only when they differ (flash wear).
 - Commands that are non-finite or above the limit raise ``ValueError`` and send nothing
   (the motor would reject an over-limit Goal Velocity and keep its previous goal).
-- ``stop()`` never raises: the runtime calls it on every fault path.
+- ``enable_torque(True)`` arms the Bus Watchdog (register 98) with ``spec.motors.bus_watchdog_s``:
+  a motor that hears no packet for that long stops itself (host hung, cable cut). It then
+  refuses goal writes until the watchdog is cleared; ``read()`` raises ``DriverError`` (the
+  runtime faults) and the next ``stop()`` clears it with torque off, so the old goal never
+  resumes, and re-arms it.
+- ``stop()`` writes the no-motion goal and reads it back; it raises ``DriverError`` when the
+  motors do not confirm it (the watchdog then stops them within ``bus_watchdog_s``).
+- The multi-turn count survives a reboot (``clear_errors``): a rebooted X-series motor reports
+  its position within one turn again, so the driver keeps the lost whole turns as an offset.
 """
 
 from __future__ import annotations
@@ -42,6 +50,7 @@ from articutool.tool.drivers.base import (
 )
 
 __all__ = [
+    "ADDR_BUS_WATCHDOG",
     "ADDR_GOAL_POSITION",
     "ADDR_GOAL_VELOCITY",
     "ADDR_HARDWARE_ERROR_STATUS",
@@ -57,12 +66,14 @@ __all__ = [
     "OPERATING_MODE_POSITION",
     "OPERATING_MODE_VELOCITY",
     "DynamixelDriver",
+    "bus_watchdog_units",
     "position_limit_ticks",
     "rad_s_to_velocity_units",
     "rad_to_ticks",
     "ticks_to_rad",
     "to_signed32",
     "to_unsigned32",
+    "turns_lost_in_reboot",
     "velocity_limit_units",
     "velocity_unit_rad_s",
     "velocity_units_to_rad_s",
@@ -75,21 +86,27 @@ ADDR_MAX_POSITION_LIMIT = 48  # 4 B, EEPROM, 0..4095 ticks
 ADDR_MIN_POSITION_LIMIT = 52  # 4 B, EEPROM
 ADDR_TORQUE_ENABLE = 64  # 1 B
 ADDR_HARDWARE_ERROR_STATUS = 70  # 1 B
+ADDR_BUS_WATCHDOG = 98  # 1 B, signed: 0 off/clear, 1..127 × 20 ms, -1 expired (e-manual)
 ADDR_GOAL_VELOCITY = 104  # 4 B, signed
 ADDR_GOAL_POSITION = 116  # 4 B
 ADDR_PRESENT_VELOCITY = 128  # 4 B, signed
 ADDR_PRESENT_POSITION = 132  # 4 B, signed
 ADDR_PRESENT_INPUT_VOLTAGE = 144  # 2 B, 0.1 V
 ADDR_PRESENT_TEMPERATURE = 146  # 1 B, °C
-# One sync read covers Present Velocity .. Present Temperature.
-_STATUS_START = ADDR_PRESENT_VELOCITY
-_STATUS_LEN = ADDR_PRESENT_TEMPERATURE + 1 - ADDR_PRESENT_VELOCITY  # 19 bytes
+# One sync read covers Bus Watchdog .. Present Temperature (goals included).
+_STATUS_START = ADDR_BUS_WATCHDOG
+_STATUS_LEN = ADDR_PRESENT_TEMPERATURE + 1 - ADDR_BUS_WATCHDOG  # 49 bytes
+# stop() reads back Bus Watchdog .. Goal Position.
+_GOALS_LEN = ADDR_GOAL_POSITION + 4 - ADDR_BUS_WATCHDOG
 
 OPERATING_MODE_VELOCITY = 1
 OPERATING_MODE_POSITION = 3  # single-turn; Min/Max Position Limit registers apply
 _VELOCITY_LIMIT_MAX_UNITS = 1023  # register range (e-manual)
 _POSITION_TICKS_MAX = 4095
 _ERRBIT_ALERT = 0x80  # status-packet error byte: "check Hardware Error Status"
+_WATCHDOG_UNIT_S = 0.020  # Bus Watchdog register unit (e-manual)
+_WATCHDOG_MAX_UNITS = 127
+_WATCHDOG_EXPIRED = 0xFF  # -1 as the register's one byte
 
 
 # --- pure unit conversions -----------------------------------------------------------------
@@ -121,6 +138,27 @@ def velocity_limit_units(max_velocity: ArrayLike, unit_rpm: float) -> NDArray[np
             f"1..{_VELOCITY_LIMIT_MAX_UNITS}"
         )
     return units
+
+
+def bus_watchdog_units(timeout_s: float) -> int:
+    """Bus Watchdog register value (20 ms units) for a timeout; refuses one the register cannot
+    hold exactly (1..127 units)."""
+    if not math.isfinite(timeout_s):
+        raise ValueError(f"bus watchdog timeout must be finite; got {timeout_s}")
+    units = round(timeout_s / _WATCHDOG_UNIT_S)
+    if not 1 <= units <= _WATCHDOG_MAX_UNITS or abs(units * _WATCHDOG_UNIT_S - timeout_s) > 1e-9:
+        raise ValueError(
+            f"bus watchdog timeout {timeout_s} s is not a multiple of {_WATCHDOG_UNIT_S} s in "
+            f"[{_WATCHDOG_UNIT_S}, {_WATCHDOG_MAX_UNITS * _WATCHDOG_UNIT_S:g}] s"
+        )
+    return units
+
+
+def turns_lost_in_reboot(before_ticks: int, after_ticks: int, ticks_per_rev: int) -> int:
+    """Whole turns (as ticks) to add to the position a motor reports after a reboot, given the
+    (unwrapped) ticks before it: the reboot keeps the angle within the turn and loses the turn
+    count, and the joint cannot move half a turn while the motor boots."""
+    return round((before_ticks - after_ticks) / ticks_per_rev) * ticks_per_rev
 
 
 def rad_to_ticks(q: ArrayLike, zero_ticks: ArrayLike, ticks_per_rev: int) -> NDArray[np.int64]:
@@ -222,13 +260,16 @@ class DynamixelDriver(MotorDriver):
         self._pos_limit_ticks = position_limit_ticks(spec.wrist.limits, self._zero, self._tpr)
         # Position commands are checked against what the registers will actually allow.
         self._pos_limits = ticks_to_rad(self._pos_limit_ticks, self._zero[:, None], self._tpr)
+        self._watchdog_s = m.bus_watchdog_s
+        self._watchdog_units = bus_watchdog_units(m.bus_watchdog_s)
+        # Whole turns (ticks) each motor lost in reboots; added to what it reports.
+        self._turn_offset = np.zeros(2, dtype=np.int64)
         self._port: PortHandler | None = None
         self._ph = PacketHandler(2.0)
         self._mode: MotorMode = "velocity"
         self._torque = False
-        self._last_ticks: NDArray[np.int64] | None = None
+        self._last_ticks: NDArray[np.int64] | None = None  # raw, as the motors report them
         self.model_numbers: tuple[int, int] = (0, 0)
-        self.last_error: str = ""
 
     # --- low-level helpers ---------------------------------------------------------------
     def _require_open(self) -> PortHandler:
@@ -267,6 +308,26 @@ class DynamixelDriver(MotorDriver):
         res = gsw.txPacket()
         if res != COMM_SUCCESS:
             raise DriverError(f"sync write of {what}: {self._ph.getTxRxResult(res)}")
+
+    def _sync_read(self, start: int, length: int, what: str) -> tuple[list[list[int]], list[bool]]:
+        """One sync read of ``length`` bytes from ``start`` on both motors: the rows and each
+        motor's alert bit."""
+        port = self._require_open()
+        res = self._ph.syncReadTx(port, start, length, list(self._ids), 2, False)
+        if res != COMM_SUCCESS:
+            raise DriverError(f"sync read of {what}: {self._ph.getTxRxResult(res)}")
+        rows: list[list[int]] = []
+        alerts: list[bool] = []
+        for i, dxl_id in enumerate(self._ids):
+            data, res, err = self._ph.readRx(port, dxl_id, length)
+            self._check(i, res, err, f"sync read of {what}")
+            if len(data) != length:
+                raise DriverError(
+                    f"{JOINTS[i]} motor (ID {dxl_id}): {len(data)} status bytes, expected {length}"
+                )
+            rows.append(data)
+            alerts.append(bool(err & _ERRBIT_ALERT))
+        return rows, alerts
 
     def _set_torque(self, on: bool) -> None:
         for i in range(2):
@@ -332,27 +393,39 @@ class DynamixelDriver(MotorDriver):
         if self._port is not None:
             try:
                 self._port.closePort()
-            except Exception as e:
-                self.last_error = f"closing port: {e}"
-            self._port = None
+            finally:
+                self._port = None
 
     def close(self) -> None:
-        """Stop, torque off (best effort), close the port."""
+        """Stop, torque off, close the port; then raise ``DriverError`` if the stop or the
+        torque off failed (the port is closed either way)."""
         if self._port is None:
             return
-        self.stop()
+        errors = []
+        try:
+            self.stop()
+        except DriverError as e:
+            errors.append(str(e))
         try:
             self._set_torque(False)
         except Exception as e:
-            self.last_error = str(e)
-        self._close_port()
+            errors.append(f"torque off failed: {e}")
+        try:
+            self._close_port()
+        except Exception as e:
+            errors.append(f"closing port: {e}")
+        if errors:
+            raise DriverError("; ".join(errors))
 
     def enable_torque(self, on: bool) -> None:
-        """Torque on (after setting a no-motion goal) or off."""
+        """Torque on (after setting a no-motion goal), then arm the bus watchdog; or off."""
         self._require_open()
         if on:
             self._hold_targets()
         self._set_torque(bool(on))
+        if on:  # the watchdog watches only while torque is on; a reboot clears it
+            for i in range(2):
+                self._write(i, ADDR_BUS_WATCHDOG, 1, self._watchdog_units, "Bus Watchdog")
 
     def set_mode(self, mode: MotorMode) -> None:
         """Stop, torque off, write Operating Mode (and position limits), restore torque."""
@@ -402,24 +475,10 @@ class DynamixelDriver(MotorDriver):
         )
 
     def read(self) -> MotorState:
-        """One sync read of Present Velocity..Temperature; Hardware Error Status is read
-        only for a motor whose status packet carries the alert bit."""
-        port = self._require_open()
-        res = self._ph.syncReadTx(port, _STATUS_START, _STATUS_LEN, list(self._ids), 2, False)
-        if res != COMM_SUCCESS:
-            raise DriverError(f"sync read: {self._ph.getTxRxResult(res)}")
-        rows: list[list[int]] = []
-        alerts: list[bool] = []
-        for i, dxl_id in enumerate(self._ids):
-            data, res, err = self._ph.readRx(port, dxl_id, _STATUS_LEN)
-            self._check(i, res, err, "sync read of present values")
-            if len(data) != _STATUS_LEN:
-                raise DriverError(
-                    f"{JOINTS[i]} motor (ID {dxl_id}): {len(data)} status bytes, "
-                    f"expected {_STATUS_LEN}"
-                )
-            rows.append(data)
-            alerts.append(bool(err & _ERRBIT_ALERT))
+        """One sync read of Bus Watchdog..Present Temperature; Hardware Error Status is read
+        only for a motor whose status packet carries the alert bit. Raises ``DriverError``
+        when a motor's bus watchdog has stopped it (the next ``stop()`` clears that)."""
+        rows, alerts = self._sync_read(_STATUS_START, _STATUS_LEN, "present values")
         hw = tuple(
             self._read(i, ADDR_HARDWARE_ERROR_STATUS, 1, "Hardware Error Status")
             if alerts[i]
@@ -430,13 +489,21 @@ class DynamixelDriver(MotorDriver):
         def field(row: list[int], addr: int, size: int) -> int:
             return _from_le(row, addr - _STATUS_START, size)
 
-        vel_units = [to_signed32(field(r, ADDR_PRESENT_VELOCITY, 4)) for r in rows]
         ticks = np.array([to_signed32(field(r, ADDR_PRESENT_POSITION, 4)) for r in rows])
+        self._last_ticks = ticks
+        expired = [JOINTS[i] for i, r in enumerate(rows)
+                   if field(r, ADDR_BUS_WATCHDOG, 1) == _WATCHDOG_EXPIRED]
+        if expired:
+            raise DriverError(
+                f"bus watchdog expired on the {' and '.join(expired)} motor: no packet for "
+                f"{self._watchdog_s:g} s (spec.motors.bus_watchdog_s), the motors stopped "
+                "themselves; stop() clears it"
+            )
+        vel_units = [to_signed32(field(r, ADDR_PRESENT_VELOCITY, 4)) for r in rows]
         volts = [field(r, ADDR_PRESENT_INPUT_VOLTAGE, 2) * self._volt_unit for r in rows]
         temps = [float(field(r, ADDR_PRESENT_TEMPERATURE, 1)) for r in rows]
-        self._last_ticks = ticks
         return MotorState(
-            position=ticks_to_rad(ticks, self._zero, self._tpr),
+            position=ticks_to_rad(ticks + self._turn_offset, self._zero, self._tpr),
             velocity=velocity_units_to_rad_s(vel_units, self._unit_rpm),
             hardware_error=(int(hw[0]), int(hw[1])),
             input_voltage=min(volts),
@@ -444,38 +511,80 @@ class DynamixelDriver(MotorDriver):
             stamp=self._clock(),
         )
 
-    def stop(self) -> None:
-        """Zero Goal Velocity (velocity mode) or hold the last read position (position mode).
+    def _stop_goals(self) -> tuple[int, list[int]] | None:
+        """The no-motion goal register and values: zero velocity, or hold the last read
+        position; None in position mode before any read."""
+        if self._mode == "velocity":
+            return ADDR_GOAL_VELOCITY, [0, 0]
+        if self._last_ticks is None:
+            return None
+        return ADDR_GOAL_POSITION, [to_unsigned32(int(t)) for t in self._last_ticks]
 
-        Never raises; a failure is kept in ``last_error``. Clears the SDK's port-busy flag
-        first, since a transaction interrupted by an exception leaves it set.
+    def _clear_watchdog(self) -> None:
+        """Clear an expired bus watchdog without resuming the old goal: torque off (the motor
+        cannot move), clear, no-motion goal, then torque on and re-arm if it was on."""
+        was_on = self._torque
+        self._set_torque(False)
+        for i in range(2):
+            self._write(i, ADDR_BUS_WATCHDOG, 1, 0, "Bus Watchdog")
+        if was_on:
+            self.enable_torque(True)
+        else:
+            self._hold_targets()
+
+    def stop(self) -> None:
+        """Zero Goal Velocity (velocity mode) or hold the last read position (position mode),
+        and read the goals back; clears an expired bus watchdog (see ``_clear_watchdog``).
+
+        Raises ``DriverError`` when the goal cannot be sent or the motors do not confirm it:
+        they may still be moving, until their watchdog stops them. Does nothing before
+        ``open()``. Clears the SDK's port-busy flag first, since a transaction interrupted by
+        an exception leaves it set.
         """
         port = self._port
         if port is None:
             return
         port.is_using = False
+        goals = self._stop_goals()
+        if goals is None:
+            return
+        addr, values = goals
         try:
-            if self._mode == "velocity":
-                self._sync_write(ADDR_GOAL_VELOCITY, 4, [0, 0], "Goal Velocity")
-            elif self._last_ticks is not None:
-                self._sync_write(
-                    ADDR_GOAL_POSITION,
-                    4,
-                    [to_unsigned32(int(t)) for t in self._last_ticks],
-                    "Goal Position",
-                )
-        except Exception as e:
-            self.last_error = f"stop failed: {e}"
+            self._sync_write(addr, 4, values, "stop goal")
+            rows, _ = self._sync_read(ADDR_BUS_WATCHDOG, _GOALS_LEN, "goals")
+            if any(r[0] == _WATCHDOG_EXPIRED for r in rows):
+                self._clear_watchdog()
+                rows, _ = self._sync_read(ADDR_BUS_WATCHDOG, _GOALS_LEN, "goals")
+            for i, r in enumerate(rows):
+                held = _from_le(r, addr - ADDR_BUS_WATCHDOG, 4)
+                if held != values[i]:
+                    raise DriverError(
+                        f"{JOINTS[i]} motor (ID {self._ids[i]}) holds goal {to_signed32(held)} "
+                        f"at register {addr}, not the stop goal {to_signed32(values[i])}"
+                    )
+        except Exception as e:  # DriverError, or pyserial's errors from a vanished port
+            raise DriverError(
+                f"stop not confirmed: {e}; the motors may keep their last goal until their "
+                f"bus watchdog stops them ({self._watchdog_s:g} s after the last packet)"
+            ) from e
 
     def clear_errors(self) -> None:
-        """Reboot each motor whose Hardware Error Status is non-zero; torque comes back off."""
+        """Reboot each motor whose Hardware Error Status is non-zero; torque comes back off.
+
+        The reboot loses the motor's multi-turn count; the whole turns it lost are kept in the
+        driver's turn offset, so the reported roll (and the cable budget) stays true.
+        """
         port = self._require_open()
         for i, dxl_id in enumerate(self._ids):
             if self._read(i, ADDR_HARDWARE_ERROR_STATUS, 1, "Hardware Error Status"):
+                before = to_signed32(self._read(i, ADDR_PRESENT_POSITION, 4, "Present Position"))
+                before += int(self._turn_offset[i])
                 res, err = self._ph.reboot(port, dxl_id)
                 self._check(i, res, err, "reboot")
                 self._torque = False
                 self._wait_for_boot(i)
+                after = to_signed32(self._read(i, ADDR_PRESENT_POSITION, 4, "Present Position"))
+                self._turn_offset[i] = turns_lost_in_reboot(before, after, self._tpr)
 
     def _wait_for_boot(self, i: int, attempts: int = 10) -> None:
         """After REBOOT the motor is silent while it boots; ping it until it answers (each
