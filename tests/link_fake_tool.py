@@ -40,6 +40,7 @@ class FakeTool:
         self._last: PrimitiveStatus | None = None
         self._cancelled = False
         self.trajectories: list[JointTrajectory] = []
+        self.start_delays: list[float] = []
         self.calls: list[str] = []
 
     def set_mode(self, mode: Mode, pitch_offset_deg: float = 0.0,
@@ -128,11 +129,13 @@ class FakeTool:
             self._abort_locked("cancelled")
             return True
 
-    def follow_trajectory(self, trajectory: JointTrajectory) -> tuple[bool, str]:
+    def follow_trajectory(self, trajectory: JointTrajectory,
+                          start_delay: float = 0.0) -> tuple[bool, str]:
         with self._lock:
             if list(trajectory.joint_names) != ["pitch", "roll"]:
                 return False, "joint_names must be ['pitch', 'roll']"
             self.trajectories.append(trajectory)
+            self.start_delays.append(start_delay)
             self.mode = Mode.TRAJECTORY
             return True, "following"
 

@@ -125,6 +125,20 @@ def test_trajectory_is_forwarded(rig: Rig) -> None:
     assert wait_until(lambda: rig.server.counters["rejected_trajectories"] == 1)
 
 
+def test_a_future_header_stamp_delays_the_start(rig: Rig) -> None:
+    """time 0 of a wrist trajectory is its header.stamp (item 7), or arrival if zero."""
+    traj = JointTrajectory(("pitch", "roll"), np.array([0.0, 1.0]), np.array([[0, 0], [0.2, 0.3]]),
+                           np.zeros((2, 2)))
+    rig.client.follow_trajectory(traj)
+    rig.client.follow_trajectory(traj, start_at=time.time() + 30.0)
+    assert wait_until(lambda: len(rig.tool.start_delays) == 2)
+    now_delay, later_delay = rig.tool.start_delays
+    assert now_delay == 0.0
+    assert 0.0 < later_delay <= 30.0
+    with pytest.raises(ValueError, match="start_at"):
+        rig.client.follow_trajectory(traj, start_at=math.nan)
+
+
 def test_malformed_payloads_are_counted_and_nothing_crashes(rig: Rig) -> None:
     evil = MemoryTransport(rig.bus)
     n = rig.server.names

@@ -11,6 +11,7 @@ again the same client works again — nothing needs re-creating.
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 import uuid
@@ -297,18 +298,25 @@ class ArticutoolClient:
         resp = self._call(self.names.cancel_goal, m.cancel_request(gid))
         return int(resp.return_code) == 0 and len(resp.goals_canceling) > 0
 
-    def follow_trajectory(self, trajectory: JointTrajectory) -> None:
+    def follow_trajectory(self, trajectory: JointTrajectory,
+                          start_at: float | None = None) -> None:
         """Publish a wrist trajectory (joint names [pitch, roll]) for the tool to follow.
 
-        Fire-and-forget like a ROS topic; raises ToolSilentError if the tool is silent
-        (nothing is sent into the void).
+        ``start_at``: wall-clock time (``time.time()``) of the trajectory's time 0, sent as
+        ``header.stamp`` (e.g. the arm trajectory's start, to run both in step; the PC's and
+        the tool's clocks must be synchronised); the tool holds its position until then.
+        None starts it on arrival (stamp zero, as in ROS). Fire-and-forget like a ROS topic;
+        raises ToolSilentError if the tool is silent (nothing is sent into the void).
         """
         if not isinstance(trajectory, JointTrajectory):
             raise TypeError("trajectory must be an articutool.trajectory.JointTrajectory")
         if not self.tool_alive:
             raise ToolSilentError(f"not sending the trajectory: {self._silence()}")
         ep = self.names.joint_trajectory
-        self.transport.publish(ep, m.encode(m.trajectory_msg(trajectory, time.time()), ep.type))
+        if start_at is not None and not (math.isfinite(start_at) and start_at > 0):
+            raise ValueError(f"start_at must be a wall-clock time > 0; got {start_at!r}")
+        stamp = 0.0 if start_at is None else float(start_at)
+        self.transport.publish(ep, m.encode(m.trajectory_msg(trajectory, stamp), ep.type))
 
     def close(self) -> None:
         """Stop the heartbeat, undeclare everything and close the transport."""

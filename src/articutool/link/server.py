@@ -242,9 +242,14 @@ class ToolServer:
         self._publish_status()
 
     def _on_trajectory(self, data: bytes) -> None:
-        traj = m.trajectory_from_msg(m.decode(data, self.names.joint_trajectory.type))
+        message = m.decode(data, self.names.joint_trajectory.type)
+        traj = m.trajectory_from_msg(message)
         self._client_seen()
-        ok, msg = self._ask(self.api.follow_trajectory, traj)
+        # As ROS trajectory controllers: time 0 is header.stamp (wall clock, so the PC's and
+        # the tool's clocks must agree), or arrival when the stamp is zero.
+        stamp = m.stamp_to_time(message.header.stamp)
+        delay = stamp - time.time() if stamp > 0 else 0.0
+        ok, msg = self._ask(self.api.follow_trajectory, traj, delay)
         if not ok:
             with self._lock:
                 self.counters["rejected_trajectories"] += 1
