@@ -8,6 +8,7 @@ DT)``), so everything but the real-time tests runs faster than real time.
 from __future__ import annotations
 
 import io
+import logging
 import math
 import os
 import signal
@@ -395,6 +396,68 @@ def test_failed_motor_read_is_a_fault_until_the_motors_answer():
     assert rt.set_mode(Mode.LEVELING)[0] and rt.fault == ""
 
 
+class StuckMotors(SpyMotors):
+    """Motors whose stop can fail: ``fail_stops`` makes ``stop`` raise and leaves the motors
+    running at their last goal, as a cut bus does."""
+
+    def __init__(self, sim: SimWrist) -> None:
+        super().__init__(sim)
+        self.fail_stops = False
+
+    def stop(self) -> None:
+        if self.fail_stops:
+            raise DriverError("stop not confirmed: no status packet")
+        super().stop()
+
+
+def test_a_failed_stop_is_a_fault_and_telemetry_keeps_the_command_written():
+    sim = SimWrist(SPEC, seed=3)
+    sim.set_base_pose(R0)
+    motors = StuckMotors(sim)
+    rt = ToolRuntime(SPEC, motors, sim.imu_driver(), clock=sim.clock)
+    rt.open()
+    run(sim, rt, 0.5)
+    assert rt.start_primitive("TWIRL_CW", [1.0, 2.0])[0]
+    run(sim, rt, 0.3)
+    written = motors.commands[-1]
+    assert abs(written[1]) > 0.5
+    motors.fail_stops = True
+    assert rt.cancel_primitive()  # the stop it sends fails
+    st = rt.state()
+    assert "motor stop failed" in st.fault and st.mode is Mode.DISABLED
+    # The motors still run at the last goal, and telemetry says so, not "0".
+    st = run(sim, rt, 0.1)
+    assert abs(sim.qd[1]) > 0.5
+    assert (st.extra["command_pitch"], st.extra["command_roll"]) == tuple(written)
+    assert st.extra["motor_stop_failures"] >= 1
+    assert rt.set_mode(Mode.DISABLED) == (True, "DISABLED; fault persists: "
+                                          "the motors do not confirm a stop")
+    assert not rt.set_mode(Mode.LEVELING)[0]
+    motors.fail_stops = False
+    st = run(sim, rt, 0.1)  # DISABLED stops every tick: now confirmed
+    assert (st.extra["command_pitch"], st.extra["command_roll"]) == (0.0, 0.0)
+    assert rt.set_mode(Mode.DISABLED)[0] and rt.fault == ""
+    rt.close()
+
+
+def test_a_failed_stop_at_shutdown_is_reported(caplog):
+    sim = SimWrist(SPEC, seed=3)
+    sim.set_base_pose(R0)
+    motors = StuckMotors(sim)
+    rt = ToolRuntime(SPEC, motors, sim.imu_driver(), clock=sim.clock)
+    rt.open()
+    run(sim, rt, 0.2)
+    motors.fail_stops = True
+    stop = threading.Event()
+    stop.set()
+    with caplog.at_level(logging.ERROR):
+        rt.run(stop)  # the loop's exit stops the motors
+        rt.close()
+    assert "motor stop failed" in rt.fault
+    assert not rt.motors_stopped
+    assert any("motor stop failed" in r.getMessage() for r in caplog.records)
+
+
 def _narrow_spec(pitch_limit):
     w = SPEC.wrist.model_copy(update={"pitch_limits": (-pitch_limit, pitch_limit)})
     return SPEC.model_copy(update={"wrist": w})
@@ -736,7 +799,9 @@ def test_tool_command_rejects_a_bad_duration():
 def test_tool_command_exits_0_on_sigint():
     code = "import sys; from articutool.tool.cli import main; sys.exit(main(sys.argv[1:]))"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    p = subprocess.Popen([sys.executable, "-c", code, "--driver", "sim"],
+    # No link: the default endpoint may be in use (the tool then exits 2); Ctrl-C with the
+    # link served, under load, is test_tool_cli.py::test_sigint_stops_the_tool_cleanly.
+    p = subprocess.Popen([sys.executable, "-c", code, "--driver", "sim", "--no-serve"],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
         first = p.stdout.readline()  # the first status line: the loop is running
