@@ -39,7 +39,12 @@ cause is kept, sticky):
   stop a primitive or a trajectory, which run on the joint encoders; entering LEVELING with a
   stale IMU is refused;
 - a non-finite command, or any exception raised inside the tick (no exception escapes the
-  loop; the traceback is logged).
+  loop; the traceback is logged);
+- a stop the motors do not confirm (``MotorDriver.stop`` raised): they may still run at their
+  last command, which telemetry keeps reporting (``command_*`` is what was last written, zero
+  only once a stop is confirmed); the motors' bus watchdog stops them
+  ``spec.motors.bus_watchdog_s`` after the last packet. The cause is gone once a stop is
+  confirmed (DISABLED retries every tick).
 
 The fault is cleared by the next successful :meth:`~ToolRuntime.set_mode` only when its cause
 is gone (fresh IMU, no hardware error, motors answering). ``set_mode(DISABLED)`` always
@@ -213,6 +218,9 @@ class ToolRuntime:
         self._fault = ""
         self._fault_kind = ""
         self._faults_total = 0
+        self._stop_ok = True  # the last motors.stop() was confirmed
+        self._stop_failures = 0
+        self._in_stop_fault = False
         self._reboot_requested = False
         self._limit_recovery = np.zeros(2, dtype=bool)
         # sensing
@@ -467,6 +475,11 @@ class ToolRuntime:
         """Why the motors were stopped; empty when healthy."""
         return self._fault
 
+    @property
+    def motors_stopped(self) -> bool:
+        """Whether the last stop sent to the motors was confirmed."""
+        return self._stop_ok
+
     def reset_stats(self) -> None:
         """Forget the loop timing statistics (e.g. after start-up)."""
         with self._lock:
@@ -583,7 +596,6 @@ class ToolRuntime:
 
         # 5. the mode's command
         if self._mode is Mode.DISABLED:
-            self._command = np.zeros(2)
             self._stop_motors()
             return
         if self._mode is Mode.LEVELING:
@@ -781,11 +793,25 @@ class ToolRuntime:
         self._stop_motors()
 
     def _stop_motors(self) -> None:
-        self._command = np.zeros(2)
+        """Stop the motors. The command reads zero only once the stop is confirmed; a failed
+        stop is a fault (the motors may run on until their bus watchdog stops them)."""
         try:
             self.motors.stop()
-        except Exception:  # stop() must not raise; be defensive anyway
-            log.exception("motors.stop() raised")
+        except Exception as exc:
+            message = f"motor stop failed: {type(exc).__name__}: {exc}"
+            self._stop_failures += 1
+            if self._stop_ok and self._fault:  # else _set_fault logs it as the fault
+                log.error("%s", message)
+            self._stop_ok = False
+            if not self._in_stop_fault:  # _set_fault stops again: no recursion
+                self._in_stop_fault = True
+                try:
+                    self._set_fault("motor_stop", message)
+                finally:
+                    self._in_stop_fault = False
+            return
+        self._stop_ok = True
+        self._command = np.zeros(2)
 
     def _set_fault(self, kind: str, message: str) -> None:
         """Safe state: stop, DISABLED, keep the first cause."""
@@ -821,6 +847,8 @@ class ToolRuntime:
             return f"motor hardware error: {ms.describe_errors()}"
         if kind == "imu_stale" and not self._imu_fresh:
             return "IMU data still stale"
+        if kind == "motor_stop" and not self._stop_ok:
+            return "the motors do not confirm a stop"
         return ""
 
     def _outside_envelope(self, q: NDArray[np.float64]) -> list[int]:
@@ -881,6 +909,7 @@ class ToolRuntime:
             "tick_compute_mean_s": self.stats.compute_mean,
             "tick_compute_max_s": self.stats.compute_max,
             "faults_total": float(self._faults_total),
+            "motor_stop_failures": float(self._stop_failures),
             "battery_used_wh": used,
             "battery_remaining_pct": 100.0 * left / self.spec.power.battery_wh,
             "battery_runtime_h": left / self._mode_power[self._mode],
