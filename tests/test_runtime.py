@@ -792,6 +792,22 @@ def test_run_tool_levels_the_sim_and_stops_cleanly():
     assert not motors.torque_enabled and not motors._open
 
 
+def test_run_tool_says_when_the_motors_did_not_confirm_the_stop():
+    sim = SimWrist(SPEC, seed=0)
+    sim.set_base_pose(R0)
+    motors = StuckMotors(sim)
+    rt = ToolRuntime(SPEC, motors, sim.imu_driver(), clock=sim.clock)
+    out = io.StringIO()
+    stop = threading.Event()
+    threading.Timer(0.3, lambda: setattr(motors, "fail_stops", True)).start()
+    threading.Timer(0.5, stop.set).start()
+    rc = run_tool(rt, level=False, out=out, stop_event=stop)
+    text = out.getvalue()
+    assert rc == 1
+    assert "stopped: motors stopped" not in text
+    assert "motors did not confirm the stop" in text and "bus watchdog" in text
+
+
 def test_tool_command_rejects_a_bad_duration():
     assert main(["--duration", "-1"]) == 2
 

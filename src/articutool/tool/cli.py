@@ -163,7 +163,7 @@ def run_tool(
 ) -> int:
     """Open ``runtime`` (unless ``opened``), start the services and the loop, show status
     until ``duration`` elapses, ``stop_event`` is set or Ctrl-C; then stop the motors and
-    close. Returns 0.
+    close. Returns 0, or 1 when the motors did not confirm the final stop.
 
     ``runtime`` is a :class:`~articutool.tool.runtime.ToolRuntime` (open/run/close + ToolAPI).
     """
@@ -217,8 +217,15 @@ def run_tool(
         if tty:
             out.write("\n")
         print(format_status(final), file=out)
-        print("stopped: motors stopped, torque off, drivers closed", file=out)
-    return 0
+        stopped = rt.motors_stopped  # type: ignore[attr-defined]
+        if stopped:
+            print("stopped: motors stopped, torque off, drivers closed", file=out)
+        else:
+            fault = rt.fault  # type: ignore[attr-defined]
+            watchdog_s = rt.spec.motors.bus_watchdog_s  # type: ignore[attr-defined]
+            print(f"error: the motors did not confirm the stop ({fault}); they stop "
+                  f"themselves {watchdog_s:g} s after the last packet (bus watchdog)", file=out)
+    return 0 if stopped else 1
 
 
 def _install_sigterm(stop: threading.Event) -> object:
