@@ -23,6 +23,7 @@ from hypothesis import strategies as st
 
 from articutool import load_spec
 from articutool.spec import SpecError, default_spec_path, parse_spec
+from articutool.tool.api import Mode
 from articutool.tool.drivers.base import DriverError, HardwareError
 from articutool.tool.drivers.dynamixel import (
     ADDR_BUS_WATCHDOG,
@@ -49,6 +50,8 @@ from articutool.tool.drivers.dynamixel import (
     velocity_limit_units,
     velocity_units_to_rad_s,
 )
+from articutool.tool.drivers.sim import SimWrist
+from articutool.tool.runtime import ToolRuntime
 
 SPEC = load_spec()
 M = SPEC.motors
@@ -551,6 +554,42 @@ def test_turn_count_survives_a_reboot(driver: tuple[DynamixelDriver, FakeBus]) -
     fake.set(IDS[1], ADDR_HARDWARE_ERROR_STATUS, 1, int(HardwareError.OVERHEATING))
     drv.clear_errors()
     assert drv.read().position[1] / (2 * math.pi) == pytest.approx(turns + 1, abs=1e-3)
+
+
+def test_runtime_keeps_the_cable_budget_across_a_motor_reboot(bus: tuple[FakeBus, str]) -> None:
+    """The runtime on the real driver: roll at +2.3 turns, OVERLOAD, clear_fault reboots the
+    motor (which forgets its turns); the roll still reads +2.3 turns and one more turn, which
+    would pass the ±3-turn cable budget, is refused."""
+    fake, path = bus
+    fake.set(IDS[0], ADDR_PRESENT_POSITION, 4, M.zero_ticks[0])
+    fake.set(IDS[1], ADDR_PRESENT_POSITION, 4, M.zero_ticks[1] + round(2.3 * 4096))
+    sim = SimWrist(BUS_SPEC, seed=0)  # only its IMU stream; the joints are the fake bus's
+    rt = ToolRuntime(BUS_SPEC, DynamixelDriver(BUS_SPEC, port=path, latency_ms=LATENCY_MS),
+                     sim.imu_driver(), clock=sim.clock)
+    rt.open()
+    try:
+        t = 0.0
+        for _ in range(3):
+            t += BUS_SPEC.wrist.period
+            st = rt.tick(t)
+        assert st.position[1] / (2 * math.pi) == pytest.approx(2.3, abs=1e-3)
+        fake.set(IDS[1], ADDR_HARDWARE_ERROR_STATUS, 1, int(HardwareError.OVERLOAD))
+        t += BUS_SPEC.wrist.period
+        assert "OVERLOAD" in rt.tick(t).fault
+        assert rt.clear_fault()[0]
+        for _ in range(2):
+            t += BUS_SPEC.wrist.period
+            st = rt.tick(t)  # the first tick reboots the motor
+        assert 0x08 in fake.instructions
+        assert 0 <= fake.get(IDS[1], ADDR_PRESENT_POSITION, 4) < 4096  # the motor forgot
+        assert rt.set_mode(Mode.DISABLED) == (True, "DISABLED (cleared fault: motor hardware "
+                                              "error: roll: OVERLOAD)")
+        assert st.position[1] / (2 * math.pi) == pytest.approx(2.3, abs=1e-3)
+        ok, msg = rt.start_primitive("TWIRL_CW", [1.0, 2.0])
+        assert not ok and "cable budget" in msg
+        assert rt.start_primitive("TWIRL_CW", [0.5, 2.0])[0]  # within the budget: allowed
+    finally:
+        rt.close()
 
 
 def test_corrupt_status_packets_raise_driver_error(
