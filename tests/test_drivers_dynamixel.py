@@ -592,6 +592,50 @@ def test_runtime_keeps_the_cable_budget_across_a_motor_reboot(bus: tuple[FakeBus
         rt.close()
 
 
+def test_runtime_on_a_cut_bus_faults_the_watchdog_stops_and_it_recovers_without_motion(
+    bus: tuple[FakeBus, str],
+) -> None:
+    fake, path = bus
+    for i, z in zip(IDS, M.zero_ticks, strict=True):
+        fake.set(i, ADDR_PRESENT_POSITION, 4, z)
+    sim = SimWrist(BUS_SPEC, seed=0)  # only its IMU stream; the joints are the fake bus's
+    rt = ToolRuntime(BUS_SPEC, DynamixelDriver(BUS_SPEC, port=path, latency_ms=LATENCY_MS),
+                     sim.imu_driver(), clock=sim.clock)
+    rt.open()
+    try:
+        t = 0.0
+
+        def tick():  # type: ignore[no-untyped-def]
+            nonlocal t
+            t += BUS_SPEC.wrist.period
+            return rt.tick(t)
+
+        tick()
+        assert rt.start_primitive("TWIRL_CW", [0.5, 1.0])[0]
+        st = tick()
+        written = st.extra["command_roll"]
+        assert written > 0.5 and present_velocities(fake)[1] > 0
+        fake.deaf = True  # the cable is cut
+        st = tick()
+        assert "motor read failed" in st.fault and st.mode is Mode.DISABLED
+        assert st.extra["motor_stop_failures"] >= 1
+        assert st.extra["command_roll"] == written  # what the motors last got, not a wish
+        assert not rt.motors_stopped
+        assert wait_for(lambda: fake.watchdog_trips == 2)  # they stop themselves
+        assert present_velocities(fake) == [0, 0]
+        fake.deaf = False  # reconnected
+        st = tick()  # the read reports the watchdog stop; the stop clears it
+        assert "motor read failed" in st.fault  # the first cause is kept
+        assert rt.motors_stopped and st.extra["command_roll"] == 0.0
+        tick()
+        assert rt.set_mode(Mode.DISABLED)[0] and rt.fault == ""
+        tick()
+        assert present_velocities(fake) == [0, 0]  # the old goal never resumed
+        assert all(fake.get(i, ADDR_BUS_WATCHDOG, 1) not in (0, 0xFF) for i in IDS)
+    finally:
+        rt.close()
+
+
 def test_corrupt_status_packets_raise_driver_error(
     driver: tuple[DynamixelDriver, FakeBus],
 ) -> None:
