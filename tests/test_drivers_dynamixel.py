@@ -710,6 +710,10 @@ def test_bus_watchdog_timeout_fits_the_register_and_outlasts_a_late_tick() -> No
     data["motors"]["bus_watchdog_s"] = SPEC.wrist.period  # one late tick would stop the motors
     with pytest.raises(SpecError, match=r"motors\.bus_watchdog_s.*two loop periods"):
         parse_spec(data)
+    for bad in (0.05, 3.0):  # the register cannot hold it
+        data["motors"]["bus_watchdog_s"] = bad
+        with pytest.raises(SpecError, match=r"motors\.bus_watchdog_s.*0\.02 s in \[0\.02, 2\.54\]"):
+            parse_spec(data)
 
 
 @given(st.integers(-50_000, 50_000), st.integers(0, 4095), st.integers(-1000, 1000))

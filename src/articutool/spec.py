@@ -282,6 +282,14 @@ class MotorSpec(_Strict):
     # s: the motors stop themselves after this long without a packet (Bus Watchdog, 98)
     bus_watchdog_s: Positive
 
+    @model_validator(mode="after")
+    def _watchdog_fits(self) -> MotorSpec:
+        units = self.bus_watchdog_s / 0.020  # the register holds 1..127 units of 20 ms
+        if not (1 <= round(units) <= 127 and abs(units - round(units)) < 1e-6):
+            raise ValueError("motors.bus_watchdog_s must be a multiple of 0.02 s in [0.02, 2.54] "
+                             f"s (X-series Bus Watchdog register); got {self.bus_watchdog_s}")
+        return self
+
 
 class ImuSpec(_Strict):
     """OpenLog Artemis IMU stream."""
