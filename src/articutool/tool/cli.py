@@ -17,10 +17,10 @@ advanced in real time by a background service, on a base that tilts and turns ge
 leveling is visible. ``--driver hardware`` opens the Dynamixel pair, the IMU and the F/T
 sensor on the ports in the spec.
 
-Background services: anything that must run alongside the loop (the simulated world, the
-network link) is a :data:`Service`, ``fn(api, stop_event)``, run in a daemon thread until
-``stop_event`` is set. :func:`background_services` builds the list; the network link of
-issue 4 plugs in there.
+Background services: anything that must run alongside the loop (the simulated world) is a
+:data:`Service`, ``fn(api, stop_event)``, run in a daemon thread until ``stop_event`` is set;
+:func:`background_services` builds the list. The network link (``--serve``) is opened, and its
+endpoints declared, in the main thread before the loop starts, and closed after it.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ from articutool.spec import Spec
 from articutool.tool.api import Mode, ToolAPI, ToolState
 
 if TYPE_CHECKING:
-    from articutool.link.transport import Transport
+    from articutool.link.zenoh_transport import ZenohTransport
 
 __all__ = [
     "Service",
@@ -115,20 +115,15 @@ def _sim_stepper(sim: object) -> Service:
     return step
 
 
-def background_services(args: argparse.Namespace | None, spec: Spec, sim: object | None,
-                        link: Transport | None = None) -> list[tuple[str, Service]]:
+def background_services(args: argparse.Namespace | None, spec: Spec, sim: object | None
+                        ) -> list[tuple[str, Service]]:
     """The services started with the runtime, as (name, service) pairs: the simulated world
-    (with ``sim``) and the link served on ``link``, an open transport whose config is
-    ``link.cfg`` (the caller opens it first, so a link that cannot be served stops the tool
-    before anything moves, and closes it after the loop)."""
+    (with ``sim``). The link is not one: ``articutool tool`` opens it and declares its
+    endpoints before the loop starts and closes it after the motors stopped, in the main
+    thread, so neither a link that cannot be served nor an early Ctrl-C races the loop."""
     services: list[tuple[str, Service]] = []
     if sim is not None:
         services.append(("sim", _sim_stepper(sim)))
-    if link is not None:
-        from articutool.link.server import serve_forever
-
-        cfg = getattr(link, "cfg", None)
-        services.append(("link", lambda api, stop: serve_forever(api, cfg, stop, link)))
     return services
 
 
@@ -277,7 +272,7 @@ def _cmd_tool(args: argparse.Namespace) -> int:
             link.close()  # last: after the loop stopped and the motors are off
 
 
-def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: Transport | None) -> int:
+def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: ZenohTransport | None) -> int:
     from articutool.cli import UsageError
     from articutool.tool.drivers import make_drivers
     from articutool.tool.runtime import ToolRuntime
@@ -301,9 +296,22 @@ def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: Transport | No
     except Exception as err:  # port missing, motors silent: before the loop, nothing moved
         _close_failed(runtime)
         raise UsageError(f"cannot open the {args.driver} drivers: {err}") from None
-    services = background_services(args, spec, sim, link)
-    return run_tool(runtime, duration=args.duration, level=level, services=services,
-                    opened=True)
+    server = None
+    if link is not None:
+        from articutool.link.server import ToolServer
+
+        try:  # endpoints declared here, in the main thread, before the loop runs
+            server = ToolServer(runtime, link, link.cfg)
+            server.start()
+        except BaseException:
+            runtime.close()
+            raise
+    try:
+        return run_tool(runtime, duration=args.duration, level=level,
+                        services=background_services(args, spec, sim), opened=True)
+    finally:
+        if server is not None:
+            server.stop()  # after run_tool stopped the motors and closed the drivers
 
 
 def main(argv: Sequence[str] | None = None) -> int:
