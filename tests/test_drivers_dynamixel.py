@@ -555,6 +555,10 @@ def test_turn_count_survives_a_reboot(driver: tuple[DynamixelDriver, FakeBus]) -
     fake.set(IDS[1], ADDR_HARDWARE_ERROR_STATUS, 1, int(HardwareError.OVERHEATING))
     drv.clear_errors()
     assert drv.read().position[1] / (2 * math.pi) == pytest.approx(turns + 1, abs=1e-3)
+    # Single-turn position goals would now mean a different angle: refused.
+    drv.set_mode("position")
+    with pytest.raises(DriverError, match="roll motor was rebooted"):
+        drv.set_position([0.0, 0.0])
 
 
 def test_runtime_keeps_the_cable_budget_across_a_motor_reboot(bus: tuple[FakeBus, str]) -> None:

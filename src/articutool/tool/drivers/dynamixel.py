@@ -468,6 +468,14 @@ class DynamixelDriver(MotorDriver):
         self._require_open()
         if self._mode != "position":
             raise DriverError("set_position needs position mode (call set_mode('position'))")
+        for i in np.flatnonzero(self._turn_offset):
+            # Single-turn goals are in the motor's own count, which a reboot moved by whole
+            # turns: the same goal would be a different joint angle.
+            raise DriverError(
+                f"set_position: the {JOINTS[i]} motor was rebooted "
+                f"{int(self._turn_offset[i]) // self._tpr:+d} turns away from its single-turn "
+                "range; position mode cannot reach it (use velocity mode)"
+            )
         ticks = rad_to_ticks(a, self._zero, self._tpr)
         ticks = np.clip(ticks, self._pos_limit_ticks[:, 0], self._pos_limit_ticks[:, 1])
         self._sync_write(
