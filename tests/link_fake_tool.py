@@ -53,6 +53,11 @@ class FakeTool:
             self.mode, self.offsets = mode, (pitch_offset_deg, roll_offset_deg)
             return True, f"mode {mode.name}"
 
+    def clear_fault(self) -> tuple[bool, str]:
+        with self._lock:
+            self.calls.append("clear_fault")
+            return False, "no fault to clear"
+
     def start_primitive(self, name: str, parameters: list[float]) -> tuple[bool, str]:
         with self._lock:
             self._update_locked()

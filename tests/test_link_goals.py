@@ -22,6 +22,7 @@ from articutool.link.memory_transport import MemoryBus, MemoryTransport
 from articutool.link.server import ToolServer
 from articutool.link.transport import Names
 from articutool.tool.api import PrimitiveStatus
+from articutool.tool.drivers.base import HardwareError
 from link_fake_tool import FakeTool
 
 CFG = LinkConfig(tool_timeout=0.5, client_timeout=0.5, heartbeat_period=0.05, call_timeout=2.0,
@@ -166,3 +167,36 @@ def test_real_runtime_back_to_back_goals_from_two_clients(real: _RealTool) -> No
         c1.close()
         c2.close()
 
+
+
+def test_a_hardware_fault_is_cleared_over_the_link_only_explicitly(real: _RealTool) -> None:
+    # Issue 8.7: a refused LEVELING request must not reboot the motors; clear_fault does,
+    # and only once the overheated motor has cooled below spec.motors.reboot_below_c.
+    client = ArticutoolClient(CFG, MemoryTransport(real.bus))
+    try:
+        assert client.wait_for_tool(2.0)
+        real.sim.set_motor_temperature(85.0)
+        real.sim.set_hardware_error("roll", HardwareError.OVERHEATING)
+        assert _until(lambda: bool(real.rt.state().fault))
+        for _ in range(2):
+            ok, msg = client.set_mode("leveling")
+            assert not ok and "clear_fault" in msg
+        time.sleep(0.1)
+        assert real.rt.state().fault  # two refusals rebooted nothing
+        ok, msg = client.clear_fault()
+        assert not ok and "reboot_below_c" in msg  # still hot
+        real.sim.set_motor_temperature(40.0)  # read back at the next tick
+        assert _until(lambda: client.clear_fault()[0])
+        assert _until(lambda: client.set_mode("leveling")[0])
+        assert _until(lambda: not real.rt.state().fault)
+    finally:
+        client.close()
+
+
+def _until(pred, timeout: float = 5.0) -> bool:  # type: ignore[no-untyped-def]
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if pred():
+            return True
+        time.sleep(0.02)
+    return False

@@ -58,6 +58,8 @@ def add_commands(subparsers: Any) -> None:
     pp.add_argument("--json", action="store_true", help="print the action result as JSON")
     pp.add_argument("--timeout", type=_seconds, default=None, metavar="S",
                     help="cancel the primitive after S seconds")
+    sub.add_parser("clear-fault", help="clear the tool's fault (reboots the motors after a "
+                   "hardware error once the cause is gone); then set a mode")
     ps = sub.add_parser("state", help="print the latest tool state")
     ps.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
@@ -103,6 +105,10 @@ def run(args: argparse.Namespace) -> int:
         cmd = args.client_command
         if cmd == "mode":
             ok, msg = client.set_mode(args.mode, args.pitch_offset, args.roll_offset)
+            print(f"{'ok' if ok else 'refused'}: {msg}")
+            return 0 if ok else 1
+        if cmd == "clear-fault":
+            ok, msg = client.clear_fault()
             print(f"{'ok' if ok else 'refused'}: {msg}")
             return 0 if ok else 1
         if cmd == "primitive":

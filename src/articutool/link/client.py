@@ -208,6 +208,12 @@ class ArticutoolClient:
         resp = self._call(self.names.set_orientation_control, req)
         return bool(resp.success), str(resp.message)
 
+    def clear_fault(self) -> tuple[bool, str]:
+        """Call ``clear_fault`` (``ToolAPI.clear_fault``: the only request that reboots motors
+        after a hardware error, refused while one is still hot); returns (success, message)."""
+        resp = self._call(self.names.clear_fault, m.trigger_request())
+        return bool(resp.success), str(resp.message)
+
     def run_primitive(self, name: str, params: list[float] | tuple[float, ...] = (),
                       feedback_cb: Callable[[PrimitiveStatus], None] | None = None,
                       timeout: float | None = None) -> m.PrimitiveResult:

@@ -85,6 +85,7 @@ SEND_GOAL = f"{ACTION}_SendGoal"
 GET_RESULT = f"{ACTION}_GetResult"
 FEEDBACK_MESSAGE = f"{ACTION}_FeedbackMessage"
 CANCEL_GOAL = "action_msgs/srv/CancelGoal"
+TRIGGER = "std_srvs/srv/Trigger"
 GOAL_STATUS_ARRAY = "action_msgs/msg/GoalStatusArray"
 JOINT_STATE = "sensor_msgs/msg/JointState"
 IMU = "sensor_msgs/msg/Imu"
@@ -99,6 +100,11 @@ _SRV_SOC = {
         "uint8 MODE_DISABLED=0\nuint8 MODE_LEVELING=1\n"
         "uint8 control_mode\nfloat32 pitch_offset\nfloat32 roll_offset\n"),
     "SetOrientationControl_Response": "bool success\nstring message\n",
+}
+# std_srvs/srv/Trigger; an empty ROS 2 request carries the IDL generator's placeholder byte.
+_SRV_TRIGGER = {
+    "Trigger_Request": "uint8 structure_needs_at_least_one_member\n",
+    "Trigger_Response": "bool success\nstring message\n",
 }
 _ACTION_MSGS = {
     "ExecuteArticutoolPrimitive_Goal": "string primitive_name\nfloat32[] parameters\n",
@@ -207,6 +213,9 @@ def typestore() -> Any:
     ts.register(_parse(PKG, "action", _ACTION_MSGS))
     ts.register(_parse("action_msgs", "srv", _CANCEL))
     ts.register(_srv_description(PKG, "srv", "SetOrientationControl"))
+    if f"{TRIGGER}_Request" not in ts.fielddefs:
+        ts.register(_parse("std_srvs", "srv", _SRV_TRIGGER))
+        ts.register(_srv_description("std_srvs", "srv", "Trigger"))
     ts.register(_srv_description("action_msgs", "srv", "CancelGoal"))
     for sub in ("SendGoal", "GetResult"):
         ts.register(_srv_description(PKG, "action", f"ExecuteArticutoolPrimitive_{sub}"))
@@ -313,6 +322,16 @@ def soc_request(mode: Mode, pitch_offset_deg: float, roll_offset_deg: float) -> 
 def soc_response(success: bool, message: str) -> Any:
     """``SetOrientationControl`` response."""
     return msg(f"{SET_ORIENTATION_CONTROL}_Response", success=bool(success), message=message)
+
+
+def trigger_request() -> Any:
+    """``std_srvs/Trigger`` request (no fields)."""
+    return msg(f"{TRIGGER}_Request", structure_needs_at_least_one_member=0)
+
+
+def trigger_response(success: bool, message: str) -> Any:
+    """``std_srvs/Trigger`` response."""
+    return msg(f"{TRIGGER}_Response", success=bool(success), message=message)
 
 
 def send_goal_request(goal_id: bytes, name: str, parameters: list[float]) -> Any:

@@ -96,6 +96,7 @@ class ToolServer:
         n, t = self.names, self.transport
         self._handles = [
             t.serve(n.set_orientation_control, self._guarded(self._on_set_mode)),
+            t.serve(n.clear_fault, self._guarded(self._on_clear_fault)),
             t.serve(n.send_goal, self._guarded(self._on_send_goal)),
             t.serve(n.get_result, self._guarded(self._on_get_result)),
             t.serve(n.cancel_goal, self._guarded(self._on_cancel)),
@@ -172,6 +173,12 @@ class ToolServer:
                                 float(req.pitch_offset), float(req.roll_offset))
         respond(m.encode(m.soc_response(ok, msg), self.names.set_orientation_control
                          .response_type))
+
+    def _on_clear_fault(self, data: bytes, respond: Responder) -> None:
+        m.decode(data, self.names.clear_fault.request_type)
+        self._client_seen()
+        ok, msg = self._ask(self.api.clear_fault)
+        respond(m.encode(m.trigger_response(ok, msg), self.names.clear_fault.response_type))
 
     def _on_send_goal(self, data: bytes, respond: Responder) -> None:
         req = m.decode(data, self.names.send_goal.request_type)

@@ -116,6 +116,11 @@ class Names:
         """The mode service."""
         return Endpoint(self._n("set_orientation_control"), m.SET_ORIENTATION_CONTROL, True)
 
+    @property
+    def clear_fault(self) -> Endpoint:
+        """The explicit fault clear (reboots motors after a hardware error)."""
+        return Endpoint(self._n("clear_fault"), m.TRIGGER, True)
+
     def _action(self, sub: str) -> str:
         return self._n(f"execute_primitive/_action/{sub}")
 
