@@ -177,7 +177,7 @@ def test_a_hardware_fault_is_cleared_over_the_link_only_explicitly(real: _RealTo
         assert client.wait_for_tool(2.0)
         real.sim.set_motor_temperature(85.0)
         real.sim.set_hardware_error("roll", HardwareError.OVERHEATING)
-        assert _until(lambda: bool(real.rt.state().fault))
+        assert wait_until(lambda: bool(real.rt.state().fault))
         for _ in range(2):
             ok, msg = client.set_mode("leveling")
             assert not ok and "clear_fault" in msg
@@ -186,17 +186,8 @@ def test_a_hardware_fault_is_cleared_over_the_link_only_explicitly(real: _RealTo
         ok, msg = client.clear_fault()
         assert not ok and "reboot_below_c" in msg  # still hot
         real.sim.set_motor_temperature(40.0)  # read back at the next tick
-        assert _until(lambda: client.clear_fault()[0])
-        assert _until(lambda: client.set_mode("leveling")[0])
-        assert _until(lambda: not real.rt.state().fault)
+        assert wait_until(lambda: client.clear_fault()[0])
+        assert wait_until(lambda: client.set_mode("leveling")[0])
+        assert wait_until(lambda: not real.rt.state().fault)
     finally:
         client.close()
-
-
-def _until(pred, timeout: float = 5.0) -> bool:  # type: ignore[no-untyped-def]
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if pred():
-            return True
-        time.sleep(0.02)
-    return False
