@@ -75,3 +75,12 @@ def test_info_prints_the_wrist_joint_order():
     r = _cli("info")
     assert r.returncode == 0, r.stderr
     assert "Wrist (joint order [pitch, roll])" in r.stdout
+
+
+def test_bad_input_exits_2_also_when_run_as_a_module():
+    # `python -m articutool.cli` used to run a second copy of the CLI module whose
+    # UsageError the handlers did not catch: exit 3 with a traceback.
+    for module in ("articutool.cli", "articutool"):
+        proc = subprocess.run([sys.executable, "-m", module, "demo", "--seed", "-1"],
+                              capture_output=True, text=True, timeout=120)
+        _refused(proc, "--seed")

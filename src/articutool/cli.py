@@ -125,4 +125,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # ``python -m articutool.cli`` runs this file as ``__main__``; the subcommands import
+    # ``articutool.cli``, a second copy whose exception classes this one's handlers would not
+    # catch. Run that copy's main.
+    from articutool.cli import main as _main
+
+    sys.exit(_main())
