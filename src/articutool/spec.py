@@ -284,10 +284,14 @@ class MotorSpec(_Strict):
 
     @model_validator(mode="after")
     def _watchdog_fits(self) -> MotorSpec:
-        units = self.bus_watchdog_s / 0.020  # the register holds 1..127 units of 20 ms
-        if not (1 <= round(units) <= 127 and abs(units - round(units)) < 1e-6):
-            raise ValueError("motors.bus_watchdog_s must be a multiple of 0.02 s in [0.02, 2.54] "
-                             f"s (X-series Bus Watchdog register); got {self.bus_watchdog_s}")
+        # The register's unit and range live with the driver (one definition).
+        from articutool.tool.drivers.dynamixel import bus_watchdog_units
+
+        try:
+            bus_watchdog_units(self.bus_watchdog_s)
+        except ValueError as err:
+            raise ValueError(f"motors.bus_watchdog_s: {err} (X-series Bus Watchdog "
+                             "register)") from None
         return self
 
 
