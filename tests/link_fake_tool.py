@@ -156,6 +156,16 @@ class FakeTool:
                              loop_period_mean=0.02, loop_jitter=0.0005, loop_overruns=0)
 
 
+def wait_until(pred, timeout: float = 5.0) -> bool:  # type: ignore[no-untyped-def]
+    """Poll ``pred`` every 10 ms until it is true (True) or ``timeout`` seconds pass (False)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if pred():
+            return True
+        time.sleep(0.01)
+    return False
+
+
 def main(argv: list[str]) -> int:
     """Serve a FakeTool until stdin closes or SIGTERM."""
     import argparse

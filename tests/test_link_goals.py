@@ -23,7 +23,7 @@ from articutool.link.server import ToolServer
 from articutool.link.transport import Names
 from articutool.tool.api import PrimitiveStatus
 from articutool.tool.drivers.base import HardwareError
-from link_fake_tool import FakeTool
+from link_fake_tool import FakeTool, wait_until
 
 CFG = LinkConfig(tool_timeout=0.5, client_timeout=0.5, heartbeat_period=0.05, call_timeout=2.0,
                  publish_rate_hz=50)
@@ -42,15 +42,6 @@ def get_result(tr: MemoryTransport, gid: bytes, timeout: float) -> m.PrimitiveRe
     return m.result_from_msg(m.decode(tr.call(ep, req, timeout), ep.response_type))
 
 
-def wait_until(pred, timeout: float = 10.0) -> bool:  # type: ignore[no-untyped-def]
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if pred():
-            return True
-        time.sleep(0.01)
-    return False
-
-
 def test_a_goal_finishing_between_ticks_gets_its_result_when_the_next_goal_starts() -> None:
     bus = MemoryBus()
     tool = FakeTool()
@@ -61,11 +52,11 @@ def test_a_goal_finishing_between_ticks_gets_its_result_when_the_next_goal_start
     try:
         a, b = uuid.uuid4().bytes, uuid.uuid4().bytes
         assert send_goal(tr, a, "TWIRL", [0.25])
-        assert wait_until(lambda: tool.primitive_status().done)  # A ended, no tick saw it
+        assert wait_until(lambda: tool.primitive_status().done, 10.0)  # A ended, no tick saw it
         assert send_goal(tr, b, "TWIRL", [0.25])
         res_a = get_result(tr, a, 2.0)  # before the fix: never answered (LinkTimeoutError)
         assert res_a.success and res_a.status == m.GoalStatus.SUCCEEDED
-        assert wait_until(lambda: tool.primitive_status().done)
+        assert wait_until(lambda: tool.primitive_status().done, 10.0)
         server.tick()
         res_b = get_result(tr, b, 2.0)
         assert res_b.success and res_b.status == m.GoalStatus.SUCCEEDED
@@ -154,7 +145,7 @@ def test_real_runtime_back_to_back_goals_from_two_clients(real: _RealTool) -> No
         th = threading.Thread(target=lambda: out.setdefault(
             "twirl", c1.run_primitive("TWIRL_CW", [0.25, 2.0], fb.append, timeout=20.0)))
         th.start()
-        assert wait_until(lambda: bool(fb))  # c1's primitive is running
+        assert wait_until(lambda: bool(fb), 10.0)  # c1's primitive is running
         busy = c2.run_primitive("HOMING", [2.0], timeout=10.0)
         th.join(timeout=30)
         assert not th.is_alive()
@@ -177,7 +168,7 @@ def test_a_hardware_fault_is_cleared_over_the_link_only_explicitly(real: _RealTo
         assert client.wait_for_tool(2.0)
         real.sim.set_motor_temperature(85.0)
         real.sim.set_hardware_error("roll", HardwareError.OVERHEATING)
-        assert wait_until(lambda: bool(real.rt.state().fault))
+        assert wait_until(lambda: bool(real.rt.state().fault), 10.0)
         for _ in range(2):
             ok, msg = client.set_mode("leveling")
             assert not ok and "clear_fault" in msg
@@ -186,8 +177,8 @@ def test_a_hardware_fault_is_cleared_over_the_link_only_explicitly(real: _RealTo
         ok, msg = client.clear_fault()
         assert not ok and "reboot_below_c" in msg  # still hot
         real.sim.set_motor_temperature(40.0)  # read back at the next tick
-        assert wait_until(lambda: client.clear_fault()[0])
-        assert wait_until(lambda: client.set_mode("leveling")[0])
-        assert wait_until(lambda: not real.rt.state().fault)
+        assert wait_until(lambda: client.clear_fault()[0], 10.0)
+        assert wait_until(lambda: client.set_mode("leveling")[0], 10.0)
+        assert wait_until(lambda: not real.rt.state().fault, 10.0)
     finally:
         client.close()

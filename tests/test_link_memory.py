@@ -18,7 +18,7 @@ from articutool.link.memory_transport import MemoryBus, MemoryTransport
 from articutool.link.server import ToolServer
 from articutool.tool.api import Mode
 from articutool.trajectory import JointTrajectory
-from link_fake_tool import FakeTool
+from link_fake_tool import FakeTool, wait_until
 
 CFG = LinkConfig(tool_timeout=0.3, client_timeout=0.3, heartbeat_period=0.05, call_timeout=1.0,
                  publish_rate_hz=50)
@@ -46,15 +46,6 @@ def rig() -> Iterator[Rig]:
     r = Rig(CFG)
     yield r
     r.close()
-
-
-def wait_until(pred, timeout: float = 5.0) -> bool:  # type: ignore[no-untyped-def]
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if pred():
-            return True
-        time.sleep(0.01)
-    return False
 
 
 def test_mode_switch_reaches_the_tool_and_telemetry_reports_it(rig: Rig) -> None:
