@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from importlib import resources
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import (
@@ -112,6 +112,8 @@ class ArmSpec(_Strict):
     joints: list[ArmJointSpec] = Field(min_length=6, max_length=6)
     configurations: dict[str, tuple[Finite, Finite, Finite, Finite, Finite, Finite]]
     poses: dict[str, PoseSpec] = Field(default_factory=dict)
+    # kg, links 1..6; used by the physics world only (articutool.sim)
+    link_masses: tuple[Positive, Positive, Positive, Positive, Positive, Positive]
 
     @property
     def joint_names(self) -> list[str]:
@@ -157,6 +159,7 @@ class WristSpec(_Strict):
     roll_dz: NonNegative
     utensil_mount_dz: NonNegative
     mass_kg: Positive
+    distal_mass_kg: Positive  # of mass_kg, what turns with the roll joint
     pitch_limits: tuple[Finite, Finite]
     roll_limits: tuple[Finite, Finite]
     roll_turn_budget: Positive
@@ -195,11 +198,40 @@ class WristSpec(_Strict):
         return 1.0 / self.loop_rate_hz
 
 
+class UtensilShape(_Strict):
+    """Physics shape of a utensil (``articutool.sim``), in the roll-link frame.
+
+    ``kind = "spoon"``: a dish whose far end is the tip, ``bowl = [length, width, depth]``
+    (inner), floor at the tip's x, opening towards +x (the up vector). ``kind = "fork"``:
+    ``tines`` capsules of ``tine_radius``, ``tine_pitch`` apart, ``tine_length`` long, ending at
+    the tip. Both have a handle strip of ``thickness`` from the utensil mount.
+    """
+
+    kind: Literal["spoon", "fork"]
+    mass_kg: Positive
+    thickness: Positive
+    bowl: tuple[Positive, Positive, Positive] | None = None
+    tines: Annotated[int, Field(ge=1, le=8)] | None = None
+    tine_length: Positive | None = None
+    tine_radius: Positive | None = None
+    tine_pitch: Positive | None = None
+
+    @model_validator(mode="after")
+    def _complete(self) -> UtensilShape:
+        need = ("bowl",) if self.kind == "spoon" else (
+            "tines", "tine_length", "tine_radius", "tine_pitch")
+        missing = [n for n in need if getattr(self, n) is None]
+        if missing:
+            raise ValueError(f"a {self.kind} needs {', '.join(missing)}")
+        return self
+
+
 class UtensilSpec(_Strict):
     """Utensil tip offset from the utensil mount, in the roll-link frame (x up at zero, z out)."""
 
     tip_x: Finite
     tip_z: Positive
+    physics: UtensilShape
 
 
 class CollisionSpec(_Strict):
@@ -274,6 +306,7 @@ class MotorSpec(_Strict):
     velocity_unit_rpm: Positive
     voltage_unit_v: Positive
     supply_v: Positive
+    stall_torque_nm: Positive  # N·m at supply_v (the physics world's torque limit)
     # Encoder ticks at which each joint reads 0 rad ([pitch, roll]); calibrate per build.
     zero_ticks: tuple[
         Annotated[int, Field(ge=0, le=4095)], Annotated[int, Field(ge=0, le=4095)]
@@ -313,6 +346,8 @@ class FTSpec(_Strict):
     baudrate: Annotated[int, Field(gt=0)]
     rate_hz: Positive
     tare_samples: Annotated[int, Field(gt=0)]
+    force_noise_n: NonNegative  # 1 σ per sample (simulated sensor)
+    torque_noise_nm: NonNegative
 
 
 class PlanningSpec(_Strict):

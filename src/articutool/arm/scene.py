@@ -39,6 +39,7 @@ __all__ = [
     "Capsule",
     "Cylinder",
     "Halfspace",
+    "Region",
     "Scene",
     "SceneError",
     "SceneObject",
@@ -80,6 +81,9 @@ class _Object(BaseModel):
     rpy: Vec3 | None = None
     wxyz: tuple[Finite, Finite, Finite, Finite] | None = None
     utensil_contact: bool = False
+    # Spill accounting in the physics world (articutool.sim): food resting here is back in a
+    # container, a non-critical spill (table) or a critical one (the user, wheelchair, floor).
+    place: Literal["container", "table", "critical"] | None = None
 
     @model_validator(mode="after")
     def _one_orientation(self) -> _Object:
@@ -144,11 +148,16 @@ class Capsule(_Object):
 
 
 class Cylinder(_Object):
-    """Cylinder along the object's z axis, centred on the origin."""
+    """Cylinder along the object's z axis, centred on the origin.
+
+    ``container_wall``: in the physics world (``articutool.sim``) the cylinder is an open
+    container (a bowl) with a floor and a wall this thick; planning treats it as solid.
+    """
 
     shape: Literal["cylinder"]
     radius: Positive
     length: Positive
+    container_wall: Positive | None = None
 
     def geometry(self) -> coal.CollisionGeometry:
         return coal.Cylinder(self.radius, self.length)
@@ -164,6 +173,17 @@ class Halfspace(_Object):
 
 
 SceneObject = Annotated[Box | Sphere | Capsule | Cylinder | Halfspace, Field(discriminator="shape")]
+
+
+class Region(BaseModel):
+    """A named spherical region that is not an obstacle, e.g. the user's mouth: food that
+    enters it is taken as eaten in the physics world (``articutool.sim``)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    name: Annotated[str, Field(min_length=1)]
+    xyz: Vec3
+    radius: Positive
 
 
 def default_scene_path() -> Path:
@@ -201,11 +221,12 @@ class Scene(BaseModel):
     version: Annotated[int, Field(ge=1, le=1)] = 1
     frame: str = "j2n6s200_link_base"
     objects: list[SceneObject] = Field(default_factory=list)
+    regions: list[Region] = Field(default_factory=list)
 
     @model_validator(mode="after")
     def _unique(self) -> Scene:
         seen: set[str] = set()
-        for o in self.objects:
+        for o in [*self.objects, *self.regions]:
             if o.name in seen:
                 raise ValueError(f"duplicate object name {o.name!r}")
             seen.add(o.name)
@@ -215,6 +236,13 @@ class Scene(BaseModel):
     def names(self) -> list[str]:
         """Object names in file order."""
         return [o.name for o in self.objects]
+
+    def region(self, name: str) -> Region:
+        """The named region (e.g. ``"mouth"``); unknown names list the known ones."""
+        for r in self.regions:
+            if r.name == name:
+                return r
+        raise KeyError(f"unknown scene region {name!r}; known: {[r.name for r in self.regions]}")
 
     def get(self, name: str) -> _Object:
         """The named object; unknown names list the known ones."""

@@ -54,6 +54,7 @@ __all__ = [
     "SimWrist",
     "axis_angle_rotation",
     "constant_rate_motion",
+    "imu_noise_sigmas",
 ]
 
 BaseMotion = Callable[[float], Sequence[ArrayLike]]
@@ -61,6 +62,14 @@ BaseMotion = Callable[[float], Sequence[ArrayLike]]
 _SHUTDOWN_BITS = HardwareError.OVERHEATING | HardwareError.ELECTRICAL_SHOCK | HardwareError.OVERLOAD
 _MAX_SUBSTEP = 0.002  # s; resolution of limit contact and position-mode tracking
 _QUEUE_LEN = 256  # samples kept for a driver that is not being read
+
+
+def imu_noise_sigmas(spec: Spec) -> tuple[float, float]:
+    """Per-sample white-noise σ of the accelerometer (m/s²) and gyro (rad/s) at the IMU rate:
+    the datasheet density × √rate, the discrete-time equivalent of a noise density."""
+    rate = spec.imu.rate_hz
+    accel = spec.imu.accel_noise_ug_rthz * 1e-6 * spec.imu.gravity * math.sqrt(rate)
+    return accel, math.radians(spec.imu.gyro_noise_dps_rthz) * math.sqrt(rate)
 
 
 def axis_angle_rotation(axis: ArrayLike, angle: float) -> NDArray[np.float64]:
@@ -169,8 +178,7 @@ class SimWrist:
         g = spec.imu.gravity
         rate = spec.imu.rate_hz
         self._gravity_up = np.array([0.0, 0.0, g])
-        self._accel_sigma = spec.imu.accel_noise_ug_rthz * 1e-6 * g * math.sqrt(rate)
-        self._gyro_sigma = math.radians(spec.imu.gyro_noise_dps_rthz) * math.sqrt(rate)
+        self._accel_sigma, self._gyro_sigma = imu_noise_sigmas(spec)
         self._imu_period = 1.0 / rate
         self._next_imu = self._imu_period
         self._imu_stale = False
@@ -182,7 +190,7 @@ class SimWrist:
         self._ft_queue: deque[FTSample] = deque(maxlen=_QUEUE_LEN)
         self._ft_offset = np.asarray(ft_offset, dtype=np.float64).reshape(6)
         self._wrench = np.zeros(6)
-        self.ft_noise_sigma = np.array([0.02, 0.02, 0.02, 2e-4, 2e-4, 2e-4])
+        self.ft_noise_sigma = np.repeat([spec.ft.force_noise_n, spec.ft.torque_noise_nm], 3)
         self.ft_temperature = 32.0
         # base
         self._base: BaseMotion = lambda t: (np.eye(3), np.zeros(3))

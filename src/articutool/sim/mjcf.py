@@ -1,0 +1,416 @@
+"""The feeding world as MJCF, built in code from the hardware spec, the scene and a food.
+
+Nothing here restates a dimension: the arm's joint table, the F0 mount, the wrist chain and
+the utensil tips come from :class:`~articutool.spec.Spec` (the same numbers the Pinocchio
+model in ``articutool.arm.model`` is built from, so the two agree — tested to < 0.1 mm); the
+obstacles come from the :class:`~articutool.arm.scene.Scene`; the food from
+:mod:`articutool.sim.params`.
+
+MuJoCo collides a mesh as its convex hull, so every concave thing is a compound of
+primitives: a bowl is a floor disc plus a ring of wall boxes; a spoon is a floor plate plus a
+ring of sloped wall boxes round an ellipse (a dish); a fork is a handle plus capsule tines.
+
+Collision filtering (``contype``/``conaffinity`` bits): static surfaces 1, food 2,
+utensil 4, robot links 8. Food collides with everything; the utensil with food and static
+surfaces (it scrapes the bowl); the robot links only with food; static never with static.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from articutool.arm.model import TOOL_BASE_FRAME, tip_frame_name
+from articutool.arm.scene import Box, Capsule, Cylinder, Halfspace, Scene, Sphere, rpy_matrix
+from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
+from articutool.spec import Spec, UtensilSpec
+
+__all__ = ["FT_SITE", "IMU_SITE", "WorldLayout", "build_mjcf", "spoon_dish", "tip_site_name"]
+
+IMU_SITE = "imu"
+FT_SITE = "ft"
+_STATIC, _FOOD, _UTENSIL, _ROBOT = 1, 2, 4, 8
+_ALL = _STATIC | _FOOD | _UTENSIL | _ROBOT
+_WALL_BOXES = 24
+_DISH_WALLS = 16
+
+
+def tip_site_name(utensil: str) -> str:
+    """Site of the utensil tip (same name as the Pinocchio frame)."""
+    return tip_frame_name(utensil)
+
+
+@dataclass
+class WorldLayout:
+    """What the builder put where: names the world looks up after compiling."""
+
+    xml: str
+    arm_joints: list[str]
+    wrist_joints: list[str]
+    food_bodies: list[str] = field(default_factory=list)
+    food_strands: list[str] = field(default_factory=list)
+    piece_mass: float = 0.0
+    places: dict[str, str] = field(default_factory=dict)  # geom name → place
+    utensil_geoms: list[str] = field(default_factory=list)
+    container: str = ""
+    parked: bool = False  # the food is a load waiting to be placed on the utensil
+    piece_size: float = 0.0  # lattice cell of one piece (m)
+    food_contype: int = 0
+    food_conaffinity: int = 0
+
+
+def _f(v: float | NDArray[np.float64] | list[float] | tuple[float, ...]) -> str:
+    a = np.atleast_1d(np.asarray(v, dtype=float))
+    return " ".join(f"{x:.9g}" for x in a)
+
+
+def _quat(R: NDArray[np.float64]) -> NDArray[np.float64]:
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=float).reshape(9))
+    return q
+
+
+def _pose_attr(xyz: NDArray[np.float64] | tuple[float, ...], R: NDArray[np.float64]) -> str:
+    return f'pos="{_f(xyz)}" quat="{_f(_quat(R))}"'
+
+
+def _frame(z_dir: NDArray[np.float64], hint: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rotation whose z axis is ``z_dir`` and whose x axis is as close to ``hint`` as can be."""
+    z = z_dir / np.linalg.norm(z_dir)
+    x = hint - z * float(hint @ z)
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+def _static_geoms(scene: Scene, friction: float, layout: WorldLayout) -> list[str]:
+    out = []
+    for o in scene.objects:
+        cls = f'contype="{_STATIC}" conaffinity="0" friction="{friction} 0.005 0.0001"'
+        rgba = {"container": "0.95 0.95 0.92 1", "table": "0.55 0.4 0.3 1",
+                "critical": "0.6 0.65 0.8 1"}.get(o.place or "", "0.7 0.7 0.7 1")
+        pose = _pose_attr(o.xyz, o.rotation)
+        names = [f"scene/{o.name}"]
+        if isinstance(o, Box):
+            out.append(f'<geom name="{names[0]}" type="box" size="{_f(np.array(o.size) / 2)}" '
+                       f'{pose} {cls} rgba="{rgba}"/>')
+        elif isinstance(o, Sphere):
+            out.append(f'<geom name="{names[0]}" type="sphere" size="{o.radius}" {pose} {cls} '
+                       f'rgba="{rgba}"/>')
+        elif isinstance(o, Capsule):
+            out.append(f'<geom name="{names[0]}" type="capsule" size="{o.radius} '
+                       f'{o.length / 2}" {pose} {cls} rgba="{rgba}"/>')
+        elif isinstance(o, Halfspace):
+            out.append(f'<geom name="{names[0]}" type="plane" size="0 0 0.05" {pose} {cls} '
+                       f'rgba="0.3 0.3 0.3 1"/>')
+        elif isinstance(o, Cylinder) and o.container_wall is None:
+            out.append(f'<geom name="{names[0]}" type="cylinder" size="{o.radius} '
+                       f'{o.length / 2}" {pose} {cls} rgba="{rgba}"/>')
+        elif isinstance(o, Cylinder):
+            t = o.container_wall
+            R, p = o.rotation, np.asarray(o.xyz)
+            body = [f'<body name="scene/{o.name}" {_pose_attr(p, R)}>',
+                    f'<geom name="scene/{o.name}/floor" type="cylinder" '
+                    f'size="{o.radius} {t / 2}" pos="0 0 {-o.length / 2 + t / 2}" {cls} '
+                    f'rgba="{rgba}"/>']
+            names = [f"scene/{o.name}/floor"]
+            n = _WALL_BOXES
+            half_w = o.radius * math.tan(math.pi / n) * 1.1
+            for k in range(n):
+                a = 2 * math.pi * k / n
+                c = (o.radius - t / 2) * np.array([math.cos(a), math.sin(a), 0.0])
+                Rk = rpy_matrix((0.0, 0.0, a))
+                nm = f"scene/{o.name}/wall{k}"
+                names.append(nm)
+                body.append(f'<geom name="{nm}" type="box" size="{t / 2} {half_w} '
+                            f'{o.length / 2}" {_pose_attr(c, Rk)} {cls} rgba="{rgba}"/>')
+            body.append("</body>")
+            out.extend(body)
+        else:  # pragma: no cover - the scene schema has no other shapes
+            raise ValueError(f"scene object {o.name!r}: unsupported shape")
+        if o.place:
+            for nm in names:
+                layout.places[nm] = o.place
+    return out
+
+
+def spoon_dish(u: UtensilSpec) -> tuple[float, float, float, float, float, float]:
+    """(zc, a, b, a0, b0, depth) of a spoon's dish in the utensil frame: centre z, rim
+    semi-axes along z and y, floor semi-axes (45° walls), depth; the floor is at x = tip_x."""
+    assert u.physics.bowl is not None
+    length, width, depth = u.physics.bowl
+    a, b = length / 2, width / 2
+    return u.tip_z - a, a, b, max(a - depth, 0.25 * a), max(b - depth, 0.25 * b), depth
+
+
+def _utensil_geoms(spec: Spec, utensil: str, layout: WorldLayout) -> list[str]:
+    """Geoms of the utensil in the utensil body (origin at the utensil mount, roll-link axes:
+    x = up vector at zero angles, z = out along the roll axis)."""
+    u = spec.utensil(utensil)
+    ph = u.physics
+    th = ph.thickness
+    cls = (f'contype="{_UTENSIL}" conaffinity="{_STATIC}" friction="0.5 0.005 0.0001" '
+           'rgba="0.75 0.75 0.78 1"')
+    out: list[str] = []
+
+    def geom(name: str, body: str) -> None:
+        layout.utensil_geoms.append(name)
+        out.append(f'<geom name="{name}" {body} {cls}/>')
+
+    if ph.kind == "spoon":
+        zc, a, b, a0, b0, depth = spoon_dish(u)
+        length = 2 * a
+        x0 = u.tip_x  # the floor's inner surface
+        geom("utensil/floor", f'type="box" size="{th / 2} {b0} {a0}" '
+             f'pos="{x0 - th / 2} 0 {zc}"')
+        n = _DISH_WALLS
+        for k in range(n):
+            phi = 2 * math.pi * (k + 0.5) / n
+            # Mid-height point of the sloped wall, on the ellipse between floor and rim.
+            am, bm = (a0 + a) / 2, (b0 + b) / 2
+            p = np.array([x0 + depth / 2, bm * math.sin(phi), zc + am * math.cos(phi)])
+            # Outward horizontal normal of the ellipse (in the y-z plane) at phi.
+            nh = np.array([0.0, math.sin(phi) / bm, math.cos(phi) / am])
+            nh /= np.linalg.norm(nh)
+            tangent = np.cross(np.array([1.0, 0.0, 0.0]), nh)
+            run = np.array([a - a0, b - b0]).mean()
+            slope = np.array([depth, 0.0, 0.0]) + run * nh  # from floor edge up to rim
+            slope_len = float(np.linalg.norm(slope))
+            # Wall box: thin along its normal, long along the tangent and the slope.
+            R = np.column_stack([np.cross(tangent, slope / slope_len), tangent,
+                                 slope / slope_len])
+            seg = 2 * math.pi * math.hypot(am, bm) / math.sqrt(2) / n
+            geom(f"utensil/wall{k}", f'type="box" size="{th / 2} {0.6 * seg} '
+                 f'{slope_len / 2}" {_pose_attr(p, R)}')
+        z_end = u.tip_z - length
+        geom("utensil/handle", f'type="box" size="{th / 2} 0.004 {z_end / 2}" '
+             f'pos="{x0 + depth / 2} 0 {z_end / 2}"')
+    else:
+        assert ph.tines and ph.tine_length and ph.tine_radius and ph.tine_pitch
+        r, n = ph.tine_radius, ph.tines
+        z0 = u.tip_z - ph.tine_length
+        half_w = (n - 1) / 2 * ph.tine_pitch + r
+        geom("utensil/handle", f'type="box" size="{th / 2} 0.004 {z0 / 2}" '
+             f'pos="{u.tip_x} 0 {z0 / 2}"')
+        geom("utensil/bridge", f'type="box" size="{th / 2} {half_w} {2 * r}" '
+             f'pos="{u.tip_x} 0 {z0}"')
+        for k in range(n):
+            y = (k - (n - 1) / 2) * ph.tine_pitch
+            geom(f"utensil/tine{k}", f'type="capsule" size="{r}" '
+                 f'fromto="{u.tip_x} {y} {z0} {u.tip_x} {y} {u.tip_z - r}"')
+    return out
+
+
+def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: PhysicsParams,
+                 rng: np.random.Generator, layout: WorldLayout,
+                 load_g: float | None = None) -> list[str]:
+    """Food placed loosely above the container's floor; ``settle_s`` lets it fall in.
+
+    With ``load_g`` the food is a load for the utensil instead: that many grams of pieces,
+    parked out of the world (no collisions, weightless) until the world places them on the
+    utensil (``FeedingWorld.place_load``), as an experimenter loads a tared spoon.
+    """
+    try:
+        box = scene.get(food.container)
+    except KeyError as err:
+        raise ValueError(f"food container: {err.args[0]}") from None
+    if not isinstance(box, Cylinder) or box.container_wall is None:
+        raise ValueError(f"food container: scene object {food.container!r} must be a cylinder "
+                         "with container_wall (an open bowl)")
+    layout.container = food.container
+    inner = box.radius - box.container_wall
+    floor_z = box.xyz[2] - box.length / 2 + box.container_wall
+    cx, cy = box.xyz[0], box.xyz[1]
+    out: list[str] = []
+    mass = food.piece_mass
+    layout.piece_mass = mass
+    count = max(1, round((food.fill_g if load_g is None else load_g) / 1000.0 / mass))
+    fcls = f'contype="{_FOOD}" conaffinity="{_ALL}"'
+    layout.food_contype, layout.food_conaffinity = _FOOD, _ALL
+    if load_g is not None:
+        if isinstance(food, Strands):
+            raise ValueError("load_g: strands cannot be placed as a load; use a container fill")
+        fcls = 'contype="0" conaffinity="0"'
+        layout.parked = True
+    if isinstance(food, Strands):
+        return _strands(food, count, inner, floor_z, cx, cy, rng, layout)
+    if isinstance(food, Granular):
+        cell = 2 * (food.piece_radius + food.piece_half_length) * 1.05
+        size = (f'type="capsule" size="{food.piece_radius} {food.piece_half_length}" '
+                f'friction="{_f(food.friction)}" condim="6"')
+        rgba = "0.55 0.33 0.15 1"
+    else:
+        cell = 2 * food.particle_radius * 1.02
+        size = f'type="sphere" size="{food.particle_radius}" condim="1"'
+        rgba = "0.3 0.5 0.95 0.8"
+    # Lattice inside the inner radius, layer by layer, with a small seeded jitter.
+    pts = []
+    n_side = int(2 * inner / cell)
+    z = floor_z + cell / 2
+    while len(pts) < count:
+        for i in range(n_side):
+            for j in range(n_side):
+                x = -inner + cell / 2 + i * cell
+                y = -inner + cell / 2 + j * cell
+                if math.hypot(x, y) < inner - cell / 2:
+                    pts.append((x, y, z))
+        z += cell
+    pts = pts[:count]
+    layout.piece_size = cell
+    for k, (x, y, z) in enumerate(pts):
+        jitter = rng.uniform(-0.1, 0.1, 3) * cell
+        jitter[2] = abs(jitter[2])
+        if load_g is not None:  # parked: a row far from everything
+            x, y, z, cx, cy, jitter = 50.0 + k * cell, 50.0, 1.0, 0.0, 0.0, np.zeros(3)
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        name = f"food{k}"
+        layout.food_bodies.append(name)
+        grav = ' gravcomp="1"' if load_g is not None else ""
+        out.append(f'<body name="{name}" pos="{_f(np.array([cx + x, cy + y, z]) + jitter)}" '
+                   f'quat="{_f(q)}"{grav}><freejoint/><geom name="{name}" {size} mass="{mass:.9g}" '
+                   f'solref="{_f(food.solref)}" {fcls} rgba="{rgba}"/></body>')
+    return out
+
+
+def _strands(food: Strands, count: int, inner: float, floor_z: float, cx: float, cy: float,
+             rng: np.random.Generator, layout: WorldLayout) -> list[str]:
+    """Strands as 1-D flexcomp rods laid as smooth arcs in layers (a kinked start shape makes
+    rod elasticity ill-conditioned, simulation-notes.md)."""
+    out = []
+    r = food.strand_radius
+    n = food.segments + 1
+    for k in range(count):
+        # An arc of the strand's length on a circle inside the container, rotated and lifted.
+        rad = inner * rng.uniform(0.45, 0.8)
+        span = food.strand_length / rad
+        a0 = rng.uniform(0, 2 * math.pi)
+        z = floor_z + r + (k // 3) * 2.2 * r + 0.002
+        ang = a0 + np.linspace(-span / 2, span / 2, n)
+        # Strands longer than one turn spiral inwards instead of overlapping themselves.
+        shrink = np.linspace(1.0, 0.55, n) if span > 2 * math.pi * 0.95 else np.ones(n)
+        pts = np.column_stack([cx + rad * shrink * np.cos(ang), cy + rad * shrink * np.sin(ang),
+                               np.full(n, z)])
+        name = f"strand{k}"
+        layout.food_strands.append(name)
+        out.append(
+            f'<flexcomp name="{name}" type="direct" dim="1" radius="{r}" '
+            f'mass="{food.piece_mass:.9g}" point="{_f(pts.reshape(-1))}" '
+            f'element="{_f(np.column_stack([np.arange(n - 1), np.arange(1, n)]).reshape(-1))}" '
+            f'rgba="0.95 0.85 0.45 1">'
+            f'<contact contype="{_FOOD}" conaffinity="{_ALL}" condim="4" '
+            f'friction="{_f(food.friction)}" solref="{_f(food.solref)}" selfcollide="none"/>'
+            f'<edge equality="true"/>'
+            f'<elasticity young="{food.young:.6g}" poisson="{food.poisson}" '
+            f'damping="{food.damping}"/></flexcomp>')
+    return out
+
+
+def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
+               food: str | None = None, seed: int = 0,
+               load_g: float | None = None) -> WorldLayout:
+    """MJCF of the arm + Articutool with ``utensil``, the scene and (optionally) ``food``:
+    a fill of its container, or with ``load_g`` a load parked for the utensil.
+
+    Joint qpos order: the six arm joints, pitch, roll, then the food's free joints.
+    """
+    spec.utensil(utensil)  # unknown utensils fail here, naming the allowed ones
+    arm, w, col = spec.arm, spec.wrist, spec.collision
+    wp, sp = params.world, params.arm_servo
+    food_p = params.food(food) if food is not None else None
+    rng = np.random.default_rng(seed)
+    layout = WorldLayout(xml="", arm_joints=arm.joint_names, wrist_joints=list(w.joint_names))
+    discrete = isinstance(food_p, Strands)
+    integrator = "discrete" if discrete else "implicitfast"
+    x: list[str] = [
+        f'<mujoco model="{arm.model}_articutool_feeding">',
+        '<compiler angle="radian" autolimits="true"/>',
+        f'<option timestep="{wp.timestep}" solver="{wp.solver}" iterations="{wp.iterations}" '
+        f'tolerance="{wp.tolerance}" cone="{wp.cone}" integrator="{integrator}" '
+        f'sleep_tolerance="{wp.sleep_tolerance}">'
+        f'<flag sleep="{"enable" if wp.sleep else "disable"}"/></option>',
+        '<size memory="256M"/>',
+        '<visual><global offwidth="1280" offheight="720"/><quality shadowsize="2048"/></visual>',
+        '<worldbody>',
+        '<light pos="0.3 -0.2 2.0" dir="0 0 -1" directional="true"/>',
+        '<camera name="bowl" pos="0.95 -1.05 0.55" xyaxes="0.7 0.7 0 -0.3 0.3 0.9"/>',
+        '<camera name="overview" pos="1.6 -0.9 1.1" xyaxes="0.5 0.87 0 -0.4 0.23 0.89"/>',
+    ]
+    x += _static_geoms(scene, wp.surface_friction, layout)
+    for r in scene.regions:
+        x.append(f'<site name="region/{r.name}" pos="{_f(r.xyz)}" size="{r.radius}" '
+                 'rgba="1 0.3 0.3 0.25"/>')
+
+    rcls = f'contype="{_ROBOT}" conaffinity="0" rgba="0.25 0.25 0.28 1"'
+    h0 = arm.joints[0].xyz[2]
+    x.append(f'<body name="{arm.base_frame}">')
+    x.append(f'<geom name="{arm.base_frame}" type="cylinder" size="{col.base_radius} {h0 / 2}" '
+             f'pos="0 0 {h0 / 2}" {rcls}/>')
+    ee_R, ee_p = rpy_matrix(arm.ee_rpy), np.asarray(arm.ee_xyz)
+    for i, j in enumerate(arm.joints):
+        link = f"{arm.model}_link_{i + 1}"
+        end = np.asarray(arm.joints[i + 1].xyz) if i + 1 < len(arm.joints) else ee_p
+        x.append(f'<body name="{link}" {_pose_attr(j.xyz, rpy_matrix(j.rpy))} gravcomp="1">')
+        x.append(f'<joint name="{j.name}" type="hinge" axis="0 0 1" range="{j.lower} {j.upper}" '
+                 f'armature="{sp.armature}" actuatorfrcrange="{-j.effort} {j.effort}"/>')
+        x.append(f'<geom name="{link}" type="capsule" size="{col.link_radii[i]}" '
+                 f'fromto="0 0 0 {_f(end)}" mass="{arm.link_masses[i]}" {rcls}/>')
+    # End effector, then F0 (the tool base) on it.
+    x.append(f'<body name="{arm.ee_frame}" {_pose_attr(ee_p, ee_R)}>')
+    x.append(f'<body name="{TOOL_BASE_FRAME}" '
+             f'{_pose_attr(w.mount_xyz, rpy_matrix(w.mount_rpy))}>')
+    x.append(f'<site name="{IMU_SITE}" size="0.004" rgba="0 1 0 1"/>')
+    x.append(f'<geom name="atool_body" type="capsule" size="{col.wrist_body_radius}" '
+             f'fromto="0 0 0 0 0 {w.pitch_z}" mass="{w.mass_kg - w.distal_mass_kg}" {rcls}/>')
+    wm = params.wrist_motor
+    tq = spec.motors.stall_torque_nm
+    x.append(f'<body name="atool_pitch_link" pos="0 0 {w.pitch_z}">')
+    x.append('<inertial pos="0 0 0" mass="0.005" diaginertia="1e-6 1e-6 1e-6"/>')
+    x.append(f'<joint name="{w.joint_names[0]}" type="hinge" axis="0 -1 0" '
+             f'range="{w.pitch_limits[0]} {w.pitch_limits[1]}" armature="{wm.armature}" '
+             f'frictionloss="{wm.frictionloss}" actuatorfrcrange="{-tq} {tq}"/>')
+    turns = w.roll_turn_budget * 2 * math.pi
+    x.append(f'<body name="atool_roll_link" pos="0 0 {w.roll_dz}">')
+    x.append(f'<joint name="{w.joint_names[1]}" type="hinge" axis="0 0 1" '
+             f'range="{-turns} {turns}" armature="{wm.armature}" '
+             f'frictionloss="{wm.frictionloss}" actuatorfrcrange="{-tq} {tq}"/>')
+    x.append(f'<geom name="atool_distal" type="capsule" size="{col.wrist_distal_radius}" '
+             f'fromto="0 0 {-w.roll_dz} 0 0 {w.utensil_mount_dz}" mass="{w.distal_mass_kg}" '
+             f'{rcls}/>')
+    # The F/T sensor sits between the roll output and the utensil: the utensil is its own
+    # body (welded), so the force/torque sensors at its origin measure what it carries.
+    u = spec.utensil(utensil)
+    x.append(f'<body name="utensil" pos="0 0 {w.utensil_mount_dz}">')
+    x.append(f'<inertial pos="0 0 {u.tip_z / 2}" mass="{u.physics.mass_kg}" '
+             f'diaginertia="{_f(np.array([1, 1, 0.02]) * u.physics.mass_kg * u.tip_z**2 / 12)}"/>')
+    x.append(f'<site name="{FT_SITE}" size="0.004" rgba="1 0 0 1"/>')
+    x += _utensil_geoms(spec, utensil, layout)
+    tip_R = rpy_matrix((0.0, 0.0, -math.pi / 2))
+    for name, us in spec.utensils.items():
+        x.append(f'<site name="{tip_site_name(name)}" '
+                 f'{_pose_attr((us.tip_x, 0.0, us.tip_z), tip_R)} size="0.002"/>')
+    x.append("</body>" * 5)  # utensil, roll, pitch, F0, end effector
+    x.append("</body>" * len(arm.joints))
+    x.append("</body>")  # arm base
+    if food_p is not None:
+        x += _food_bodies(food_p, scene, params, rng, layout, load_g)
+    x.append("</worldbody>")
+    x.append("<actuator>")
+    for j in arm.joints:
+        x.append(f'<position name="{j.name}/pos" joint="{j.name}" kp="{sp.kp}"/>')
+        x.append(f'<velocity name="{j.name}/vel" joint="{j.name}" kv="{sp.kv}"/>')
+    for jn in w.joint_names:  # torque from the world's velocity PI (the XC430's own loop)
+        x.append(f'<motor name="{jn}/motor" joint="{jn}" ctrlrange="{-tq} {tq}"/>')
+    x.append("</actuator>")
+    x.append("<sensor>")
+    x.append(f'<accelerometer name="imu_accel" site="{IMU_SITE}"/>')
+    x.append(f'<gyro name="imu_gyro" site="{IMU_SITE}"/>')
+    x.append(f'<force name="ft_force" site="{FT_SITE}"/>')
+    x.append(f'<torque name="ft_torque" site="{FT_SITE}"/>')
+    x.append("</sensor>")
+    x.append("</mujoco>")
+    layout.xml = "\n".join(x)
+    return layout

@@ -1,0 +1,183 @@
+"""Validated parameters of the physics world: solver, servos and food models.
+
+The packaged ``articutool/data/physics.toml`` documents the source of every value (a
+physical property, a measurement command, or a numerical choice and its reason).
+``PhysicsParams.load(path)`` reads another file of the same shape; every bad value is
+refused with its field named (``PhysicsError``).
+"""
+
+from __future__ import annotations
+
+import math
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from articutool.datafile import format_validation_error, read_document
+from articutool.spec import NonNegative, Positive
+
+__all__ = [
+    "FOOD_KINDS",
+    "Food",
+    "Granular",
+    "Liquid",
+    "PhysicsError",
+    "PhysicsParams",
+    "Strands",
+    "default_physics_path",
+]
+
+FOOD_KINDS = ("granular", "liquid", "strands")
+
+
+class PhysicsError(ValueError):
+    """A physics parameter file is missing, malformed or holds an invalid value."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class WorldParams(_Strict):
+    """Solver options (MuJoCo ``<option>``) and the settling time before a scene."""
+
+    timestep: Annotated[float, Field(gt=0, le=0.01)]
+    solver: Literal["CG", "Newton", "PGS"]
+    iterations: Annotated[int, Field(ge=1, le=1000)]
+    tolerance: Positive
+    cone: Literal["elliptic", "pyramidal"]
+    sleep: bool
+    sleep_tolerance: Positive
+    settle_s: NonNegative
+    surface_friction: Positive
+
+
+class ArmServoParams(_Strict):
+    """PD gains with velocity feed-forward of the arm's joint servos."""
+
+    kp: Positive
+    kv: Positive
+    armature: NonNegative
+
+
+class WristMotorParams(_Strict):
+    """The XC430 velocity loop: reflected inertia, time constant, gearbox friction."""
+
+    armature: Positive
+    time_constant_s: Positive
+    integral_time_s: Positive
+    frictionloss: NonNegative
+
+    @property
+    def kv(self) -> float:
+        """Velocity gain (N·m·s/rad) that gives the time constant with the armature."""
+        return self.armature / self.time_constant_s
+
+    @property
+    def ki(self) -> float:
+        """Integral gain (N·m/rad) of the velocity loop."""
+        return self.kv / self.integral_time_s
+
+
+class _FoodBase(_Strict):
+    container: str = Field(min_length=1)
+    utensil: str = Field(min_length=1)
+    density: Positive
+    solref: tuple[Positive, Positive]
+    fill_g: Positive
+
+
+class Granular(_FoodBase):
+    """Rigid capsule pieces (e.g. pecans)."""
+
+    kind: Literal["granular"]
+    piece_radius: Positive
+    piece_half_length: NonNegative
+    friction: tuple[Positive, NonNegative, NonNegative]
+
+    @property
+    def piece_mass(self) -> float:
+        """kg per piece (capsule volume × density)."""
+        r, h = self.piece_radius, self.piece_half_length
+        return self.density * (math.pi * r * r * 2 * h + 4.0 / 3.0 * math.pi * r**3)
+
+
+class Liquid(_FoodBase):
+    """Frictionless spheres standing in for a liquid (e.g. water)."""
+
+    kind: Literal["liquid"]
+    particle_radius: Positive
+    packing_fraction: Annotated[float, Field(gt=0, le=0.74)]
+
+    @property
+    def piece_mass(self) -> float:
+        """kg per particle: density × sphere volume / packing fraction."""
+        v = 4.0 / 3.0 * math.pi * self.particle_radius**3
+        return self.density * v / self.packing_fraction
+
+
+class Strands(_FoodBase):
+    """1-D elastic rods (e.g. noodles)."""
+
+    kind: Literal["strands"]
+    strand_radius: Positive
+    strand_length: Positive
+    segments: Annotated[int, Field(ge=2, le=200)]
+    young: Positive
+    poisson: Annotated[float, Field(ge=0, lt=0.5)]
+    damping: NonNegative
+    friction: tuple[Positive, NonNegative, NonNegative]
+
+    @property
+    def piece_mass(self) -> float:
+        """kg per strand."""
+        return self.density * math.pi * self.strand_radius**2 * self.strand_length
+
+
+Food = Annotated[Granular | Liquid | Strands, Field(discriminator="kind")]
+
+
+def default_physics_path() -> Path:
+    """Path of the physics parameters shipped with the package."""
+    return Path(str(resources.files("articutool") / "data" / "physics.toml"))
+
+
+class PhysicsParams(_Strict):
+    """The whole parameter file."""
+
+    version: Annotated[int, Field(ge=1, le=1)] = 1
+    world: WorldParams
+    arm_servo: ArmServoParams
+    wrist_motor: WristMotorParams
+    foods: dict[str, Food] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _names(self) -> PhysicsParams:
+        for name in self.foods:
+            if not name.isidentifier():
+                raise ValueError(f"food name {name!r} must be an identifier")
+        return self
+
+    def food(self, name: str) -> Granular | Liquid | Strands:
+        """The named food; unknown names list the known ones."""
+        if name not in self.foods:
+            raise PhysicsError(f"food: unknown food {name!r}; allowed: {sorted(self.foods)}")
+        return self.foods[name]
+
+    @classmethod
+    def from_dict(cls, data: Any, source: str = "<dict>") -> PhysicsParams:
+        """Validate a mapping; errors name the field (e.g. ``foods.pecans.density``)."""
+        try:
+            return cls.model_validate(data)
+        except ValidationError as err:
+            raise PhysicsError(
+                format_validation_error(err, f"invalid physics parameters {source}:")
+            ) from None
+
+    @classmethod
+    def load(cls, path: str | Path | None = None) -> PhysicsParams:
+        """Load and validate a parameter file; ``None`` loads the packaged default."""
+        p = Path(path) if path is not None else default_physics_path()
+        return cls.from_dict(read_document(p, "physics parameters", PhysicsError), str(p))
