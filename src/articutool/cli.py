@@ -26,6 +26,7 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "articutool.tool.cli",
     "articutool.link.cli",
     "articutool.sim.demo",
+    "articutool.sim.cli",
     "articutool.bench.cli",
 )
 

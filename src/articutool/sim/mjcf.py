@@ -336,7 +336,7 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
         '<visual><global offwidth="1280" offheight="720"/><quality shadowsize="2048"/></visual>',
         '<worldbody>',
         '<light pos="0.3 -0.2 2.0" dir="0 0 -1" directional="true"/>',
-        '<camera name="bowl" pos="0.95 -1.05 0.55" xyaxes="0.7 0.7 0 -0.3 0.3 0.9"/>',
+        '<camera name="utensil" mode="targetbody" target="utensil" pos="0.85 -0.85 0.40"/>',
         '<camera name="overview" pos="1.6 -0.9 1.1" xyaxes="0.5 0.87 0 -0.4 0.23 0.89"/>',
     ]
     x += _static_geoms(scene, wp.surface_friction, layout)
@@ -384,6 +384,7 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
     # body (welded), so the force/torque sensors at its origin measure what it carries.
     u = spec.utensil(utensil)
     x.append(f'<body name="utensil" pos="0 0 {w.utensil_mount_dz}">')
+    # (The "utensil" camera tracks this body.)
     x.append(f'<inertial pos="0 0 {u.tip_z / 2}" mass="{u.physics.mass_kg}" '
              f'diaginertia="{_f(np.array([1, 1, 0.02]) * u.physics.mass_kg * u.tip_z**2 / 12)}"/>')
     x.append(f'<site name="{FT_SITE}" size="0.004" rgba="1 0 0 1"/>')

@@ -30,7 +30,7 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from articutool.arm.scene import Scene
+from articutool.arm.scene import Box, Cylinder, Scene, Sphere
 from articutool.sim import accounting as acc
 from articutool.sim.mj_drivers import MjFTDriver, MjImuDriver, MjMotorDriver
 from articutool.sim.mjcf import (
@@ -182,6 +182,8 @@ class FeedingWorld:
         self._imu_period = 1.0 / self.spec.imu.rate_hz
         self._ft_period = 1.0 / self.spec.ft.rate_hz
         self._step_count = 0
+        # Called after every tool tick with the world (recorders, loggers); not timed.
+        self.on_tick: list[Callable[[FeedingWorld], None]] = []
         self._cpu = 0.0
         self._sim_stepped = 0.0
 
@@ -290,14 +292,18 @@ class FeedingWorld:
         self._wrist_control()
         mujoco.mj_step(m, d)
         self._step_count += 1
+        ticked = tick and self._step_count % self._steps_per_tick == 0
         if tick:
             self._emit_samples()
-            if self._step_count % self._steps_per_tick == 0:
+            if ticked:
                 self.tool.tick(self.time)
                 self.motors._check_stops()
                 self._classify()
         self._cpu += time.thread_time() - c0
         self._sim_stepped += self.dt
+        if ticked:
+            for fn in self.on_tick:
+                fn(self)
 
     def run(self, seconds: float, tick: bool = True) -> None:
         """Advance the world by ``seconds``."""
@@ -451,8 +457,14 @@ class FeedingWorld:
         self._eat()
         ii, iu, isf = self._contacts()
         asleep = self.data.body_awake[self._item_body] == 0
+        # A sleeping item has no contacts to classify it by, but it is at rest on something
+        # static: the robot never sleeps and wakes what it touches. One that was last seen on
+        # the utensil or in the air gets the place below it.
+        prev, prev_where = self._codes.copy(), self._where.copy()
+        for k in np.flatnonzero(asleep & ((prev == acc.UTENSIL) | (prev == acc.AIRBORNE))):
+            prev[k], prev_where[k] = self._place_below(self.data.xpos[self._item_body[k]])
         codes, where = acc.classify_items(self.n_items, ii, iu, isf, self._surface_codes,
-                                          self._codes, self._where, asleep)
+                                          prev, prev_where, asleep)
         mass_g = self.layout.piece_mass * 1000.0
         new = (~self._spilled) & self._active & ((codes == acc.TABLE) | (codes == acc.CRITICAL))
         for k in np.flatnonzero(new):
@@ -461,6 +473,29 @@ class FeedingWorld:
                 where=self._surface_names[where[k]] if where[k] >= 0 else "", item=int(k)))
         self._spilled |= new
         self._codes, self._where = codes, where
+
+    def _place_below(self, p: NDArray[np.float64]) -> tuple[int, int]:
+        """(class, surface index) of the least severe place whose object holds point ``p``
+        (its footprint, up to 5 cm above it); the floor (critical) if none."""
+        best = (acc.CRITICAL, -1)
+        for i, name in enumerate(self._surface_names):
+            o = self.scene.get(name)
+            local = o.rotation.T @ (p - np.asarray(o.xyz))
+            if isinstance(o, Cylinder):
+                inside = (math.hypot(local[0], local[1]) <= o.radius
+                          and -o.length / 2 <= local[2] <= o.length / 2 + 0.05)
+            elif isinstance(o, Box):
+                h = np.asarray(o.size) / 2
+                inside = bool(np.all(np.abs(local[:2]) <= h[:2])
+                              and -h[2] <= local[2] <= h[2] + 0.05)
+            elif isinstance(o, Sphere):
+                inside = float(np.linalg.norm(local)) <= o.radius + 0.05
+            else:
+                inside = local[2] <= 0.05
+            code = int(self._surface_codes[i])
+            if inside and code < best[0]:
+                best = (code, i)
+        return best
 
     def _eat(self) -> None:
         """Food that enters the mouth region is eaten: moved out of the world, frozen."""

@@ -1,0 +1,145 @@
+"""``articutool sim``: a short scripted scene in the physics world, and its food report.
+
+``articutool sim-calibrate``: the calibration experiments that measure what the food models'
+parameters produce (angle of repose, what a level utensil holds), so they can be checked
+against physical properties — never tuned to an outcome of the thesis.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+__all__ = ["add_commands"]
+
+
+def _world_args(args: argparse.Namespace) -> dict:
+    from articutool.cli import UsageError, spec_from_args
+    from articutool.sim.params import PhysicsError, PhysicsParams
+
+    try:
+        params = PhysicsParams.load(args.physics)
+    except PhysicsError as err:
+        raise UsageError(str(err)) from None
+    if args.food not in params.foods:
+        raise UsageError(f"--food: unknown food {args.food!r}; allowed: {sorted(params.foods)}")
+    spec = spec_from_args(args)
+    if args.utensil is not None and args.utensil not in spec.utensils:
+        raise UsageError(f"--utensil: unknown utensil {args.utensil!r}; allowed: "
+                         f"{sorted(spec.utensils)}")
+    if args.seed < 0:
+        raise UsageError(f"--seed must be an integer >= 0; got {args.seed}")
+    return {"spec": spec, "params": params, "seed": args.seed}
+
+
+def _cmd_sim(args: argparse.Namespace) -> int:
+    from articutool.cli import UsageError
+    from articutool.sim.render import RenderError
+    from articutool.sim.scenes import ScriptError, run_script
+    from articutool.sim.world import FeedingWorld
+
+    for opt, path in (("--video", args.video), ("--snapshot", args.snapshot)):
+        if path is not None:
+            p = Path(path)
+            if p.exists():
+                raise UsageError(f"{opt}: {p} exists; choose a new file (nothing is "
+                                 "overwritten)")
+            if not p.parent.is_dir():
+                raise UsageError(f"{opt}: folder {p.parent} does not exist")
+    if args.video is not None and Path(args.video).suffix.lower() not in (".mp4", ".gif"):
+        raise UsageError("--video: the file must end in .mp4 or .gif")
+    if args.snapshot is not None and Path(args.snapshot).suffix.lower() != ".png":
+        raise UsageError("--snapshot: the file must end in .png")
+    kw = _world_args(args)
+    world = FeedingWorld(args.food, args.utensil, **kw)
+    recorder = None
+    try:
+        if args.video is not None:
+            from articutool.sim.render import Recorder
+
+            recorder = Recorder(world)
+        report = run_script(world, args.script, level=args.level)
+        if recorder is not None:
+            recorder.save(args.video)
+        if args.snapshot is not None:
+            from articutool.sim.render import save_png
+
+            save_png(world, args.snapshot)
+    except (RenderError, ScriptError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    out = report.to_dict()
+    out.update(script=args.script, level=args.level, seed=args.seed,
+               tool_fault=world.tool.fault, final_tilt_deg=round(world.tilt_deg(), 3))
+    if args.json:
+        print(json.dumps(out, indent=2))
+        return 0
+    print(f"{args.script} with {args.food} on the {world.utensil}, "
+          f"{'leveling' if args.level else 'wrist locked'}, seed {args.seed}: "
+          f"{report.t:.1f} s simulated at {report.realtime_factor:.2f}x real time")
+    ft = "" if report.ft_mass_g is None else f" (F/T sensor: {report.ft_mass_g:.2f} g)"
+    print(f"  on the utensil {report.on_utensil_g:7.2f} g{ft}")
+    print(f"  in the bowl    {report.in_bowl_g:7.2f} g")
+    print(f"  on the table   {report.table_g:7.2f} g (non-critical spill)")
+    print(f"  critical       {report.critical_g:7.2f} g (user, wheelchair, floor)")
+    for s in report.spills:
+        print(f"  spill at {s.t:6.2f} s: {s.mass_g:.2f} g on {s.where} ({s.place})")
+    print(f"  utensil tilt at the end {world.tilt_deg():.1f}°; arm tracking error max "
+          f"{math.degrees(report.arm_tracking_error_rad):.2f}°"
+          + (f"; tool fault: {world.tool.fault}" if world.tool.fault else ""))
+    for what, path in (("video", args.video), ("snapshot", args.snapshot)):
+        if path is not None:
+            print(f"  {what}: {path}")
+    return 0
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from articutool.sim.calibrate import run_calibration
+
+    kw = _world_args(args)
+    result = run_calibration(args.food, args.utensil, **kw)
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        for k, v in result.items():
+            print(f"{k:28s} {v}")
+    return 0
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    from articutool.cli import add_spec_option
+
+    p.add_argument("--food", default="pecans", help="food of the physics parameters "
+                   "(packaged: pecans, water, noodles; default: pecans)")
+    p.add_argument("--utensil", default=None,
+                   help="utensil (default: the food's: spoon, soup_spoon, fork)")
+    p.add_argument("--seed", type=int, default=0, help="food placement and sensor noise")
+    p.add_argument("--physics", metavar="FILE", default=None,
+                   help="physics parameters TOML (default: the packaged physics.toml)")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    add_spec_option(p)
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    """Register ``sim`` and ``sim-calibrate``."""
+    p = sub.add_parser("sim", help="a scripted scene in the physics world (MuJoCo) with the "
+                       "tool's own software in the loop; prints where the food went")
+    _common(p)
+    p.add_argument("--script", choices=("scoop", "carry", "tilt"), default="scoop",
+                   help="scoop: acquire and lift; carry: then a fast arm motion tilting the "
+                        "tool base ~40°; tilt: then the TILT primitive (default: scoop)")
+    p.add_argument("--level", action=argparse.BooleanOptionalAction, default=True,
+                   help="level the utensil after acquiring (default) or keep the wrist "
+                        "locked like a rigid tool")
+    p.add_argument("--video", metavar="FILE", default=None,
+                   help="record the scene (.mp4 or .gif); never overwrites")
+    p.add_argument("--snapshot", metavar="FILE", default=None,
+                   help="save a PNG of the last frame; never overwrites")
+    p.set_defaults(func=_cmd_sim)
+    c = sub.add_parser("sim-calibrate", help="calibration experiments of a food model "
+                       "(angle of repose, what a level utensil holds)")
+    _common(c)
+    c.set_defaults(func=_cmd_calibrate)

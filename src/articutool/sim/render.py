@@ -1,0 +1,103 @@
+"""Offscreen pictures of the physics world: PNG snapshots and videos (MP4 or GIF).
+
+MuJoCo renders headless through EGL (``MUJOCO_GL=egl``, set here unless the caller chose a
+backend). EGL needs the system's libEGL and a Mesa driver (Debian: ``libegl1``,
+``libgl1-mesa-dri``; ``make`` installs them); without them :class:`RenderError` says so.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from articutool.sim.world import FeedingWorld
+
+__all__ = ["CAMERAS", "Recorder", "RenderError", "render_frame", "save_png"]
+
+CAMERAS = ("utensil", "overview")
+_HINT = ("offscreen rendering needs EGL: install the system packages libegl1 and "
+         "libgl1-mesa-dri (Debian/Ubuntu; `make` does it), or set MUJOCO_GL to a working "
+         "backend")
+
+
+class RenderError(RuntimeError):
+    """Offscreen rendering is not available, or a file cannot be written."""
+
+
+def _renderer(world: FeedingWorld, width: int, height: int) -> mujoco.Renderer:
+    try:
+        return mujoco.Renderer(world.model, height, width)
+    except Exception as err:  # EGL/GL missing: MuJoCo raises various types
+        raise RenderError(f"{_HINT} ({type(err).__name__}: {err})") from None
+
+
+def render_frame(world: FeedingWorld, camera: str = "utensil", width: int = 640,
+                 height: int = 480, renderer: mujoco.Renderer | None = None) -> NDArray[np.uint8]:
+    """One RGB frame (height, width, 3) of the world from a named camera."""
+    if camera not in CAMERAS:
+        raise ValueError(f"camera must be one of {CAMERAS}; got {camera!r}")
+    r = renderer or _renderer(world, width, height)
+    r.update_scene(world.data, camera=camera)
+    return r.render().copy()
+
+
+def save_png(world: FeedingWorld, path: str | Path, camera: str = "utensil") -> Path:
+    """Write a PNG snapshot; returns its path."""
+    from PIL import Image
+
+    p = Path(path)
+    Image.fromarray(render_frame(world, camera)).save(p)
+    return p
+
+
+class Recorder:
+    """Records frames at ``fps`` of simulation time while the world runs (``world.on_tick``),
+    then writes them with :meth:`save` (``.mp4`` via the ffmpeg bundled with imageio-ffmpeg,
+    ``.gif`` via Pillow)."""
+
+    def __init__(self, world: FeedingWorld, fps: float = 25.0, camera: str = "utensil",
+                 width: int = 640, height: int = 480) -> None:
+        if camera not in CAMERAS:
+            raise ValueError(f"camera must be one of {CAMERAS}; got {camera!r}")
+        self.world, self.fps, self.camera = world, float(fps), camera
+        self._r = _renderer(world, width, height)
+        self.frames: list[NDArray[np.uint8]] = []
+        self._next = world.time
+        world.on_tick.append(self._grab)
+
+    def _grab(self, world: FeedingWorld) -> None:
+        if world.time >= self._next - 1e-9:
+            self.frames.append(render_frame(world, self.camera, renderer=self._r))
+            self._next += 1.0 / self.fps
+
+    def save(self, path: str | Path) -> Path:
+        """Write the video (format by suffix: .mp4 or .gif); returns its path."""
+        p = Path(path)
+        if not self.frames:
+            raise RenderError("no frames were recorded")
+        suffix = p.suffix.lower()
+        try:
+            if suffix == ".gif":
+                from PIL import Image
+
+                imgs = [Image.fromarray(f) for f in self.frames]
+                imgs[0].save(p, save_all=True, append_images=imgs[1:], loop=0,
+                             duration=int(1000 / self.fps))
+            elif suffix == ".mp4":
+                import imageio.v2 as imageio
+
+                with imageio.get_writer(p, fps=self.fps, codec="libx264",
+                                        macro_block_size=8) as w:
+                    for f in self.frames:
+                        w.append_data(f)
+            else:
+                raise RenderError(f"video: unknown format {suffix!r}; use .mp4 or .gif")
+        except OSError as err:
+            raise RenderError(f"video: cannot write {p}: {err}") from None
+        return p

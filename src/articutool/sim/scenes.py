@@ -1,0 +1,213 @@
+"""Short scripted scenes in the physics world: scoop, carry, tilt (``articutool sim``).
+
+- **scoop**: from above the food's container, the arm (wrist held still, as a rigid spoon)
+  drives the utensil tip steeply (60°) down into the food, drags it through, turns it level
+  while rising out of the bowl and lifts it; with leveling on, the tool then levels.
+- **carry**: a scoop, then a fast arm motion — the last arm joint (the hand's axis) turns at
+  its speed limit until a locked utensil would tilt 40° — and a 1.5 s hold. A leveling wrist
+  turns against it; a locked one does not.
+- **tilt**: a scoop, then the tool's own TILT primitive (roll to 45° at 0.5 rad/s, hold 1 s,
+  return), which pours out what does not stay.
+
+Arm motions are Cartesian paths of the tip solved by the Pinocchio IK (arm joints only, the
+wrist at its present angles), timed so that no arm joint exceeds its speed limit, and run
+through the arm's servos (never teleported).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from articutool.arm.ik import IKSettings, solve_pose_ik
+from articutool.arm.model import ArmModel
+from articutool.arm.scene import Cylinder
+from articutool.planning.timing import time_parameterize
+from articutool.sim.world import FeedingWorld, FoodReport
+from articutool.tool.api import Mode
+from articutool.trajectory import JointTrajectory
+
+__all__ = ["SCRIPTS", "ScriptError", "run_script", "scoop", "tip_target"]
+
+SCRIPTS = ("scoop", "carry", "tilt")
+_Z = np.array([0.0, 0.0, 1.0])
+# Scoops move along −y (towards the table's front edge, away from the user): the wrist then
+# stays on the arm's side of the bowl. Pointing away from the arm, a level utensil at the
+# bowl is out of the Jaco's reach (Pinocchio IK from 23 starts found none).
+SCOOP_HEADING = np.array([0.0, -1.0, 0.0])
+
+
+class ScriptError(RuntimeError):
+    """A scripted motion could not be made (no IK solution, no container)."""
+
+
+def tip_target(position: Sequence[float], heading: NDArray[np.float64],
+               pitch_down: float) -> NDArray[np.float64]:
+    """(4, 4) tip pose: the utensil points along horizontal ``heading`` tipped ``pitch_down``
+    rad below the horizon; its up vector (tip y, Eq. 4.1) stays in the vertical plane."""
+    h = np.asarray(heading, dtype=float)
+    h = h / np.linalg.norm(h)
+    z = h * math.cos(pitch_down) - _Z * math.sin(pitch_down)
+    y = h * math.sin(pitch_down) + _Z * math.cos(pitch_down)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([np.cross(y, z), y, z])
+    T[:3, 3] = position
+    return T
+
+
+def _ik_segment(world: FeedingWorld, model: ArmModel, q: NDArray[np.float64],
+                p0: NDArray[np.float64], a0: float, p1: NDArray[np.float64], a1: float,
+                step_m: float) -> list[NDArray[np.float64]]:
+    """8-DOF configurations along the straight tip segment p0 → p1 (pitch a0 → a1), IK every
+    ``step_m`` from the previous solution (arm joints only)."""
+    settings = IKSettings(random_seeds=0)
+    n = max(1, math.ceil(np.linalg.norm(p1 - p0) / step_m))
+    out = []
+    for k in range(1, n + 1):
+        s = k / n
+        target = tip_target(p0 + s * (p1 - p0), SCOOP_HEADING, a0 + s * (a1 - a0))
+        sol = solve_pose_ik(model, "tip", target, q, settings, free=6)
+        if sol is None:
+            raise ScriptError(f"no arm IK solution for the tip at "
+                              f"{np.round(target[:3, 3], 3)} m")
+        out.append(sol)
+        q = sol
+    return out
+
+
+def _first_ik(world: FeedingWorld, model: ArmModel, p: NDArray[np.float64],
+              a: float) -> NDArray[np.float64]:
+    """An 8-DOF configuration for the first tip pose, from the arm's present configuration or
+    a named one."""
+    target = tip_target(p, SCOOP_HEADING, a)
+    for q0 in (world.arm_q, *(world.spec.arm.configuration(n) for n in ("AbovePlate", "Home"))):
+        sol = solve_pose_ik(model, "tip", target, np.concatenate([q0, world.wrist_q]),
+                            IKSettings(random_seeds=0), free=6)
+        if sol is not None:
+            return sol
+    raise ScriptError(f"no arm IK solution for the tip at {np.round(p, 3)} m")
+
+
+def _cartesian_path(world: FeedingWorld, model: ArmModel, q: NDArray[np.float64],
+                    waypoints: list[tuple[NDArray[np.float64], float, float]],
+                    step_m: float = 0.004) -> JointTrajectory:
+    """Arm trajectory through tip waypoints ``(position, pitch_down, speed m/s)``: each
+    straight segment is solved by IK and timed by TOPP-RA under the arm's velocity and
+    acceleration limits, slowed so the tip does not exceed the segment's speed (the speed of
+    the segment ending at the waypoint); segments run rest to rest."""
+    arm = world.spec.arm
+    names = tuple(world.layout.arm_joints)
+    times, pos, vel = [np.zeros(1)], [q[None, :6]], [np.zeros((1, 6))]
+    t_end = 0.0
+    for (p0, a0, _), (p1, a1, speed) in itertools.pairwise(waypoints):
+        qs = np.array([q] + _ik_segment(world, model, q, p0, a0, p1, a1, step_m))[:, :6]
+        q = np.concatenate([qs[-1], world.wrist_q])
+        want = float(np.linalg.norm(p1 - p0)) / speed
+        scale, seg = 1.0, None
+        for _ in range(2):
+            seg = time_parameterize(qs, names, arm.max_velocity * scale,
+                                    arm.max_acceleration * scale * scale)
+            if seg is None:
+                raise ScriptError("TOPP-RA found no timing for a scripted segment")
+            if seg.duration >= want * 0.95:
+                break
+            scale *= seg.duration / want
+        assert seg is not None
+        times.append(t_end + seg.times[1:])
+        pos.append(seg.positions[1:])
+        vel.append(seg.velocities[1:])
+        t_end += seg.duration
+    return JointTrajectory(names, np.concatenate(times), np.concatenate(pos),
+                           np.concatenate(vel))
+
+
+def scoop(world: FeedingWorld, level: bool = True) -> None:
+    """Acquire from the food's container and lift (see module doc)."""
+    box = world.scene.get(world.layout.container or "bowl")
+    if not isinstance(box, Cylinder) or box.container_wall is None:
+        raise ScriptError("scoop needs the food's container (an open bowl)")
+    model = ArmModel(world.spec, world.utensil, 8, world.scene)
+    h = SCOOP_HEADING
+    c = np.array([box.xyz[0], box.xyz[1], box.xyz[2] - box.length / 2 + box.container_wall])
+    inner = box.radius - box.container_wall
+    back = c - h * 0.55 * inner
+    rad = math.radians
+    # Steep entry and drag (the handle clears the rim), then turn level while rising; every
+    # pose is collision-free for the arm and wrist in the planning model (the utensil may
+    # touch the bowl).
+    pts = [
+        (back + _Z * 0.12, rad(60), 0.15),
+        (back + _Z * 0.04, rad(60), 0.06),
+        (c - h * 0.1 * inner + _Z * 0.010, rad(60), 0.03),
+        (c + h * 0.3 * inner + _Z * 0.012, rad(50), 0.03),
+        (c + h * 0.4 * inner + _Z * 0.05, rad(30), 0.03),
+        (c + h * 0.4 * inner + _Z * 0.075, rad(0), 0.03),
+        (c + h * 0.4 * inner + _Z * 0.16, rad(0), 0.06),
+    ]
+    # Level the empty utensil and tare the F/T sensor there, as one would before a bite (the
+    # F/T then weighs the load when level); the wrist then holds these angles (DISABLED).
+    world.tool.set_mode(Mode.LEVELING)
+    world.run(1.0)
+    world.tool.set_mode(Mode.DISABLED)
+    world.tare_ft(0.3)
+    # Get above the start first (a free joint motion), then the Cartesian scoop.
+    q0 = _first_ik(world, model, pts[0][0], pts[0][1])
+    world.move_arm(q0[:6])
+    world.follow_arm(_cartesian_path(world, model, q0, pts), settle_s=0.3)
+    if level:
+        ok, msg = world.tool.set_mode(Mode.LEVELING)
+        if not ok:
+            raise ScriptError(f"the tool refused LEVELING: {msg}")
+    world.run(1.0)
+
+
+def base_tilt_motion(world: FeedingWorld, tilt_deg: float = 40.0) -> NDArray[np.float64]:
+    """Arm configuration that tilts a locked utensil by ``tilt_deg`` from where it is now,
+    by turning the last arm joint (the hand's axis) as little as needed."""
+    model = ArmModel(world.spec, world.utensil, 8, world.scene)
+    q = world.q
+    up0 = model.tip_pose(q)[:3, 1]
+    for step in np.radians(np.arange(1.0, 120.0, 0.5)):
+        for sign in (1.0, -1.0):
+            qk = q.copy()
+            qk[5] += sign * step
+            if not world.spec.arm.lower[5] <= qk[5] <= world.spec.arm.upper[5]:
+                continue
+            up = model.tip_pose(qk)[:3, 1]
+            if math.degrees(math.acos(np.clip(up @ up0, -1.0, 1.0))) >= tilt_deg:
+                return qk[:6]
+    raise ScriptError(f"turning the hand cannot tilt the utensil by {tilt_deg}°")
+
+
+def carry(world: FeedingWorld, level: bool = True) -> None:
+    """Scoop, then turn the arm's last joint at its speed limit until a locked utensil would
+    tilt 40°, and hold 1.5 s."""
+    scoop(world, level)
+    world.move_arm(base_tilt_motion(world, 40.0), wait=True)
+    world.run(1.5)
+
+
+def tilt(world: FeedingWorld, level: bool = True) -> None:
+    """Scoop, then the tool's TILT primitive: roll 45° at 0.5 rad/s, hold 1 s, return."""
+    scoop(world, level)
+    world.tool.set_mode(Mode.DISABLED)
+    ok, msg = world.tool.start_primitive("TILT", [math.radians(45.0), 0.5, 1.0])
+    if not ok:
+        raise ScriptError(f"the tool refused TILT: {msg}")
+    world.run_until(lambda: world.tool.mode != Mode.PRIMITIVE, 20.0)
+    if level:
+        world.tool.set_mode(Mode.LEVELING)
+    world.run(1.0)
+
+
+def run_script(world: FeedingWorld, script: str, level: bool = True) -> FoodReport:
+    """Run a named scene and return the food report (with the F/T-measured mass at rest)."""
+    fn = {"scoop": scoop, "carry": carry, "tilt": tilt}.get(script)
+    if fn is None:
+        raise ValueError(f"script must be one of {SCRIPTS}; got {script!r}")
+    fn(world, level)
+    return world.report(measure_ft=True)
