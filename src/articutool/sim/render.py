@@ -61,7 +61,7 @@ class Recorder:
     then writes them with :meth:`save` (``.mp4`` via the ffmpeg bundled with imageio-ffmpeg,
     ``.gif`` via Pillow)."""
 
-    def __init__(self, world: FeedingWorld, fps: float = 25.0, camera: str = "utensil",
+    def __init__(self, world: FeedingWorld, fps: float = 20.0, camera: str = "utensil",
                  width: int = 640, height: int = 480) -> None:
         if camera not in CAMERAS:
             raise ValueError(f"camera must be one of {CAMERAS}; got {camera!r}")

@@ -1,0 +1,188 @@
+"""The MuJoCo feeding world: geometry from the spec, physics sanity, the tool in the loop.
+
+Physics checks compare a condition with its control in the same world (leveling vs locked,
+tilted vs level), never against numbers copied from anywhere.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+mujoco = pytest.importorskip("mujoco")
+
+from articutool.arm.model import ArmModel  # noqa: E402
+from articutool.arm.scene import Scene  # noqa: E402
+from articutool.sim import accounting as acc  # noqa: E402
+from articutool.sim.mjcf import build_mjcf, tip_site_name  # noqa: E402
+from articutool.sim.params import PhysicsError, PhysicsParams, default_physics_path  # noqa: E402
+from articutool.sim.scenes import base_tilt_motion  # noqa: E402
+from articutool.sim.world import FeedingWorld  # noqa: E402
+from articutool.spec import load_spec  # noqa: E402
+from articutool.datafile import read_document  # noqa: E402
+from articutool.tool.api import Mode  # noqa: E402
+
+SPEC = load_spec()
+PARAMS = PhysicsParams.load()
+
+
+@pytest.mark.parametrize("utensil", sorted(SPEC.utensils))
+def test_tip_pose_in_mujoco_equals_pinocchio(utensil: str) -> None:
+    lay = build_mjcf(SPEC, Scene.load(), PARAMS, utensil)
+    m = mujoco.MjModel.from_xml_string(lay.xml)
+    d = mujoco.MjData(m)
+    am = ArmModel(SPEC, utensil, 8)
+    site = m.site(tip_site_name(utensil)).id
+    rng = np.random.default_rng(1)
+    for _ in range(100):
+        q = rng.uniform(am.lower, am.upper)
+        d.qpos[:8] = q
+        mujoco.mj_kinematics(m, d)
+        T = am.tip_pose(q)
+        assert np.abs(d.site_xpos[site] - T[:3, 3]).max() < 1e-4
+        assert np.abs(d.site_xmat[site].reshape(3, 3) - T[:3, :3]).max() < 1e-6
+
+
+def _leveled(food: str, load_g: float, seed: int = 0, level: bool = True) -> FeedingWorld:
+    """A world whose tool leveled (then, unless ``level``, locked its wrist), tared its F/T
+    sensor, and was loaded with ``load_g`` of ``food``."""
+    w = FeedingWorld(food, seed=seed, load_g=load_g)
+    w.tool.set_mode(Mode.LEVELING)
+    w.run(1.0)
+    if not level:
+        w.tool.set_mode(Mode.DISABLED)
+    w.tare_ft(0.3)
+    w.place_load(settle_s=1.0)
+    return w
+
+
+def test_level_spoon_keeps_its_pecans_for_10_s_and_the_ft_sensor_weighs_them() -> None:
+    w = _leveled("pecans", 4.0)
+    held = w.masses_g()["utensil"]
+    assert held > 2.5
+    w.run(10.0)
+    assert w.masses_g()["utensil"] == pytest.approx(held)
+    assert w.tool.fault == ""
+    assert w.tilt_deg() < 3.0
+    # At rest and level the F/T sensor (noise on) weighs what ground truth says.
+    assert abs(w.ft_mass_g(1.0) - held) < 0.3
+
+
+def test_tilting_the_spoon_past_the_angle_of_repose_spills() -> None:
+    w = _leveled("pecans", 4.0, level=False)
+    before = w.masses_g()["utensil"]
+    ok, msg = w.tool.start_primitive("TILT", [math.radians(75.0), 1.0, 1.0])
+    assert ok, msg
+    w.run_until(lambda: w.tool.mode != Mode.PRIMITIVE, 15.0)
+    w.run(1.0)
+    after = w.masses_g()["utensil"]
+    assert after < before - 0.5
+    # Every gram that left the spoon is somewhere: back on the plate or spilled, on record.
+    g = w.masses_g()
+    assert g["utensil"] + g["container"] + g["table"] + g["critical"] == pytest.approx(
+        sum(g.values()))
+    assert all(s.place in ("table", "critical") and s.mass_g > 0 for s in w.spills)
+
+
+def test_water_pours_from_a_tilted_soup_spoon() -> None:
+    w = _leveled("water", 8.0, level=False)
+    before = w.masses_g()["utensil"]
+    ok, msg = w.tool.start_primitive("TILT", [math.radians(60.0), 1.0, 1.0])
+    assert ok, msg
+    w.run_until(lambda: w.tool.mode != Mode.PRIMITIVE, 15.0)
+    assert w.masses_g()["utensil"] < 0.5 * before
+
+
+@pytest.mark.parametrize("food,load", [("water", 8.0), ("pecans", 7.0)])
+def test_a_40_degree_base_tilt_spills_from_a_locked_wrist_not_from_a_leveling_one(
+        food: str, load: float) -> None:
+    spilled = {}
+    for level in (True, False):
+        w = _leveled(food, load, level=level)
+        held = w.masses_g()["utensil"]
+        w.move_arm(base_tilt_motion(w, 40.0))
+        w.run(1.5)
+        spilled[level] = held - w.masses_g()["utensil"]
+        if level:
+            assert w.tilt_deg() < 5.0  # the wrist kept it level through the arm's motion
+            assert w.tool.fault == ""
+    assert spilled[True] <= 0.5
+    assert spilled[False] > spilled[True] + 0.5
+
+
+def test_the_arm_carries_a_resting_piece_with_the_utensil() -> None:
+    # A kinematically teleported tray leaves a resting piece behind (no velocity, no
+    # friction); servoed joints carry it: the piece moves with the spoon.
+    w = _leveled("pecans", 1.0)
+    k = int(np.flatnonzero(w._codes == acc.UTENSIL)[0])
+    p0, tip0 = w.data.xpos[w._item_body[k]].copy(), w.tip_pose()[:3, 3].copy()
+    q = w.arm_q.copy()
+    q[0] += 0.4  # swing the whole arm about its base
+    w.move_arm(q)
+    dp = w.data.xpos[w._item_body[k]] - p0
+    dtip = w.tip_pose()[:3, 3] - tip0
+    assert np.linalg.norm(dtip) > 0.1
+    assert np.linalg.norm(dp - dtip) < 0.02
+    assert w.arm_tracking_error < 0.01
+
+
+def test_same_seed_same_result() -> None:
+    def run() -> tuple:
+        w = _leveled("water", 8.0, seed=3, level=False)
+        w.move_arm(base_tilt_motion(w, 40.0))
+        r = w.report()
+        return r.on_utensil_g, r.in_bowl_g, r.table_g, tuple(w.data.qpos.round(12))
+    assert run() == run()
+
+
+def test_food_that_enters_the_mouth_is_eaten() -> None:
+    w = FeedingWorld("pecans", seed=0, load_g=1.0)
+    w.place_load(settle_s=0.2)
+    mouth = w.scene.region("mouth")
+    k = 0
+    bid = w._item_body[k]
+    j = w.model.body_jntadr[bid]
+    qa = w.model.jnt_qposadr[j]
+    w.data.qpos[qa:qa + 3] = mouth.xyz
+    w.run(0.1)
+    assert w.masses_g()["eaten"] == pytest.approx(w.layout.piece_mass * 1000.0)
+    assert w.report().eaten_g > 0
+
+
+def test_bad_food_inputs_are_refused_naming_the_field(tmp_path) -> None:
+    with pytest.raises(PhysicsError, match="food"):
+        FeedingWorld("caviar")
+    data = read_document(default_physics_path(), "physics", PhysicsError)
+    bad = {k: dict(v) if isinstance(v, dict) else v for k, v in data.items()}
+    bad["foods"] = {k: dict(v) for k, v in data["foods"].items()}
+    bad["foods"]["pecans"]["fill_g"] = -5.0
+    with pytest.raises(PhysicsError, match=r"foods\.pecans.*fill_g"):
+        PhysicsParams.from_dict(bad)
+    bad["foods"]["pecans"]["fill_g"] = 125.0
+    bad["foods"]["pecans"]["density"] = float("nan")
+    with pytest.raises(PhysicsError, match=r"foods\.pecans.*density"):
+        PhysicsParams.from_dict(bad)
+    with pytest.raises(ValueError, match="load_g"):
+        FeedingWorld("pecans", load_g=-1.0)
+    with pytest.raises(ValueError, match="seed"):
+        FeedingWorld("pecans", seed=-1)
+
+
+def test_classification_of_items_from_contacts() -> None:
+    e = np.zeros((0, 2), dtype=np.int64)
+    surf = np.array([acc.CONTAINER, acc.TABLE, acc.CRITICAL])
+    prev = np.full(6, acc.AIRBORNE)
+    # 0 touches the utensil, 1 rests on 0, 2 on the bowl, 3 on 2, 4 on table and bowl, 5 free.
+    codes, where = acc.classify_items(
+        6, np.array([[1, 0], [2, 3]]), np.array([0]), np.array([[2, 0], [4, 1], [4, 0]]),
+        surf, prev, np.full(6, -1), np.zeros(6, dtype=bool))
+    assert list(codes) == [acc.UTENSIL, acc.UTENSIL, acc.CONTAINER, acc.CONTAINER,
+                           acc.CONTAINER, acc.AIRBORNE]
+    assert where[4] == 0
+    # Sleeping items keep what they were; eaten stays eaten.
+    prev2 = np.array([acc.TABLE, acc.EATEN, 0, 0, 0, 0])
+    codes, _ = acc.classify_items(6, e, np.zeros(0, dtype=np.int64), e, surf, prev2,
+                                  np.full(6, -1), np.array([True] + [False] * 5))
+    assert codes[0] == acc.TABLE and codes[1] == acc.EATEN
