@@ -4,14 +4,24 @@ VENV := .venv
 BIN := $(VENV)/bin
 export MPLBACKEND := Agg
 
-.PHONY: demo test test-slow bench bench-quick bench-full lint clean
+.PHONY: demo test test-slow bench bench-quick bench-full bench-sim lint clean syspkgs
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
 
-$(VENV)/.installed: pyproject.toml | $(BIN)/python
+$(VENV)/.installed: pyproject.toml | $(BIN)/python syspkgs
 	$(BIN)/python -m pip install -q -e '.[pc,dev]'
 	touch $@
+
+# System packages the README promises: EGL + Mesa for headless MuJoCo rendering
+# (`articutool sim --video/--snapshot`). Installed with apt when missing (Debian/Ubuntu).
+EGL_PKGS := libegl1 libgl1-mesa-dri
+syspkgs:
+	@if ! ldconfig -p | grep -q 'libEGL.so.1'; then \
+	  echo "installing $(EGL_PKGS) for offscreen rendering"; \
+	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+	  $$SUDO apt-get update -q && $$SUDO apt-get install -y -q $(EGL_PKGS); \
+	fi
 
 demo: $(VENV)/.installed
 	$(BIN)/articutool demo
@@ -34,6 +44,10 @@ bench-quick: $(VENV)/.installed
 bench-full: $(VENV)/.installed
 	$(BIN)/articutool bench transport --timeout 60 --workers 2 --out results/exp2a
 	$(BIN)/articutool bench transport --tolerance-sweep --limit 30 --timeout 30 --workers 2 --out results/sweep
+
+# The physics world's real-time factor per food and whether speed settings change outcomes.
+bench-sim: $(VENV)/.installed
+	$(BIN)/python benchmarks/bench_sim.py --seeds 5 --out results/sim_benchmark.json
 
 lint: $(VENV)/.installed
 	$(BIN)/ruff check src tests benchmarks examples

@@ -11,7 +11,7 @@ import pytest
 
 pytest.importorskip("mujoco")
 
-from articutool.cli import main  # noqa: E402
+from articutool.cli import main
 
 
 def _run(*args: str) -> subprocess.CompletedProcess[str]:

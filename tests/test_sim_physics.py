@@ -15,13 +15,13 @@ mujoco = pytest.importorskip("mujoco")
 
 from articutool.arm.model import ArmModel  # noqa: E402
 from articutool.arm.scene import Scene  # noqa: E402
+from articutool.datafile import read_document  # noqa: E402
 from articutool.sim import accounting as acc  # noqa: E402
 from articutool.sim.mjcf import build_mjcf, tip_site_name  # noqa: E402
 from articutool.sim.params import PhysicsError, PhysicsParams, default_physics_path  # noqa: E402
 from articutool.sim.scenes import base_tilt_motion  # noqa: E402
 from articutool.sim.world import FeedingWorld  # noqa: E402
 from articutool.spec import load_spec  # noqa: E402
-from articutool.datafile import read_document  # noqa: E402
 from articutool.tool.api import Mode  # noqa: E402
 
 SPEC = load_spec()

@@ -20,7 +20,7 @@ from articutool.sim.world import FeedingWorld
 
 __all__ = ["CAMERAS", "Recorder", "RenderError", "render_frame", "save_png"]
 
-CAMERAS = ("utensil", "overview")
+CAMERAS = ("utensil", "overview", "bowl")
 _HINT = ("offscreen rendering needs EGL: install the system packages libegl1 and "
          "libgl1-mesa-dri (Debian/Ubuntu; `make` does it), or set MUJOCO_GL to a working "
          "backend")

@@ -1,8 +1,10 @@
 """Short scripted scenes in the physics world: scoop, carry, tilt (``articutool sim``).
 
-- **scoop**: from above the food's container, the arm (wrist held still, as a rigid spoon)
-  drives the utensil tip steeply (60°) down into the food, drags it through, turns it level
-  while rising out of the bowl and lifts it; with leveling on, the tool then levels.
+- **scoop** (a fork skewers instead, see :func:`skewer`): from above the food's container,
+  the arm (wrist held still, as a rigid spoon) drives the utensil tip steeply (60°) down
+  into the food, drags it through, turns it level while rising out of the bowl and lifts
+  it; with leveling on, the tool then levels. A liquid runs out of the soup spoon during
+  the rise (it is level only once out of the bowl): this scoop acquires no water.
 - **carry**: a scoop, then a fast arm motion — the last arm joint (the hand's axis) turns at
   its speed limit until a locked utensil would tilt 40° — and a 1.5 s hold. A leveling wrist
   turns against it; a locked one does not.
@@ -31,7 +33,7 @@ from articutool.sim.world import FeedingWorld, FoodReport
 from articutool.tool.api import Mode
 from articutool.trajectory import JointTrajectory
 
-__all__ = ["SCRIPTS", "ScriptError", "run_script", "scoop", "tip_target"]
+__all__ = ["SCRIPTS", "ScriptError", "acquire", "run_script", "scoop", "skewer", "tip_target"]
 
 SCRIPTS = ("scoop", "carry", "tilt")
 _Z = np.array([0.0, 0.0, 1.0])
@@ -57,6 +59,14 @@ def tip_target(position: Sequence[float], heading: NDArray[np.float64],
     T[:3, :3] = np.column_stack([np.cross(y, z), y, z])
     T[:3, 3] = position
     return T
+
+
+def _wrist(world: FeedingWorld) -> NDArray[np.float64]:
+    """The wrist's angles for the kinematic model: roll wrapped to (−π, π] (after a twirl the
+    motor has turned whole turns; the utensil's pose is the same)."""
+    q = world.wrist_q
+    q[1] = math.remainder(q[1], 2 * math.pi)
+    return q
 
 
 def _ik_segment(world: FeedingWorld, model: ArmModel, q: NDArray[np.float64],
@@ -85,7 +95,7 @@ def _first_ik(world: FeedingWorld, model: ArmModel, p: NDArray[np.float64],
     a named one."""
     target = tip_target(p, SCOOP_HEADING, a)
     for q0 in (world.arm_q, *(world.spec.arm.configuration(n) for n in ("AbovePlate", "Home"))):
-        sol = solve_pose_ik(model, "tip", target, np.concatenate([q0, world.wrist_q]),
+        sol = solve_pose_ik(model, "tip", target, np.concatenate([q0, _wrist(world)]),
                             IKSettings(random_seeds=0), free=6)
         if sol is not None:
             return sol
@@ -105,7 +115,7 @@ def _cartesian_path(world: FeedingWorld, model: ArmModel, q: NDArray[np.float64]
     t_end = 0.0
     for (p0, a0, _), (p1, a1, speed) in itertools.pairwise(waypoints):
         qs = np.array([q] + _ik_segment(world, model, q, p0, a0, p1, a1, step_m))[:, :6]
-        q = np.concatenate([qs[-1], world.wrist_q])
+        q = np.concatenate([qs[-1], _wrist(world)])
         want = float(np.linalg.norm(p1 - p0)) / speed
         scale, seg = 1.0, None
         for _ in range(2):
@@ -158,6 +168,8 @@ def scoop(world: FeedingWorld, level: bool = True) -> None:
     q0 = _first_ik(world, model, pts[0][0], pts[0][1])
     world.move_arm(q0[:6])
     world.follow_arm(_cartesian_path(world, model, q0, pts), settle_s=0.3)
+    # Leveling starts out of the food: engaged in it, the wrist's fast pitch (up to its
+    # 4 rad/s) swings the tip ~12 cm up through the pile and flings the load (measured).
     if level:
         ok, msg = world.tool.set_mode(Mode.LEVELING)
         if not ok:
@@ -183,17 +195,84 @@ def base_tilt_motion(world: FeedingWorld, tilt_deg: float = 40.0) -> NDArray[np.
     raise ScriptError(f"turning the hand cannot tilt the utensil by {tilt_deg}°")
 
 
+def skewer(world: FeedingWorld, level: bool = True, twirl_turns: float = 2.0) -> None:
+    """The fork's acquisition (thesis §4.4, noodles): the fork, pointing 60° down, goes into
+    the food's container to 6 mm above its floor, TWIRL_CW turns it ``twirl_turns`` times
+    about its own axis at 3 rad/s (0: a still skewer), it rises 3.4 cm, the tool levels
+    (unless ``level`` is off), and the arm lifts 12 cm."""
+    box = world.scene.get(world.layout.container or "bowl")
+    if not isinstance(box, Cylinder) or box.container_wall is None:
+        raise ScriptError("skewer needs the food's container (an open bowl)")
+    model = ArmModel(world.spec, world.utensil, 8, world.scene)
+    world.tool.set_mode(Mode.LEVELING)
+    world.run(1.0)
+    world.tool.set_mode(Mode.DISABLED)
+    world.tare_ft(0.2)
+    c = np.array([box.xyz[0], box.xyz[1], box.xyz[2] - box.length / 2 + box.container_wall])
+    a = math.radians(60.0)
+    pts = [(c + _Z * 0.12, a, 0.1), (c + _Z * 0.03, a, 0.05), (c + _Z * 0.006, a, 0.02)]
+    q0 = _first_ik(world, model, pts[0][0], a)
+    world.move_arm(q0[:6])
+    world.follow_arm(_cartesian_path(world, model, q0, pts), settle_s=0.2)
+    if twirl_turns > 0:
+        ok, msg = world.tool.start_primitive("TWIRL_CW", [twirl_turns, 3.0])
+        if not ok:
+            raise ScriptError(f"the tool refused TWIRL_CW: {msg}")
+        world.run_until(lambda: world.tool.mode != Mode.PRIMITIVE, 30.0)
+    q = np.concatenate([world.arm_q, _wrist(world)])
+    world.follow_arm(_cartesian_path(world, model, q, [(pts[-1][0], a, 0.02),
+                                                       (c + _Z * 0.04, a, 0.02)]),
+                     settle_s=0.2)
+    if level:
+        world.tool.set_mode(Mode.LEVELING)
+    world.run(1.0)
+    _lift(world, model)  # the tool base goes straight up; the wrist keeps the fork level
+    world.run(1.0)
+
+
+def _lift(world: FeedingWorld, model: ArmModel, height: float = 0.12,
+          speed_scale: float = 0.3) -> None:
+    """Lift the tool base straight up by ``height`` (its orientation kept; the wrist does what
+    its mode says), slowly: the arm's limits scaled by ``speed_scale``."""
+    q = np.concatenate([world.arm_q, _wrist(world)])
+    T = model.tool_base_pose(q)
+    qs = [q]
+    n = max(2, round(height / 0.01))
+    for k in range(1, n + 1):
+        Tk = T.copy()
+        Tk[2, 3] += height * k / n
+        sol = solve_pose_ik(model, "tool_base", Tk, qs[-1], IKSettings(random_seeds=0), free=6)
+        if sol is None:
+            raise ScriptError("no arm IK solution for lifting the utensil")
+        qs.append(sol)
+    arm = world.spec.arm
+    lift = time_parameterize(np.array(qs)[:, :6], tuple(world.layout.arm_joints),
+                             arm.max_velocity * speed_scale,
+                             arm.max_acceleration * speed_scale**2)
+    if lift is None:
+        raise ScriptError("TOPP-RA found no timing for the lift")
+    world.follow_arm(lift, settle_s=0.5)
+
+
+def acquire(world: FeedingWorld, level: bool = True) -> None:
+    """The utensil's acquisition: a twirling skewer with a fork, a scoop with a spoon."""
+    if world.spec.utensil(world.utensil).physics.kind == "fork":
+        skewer(world, level)
+    else:
+        scoop(world, level)
+
+
 def carry(world: FeedingWorld, level: bool = True) -> None:
     """Scoop, then turn the arm's last joint at its speed limit until a locked utensil would
     tilt 40°, and hold 1.5 s."""
-    scoop(world, level)
+    acquire(world, level)
     world.move_arm(base_tilt_motion(world, 40.0), wait=True)
     world.run(1.5)
 
 
 def tilt(world: FeedingWorld, level: bool = True) -> None:
     """Scoop, then the tool's TILT primitive: roll 45° at 0.5 rad/s, hold 1 s, return."""
-    scoop(world, level)
+    acquire(world, level)
     world.tool.set_mode(Mode.DISABLED)
     ok, msg = world.tool.start_primitive("TILT", [math.radians(45.0), 0.5, 1.0])
     if not ok:
@@ -206,7 +285,7 @@ def tilt(world: FeedingWorld, level: bool = True) -> None:
 
 def run_script(world: FeedingWorld, script: str, level: bool = True) -> FoodReport:
     """Run a named scene and return the food report (with the F/T-measured mass at rest)."""
-    fn = {"scoop": scoop, "carry": carry, "tilt": tilt}.get(script)
+    fn = {"scoop": acquire, "carry": carry, "tilt": tilt}.get(script)
     if fn is None:
         raise ValueError(f"script must be one of {SCRIPTS}; got {script!r}")
     fn(world, level)

@@ -414,7 +414,7 @@ class FeedingWorld:
         n_bodies = len(lay.food_bodies)
         flex_node = np.full(max(m.nflex, 1), _OTHER_NODE, dtype=np.int64)
         for k, sname in enumerate(lay.food_strands):
-            f = m.flex(sname).id
+            f = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX, sname)
             flex_node[f] = n_bodies + k
             item_body.append(int(m.flex_vertbodyid[m.flex_vertadr[f]]))
         self._geom_node, self._flex_node = node, flex_node
