@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from articutool import load_spec
 from articutool.arm.model import ArmModel
-from articutool.planning.api import PlanRequest, TransportTask, plan
+from articutool.planning.api import PHASES, PlanRequest, TransportTask, plan
 from articutool.planning.constraints import (
     LooseConstraint,
     StrictConstraint,
@@ -158,6 +158,9 @@ def test_each_system_plans_a_level_transport(system: str) -> None:
     _check_trajectory(r.trajectory, system, 10.0)
     rec = r.to_record()
     assert rec["success"] is True and "trajectory" not in rec
+    # Every phase is timed, and the phases account for the planning time (up to glue).
+    assert tuple(r.phases) == PHASES and rec["phases_s"] == r.phases
+    assert 0.8 * r.planning_time_s <= sum(r.phases.values()) <= r.planning_time_s
     if system == "decoupled":
         assert r.verified is True and r.wrist_trajectory is not None
         rep = verify_trajectory(r.trajectory, ArmModel(SPEC, dof=6), SPEC)

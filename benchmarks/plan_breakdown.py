@@ -1,0 +1,99 @@
+"""Where planning time goes: per-phase wall time of each transport system over a task set.
+
+Plans every (system, task) of the packaged Exp. 2a task set (or ``--tasks FILE``) in this one
+process, one after the other, and prints JSON: per system the success count, the median and
+p90 of the whole ``plan()`` call over solved tasks, and for each phase of
+:data:`articutool.planning.api.PHASES` (setup, search, simplify, timing, recheck, verify) its
+median, p90 and share of the summed planning time. The systems run interleaved task by task,
+so their ratios are measured side by side under the same load.
+
+    .venv/bin/python benchmarks/plan_breakdown.py --limit 20 --timeout 10 [--out FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from articutool.bench.tasks import TaskFileError, load_task_set
+from articutool.planning.api import PHASES, SYSTEMS, PlanRequest, plan
+from articutool.spec import load_spec
+
+
+def _stats(x: list[float]) -> dict[str, float | None]:
+    if not x:
+        return {"median_ms": None, "p90_ms": None}
+    a = np.asarray(x) * 1e3
+    return {"median_ms": round(float(np.median(a)), 3),
+            "p90_ms": round(float(np.percentile(a, 90)), 3)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--tasks", metavar="FILE", default=None, help="task file (default: packaged)")
+    ap.add_argument("--systems", default=",".join(SYSTEMS))
+    ap.add_argument("--limit", type=int, default=None, help="only the first N tasks")
+    ap.add_argument("--timeout", type=float, default=10.0, help="per plan, s (default 10)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--out", metavar="FILE", default=None, help="also write the JSON here")
+    args = ap.parse_args(argv)
+    systems = [s.strip() for s in args.systems.split(",") if s.strip()]
+    for s in systems:
+        if s not in SYSTEMS:
+            print(f"--systems: unknown system {s!r}; allowed: {', '.join(SYSTEMS)}",
+                  file=sys.stderr)
+            return 2
+    if args.limit is not None and args.limit < 1:
+        print(f"--limit must be >= 1; got {args.limit}", file=sys.stderr)
+        return 2
+    if not args.timeout > 0:
+        print(f"--timeout must be > 0 s; got {args.timeout}", file=sys.stderr)
+        return 2
+    spec = load_spec()
+    try:
+        tasks = load_task_set(args.tasks).tasks[: args.limit]
+    except TaskFileError as err:
+        print(f"--tasks: {err}", file=sys.stderr)
+        return 2
+    runs: dict[str, list[dict]] = {s: [] for s in systems}
+    t_start = time.perf_counter()
+    for task in tasks:
+        for s in systems:
+            r = plan(PlanRequest(s, task, timeout_s=args.timeout, seed=args.seed), spec)
+            runs[s].append({"task_id": task.task_id, "success": r.success,
+                            "time_s": r.planning_time_s, "attempts": r.attempts,
+                            "phases_s": dict(r.phases)})
+    out: dict = {"tasks": len(tasks), "timeout_s": args.timeout, "seed": args.seed,
+                 "wall_s": round(time.perf_counter() - t_start, 2), "systems": {}}
+    for s, rs in runs.items():
+        ok = [r for r in rs if r["success"]]
+        total = sum(r["time_s"] for r in ok) or float("nan")
+        phases = {}
+        for p in PHASES:
+            v = [r["phases_s"].get(p, 0.0) for r in ok]
+            phases[p] = {**_stats(v), "share": round(sum(v) / total, 3)}
+        glue = [r["time_s"] - sum(r["phases_s"].values()) for r in ok]
+        phases["other"] = {**_stats(glue), "share": round(sum(glue) / total, 3)}
+        out["systems"][s] = {"solved": len(ok), "of": len(rs), **_stats([r["time_s"] for r in ok]),
+                             "mean_attempts": round(float(np.mean([r["attempts"] for r in rs])), 2),
+                             "phases": phases,
+                             "failed_tasks": [r["task_id"] for r in rs if not r["success"]]}
+    base = out["systems"].get("decoupled", {}).get("median_ms")
+    if base:
+        out["median_ratio_to_decoupled"] = {
+            s: round(v["median_ms"] / base, 2) for s, v in out["systems"].items()
+            if v["median_ms"] is not None}
+    text = json.dumps(out, indent=1)
+    print(text)
+    if args.out:
+        Path(args.out).write_text(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
