@@ -350,8 +350,9 @@ class ArmModel:
                                           self.geometry_data, q, stop_at_first))
 
     def in_collision(self, q: ArrayLike) -> bool:
-        """True if any checked pair (self or scene) collides at ``q`` (nq,)."""
-        return self._collide(q, True)
+        """True if any checked pair (self or scene) collides at ``q`` (nq,); broad phase."""
+        q = self._q(q, (self.nq,))
+        return bool(pin.computeCollisions(self.model, self.data, self.broadphase, q, True))
 
     def colliding_pairs(self, q: ArrayLike) -> list[tuple[str, str]]:
         """Names of every colliding pair at ``q``; scene objects are named ``scene/<name>``."""

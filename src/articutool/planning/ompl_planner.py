@@ -96,7 +96,7 @@ class PlannerSettings:
     bspline_steps: int = 0  # "shortcut": B-spline smoothing steps after the shortcuts
     wrist_velocity_margin: float = 0.95  # wrist-aware timing uses this fraction of the limit
     simplify_time: float = 0.2  # s, cap on path simplification per attempt
-    broadphase: bool = False  # coal broad-phase manager instead of the pair loop
+    broadphase: bool = True  # ArmModel.broadphase (coal's AABB tree) instead of the pair loop
     toppra_grid: float = 0.01  # rad of joint-space arc between toppra grid points
     cache_models: bool = False  # reuse this thread's arm models (and scene) across plans
 
