@@ -98,7 +98,7 @@ class PlannerSettings:
     simplify_time: float = 0.2  # s, cap on path simplification per attempt
     broadphase: bool = True  # ArmModel.broadphase (coal's AABB tree) instead of the pair loop
     toppra_grid: float = 0.01  # rad of joint-space arc between toppra grid points
-    cache_models: bool = False  # reuse this thread's arm models (and scene) across plans
+    cache_models: bool = True  # reuse this thread's arm models (and scene) across plans
 
 
 def _fail(req: PlanRequest, t0: float, attempts: int, rejections: int, msg: str,
