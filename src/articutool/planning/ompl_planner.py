@@ -97,7 +97,9 @@ class PlannerSettings:
     wrist_velocity_margin: float = 0.95  # wrist-aware timing uses this fraction of the limit
     simplify_time: float = 0.2  # s, cap on path simplification per attempt
     broadphase: bool = True  # ArmModel.broadphase (coal's AABB tree) instead of the pair loop
-    toppra_grid: float = 0.01  # rad of joint-space arc between toppra grid points
+    # rad of joint-space arc between toppra grid points. 0.02 measured 0.81-0.84x the plan
+    # time of 0.01 with trajectory durations +0-1.3 % (median; max +2.7 %); 0.03: max +7.7 %.
+    toppra_grid: float = 0.02
     cache_models: bool = True  # reuse this thread's arm models (and scene) across plans
 
 
