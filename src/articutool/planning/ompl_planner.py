@@ -19,6 +19,14 @@
   checker with the tolerance band + fine motion checks): it measured faster and more
   reliable on the benchmark tasks (see :func:`plan_transport`).
 
+Speed (issue 12; per-phase times in ``PlanResult.phases``, ``benchmarks/plan_breakdown.py``):
+RRT-Connect extends at most ``range`` rad in every mode; in rejection mode the straight
+start→goal motion is tried first (it is the whole path of most decoupled tasks); paths are
+simplified with shortcuts and a few B-spline steps; collisions go through coal's broad phase;
+the arm models and toppra's joint-limit constraints are reused across plans. None of this
+skips a check: every motion still passes the search's motion check, the dense re-check and,
+for ``decoupled``, verification.
+
 Every accepted trajectory is checked again after time parameterisation, sampled at most
 ``check_step`` rad apart (joint limits, collisions, the strict tolerance); a failure counts
 as a rejection and triggers a re-plan. Planning uses a band 10 % tighter than the requested
