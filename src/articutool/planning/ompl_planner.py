@@ -274,6 +274,7 @@ class _Problem:
                 math.radians(pl.loose_pitch_deg), math.radians(pl.loose_roll_deg))
             self.strict = None
             self.band = None
+            self._q_executed = np.zeros(8)
         else:
             self.kin = _Kin(self.model, tip_frame_name(req.utensil), bp)
             tol = math.radians(req.tolerance_deg if req.tolerance_deg is not None
@@ -320,7 +321,12 @@ class _Problem:
     def valid(self, q: NDArray[np.float64]) -> bool:
         if self.executed is not None:  # decoupled: collide the arm with the leveling wrist
             w = self.leveling_wrist(q)
-            return w is not None and not self.executed.collides(np.append(q, w))
+            if w is None:
+                return False
+            x = self._q_executed  # reused: np.append cost as much as the leveling itself
+            x[:6] = q
+            x[6], x[7] = w
+            return not self.executed.collides(x)
         return self.constraint_ok(q) and not self.kin.collides(q)
 
     def valid_bounded(self, q: NDArray[np.float64]) -> bool:
