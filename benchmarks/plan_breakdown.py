@@ -8,6 +8,11 @@ median, p90 and share of the summed planning time. The systems run interleaved t
 so their ratios are measured side by side under the same load.
 
     .venv/bin/python benchmarks/plan_breakdown.py --limit 20 --timeout 10 [--out FILE]
+
+``--baseline`` also plans each (system, task) right after with the planner settings from before
+issue 12 (OMPL's automatic range in rejection mode, no direct motion, full smoothing, the pair
+loop, models rebuilt per plan, toppra grid 0.01 rad) and reports paired median ratios (new /
+baseline) of planning time and trajectory duration on the tasks both solved.
 """
 
 from __future__ import annotations
@@ -21,8 +26,14 @@ from pathlib import Path
 import numpy as np
 
 from articutool.bench.tasks import TaskFileError, load_task_set
-from articutool.planning.api import PHASES, SYSTEMS, PlanRequest, plan
+from articutool.planning.api import PHASES, SYSTEMS, PlanRequest
+from articutool.planning.ompl_planner import PlannerSettings, plan_transport
 from articutool.spec import load_spec
+
+# The planner settings before issue 12 (toppra's constraint objects and the decoupled check's
+# buffer are reused regardless; they measured < 1 ms per plan).
+BASELINE = PlannerSettings(range_everywhere=False, try_direct=False, simplify="full",
+                           broadphase=False, cache_models=False, toppra_grid=0.01)
 
 
 def _stats(x: list[float]) -> dict[str, float | None]:
@@ -41,6 +52,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--timeout", type=float, default=10.0, help="per plan, s (default 10)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", metavar="FILE", default=None, help="also write the JSON here")
+    ap.add_argument("--baseline", action="store_true",
+                    help="also plan with the pre-issue-12 settings, side by side")
     args = ap.parse_args(argv)
     systems = [s.strip() for s in args.systems.split(",") if s.strip()]
     for s in systems:
@@ -61,13 +74,21 @@ def main(argv: list[str] | None = None) -> int:
         print(f"--tasks: {err}", file=sys.stderr)
         return 2
     runs: dict[str, list[dict]] = {s: [] for s in systems}
+    baseline_runs: dict[str, list[dict]] = {s: [] for s in systems}
     t_start = time.perf_counter()
+
+    def record(req: PlanRequest, settings: PlannerSettings | None) -> dict:
+        r = plan_transport(req, spec, settings=settings)
+        dur = float(r.trajectory.times[-1]) if r.trajectory is not None else None
+        return {"task_id": req.task.task_id, "success": r.success, "time_s": r.planning_time_s,
+                "attempts": r.attempts, "duration_s": dur, "phases_s": dict(r.phases)}
+
     for task in tasks:
         for s in systems:
-            r = plan(PlanRequest(s, task, timeout_s=args.timeout, seed=args.seed), spec)
-            runs[s].append({"task_id": task.task_id, "success": r.success,
-                            "time_s": r.planning_time_s, "attempts": r.attempts,
-                            "phases_s": dict(r.phases)})
+            req = PlanRequest(s, task, timeout_s=args.timeout, seed=args.seed)
+            runs[s].append(record(req, None))
+            if args.baseline:
+                baseline_runs[s].append(record(req, BASELINE))
     out: dict = {"tasks": len(tasks), "timeout_s": args.timeout, "seed": args.seed,
                  "wall_s": round(time.perf_counter() - t_start, 2), "systems": {}}
     for s, rs in runs.items():
@@ -88,6 +109,20 @@ def main(argv: list[str] | None = None) -> int:
         out["median_ratio_to_decoupled"] = {
             s: round(v["median_ms"] / base, 2) for s, v in out["systems"].items()
             if v["median_ms"] is not None}
+    if args.baseline:
+        out["baseline"] = {}
+        for s in systems:
+            pairs = [(n, b) for n, b in zip(runs[s], baseline_runs[s], strict=True)
+                     if n["success"] and b["success"]]
+            ok = [b["time_s"] for b in baseline_runs[s] if b["success"]]
+
+            def ratio(key: str, pairs: list = pairs) -> float | None:
+                v = [n[key] / b[key] for n, b in pairs]
+                return round(float(np.median(v)), 3) if v else None
+
+            out["baseline"][s] = {"solved": len(ok), "of": len(baseline_runs[s]), **_stats(ok),
+                                  "paired_time_ratio": ratio("time_s"),
+                                  "paired_duration_ratio": ratio("duration_s")}
     text = json.dumps(out, indent=1)
     print(text)
     if args.out:

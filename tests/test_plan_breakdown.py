@@ -20,7 +20,7 @@ def _run(*args: str) -> subprocess.CompletedProcess:
 
 def test_breakdown_prints_every_phase_per_system(tmp_path) -> None:
     out = tmp_path / "b.json"
-    p = _run("--limit", "2", "--systems", "decoupled,strict6", "--out", str(out))
+    p = _run("--limit", "2", "--systems", "decoupled,strict6", "--baseline", "--out", str(out))
     assert p.returncode == 0, p.stderr
     d = json.loads(p.stdout)
     assert d == json.loads(out.read_text())
@@ -30,6 +30,9 @@ def test_breakdown_prints_every_phase_per_system(tmp_path) -> None:
         assert set(s["phases"]) == {*PHASES, "other"}
         assert abs(sum(p["share"] for p in s["phases"].values()) - 1.0) < 0.01
     assert d["median_ratio_to_decoupled"]["decoupled"] == 1.0
+    for s in d["baseline"].values():  # the pre-issue-12 settings, paired with today's
+        assert s["solved"] == 2 and s["paired_time_ratio"] > 0
+        assert s["paired_duration_ratio"] > 0
 
 
 def test_bad_options_exit_2_naming_them() -> None:
