@@ -361,3 +361,26 @@ def test_collision_agrees_with_signed_distances_pair_by_pair(m8):
         assert m8.min_distance(q) == pytest.approx(d.min(), abs=1e-6)
         n_colliding += bool(by_distance)
     assert 0 < n_colliding < 300  # both outcomes were exercised
+
+
+@pytest.mark.parametrize(("dof", "utensil"), [(6, "spoon"), (8, "spoon"), (8, "fork")])
+def test_broad_phase_check_gives_the_pair_loops_answer(dof, utensil):
+    """``in_collision`` (coal's dynamic AABB tree broad phase, which the planners use) says
+    what checking every pair says (``colliding_pairs``), on random configurations and on
+    pairs straddling a contact (bisected to 1e-7 rad), where a broad phase could cut
+    wrongly."""
+    m = ArmModel(SPEC, utensil=utensil, dof=dof)
+    rng = np.random.default_rng(5)
+    lo, hi = np.maximum(m.lower, -1.5 * np.pi), np.minimum(m.upper, 1.5 * np.pi)
+    qs = list(rng.uniform(lo, hi, (400, m.nq)))
+    free = [q for q in qs if not m.colliding_pairs(q)]
+    hit = [q for q in qs if m.colliding_pairs(q)]
+    assert free and hit  # both outcomes exercised
+    for a, b in zip(free[:30], hit[:30], strict=False):
+        s0, s1 = 0.0, 1.0  # bisect the segment a -> b to its first contact
+        while s1 - s0 > 1e-7:
+            s = 0.5 * (s0 + s1)
+            s0, s1 = (s0, s) if m.colliding_pairs(a + s * (b - a)) else (s, s1)
+        qs += [a + s0 * (b - a), a + s1 * (b - a)]
+    for q in qs:
+        assert m.in_collision(q) == bool(m.colliding_pairs(q))

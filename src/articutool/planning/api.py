@@ -11,13 +11,14 @@ Three systems (thesis Ch. 5, Exp. 2a):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from articutool.spec import Spec
 from articutool.trajectory import JointTrajectory
 
 __all__ = [
+    "PHASES",
     "PLANNERS",
     "SYSTEMS",
     "PlanRequest",
@@ -29,6 +30,10 @@ __all__ = [
 
 SYSTEMS = ("decoupled", "strict6", "strict8")
 PLANNERS = ("rrtconnect", "rrtstar")
+# Phases of one plan() call, in order (PlanResult.phases): building the problem and checking
+# the endpoints, the OMPL search, path simplification, time parameterisation, the dense
+# re-check of the timed trajectory, and (decoupled) verification.
+PHASES = ("setup", "search", "simplify", "timing", "recheck", "verify")
 
 
 @dataclass(frozen=True)
@@ -74,6 +79,9 @@ class PlanResult:
     trajectory: JointTrajectory | None  # time-parameterised arm (6 or 8 joints)
     wrist_trajectory: JointTrajectory | None  # decoupled: leveling trajectory from the verifier
     planner: str = ""  # OMPL's name of the planner that found the path (e.g. "RRTConnect")
+    # Wall time (s) per phase, summed over attempts: setup, search, simplify, timing,
+    # recheck, verify (see ``PHASES``); what is left of planning_time_s is glue.
+    phases: dict[str, float] = field(default_factory=dict)
 
     def to_record(self) -> dict[str, Any]:
         """JSON-serialisable summary without the trajectories (NaN becomes ``None``)."""
@@ -95,6 +103,7 @@ class PlanResult:
             "duration_s": (
                 float(self.trajectory.times[-1]) if self.trajectory is not None else None
             ),
+            "phases_s": {k: float(v) for k, v in self.phases.items()},
         }
 
 

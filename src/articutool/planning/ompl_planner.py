@@ -19,6 +19,14 @@
   checker with the tolerance band + fine motion checks): it measured faster and more
   reliable on the benchmark tasks (see :func:`plan_transport`).
 
+Speed (issue 12; per-phase times in ``PlanResult.phases``, ``benchmarks/plan_breakdown.py``):
+RRT-Connect extends at most ``range`` rad in every mode; in rejection mode the straight
+start→goal motion is tried first (it is the whole path of most decoupled tasks); paths are
+simplified with shortcuts and a few B-spline steps; collisions go through coal's broad phase;
+the arm models and toppra's joint-limit constraints are reused across plans. None of this
+skips a check: every motion still passes the search's motion check, the dense re-check and,
+for ``decoupled``, verification.
+
 Every accepted trajectory is checked again after time parameterisation, sampled at most
 ``check_step`` rad apart (joint limits, collisions, the strict tolerance); a failure counts
 as a rejection and triggers a re-plan. Planning uses a band 10 % tighter than the requested
@@ -33,6 +41,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -45,7 +54,8 @@ from ompl import geometric as og
 from ompl import util as ou
 
 from articutool.arm.model import TOOL_BASE_FRAME, ArmModel, tip_frame_name
-from articutool.planning.api import PlanRequest, PlanResult
+from articutool.arm.scene import default_scene_path
+from articutool.planning.api import PHASES, PlanRequest, PlanResult
 from articutool.planning.constraints import (
     LooseConstraint,
     StrictConstraint,
@@ -78,21 +88,84 @@ class PlannerSettings:
     delta: float = 0.03  # rad, projected-space step (ProjectedStateSpace.setDelta)
     check_step: float = 0.025  # rad, final dense check of the time-parameterised trajectory
     plan_margin: float = 0.9  # strict: plan inside tol * plan_margin
-    strict_range: float = 1.0  # rad, RRT-Connect extension range in projected spaces
+    # rad, RRT-Connect's extension range, in every mode. OMPL's automatic range (0.2 x the
+    # space's extent, ~5.2 rad with +-2pi joints) makes 96-98 % of strict motions leave the
+    # band; 1 rad measured strict6 0.17x / strict8 0.094x the time, decoupled 0.92x (paired
+    # medians, first 20 tasks, issue 12). range_everywhere=False: projected spaces only.
+    range: float = 1.0
+    range_everywhere: bool = True
+    # Accept the straight start->goal motion when it passes the search's own motion check
+    # (rejection mode; projected motions are not straight): most decoupled tasks are one
+    # straight motion, which then needs no search or simplification (decoupled 0.54x).
+    try_direct: bool = True
+    # "shortcut": reduceVertices + partialShortcutPath + bspline_steps of B-spline smoothing;
+    # "full": OMPL's simplifySolution (iterated, time-capped); "rope": reduceVertices +
+    # ropeShortcutPath. Shortcuts + 5 smoothing steps measured 0.84-0.94x the plan time of
+    # "full" with 10-13 % shorter strict trajectories; shortcuts alone 0.59-0.67x but 19 %
+    # longer trajectories (sharp corners slow toppra down); "rope" has a heavy time tail.
+    simplify: str = "shortcut"
+    bspline_steps: int = 5
     wrist_velocity_margin: float = 0.95  # wrist-aware timing uses this fraction of the limit
     simplify_time: float = 0.2  # s, cap on path simplification per attempt
+    broadphase: bool = True  # ArmModel.broadphase (coal's AABB tree) instead of the pair loop
+    # rad of joint-space arc between toppra grid points. 0.02 measured 0.81-0.84x the plan
+    # time of 0.01 with trajectory durations +0-1.3 % (median; max +2.7 %); 0.03: max +7.7 %.
+    toppra_grid: float = 0.02
+    cache_models: bool = True  # reuse this thread's arm models (and scene) across plans
 
 
 def _fail(req: PlanRequest, t0: float, attempts: int, rejections: int, msg: str,
-          verified: bool | None = None) -> PlanResult:
+          phases: dict[str, float], verified: bool | None = None) -> PlanResult:
     return PlanResult(req.system, req.task.task_id, False, time.perf_counter() - t0, attempts,
-                      rejections, math.nan, math.nan, verified, msg, None, None)
+                      rejections, math.nan, math.nan, verified, msg, None, None,
+                      phases=phases)
+
+
+class _Phases(dict):
+    """Wall time per phase (``PHASES``), summed over attempts."""
+
+    def __init__(self) -> None:
+        super().__init__(dict.fromkeys(PHASES, 0.0))
+        self._t = time.perf_counter()
+
+    def lap(self, phase: str) -> None:
+        """Charge the time since the previous lap to ``phase``."""
+        now = time.perf_counter()
+        self[phase] += now - self._t
+        self._t = now
+
+
+_models = threading.local()  # per thread: a model's data buffers are written by every query
+
+
+def _arm_model(spec: Spec, utensil: str, dof: int, cached: bool) -> ArmModel:
+    """The arm model (with the default scene) for ``(spec, utensil, dof)``.
+
+    Cached per thread and rebuilt when the scene file changes (its mtime), since building the
+    models and scene costs ~6 ms of a ~20 ms decoupled plan.
+    """
+    if not cached:
+        return ArmModel(spec, utensil=utensil, dof=dof)
+    try:
+        stamp = default_scene_path().stat().st_mtime_ns
+    except OSError:
+        stamp = None
+    cache: dict = _models.__dict__.setdefault("cache", {})
+    key = (id(spec), utensil, dof, stamp)
+    hit = cache.get(key)
+    if hit is not None and hit[0] is spec:
+        return hit[1]
+    if len(cache) >= 8:
+        cache.clear()
+    model = ArmModel(spec, utensil=utensil, dof=dof)
+    cache[key] = (spec, model)  # holding the spec keeps its id from being reused
+    return model
 
 
 class _Kin:
     """Per-request kinematics on one ``ArmModel``: validity, tilt, projection Jacobians."""
 
-    def __init__(self, model: ArmModel, frame: str) -> None:
+    def __init__(self, model: ArmModel, frame: str, broadphase: bool = True) -> None:
         self.arm = model
         self.m, self.d = model.model, model.data
         self.gm, self.gd = model.geometry_model, model.geometry_data
@@ -101,6 +174,7 @@ class _Kin:
         self.fid = model.model.getFrameId(frame)
         self.n = model.nq
         self.lo, self.hi = model.lower, model.upper
+        self.bp = model.broadphase if broadphase else None
 
     def rotation(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
         pin.forwardKinematics(self.m, self.d, q)
@@ -115,6 +189,8 @@ class _Kin:
         return R, J[3:]
 
     def collides(self, q: NDArray[np.float64]) -> bool:
+        if self.bp is not None:
+            return bool(pin.computeCollisions(self.m, self.d, self.bp, q, True))
         return bool(pin.computeCollisions(self.m, self.d, self.gm, self.gd, q, True))
 
     def in_bounds(self, q: NDArray[np.float64]) -> bool:
@@ -180,24 +256,27 @@ class _Problem:
         req, spec = self.req, self.spec
         self.strict8 = req.system == "strict8"
         dof = 8 if self.strict8 else 6
-        self.model = ArmModel(spec, utensil=req.utensil, dof=dof)
+        cached = self.settings.cache_models
+        self.model = _arm_model(spec, req.utensil, dof, cached)
         task = req.task
         wrist_s = list(task.start_wrist) if self.strict8 else []
         wrist_g = list(task.goal_wrist) if self.strict8 else []
         self.start = np.array(list(task.start) + wrist_s, dtype=np.float64)
         self.goal = np.array(list(task.goal) + wrist_g, dtype=np.float64)
         pl = spec.planning
+        bp = self.settings.broadphase
         self.executed: _Kin | None = None  # decoupled: the 8-DOF model the tool executes
         if req.system == "decoupled":
-            self.kin = _Kin(self.model, TOOL_BASE_FRAME)
-            self.executed = _Kin(ArmModel(spec, utensil=req.utensil, dof=8), TOOL_BASE_FRAME)
+            self.kin = _Kin(self.model, TOOL_BASE_FRAME, bp)
+            self.executed = _Kin(_arm_model(spec, req.utensil, 8, cached), TOOL_BASE_FRAME, bp)
             self.loose = LooseConstraint.from_start(
                 self.kin.rotation(self.start), task.start_wrist,
                 math.radians(pl.loose_pitch_deg), math.radians(pl.loose_roll_deg))
             self.strict = None
             self.band = None
+            self._q_executed = np.zeros(8)
         else:
-            self.kin = _Kin(self.model, tip_frame_name(req.utensil))
+            self.kin = _Kin(self.model, tip_frame_name(req.utensil), bp)
             tol = math.radians(req.tolerance_deg if req.tolerance_deg is not None
                                else pl.strict_tolerance_deg)
             self.strict = StrictConstraint(tol)
@@ -242,7 +321,12 @@ class _Problem:
     def valid(self, q: NDArray[np.float64]) -> bool:
         if self.executed is not None:  # decoupled: collide the arm with the leveling wrist
             w = self.leveling_wrist(q)
-            return w is not None and not self.executed.collides(np.append(q, w))
+            if w is None:
+                return False
+            x = self._q_executed  # reused: np.append cost as much as the leveling itself
+            x[:6] = q
+            x[6], x[7] = w
+            return not self.executed.collides(x)
         return self.constraint_ok(q) and not self.kin.collides(q)
 
     def valid_bounded(self, q: NDArray[np.float64]) -> bool:
@@ -277,7 +361,8 @@ class _Problem:
         return None
 
     # ------------------------------------------------------------------- OMPL --
-    def solve(self, seed: int, budget: float) -> tuple[NDArray[np.float64] | None, str]:
+    def solve(self, seed: int, budget: float,
+              phases: _Phases) -> tuple[NDArray[np.float64] | None, str]:
         """One OMPL query; dense waypoints (N, n) of the simplified path, or a reason."""
         ou.RNG.setSeed(seed)  # before any OMPL object is built: their RNGs draw from it
         n, st = self.kin.n, self.settings
@@ -320,10 +405,15 @@ class _Problem:
         ss.setStartAndGoalStates(a, b)
         planner = og.RRTstar(si) if self.req.planner == "rrtstar" else og.RRTConnect(si)
         self.planner_name = planner.getName()
-        if projected:
-            planner.setRange(st.strict_range)
+        if projected or (st.range_everywhere and self.req.planner == "rrtconnect"):
+            planner.setRange(st.range)
         ss.setPlanner(planner)
         ss.setup()
+        phases.lap("setup")
+        if st.try_direct and not projected and si.checkMotion(a, b):
+            # The straight motion is valid: nothing to search or simplify.
+            phases.lap("search")
+            return _densify(np.stack([self.start, self.goal]), st.resolution), ""
         t_start = time.perf_counter()
         if self.req.planner == "rrtstar":
             # RRT* refines until the budget ends or it has refined for as long as it took to
@@ -340,17 +430,29 @@ class _Problem:
             status = ss.solve(ob.PlannerTerminationCondition(stop))
         else:
             status = ss.solve(budget)
+        phases.lap("search")
         if not ss.haveExactSolutionPath():
             return None, f"no path found within {budget:.3g} s ({status.asString()})"
         remaining = budget - (time.perf_counter() - t_start)
-        if remaining > 0:
+        if remaining > 0 and st.simplify == "full":
             ss.simplifySolution(min(remaining, st.simplify_time))
         path = ss.getSolutionPath()
+        if remaining > 0 and st.simplify in ("shortcut", "rope"):
+            simplifier = og.PathSimplifier(si)
+            simplifier.reduceVertices(path)
+            if st.simplify == "rope":
+                simplifier.ropeShortcutPath(path)
+            else:
+                simplifier.partialShortcutPath(path)
+                if st.bspline_steps:
+                    simplifier.smoothBSpline(path, st.bspline_steps)
         path.interpolate()
         states = path.getStates()
         q = np.array([[s[i] for i in range(n)] for s in states])
         del keep
-        return _densify(q, st.resolution), ""
+        out = _densify(q, st.resolution)
+        phases.lap("simplify")
+        return out, ""
 
     # ------------------------------------------------------------ final checks --
     def tip_rotations(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -452,14 +554,16 @@ def plan_transport(
     strict6 40 % / 6.0 s, strict8 70 % / 1.5 s on the same tasks).
     """
     t0 = time.perf_counter()
+    phases = _Phases()
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}; got {method!r}")
     req = request
     deadline = t0 + req.timeout_s
     prob = _Problem(req, spec, settings or PlannerSettings(), method)
     bad = prob.endpoint_problem()
+    phases.lap("setup")
     if bad is not None:
-        return _fail(req, t0, 0, 0, f"invalid task: {bad}")
+        return _fail(req, t0, 0, 0, f"invalid task: {bad}", phases)
     arm = spec.arm
     vmax, amax = prob.model.velocity_limits, arm.max_acceleration
     if prob.strict8:
@@ -473,13 +577,16 @@ def plan_transport(
         if remaining <= 0:
             break
         attempts += 1
-        waypoints, why = prob.solve(_seed(req.seed, attempts), remaining)
+        phases.lap("setup")
+        waypoints, why = prob.solve(_seed(req.seed, attempts), remaining, phases)
         if waypoints is None:
             last = why
             break
         sdot = (prob.sdot_limit() if req.system == "decoupled" and req.wrist_aware_timing
                 else None)
-        traj = time_parameterize(waypoints, names, vmax, amax, sdot_max=sdot)
+        traj = time_parameterize(waypoints, names, vmax, amax, sdot_max=sdot,
+                                 grid_step=prob.settings.toppra_grid)
+        phases.lap("timing")
         # A failed time parameterisation or dense re-check (the search checks motions at
         # ``resolution``; the final check is finer) is a replan, not a verifier rejection.
         if traj is None:
@@ -488,16 +595,19 @@ def plan_transport(
         length = _path_length(waypoints)
         if req.system != "decoupled":
             problem = prob.check_trajectory(traj)
+            phases.lap("recheck")
             if problem is not None:
                 last = f"trajectory check failed: {problem}"
                 continue
             q, _ = traj.sample(_dense_times(traj, prob.settings.check_step))
             tilt = float(tip_tilt_deg(prob.tip_rotations(q)).max())
+            phases.lap("recheck")
             return PlanResult(req.system, req.task.task_id, True, time.perf_counter() - t0,
                               attempts, rejections, length, tilt, None,
                               f"planned in {attempts} attempt(s)", traj, None,
-                              prob.planner_name)
+                              prob.planner_name, phases)
         rep = verify_trajectory(traj, prob.model, spec, q_wrist_start=req.task.start_wrist)
+        phases.lap("verify")
         if not rep.feasible:
             rejections += 1
             last = f"verification rejected the plan: {rep.reason}: {rep.message}"
@@ -505,17 +615,19 @@ def plan_transport(
         wt = rep.wrist_trajectory
         assert wt is not None
         problem = prob.check_trajectory(traj, wrist=wt)
+        phases.lap("recheck")
         if problem is not None:
             last = f"trajectory check failed: {problem}"
             continue
         q_arm, _ = traj.sample(wt.times)
         tilt_R = prob.model.tool_base_rotations(q_arm) @ wrist_rotation(wt.positions)
         tilt = float(tip_tilt_deg(tilt_R).max())
+        phases.lap("verify")
         return PlanResult(req.system, req.task.task_id, True, time.perf_counter() - t0,
                           attempts, rejections, length, tilt, True,
                           f"planned and verified in {attempts} attempt(s); "
                           f"velocity margin {rep.velocity_margin:.3f}", traj, wt,
-                          prob.planner_name)
+                          prob.planner_name, phases)
     verified = False if req.system == "decoupled" and rejections else None
     return _fail(req, t0, attempts, rejections, f"failed after {attempts} attempt(s): {last}",
-                 verified)
+                 phases, verified)

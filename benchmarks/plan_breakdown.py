@@ -1,0 +1,134 @@
+"""Where planning time goes: per-phase wall time of each transport system over a task set.
+
+Plans every (system, task) of the packaged Exp. 2a task set (or ``--tasks FILE``) in this one
+process, one after the other, and prints JSON: per system the success count, the median and
+p90 of the whole ``plan()`` call over solved tasks, and for each phase of
+:data:`articutool.planning.api.PHASES` (setup, search, simplify, timing, recheck, verify) its
+median, p90 and share of the summed planning time. The systems run interleaved task by task,
+so their ratios are measured side by side under the same load.
+
+    .venv/bin/python benchmarks/plan_breakdown.py --limit 20 --timeout 10 [--out FILE]
+
+``--baseline`` also plans each (system, task) right after with the planner settings from before
+issue 12 (OMPL's automatic range in rejection mode, no direct motion, full smoothing, the pair
+loop, models rebuilt per plan, toppra grid 0.01 rad) and reports paired median ratios (new /
+baseline) of planning time and trajectory duration on the tasks both solved.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from articutool.bench.tasks import TaskFileError, load_task_set
+from articutool.planning.api import PHASES, SYSTEMS, PlanRequest
+from articutool.planning.ompl_planner import PlannerSettings, plan_transport
+from articutool.spec import load_spec
+
+# The planner settings before issue 12 (toppra's constraint objects and the decoupled check's
+# buffer are reused regardless; they measured < 1 ms per plan).
+BASELINE = PlannerSettings(range_everywhere=False, try_direct=False, simplify="full",
+                           broadphase=False, cache_models=False, toppra_grid=0.01)
+
+
+def _stats(x: list[float]) -> dict[str, float | None]:
+    if not x:
+        return {"median_ms": None, "p90_ms": None}
+    a = np.asarray(x) * 1e3
+    return {"median_ms": round(float(np.median(a)), 3),
+            "p90_ms": round(float(np.percentile(a, 90)), 3)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--tasks", metavar="FILE", default=None, help="task file (default: packaged)")
+    ap.add_argument("--systems", default=",".join(SYSTEMS))
+    ap.add_argument("--limit", type=int, default=None, help="only the first N tasks")
+    ap.add_argument("--timeout", type=float, default=10.0, help="per plan, s (default 10)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--out", metavar="FILE", default=None, help="also write the JSON here")
+    ap.add_argument("--baseline", action="store_true",
+                    help="also plan with the pre-issue-12 settings, side by side")
+    args = ap.parse_args(argv)
+    systems = [s.strip() for s in args.systems.split(",") if s.strip()]
+    for s in systems:
+        if s not in SYSTEMS:
+            print(f"--systems: unknown system {s!r}; allowed: {', '.join(SYSTEMS)}",
+                  file=sys.stderr)
+            return 2
+    if args.limit is not None and args.limit < 1:
+        print(f"--limit must be >= 1; got {args.limit}", file=sys.stderr)
+        return 2
+    if not args.timeout > 0:
+        print(f"--timeout must be > 0 s; got {args.timeout}", file=sys.stderr)
+        return 2
+    spec = load_spec()
+    try:
+        tasks = load_task_set(args.tasks).tasks[: args.limit]
+    except TaskFileError as err:
+        print(f"--tasks: {err}", file=sys.stderr)
+        return 2
+    runs: dict[str, list[dict]] = {s: [] for s in systems}
+    baseline_runs: dict[str, list[dict]] = {s: [] for s in systems}
+    t_start = time.perf_counter()
+
+    def record(req: PlanRequest, settings: PlannerSettings | None) -> dict:
+        r = plan_transport(req, spec, settings=settings)
+        dur = float(r.trajectory.times[-1]) if r.trajectory is not None else None
+        return {"task_id": req.task.task_id, "success": r.success, "time_s": r.planning_time_s,
+                "attempts": r.attempts, "duration_s": dur, "phases_s": dict(r.phases)}
+
+    for task in tasks:
+        for s in systems:
+            req = PlanRequest(s, task, timeout_s=args.timeout, seed=args.seed)
+            runs[s].append(record(req, None))
+            if args.baseline:
+                baseline_runs[s].append(record(req, BASELINE))
+    out: dict = {"tasks": len(tasks), "timeout_s": args.timeout, "seed": args.seed,
+                 "wall_s": round(time.perf_counter() - t_start, 2), "systems": {}}
+    for s, rs in runs.items():
+        ok = [r for r in rs if r["success"]]
+        total = sum(r["time_s"] for r in ok) or float("nan")
+        phases = {}
+        for p in PHASES:
+            v = [r["phases_s"].get(p, 0.0) for r in ok]
+            phases[p] = {**_stats(v), "share": round(sum(v) / total, 3)}
+        glue = [r["time_s"] - sum(r["phases_s"].values()) for r in ok]
+        phases["other"] = {**_stats(glue), "share": round(sum(glue) / total, 3)}
+        out["systems"][s] = {"solved": len(ok), "of": len(rs), **_stats([r["time_s"] for r in ok]),
+                             "mean_attempts": round(float(np.mean([r["attempts"] for r in rs])), 2),
+                             "phases": phases,
+                             "failed_tasks": [r["task_id"] for r in rs if not r["success"]]}
+    base = out["systems"].get("decoupled", {}).get("median_ms")
+    if base:
+        out["median_ratio_to_decoupled"] = {
+            s: round(v["median_ms"] / base, 2) for s, v in out["systems"].items()
+            if v["median_ms"] is not None}
+    if args.baseline:
+        out["baseline"] = {}
+        for s in systems:
+            pairs = [(n, b) for n, b in zip(runs[s], baseline_runs[s], strict=True)
+                     if n["success"] and b["success"]]
+            ok = [b["time_s"] for b in baseline_runs[s] if b["success"]]
+
+            def ratio(key: str, pairs: list = pairs) -> float | None:
+                v = [n[key] / b[key] for n, b in pairs]
+                return round(float(np.median(v)), 3) if v else None
+
+            out["baseline"][s] = {"solved": len(ok), "of": len(baseline_runs[s]), **_stats(ok),
+                                  "paired_time_ratio": ratio("time_s"),
+                                  "paired_duration_ratio": ratio("duration_s")}
+    text = json.dumps(out, indent=1)
+    print(text)
+    if args.out:
+        Path(args.out).write_text(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
