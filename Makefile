@@ -42,8 +42,8 @@ bench-quick: $(VENV)/.installed
 
 # The committed full run (results/exp2a) and the tolerance sweep (results/sweep).
 bench-full: $(VENV)/.installed
-	$(BIN)/articutool bench transport --timeout 60 --workers 2 --out results/exp2a
-	$(BIN)/articutool bench transport --tolerance-sweep --limit 30 --timeout 30 --workers 2 --out results/sweep
+	$(BIN)/articutool bench transport --timeout 60 --workers 1 --out results/exp2a
+	$(BIN)/articutool bench transport --tolerance-sweep --limit 30 --timeout 30 --workers 1 --out results/sweep
 
 # The physics world's real-time factor per food and whether speed settings change outcomes.
 bench-sim: $(VENV)/.installed
