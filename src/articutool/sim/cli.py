@@ -80,7 +80,8 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     print(f"{args.script} with {args.food} on the {world.utensil}, "
           f"{'leveling' if args.level else 'wrist locked'}, seed {args.seed}: "
           f"{report.t:.1f} s simulated at {report.realtime_factor:.2f}x real time")
-    ft = "" if report.ft_mass_g is None else f" (F/T sensor: {report.ft_mass_g:.2f} g)"
+    ft = (" (F/T sensor: not comparable, turned away from its tare orientation)"
+          if report.ft_mass_g is None else f" (F/T sensor: {report.ft_mass_g:.2f} g)")
     print(f"  on the utensil {report.on_utensil_g:7.2f} g{ft}")
     print(f"  in the bowl    {report.in_bowl_g:7.2f} g")
     print(f"  on the table   {report.table_g:7.2f} g (non-critical spill)")

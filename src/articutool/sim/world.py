@@ -526,6 +526,15 @@ class FeedingWorld:
         self.ft.tare()
         self.run_until(lambda: not self.ft.tare_pending, 1.0)
         self.ft.history.clear()  # samples before the new offset are not comparable
+        self._tare_R = self.data.site_xmat[self._ft_site].reshape(3, 3).copy()
+
+    def ft_comparable(self, tol_deg: float = 3.0) -> bool:
+        """True when the sensor is within ``tol_deg`` of its orientation at the last tare:
+        only then does the tared force weigh the load (the utensil's own weight was removed
+        in that orientation)."""
+        R = self.data.site_xmat[self._ft_site].reshape(3, 3)
+        c = (np.trace(self._tare_R.T @ R) - 1.0) / 2.0
+        return math.degrees(math.acos(min(1.0, max(-1.0, c)))) <= tol_deg
 
     def place_load(self, settle_s: float = 0.5) -> float:
         """Put the parked load (``load_g``) on the utensil, at the utensil's velocity, then
@@ -617,7 +626,8 @@ class FeedingWorld:
         return {name: float(counts[i] * mass) for i, name in enumerate(acc.CLASS_NAMES)}
 
     def report(self, measure_ft: bool = False) -> FoodReport:
-        """The food report now (``measure_ft``: include the F/T-measured mass)."""
+        """The food report now (``measure_ft``: include the F/T-measured mass, when the
+        sensor is oriented as at its tare — see :meth:`ft_comparable`)."""
         g = self.masses_g()
         return FoodReport(
             t=round(self.time, 4), food=self.food, utensil=self.utensil,
@@ -625,7 +635,7 @@ class FeedingWorld:
             critical_g=g["critical"], airborne_g=g["airborne"], eaten_g=g["eaten"],
             total_g=int(self._active.sum()) * self.layout.piece_mass * 1000.0,
             spills=list(self.spills),
-            ft_mass_g=self.ft_mass_g() if measure_ft else None,
+            ft_mass_g=self.ft_mass_g() if measure_ft and self.ft_comparable() else None,
             realtime_factor=self.realtime_factor,
             arm_tracking_error_rad=self.arm_tracking_error,
         )
