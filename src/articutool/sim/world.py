@@ -49,6 +49,7 @@ from articutool.trajectory import JointTrajectory
 __all__ = ["FeedingWorld", "FoodReport", "smooth_joint_motion"]
 
 _UTENSIL_NODE, _OTHER_NODE, _SURFACE0 = -1, -2, -10
+_ZUP = np.array([0.0, 0.0, 1.0])
 
 
 @dataclass
@@ -529,11 +530,11 @@ class FeedingWorld:
         self._tare_R = self.data.site_xmat[self._ft_site].reshape(3, 3).copy()
 
     def ft_comparable(self, tol_deg: float = 3.0) -> bool:
-        """True when the sensor is within ``tol_deg`` of its orientation at the last tare:
-        only then does the tared force weigh the load (the utensil's own weight was removed
-        in that orientation)."""
+        """True when gravity, seen from the sensor, is within ``tol_deg`` of where it was at
+        the last tare: only then does the tared force weigh the load (the utensil's own
+        weight was removed in that orientation; a turn about the vertical does not matter)."""
         R = self.data.site_xmat[self._ft_site].reshape(3, 3)
-        c = (np.trace(self._tare_R.T @ R) - 1.0) / 2.0
+        c = float((self._tare_R.T @ _ZUP) @ (R.T @ _ZUP))
         return math.degrees(math.acos(min(1.0, max(-1.0, c)))) <= tol_deg
 
     def place_load(self, settle_s: float = 0.5) -> float:
