@@ -10,7 +10,7 @@ $(BIN)/python:
 	$(PY) -m venv $(VENV)
 
 $(VENV)/.installed: pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install -q -e '.[pc,dev]'
+	$(BIN)/python -m pip install -q -e '.[pc,dev,ros]'
 	touch $@
 
 demo: $(VENV)/.installed
