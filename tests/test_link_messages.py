@@ -213,10 +213,11 @@ def test_bad_request_values_are_refused_before_sending() -> None:
 def test_key_expressions_follow_rmw_zenoh() -> None:
     k = key_expr(3, N.joint_states)
     domain, *name, dds, h = k.split("/")
-    assert domain == "3" and name == ["articutool", "joint_states"]
+    assert domain == "3" and name == ["articutool", "default", "joint_states"]  # tool identity
     assert dds == "sensor_msgs::msg::dds_::JointState_"
     assert h.startswith("RIHS01_") and len(h) == 7 + 64
-    assert N.send_goal.name == "/articutool/execute_primitive/_action/send_goal"
+    assert N.send_goal.name == "/articutool/default/execute_primitive/_action/send_goal"
+    assert Names(tool_id="wrist-7").joint_states.name == "/articutool/wrist-7/joint_states"
     assert key_expr(0, N.cancel_goal).split("/")[-2] == "action_msgs::srv::dds_::CancelGoal_"
     assert key_expr(0, N.imu, with_hash=False).endswith("/*")
     # distinct interfaces have distinct hashes

@@ -463,9 +463,12 @@ def imu_msg(state: ToolState, t: float, frame_id: str = "articutool_imu") -> Any
 HEALTH_NAME = "articutool: control loop"
 
 
-def health_msg(state: ToolState, t: float, link_counters: dict[str, int]) -> Any:
-    """``DiagnosticArray`` with one status: OK, or ERROR with the fault as message."""
-    values = {"mode": state.mode.name, "loop_period_mean": repr(state.loop_period_mean),
+def health_msg(state: ToolState, t: float, link_counters: dict[str, int],
+               tool_id: str = "articutool", lease_holder: str = "") -> Any:
+    """``DiagnosticArray`` with one status: OK, or ERROR with the fault as message;
+    ``hardware_id`` is the tool's identity, ``lease_holder`` the commanding client."""
+    values = {"mode": state.mode.name, "lease_holder": lease_holder,
+              "loop_period_mean": repr(state.loop_period_mean),
               "loop_jitter": repr(state.loop_jitter), "loop_overruns": str(state.loop_overruns),
               "fault": state.fault}
     values.update({k: repr(v) for k, v in state.extra.items()})
@@ -473,12 +476,13 @@ def health_msg(state: ToolState, t: float, link_counters: dict[str, int]) -> Any
     kvs = [msg("diagnostic_msgs/msg/KeyValue", key=k, value=v) for k, v in values.items()]
     level = 2 if state.fault else 0  # DiagnosticStatus.ERROR / OK
     st = msg("diagnostic_msgs/msg/DiagnosticStatus", level=level, name=HEALTH_NAME,
-             message=state.fault or "OK", hardware_id="articutool", values=kvs)
+             message=state.fault or "OK", hardware_id=tool_id, values=kvs)
     return msg(DIAGNOSTIC_ARRAY, header=header(t), status=[st])
 
 
-def battery_msg(state: ToolState, t: float) -> Any:
-    """``sensor_msgs/BatteryState`` with the motors' input voltage (other fields unknown)."""
+def battery_msg(state: ToolState, t: float, tool_id: str = "articutool") -> Any:
+    """``sensor_msgs/BatteryState`` with the motors' input voltage (other fields unknown);
+    ``serial_number`` is the tool's identity."""
     nan = float("nan")
     return msg(BATTERY_STATE, header=header(t), voltage=state.battery_voltage,
                temperature=nan, current=nan, charge=nan, capacity=nan, design_capacity=nan,
@@ -486,7 +490,7 @@ def battery_msg(state: ToolState, t: float) -> Any:
                power_supply_technology=0, present=math.isfinite(state.battery_voltage),
                cell_voltage=np.zeros(0, dtype=np.float32),
                cell_temperature=np.zeros(0, dtype=np.float32), location="articutool",
-               serial_number="")
+               serial_number=tool_id)
 
 
 def _fl(s: str) -> float:
@@ -515,7 +519,8 @@ def state_from_msgs(js: Any, imu: Any | None, health: Any | None, battery: Any |
             if st.name == HEALTH_NAME:
                 kv = {k.key: k.value for k in st.values}
     mode = Mode.__members__.get(kv.get("mode", ""), Mode.DISABLED)
-    known = {"mode", "loop_period_mean", "loop_jitter", "loop_overruns", "fault"}
+    known = {"mode", "loop_period_mean", "loop_jitter", "loop_overruns", "fault",
+             "lease_holder"}
     extra = {k: _fl(v) for k, v in kv.items() if k not in known}
     return ToolState(
         stamp=stamp, mode=mode, joint_names=(str(js.name[0]), str(js.name[1])),

@@ -57,9 +57,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from articutool.link import messages as m
+from articutool.link.auth import Sender
 
-__all__ = ["Endpoint", "LinkOpenError", "LinkTimeoutError", "Names", "Responder", "Transport",
-           "key_expr"]
+__all__ = ["Endpoint", "LinkOpenError", "LinkTimeoutError", "Names", "Responder", "Sender",
+           "Transport", "key_expr"]
 
 Responder = Callable[[bytes], None]
 """Sends the reply to one service request; may be called later, from any thread, once."""
@@ -106,12 +107,25 @@ def key_expr(domain_id: int, ep: Endpoint, with_hash: bool = True) -> str:
 
 @dataclass(frozen=True)
 class Names:
-    """All endpoints of one Articutool under ``namespace`` (default ``/articutool``)."""
+    """All endpoints of the Articutool ``tool_id`` under ``namespace``: ``/<namespace>/<tool_id>/…``
+    (default ``/articutool/default/…``), so one client addresses exactly one tool."""
 
     namespace: str = "/articutool"
+    tool_id: str = "default"
 
     def _n(self, rel: str) -> str:
-        return f"/{self.namespace.strip('/')}/{rel}" if self.namespace.strip("/") else f"/{rel}"
+        base = "/".join(p for p in (self.namespace.strip("/"), self.tool_id) if p)
+        return f"/{base}/{rel}"
+
+    @property
+    def take_over(self) -> Endpoint:
+        """Take the command lease from its holder (audited; a caregiver's stop)."""
+        return Endpoint(self._n("take_over"), m.TRIGGER, True)
+
+    @property
+    def release(self) -> Endpoint:
+        """Give the command lease back."""
+        return Endpoint(self._n("release"), m.TRIGGER, True)
 
     @property
     def set_orientation_control(self) -> Endpoint:
@@ -200,19 +214,34 @@ class Transport(ABC):
 
     Callbacks run on transport threads: they must return promptly and must not raise (an
     exception is caught and dropped by the transport, but the caller should count it).
+
+    Every message sent carries its sender (``articutool.link.auth``: a signature on a paired
+    transport, a bare name otherwise). With ``with_sender=True`` a callback also receives the
+    :class:`Sender`. With ``max_bytes`` a larger payload is dropped before it is copied or
+    decoded, and ``on_drop(endpoint name, reason)`` (if set) is told.
     """
+
+    on_drop: Callable[[str, str], None] | None = None
+
+    def _dropped(self, ep: Endpoint, reason: str) -> None:
+        hook = self.on_drop
+        if hook is not None:
+            hook(ep.name, reason)
 
     @abstractmethod
     def publish(self, ep: Endpoint, payload: bytes) -> None:
         """Publish on a topic (best effort; never raises for a missing subscriber)."""
 
     @abstractmethod
-    def subscribe(self, ep: Endpoint, callback: Callable[[bytes], None]) -> Handle:
-        """Call ``callback(payload)`` for every sample published on ``ep``."""
+    def subscribe(self, ep: Endpoint, callback: Callable[..., None], with_sender: bool = False,
+                  max_bytes: int | None = None) -> Handle:
+        """Call ``callback(payload[, sender])`` for every sample published on ``ep``."""
 
     @abstractmethod
-    def serve(self, ep: Endpoint, handler: Callable[[bytes, Responder], None]) -> Handle:
-        """Serve a service: ``handler(request, respond)``; ``respond(reply)`` may be deferred."""
+    def serve(self, ep: Endpoint, handler: Callable[..., None], with_sender: bool = False,
+              max_bytes: int | None = None) -> Handle:
+        """Serve a service: ``handler(request, respond[, sender])``; ``respond(reply)`` may be
+        deferred. An oversized request is dropped unanswered (the caller times out)."""
 
     @abstractmethod
     def call(self, ep: Endpoint, payload: bytes, timeout: float) -> bytes:

@@ -211,6 +211,7 @@ class ToolRuntime:
         self.controller = LevelingController.from_spec(spec, R_base_imu=R_base_imu)
         self.stats = LoopStats()
         self._lock = threading.RLock()
+        self._link_work: Callable[[], None] | None = None
         self._opened = False
         self._wall_timing = False
 
@@ -507,6 +508,12 @@ class ToolRuntime:
                         self.stats.add_period(wake - last_wake)
                 last_wake = wake
                 self.tick()
+                work = self._link_work
+                if work is not None:  # at most one queued link command per tick
+                    try:
+                        work()
+                    except Exception:  # never escapes the loop
+                        log.exception("link work failed")
                 deadline += period
                 late = time.monotonic() - deadline
                 if late > 0.0:
@@ -518,6 +525,12 @@ class ToolRuntime:
             self._wall_timing = False
             with self._lock:
                 self._stop_motors()
+
+    def set_link_work(self, work: Callable[[], None] | None) -> None:
+        """Have :meth:`run` call ``work()`` once per tick, after the tick (the link server's
+        ``work_once``: at most one queued command, already decoded and validated, so the
+        network never adds more than one bounded call to a tick). None detaches it."""
+        self._link_work = work
 
     def tick(self, now: float | None = None, dt: float | None = None) -> ToolState:
         """One loop iteration at time ``now`` (default ``clock()``) with controller step
