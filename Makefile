@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 export MPLBACKEND := Agg
 
-.PHONY: demo test test-slow bench bench-quick bench-full lint clean
+.PHONY: demo test test-slow bench bench-quick bench-full bench-flood soak lint clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -34,6 +34,15 @@ bench-quick: $(VENV)/.installed
 bench-full: $(VENV)/.installed
 	$(BIN)/articutool bench transport --timeout 60 --workers 2 --out results/exp2a
 	$(BIN)/articutool bench transport --tolerance-sweep --limit 30 --timeout 30 --workers 2 --out results/sweep
+
+# Issue 13: the real tool (sim) under 1000 goals/s + 16 MB payloads, rate limit on vs off.
+bench-flood: $(VENV)/.installed
+	$(BIN)/python benchmarks/bench_link_flood.py --duration 60 --compare-unlimited --out results/link_flood.json
+
+# Issue 13: the tool against a random, hostile client; SOAK_S=600 make soak for a short one.
+SOAK_S ?= 3600
+soak: $(VENV)/.installed
+	$(BIN)/python benchmarks/soak.py --duration $(SOAK_S) --out results/soak.json
 
 lint: $(VENV)/.installed
 	$(BIN)/ruff check src tests benchmarks examples

@@ -104,6 +104,7 @@ class LinkConfig:
     max_trajectory_bytes: int = 1 << 20  # a JointTrajectory larger than this is dropped
     max_request_bytes: int = 4096  # a service request or heartbeat larger than this is dropped
     inbox_size: int = 16  # commands waiting for the loop; excess ones are refused and counted
+    max_rate_hz: float = 200.0  # tool: messages/s per endpoint handled; the rest dropped unread
 
     @property
     def paired(self) -> bool:
@@ -180,6 +181,9 @@ class LinkConfig:
         if self.requires_pairing and not self.paired:
             raise ConfigError("require_paired = true needs tls_root_ca, tls_certificate and "
                               "tls_private_key (from articutool pair)")
+        v = self.max_rate_hz
+        if isinstance(v, bool) or not isinstance(v, int | float) or not 1 <= v <= 100_000:
+            raise ConfigError(f"max_rate_hz must be in [1, 100000] messages/s; got {v!r}")
         v = self.auth_window
         if isinstance(v, bool) or not isinstance(v, int | float) or not 0 < v <= 3600:
             raise ConfigError(f"auth_window must be in (0, 3600] seconds; got {v!r}")

@@ -81,24 +81,24 @@ class MemoryTransport(Transport):
         if not self.connected:
             return
         with self.bus.lock:
-            targets = [(cb, ws, mb) for t, cb, ws, mb in self.bus.subs.get(ep.name, [])
+            targets = [(t, cb, ws, mb) for t, cb, ws, mb in self.bus.subs.get(ep.name, [])
                        if t.connected]
         data = bytes(payload)
-        for cb, ws, mb in targets:
-            if mb is not None and len(data) > mb:
-                self._dropped(ep, f"oversized ({len(data)} > {mb} bytes)")
+        for t, cb, ws, mb in targets:
+            if mb is not None and len(data) > mb:  # the receiver drops it and is told
+                t._dropped(ep, f"oversized ({len(data)} > {mb} bytes)")
                 continue
             self.bus.post(lambda cb=cb, ws=ws: self._deliver(cb, (data,), ws, self.sender))
 
     def subscribe(self, ep: Endpoint, callback: Callable[..., None], with_sender: bool = False,
-                  max_bytes: int | None = None) -> Handle:
+                  max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
         item = (self, callback, with_sender, max_bytes)
         with self.bus.lock:
             self.bus.subs.setdefault(ep.name, []).append(item)
         return _Handle(self.bus.subs, ep.name, item, self.bus.lock)
 
     def serve(self, ep: Endpoint, handler: Callable[..., None], with_sender: bool = False,
-              max_bytes: int | None = None) -> Handle:
+              max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
         item = (self, handler, with_sender, max_bytes)
         with self.bus.lock:
             self.bus.services.setdefault(ep.name, []).append(item)

@@ -35,8 +35,9 @@ any admitted client, without moving the lease. ``take_over`` gives the lease to 
 once and is audited (a WARNING log line ``AUDIT …`` and ``lease_takeovers``). On an unpaired
 link the names are the clients' own claims, so the lease orders honest clients only.
 
-The network cannot slow the loop: the transport drops payloads above a per-type size
-(``max_trajectory_bytes``, ``max_request_bytes``) before copying them, the link threads
+The network cannot slow the loop: the transport drops messages beyond ``max_rate_hz`` per
+endpoint and payloads above a per-type size (``max_trajectory_bytes``, ``max_request_bytes``)
+before copying them (``rate_limited``, ``oversized``), the link threads
 verify, decode and validate, and only then queue the ToolAPI call in a bounded inbox
 (``inbox_size``; stops in a queue of their own, served first); a full inbox refuses the
 command (``dropped_excess``). The tool's loop drains it, one command per tick, when the API
@@ -104,7 +105,7 @@ class ToolServer:
         self.counters: dict[str, int] = {"decode_errors": 0, "handler_errors": 0,
                                          "rejected_trajectories": 0, "link_losses": 0,
                                          "ticks": 0, "refused_unpaired": 0, "refused_lease": 0,
-                                         "lease_takeovers": 0, "oversized": 0,
+                                         "lease_takeovers": 0, "oversized": 0, "rate_limited": 0,
                                          "dropped_excess": 0, "commands": 0}
         self.holder: str | None = None  # the command lease's holder
         self._holder_seen = 0.0
@@ -133,13 +134,14 @@ class ToolServer:
                     (n.clear_fault, self._on_clear_fault), (n.send_goal, self._on_send_goal),
                     (n.get_result, self._on_get_result), (n.cancel_goal, self._on_cancel),
                     (n.take_over, self._on_take_over), (n.release, self._on_release))
-        self._handles = [t.serve(ep, self._guarded(fn), with_sender=True, max_bytes=small)
-                         for ep, fn in services]
+        rate = self.cfg.max_rate_hz
+        self._handles = [t.serve(ep, self._guarded(fn), with_sender=True, max_bytes=small,
+                                 max_rate=rate) for ep, fn in services]
         self._handles += [
             t.subscribe(n.joint_trajectory, self._guarded(self._on_trajectory), with_sender=True,
-                        max_bytes=self.cfg.max_trajectory_bytes),
+                        max_bytes=self.cfg.max_trajectory_bytes, max_rate=rate),
             t.subscribe(n.client_heartbeat, self._guarded(self._on_client_heartbeat),
-                        with_sender=True, max_bytes=small),
+                        with_sender=True, max_bytes=small, max_rate=rate),
         ]
         hook = getattr(self.api, "set_link_work", None)
         self._stop.clear()
@@ -195,9 +197,12 @@ class ToolServer:
             self._last_client_rx = time.monotonic()
 
     def _on_drop(self, name: str, reason: str) -> None:
+        key = "rate_limited" if reason == "rate" else "oversized"
         with self._lock:
-            self.counters["oversized"] += 1
-        _log.warning("dropped a message on %s: %s", name, reason)
+            self.counters[key] += 1
+            n = self.counters[key]
+        if n <= 10 or n % 1000 == 0:  # a flood must not flood the log
+            _log.warning("dropped a message on %s (%s); %d %s so far", name, reason, n, key)
 
     def _admit(self, sender: Sender, what: str) -> str | None:
         """The client's identity if it may command, else None (counted, logged)."""

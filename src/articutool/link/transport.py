@@ -59,8 +59,8 @@ from dataclasses import dataclass
 from articutool.link import messages as m
 from articutool.link.auth import Sender
 
-__all__ = ["Endpoint", "LinkOpenError", "LinkTimeoutError", "Names", "Responder", "Sender",
-           "Transport", "key_expr"]
+__all__ = ["Endpoint", "LinkOpenError", "LinkTimeoutError", "Names", "RateGate", "Responder",
+           "Sender", "Transport", "key_expr"]
 
 Responder = Callable[[bytes], None]
 """Sends the reply to one service request; may be called later, from any thread, once."""
@@ -209,6 +209,33 @@ class Handle(ABC):
         """Undeclare."""
 
 
+class RateGate:
+    """Token bucket: at most ``rate`` messages per second on average, bursts of ``burst``.
+    Checked before any Python work on a message, so a flood costs the receiver a counter."""
+
+    def __init__(self, rate: float, burst: float | None = None) -> None:
+        import threading
+        import time
+
+        self.rate = float(rate)
+        self.burst = float(burst if burst is not None else max(1.0, rate / 5))
+        self._tokens = self.burst
+        self._t = time.monotonic()
+        self._clock = time.monotonic
+        self._lock = threading.Lock()
+
+    def allow(self) -> bool:
+        """Take a token if one is left."""
+        with self._lock:
+            now = self._clock()
+            self._tokens = min(self.burst, self._tokens + (now - self._t) * self.rate)
+            self._t = now
+            if self._tokens >= 1.0:
+                self._tokens -= 1.0
+                return True
+            return False
+
+
 class Transport(ABC):
     """Publish/subscribe and request/reply of CDR payloads on ROS 2-named endpoints.
 
@@ -218,7 +245,8 @@ class Transport(ABC):
     Every message sent carries its sender (``articutool.link.auth``: a signature on a paired
     transport, a bare name otherwise). With ``with_sender=True`` a callback also receives the
     :class:`Sender`. With ``max_bytes`` a larger payload is dropped before it is copied or
-    decoded, and ``on_drop(endpoint name, reason)`` (if set) is told.
+    decoded, with ``max_rate`` (messages/s, per endpoint) messages beyond that rate are
+    dropped before any other work; ``on_drop(endpoint name, reason)`` (if set) is told.
     """
 
     on_drop: Callable[[str, str], None] | None = None
@@ -234,12 +262,12 @@ class Transport(ABC):
 
     @abstractmethod
     def subscribe(self, ep: Endpoint, callback: Callable[..., None], with_sender: bool = False,
-                  max_bytes: int | None = None) -> Handle:
+                  max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
         """Call ``callback(payload[, sender])`` for every sample published on ``ep``."""
 
     @abstractmethod
     def serve(self, ep: Endpoint, handler: Callable[..., None], with_sender: bool = False,
-              max_bytes: int | None = None) -> Handle:
+              max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
         """Serve a service: ``handler(request, respond[, sender])``; ``respond(reply)`` may be
         deferred. An oversized request is dropped unanswered (the caller times out)."""
 

@@ -33,6 +33,7 @@ from articutool.link.transport import (
     Handle,
     LinkOpenError,
     LinkTimeoutError,
+    RateGate,
     Transport,
     key_expr,
 )
@@ -187,8 +188,13 @@ class ZenohTransport(Transport):
         pub.put(payload, attachment=self._attachment(ep, payload))
 
     def subscribe(self, ep: Endpoint, callback: Callable[..., None], with_sender: bool = False,
-                  max_bytes: int | None = None) -> Handle:
+                  max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
+        gate = RateGate(max_rate) if max_rate else None
+
         def on_sample(sample: zenoh.Sample) -> None:
+            if gate is not None and not gate.allow():
+                self._dropped(ep, "rate")
+                return
             if self._too_big(ep, len(sample.payload), max_bytes):  # before copying it
                 return
             data = sample.payload.to_bytes()
@@ -200,8 +206,14 @@ class ZenohTransport(Transport):
             self._key(ep, exact=False), self._callback(on_sample, ep.name)))
 
     def serve(self, ep: Endpoint, handler: Callable[..., None], with_sender: bool = False,
-              max_bytes: int | None = None) -> Handle:
+              max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
+        gate = RateGate(max_rate) if max_rate else None
+
         def on_query(query: zenoh.Query) -> None:
+            if gate is not None and not gate.allow():
+                self._dropped(ep, "rate")
+                query.drop()
+                return
             size = len(query.payload) if query.payload is not None else 0
             if self._too_big(ep, size, max_bytes):
                 query.drop()

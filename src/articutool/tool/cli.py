@@ -58,6 +58,7 @@ Service = Callable[[ToolAPI, threading.Event], None]
 _STATUS_HZ = 5.0  # status line refresh
 _SIM_STEP = 0.002  # s, real-time stepping of the simulated world
 _LEVEL_WAIT = 5.0  # s to wait for fresh IMU data before giving up on --level
+_SWITCH_S = 0.001  # s, the interpreter's thread switch interval in the tool process
 
 
 def add_commands(subparsers: argparse._SubParsersAction) -> None:
@@ -252,6 +253,11 @@ def _cmd_tool(args: argparse.Namespace) -> int:
     spec = spec_from_args(args)
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UsageError(f"--duration must be a number of seconds > 0; got {args.duration}")
+    # The loop thread shares the interpreter with the link's threads: a waiting thread gets
+    # the GIL after at most one switch interval per thread ahead of it, 5 ms by default.
+    # 1 ms bounds what the network's threads can add to a tick (benchmarks/
+    # bench_link_flood.py measures it).
+    sys.setswitchinterval(_SWITCH_S)
     link = None
     if args.serve:  # open the link before anything moves: a tool that cannot serve says so
         from articutool.link.config import ConfigError, config_from_args
