@@ -105,8 +105,14 @@ class Soak:
         t = time.monotonic()
         try:
             out = fn()
-            ok, msg = (out if isinstance(out, tuple) else (bool(out.success), out.message)) \
-                if out is not None else (True, "sent")
+            if out is None:
+                ok, msg = True, "sent"
+            elif isinstance(out, tuple):
+                ok, msg = out
+            elif isinstance(out, bool):
+                ok, msg = out, "cancelling" if out else "nothing to cancel"
+            else:
+                ok, msg = bool(out.success), out.message
         except (LinkError, ValueError, TimeoutError) as err:
             ok, msg = False, f"{type(err).__name__}: {err}"
         self.outcomes.append({"t": self.now(), "kind": kind, "cmd": cmd, "args": args,
@@ -273,6 +279,10 @@ class Soak:
             "faults": self.faults,
             "link_counters": self.samples[-1].get("link") if self.samples else None,
             "commands": len(self.outcomes),
+            # Safety: none of these may have succeeded.
+            "invalid_accepted": sum(o["ok"] for o in self.outcomes if o["kind"] == "invalid"
+                                    and o["cmd"] != "trajectory"),
+            "unsigned_accepted": sum(o["ok"] for o in self.outcomes if o["kind"] == "unsigned"),
             "outcome_counts": [{"kind": k, "cmd": c, "ok": ok, "n": n}
                                for (k, c, ok), n in sorted(by.items())],
             "tool_exit_code": self.tool.poll(),

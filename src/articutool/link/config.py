@@ -1,12 +1,15 @@
 """Link configuration: Zenoh endpoints, timeouts and the link-loss policy.
 
 Loopback by default: the tool listens on ``tcp/127.0.0.1:7447`` and the client connects there,
-with multicast scouting off so nothing leaves the host. For a Pi on the network, have the tool
-listen on ``tcp/0.0.0.0:7447`` and the PC connect to ``tcp/<pi address>:7447``. A config file
-is TOML or JSON with the field names below at top level (or under a ``[link]`` table)::
+with multicast scouting off so nothing leaves the host. For a Pi on the network, pair first
+(``articutool pair``): the tool listens on ``tls/0.0.0.0:7447`` with mutual TLS and the PC
+connects to ``tls/<pi address>:7447``; a plain endpoint on a network address without pairing
+is refused (:func:`plain_network_endpoints`; ``articutool tool --insecure-listen`` overrides).
+A config file is TOML or JSON with the field names below at top level (or under a ``[link]``
+table)::
 
     mode = "peer"                      # or "client" (through a zenoh router)
-    listen = ["tcp/0.0.0.0:7447"]
+    listen = ["tls/0.0.0.0:7447"]
     connect = []
     link_loss_policy = "continue"      # what a running primitive does when the PC goes silent
     tool_id = "wrist-1"                # the tool's identity: in every key and in telemetry
@@ -30,7 +33,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 __all__ = ["DEFAULT_ENDPOINT", "ConfigError", "LinkConfig", "add_config_args",
-           "check_endpoint", "config_from_args", "load_config"]
+           "check_endpoint", "config_from_args", "load_config", "plain_network_endpoints"]
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
@@ -68,6 +71,22 @@ def check_endpoint(endpoint: object, field_name: str) -> str:
     if not colon or not host or not port.isdigit() or int(port) > 65535:
         raise bad
     return endpoint
+
+
+_LOOPBACK = ("127.", "[::1]", "::1", "localhost")
+
+
+def plain_network_endpoints(endpoints: tuple[str, ...]) -> list[str]:
+    """The endpoints that are neither TLS nor loopback nor a Unix socket: anyone on the
+    network reaches them without authentication or encryption."""
+    out = []
+    for e in endpoints:
+        proto, _, rest = e.partition("/")
+        host = rest.split("?", 1)[0].split("#", 1)[0].rpartition(":")[0]
+        if proto in ("tls", "unixsock-stream") or host.startswith(_LOOPBACK):
+            continue
+        out.append(e)
+    return out
 
 
 @dataclass(frozen=True)
@@ -246,7 +265,7 @@ def add_config_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--link-config", metavar="FILE", default=None,
                    help="link config TOML/JSON (default: loopback)")
     p.add_argument("--listen", action="append", metavar="ENDPOINT", default=None,
-                   help="zenoh endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable)")
+                   help="zenoh endpoint to listen on, e.g. tls/0.0.0.0:7447 (repeatable)")
     p.add_argument("--connect", action="append", metavar="ENDPOINT", default=None,
                    help="zenoh endpoint to connect to, e.g. tcp/192.168.1.20:7447 (repeatable)")
     p.add_argument("--zenoh-mode", choices=("peer", "client"), default=None,

@@ -9,7 +9,9 @@ Key-expression mapping (after rmw_zenoh's design document, ``ros2/rmw_zenoh`` do
 
     <domain_id>/<fully qualified name without leading '/'>/<DDS type name>/<RIHS01 type hash>
 
-e.g. ``0/articutool/joint_states/sensor_msgs::msg::dds_::JointState_/RIHS01_a13e…``.
+e.g. ``0/articutool/wrist-1/joint_states/sensor_msgs::msg::dds_::JointState_/RIHS01_a13e…``:
+every name is under ``/<namespace>/<tool_id>`` (default ``/articutool/default``), so a client
+addresses one tool by its identity. Below, ``/articutool/`` stands for that prefix.
 Topics are Zenoh publishers/subscribers; services are Zenoh queryables answered by ``get``.
 Payloads are ROS 2 CDR with the 4-byte encapsulation header (see ``messages``).
 
@@ -30,7 +32,12 @@ ROS 2 name                             type (DDS name ``pkg::kind::dds_::Name_``
 /articutool/battery                    sensor_msgs/msg/BatteryState                tool → PC
 /articutool/heartbeat                  std_msgs/msg/Header (frame_id = sender)     tool → PC
 /articutool/client_heartbeat           std_msgs/msg/Header (frame_id = sender)     PC → tool
+/articutool/take_over                  std_srvs/srv/Trigger (take the lease)       service
+/articutool/release                    std_srvs/srv/Trigger (give it back)         service
+/articutool/clear_fault                std_srvs/srv/Trigger                        service
 =====================================  ==========================================  =========
+
+The tool heartbeat's frame_id is ``<tool_id>/<instance>`` (a random id per tool start).
 
 Deviations from rmw_zenoh (interoperability with ROS 2 nodes on rmw_zenoh is by design, but has
 not been tested against a ROS 2 installation):
