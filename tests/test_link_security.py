@@ -8,6 +8,7 @@ what reached the tool's API.
 
 from __future__ import annotations
 
+import json
 import os
 import socket
 import subprocess
@@ -165,6 +166,11 @@ def test_one_commander_lease_take_over_and_forged_heartbeats(
     calls = t.calls()
     assert calls.count("set_mode LEVELING") == 4, calls
     assert "start TWIRL" not in calls
+    audit = [json.loads(ln) for ln in
+             (paired / "ours" / "wrist-1" / "audit.jsonl").read_text().splitlines()]
+    assert {"event": "take_over", "client": "pc-1", "previous_holder": "pc-2"}.items() <= \
+        next(a for a in audit if a["event"] == "take_over").items()
+    assert any(a["event"] == "lease_expired" and a["client"] == "pc-1" for a in audit)
 
 
 def test_tools_by_identity_independent_and_duplicates_refused() -> None:

@@ -124,6 +124,7 @@ class LinkConfig:
     max_request_bytes: int = 4096  # a service request or heartbeat larger than this is dropped
     inbox_size: int = 16  # commands waiting for the loop; excess ones are refused and counted
     max_rate_hz: float = 200.0  # tool: messages/s per endpoint handled; the rest dropped unread
+    audit_log: str | None = None  # tool: JSON lines of lease transitions (take-overs…) appended
 
     @property
     def paired(self) -> bool:
@@ -200,6 +201,8 @@ class LinkConfig:
         if self.requires_pairing and not self.paired:
             raise ConfigError("require_paired = true needs tls_root_ca, tls_certificate and "
                               "tls_private_key (from articutool pair)")
+        if self.audit_log is not None and not isinstance(self.audit_log, str):
+            raise ConfigError(f"audit_log must be a file path; got {self.audit_log!r}")
         v = self.max_rate_hz
         if isinstance(v, bool) or not isinstance(v, int | float) or not 1 <= v <= 100_000:
             raise ConfigError(f"max_rate_hz must be in [1, 100000] messages/s; got {v!r}")
@@ -240,7 +243,7 @@ def _from_mapping(data: Any, where: str) -> LinkConfig:
         raise ConfigError(f"{where}: {err}") from None
 
 
-_PATHS = ("tls_root_ca", "tls_certificate", "tls_private_key")
+_PATHS = ("tls_root_ca", "tls_certificate", "tls_private_key", "audit_log")
 
 
 def load_config(path: str | Path) -> LinkConfig:

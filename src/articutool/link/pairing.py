@@ -138,7 +138,7 @@ def _link_toml(role: str, name: str, tool: str, port: int, tool_host: str) -> st
            'tls_private_key = "key.pem"\n')
     if role == "tool":
         where = (f'listen = ["tls/0.0.0.0:{port}"]  # every interface, mutual TLS only\n'
-                 "connect = []\n")
+                 'connect = []\naudit_log = "audit.jsonl"  # lease transitions, take-overs\n')
     else:
         where = f'connect = ["tls/{tool_host}:{port}"]  # the tool\'s address\nlisten = []\n'
     return (f"# articutool link config for {role} {name!r} (written by articutool pair).\n"

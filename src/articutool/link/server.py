@@ -32,7 +32,9 @@ its heartbeats (and commands) renew and which expires ``client_timeout`` seconds
 last heard, or when it calls ``release``. Another client's commands are refused with a message
 naming the holder (``refused_lease``), except stops: DISABLED and cancel are accepted from
 any admitted client, without moving the lease. ``take_over`` gives the lease to the caller at
-once and is audited (a WARNING log line ``AUDIT …`` and ``lease_takeovers``). On an unpaired
+once and is audited (a WARNING log line ``AUDIT …``, the ``lease_takeovers`` counter and,
+with ``LinkConfig.audit_log``, a JSON line per lease transition: granted, released, expired,
+take_over). On an unpaired
 link the names are the clients' own claims, so the lease orders honest clients only.
 
 The network cannot slow the loop: the transport drops messages beyond ``max_rate_hz`` per
@@ -55,6 +57,7 @@ their end either way; leveling always continues (it is the point of the decoupli
 
 from __future__ import annotations
 
+import json
 import logging
 import threading
 import time
@@ -109,7 +112,7 @@ class ToolServer:
                                          "dropped_excess": 0, "commands": 0}
         self.holder: str | None = None  # the command lease's holder
         self._holder_seen = 0.0
-        self.audit: deque[str] = deque(maxlen=100)
+        self.audit: deque[str] = deque(maxlen=100)  # JSON lines, newest last
         self._inbox: deque[Callable[[], None]] = deque()
         self._stops: deque[Callable[[], None]] = deque()
         self._loop_drains = False
@@ -226,10 +229,12 @@ class ToolServer:
             if self.holder is not None and now - self._holder_seen > self.cfg.client_timeout:
                 _log.warning("command lease of %s expired (silent %.1f s)", self.holder,
                              now - self._holder_seen)
+                self._audit("lease_expired", self.holder, None)
                 self.holder = None
             if self.holder is None and not stop:
                 self.holder = who
                 _log.info("command lease granted to %s", who)
+                self._audit("lease_granted", who, None)
             if self.holder == who:
                 self._holder_seen = now
                 return ""
@@ -241,6 +246,19 @@ class ToolServer:
                     f"it or is silent for {self.cfg.client_timeout:g} s. Read-only access is "
                     "open; stops (mode disabled, cancel) are always accepted; 'articutool "
                     "client take-over' takes the lease (audited)")
+
+    def _audit(self, event: str, who: str | None, previous: str | None) -> None:
+        """Record a lease transition: in memory (last 100) and, with ``audit_log``, one JSON
+        line appended to that file (never raises: the audit must not stop a command)."""
+        rec = {"time": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "tool_id": self.cfg.tool_id,
+               "event": event, "client": who, "previous_holder": previous}
+        self.audit.append(json.dumps(rec))
+        if self.cfg.audit_log:
+            try:
+                with open(self.cfg.audit_log, "a", encoding="utf-8") as f:
+                    f.write(json.dumps(rec) + "\n")
+            except OSError as err:
+                _log.error("cannot append to the audit log %s: %s", self.cfg.audit_log, err)
 
     def _submit(self, work: Callable[[], None], stop: bool = False) -> bool:
         """Queue a ToolAPI call for the loop; False (counted) when the inbox is full."""
@@ -368,9 +386,9 @@ class ToolServer:
             self.holder, self._holder_seen = who, time.monotonic()
             if before not in (None, who):
                 self.counters["lease_takeovers"] += 1
-        line = f"AUDIT take-over: {who} took the command lease from {before or 'nobody'}"
-        self.audit.append(f"{time.strftime('%Y-%m-%dT%H:%M:%S')} {line}")
-        _log.warning(line)
+        _log.warning("AUDIT take-over: %s took the command lease from %s", who,
+                     before or "nobody")
+        self._audit("take_over", who, before)
         respond(m.encode(m.trigger_response(True, f"{who} holds the command lease (was: "
                                                   f"{before or 'nobody'})"), ep.response_type))
 
@@ -386,6 +404,7 @@ class ToolServer:
                 self.holder = None
         if mine:
             _log.info("command lease released by %s", who)
+            self._audit("lease_released", who, None)
         respond(m.encode(m.trigger_response(mine, "released" if mine else
                                             f"not held by {who} (holder: {self.holder})"),
                          ep.response_type))
