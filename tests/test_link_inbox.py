@@ -3,6 +3,7 @@ size and rate limits, and a flood against a real tool process."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
 import subprocess
@@ -13,7 +14,7 @@ import uuid
 from pathlib import Path
 
 from articutool.link import messages as m
-from articutool.link.client import ArticutoolClient
+from articutool.link.client import ArticutoolClient, LinkError
 from articutool.link.config import LinkConfig
 from articutool.link.memory_transport import MemoryBus, MemoryTransport
 from articutool.link.server import ToolServer
@@ -175,3 +176,32 @@ def test_a_flood_is_dropped_and_counted_and_a_stop_still_gets_through() -> None:
     calls = next(ln for ln in out.splitlines() if ln.startswith("CALLS"))[6:].split(";")
     assert "set_mode DISABLED" in calls
     assert calls.count("start TWIRL") >= 1  # the flood's goals did reach the tool, bounded
+
+
+def test_link_loss_is_the_lease_holders_silence_not_any_clients() -> None:
+    """Policy 'cancel': the commanding PC goes silent while an observer chats on; the
+    running primitive is cancelled (before the fix the observer's heartbeats hid it)."""
+    bus = MemoryBus()
+    tool = FakeTool()
+    cfg = CFG.replace(link_loss_policy="cancel", client_timeout=0.5)
+    server = ToolServer(tool, MemoryTransport(bus, "tool"), cfg)
+    server.start()
+    holder_tr = MemoryTransport(bus, "pc-1")
+    holder = ArticutoolClient(cfg, holder_tr, sender="pc-1")
+    observer = ArticutoolClient(cfg, MemoryTransport(bus, "pc-2"), sender="pc-2")
+    try:
+        assert holder.wait_for_tool(5.0) and observer.wait_for_tool(5.0)
+        def run() -> None:
+            with contextlib.suppress(LinkError):  # the holder is cut off: it sees silence
+                holder.run_primitive("SLOW", [], timeout=30.0)
+        threading.Thread(target=run, daemon=True).start()
+        assert wait_until(lambda: tool.mode == Mode.PRIMITIVE, 3.0)
+        holder_tr.connected = False  # the PC that commands is gone; pc-2 keeps beating
+        assert wait_until(lambda: "cancel" in tool.calls, 3.0), tool.calls
+        assert server.counters["link_losses"] == 1
+    finally:
+        observer.close()
+        holder_tr.connected = True
+        holder.close()
+        server.stop()
+        bus.close()

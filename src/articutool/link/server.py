@@ -195,9 +195,12 @@ class ToolServer:
                 _log.exception("link handler failed")
         return wrapped
 
-    def _client_seen(self) -> None:
+    def _client_seen(self, who: str) -> None:
+        """``who`` was heard. While a client holds the lease only it counts for the link-loss
+        policy: observers chatting on must not hide that the commanding PC went silent."""
         with self._lock:
-            self._last_client_rx = time.monotonic()
+            if self.holder is None or self.holder == who:
+                self._last_client_rx = time.monotonic()
 
     def _on_drop(self, name: str, reason: str) -> None:
         key = "rate_limited" if reason == "rate" else "oversized"
@@ -340,7 +343,7 @@ class ToolServer:
         who = self._admit(sender, "set_orientation_control")
         if who is None:
             return self._refuse(respond, ep, "refused: not a paired PC")
-        self._client_seen()
+        self._client_seen(who)
         stop = req.control_mode == Mode.DISABLED
         refusal = self._lease(who, stop=stop)
         if refusal:
@@ -363,7 +366,7 @@ class ToolServer:
         who = self._admit(sender, "clear_fault")
         if who is None:
             return self._refuse(respond, ep, "refused: not a paired PC")
-        self._client_seen()
+        self._client_seen(who)
         refusal = self._lease(who)
         if refusal:
             return self._refuse(respond, ep, refusal)
@@ -380,7 +383,7 @@ class ToolServer:
         who = self._admit(sender, "take_over")
         if who is None:
             return self._refuse(respond, ep, "refused: not a paired PC")
-        self._client_seen()
+        self._client_seen(who)
         with self._lock:
             before = self.holder
             self.holder, self._holder_seen = who, time.monotonic()
@@ -415,7 +418,7 @@ class ToolServer:
         who = self._admit(sender, "send_goal")
         if who is None:
             return self._refuse(respond, ep, "")
-        self._client_seen()
+        self._client_seen(who)
         refusal = self._lease(who)
         gid = m.uuid_bytes(req.goal_id)
         name = str(req.goal.primitive_name)
@@ -488,7 +491,7 @@ class ToolServer:
         who = self._admit(sender, "cancel_goal")
         if who is None:
             return self._refuse(respond, ep, "")
-        self._client_seen()
+        self._client_seen(who)
         self._lease(who, stop=True)  # a stop: accepted from any admitted client
         gid = m.uuid_bytes(req.goal_info.goal_id)
 
@@ -519,7 +522,7 @@ class ToolServer:
             return
         message = m.decode(data, self.names.joint_trajectory.type)  # in the link thread
         traj = m.trajectory_from_msg(message)
-        self._client_seen()
+        self._client_seen(who)
         refusal = self._lease(who)
         if refusal:
             with self._lock:
@@ -546,7 +549,7 @@ class ToolServer:
         if who is None:  # a forged heartbeat neither keeps a lease nor the link alive
             return
         m.decode(data, self.names.client_heartbeat.type)
-        self._client_seen()
+        self._client_seen(who)
         with self._lock:
             if self.holder == who:
                 self._holder_seen = time.monotonic()
