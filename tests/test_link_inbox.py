@@ -205,3 +205,42 @@ def test_link_loss_is_the_lease_holders_silence_not_any_clients() -> None:
         holder.close()
         server.stop()
         bus.close()
+
+
+def test_prevalidated_trajectories_leave_the_loop_only_the_start_to_check() -> None:
+    import numpy as np
+    import pytest
+
+    from articutool.spec import load_spec
+    from articutool.tool.drivers import make_drivers
+    from articutool.tool.drivers.sim import SimWrist
+    from articutool.tool.runtime import ToolRuntime
+    from articutool.trajectory import JointTrajectory, TrajectoryError
+
+    spec = load_spec()
+    sim = SimWrist(spec)
+    rt = ToolRuntime(spec, *make_drivers(spec, "sim", sim=sim), clock=sim.clock)
+    with rt:
+        for _ in range(5):
+            sim.step(spec.wrist.period)
+            rt.tick(sim.time, spec.wrist.period)
+        names = tuple(rt.state().joint_names)
+        q = np.array(rt.state().position)
+        far = JointTrajectory(names, np.array([0.0, 1.0]), np.vstack([q + 0.5, q + 0.5]),
+                              np.zeros((2, 2)))
+        pre = rt.prevalidate_trajectory(far)  # within the limits: passes the link's part
+        ok, msg = rt.follow_trajectory(pre)  # the loop still checks the start
+        assert not ok and "first point (t = 0)" in msg
+        lim = spec.wrist.limits[0][1]
+        out = JointTrajectory(names, np.array([0.5, 1.0]),
+                              np.array([[lim + 0.1, q[1]], [lim + 0.1, q[1]]]),
+                              np.zeros((2, 2)))
+        with pytest.raises(TrajectoryError, match=r"spec\.wrist limits"):
+            rt.prevalidate_trajectory(out)
+        fast = JointTrajectory(names, np.array([0.02, 1.0]), np.vstack([q + 0.3, q + 0.3]),
+                               np.zeros((2, 2)))  # reaching the first point needs speed
+        ok, msg = rt.follow_trajectory(rt.prevalidate_trajectory(fast))
+        assert not ok and "interpolated trajectory" in msg  # the new first segment, checked
+        good = JointTrajectory(names, np.array([0.5, 1.0]), np.vstack([q, q + 0.05]),
+                               np.zeros((2, 2)))
+        assert rt.follow_trajectory(rt.prevalidate_trajectory(good))[0]

@@ -522,6 +522,15 @@ class ToolServer:
             return
         message = m.decode(data, self.names.joint_trajectory.type)  # in the link thread
         traj = m.trajectory_from_msg(message)
+        pre = getattr(self.api, "prevalidate_trajectory", None)
+        if callable(pre):  # the length-dependent checks here, not in the loop's tick
+            try:
+                traj = pre(traj)
+            except (ValueError, TypeError) as err:  # TrajectoryError is a ValueError
+                with self._lock:
+                    self.counters["rejected_trajectories"] += 1
+                _log.warning("trajectory from %s refused: %s", who, err)
+                return
         self._client_seen(who)
         refusal = self._lease(who)
         if refusal:
