@@ -229,11 +229,7 @@ class ToolServer:
         else the refusal naming the holder. Stops pass without touching the lease."""
         now = time.monotonic()
         with self._lock:
-            if self.holder is not None and now - self._holder_seen > self.cfg.client_timeout:
-                _log.warning("command lease of %s expired (silent %.1f s)", self.holder,
-                             now - self._holder_seen)
-                self._audit("lease_expired", self.holder, None)
-                self.holder = None
+            self._expire_lease(now)
             if self.holder is None and not stop:
                 self.holder = who
                 _log.info("command lease granted to %s", who)
@@ -249,6 +245,14 @@ class ToolServer:
                     f"it or is silent for {self.cfg.client_timeout:g} s. Read-only access is "
                     "open; stops (mode disabled, cancel) are always accepted; 'articutool "
                     "client take-over' takes the lease (audited)")
+
+    def _expire_lease(self, now: float) -> None:
+        """End the lease of a holder silent for ``client_timeout`` (lock held)."""
+        if self.holder is not None and now - self._holder_seen > self.cfg.client_timeout:
+            _log.warning("command lease of %s expired (silent %.1f s)", self.holder,
+                         now - self._holder_seen)
+            self._audit("lease_expired", self.holder, None)
+            self.holder = None
 
     def _audit(self, event: str, who: str | None, previous: str | None) -> None:
         """Record a lease transition: in memory (last 100) and, with ``audit_log``, one JSON
@@ -608,6 +612,7 @@ class ToolServer:
 
     def _check_client(self, now: float) -> None:
         with self._lock:
+            self._expire_lease(now)  # also when nobody commands: telemetry names no stale holder
             last = self._last_client_rx
         alive = last is not None and now - last < self.cfg.client_timeout
         if self._client_alive and not alive:
