@@ -169,6 +169,15 @@ def test_a_flood_is_dropped_and_counted_and_a_stop_still_gets_through() -> None:
                                    .extra.get("link_rate_limited", 0) > 0), 3.0)
         extra = client.latest_state().extra
         assert extra["link_oversized"] > 0  # the 4 MB trajectories (limit 1 MiB)
+        # Beyond the rate a caller is told so by the tool (an error reply), not left to time
+        # out: 300 calls as fast as the replies come, the limit being 200/s, burst 40.
+        refusals = []
+        for _ in range(300):
+            try:
+                client.clear_fault()
+            except LinkError as err:
+                refusals.append(str(err))
+        assert refusals and all("rate limited" in r for r in refusals), refusals[:3]
     finally:
         flood.close()
         client.close()

@@ -21,7 +21,13 @@ from typing import Any
 
 from articutool.link import messages as m
 from articutool.link.config import LinkConfig
-from articutool.link.transport import Endpoint, LinkTimeoutError, Names, Transport
+from articutool.link.transport import (
+    Endpoint,
+    LinkRefusedError,
+    LinkTimeoutError,
+    Names,
+    Transport,
+)
 from articutool.tool.api import Mode, PrimitiveStatus, ToolState
 from articutool.trajectory import JointTrajectory
 
@@ -195,6 +201,8 @@ class ArticutoolClient:
         payload = m.encode(request, ep.request_type)
         try:
             reply = self.transport.call(ep, payload, t)
+        except LinkRefusedError as err:
+            raise LinkError(str(err)) from None
         except LinkTimeoutError as err:
             raise ToolSilentError(f"{ep.name}: no reply within {t:g} s ({self._silence()}): "
                                   f"{err}") from None
@@ -355,7 +363,11 @@ class ArticutoolClient:
                 time.sleep(max(0.0, min(0.05, poll - (time.monotonic() - t0))))
 
     def _get_result_once(self, ep: Endpoint, req: bytes, t: float) -> m.PrimitiveResult:
-        obj = self._decode(self.transport.call(ep, req, t), ep.response_type)
+        try:
+            reply = self.transport.call(ep, req, t)
+        except LinkRefusedError as err:
+            raise LinkError(str(err)) from None
+        obj = self._decode(reply, ep.response_type)
         if obj is None:
             raise LinkError(f"{ep.name}: the tool's reply was malformed")
         res = m.result_from_msg(obj)

@@ -66,8 +66,8 @@ from dataclasses import dataclass
 from articutool.link import messages as m
 from articutool.link.auth import Sender
 
-__all__ = ["Endpoint", "LinkOpenError", "LinkTimeoutError", "Names", "RateGate", "Responder",
-           "Sender", "Transport", "key_expr"]
+__all__ = ["Endpoint", "LinkOpenError", "LinkRefusedError", "LinkTimeoutError", "Names",
+           "RateGate", "Responder", "Sender", "Transport", "key_expr"]
 
 Responder = Callable[[bytes], None]
 """Sends the reply to one service request; may be called later, from any thread, once."""
@@ -79,6 +79,10 @@ class LinkOpenError(RuntimeError):
 
 class LinkTimeoutError(TimeoutError):
     """A service call got no reply in time (no server reachable, or it did not answer)."""
+
+
+class LinkRefusedError(RuntimeError):
+    """The server answered with an error instead of a reply (e.g. rate limited)."""
 
 
 @dataclass(frozen=True)
@@ -276,7 +280,8 @@ class Transport(ABC):
     def serve(self, ep: Endpoint, handler: Callable[..., None], with_sender: bool = False,
               max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
         """Serve a service: ``handler(request, respond[, sender])``; ``respond(reply)`` may be
-        deferred. An oversized request is dropped unanswered (the caller times out)."""
+        deferred. An oversized request is dropped unanswered (the caller times out); one
+        beyond ``max_rate`` gets an error reply at once (LinkRefusedError for the caller)."""
 
     @abstractmethod
     def call(self, ep: Endpoint, payload: bytes, timeout: float) -> bytes:

@@ -32,6 +32,7 @@ from articutool.link.transport import (
     Endpoint,
     Handle,
     LinkOpenError,
+    LinkRefusedError,
     LinkTimeoutError,
     RateGate,
     Transport,
@@ -212,7 +213,11 @@ class ZenohTransport(Transport):
         def on_query(query: zenoh.Query) -> None:
             if gate is not None and not gate.allow():
                 self._dropped(ep, "rate")
-                query.drop()
+                try:  # tell the caller at once rather than letting it time out
+                    query.reply_err(f"rate limited: more than {max_rate:g} requests/s on "
+                                    f"{ep.name}")
+                finally:
+                    query.drop()
                 return
             size = len(query.payload) if query.payload is not None else 0
             if self._too_big(ep, size, max_bytes):
@@ -246,8 +251,9 @@ class ZenohTransport(Transport):
             if reply.ok is not None:
                 return reply.ok.payload.to_bytes()
             errors.append(reply.err.payload.to_string() if reply.err else "?")
-        detail = f" (errors: {errors})" if errors else ""
-        raise LinkTimeoutError(f"no reply from {ep.name} within {timeout:g} s{detail}")
+        if errors:
+            raise LinkRefusedError(f"{ep.name}: the tool refused: {'; '.join(errors)}")
+        raise LinkTimeoutError(f"no reply from {ep.name} within {timeout:g} s")
 
     def close(self) -> None:
         """Close the session, then wait (bounded) until zenoh's callback threads have ended."""
