@@ -43,6 +43,7 @@ __all__ = ["ZenohTransport", "zenoh_config"]
 
 _log = logging.getLogger(__name__)
 _DRAIN_S = 5.0  # bound on waiting for zenoh's callback threads to end at close
+_REFUSED = "articutool refused: "  # prefix of our error replies (zenoh sends its own too)
 
 
 def _reason(err: Exception) -> str:
@@ -214,8 +215,8 @@ class ZenohTransport(Transport):
             if gate is not None and not gate.allow():
                 self._dropped(ep, "rate")
                 try:  # tell the caller at once rather than letting it time out
-                    query.reply_err(f"rate limited: more than {max_rate:g} requests/s on "
-                                    f"{ep.name}")
+                    query.reply_err(f"{_REFUSED}rate limited: more than {max_rate:g} "
+                                    f"requests/s on {ep.name}")
                 finally:
                     query.drop()
                 return
@@ -251,9 +252,11 @@ class ZenohTransport(Transport):
             if reply.ok is not None:
                 return reply.ok.payload.to_bytes()
             errors.append(reply.err.payload.to_string() if reply.err else "?")
-        if errors:
-            raise LinkRefusedError(f"{ep.name}: the tool refused: {'; '.join(errors)}")
-        raise LinkTimeoutError(f"no reply from {ep.name} within {timeout:g} s")
+        refused = [e[len(_REFUSED):] for e in errors if e.startswith(_REFUSED)]
+        if refused:
+            raise LinkRefusedError(f"{ep.name}: the tool refused: {'; '.join(refused)}")
+        detail = f" (errors: {errors})" if errors else ""  # zenoh's own, e.g. 'Timeout'
+        raise LinkTimeoutError(f"no reply from {ep.name} within {timeout:g} s{detail}")
 
     def close(self) -> None:
         """Close the session, then wait (bounded) until zenoh's callback threads have ended."""
