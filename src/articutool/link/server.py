@@ -42,7 +42,9 @@ endpoint and payloads above a per-type size (``max_trajectory_bytes``, ``max_req
 before copying them (``rate_limited``, ``oversized``), the link threads
 verify, decode and validate, and only then queue the ToolAPI call in a bounded inbox
 (``inbox_size``; stops in a queue of their own, served first); a full inbox refuses the
-command (``dropped_excess``). The tool's loop drains it, one command per tick, when the API
+command (``dropped_excess``). Replies and publishes that follow a command are sent from a
+``link-io`` thread, never from the thread that ran the command (a send can block on a
+congested or dead peer). The tool's loop drains it, one command per tick, when the API
 offers ``set_link_work`` (``ToolRuntime``: called once per tick, after the tick); an API
 without a loop of its own (a test double) gets a worker thread of this server instead.
 
@@ -118,6 +120,12 @@ class ToolServer:
         self._loop_drains = False
         self._worker: threading.Thread | None = None
         self._wake = threading.Condition()
+        # Network I/O never runs on the thread that executes commands (the tool's loop): a
+        # reply or publish may block on a congested or dead peer. It goes to link-io.
+        self._exec_ident: int | None = None
+        self._io: deque[Callable[[], None]] = deque()
+        self._io_wake = threading.Condition()
+        self._io_thread: threading.Thread | None = None
         self._lock = threading.RLock()
         self._goals: OrderedDict[bytes, _Goal] = OrderedDict()
         self._active: _Goal | None = None
@@ -138,8 +146,9 @@ class ToolServer:
                     (n.get_result, self._on_get_result), (n.cancel_goal, self._on_cancel),
                     (n.take_over, self._on_take_over), (n.release, self._on_release))
         rate = self.cfg.max_rate_hz
-        self._handles = [t.serve(ep, self._guarded(fn), with_sender=True, max_bytes=small,
-                                 max_rate=rate) for ep, fn in services]
+        self._handles = [t.serve(ep, self._guarded(self._replies_off_loop(fn)),
+                                 with_sender=True, max_bytes=small, max_rate=rate)
+                         for ep, fn in services]
         self._handles += [
             t.subscribe(n.joint_trajectory, self._guarded(self._on_trajectory), with_sender=True,
                         max_bytes=self.cfg.max_trajectory_bytes, max_rate=rate),
@@ -148,6 +157,8 @@ class ToolServer:
         ]
         hook = getattr(self.api, "set_link_work", None)
         self._stop.clear()
+        self._io_thread = threading.Thread(target=self._run_io, name="link-io", daemon=True)
+        self._io_thread.start()
         if callable(hook):  # the tool's loop drains the inbox, one command per tick
             hook(self.work_once)
             self._loop_drains = True
@@ -168,6 +179,9 @@ class ToolServer:
         if self._worker is not None:
             self._worker.join(timeout=5)
             self._worker = None
+        if self._io_thread is not None:
+            self._io_thread.join(timeout=5)
+            self._io_thread = None
         if self._thread is not None:
             self._thread.join(timeout=5)
         for h in self._handles:
@@ -298,6 +312,7 @@ class ToolServer:
             work = q.popleft() if q else None
         if work is None:
             return
+        self._exec_ident = threading.get_ident()
         try:
             work()
             with self._lock:
@@ -306,6 +321,36 @@ class ToolServer:
             with self._lock:
                 self.counters["handler_errors"] += 1
             _log.exception("link command failed")
+
+    def _off_loop(self, io: Callable[[], None]) -> None:
+        """Run network I/O now, unless on the command-executing thread: then on link-io."""
+        if threading.get_ident() != self._exec_ident:
+            io()
+            return
+        with self._io_wake:
+            self._io.append(io)
+            self._io_wake.notify()
+
+    def _replies_off_loop(self, fn: Callable[..., None]) -> Callable[..., None]:
+        """A service handler whose ``respond`` never sends from the command thread."""
+        def handler(data: bytes, respond: Responder, sender: Sender) -> None:
+            fn(data, lambda reply: self._off_loop(lambda: respond(reply)), sender)
+        return handler
+
+    def _run_io(self) -> None:
+        while True:
+            with self._io_wake:
+                while not self._io and not self._stop.is_set():
+                    self._io_wake.wait(0.1)
+                if not self._io:
+                    return
+                io = self._io.popleft()
+            try:
+                io()
+            except Exception:
+                with self._lock:
+                    self.counters["handler_errors"] += 1
+                _log.exception("link reply/publish failed")
 
     def _refuse(self, respond: Responder, ep: Endpoint, msg: str) -> None:
         """Answer a refused service call with success=false and ``msg``."""
@@ -630,7 +675,8 @@ class ToolServer:
     def _publish_status(self) -> None:
         with self._lock:
             goals = [(g.goal_id, g.accepted_at, g.status) for g in self._goals.values()]
-        self._pub("status", m.status_array(goals), m.GOAL_STATUS_ARRAY)
+        payload = m.encode(m.status_array(goals), m.GOAL_STATUS_ARRAY)
+        self._off_loop(lambda: self.transport.publish(self.names.status, payload))
 
     def tick(self) -> None:
         """One publishing step (the thread calls it at the loop rate; tests may call it)."""
