@@ -4,13 +4,13 @@ VENV := .venv
 BIN := $(VENV)/bin
 export MPLBACKEND := Agg
 
-.PHONY: demo test test-slow bench bench-quick bench-full bench-sim lint clean syspkgs
+.PHONY: demo test test-slow bench bench-quick bench-full bench-sim bench-flood soak lint clean syspkgs
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
 
 $(VENV)/.installed: pyproject.toml | $(BIN)/python syspkgs
-	$(BIN)/python -m pip install -q -e '.[pc,dev]'
+	$(BIN)/python -m pip install -q -e '.[pc,dev,ros]'
 	touch $@
 
 # System packages the README promises: EGL + Mesa for headless MuJoCo rendering
@@ -48,6 +48,15 @@ bench-full: $(VENV)/.installed
 # The physics world's real-time factor per food and whether speed settings change outcomes.
 bench-sim: $(VENV)/.installed
 	$(BIN)/python benchmarks/bench_sim.py --seeds 5 --out results/sim_benchmark.json
+
+# Issue 13: the real tool (sim) under 1000 goals/s + 16 MB payloads, rate limit on vs off.
+bench-flood: $(VENV)/.installed
+	$(BIN)/python benchmarks/bench_link_flood.py --duration 60 --compare-unlimited --out results/link_flood.json
+
+# Issue 13: the tool against a random, hostile client; SOAK_S=600 make soak for a short one.
+SOAK_S ?= 3600
+soak: $(VENV)/.installed
+	$(BIN)/python benchmarks/soak.py --duration $(SOAK_S) --out results/soak.json
 
 lint: $(VENV)/.installed
 	$(BIN)/ruff check src tests benchmarks examples

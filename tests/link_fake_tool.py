@@ -4,6 +4,7 @@ Used by the link tests in-process (MemoryTransport) and as the tool process of t
 two-process tests::
 
     python tests/link_fake_tool.py --listen tcp/127.0.0.1:PORT [--policy cancel]
+        [--link-config FILE] [--tool-id NAME] [--connect ENDPOINT]
 
 Primitives: ``TWIRL [turns]`` (1 parameter in [-2, 2], rolls that many turns in
 ``TWIRL_S`` seconds), ``SLOW`` (no parameters, 5 s of pitch motion, for cancel tests) and
@@ -175,12 +176,19 @@ def main(argv: list[str]) -> int:
     from articutool.link.server import serve_forever
 
     p = argparse.ArgumentParser()
-    p.add_argument("--listen", required=True)
+    p.add_argument("--listen", action="append", required=True)
+    p.add_argument("--connect", action="append", default=[])
     p.add_argument("--policy", default="continue")
     p.add_argument("--client-timeout", type=float, default=2.0)
+    p.add_argument("--link-config", default=None)
+    p.add_argument("--tool-id", default=None)
     a = p.parse_args(argv)
-    cfg = LinkConfig(listen=(a.listen,), connect=(), link_loss_policy=a.policy,
-                     client_timeout=a.client_timeout)
+    from articutool.link.config import load_config
+
+    base = load_config(a.link_config) if a.link_config else LinkConfig()
+    cfg = base.replace(listen=tuple(a.listen), connect=tuple(a.connect),
+                       link_loss_policy=a.policy, client_timeout=a.client_timeout,
+                       tool_id=a.tool_id or base.tool_id)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     tool = FakeTool()

@@ -120,12 +120,40 @@ def test_bit_flips_decode_or_raise_link_decode_error(sample: tuple[bytes, str],
         m.decode(bytes(buf), typename)
 
 
-def test_trailing_garbage_and_wrong_header_are_rejected() -> None:
-    raw, t = SAMPLES[0]
-    with pytest.raises(m.LinkDecodeError, match=r"size mismatch|trailing"):
-        m.decode(raw + b"\x00" * 8, t)
-    with pytest.raises(m.LinkDecodeError, match="CDR"):
-        m.decode(b"\x07" + raw[1:], t)
+# Bytes from real ROS 2: rclpy 9.1.2 ``serialize_message`` (rmw_fastrtps_cpp typesupport) of a
+# JointState (name [pitch, roll], position [0.1, 0.2], velocity [0, 0]) and a JointTrajectory
+# (one point at 1 s). The buffer is sized by Fast-CDR's worst-case estimate, so each ends in
+# bytes past the message (4 and 8 here), and padding holds whatever memory held (not zeros).
+ROS2_JOINT_STATE = bytes.fromhex(
+    "0001000000000000000000000100000000dcb40e020000000600000070697463"
+    "6800b00e05000000726f6c6c007f0000020000009a9999999999b93f9a999999"
+    "9999c93f02000000f8a1b50e0000000000000000000000000000000000000000"
+    "2099fb09")
+ROS2_JOINT_TRAJECTORY = bytes.fromhex(
+    "0001000000000000000000000100000000000100020000000600000070697463"
+    "6800742905000000726f6c6c000064090100000002000000000000009a999999"
+    "9999b93f9a9999999999c93f02000000a6010000000000000000000000000000"
+    "00000000000000000000000001000000000000000000000000000000")
+
+
+def test_real_ros2_bytes_with_trailing_alignment_padding_are_accepted() -> None:
+    js = m.decode(ROS2_JOINT_STATE, m.JOINT_STATE)
+    assert list(js.name) == ["pitch", "roll"] and list(js.position) == [0.1, 0.2]
+    traj = m.trajectory_from_msg(m.decode(ROS2_JOINT_TRAJECTORY, m.JOINT_TRAJECTORY))
+    assert traj.joint_names == ("pitch", "roll") and list(traj.times) == [1.0]
+    assert traj.positions.tolist() == [[0.1, 0.2]]
+
+
+def test_trailing_bytes_beyond_padding_and_wrong_header_are_rejected() -> None:
+    hb = m.encode(m.heartbeat_msg(5.0, "pc"), m.HEADER)
+    m.decode(hb + bytes(7), m.HEADER)  # rounding up to 8 is padding
+    with pytest.raises(m.LinkDecodeError, match="trailing"):
+        m.decode(hb + hb, m.HEADER)  # a second message is not padding
+    for raw, t in SAMPLES:
+        with pytest.raises(m.LinkDecodeError, match="trailing"):
+            m.decode(raw + bytes(4096), t)
+        with pytest.raises(m.LinkDecodeError, match="CDR"):
+            m.decode(b"\x07" + raw[1:], t)
 
 
 finite = st.floats(-10, 10, allow_nan=False, width=32)
@@ -185,10 +213,11 @@ def test_bad_request_values_are_refused_before_sending() -> None:
 def test_key_expressions_follow_rmw_zenoh() -> None:
     k = key_expr(3, N.joint_states)
     domain, *name, dds, h = k.split("/")
-    assert domain == "3" and name == ["articutool", "joint_states"]
+    assert domain == "3" and name == ["articutool", "default", "joint_states"]  # tool identity
     assert dds == "sensor_msgs::msg::dds_::JointState_"
     assert h.startswith("RIHS01_") and len(h) == 7 + 64
-    assert N.send_goal.name == "/articutool/execute_primitive/_action/send_goal"
+    assert N.send_goal.name == "/articutool/default/execute_primitive/_action/send_goal"
+    assert Names(tool_id="wrist-7").joint_states.name == "/articutool/wrist-7/joint_states"
     assert key_expr(0, N.cancel_goal).split("/")[-2] == "action_msgs::srv::dds_::CancelGoal_"
     assert key_expr(0, N.imu, with_hash=False).endswith("/*")
     # distinct interfaces have distinct hashes

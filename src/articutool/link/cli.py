@@ -1,4 +1,4 @@
-"""``articutool client …``: command a running Articutool from the PC.
+"""``articutool client …``: command a running Articutool from the PC; ``articutool pair``.
 
 Exit codes: 0 success, 1 the tool said no (``success=false``) or could not be reached,
 2 bad input (argparse errors, bad config, bad mode/offsets, an endpoint that cannot be
@@ -35,8 +35,55 @@ def _seconds(s: str) -> float:
     return v
 
 
+def _add_pair(subparsers: Any) -> None:
+    p = subparsers.add_parser(
+        "pair", help="create the certificates that let a tool and PCs trust each other",
+        description="Create a small CA (reused if --dir has one) and a certificate, key and "
+                    "link config for the tool and each PC. Keys are written 0600; existing "
+                    "files are never overwritten (exit 2 naming the file). Copy DIR/<tool> to "
+                    "the tool (e.g. the Pi) and DIR/<pc> to each PC; keep DIR/ca/ca.key "
+                    "offline.")
+    p.add_argument("--dir", required=True, metavar="DIR", help="where to write (created)")
+    p.add_argument("--tool", required=True, metavar="NAME",
+                   help="the tool's identity (its tool_id), e.g. wrist-1")
+    p.add_argument("--pc", action="append", required=True, metavar="NAME",
+                   help="a PC allowed to command the tool (repeatable)")
+    p.add_argument("--tool-host", default="raspberrypi.local", metavar="HOST",
+                   help="the tool's address, written into the PCs' link configs")
+    p.add_argument("--port", type=int, default=7447, help="the tool's TLS port (default 7447)")
+    p.add_argument("--days", type=int, default=3650, help="certificate validity (default 3650)")
+    p.set_defaults(func=run_pair)
+
+
+def run_pair(args: argparse.Namespace) -> int:
+    """Handler of ``articutool pair``."""
+    from articutool.link.pairing import PairingError, pair
+
+    try:
+        done = pair(args.dir, args.tool, args.pc, days=args.days, port=args.port,
+                    tool_host=args.tool_host)
+    except PairingError as err:
+        return _usage(str(err))
+    except OSError as err:
+        return _usage(f"--dir: cannot write there: {err}")
+    print(("created the pairing CA and " if done.ca_created else "reused the pairing CA; ")
+          + f"wrote {len(done.files)} files:")
+    for f in done.files:
+        print(f"  {oct(f.stat().st_mode & 0o777)[2:]}  {f}")
+    if done.tool_kept:
+        print(f"tool: {args.dir}/{args.tool}/ was paired before and is unchanged")
+    else:
+        print(f"tool: copy {args.dir}/{args.tool}/ to the tool and run "
+              f"'articutool tool --link-config {args.dir}/{args.tool}/link.toml'")
+    for pc in args.pc:
+        print(f"PC:   copy {args.dir}/{pc}/ to that PC and run "
+              f"'articutool client --link-config {args.dir}/{pc}/link.toml state'")
+    return 0
+
+
 def add_commands(subparsers: Any) -> None:
-    """Register ``client mode|primitive|state``."""
+    """Register ``client mode|primitive|state|take-over|release`` and ``pair``."""
+    _add_pair(subparsers)
     from articutool.cli import add_spec_option
     from articutool.link.config import add_config_args
 
@@ -60,6 +107,9 @@ def add_commands(subparsers: Any) -> None:
                     help="cancel the primitive after S seconds")
     sub.add_parser("clear-fault", help="clear the tool's fault (reboots the motors after a "
                    "hardware error once the cause is gone); then set a mode")
+    sub.add_parser("take-over", help="take the command lease from the client holding it "
+                   "(audited on the tool; for a caregiver's stop)")
+    sub.add_parser("release", help="give this PC's command lease back")
     ps = sub.add_parser("state", help="print the latest tool state")
     ps.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
@@ -85,7 +135,7 @@ def _check_offsets(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Handler of ``articutool client``."""
-    from articutool.link.client import ArticutoolClient, LinkError
+    from articutool.link.client import ArticutoolClient, LinkError, ToolConflictError
     from articutool.link.config import ConfigError, config_from_args
     from articutool.link.transport import LinkOpenError
 
@@ -97,7 +147,12 @@ def run(args: argparse.Namespace) -> int:
     except (ConfigError, LinkOpenError) as err:
         return _usage(str(err))
     try:
-        if not client.wait_for_tool(args.wait):
+        try:
+            heard = client.wait_for_tool(args.wait)
+        except ToolConflictError as err:
+            print(f"error: {err}", file=sys.stderr)
+            return 1
+        if not heard:
             listen, connect = cfg.endpoints("client")
             print(f"error: no Articutool heard within {args.wait:g} s "
                   f"(connect={list(connect)}, listen={list(listen)})", file=sys.stderr)
@@ -107,8 +162,10 @@ def run(args: argparse.Namespace) -> int:
             ok, msg = client.set_mode(args.mode, args.pitch_offset, args.roll_offset)
             print(f"{'ok' if ok else 'refused'}: {msg}")
             return 0 if ok else 1
-        if cmd == "clear-fault":
-            ok, msg = client.clear_fault()
+        if cmd in ("clear-fault", "take-over", "release"):
+            fn = {"clear-fault": client.clear_fault, "take-over": client.take_over,
+                  "release": client.release}[cmd]
+            ok, msg = fn()
             print(f"{'ok' if ok else 'refused'}: {msg}")
             return 0 if ok else 1
         if cmd == "primitive":
@@ -134,7 +191,8 @@ def run(args: argparse.Namespace) -> int:
         if st is None:
             print("error: no joint state received yet", file=sys.stderr)
             return 1
-        d = {"mode": st.mode.name, "joint_names": list(st.joint_names),
+        d = {"tool_id": cfg.tool_id, "lease_holder": client.lease_holder(),
+             "mode": st.mode.name, "joint_names": list(st.joint_names),
              "position": list(st.position), "velocity": list(st.velocity),
              "orientation_wxyz": list(st.orientation_wxyz), "fault": st.fault,
              "battery_voltage": st.battery_voltage, "loop_period_mean": st.loop_period_mean,

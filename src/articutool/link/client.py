@@ -10,6 +10,7 @@ again the same client works again — nothing needs re-creating.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import threading
@@ -20,11 +21,17 @@ from typing import Any
 
 from articutool.link import messages as m
 from articutool.link.config import LinkConfig
-from articutool.link.transport import Endpoint, LinkTimeoutError, Names, Transport
+from articutool.link.transport import (
+    Endpoint,
+    LinkRefusedError,
+    LinkTimeoutError,
+    Names,
+    Transport,
+)
 from articutool.tool.api import Mode, PrimitiveStatus, ToolState
 from articutool.trajectory import JointTrajectory
 
-__all__ = ["ArticutoolClient", "LinkError", "ToolSilentError"]
+__all__ = ["ArticutoolClient", "LinkError", "ToolConflictError", "ToolSilentError"]
 
 _log = logging.getLogger(__name__)
 
@@ -35,6 +42,10 @@ class LinkError(RuntimeError):
 
 class ToolSilentError(LinkError):
     """The tool did not answer, and nothing was heard from it within the silence bound."""
+
+
+class ToolConflictError(LinkError):
+    """Two tools answer to the same identity: the client refuses to command either."""
 
 
 def parse_mode(mode: Mode | str | int) -> Mode:
@@ -58,13 +69,18 @@ class ArticutoolClient:
     def __init__(self, config: LinkConfig | None = None, transport: Transport | None = None,
                  sender: str | None = None) -> None:
         self.cfg = config or LinkConfig()
+        self.sender = sender or self.cfg.identity or f"articutool-client-{uuid.uuid4().hex[:8]}"
         if transport is None:
             from articutool.link.zenoh_transport import ZenohTransport
-            transport = ZenohTransport(self.cfg, "client")
+            transport = ZenohTransport(self.cfg, "client", identity=self.sender)
         self.transport = transport
-        self.names = Names(self.cfg.namespace)
-        self.sender = sender or f"articutool-client-{uuid.uuid4().hex[:8]}"
-        self.counters = {"decode_errors": 0, "received": 0, "joint_states": 0}
+        self.sender = getattr(transport, "identity", None) or self.sender  # a paired CN wins
+        self.names = Names(self.cfg.namespace, self.cfg.tool_id)
+        self.counters = {"decode_errors": 0, "received": 0, "joint_states": 0,
+                         "foreign_heartbeats": 0}
+        self._instances: dict[str, float] = {}  # tool instance → last heard (monotonic)
+        self._conflict = ""
+        self._commanded = False
         self._lock = threading.Lock()
         self._latest: dict[str, Any] = {}
         self._last_rx: float | None = None
@@ -76,7 +92,9 @@ class ArticutoolClient:
         self._handles = [self.transport.subscribe(ep, self._receiver(key, ep))
                          for key, ep in (("js", n.joint_states), ("imu", n.imu),
                                          ("health", n.health), ("battery", n.battery),
-                                         ("beat", n.heartbeat), ("status", n.status))]
+                                         ("status", n.status))]
+        self._handles.append(self.transport.subscribe(n.heartbeat, self._on_tool_heartbeat,
+                                                      with_sender=True))
         self._handles.append(self.transport.subscribe(n.feedback, self._on_feedback))
         self._beat = threading.Thread(target=self._heartbeat, name="link-client-beat",
                                       daemon=True)
@@ -106,6 +124,41 @@ class ArticutoolClient:
                     self.counters["joint_states"] += 1
                     self._js_rx = now
         return on_data
+
+    def _on_tool_heartbeat(self, data: bytes, sender: Any) -> None:
+        """Learn the tool instances answering to ``tool_id``; two at once is a conflict."""
+        beat = self._decode(data, self.names.heartbeat.type)
+        if beat is None:
+            return
+        tool, _, instance = str(beat.frame_id).partition("/")
+        paired = self.cfg.paired and sender is not None
+        if tool != self.cfg.tool_id or (paired and not (sender.verified and sender.role == "tool"
+                                                        and sender.identity == tool)):
+            with self._lock:  # not our tool, or not signed by it: neither alive nor counted
+                self.counters["foreign_heartbeats"] += 1
+            return
+        now = time.monotonic()
+        with self._lock:
+            self._last_rx = now
+            self._instances[instance] = now
+            live = sorted(k for k, t in self._instances.items()
+                          if now - t < self.cfg.tool_timeout)
+            if len(live) > 1 and not self._conflict:
+                self._conflict = (f"{len(live)} tools answer to the identity "
+                                  f"{self.cfg.tool_id!r} (instances {live}); refusing to "
+                                  "command or read either: give each tool its own tool_id")
+                _log.error(self._conflict)
+
+    @property
+    def conflict(self) -> str:
+        """Why this client refuses the tool ('' when exactly one tool answers)."""
+        with self._lock:
+            return self._conflict
+
+    def _check_conflict(self) -> None:
+        c = self.conflict
+        if c:
+            raise ToolConflictError(c)
 
     def _on_feedback(self, data: bytes) -> None:
         fb = self._decode(data, self.names.feedback.type)
@@ -141,10 +194,15 @@ class ArticutoolClient:
             f"last heard from the tool {ago:.1f} s ago"
 
     def _call(self, ep: Endpoint, request: Any, timeout: float | None = None) -> Any:
+        self._check_conflict()
+        if ep not in (self.names.get_result, self.names.release):
+            self._commanded = True  # may hold the lease: release it on close
         t = self.cfg.call_timeout if timeout is None else timeout
         payload = m.encode(request, ep.request_type)
         try:
             reply = self.transport.call(ep, payload, t)
+        except LinkRefusedError as err:
+            raise LinkError(str(err)) from None
         except LinkTimeoutError as err:
             raise ToolSilentError(f"{ep.name}: no reply within {t:g} s ({self._silence()}): "
                                   f"{err}") from None
@@ -168,12 +226,16 @@ class ArticutoolClient:
         return ago is not None and ago < self.cfg.tool_timeout
 
     def wait_for_tool(self, timeout: float) -> bool:
-        """Block until the tool is heard (True) or ``timeout`` passes (False)."""
+        """Block until the tool is heard (True) or ``timeout`` passes (False); then listen
+        three heartbeat periods more for a second tool with the same identity
+        (ToolConflictError if one answers)."""
         deadline = time.monotonic() + timeout
         while not self.tool_alive:
             if time.monotonic() >= deadline:
                 return False
             time.sleep(0.02)
+        time.sleep(3 * self.cfg.heartbeat_period)
+        self._check_conflict()
         return True
 
     def has_all_streams(self) -> bool:
@@ -181,8 +243,23 @@ class ArticutoolClient:
         with self._lock:
             return all(k in self._latest for k in ("js", "imu", "health", "battery"))
 
+    def lease_holder(self) -> str | None:
+        """The command lease's holder per the latest health message ('' none, None unknown)."""
+        with self._lock:
+            health = self._latest.get("health")
+        if health is None:
+            return None
+        for st in health.status:
+            for kv in st.values:
+                if kv.key == "lease_holder":
+                    return str(kv.value)
+        return None
+
     def latest_state(self) -> ToolState | None:
-        """The latest telemetry as a ToolState (``stamp`` = local receive time), or None."""
+        """The latest telemetry as a ToolState (``stamp`` = local receive time), or None
+        (also when two tools answer to one identity: their streams would be mixed)."""
+        if self.conflict:
+            return None
         with self._lock:
             js = self._latest.get("js")
             parts = (self._latest.get("imu"), self._latest.get("health"),
@@ -212,6 +289,16 @@ class ArticutoolClient:
         """Call ``clear_fault`` (``ToolAPI.clear_fault``: the only request that reboots motors
         after a hardware error, refused while one is still hot); returns (success, message)."""
         resp = self._call(self.names.clear_fault, m.trigger_request())
+        return bool(resp.success), str(resp.message)
+
+    def take_over(self) -> tuple[bool, str]:
+        """Take the command lease from whoever holds it (audited on the tool)."""
+        resp = self._call(self.names.take_over, m.trigger_request())
+        return bool(resp.success), str(resp.message)
+
+    def release(self) -> tuple[bool, str]:
+        """Give the command lease back (success=false if this client did not hold it)."""
+        resp = self._call(self.names.release, m.trigger_request())
         return bool(resp.success), str(resp.message)
 
     def run_primitive(self, name: str, params: list[float] | tuple[float, ...] = (),
@@ -276,7 +363,11 @@ class ArticutoolClient:
                 time.sleep(max(0.0, min(0.05, poll - (time.monotonic() - t0))))
 
     def _get_result_once(self, ep: Endpoint, req: bytes, t: float) -> m.PrimitiveResult:
-        obj = self._decode(self.transport.call(ep, req, t), ep.response_type)
+        try:
+            reply = self.transport.call(ep, req, t)
+        except LinkRefusedError as err:
+            raise LinkError(str(err)) from None
+        obj = self._decode(reply, ep.response_type)
         if obj is None:
             raise LinkError(f"{ep.name}: the tool's reply was malformed")
         res = m.result_from_msg(obj)
@@ -316,16 +407,22 @@ class ArticutoolClient:
         """
         if not isinstance(trajectory, JointTrajectory):
             raise TypeError("trajectory must be an articutool.trajectory.JointTrajectory")
+        self._check_conflict()
         if not self.tool_alive:
             raise ToolSilentError(f"not sending the trajectory: {self._silence()}")
         ep = self.names.joint_trajectory
+        self._commanded = True
         if start_at is not None and not (math.isfinite(start_at) and start_at > 0):
             raise ValueError(f"start_at must be a wall-clock time > 0; got {start_at!r}")
         stamp = 0.0 if start_at is None else float(start_at)
         self.transport.publish(ep, m.encode(m.trajectory_msg(trajectory, stamp), ep.type))
 
     def close(self) -> None:
-        """Stop the heartbeat, undeclare everything and close the transport."""
+        """Release the command lease if this client holds it, stop the heartbeat, undeclare
+        everything and close the transport."""
+        if self._commanded and self.tool_alive and not self.conflict:
+            with contextlib.suppress(LinkError):  # else it expires once this client is silent
+                self.release()
         self._stop.set()
         self._beat.join(timeout=2)
         for h in self._handles:

@@ -1,14 +1,26 @@
 """Link configuration: Zenoh endpoints, timeouts and the link-loss policy.
 
 Loopback by default: the tool listens on ``tcp/127.0.0.1:7447`` and the client connects there,
-with multicast scouting off so nothing leaves the host. For a Pi on the network, have the tool
-listen on ``tcp/0.0.0.0:7447`` and the PC connect to ``tcp/<pi address>:7447``. A config file
-is TOML or JSON with the field names below at top level (or under a ``[link]`` table)::
+with multicast scouting off so nothing leaves the host. For a Pi on the network, pair first
+(``articutool pair``): the tool listens on ``tls/0.0.0.0:7447`` with mutual TLS and the PC
+connects to ``tls/<pi address>:7447``; a plain endpoint on a network address without pairing
+is refused (:func:`plain_network_endpoints`; ``articutool tool --insecure-listen`` overrides).
+A config file is TOML or JSON with the field names below at top level (or under a ``[link]``
+table)::
 
     mode = "peer"                      # or "client" (through a zenoh router)
-    listen = ["tcp/0.0.0.0:7447"]
+    listen = ["tls/0.0.0.0:7447"]
     connect = []
     link_loss_policy = "continue"      # what a running primitive does when the PC goes silent
+    tool_id = "wrist-1"                # the tool's identity: in every key and in telemetry
+    identity = "pc-1"                  # this device's name (the certificate's CN when paired)
+    tls_root_ca = "ca.pem"             # paired (``articutool pair`` writes these): mutual TLS,
+    tls_certificate = "cert.pem"       #   signed commands, and a tool that refuses any
+    tls_private_key = "key.pem"        #   command not signed by a paired device
+
+Relative paths in a config file are relative to the file. Size limits (bytes) per message
+kind: ``max_trajectory_bytes`` (JointTrajectory), ``max_request_bytes`` (service requests and
+heartbeats); larger messages are dropped before decoding and counted.
 """
 
 from __future__ import annotations
@@ -21,7 +33,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 __all__ = ["DEFAULT_ENDPOINT", "ConfigError", "LinkConfig", "add_config_args",
-           "check_endpoint", "config_from_args", "load_config"]
+           "check_endpoint", "config_from_args", "load_config", "plain_network_endpoints"]
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
@@ -61,6 +73,22 @@ def check_endpoint(endpoint: object, field_name: str) -> str:
     return endpoint
 
 
+_LOOPBACK = ("127.", "[::1]", "::1", "localhost")
+
+
+def plain_network_endpoints(endpoints: tuple[str, ...]) -> list[str]:
+    """The endpoints that are neither TLS nor loopback nor a Unix socket: anyone on the
+    network reaches them without authentication or encryption."""
+    out = []
+    for e in endpoints:
+        proto, _, rest = e.partition("/")
+        host = rest.split("?", 1)[0].split("#", 1)[0].rpartition(":")[0]
+        if proto in ("tls", "unixsock-stream") or host.startswith(_LOOPBACK):
+            continue
+        out.append(e)
+    return out
+
+
 @dataclass(frozen=True)
 class LinkConfig:
     """Everything the tool server and the PC client need to find each other.
@@ -84,6 +112,29 @@ class LinkConfig:
     publish_rate_hz: float | None = None  # None: the spec's wrist loop rate
     reconnect_period: float = 0.2  # s between Zenoh connection retries
     extra: dict[str, Any] = field(default_factory=dict)  # raw zenoh json5 overrides
+    tool_id: str = "default"  # the tool's identity (key expressions, telemetry)
+    identity: str | None = None  # this device; None: the tool_id (tool), a random name (client)
+    tls_root_ca: str | None = None  # pairing CA certificate (PEM)
+    tls_certificate: str | None = None  # this device's certificate (PEM)
+    tls_private_key: str | None = None  # this device's key (PEM, mode 0600)
+    require_paired: bool | None = None  # tool: refuse unsigned commands (None: when paired)
+    peers: tuple[str, ...] | None = None  # tool: paired identities allowed (None: any of the CA)
+    auth_window: float = 30.0  # s: a signed message's timestamp may differ this much
+    max_trajectory_bytes: int = 1 << 20  # a JointTrajectory larger than this is dropped
+    max_request_bytes: int = 4096  # a service request or heartbeat larger than this is dropped
+    inbox_size: int = 16  # commands waiting for the loop; excess ones are refused and counted
+    max_rate_hz: float = 200.0  # tool: messages/s per endpoint handled; the rest dropped unread
+    audit_log: str | None = None  # tool: JSON lines of lease transitions (take-overs…) appended
+
+    @property
+    def paired(self) -> bool:
+        """Whether this device has pairing material (mutual TLS and signatures)."""
+        return self.tls_root_ca is not None
+
+    @property
+    def requires_pairing(self) -> bool:
+        """Whether the tool refuses commands without a paired device's signature."""
+        return self.paired if self.require_paired is None else bool(self.require_paired)
 
     def __post_init__(self) -> None:
         if self.mode not in ("peer", "client"):
@@ -118,6 +169,51 @@ class LinkConfig:
             raise ConfigError(f"publish_rate_hz must be in (0, 1000]; got {self.publish_rate_hz!r}")
         if not isinstance(self.namespace, str) or not self.namespace.startswith("/"):
             raise ConfigError(f"namespace must start with '/'; got {self.namespace!r}")
+        from articutool.link.pairing import NAME_FORM, check_name
+        for name in ("tool_id", "identity"):
+            v = getattr(self, name)
+            if v is not None:
+                try:
+                    check_name(v, name)
+                except ValueError:
+                    raise ConfigError(f"{name} must be {NAME_FORM}; got {v!r}") from None
+        tls = {n: getattr(self, n) for n in ("tls_root_ca", "tls_certificate", "tls_private_key")}
+        given = [n for n, v in tls.items() if v is not None]
+        if given and len(given) != 3:
+            missing = sorted(set(tls) - set(given))
+            raise ConfigError(f"{missing} must be set too: pairing needs tls_root_ca, "
+                              "tls_certificate and tls_private_key (from articutool pair)")
+        for n in given:
+            if not isinstance(tls[n], str) or not Path(tls[n]).is_file():
+                raise ConfigError(f"{n} must be a readable file (from articutool pair); "
+                                  f"got {tls[n]!r}")
+        if self.peers is not None:
+            if isinstance(self.peers, str) or not isinstance(self.peers, list | tuple):
+                raise ConfigError(f"peers must be a list of device names; got {self.peers!r}")
+            for i, p in enumerate(self.peers):
+                try:
+                    check_name(p, f"peers[{i}]")
+                except ValueError as err:
+                    raise ConfigError(str(err)) from None
+            object.__setattr__(self, "peers", tuple(self.peers))
+        if self.require_paired not in (None, True, False):
+            raise ConfigError(f"require_paired must be true or false; got {self.require_paired!r}")
+        if self.requires_pairing and not self.paired:
+            raise ConfigError("require_paired = true needs tls_root_ca, tls_certificate and "
+                              "tls_private_key (from articutool pair)")
+        if self.audit_log is not None and not isinstance(self.audit_log, str):
+            raise ConfigError(f"audit_log must be a file path; got {self.audit_log!r}")
+        v = self.max_rate_hz
+        if isinstance(v, bool) or not isinstance(v, int | float) or not 1 <= v <= 100_000:
+            raise ConfigError(f"max_rate_hz must be in [1, 100000] messages/s; got {v!r}")
+        v = self.auth_window
+        if isinstance(v, bool) or not isinstance(v, int | float) or not 0 < v <= 3600:
+            raise ConfigError(f"auth_window must be in (0, 3600] seconds; got {v!r}")
+        for name, lo, hi in (("max_trajectory_bytes", 64, 1 << 30),
+                             ("max_request_bytes", 64, 1 << 20), ("inbox_size", 1, 4096)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                raise ConfigError(f"{name} must be an integer in [{lo}, {hi}]; got {v!r}")
 
     def endpoints(self, role: Literal["tool", "client"]) -> tuple[tuple[str, ...], tuple[str, ...]]:
         """(listen, connect) for ``role``, with the loopback defaults filled in."""
@@ -147,12 +243,24 @@ def _from_mapping(data: Any, where: str) -> LinkConfig:
         raise ConfigError(f"{where}: {err}") from None
 
 
+_PATHS = ("tls_root_ca", "tls_certificate", "tls_private_key", "audit_log")
+
+
 def load_config(path: str | Path) -> LinkConfig:
     """Read a link config file: JSON (``.json``) or TOML (anything else), with the common
-    reader of the spec and task files (unreadable, non-UTF-8 or malformed: ConfigError)."""
+    reader of the spec and task files (unreadable, non-UTF-8 or malformed: ConfigError).
+    The ``tls_*`` paths are relative to the file."""
     from articutool.datafile import read_document
 
-    return _from_mapping(read_document(path, "link config", ConfigError), str(path))
+    data = read_document(path, "link config", ConfigError)
+    table = data.get("link") if isinstance(data, dict) and isinstance(data.get("link"),
+                                                                       dict) else data
+    if isinstance(table, dict):
+        base = Path(path).resolve().parent
+        for k in _PATHS:
+            if isinstance(table.get(k), str):
+                table[k] = str(base / table[k])
+    return _from_mapping(data, str(path))
 
 
 def add_config_args(p: argparse.ArgumentParser) -> None:
@@ -160,7 +268,7 @@ def add_config_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--link-config", metavar="FILE", default=None,
                    help="link config TOML/JSON (default: loopback)")
     p.add_argument("--listen", action="append", metavar="ENDPOINT", default=None,
-                   help="zenoh endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable)")
+                   help="zenoh endpoint to listen on, e.g. tls/0.0.0.0:7447 (repeatable)")
     p.add_argument("--connect", action="append", metavar="ENDPOINT", default=None,
                    help="zenoh endpoint to connect to, e.g. tcp/192.168.1.20:7447 (repeatable)")
     p.add_argument("--zenoh-mode", choices=("peer", "client"), default=None,
@@ -168,6 +276,8 @@ def add_config_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--domain-id", type=int, default=None, help="ROS domain id (default 0)")
     p.add_argument("--tool-timeout", type=float, default=None, metavar="S",
                    help="seconds of silence before the tool is reported dead")
+    p.add_argument("--tool-id", default=None, metavar="NAME",
+                   help="the tool's identity (default: the config's, else 'default')")
 
 
 def config_from_args(args: argparse.Namespace) -> LinkConfig:
@@ -184,4 +294,6 @@ def config_from_args(args: argparse.Namespace) -> LinkConfig:
         changes["domain_id"] = args.domain_id
     if args.tool_timeout is not None:
         changes["tool_timeout"] = args.tool_timeout
+    if getattr(args, "tool_id", None) is not None:
+        changes["tool_id"] = args.tool_id
     return cfg.replace(**changes) if changes else cfg

@@ -12,7 +12,13 @@ import queue
 import threading
 from collections.abc import Callable
 
-from articutool.link.transport import Endpoint, Handle, LinkTimeoutError, Responder, Transport
+from articutool.link.transport import (
+    Endpoint,
+    Handle,
+    LinkTimeoutError,
+    Sender,
+    Transport,
+)
 
 __all__ = ["MemoryBus", "MemoryTransport"]
 
@@ -35,8 +41,8 @@ class MemoryBus:
 
     def __init__(self) -> None:
         self.lock = threading.Lock()
-        self.subs: dict[str, list[tuple[MemoryTransport, Callable[[bytes], None]]]] = {}
-        self.services: dict[str, list[tuple[MemoryTransport, Callable]]] = {}
+        self.subs: dict[str, list[tuple]] = {}  # (transport, callback, with_sender, max_bytes)
+        self.services: dict[str, list[tuple]] = {}
         self._q: queue.Queue[Callable[[], None] | None] = queue.Queue()
         self._thread = threading.Thread(target=self._run, name="memory-bus", daemon=True)
         self._thread.start()
@@ -61,39 +67,51 @@ class MemoryBus:
 class MemoryTransport(Transport):
     """One participant on a :class:`MemoryBus`."""
 
-    def __init__(self, bus: MemoryBus) -> None:
+    def __init__(self, bus: MemoryBus, identity: str | None = None,
+                 verified: bool = False) -> None:
         self.bus = bus
         self.connected = True
+        self.sender = Sender(identity, verified)  # what receivers are told (no signatures)
+
+    @staticmethod
+    def _deliver(cb: Callable, args: tuple, with_sender: bool, sender: Sender) -> None:
+        cb(*args, sender) if with_sender else cb(*args)
 
     def publish(self, ep: Endpoint, payload: bytes) -> None:
         if not self.connected:
             return
         with self.bus.lock:
-            targets = [cb for t, cb in self.bus.subs.get(ep.name, []) if t.connected]
+            targets = [(t, cb, ws, mb) for t, cb, ws, mb in self.bus.subs.get(ep.name, [])
+                       if t.connected]
         data = bytes(payload)
-        for cb in targets:
-            self.bus.post(lambda cb=cb: cb(data))
+        for t, cb, ws, mb in targets:
+            if mb is not None and len(data) > mb:  # the receiver drops it and is told
+                t._dropped(ep, f"oversized ({len(data)} > {mb} bytes)")
+                continue
+            self.bus.post(lambda cb=cb, ws=ws: self._deliver(cb, (data,), ws, self.sender))
 
-    def subscribe(self, ep: Endpoint, callback: Callable[[bytes], None]) -> Handle:
-        item = (self, callback)
+    def subscribe(self, ep: Endpoint, callback: Callable[..., None], with_sender: bool = False,
+                  max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
+        item = (self, callback, with_sender, max_bytes)
         with self.bus.lock:
             self.bus.subs.setdefault(ep.name, []).append(item)
         return _Handle(self.bus.subs, ep.name, item, self.bus.lock)
 
-    def serve(self, ep: Endpoint, handler: Callable[[bytes, Responder], None]) -> Handle:
-        item = (self, handler)
+    def serve(self, ep: Endpoint, handler: Callable[..., None], with_sender: bool = False,
+              max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
+        item = (self, handler, with_sender, max_bytes)
         with self.bus.lock:
             self.bus.services.setdefault(ep.name, []).append(item)
         return _Handle(self.bus.services, ep.name, item, self.bus.lock)
 
     def call(self, ep: Endpoint, payload: bytes, timeout: float) -> bytes:
         with self.bus.lock:
-            servers = [(t, h) for t, h in self.bus.services.get(ep.name, []) if t.connected]
+            servers = [it for it in self.bus.services.get(ep.name, []) if it[0].connected]
         if not self.connected or not servers:
             raise LinkTimeoutError(f"no server for {ep.name}")
         done = threading.Event()
         box: list[bytes] = []
-        server, handler = servers[0]
+        server, handler, ws, mb = servers[0]
 
         def respond(reply: bytes) -> None:
             if server.connected and self.connected and not done.is_set():
@@ -101,7 +119,10 @@ class MemoryTransport(Transport):
                 done.set()
 
         data = bytes(payload)
-        self.bus.post(lambda: handler(data, respond))
+        if mb is not None and len(data) > mb:
+            server._dropped(ep, f"oversized ({len(data)} > {mb} bytes)")
+        else:
+            self.bus.post(lambda: self._deliver(handler, (data, respond), ws, self.sender))
         if not done.wait(timeout):
             raise LinkTimeoutError(f"no reply from {ep.name} within {timeout:g} s")
         return box[0]

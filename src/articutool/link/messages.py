@@ -205,10 +205,21 @@ _ACTION_DESCRIPTION = (
     "ExecuteArticutoolPrimitive_FeedbackMessage feedback_message\n")
 
 
+_SEI = "service_msgs/msg/ServiceEventInfo"
+
+
 @lru_cache(maxsize=1)
 def typestore() -> Any:
     """The ROS 2 (Jazzy) type store with the Articutool and action protocol types."""
     ts = get_typestore(Stores.ROS2_JAZZY)
+    # rosidl maps a .msg ``char`` to uint8, and ROS 2's type descriptions (hence every
+    # service's RIHS01 hash) say uint8[16] for ServiceEventInfo.client_gid; rosbags keeps
+    # ``char``, which gives other hashes (found against rclpy's installed descriptions).
+    # Same wire size; nothing here serialises ServiceEventInfo.
+    consts, fields = ts.fielddefs[_SEI]
+    ts.fielddefs[_SEI] = (consts, [
+        (n, (t[0], ((t[1][0][0], ("uint8", 0)), t[1][1])) if n == "client_gid" else t)
+        for n, t in fields])
     ts.register(_parse(PKG, "srv", _SRV_SOC))
     ts.register(_parse(PKG, "action", _ACTION_MSGS))
     ts.register(_parse("action_msgs", "srv", _CANCEL))
@@ -247,12 +258,40 @@ def encode(message: Any, typename: str) -> bytes:
     return bytes(typestore().serialize_cdr(message, typename))
 
 
+_ALIGN = {"bool": 1, "byte": 1, "char": 1, "int8": 1, "uint8": 1, "int16": 2, "uint16": 2,
+          "int32": 4, "uint32": 4, "float32": 4, "int64": 8, "uint64": 8, "float64": 8,
+          "string": 4, "wstring": 4}  # strings start with an aligned uint32 length
+_FINAL_PAD = 7  # a serializer may round the whole message up to the largest alignment (8)
+
+
+def _padding_bound(value: Any, node: tuple[Any, Any]) -> int:
+    """Most alignment padding (bytes) CDR can put in ``value`` of rosbags field type ``node``:
+    ``align - 1`` before every aligned item, once per primitive array (it is contiguous)."""
+    kind, desc = int(node[0]), node[1]
+    if kind == 1:  # BASE: (type name, string bound)
+        return _ALIGN.get(desc[0], 8) - 1
+    if kind == 2:  # NAME: a nested message
+        _, fields = typestore().fielddefs[desc]
+        return sum(_padding_bound(getattr(value, f), t) for f, t in fields)
+    sub, _ = desc  # ARRAY or SEQUENCE of sub
+    head = 3 if kind == 4 else 0  # a sequence's uint32 length
+    if int(sub[0]) == 1 and sub[1][0] not in ("string", "wstring"):
+        return head + _ALIGN.get(sub[1][0], 8) - 1
+    return head + sum(_padding_bound(v, sub) for v in value)
+
+
 def decode(data: bytes | bytearray | memoryview, typename: str) -> Any:
     """Deserialise ROS 2 CDR bytes as ``typename``; raise LinkDecodeError when malformed.
 
-    Checks the encapsulation header (plain CDR, either endianness), that the whole payload is
-    consumed up to CDR alignment padding (a truncated or extended payload is an error), and
-    wraps every decoder failure (bad lengths, bad UTF-8, short buffers) in LinkDecodeError.
+    Checks the encapsulation header (plain CDR, either endianness) and wraps every decoder
+    failure (bad lengths, bad UTF-8, short buffers) in LinkDecodeError. Bytes after the
+    message are accepted only as alignment padding: at most the padding the message's own
+    fields could need (:func:`_padding_bound`) plus the final rounding to 8. ROS 2's
+    ``rmw_serialize`` (Fast-CDR typesupport) sizes its buffer by the serialised-size
+    estimate, which assumes worst-case padding, so its messages end in such bytes (8 per
+    ``JointTrajectoryPoint``; with whatever the buffer held: padding contents are
+    unspecified in CDR and are not checked here or inside the message). Anything longer
+    (another message appended, a truncated length) is an error.
     """
     raw = bytes(data)
     if len(raw) < 4 or raw[0] != 0 or raw[1] not in (0, 1):
@@ -260,15 +299,21 @@ def decode(data: bytes | bytearray | memoryview, typename: str) -> Any:
             f"{typename}: not a CDR payload (need a 4-byte header 00 00|01 ..; got "
             f"{raw[:4].hex() or 'nothing'})")
     try:
-        obj = typestore().deserialize_cdr(raw, typename)
+        ts = typestore()
+        md = ts.get_msgdef(typename)
+        fn = md.deserialize_cdr_le if raw[1] == 1 else md.deserialize_cdr_be
+        obj, pos = fn(raw[4:], 0, md.cls, ts)
     except Exception as err:  # rosbags raises assorted errors on garbage: normalise them
         raise LinkDecodeError(f"{typename}: malformed CDR payload ({len(raw)} bytes): "
                               f"{type(err).__name__}: {err}") from None
-    if raw[1] == 1:  # re-encoding must reproduce the bytes up to trailing padding
-        again = encode(obj, typename)
-        if len(raw) - len(again) not in range(0, 4) or raw[: len(again)] != again:
-            raise LinkDecodeError(f"{typename}: payload has {len(raw)} bytes but the message "
-                                  f"encodes to {len(again)} (trailing or inconsistent data)")
+    extra = len(raw) - 4 - pos
+    if extra > _FINAL_PAD:  # only then is the (linear) walk over the message needed
+        bound = _FINAL_PAD + _padding_bound(obj, (2, typename))
+        if extra > bound:
+            raise LinkDecodeError(
+                f"{typename}: payload has {len(raw)} bytes but the message ends at byte "
+                f"{pos + 4}: {extra} trailing bytes, more than the {bound} of alignment "
+                "padding it can have")
     return obj
 
 
@@ -418,9 +463,12 @@ def imu_msg(state: ToolState, t: float, frame_id: str = "articutool_imu") -> Any
 HEALTH_NAME = "articutool: control loop"
 
 
-def health_msg(state: ToolState, t: float, link_counters: dict[str, int]) -> Any:
-    """``DiagnosticArray`` with one status: OK, or ERROR with the fault as message."""
-    values = {"mode": state.mode.name, "loop_period_mean": repr(state.loop_period_mean),
+def health_msg(state: ToolState, t: float, link_counters: dict[str, int],
+               tool_id: str = "articutool", lease_holder: str = "") -> Any:
+    """``DiagnosticArray`` with one status: OK, or ERROR with the fault as message;
+    ``hardware_id`` is the tool's identity, ``lease_holder`` the commanding client."""
+    values = {"mode": state.mode.name, "lease_holder": lease_holder,
+              "loop_period_mean": repr(state.loop_period_mean),
               "loop_jitter": repr(state.loop_jitter), "loop_overruns": str(state.loop_overruns),
               "fault": state.fault}
     values.update({k: repr(v) for k, v in state.extra.items()})
@@ -428,12 +476,13 @@ def health_msg(state: ToolState, t: float, link_counters: dict[str, int]) -> Any
     kvs = [msg("diagnostic_msgs/msg/KeyValue", key=k, value=v) for k, v in values.items()]
     level = 2 if state.fault else 0  # DiagnosticStatus.ERROR / OK
     st = msg("diagnostic_msgs/msg/DiagnosticStatus", level=level, name=HEALTH_NAME,
-             message=state.fault or "OK", hardware_id="articutool", values=kvs)
+             message=state.fault or "OK", hardware_id=tool_id, values=kvs)
     return msg(DIAGNOSTIC_ARRAY, header=header(t), status=[st])
 
 
-def battery_msg(state: ToolState, t: float) -> Any:
-    """``sensor_msgs/BatteryState`` with the motors' input voltage (other fields unknown)."""
+def battery_msg(state: ToolState, t: float, tool_id: str = "articutool") -> Any:
+    """``sensor_msgs/BatteryState`` with the motors' input voltage (other fields unknown);
+    ``serial_number`` is the tool's identity."""
     nan = float("nan")
     return msg(BATTERY_STATE, header=header(t), voltage=state.battery_voltage,
                temperature=nan, current=nan, charge=nan, capacity=nan, design_capacity=nan,
@@ -441,7 +490,7 @@ def battery_msg(state: ToolState, t: float) -> Any:
                power_supply_technology=0, present=math.isfinite(state.battery_voltage),
                cell_voltage=np.zeros(0, dtype=np.float32),
                cell_temperature=np.zeros(0, dtype=np.float32), location="articutool",
-               serial_number="")
+               serial_number=tool_id)
 
 
 def _fl(s: str) -> float:
@@ -470,7 +519,8 @@ def state_from_msgs(js: Any, imu: Any | None, health: Any | None, battery: Any |
             if st.name == HEALTH_NAME:
                 kv = {k.key: k.value for k in st.values}
     mode = Mode.__members__.get(kv.get("mode", ""), Mode.DISABLED)
-    known = {"mode", "loop_period_mean", "loop_jitter", "loop_overruns", "fault"}
+    known = {"mode", "loop_period_mean", "loop_jitter", "loop_overruns", "fault",
+             "lease_holder"}
     extra = {k: _fl(v) for k, v in kv.items() if k not in known}
     return ToolState(
         stamp=stamp, mode=mode, joint_names=(str(js.name[0]), str(js.name[1])),

@@ -21,6 +21,33 @@ settles the current goal (a goal that ended between two ticks gets its result th
 its goal still runs it refuses the new one itself, so no goal's final status is ever
 overwritten unseen.
 
+Who may command (issue 13): on a paired tool (``LinkConfig.requires_pairing``) every command,
+trajectory and client heartbeat must carry a paired PC's signature (``articutool.link.auth``);
+anything else is refused (services answer ``success=false`` with the reason, topics are
+dropped) and counted (``refused_unpaired``). Telemetry is open to any session that reached the
+tool (on a paired tool, over mutual TLS, only paired devices reach it).
+
+One commander at a time: the first command from a client gives it the *command lease*, which
+its heartbeats (and commands) renew and which expires ``client_timeout`` seconds after it was
+last heard, or when it calls ``release``. Another client's commands are refused with a message
+naming the holder (``refused_lease``), except stops: DISABLED and cancel are accepted from
+any admitted client, without moving the lease. ``take_over`` gives the lease to the caller at
+once and is audited (a WARNING log line ``AUDIT …``, the ``lease_takeovers`` counter and,
+with ``LinkConfig.audit_log``, a JSON line per lease transition: granted, released, expired,
+take_over). On an unpaired
+link the names are the clients' own claims, so the lease orders honest clients only.
+
+The network cannot slow the loop: the transport drops messages beyond ``max_rate_hz`` per
+endpoint and payloads above a per-type size (``max_trajectory_bytes``, ``max_request_bytes``)
+before copying them (``rate_limited``, ``oversized``), the link threads
+verify, decode and validate, and only then queue the ToolAPI call in a bounded inbox
+(``inbox_size``; stops in a queue of their own, served first); a full inbox refuses the
+command (``dropped_excess``). Replies and publishes that follow a command are sent from a
+``link-io`` thread, never from the thread that ran the command (a send can block on a
+congested or dead peer). The tool's loop drains it, one command per tick, when the API
+offers ``set_link_work`` (``ToolRuntime``: called once per tick, after the tick); an API
+without a loop of its own (a test double) gets a worker thread of this server instead.
+
 Link-loss policy (``LinkConfig.link_loss_policy``) when no client heartbeat or request has
 arrived for ``client_timeout`` seconds: ``"continue"`` (default) lets a running primitive
 finish; ``"cancel"`` cancels it (motors stop). Continue is the default because primitives are
@@ -32,16 +59,18 @@ their end either way; leveling always continues (it is the point of the decoupli
 
 from __future__ import annotations
 
+import json
 import logging
 import threading
 import time
-from collections import OrderedDict
+import uuid
+from collections import OrderedDict, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from articutool.link import messages as m
 from articutool.link.config import LinkConfig
-from articutool.link.transport import Handle, Names, Responder, Transport
+from articutool.link.transport import Endpoint, Handle, Names, Responder, Sender, Transport
 from articutool.tool.api import Mode, PrimitiveStatus, ToolAPI
 
 __all__ = ["ToolServer", "serve_forever"]
@@ -76,10 +105,27 @@ class ToolServer:
             from articutool.spec import load_spec
             rate_hz = load_spec().wrist.loop_rate_hz
         self.period = 1.0 / float(rate_hz)
-        self.names = Names(self.cfg.namespace)
+        self.names = Names(self.cfg.namespace, self.cfg.tool_id)
+        self.instance = uuid.uuid4().hex[:8]  # tells two tools claiming one identity apart
         self.counters: dict[str, int] = {"decode_errors": 0, "handler_errors": 0,
                                          "rejected_trajectories": 0, "link_losses": 0,
-                                         "ticks": 0}
+                                         "ticks": 0, "refused_unpaired": 0, "refused_lease": 0,
+                                         "lease_takeovers": 0, "oversized": 0, "rate_limited": 0,
+                                         "dropped_excess": 0, "commands": 0}
+        self.holder: str | None = None  # the command lease's holder
+        self._holder_seen = 0.0
+        self.audit: deque[str] = deque(maxlen=100)  # JSON lines, newest last
+        self._inbox: deque[Callable[[], None]] = deque()
+        self._stops: deque[Callable[[], None]] = deque()
+        self._loop_drains = False
+        self._worker: threading.Thread | None = None
+        self._wake = threading.Condition()
+        # Network I/O never runs on the thread that executes commands (the tool's loop): a
+        # reply or publish may block on a congested or dead peer. It goes to link-io.
+        self._exec_ident: int | None = None
+        self._io: deque[Callable[[], None]] = deque()
+        self._io_wake = threading.Condition()
+        self._io_thread: threading.Thread | None = None
         self._lock = threading.RLock()
         self._goals: OrderedDict[bytes, _Goal] = OrderedDict()
         self._active: _Goal | None = None
@@ -93,23 +139,49 @@ class ToolServer:
     # --------------------------------------------------------------- lifecycle --
     def start(self) -> None:
         """Declare the endpoints and start publishing."""
-        n, t = self.names, self.transport
-        self._handles = [
-            t.serve(n.set_orientation_control, self._guarded(self._on_set_mode)),
-            t.serve(n.clear_fault, self._guarded(self._on_clear_fault)),
-            t.serve(n.send_goal, self._guarded(self._on_send_goal)),
-            t.serve(n.get_result, self._guarded(self._on_get_result)),
-            t.serve(n.cancel_goal, self._guarded(self._on_cancel)),
-            t.subscribe(n.joint_trajectory, self._guarded(self._on_trajectory)),
-            t.subscribe(n.client_heartbeat, self._guarded(self._on_client_heartbeat)),
+        n, t, small = self.names, self.transport, self.cfg.max_request_bytes
+        t.on_drop = self._on_drop
+        services = ((n.set_orientation_control, self._on_set_mode),
+                    (n.clear_fault, self._on_clear_fault), (n.send_goal, self._on_send_goal),
+                    (n.get_result, self._on_get_result), (n.cancel_goal, self._on_cancel),
+                    (n.take_over, self._on_take_over), (n.release, self._on_release))
+        rate = self.cfg.max_rate_hz
+        self._handles = [t.serve(ep, self._guarded(self._replies_off_loop(fn)),
+                                 with_sender=True, max_bytes=small, max_rate=rate)
+                         for ep, fn in services]
+        self._handles += [
+            t.subscribe(n.joint_trajectory, self._guarded(self._on_trajectory), with_sender=True,
+                        max_bytes=self.cfg.max_trajectory_bytes, max_rate=rate),
+            t.subscribe(n.client_heartbeat, self._guarded(self._on_client_heartbeat),
+                        with_sender=True, max_bytes=small, max_rate=rate),
         ]
+        hook = getattr(self.api, "set_link_work", None)
         self._stop.clear()
+        self._io_thread = threading.Thread(target=self._run_io, name="link-io", daemon=True)
+        self._io_thread.start()
+        if callable(hook):  # the tool's loop drains the inbox, one command per tick
+            hook(self.work_once)
+            self._loop_drains = True
+        else:
+            self._worker = threading.Thread(target=self._drain, name="link-worker", daemon=True)
+            self._worker.start()
         self._thread = threading.Thread(target=self._run, name="link-server", daemon=True)
         self._thread.start()
 
     def stop(self) -> None:
         """Stop publishing and undeclare the endpoints (pending get_result calls time out)."""
+        if self._loop_drains:
+            self.api.set_link_work(None)  # type: ignore[attr-defined]
+            self._loop_drains = False
         self._stop.set()
+        with self._wake:
+            self._wake.notify_all()
+        if self._worker is not None:
+            self._worker.join(timeout=5)
+            self._worker = None
+        if self._io_thread is not None:
+            self._io_thread.join(timeout=5)
+            self._io_thread = None
         if self._thread is not None:
             self._thread.join(timeout=5)
         for h in self._handles:
@@ -137,9 +209,161 @@ class ToolServer:
                 _log.exception("link handler failed")
         return wrapped
 
-    def _client_seen(self) -> None:
+    def _client_seen(self, who: str) -> None:
+        """``who`` was heard. While a client holds the lease only it counts for the link-loss
+        policy: observers chatting on must not hide that the commanding PC went silent."""
         with self._lock:
-            self._last_client_rx = time.monotonic()
+            if self.holder is None or self.holder == who:
+                self._last_client_rx = time.monotonic()
+
+    def _on_drop(self, name: str, reason: str) -> None:
+        key = "rate_limited" if reason == "rate" else "oversized"
+        with self._lock:
+            self.counters[key] += 1
+            n = self.counters[key]
+        if n <= 10 or n % 1000 == 0:  # a flood must not flood the log
+            _log.warning("dropped a message on %s (%s); %d %s so far", name, reason, n, key)
+
+    def _admit(self, sender: Sender, what: str) -> str | None:
+        """The client's identity if it may command, else None (counted, logged)."""
+        if self.cfg.requires_pairing and not (sender.verified and sender.role == "pc"):
+            why = sender.refused or (f"{sender.identity!r} is not a PC" if sender.verified
+                                     else "not signed")
+            with self._lock:
+                self.counters["refused_unpaired"] += 1
+                n = self.counters["refused_unpaired"]
+            if n <= 10 or n % 100 == 0:  # a flood must not flood the log
+                _log.warning("refused %s from an unpaired sender (%s); %d refused so far",
+                             what, why, n)
+            return None
+        return sender.identity or "anonymous"
+
+    def _lease(self, who: str, stop: bool = False) -> str:
+        """'' if ``who`` may command now (taking a free or expired lease, renewing its own);
+        else the refusal naming the holder. Stops pass without touching the lease."""
+        now = time.monotonic()
+        with self._lock:
+            self._expire_lease(now)
+            if self.holder is None and not stop:
+                self.holder = who
+                _log.info("command lease granted to %s", who)
+                self._audit("lease_granted", who, None)
+            if self.holder == who:
+                self._holder_seen = now
+                return ""
+            if stop:
+                return ""
+            self.counters["refused_lease"] += 1
+            return (f"refused: {self.holder} holds the command lease (heard "
+                    f"{now - self._holder_seen:.1f} s ago); it ends when {self.holder} releases "
+                    f"it or is silent for {self.cfg.client_timeout:g} s. Read-only access is "
+                    "open; stops (mode disabled, cancel) are always accepted; 'articutool "
+                    "client take-over' takes the lease (audited)")
+
+    def _expire_lease(self, now: float) -> None:
+        """End the lease of a holder silent for ``client_timeout`` (lock held)."""
+        if self.holder is not None and now - self._holder_seen > self.cfg.client_timeout:
+            _log.warning("command lease of %s expired (silent %.1f s)", self.holder,
+                         now - self._holder_seen)
+            self._audit("lease_expired", self.holder, None)
+            self.holder = None
+
+    def _audit(self, event: str, who: str | None, previous: str | None) -> None:
+        """Record a lease transition: in memory (last 100) and, with ``audit_log``, one JSON
+        line appended to that file (never raises: the audit must not stop a command)."""
+        rec = {"time": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "tool_id": self.cfg.tool_id,
+               "event": event, "client": who, "previous_holder": previous}
+        self.audit.append(json.dumps(rec))
+        if self.cfg.audit_log:
+            try:
+                with open(self.cfg.audit_log, "a", encoding="utf-8") as f:
+                    f.write(json.dumps(rec) + "\n")
+            except OSError as err:
+                _log.error("cannot append to the audit log %s: %s", self.cfg.audit_log, err)
+
+    def _submit(self, work: Callable[[], None], stop: bool = False) -> bool:
+        """Queue a ToolAPI call for the loop; False (counted) when the inbox is full."""
+        q = self._stops if stop else self._inbox
+        with self._lock:
+            if len(q) >= self.cfg.inbox_size:
+                self.counters["dropped_excess"] += 1
+                return False
+            q.append(work)
+        with self._wake:
+            self._wake.notify()
+        return True
+
+    def _drain(self) -> None:
+        """Worker thread (APIs without a loop): run queued commands one at a time."""
+        while not self._stop.is_set():
+            with self._lock:
+                pending = bool(self._stops or self._inbox)
+            if not pending:
+                with self._wake:
+                    self._wake.wait(0.05)
+                continue
+            self.work_once()
+
+    def work_once(self) -> None:
+        """Run at most one queued ToolAPI call (stops first). Called once per loop tick; never
+        raises."""
+        with self._lock:
+            q = self._stops if self._stops else self._inbox
+            work = q.popleft() if q else None
+        if work is None:
+            return
+        self._exec_ident = threading.get_ident()
+        try:
+            work()
+            with self._lock:
+                self.counters["commands"] += 1
+        except Exception:
+            with self._lock:
+                self.counters["handler_errors"] += 1
+            _log.exception("link command failed")
+
+    def _off_loop(self, io: Callable[[], None]) -> None:
+        """Run network I/O now, unless on the command-executing thread: then on link-io."""
+        if threading.get_ident() != self._exec_ident:
+            io()
+            return
+        with self._io_wake:
+            self._io.append(io)
+            self._io_wake.notify()
+
+    def _replies_off_loop(self, fn: Callable[..., None]) -> Callable[..., None]:
+        """A service handler whose ``respond`` never sends from the command thread."""
+        def handler(data: bytes, respond: Responder, sender: Sender) -> None:
+            fn(data, lambda reply: self._off_loop(lambda: respond(reply)), sender)
+        return handler
+
+    def _run_io(self) -> None:
+        while True:
+            with self._io_wake:
+                while not self._io and not self._stop.is_set():
+                    self._io_wake.wait(0.1)
+                if not self._io:
+                    return
+                io = self._io.popleft()
+            try:
+                io()
+            except Exception:
+                with self._lock:
+                    self.counters["handler_errors"] += 1
+                _log.exception("link reply/publish failed")
+
+    def _refuse(self, respond: Responder, ep: Endpoint, msg: str) -> None:
+        """Answer a refused service call with success=false and ``msg``."""
+        t = ep.response_type
+        if ep.type == m.SET_ORIENTATION_CONTROL:
+            respond(m.encode(m.soc_response(False, msg), t))
+        elif ep.type == m.TRIGGER:
+            respond(m.encode(m.trigger_response(False, msg), t))
+        elif ep.type == m.SEND_GOAL:  # ROS 2's SendGoal reply has no text: not accepted
+            respond(m.encode(m.send_goal_response(False, time.time()), t))
+        elif ep.type == m.CANCEL_GOAL:
+            R = m.typestore().types[t]
+            respond(m.encode(m.cancel_response(R.ERROR_REJECTED, []), t))
 
     def _pub(self, ep_name: str, message: object, typename: str) -> None:
         self.transport.publish(getattr(self.names, ep_name), m.encode(message, typename))
@@ -162,35 +386,123 @@ class ToolServer:
             return ()
 
     # ---------------------------------------------------------------- handlers --
-    def _on_set_mode(self, data: bytes, respond: Responder) -> None:
-        req = m.decode(data, self.names.set_orientation_control.request_type)
-        self._client_seen()
+    def _on_set_mode(self, data: bytes, respond: Responder, sender: Sender) -> None:
+        ep = self.names.set_orientation_control
+        req = m.decode(data, ep.request_type)
+        who = self._admit(sender, "set_orientation_control")
+        if who is None:
+            return self._refuse(respond, ep, "refused: not a paired PC")
+        self._client_seen(who)
+        stop = req.control_mode == Mode.DISABLED
+        refusal = self._lease(who, stop=stop)
+        if refusal:
+            return self._refuse(respond, ep, refusal)
         if req.control_mode not in (Mode.DISABLED, Mode.LEVELING):
-            ok, msg = False, (f"control_mode must be {Mode.DISABLED.value} (DISABLED) or "
-                              f"{Mode.LEVELING.value} (LEVELING); got {req.control_mode}")
-        else:
+            return self._refuse(respond, ep, (
+                f"control_mode must be {Mode.DISABLED.value} (DISABLED) or "
+                f"{Mode.LEVELING.value} (LEVELING); got {req.control_mode}"))
+
+        def work() -> None:
             ok, msg = self._ask(self.api.set_mode, Mode(req.control_mode),
                                 float(req.pitch_offset), float(req.roll_offset))
-        respond(m.encode(m.soc_response(ok, msg), self.names.set_orientation_control
-                         .response_type))
+            respond(m.encode(m.soc_response(ok, msg), ep.response_type))
+        if not self._submit(work, stop=stop):
+            self._refuse(respond, ep, "refused: the tool's command inbox is full")
 
-    def _on_clear_fault(self, data: bytes, respond: Responder) -> None:
-        m.decode(data, self.names.clear_fault.request_type)
-        self._client_seen()
-        ok, msg = self._ask(self.api.clear_fault)
-        respond(m.encode(m.trigger_response(ok, msg), self.names.clear_fault.response_type))
+    def _on_clear_fault(self, data: bytes, respond: Responder, sender: Sender) -> None:
+        ep = self.names.clear_fault
+        m.decode(data, ep.request_type)
+        who = self._admit(sender, "clear_fault")
+        if who is None:
+            return self._refuse(respond, ep, "refused: not a paired PC")
+        self._client_seen(who)
+        refusal = self._lease(who)
+        if refusal:
+            return self._refuse(respond, ep, refusal)
 
-    def _on_send_goal(self, data: bytes, respond: Responder) -> None:
-        req = m.decode(data, self.names.send_goal.request_type)
-        self._client_seen()
+        def work() -> None:
+            ok, msg = self._ask(self.api.clear_fault)
+            respond(m.encode(m.trigger_response(ok, msg), ep.response_type))
+        if not self._submit(work):
+            self._refuse(respond, ep, "refused: the tool's command inbox is full")
+
+    def _on_take_over(self, data: bytes, respond: Responder, sender: Sender) -> None:
+        ep = self.names.take_over
+        m.decode(data, ep.request_type)
+        who = self._admit(sender, "take_over")
+        if who is None:
+            return self._refuse(respond, ep, "refused: not a paired PC")
+        self._client_seen(who)
+        with self._lock:
+            before = self.holder
+            self.holder, self._holder_seen = who, time.monotonic()
+            if before not in (None, who):
+                self.counters["lease_takeovers"] += 1
+        _log.warning("AUDIT take-over: %s took the command lease from %s", who,
+                     before or "nobody")
+        self._audit("take_over", who, before)
+        respond(m.encode(m.trigger_response(True, f"{who} holds the command lease (was: "
+                                                  f"{before or 'nobody'})"), ep.response_type))
+
+    def _on_release(self, data: bytes, respond: Responder, sender: Sender) -> None:
+        ep = self.names.release
+        m.decode(data, ep.request_type)
+        who = self._admit(sender, "release")
+        if who is None:
+            return self._refuse(respond, ep, "refused: not a paired PC")
+        with self._lock:
+            mine = self.holder == who
+            if mine:
+                self.holder = None
+        if mine:
+            _log.info("command lease released by %s", who)
+            self._audit("lease_released", who, None)
+        respond(m.encode(m.trigger_response(mine, "released" if mine else
+                                            f"not held by {who} (holder: {self.holder})"),
+                         ep.response_type))
+
+    def _on_send_goal(self, data: bytes, respond: Responder, sender: Sender) -> None:
+        ep = self.names.send_goal
+        req = m.decode(data, ep.request_type)
+        who = self._admit(sender, "send_goal")
+        if who is None:
+            return self._refuse(respond, ep, "")
+        self._client_seen(who)
+        refusal = self._lease(who)
         gid = m.uuid_bytes(req.goal_id)
         name = str(req.goal.primitive_name)
         params = [float(x) for x in req.goal.parameters]
+        if refusal:  # accepted then aborted, so the client can read why (see the docstring)
+            now = time.time()
+            with self._lock:
+                if gid in self._goals:
+                    return self._refuse(respond, ep, "")
+                self._remember(_Goal(gid, name, now, m.GoalStatus.ABORTED, result=(
+                    m.PrimitiveResult(False, refusal, self._joints_now(),
+                                      m.GoalStatus.ABORTED))))
+            respond(m.encode(m.send_goal_response(True, now), ep.response_type))
+            return None
+
+        def work() -> None:
+            self._start_goal(gid, name, params, respond)
+        if not self._submit(work):
+            self._refuse(respond, ep, "")
+        return None
+
+    def _remember(self, goal: _Goal) -> None:
+        """Record ``goal`` (lock held), forgetting the oldest finished goals."""
+        self._goals[goal.goal_id] = goal
+        done = [k for k, g in self._goals.items() if g.result is not None]
+        for k in done[:max(0, len(self._goals) - _KEEP_GOALS)]:  # never a running goal
+            del self._goals[k]
+
+    def _start_goal(self, gid: bytes, name: str, params: list[float],
+                    respond: Responder) -> None:
         now = time.time()
+        ep = self.names.send_goal
         with self._lock:
             if gid in self._goals:  # a resent goal id is a protocol error: reject it
-                respond(m.encode(m.send_goal_response(False, now),
-                                 self.names.send_goal.response_type))
+                respond(m.encode(m.send_goal_response(False, now), ep.response_type))
                 return
             ended = self._settle()  # the running goal may have ended since the last tick
             running = self._active
@@ -205,17 +517,13 @@ class ToolServer:
             else:
                 goal.result = m.PrimitiveResult(False, msg, self._joints_now(),
                                                 m.GoalStatus.ABORTED)
-            self._goals[gid] = goal
-            done = [k for k, g in self._goals.items() if g.result is not None]
-            for k in done[:max(0, len(self._goals) - _KEEP_GOALS)]:  # never a running goal
-                del self._goals[k]
+            self._remember(goal)
         self._answer(ended)
-        respond(m.encode(m.send_goal_response(True, now), self.names.send_goal.response_type))
+        respond(m.encode(m.send_goal_response(True, now), ep.response_type))
         self._publish_status()
 
-    def _on_get_result(self, data: bytes, respond: Responder) -> None:
-        req = m.decode(data, self.names.get_result.request_type)
-        self._client_seen()
+    def _on_get_result(self, data: bytes, respond: Responder, sender: Sender) -> None:
+        req = m.decode(data, self.names.get_result.request_type)  # read-only: open to all
         gid = m.uuid_bytes(req.goal_id)
         with self._lock:
             goal = self._goals.get(gid)
@@ -226,45 +534,83 @@ class ToolServer:
                 False, "unknown goal id", (), m.GoalStatus.UNKNOWN)
         respond(m.encode(m.result_msg(result), self.names.get_result.response_type))
 
-    def _on_cancel(self, data: bytes, respond: Responder) -> None:
-        req = m.decode(data, self.names.cancel_goal.request_type)
-        self._client_seen()
+    def _on_cancel(self, data: bytes, respond: Responder, sender: Sender) -> None:
+        ep = self.names.cancel_goal
+        req = m.decode(data, ep.request_type)
+        who = self._admit(sender, "cancel_goal")
+        if who is None:
+            return self._refuse(respond, ep, "")
+        self._client_seen(who)
+        self._lease(who, stop=True)  # a stop: accepted from any admitted client
         gid = m.uuid_bytes(req.goal_info.goal_id)
-        R = m.typestore().types[self.names.cancel_goal.response_type]
-        with self._lock:
-            goal = self._active if gid == _ZERO_ID else self._goals.get(gid)
-            if goal is None:
-                code, canceling = (R.ERROR_NONE if gid == _ZERO_ID else
-                                   R.ERROR_UNKNOWN_GOAL_ID), []
-            elif goal.result is not None:
-                code, canceling = R.ERROR_GOAL_TERMINATED, []
-            elif self.api.cancel_primitive():
-                goal.cancel_requested = True
-                goal.status = m.GoalStatus.CANCELING
-                code, canceling = R.ERROR_NONE, [(goal.goal_id, goal.accepted_at)]
-            else:  # finished in between: the next tick reports its result
-                code, canceling = R.ERROR_GOAL_TERMINATED, []
-        respond(m.encode(m.cancel_response(code, canceling),
-                         self.names.cancel_goal.response_type))
-        self._publish_status()
 
-    def _on_trajectory(self, data: bytes) -> None:
-        message = m.decode(data, self.names.joint_trajectory.type)
+        def work() -> None:
+            R = m.typestore().types[ep.response_type]
+            with self._lock:
+                goal = self._active if gid == _ZERO_ID else self._goals.get(gid)
+                if goal is None:
+                    code, canceling = (R.ERROR_NONE if gid == _ZERO_ID else
+                                       R.ERROR_UNKNOWN_GOAL_ID), []
+                elif goal.result is not None:
+                    code, canceling = R.ERROR_GOAL_TERMINATED, []
+                elif self.api.cancel_primitive():
+                    goal.cancel_requested = True
+                    goal.status = m.GoalStatus.CANCELING
+                    code, canceling = R.ERROR_NONE, [(goal.goal_id, goal.accepted_at)]
+                else:  # finished in between: the next tick reports its result
+                    code, canceling = R.ERROR_GOAL_TERMINATED, []
+            respond(m.encode(m.cancel_response(code, canceling), ep.response_type))
+            self._publish_status()
+        if not self._submit(work, stop=True):
+            self._refuse(respond, ep, "")
+        return None
+
+    def _on_trajectory(self, data: bytes, sender: Sender) -> None:
+        who = self._admit(sender, "a trajectory")
+        if who is None:
+            return
+        message = m.decode(data, self.names.joint_trajectory.type)  # in the link thread
         traj = m.trajectory_from_msg(message)
-        self._client_seen()
+        pre = getattr(self.api, "prevalidate_trajectory", None)
+        if callable(pre):  # the length-dependent checks here, not in the loop's tick
+            try:
+                traj = pre(traj)
+            except (ValueError, TypeError) as err:  # TrajectoryError is a ValueError
+                with self._lock:
+                    self.counters["rejected_trajectories"] += 1
+                _log.warning("trajectory from %s refused: %s", who, err)
+                return
+        self._client_seen(who)
+        refusal = self._lease(who)
+        if refusal:
+            with self._lock:
+                self.counters["rejected_trajectories"] += 1
+            _log.warning("trajectory from %s %s", who, refusal)
+            return
         # As ROS trajectory controllers: time 0 is header.stamp (wall clock, so the PC's and
         # the tool's clocks must agree), or arrival when the stamp is zero.
         stamp = m.stamp_to_time(message.header.stamp)
-        delay = stamp - time.time() if stamp > 0 else 0.0
-        ok, msg = self._ask(self.api.follow_trajectory, traj, delay)
-        if not ok:
+
+        def work() -> None:
+            delay = stamp - time.time() if stamp > 0 else 0.0
+            ok, msg = self._ask(self.api.follow_trajectory, traj, delay)
+            if not ok:
+                with self._lock:
+                    self.counters["rejected_trajectories"] += 1
+                _log.warning("trajectory refused: %s", msg)
+        if not self._submit(work):
             with self._lock:
                 self.counters["rejected_trajectories"] += 1
-            _log.warning("trajectory refused: %s", msg)
 
-    def _on_client_heartbeat(self, data: bytes) -> None:
+    def _on_client_heartbeat(self, data: bytes, sender: Sender) -> None:
+        who = self._admit(sender, "a client heartbeat")
+        if who is None:  # a forged heartbeat neither keeps a lease nor the link alive
+            return
         m.decode(data, self.names.client_heartbeat.type)
-        self._client_seen()
+        self._client_seen(who)
+        with self._lock:
+            if self.holder == who:
+                self._holder_seen = time.monotonic()
 
     # ---------------------------------------------------------------- the tick --
     def _settle(self) -> tuple[list[Responder], m.PrimitiveResult] | PrimitiveStatus | None:
@@ -311,6 +657,7 @@ class ToolServer:
 
     def _check_client(self, now: float) -> None:
         with self._lock:
+            self._expire_lease(now)  # also when nobody commands: telemetry names no stale holder
             last = self._last_client_rx
         alive = last is not None and now - last < self.cfg.client_timeout
         if self._client_alive and not alive:
@@ -328,7 +675,8 @@ class ToolServer:
     def _publish_status(self) -> None:
         with self._lock:
             goals = [(g.goal_id, g.accepted_at, g.status) for g in self._goals.values()]
-        self._pub("status", m.status_array(goals), m.GOAL_STATUS_ARRAY)
+        payload = m.encode(m.status_array(goals), m.GOAL_STATUS_ARRAY)
+        self._off_loop(lambda: self.transport.publish(self.names.status, payload))
 
     def tick(self) -> None:
         """One publishing step (the thread calls it at the loop rate; tests may call it)."""
@@ -339,13 +687,16 @@ class ToolServer:
         state = self.api.state()
         with self._lock:
             counters = dict(self.counters)
+            holder = self.holder or ""
         self._pub("joint_states", m.joint_state_msg(state, wall), m.JOINT_STATE)
         self._pub("imu", m.imu_msg(state, wall), m.IMU)
-        self._pub("health", m.health_msg(state, wall, counters), m.DIAGNOSTIC_ARRAY)
-        self._pub("battery", m.battery_msg(state, wall), m.BATTERY_STATE)
+        self._pub("health", m.health_msg(state, wall, counters, tool_id=self.cfg.tool_id,
+                                         lease_holder=holder), m.DIAGNOSTIC_ARRAY)
+        self._pub("battery", m.battery_msg(state, wall, self.cfg.tool_id), m.BATTERY_STATE)
         if now >= self._next_beat:
             self._next_beat = now + self.cfg.heartbeat_period
-            self._pub("heartbeat", m.heartbeat_msg(wall, "articutool"), m.HEADER)
+            self._pub("heartbeat", m.heartbeat_msg(wall, f"{self.cfg.tool_id}/{self.instance}"),
+                      m.HEADER)
             self._publish_status()
 
     def _run(self) -> None:

@@ -9,7 +9,9 @@ Key-expression mapping (after rmw_zenoh's design document, ``ros2/rmw_zenoh`` do
 
     <domain_id>/<fully qualified name without leading '/'>/<DDS type name>/<RIHS01 type hash>
 
-e.g. ``0/articutool/joint_states/sensor_msgs::msg::dds_::JointState_/RIHS01_a13e…``.
+e.g. ``0/articutool/wrist-1/joint_states/sensor_msgs::msg::dds_::JointState_/RIHS01_a13e…``:
+every name is under ``/<namespace>/<tool_id>`` (default ``/articutool/default``), so a client
+addresses one tool by its identity. Below, ``/articutool/`` stands for that prefix.
 Topics are Zenoh publishers/subscribers; services are Zenoh queryables answered by ``get``.
 Payloads are ROS 2 CDR with the 4-byte encapsulation header (see ``messages``).
 
@@ -30,7 +32,12 @@ ROS 2 name                             type (DDS name ``pkg::kind::dds_::Name_``
 /articutool/battery                    sensor_msgs/msg/BatteryState                tool → PC
 /articutool/heartbeat                  std_msgs/msg/Header (frame_id = sender)     tool → PC
 /articutool/client_heartbeat           std_msgs/msg/Header (frame_id = sender)     PC → tool
+/articutool/take_over                  std_srvs/srv/Trigger (take the lease)       service
+/articutool/release                    std_srvs/srv/Trigger (give it back)         service
+/articutool/clear_fault                std_srvs/srv/Trigger                        service
 =====================================  ==========================================  =========
+
+The tool heartbeat's frame_id is ``<tool_id>/<instance>`` (a random id per tool start).
 
 Deviations from rmw_zenoh (interoperability with ROS 2 nodes on rmw_zenoh is by design, but has
 not been tested against a ROS 2 installation):
@@ -41,9 +48,11 @@ not been tested against a ROS 2 installation):
   publishers attach nothing; our service server echoes the request's attachment in its reply
   so an rmw_zenoh client can match the response.
 * Type hashes are computed with ``rosbags`` (``hash_rihs01``) over REP 2011 type
-  descriptions, for services and actions from hand-built description structs; they have not
-  been cross-checked against ``rosidl`` output. ``type_hash_in_keys=False`` in the config
-  replaces the hash with ``*`` on subscribers/queries if a mismatch ever shows up.
+  descriptions, for services and actions from hand-built description structs. The standard
+  types' hashes equal ROS 2's installed descriptions (``tests/test_link_ros_interop.py``,
+  rclpy 9.1.2); our own ``articutool_interfaces`` hashes cannot be checked that way.
+  ``type_hash_in_keys=False`` in the config replaces the hash with ``*`` on
+  subscribers/queries if a mismatch ever shows up.
 * The action's ``get_result`` is a long poll as in ROS 2: the server replies when the goal
   reaches a terminal state; the client re-issues it when the Zenoh query times out.
 """
@@ -55,9 +64,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from articutool.link import messages as m
+from articutool.link.auth import Sender
 
-__all__ = ["Endpoint", "LinkOpenError", "LinkTimeoutError", "Names", "Responder", "Transport",
-           "key_expr"]
+__all__ = ["Endpoint", "LinkOpenError", "LinkRefusedError", "LinkTimeoutError", "Names",
+           "RateGate", "Responder", "Sender", "Transport", "key_expr"]
 
 Responder = Callable[[bytes], None]
 """Sends the reply to one service request; may be called later, from any thread, once."""
@@ -69,6 +79,10 @@ class LinkOpenError(RuntimeError):
 
 class LinkTimeoutError(TimeoutError):
     """A service call got no reply in time (no server reachable, or it did not answer)."""
+
+
+class LinkRefusedError(RuntimeError):
+    """The server answered with an error instead of a reply (e.g. rate limited)."""
 
 
 @dataclass(frozen=True)
@@ -104,12 +118,25 @@ def key_expr(domain_id: int, ep: Endpoint, with_hash: bool = True) -> str:
 
 @dataclass(frozen=True)
 class Names:
-    """All endpoints of one Articutool under ``namespace`` (default ``/articutool``)."""
+    """All endpoints of the Articutool ``tool_id`` under ``namespace``: ``/<namespace>/<tool_id>/…``
+    (default ``/articutool/default/…``), so one client addresses exactly one tool."""
 
     namespace: str = "/articutool"
+    tool_id: str = "default"
 
     def _n(self, rel: str) -> str:
-        return f"/{self.namespace.strip('/')}/{rel}" if self.namespace.strip("/") else f"/{rel}"
+        base = "/".join(p for p in (self.namespace.strip("/"), self.tool_id) if p)
+        return f"/{base}/{rel}"
+
+    @property
+    def take_over(self) -> Endpoint:
+        """Take the command lease from its holder (audited; a caregiver's stop)."""
+        return Endpoint(self._n("take_over"), m.TRIGGER, True)
+
+    @property
+    def release(self) -> Endpoint:
+        """Give the command lease back."""
+        return Endpoint(self._n("release"), m.TRIGGER, True)
 
     @property
     def set_orientation_control(self) -> Endpoint:
@@ -193,24 +220,68 @@ class Handle(ABC):
         """Undeclare."""
 
 
+class RateGate:
+    """Token bucket: at most ``rate`` messages per second on average, bursts of ``burst``.
+    Checked before any Python work on a message, so a flood costs the receiver a counter."""
+
+    def __init__(self, rate: float, burst: float | None = None) -> None:
+        import threading
+        import time
+
+        self.rate = float(rate)
+        self.burst = float(burst if burst is not None else max(1.0, rate / 5))
+        self._tokens = self.burst
+        self._t = time.monotonic()
+        self._clock = time.monotonic
+        self._lock = threading.Lock()
+
+    def allow(self) -> bool:
+        """Take a token if one is left."""
+        with self._lock:
+            now = self._clock()
+            self._tokens = min(self.burst, self._tokens + (now - self._t) * self.rate)
+            self._t = now
+            if self._tokens >= 1.0:
+                self._tokens -= 1.0
+                return True
+            return False
+
+
 class Transport(ABC):
     """Publish/subscribe and request/reply of CDR payloads on ROS 2-named endpoints.
 
     Callbacks run on transport threads: they must return promptly and must not raise (an
     exception is caught and dropped by the transport, but the caller should count it).
+
+    Every message sent carries its sender (``articutool.link.auth``: a signature on a paired
+    transport, a bare name otherwise). With ``with_sender=True`` a callback also receives the
+    :class:`Sender`. With ``max_bytes`` a larger payload is dropped before it is copied or
+    decoded, with ``max_rate`` (messages/s, per endpoint) messages beyond that rate are
+    dropped before any other work; ``on_drop(endpoint name, reason)`` (if set) is told.
     """
+
+    on_drop: Callable[[str, str], None] | None = None
+
+    def _dropped(self, ep: Endpoint, reason: str) -> None:
+        hook = self.on_drop
+        if hook is not None:
+            hook(ep.name, reason)
 
     @abstractmethod
     def publish(self, ep: Endpoint, payload: bytes) -> None:
         """Publish on a topic (best effort; never raises for a missing subscriber)."""
 
     @abstractmethod
-    def subscribe(self, ep: Endpoint, callback: Callable[[bytes], None]) -> Handle:
-        """Call ``callback(payload)`` for every sample published on ``ep``."""
+    def subscribe(self, ep: Endpoint, callback: Callable[..., None], with_sender: bool = False,
+                  max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
+        """Call ``callback(payload[, sender])`` for every sample published on ``ep``."""
 
     @abstractmethod
-    def serve(self, ep: Endpoint, handler: Callable[[bytes, Responder], None]) -> Handle:
-        """Serve a service: ``handler(request, respond)``; ``respond(reply)`` may be deferred."""
+    def serve(self, ep: Endpoint, handler: Callable[..., None], with_sender: bool = False,
+              max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
+        """Serve a service: ``handler(request, respond[, sender])``; ``respond(reply)`` may be
+        deferred. An oversized request is dropped unanswered (the caller times out); one
+        beyond ``max_rate`` gets an error reply at once (LinkRefusedError for the caller)."""
 
     @abstractmethod
     def call(self, ep: Endpoint, payload: bytes, timeout: float) -> bytes:

@@ -26,13 +26,15 @@ from typing import Literal
 
 import zenoh
 
+from articutool.link.auth import AuthError, Sender, Signer, Verifier, claim, sender_of
 from articutool.link.config import LinkConfig
 from articutool.link.transport import (
     Endpoint,
     Handle,
     LinkOpenError,
+    LinkRefusedError,
     LinkTimeoutError,
-    Responder,
+    RateGate,
     Transport,
     key_expr,
 )
@@ -41,6 +43,7 @@ __all__ = ["ZenohTransport", "zenoh_config"]
 
 _log = logging.getLogger(__name__)
 _DRAIN_S = 5.0  # bound on waiting for zenoh's callback threads to end at close
+_REFUSED = "articutool refused: "  # prefix of our error replies (zenoh sends its own too)
 
 
 def _reason(err: Exception) -> str:
@@ -62,6 +65,15 @@ def zenoh_config(cfg: LinkConfig, role: Literal["tool", "client"]) -> zenoh.Conf
     z.insert_json5("connect/exit_on_failure", "false")
     z.insert_json5("connect/retry", json.dumps(
         {"period_init_ms": period_ms, "period_max_ms": period_ms, "period_increase_factor": 1}))
+    if cfg.paired:  # mutual TLS on every tls/ endpoint (a tcp/ one stays plain)
+        tls = "transport/link/tls/"
+        z.insert_json5(tls + "root_ca_certificate", json.dumps(cfg.tls_root_ca))
+        z.insert_json5(tls + "enable_mtls", "true")
+        # The PC does not know the Pi's address at pairing: the CA signature is checked.
+        z.insert_json5(tls + "verify_name_on_connect", "false")
+        for side in ("listen", "connect"):
+            z.insert_json5(f"{tls}{side}_certificate", json.dumps(cfg.tls_certificate))
+            z.insert_json5(f"{tls}{side}_private_key", json.dumps(cfg.tls_private_key))
     for path, value in cfg.extra.items():
         z.insert_json5(path, json.dumps(value))
     return z
@@ -111,9 +123,21 @@ def _guard(fn: Callable[..., None], what: str) -> Callable[..., None]:
 class ZenohTransport(Transport):
     """A zenoh session speaking the Articutool endpoints."""
 
-    def __init__(self, cfg: LinkConfig, role: Literal["tool", "client"]) -> None:
+    def __init__(self, cfg: LinkConfig, role: Literal["tool", "client"],
+                 identity: str | None = None) -> None:
         self.cfg = cfg
         self.role = role
+        self.identity = identity or cfg.identity or (cfg.tool_id if role == "tool" else "")
+        self._signer: Signer | None = None
+        self._verifier: Verifier | None = None
+        if cfg.paired:
+            try:
+                self._signer = Signer(cfg.tls_certificate, cfg.tls_private_key)  # type: ignore[arg-type]
+                self._verifier = Verifier(cfg.tls_root_ca, cfg.peers,  # type: ignore[arg-type]
+                                          cfg.auth_window)
+            except (OSError, ValueError) as err:
+                raise LinkOpenError(f"cannot load the pairing files: {err}") from None
+            self.identity = self._signer.identity
         try:
             self._session = zenoh.open(zenoh_config(cfg, role))
         except zenoh.ZError as err:
@@ -134,6 +158,27 @@ class ZenohTransport(Transport):
     def _key(self, ep: Endpoint, exact: bool) -> str:
         return key_expr(self.cfg.domain_id, ep, with_hash=exact or self.cfg.type_hash_in_keys)
 
+    def _attachment(self, ep: Endpoint, payload: bytes) -> bytes:
+        """Signed with the paired key, else a bare claim of this device's name."""
+        if self._signer is not None:
+            return self._signer.attachment(ep.name, payload)
+        return claim(self.identity)
+
+    def _sender(self, ep: Endpoint, payload: bytes, att: zenoh.ZBytes | None) -> Sender:
+        raw = att.to_bytes() if att is not None else None
+        if self._verifier is None:
+            return sender_of(raw)
+        try:
+            return self._verifier.verify(ep.name, payload, raw)
+        except AuthError as err:
+            return Sender(sender_of(raw).identity, False, "", str(err))
+
+    def _too_big(self, ep: Endpoint, size: int, max_bytes: int | None) -> bool:
+        if max_bytes is not None and size > max_bytes:
+            self._dropped(ep, f"oversized ({size} > {max_bytes} bytes)")
+            return True
+        return False
+
     def publish(self, ep: Endpoint, payload: bytes) -> None:
         with self._lock:
             if self._closed:
@@ -142,16 +187,43 @@ class ZenohTransport(Transport):
             if pub is None:
                 pub = self._pubs[ep.name] = self._session.declare_publisher(
                     self._key(ep, exact=True))
-        pub.put(payload)
+        pub.put(payload, attachment=self._attachment(ep, payload))
 
-    def subscribe(self, ep: Endpoint, callback: Callable[[bytes], None]) -> Handle:
+    def subscribe(self, ep: Endpoint, callback: Callable[..., None], with_sender: bool = False,
+                  max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
+        gate = RateGate(max_rate) if max_rate else None
+
         def on_sample(sample: zenoh.Sample) -> None:
-            callback(sample.payload.to_bytes())
+            if gate is not None and not gate.allow():
+                self._dropped(ep, "rate")
+                return
+            if self._too_big(ep, len(sample.payload), max_bytes):  # before copying it
+                return
+            data = sample.payload.to_bytes()
+            if with_sender:
+                callback(data, self._sender(ep, data, sample.attachment))
+            else:
+                callback(data)
         return _ZHandle(self._session.declare_subscriber(
             self._key(ep, exact=False), self._callback(on_sample, ep.name)))
 
-    def serve(self, ep: Endpoint, handler: Callable[[bytes, Responder], None]) -> Handle:
+    def serve(self, ep: Endpoint, handler: Callable[..., None], with_sender: bool = False,
+              max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
+        gate = RateGate(max_rate) if max_rate else None
+
         def on_query(query: zenoh.Query) -> None:
+            if gate is not None and not gate.allow():
+                self._dropped(ep, "rate")
+                try:  # tell the caller at once rather than letting it time out
+                    query.reply_err(f"{_REFUSED}rate limited: more than {max_rate:g} "
+                                    f"requests/s on {ep.name}")
+                finally:
+                    query.drop()
+                return
+            size = len(query.payload) if query.payload is not None else 0
+            if self._too_big(ep, size, max_bytes):
+                query.drop()
+                return
             data = query.payload.to_bytes() if query.payload is not None else b""
             once = threading.Lock()
 
@@ -163,19 +235,27 @@ class ZenohTransport(Transport):
                 finally:
                     query.drop()  # finalise: the querier learns no more replies are coming
 
-            handler(data, _guard(respond, ep.name))
+            if with_sender:
+                handler(data, _guard(respond, ep.name),
+                        self._sender(ep, data, query.attachment))
+            else:
+                handler(data, _guard(respond, ep.name))
         return _ZHandle(self._session.declare_queryable(
             self._key(ep, exact=True), self._callback(on_query, ep.name)))
 
     def call(self, ep: Endpoint, payload: bytes, timeout: float) -> bytes:
         replies = self._session.get(self._key(ep, exact=False), payload=payload,
+                                    attachment=self._attachment(ep, payload),
                                     timeout=float(timeout))
         errors = []
         for reply in replies:
             if reply.ok is not None:
                 return reply.ok.payload.to_bytes()
             errors.append(reply.err.payload.to_string() if reply.err else "?")
-        detail = f" (errors: {errors})" if errors else ""
+        refused = [e[len(_REFUSED):] for e in errors if e.startswith(_REFUSED)]
+        if refused:
+            raise LinkRefusedError(f"{ep.name}: the tool refused: {'; '.join(refused)}")
+        detail = f" (errors: {errors})" if errors else ""  # zenoh's own, e.g. 'Timeout'
         raise LinkTimeoutError(f"no reply from {ep.name} within {timeout:g} s{detail}")
 
     def close(self) -> None:

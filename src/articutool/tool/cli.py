@@ -58,6 +58,7 @@ Service = Callable[[ToolAPI, threading.Event], None]
 _STATUS_HZ = 5.0  # status line refresh
 _SIM_STEP = 0.002  # s, real-time stepping of the simulated world
 _LEVEL_WAIT = 5.0  # s to wait for fresh IMU data before giving up on --level
+_SWITCH_S = 0.001  # s, the interpreter's thread switch interval in the tool process
 
 
 def add_commands(subparsers: argparse._SubParsersAction) -> None:
@@ -81,6 +82,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     from articutool.link.config import add_config_args
 
     add_config_args(p)
+    p.add_argument("--insecure-listen", action="store_true",
+                   help="allow a plain (non-TLS) listen endpoint on a network address without "
+                        "pairing: anyone on that network can then command the tool")
     p.set_defaults(func=_cmd_tool)
 
 
@@ -246,12 +250,31 @@ def _close_failed(runtime: object) -> None:
         logger.disabled = was
 
 
+def _check_exposure(cfg: object, insecure: bool) -> None:
+    """Refuse (exit 2) an unpaired tool listening in plain text on a network address."""
+    from articutool.cli import UsageError
+    from articutool.link.config import plain_network_endpoints
+
+    plain = plain_network_endpoints(cfg.endpoints("tool")[0])  # type: ignore[attr-defined]
+    if plain and not cfg.paired and not insecure:  # type: ignore[attr-defined]
+        raise UsageError(
+            f"--listen {plain[0]}: a plain endpoint on a network address lets anyone on that "
+            "network command the tool; pair first ('articutool pair', then --link-config "
+            "<tool>/link.toml, which listens on tls/), listen on loopback only, or pass "
+            "--insecure-listen")
+
+
 def _cmd_tool(args: argparse.Namespace) -> int:
     from articutool.cli import UsageError, spec_from_args
 
     spec = spec_from_args(args)
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UsageError(f"--duration must be a number of seconds > 0; got {args.duration}")
+    # The loop thread shares the interpreter with the link's threads: a waiting thread gets
+    # the GIL after at most one switch interval per thread ahead of it, 5 ms by default.
+    # 1 ms bounds what the network's threads can add to a tick (benchmarks/
+    # bench_link_flood.py measures it).
+    sys.setswitchinterval(_SWITCH_S)
     link = None
     if args.serve:  # open the link before anything moves: a tool that cannot serve says so
         from articutool.link.config import ConfigError, config_from_args
@@ -259,7 +282,9 @@ def _cmd_tool(args: argparse.Namespace) -> int:
         from articutool.link.zenoh_transport import ZenohTransport
 
         try:
-            link = ZenohTransport(config_from_args(args), "tool")
+            cfg = config_from_args(args)
+            _check_exposure(cfg, args.insecure_listen)
+            link = ZenohTransport(cfg, "tool")
         except ConfigError as err:
             raise UsageError(str(err)) from None
         except LinkOpenError as err:

@@ -81,6 +81,7 @@ import math
 import numbers
 import threading
 import time
+import weakref
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -211,6 +212,10 @@ class ToolRuntime:
         self.controller = LevelingController.from_spec(spec, R_base_imu=R_base_imu)
         self.stats = LoopStats()
         self._lock = threading.RLock()
+        self._link_work: Callable[[], None] | None = None
+        # Trajectories prevalidate_trajectory returned, by id while they live (the dataclass
+        # holds arrays, so it cannot be hashed into a WeakSet).
+        self._prechecked: dict[int, weakref.ref[JointTrajectory]] = {}
         self._opened = False
         self._wall_timing = False
 
@@ -507,6 +512,12 @@ class ToolRuntime:
                         self.stats.add_period(wake - last_wake)
                 last_wake = wake
                 self.tick()
+                work = self._link_work
+                if work is not None:  # at most one queued link command per tick
+                    try:
+                        work()
+                    except Exception:  # never escapes the loop
+                        log.exception("link work failed")
                 deadline += period
                 late = time.monotonic() - deadline
                 if late > 0.0:
@@ -518,6 +529,12 @@ class ToolRuntime:
             self._wall_timing = False
             with self._lock:
                 self._stop_motors()
+
+    def set_link_work(self, work: Callable[[], None] | None) -> None:
+        """Have :meth:`run` call ``work()`` once per tick, after the tick (the link server's
+        ``work_once``: at most one queued command, already decoded and validated, so the
+        network never adds more than one bounded call to a tick). None detaches it."""
+        self._link_work = work
 
     def tick(self, now: float | None = None, dt: float | None = None) -> ToolState:
         """One loop iteration at time ``now`` (default ``clock()``) with controller step
@@ -702,9 +719,48 @@ class ToolRuntime:
         return vel + self._track_gain * err
 
     # -- trajectory validation --
-    def _validated_trajectory(
-        self, trajectory: JointTrajectory, q_now: NDArray[np.float64]
-    ) -> JointTrajectory:
+    def prevalidate_trajectory(self, trajectory: JointTrajectory) -> JointTrajectory:
+        """The checks of :meth:`follow_trajectory` that do not depend on the wrist's state
+        (joint names, waypoint limits, the interpolated spline's limits), without the lock.
+
+        The link server runs this in its own thread, so the loop thread, which runs the
+        queued :meth:`follow_trajectory`, only checks the start against the present joints
+        (cost independent of the trajectory's length: a 1 MB, 1700 s trajectory took 190 ms
+        to validate in full). Raises TrajectoryError (or TypeError) with the reason; returns
+        the trajectory in the wrist's joint order, marked as checked by this runtime.
+        """
+        traj = self._checked_shape_and_limits(trajectory)
+        key = id(traj)
+        self._prechecked[key] = weakref.ref(traj, lambda _r: self._prechecked.pop(key, None))
+        return traj
+
+    def _check_limits(self, t: NDArray, pos: NDArray, vel: NDArray, what: str) -> None:
+        names, lim, vmax = list(self.joint_names), self._limits, self._vmax
+        for j, name in enumerate(names):
+            lo, hi = lim[j]
+            bad = np.flatnonzero((pos[:, j] < lo - 1e-9) | (pos[:, j] > hi + 1e-9))
+            if bad.size:
+                k = int(bad[0])
+                raise TrajectoryError(
+                    f"{what} at t = {t[k]:.3f} s: {name} = {pos[k, j]:.4f} rad is outside "
+                    f"[{lo:.4f}, {hi:.4f}] rad (spec.wrist limits)")
+            bad = np.flatnonzero(np.abs(vel[:, j]) > vmax[j] * (1 + 1e-9))
+            if bad.size:
+                k = int(bad[0])
+                raise TrajectoryError(
+                    f"{what} at t = {t[k]:.3f} s: {name} velocity {vel[k, j]:.4f} rad/s is "
+                    f"outside [{-vmax[j]:g}, {vmax[j]:g}] rad/s (spec.wrist.max_velocity)")
+
+    def _check_spline(self, traj: JointTrajectory, t0: float, t1: float) -> None:
+        """The spline between waypoints can overshoot; check it densely on [t0, t1] (4
+        samples per tick, and every waypoint in the span)."""
+        n = max(2, math.ceil((t1 - t0) / (self.period / 4)) + 1)
+        inside = traj.times[(traj.times >= t0) & (traj.times <= t1)]
+        ts = np.unique(np.concatenate([np.linspace(t0, t1, n), inside]))
+        pos, vel = traj.sample(ts)
+        self._check_limits(ts, pos, vel, "interpolated trajectory")
+
+    def _checked_shape_and_limits(self, trajectory: JointTrajectory) -> JointTrajectory:
         if not isinstance(trajectory, JointTrajectory):
             raise TypeError(f"expected a JointTrajectory; got {type(trajectory).__name__}")
         names = list(self.joint_names)
@@ -712,30 +768,26 @@ class ToolRuntime:
             raise TrajectoryError(f"joint_names must be the wrist's {names}; "
                                   f"got {list(trajectory.joint_names)}")
         traj = trajectory.reordered(names)
-        lim, vmax = self._limits, self._vmax
+        self._check_limits(traj.times, traj.positions, traj.velocities, "waypoint")
+        self._check_spline(traj, float(traj.times[0]), float(traj.times[-1]))
+        return traj
 
-        def check(t: NDArray, pos: NDArray, vel: NDArray, what: str) -> None:
-            for j, name in enumerate(names):
-                lo, hi = lim[j]
-                bad = np.flatnonzero((pos[:, j] < lo - 1e-9) | (pos[:, j] > hi + 1e-9))
-                if bad.size:
-                    k = int(bad[0])
-                    raise TrajectoryError(
-                        f"{what} at t = {t[k]:.3f} s: {name} = {pos[k, j]:.4f} rad is outside "
-                        f"[{lo:.4f}, {hi:.4f}] rad (spec.wrist limits)")
-                bad = np.flatnonzero(np.abs(vel[:, j]) > vmax[j] * (1 + 1e-9))
-                if bad.size:
-                    k = int(bad[0])
-                    raise TrajectoryError(
-                        f"{what} at t = {t[k]:.3f} s: {name} velocity {vel[k, j]:.4f} rad/s is "
-                        f"outside [{-vmax[j]:g}, {vmax[j]:g}] rad/s (spec.wrist.max_velocity)")
-
-        check(traj.times, traj.positions, traj.velocities, "waypoint")
+    def _validated_trajectory(
+        self, trajectory: JointTrajectory, q_now: NDArray[np.float64]
+    ) -> JointTrajectory:
+        ref = self._prechecked.get(id(trajectory))
+        if ref is not None and ref() is trajectory:  # names, limits checked in the link thread
+            traj = trajectory
+        else:
+            traj = self._checked_shape_and_limits(trajectory)
+        names, vmax = list(self.joint_names), self._vmax
         if traj.times[0] > 0.0:
             # Start from where the wrist is: the spline moves it to the first point in time.
+            # Hermite segments are local, so only the new first segment needs checking.
             traj = JointTrajectory(
                 traj.joint_names, np.concatenate([[0.0], traj.times]),
                 np.vstack([q_now, traj.positions]), np.vstack([np.zeros(2), traj.velocities]))
+            self._check_spline(traj, 0.0, float(traj.times[1]))
         else:
             gap = np.abs(traj.positions[0] - q_now)
             reach = vmax * self.period
@@ -745,11 +797,6 @@ class ToolRuntime:
                     f"the first point (t = 0) is {gap[j]:.4f} rad from the present {names[j]} "
                     f"({q_now[j]:.4f} rad), more than one tick's travel ({reach[j]:.4f} rad); "
                     "give the first point a time_from_start > 0 to move there")
-        # The spline between waypoints can overshoot; check it densely (4 samples per tick).
-        n = max(2, math.ceil(traj.duration / (self.period / 4)) + 1)
-        ts = np.unique(np.concatenate([np.linspace(0.0, traj.duration, n), traj.times]))
-        pos, vel = traj.sample(ts)
-        check(ts, pos, vel, "interpolated trajectory")
         return traj
 
     def _leveling_out_of_budget(self, R: NDArray[np.float64], q: NDArray[np.float64]) -> str:
