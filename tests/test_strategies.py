@@ -1,0 +1,72 @@
+"""The action library: shipped strategies load; bad entries are refused naming the field."""
+
+from __future__ import annotations
+
+import copy
+import tomllib
+
+import numpy as np
+import pytest
+
+from articutool.feeding.strategies import (
+    StrategyError,
+    StrategyLibrary,
+    default_strategies_path,
+)
+from articutool.spec import load_spec
+
+SPEC = load_spec()
+RAW = tomllib.loads(default_strategies_path().read_text())
+
+
+def test_shipped_library_has_the_thesis_strategies_and_rigid_baselines() -> None:
+    lib = StrategyLibrary.load(SPEC)
+    for food, first, shed in (("noodles", "TWIRL_CW", "NOODLE_SHED"),
+                              ("pecans", "NONE", "VIBRATE_ROLL"), ("water", "NONE", "TILT")):
+        _, s = lib.choose(food, "articutool", np.random.default_rng(0))
+        assert s.stages.pre_move_into.primitive == first
+        assert s.stages.post_acquisition.primitive == shed
+        assert s.transport.planner == "decoupled"
+        _, b = lib.choose(food, "baseline", np.random.default_rng(0))
+        assert all(getattr(b.stages, n).is_none for n in ("pre_move_into", "post_move_into",
+                                                          "post_acquisition"))
+        assert b.transport.planner == "strict6" and b.transport.tolerance_deg == 20.0
+
+
+def _with(edit) -> dict:
+    data = copy.deepcopy(RAW)
+    edit(data["strategies"]["pecans_tilted_scoop"])
+    return data
+
+
+@pytest.mark.parametrize("edit,field", [
+    (lambda s: s["stages"]["post_acquisition"].update(primitive="SHAKE"), "unknown primitive"),
+    (lambda s: s["stages"]["post_acquisition"].update(params=[8.0, 0.05]),
+     "stages.post_acquisition"),
+    (lambda s: s["stages"]["post_acquisition"].update(params=[8.0, 0.05, 1e6]),
+     "stages.post_acquisition"),
+    (lambda s: s.update(utensil="chopsticks"), "strategies.pecans_tilted_scoop.utensil"),
+    (lambda s: s["insertion"].update(motion="stir"), "insertion.motion"),
+    (lambda s: s["approach"].update(height_m=float("nan")), "approach.height_m"),
+    (lambda s: s.update(system="baseline"), "baseline locks the wrist"),
+    (lambda s: s["transport"].update(planner="strict6"), "tolerance_deg"),
+    (lambda s: s["attempts"].update(plan=0), "attempts.plan"),
+])
+def test_bad_strategies_are_refused_naming_the_field(edit, field: str) -> None:
+    with pytest.raises(StrategyError, match=field.replace(".", r"\.")):
+        StrategyLibrary.from_dict(_with(edit), SPEC)
+
+
+def test_choice_is_weighted_and_deterministic_for_a_seed() -> None:
+    data = copy.deepcopy(RAW)
+    alt = copy.deepcopy(data["strategies"]["pecans_tilted_scoop"])
+    alt["weight"] = 3.0
+    data["strategies"]["pecans_deeper"] = alt
+    lib = StrategyLibrary.from_dict(data, SPEC)
+    picks = [lib.choose("pecans", "articutool", np.random.default_rng(s))[0] for s in range(400)]
+    again = [lib.choose("pecans", "articutool", np.random.default_rng(s))[0] for s in range(400)]
+    assert picks == again
+    share = picks.count("pecans_deeper") / len(picks)
+    assert 0.68 < share < 0.82  # weight 3 of 4
+    with pytest.raises(StrategyError, match="food"):
+        lib.choose("soup", "articutool", np.random.default_rng(0))
