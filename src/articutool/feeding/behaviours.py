@@ -1,0 +1,289 @@
+"""py_trees behaviours of the feeding tree (thesis §3.2.1, §4.3; issue 10), and the interfaces
+they talk to.
+
+The tree reaches the arm only through :class:`ArmInterface` and the tool only through
+:class:`~articutool.tool.api.ToolAPI`, so the same tree drives the physics world, a real arm
+driver or a ROS 2 bridge, and the in-process tool runtime or a client over Zenoh. Long actions
+(planning, arm motions, primitives) are *jobs*: started in ``initialise``, polled in ``update``
+(never waited for), cancelled in ``terminate`` when preempted.
+
+Blackboard (namespace ``/bite``): ``trajectory`` (the last plan, passed from planning to
+verification and execution), ``stop_requested`` (set by a caregiver or a UI).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import py_trees
+from py_trees.common import Access, Status
+
+from articutool.tool.api import Mode, ToolAPI
+
+__all__ = [
+    "ArmInterface",
+    "Attempts",
+    "Execute",
+    "Job",
+    "JobResult",
+    "Plan",
+    "RunPrimitive",
+    "SafeStop",
+    "ToolModeScope",
+    "Unsafe",
+    "Verify",
+]
+
+NS = "/bite"
+
+
+@dataclass(frozen=True)
+class JobResult:
+    """How a job ended: ``ok``, a message a person understands, and its value (a plan)."""
+
+    ok: bool
+    message: str = ""
+    value: Any = None
+
+
+class Job(Protocol):
+    """A long action in progress (a plan being computed, a motion being executed)."""
+
+    def done(self) -> bool:
+        """True once it ended (``result`` is then available)."""
+
+    def result(self) -> JobResult:
+        """How it ended."""
+
+    def cancel(self) -> None:
+        """Stop it (idempotent); a cancelled motion leaves the arm stopped."""
+
+
+class ArmInterface(Protocol):
+    """What the tree needs of the arm (the physics world's arm now; a driver later)."""
+
+    def start_plan(self, goal: str, planner: str, budget_s: float) -> Job:
+        """Plan from the present configuration to the named goal; value: the trajectory."""
+
+    def verify(self, trajectory: Any) -> JobResult:
+        """Plan-then-verify (Alg. 2) for the tool that will follow it."""
+
+    def start_execute(self, trajectory: Any) -> Job:
+        """Execute a trajectory."""
+
+    def stop(self) -> None:
+        """Stop the arm now."""
+
+
+def _bb(b: py_trees.behaviour.Behaviour, *keys: tuple[str, Access]) -> Any:
+    client = b.attach_blackboard_client(name=b.name, namespace=NS)
+    for k, access in keys:
+        client.register_key(key=k, access=access)
+    return client
+
+
+class _JobBehaviour(py_trees.behaviour.Behaviour):
+    """Start a job in ``initialise``, poll it, cancel it when preempted."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.job: Job | None = None
+
+    def start(self) -> Job:
+        raise NotImplementedError
+
+    def finished(self, r: JobResult) -> Status:
+        return Status.SUCCESS if r.ok else Status.FAILURE
+
+    def initialise(self) -> None:
+        self.job = self.start()
+        self.feedback_message = "started"
+
+    def update(self) -> Status:
+        assert self.job is not None
+        if not self.job.done():
+            return Status.RUNNING
+        r = self.job.result()
+        self.feedback_message = r.message
+        return self.finished(r)
+
+    def terminate(self, new_status: Status) -> None:
+        if new_status == Status.INVALID and self.job is not None and not self.job.done():
+            self.job.cancel()
+            self.feedback_message = "cancelled"
+
+
+class Plan(_JobBehaviour):
+    """Plan to ``goal`` with ``planner``; the trajectory goes on the blackboard."""
+
+    def __init__(self, arm: ArmInterface, goal: str, planner: str, budget_s: float) -> None:
+        super().__init__(f"Plan to {goal}")
+        self.arm, self.goal, self.planner, self.budget_s = arm, goal, planner, budget_s
+        self.bb = _bb(self, ("trajectory", Access.WRITE))
+
+    def start(self) -> Job:
+        return self.arm.start_plan(self.goal, self.planner, self.budget_s)
+
+    def finished(self, r: JobResult) -> Status:
+        if r.ok:
+            self.bb.trajectory = r.value
+            return Status.SUCCESS
+        self.feedback_message = f"no plan to {self.goal}: {r.message}"
+        return Status.FAILURE
+
+
+class Verify(py_trees.behaviour.Behaviour):
+    """Plan-then-verify the trajectory on the blackboard (a rejection fails, so the
+    enclosing attempts re-plan)."""
+
+    def __init__(self, arm: ArmInterface) -> None:
+        super().__init__("Verify")
+        self.arm = arm
+        self.bb = _bb(self, ("trajectory", Access.READ))
+
+    def update(self) -> Status:
+        r = self.arm.verify(self.bb.trajectory)
+        self.feedback_message = r.message or ("feasible" if r.ok else "rejected")
+        return Status.SUCCESS if r.ok else Status.FAILURE
+
+
+class Execute(_JobBehaviour):
+    """Execute the trajectory on the blackboard."""
+
+    def __init__(self, arm: ArmInterface, what: str = "motion") -> None:
+        super().__init__(f"Execute {what}")
+        self.arm = arm
+        self.bb = _bb(self, ("trajectory", Access.READ))
+
+    def start(self) -> Job:
+        return self.arm.start_execute(self.bb.trajectory)
+
+
+class RunPrimitive(py_trees.behaviour.Behaviour):
+    """Run a tool primitive (``NONE`` succeeds at once); cancelled when preempted."""
+
+    def __init__(self, tool: ToolAPI, primitive: str, params: list[float], stage: str) -> None:
+        super().__init__(f"{stage}: {primitive}")
+        self.tool, self.primitive, self.params = tool, primitive, list(params)
+        self._running = False
+
+    def initialise(self) -> None:
+        self._running = False
+        if self.primitive == "NONE":
+            return
+        ok, msg = self.tool.start_primitive(self.primitive, self.params)
+        self.feedback_message = msg
+        self._running = ok
+
+    def update(self) -> Status:
+        if self.primitive == "NONE":
+            return Status.SUCCESS
+        if not self._running:
+            return Status.FAILURE  # refused: the message says why
+        st = self.tool.primitive_status()
+        if st is None or not st.done:
+            return Status.RUNNING
+        self._running = False
+        self.feedback_message = st.message
+        return Status.SUCCESS if st.success else Status.FAILURE
+
+    def terminate(self, new_status: Status) -> None:
+        if new_status == Status.INVALID and self._running:
+            self.tool.cancel_primitive()
+            self._running = False
+
+
+class ToolModeScope(py_trees.decorators.Decorator):
+    """Run ``child`` with the tool in ``mode``; restore ``restore`` afterwards, whatever
+    happened — success, failure or preemption (``terminate`` always runs)."""
+
+    def __init__(self, child: py_trees.behaviour.Behaviour, tool: ToolAPI, mode: Mode,
+                 restore: Mode) -> None:
+        super().__init__(name=f"tool {mode.name} (then {restore.name})", child=child)
+        self.tool, self.mode, self.restore = tool, mode, restore
+        self._ok = False
+
+    def initialise(self) -> None:
+        ok, msg = self.tool.set_mode(self.mode)
+        self._ok = ok
+        self.feedback_message = msg
+
+    def update(self) -> Status:
+        if not self._ok:
+            return Status.FAILURE
+        return self.decorated.status
+
+    def terminate(self, new_status: Status) -> None:
+        self.tool.set_mode(self.restore)
+
+
+class Attempts(py_trees.decorators.Retry):
+    """py_trees' Retry, counting attempts on the blackboard (``<key>``), and not mistaking a
+    child left INVALID (e.g. by a timeout) for success (py_trees issue #434)."""
+
+    def __init__(self, child: py_trees.behaviour.Behaviour, num_attempts: int, key: str) -> None:
+        super().__init__(name=f"up to {num_attempts} attempts", child=child,
+                         num_failures=num_attempts)
+        self.key = key
+        self.bb = _bb(self, (key, Access.WRITE))
+        self.bb.set(key, 0)
+
+    def initialise(self) -> None:
+        super().initialise()
+        self.bb.set(self.key, 1)
+
+    def update(self) -> Status:
+        if self.decorated.status == Status.INVALID:
+            self.failures += 1  # a timed-out attempt is a failed one
+            if self.failures >= self.num_failures:
+                self.feedback_message = f"final failure after {self.failures} attempts"
+                return Status.FAILURE
+            self.bb.set(self.key, self.failures + 1)
+            return Status.RUNNING
+        status = super().update()
+        if self.decorated.status == Status.FAILURE and status == Status.RUNNING:
+            self.bb.set(self.key, self.failures + 1)
+        return status
+
+
+class Unsafe(py_trees.behaviour.Behaviour):
+    """SUCCESS when the bite must stop: a tool fault, tool state older than ``stale_s``, or a
+    stop request on the blackboard. A condition: its FAILURE ("safe") is no failure of the
+    bite."""
+
+    is_condition = True
+
+    def __init__(self, tool: ToolAPI, clock: Callable[[], float], stale_s: float) -> None:
+        super().__init__("Unsafe?")
+        self.tool, self.clock, self.stale_s = tool, clock, stale_s
+        self.bb = _bb(self, ("stop_requested", Access.READ))
+
+    def update(self) -> Status:
+        st = self.tool.state()
+        stop = self.bb.exists("stop_requested") and bool(self.bb.stop_requested)
+        if st.fault:
+            self.feedback_message = f"tool fault: {st.fault}"
+        elif self.clock() - st.stamp > self.stale_s:
+            self.feedback_message = (f"tool state is {self.clock() - st.stamp:.2f} s old "
+                                     f"(limit {self.stale_s:g} s)")
+        elif stop:
+            self.feedback_message = "stop requested"
+        else:
+            return Status.FAILURE
+        return Status.SUCCESS
+
+
+class SafeStop(py_trees.behaviour.Behaviour):
+    """Stop the arm and put the tool in DISABLED (motors hold, nothing moves)."""
+
+    def __init__(self, arm: ArmInterface, tool: ToolAPI) -> None:
+        super().__init__("Safe stop")
+        self.arm, self.tool = arm, tool
+
+    def update(self) -> Status:
+        self.arm.stop()
+        self.tool.set_mode(Mode.DISABLED)
+        self.feedback_message = "arm stopped, tool DISABLED"
+        return Status.SUCCESS

@@ -1,0 +1,119 @@
+"""Assembling the feeding tree (issue 10): the transport subtree with plan → verify → execute,
+bounded attempts and a timeout per plan, the tool's mode scoped, a safety guard at the root,
+and a visitor that records the bite's telemetry.
+
+Shape of :func:`transport_tree`::
+
+    Selector "bite" (no memory: the guard is checked every tick)
+      Sequence "guard"          Unsafe? -> Safe stop
+      ToolModeScope LEVELING (then DISABLED)
+        Sequence "transport"
+          Attempts "up to N attempts"            (planning_attempts on the blackboard)
+            Timeout (> the planner's budget)
+              Sequence "plan+verify"  Plan -> Verify
+          Execute motion
+"""
+
+from __future__ import annotations
+
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import py_trees
+from py_trees.common import Status
+
+from articutool.feeding.behaviours import (
+    ArmInterface,
+    Attempts,
+    Execute,
+    Plan,
+    SafeStop,
+    ToolModeScope,
+    Unsafe,
+    Verify,
+)
+from articutool.tool.api import Mode, ToolAPI
+
+__all__ = ["BiteRecorder", "ClockedTimeout", "transport_tree"]
+
+
+class ClockedTimeout(py_trees.decorators.Timeout):
+    """py_trees' Timeout on an injected clock (the simulation's, or a test's)."""
+
+    def __init__(self, child: py_trees.behaviour.Behaviour, duration: float,
+                 clock: Callable[[], float]) -> None:
+        super().__init__(name=f"timeout {duration:g} s", child=child, duration=duration)
+        self.clock = clock
+
+    def initialise(self) -> None:
+        self.finish_time = self.clock() + self.duration
+        self.feedback_message = ""
+
+    def update(self) -> Status:
+        if self.decorated.status == Status.RUNNING and self.clock() > self.finish_time:
+            self.feedback_message = f"timed out after {self.duration:g} s"
+            self.decorated.stop(Status.INVALID)
+            return Status.FAILURE
+        return self.decorated.status
+
+
+def transport_tree(arm: ArmInterface, tool: ToolAPI, goal: str, planner: str, *,
+                   attempts: int, budget_s: float, clock: Callable[[], float],
+                   stale_s: float = 0.5) -> py_trees.behaviour.Behaviour:
+    """The transport subtree (see the module doc): it runs alone as a tree."""
+    plan_verify = py_trees.composites.Sequence(
+        "plan+verify", memory=True, children=[Plan(arm, goal, planner, budget_s), Verify(arm)])
+    # Every plan under a timeout longer than the planner's own budget (2×, and 1 s more).
+    timed = ClockedTimeout(plan_verify, 2.0 * budget_s + 1.0, clock)
+    tries = Attempts(timed, attempts, "planning_attempts")
+    transport = py_trees.composites.Sequence(
+        f"transport to {goal}", memory=True, children=[tries, Execute(arm, f"to {goal}")])
+    scoped = ToolModeScope(transport, tool, Mode.LEVELING, Mode.DISABLED)
+    guard = py_trees.composites.Sequence(
+        "guard", memory=False, children=[Unsafe(tool, clock, stale_s), SafeStop(arm, tool)])
+    return py_trees.composites.Selector("bite", memory=False, children=[guard, scoped])
+
+
+@dataclass
+class BiteRecord:
+    """Telemetry of one bite, collected by :class:`BiteRecorder`."""
+
+    planning_time_s: float = 0.0
+    motion_time_s: float = 0.0
+    # Every leaf failure in order (behaviour, reason); a bite that failed failed at the last.
+    failures: list[tuple[str, str]] = field(default_factory=list)
+
+    @property
+    def failed_stage(self) -> str:
+        """The last leaf that failed and why, in words (empty if none failed)."""
+        return f"{self.failures[-1][0]}: {self.failures[-1][1]}" if self.failures else ""
+
+
+class BiteRecorder(py_trees.visitors.VisitorBase):
+    """Visits every ticked behaviour: accumulates planning and motion time (on ``clock``) and
+    keeps every leaf failure with its reason — telemetry outside the behaviours."""
+
+    def __init__(self, clock: Callable[[], float] = _time.monotonic) -> None:
+        super().__init__(full=False)
+        self.clock = clock
+        self.record = BiteRecord()
+        self._last: dict[str, float] = {}
+
+    def initialise(self) -> None:
+        self._now = self.clock()
+
+    def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
+        name = behaviour.name
+        prev = self._last.get(name, self._now)
+        self._last[name] = self._now
+        if behaviour.status == Status.RUNNING or behaviour.status in (Status.SUCCESS,
+                                                                      Status.FAILURE):
+            dt = max(0.0, self._now - prev)
+            if isinstance(behaviour, Plan):
+                self.record.planning_time_s += dt
+            elif isinstance(behaviour, Execute):
+                self.record.motion_time_s += dt
+        if (behaviour.status == Status.FAILURE and not behaviour.children
+                and not getattr(behaviour, "is_condition", False)):
+            self.record.failures.append((name, behaviour.feedback_message))

@@ -1,0 +1,219 @@
+"""The feeding tree against a fake arm and tool on an injected clock (deterministic)."""
+
+from __future__ import annotations
+
+import py_trees
+import pytest
+from py_trees.common import Status
+
+from articutool.feeding.behaviours import JobResult, RunPrimitive, ToolModeScope
+from articutool.feeding.tree import BiteRecorder, transport_tree
+from articutool.tool.api import Mode, PrimitiveStatus, ToolState
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+class FakeJob:
+    def __init__(self, clock: Clock, duration: float, result: JobResult) -> None:
+        self.clock, self.end, self._result = clock, clock.t + duration, result
+        self.cancelled = False
+
+    def done(self) -> bool:
+        return self.cancelled or self.clock.t >= self.end
+
+    def result(self) -> JobResult:
+        return JobResult(False, "cancelled") if self.cancelled else self._result
+
+    def cancel(self) -> None:
+        self.cancelled = True
+
+
+class FakeArm:
+    """Plans take ``plan_s``; ``plans`` and ``verdicts`` say how each attempt ends."""
+
+    def __init__(self, clock: Clock, plans: list[bool], verdicts: list[bool],
+                 plan_s: float = 0.2, motion_s: float = 1.0) -> None:
+        self.clock, self.plans, self.verdicts = clock, list(plans), list(verdicts)
+        self.plan_s, self.motion_s = plan_s, motion_s
+        self.started_plans, self.executed, self.stopped = 0, [], 0
+        self.jobs: list[FakeJob] = []
+
+    def start_plan(self, goal: str, planner: str, budget_s: float) -> FakeJob:
+        self.started_plans += 1
+        ok = self.plans.pop(0) if self.plans else True
+        job = FakeJob(self.clock, self.plan_s,
+                      JobResult(ok, "" if ok else "no path in budget", f"traj{self.started_plans}"))
+        self.jobs.append(job)
+        return job
+
+    def verify(self, trajectory: str) -> JobResult:
+        ok = self.verdicts.pop(0) if self.verdicts else True
+        return JobResult(ok, "feasible" if ok else "wrist speed 4.3 rad/s > 4 at waypoint 12")
+
+    def start_execute(self, trajectory: str) -> FakeJob:
+        self.executed.append(trajectory)
+        job = FakeJob(self.clock, self.motion_s, JobResult(True, "arrived"))
+        self.jobs.append(job)
+        return job
+
+    def stop(self) -> None:
+        self.stopped += 1
+        for j in self.jobs:
+            j.cancel()
+
+
+class FakeTool:
+    def __init__(self, clock: Clock) -> None:
+        self.clock, self.mode, self.fault, self.modes = clock, Mode.DISABLED, "", []
+        self.primitive: tuple[str, float] | None = None
+        self.cancelled = 0
+        self.stale = False
+
+    def set_mode(self, mode, pitch_offset_deg=0.0, roll_offset_deg=0.0):
+        self.mode = Mode(mode)
+        self.modes.append(self.mode)
+        return True, f"mode {self.mode.name}"
+
+    def state(self) -> ToolState:
+        stamp = self.clock.t - (10.0 if self.stale else 0.0)
+        return ToolState(stamp=stamp, mode=self.mode, joint_names=("p", "r"),
+                         position=(0.0, 0.0), velocity=(0.0, 0.0),
+                         orientation_wxyz=(1.0, 0.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0),
+                         linear_acceleration=(0.0, 0.0, 9.81), fault=self.fault)
+
+    def start_primitive(self, name, parameters):
+        self.primitive = (name, self.clock.t + 1.0)
+        return True, "started"
+
+    def primitive_status(self):
+        if self.primitive is None:
+            return None
+        done = self.clock.t >= self.primitive[1]
+        return PrimitiveStatus(name=self.primitive[0], percent_complete=100.0 if done else 50.0,
+                               feedback="", current_joint_values=(0.0, 0.0), done=done,
+                               success=done, message="done" if done else "",
+                               final_joint_values=())
+
+    def cancel_primitive(self):
+        self.cancelled += 1
+        self.primitive = None
+        return True
+
+
+def _run(root, clock: Clock, max_ticks: int = 500, every=None):
+    py_trees.blackboard.Blackboard.clear()
+    tree = py_trees.trees.BehaviourTree(root)
+    rec = BiteRecorder(clock)
+    tree.visitors.append(rec)
+    tree.setup()
+    for k in range(max_ticks):
+        if every is not None:
+            every(k, tree)
+        tree.tick()
+        clock.t += 0.1
+        if tree.root.status in (Status.SUCCESS, Status.FAILURE):
+            break
+    return tree, rec
+
+
+def _bb_attempts() -> int:
+    return py_trees.blackboard.Blackboard.get("/bite/planning_attempts")
+
+
+def test_success_path_plans_verifies_executes_and_restores_the_tool() -> None:
+    clock = Clock()
+    arm, tool = FakeArm(clock, [True], [True]), FakeTool(clock)
+    tree, rec = _run(transport_tree(arm, tool, "Staging", "decoupled", attempts=3,
+                                    budget_s=1.0, clock=clock), clock)
+    assert tree.root.status == Status.SUCCESS
+    assert arm.executed == ["traj1"] and _bb_attempts() == 1
+    assert tool.modes == [Mode.LEVELING, Mode.DISABLED]  # scoped, then restored
+    assert rec.record.planning_time_s == pytest.approx(0.2, abs=0.11)
+    assert rec.record.motion_time_s == pytest.approx(1.0, abs=0.11)
+
+
+def test_planner_failure_then_success_counts_attempts() -> None:
+    clock = Clock()
+    arm, tool = FakeArm(clock, [False, True], [True]), FakeTool(clock)
+    tree, rec = _run(transport_tree(arm, tool, "Staging", "strict6", attempts=3, budget_s=1.0,
+                                    clock=clock), clock)
+    assert tree.root.status == Status.SUCCESS
+    assert _bb_attempts() == 2 and arm.executed == ["traj2"]
+    assert rec.record.failures[0][1] == "no plan to Staging: no path in budget"
+
+
+def test_verifier_rejection_replans_and_exhausted_attempts_fail_in_words() -> None:
+    clock = Clock()
+    arm, tool = FakeArm(clock, [], [False, True]), FakeTool(clock)
+    tree, _ = _run(transport_tree(arm, tool, "Staging", "decoupled", attempts=3, budget_s=1.0,
+                                  clock=clock), clock)
+    assert tree.root.status == Status.SUCCESS and arm.started_plans == 2
+    clock = Clock()
+    arm, tool = FakeArm(clock, [], [False] * 5), FakeTool(clock)
+    tree, rec = _run(transport_tree(arm, tool, "Staging", "decoupled", attempts=3, budget_s=1.0,
+                                    clock=clock), clock)
+    assert tree.root.status == Status.FAILURE and arm.started_plans == 3
+    assert arm.executed == []
+    assert rec.record.failed_stage == "Verify: wrist speed 4.3 rad/s > 4 at waypoint 12"
+    assert tool.modes[-1] == Mode.DISABLED
+
+
+def test_a_plan_that_outlives_its_timeout_is_cancelled_and_retried() -> None:
+    clock = Clock()
+    arm, tool = FakeArm(clock, [], [], plan_s=10.0), FakeTool(clock)
+    tree, _ = _run(transport_tree(arm, tool, "Staging", "decoupled", attempts=2, budget_s=1.0,
+                                  clock=clock), clock)
+    assert tree.root.status == Status.FAILURE
+    assert arm.started_plans == 2 and all(j.cancelled for j in arm.jobs)
+
+
+def test_tool_fault_mid_transport_stops_safely() -> None:
+    clock = Clock()
+    arm, tool = FakeArm(clock, [True], [True], motion_s=5.0), FakeTool(clock)
+
+    def fault(k, tree):
+        if k == 10:
+            tool.fault = "motor hardware error: roll: OVERLOAD"
+
+    tree, _ = _run(transport_tree(arm, tool, "Staging", "decoupled", attempts=3, budget_s=1.0,
+                                  clock=clock), clock, every=fault)
+    assert tree.root.status == Status.SUCCESS  # the guard's branch: stopped safely
+    assert arm.stopped >= 1 and arm.jobs[-1].cancelled
+    assert tool.mode == Mode.DISABLED
+
+
+@pytest.mark.parametrize("k", range(0, 16))
+def test_preemption_at_any_tick_restores_the_tool_and_cancels_work(k: int) -> None:
+    clock = Clock()
+    arm, tool = FakeArm(clock, [True], [True]), FakeTool(clock)
+
+    def stop(i, tree):
+        if i == k:
+            tool.stale = True  # the tool went silent: the guard preempts the task
+
+    _run(transport_tree(arm, tool, "Staging", "decoupled", attempts=3, budget_s=1.0,
+                        clock=clock), clock, every=stop)
+    assert tool.mode == Mode.DISABLED
+    assert all(j.done() for j in arm.jobs)  # nothing left running
+
+
+def test_primitive_is_cancelled_when_preempted_and_none_succeeds_at_once() -> None:
+    clock = Clock()
+    tool = FakeTool(clock)
+    py_trees.blackboard.Blackboard.clear()
+    prim = RunPrimitive(tool, "TWIRL_CW", [1.0, 3.0], "post_move_into")
+    scope = ToolModeScope(prim, tool, Mode.DISABLED, Mode.LEVELING)
+    tree = py_trees.trees.BehaviourTree(scope)
+    tree.tick()
+    assert prim.status == Status.RUNNING
+    tree.root.stop(Status.INVALID)  # preempted by a higher-priority branch
+    assert tool.cancelled == 1 and tool.mode == Mode.LEVELING
+    none = py_trees.trees.BehaviourTree(RunPrimitive(tool, "NONE", [], "pre_move_into"))
+    none.tick()
+    assert none.root.status == Status.SUCCESS
