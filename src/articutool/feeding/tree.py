@@ -35,7 +35,7 @@ from articutool.feeding.behaviours import (
 )
 from articutool.tool.api import Mode, ToolAPI
 
-__all__ = ["BiteRecorder", "ClockedTimeout", "transport_tree"]
+__all__ = ["BiteRecorder", "ClockedTimeout", "run_tree", "transport_tree"]
 
 
 class ClockedTimeout(py_trees.decorators.Timeout):
@@ -62,14 +62,19 @@ def transport_tree(arm: ArmInterface, tool: ToolAPI, goal: str, planner: str, *,
                    attempts: int, budget_s: float, clock: Callable[[], float],
                    stale_s: float = 0.5) -> py_trees.behaviour.Behaviour:
     """The transport subtree (see the module doc): it runs alone as a tree."""
-    plan_verify = py_trees.composites.Sequence(
-        "plan+verify", memory=True, children=[Plan(arm, goal, planner, budget_s), Verify(arm)])
+    # Plan-then-verify for the decoupled system; a strict plan's constraint is the planner's.
+    steps = [Plan(arm, goal, planner, budget_s)]
+    if planner == "decoupled":
+        steps.append(Verify(arm))
+    plan_verify = py_trees.composites.Sequence("plan+verify", memory=True, children=steps)
     # Every plan under a timeout longer than the planner's own budget (2×, and 1 s more).
     timed = ClockedTimeout(plan_verify, 2.0 * budget_s + 1.0, clock)
     tries = Attempts(timed, attempts, "planning_attempts")
     transport = py_trees.composites.Sequence(
         f"transport to {goal}", memory=True, children=[tries, Execute(arm, f"to {goal}")])
-    scoped = ToolModeScope(transport, tool, Mode.LEVELING, Mode.DISABLED)
+    # The decoupled arm needs the wrist leveling; a strict (baseline) plan keeps it locked.
+    mode = Mode.LEVELING if planner == "decoupled" else Mode.DISABLED
+    scoped = ToolModeScope(transport, tool, mode, Mode.DISABLED)
     guard = py_trees.composites.Sequence(
         "guard", memory=False, children=[Unsafe(tool, clock, stale_s), SafeStop(arm, tool)])
     return py_trees.composites.Selector("bite", memory=False, children=[guard, scoped])
@@ -117,3 +122,24 @@ class BiteRecorder(py_trees.visitors.VisitorBase):
         if (behaviour.status == Status.FAILURE and not behaviour.children
                 and not getattr(behaviour, "is_condition", False)):
             self.record.failures.append((name, behaviour.feedback_message))
+
+
+def run_tree(root: py_trees.behaviour.Behaviour, step: Callable[[float], None],
+             clock: Callable[[], float], *, period_s: float = 0.1,
+             timeout_s: float = 120.0) -> tuple[Status, BiteRecord]:
+    """Tick ``root`` every ``period_s`` of ``clock`` until it ends or ``timeout_s`` passes,
+    calling ``step(period_s)`` between ticks (the physics world's ``run``); returns the final
+    status and the telemetry. A timeout stops the tree (its clean-up runs)."""
+    tree = py_trees.trees.BehaviourTree(root)
+    rec = BiteRecorder(clock)
+    tree.visitors.append(rec)
+    tree.setup()
+    t_end = clock() + timeout_s
+    while clock() < t_end:
+        tree.tick()
+        if tree.root.status in (Status.SUCCESS, Status.FAILURE):
+            return tree.root.status, rec.record
+        step(period_s)
+    tree.root.stop(Status.INVALID)
+    rec.record.failures.append((root.name, f"did not finish within {timeout_s:g} s"))
+    return Status.FAILURE, rec.record

@@ -350,6 +350,12 @@ class FeedingWorld:
                                    self.layout.arm_joints, duration)
         self.follow_arm(traj, wait)
 
+    def stop_arm(self) -> None:
+        """Stop following: hold the arm where it is now, at rest."""
+        self._arm_traj = None
+        self._arm_ref = self.arm_q
+        self._arm_ref_v = np.zeros(6)
+
     @property
     def arm_busy(self) -> bool:
         """True while an arm trajectory is being followed."""

@@ -1,0 +1,131 @@
+"""The feeding tree's arm in the physics world: :class:`SimArm` implements
+:class:`~articutool.feeding.behaviours.ArmInterface` on a
+:class:`~articutool.sim.world.FeedingWorld`, with the project's planners and verifier.
+
+Plans run in a worker thread (the tree polls them); motions run through the world's arm
+servos while the caller keeps stepping the world. Goals are the spec's named configurations
+(``Resting``, ``AbovePlate``, ``Home``) and ``Staging`` (the spec's pose, solved by IK and
+backed off until the tool clears the user, as in ``articutool demo``).
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+
+from articutool.arm.model import ArmModel
+from articutool.feeding.behaviours import JobResult
+from articutool.planning.api import PlanRequest, TransportTask, plan
+from articutool.sim.world import FeedingWorld
+from articutool.trajectory import JointTrajectory
+from articutool.verify import verify_trajectory
+
+__all__ = ["SimArm"]
+
+
+class _FutureJob:
+    def __init__(self, fut: Future[JobResult]) -> None:
+        self.fut = fut
+
+    def done(self) -> bool:
+        return self.fut.done()
+
+    def result(self) -> JobResult:
+        if self.fut.cancelled():
+            return JobResult(False, "cancelled")
+        return self.fut.result()
+
+    def cancel(self) -> None:
+        self.fut.cancel()  # a plan already running finishes in the worker and is dropped
+
+
+class _MotionJob:
+    def __init__(self, world: FeedingWorld) -> None:
+        self.world = world
+        self.cancelled = False
+
+    def done(self) -> bool:
+        return self.cancelled or not self.world.arm_busy
+
+    def result(self) -> JobResult:
+        if self.cancelled:
+            return JobResult(False, "motion cancelled; the arm holds where it is")
+        return JobResult(True, f"arrived (tracking error ≤ "
+                               f"{np.degrees(self.world.arm_tracking_error):.2f}°)")
+
+    def cancel(self) -> None:
+        if not self.done():
+            self.world.stop_arm()
+        self.cancelled = True
+
+
+class SimArm:
+    """The physics world's arm for the feeding tree (see module doc)."""
+
+    def __init__(self, world: FeedingWorld, tolerance_deg: float | None = None,
+                 seed: int = 0) -> None:
+        self.world = world
+        self.tolerance_deg = tolerance_deg
+        self.seed = seed
+        self.model = ArmModel(world.spec, world.utensil, 8, world.scene)
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="plan")
+        self._goals: dict[str, np.ndarray] = {}
+
+    def goal_configuration(self, goal: str) -> np.ndarray:
+        """Arm joints of a named goal (configurations of the spec, or Staging)."""
+        if goal not in self._goals:
+            spec = self.world.spec
+            if goal in spec.arm.configurations:
+                self._goals[goal] = spec.arm.configuration(goal)
+            elif goal == "Staging":
+                from articutool.sim.demo import staging_configuration
+
+                self._goals[goal] = staging_configuration(spec, self.model, self.seed)[0]
+            else:
+                raise ValueError(f"goal: unknown goal {goal!r}; known: "
+                                 f"{sorted([*spec.arm.configurations, 'Staging'])}")
+        return self._goals[goal]
+
+    def start_plan(self, goal: str, planner: str, budget_s: float) -> _FutureJob:
+        """Plan from where the arm is to ``goal`` in a worker thread."""
+        start = tuple(float(x) for x in self.world.arm_q)
+        target = tuple(float(x) for x in self.goal_configuration(goal))
+        req = PlanRequest(system=planner, task=TransportTask(0, start, target),
+                          timeout_s=budget_s, seed=self.seed, utensil=self.world.utensil,
+                          tolerance_deg=self.tolerance_deg if planner != "decoupled" else None)
+        spec = self.world.spec
+
+        def work() -> JobResult:
+            r = plan(req, spec)
+            if not r.success or r.trajectory is None:
+                return JobResult(False, r.message or "no plan")
+            return JobResult(True, f"{r.attempts} attempt(s), {r.planning_time_s:.2f} s",
+                             r.trajectory)
+
+        return _FutureJob(self._pool.submit(work))
+
+    def verify(self, trajectory: Any) -> JobResult:
+        """Plan-then-verify: can the wrist level along this arm trajectory (Alg. 2)?"""
+        if not isinstance(trajectory, JointTrajectory):
+            return JobResult(False, "no trajectory to verify")
+        arm = JointTrajectory(trajectory.joint_names[:6], trajectory.times,
+                              trajectory.positions[:, :6], trajectory.velocities[:, :6])
+        rep = verify_trajectory(arm, self.model, self.world.spec)
+        if rep.feasible:
+            return JobResult(True, f"feasible, velocity margin {rep.velocity_margin:.0%}")
+        return JobResult(False, f"the wrist cannot follow: {rep.reason}")
+
+    def start_execute(self, trajectory: Any) -> _MotionJob:
+        """Run the trajectory through the world's arm servos (the caller steps the world)."""
+        self.world.follow_arm(trajectory, wait=False)
+        return _MotionJob(self.world)
+
+    def stop(self) -> None:
+        """Hold the arm where it is."""
+        self.world.stop_arm()
+
+    def close(self) -> None:
+        """Stop the planning thread."""
+        self._pool.shutdown(wait=False, cancel_futures=True)

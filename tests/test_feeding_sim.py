@@ -1,0 +1,40 @@
+"""The feeding tree's transport subtree driving the physics world (SimArm + the tool runtime)."""
+
+from __future__ import annotations
+
+import py_trees
+import pytest
+from py_trees.common import Status
+
+pytest.importorskip("mujoco")
+
+from articutool.feeding.sim_arm import SimArm  # noqa: E402
+from articutool.feeding.tree import run_tree, transport_tree  # noqa: E402
+from articutool.sim.world import FeedingWorld  # noqa: E402
+from articutool.tool.api import Mode  # noqa: E402
+
+
+def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> None:
+    py_trees.blackboard.Blackboard.clear()
+    w = FeedingWorld("pecans", seed=0, load_g=4.0)
+    w.tool.set_mode(Mode.LEVELING)
+    w.run(1.0)
+    w.tare_ft(0.3)
+    held = w.place_load(1.0)
+    arm = SimArm(w)
+    tilts = []
+    w.on_tick.append(lambda world: tilts.append(world.tilt_deg()))
+    try:
+        root = transport_tree(arm, w.tool, "Staging", "decoupled", attempts=3, budget_s=10.0,
+                              clock=w.clock)
+        status, rec = run_tree(root, w.run, w.clock, timeout_s=60.0)
+    finally:
+        arm.close()
+    g = w.masses_g()
+    assert status == Status.SUCCESS, rec.failed_stage
+    assert py_trees.blackboard.Blackboard.get("/bite/planning_attempts") == 1
+    assert rec.motion_time_s > 1.0
+    assert g["table"] == 0 and g["critical"] == 0  # nothing spilled on the way
+    assert g["utensil"] + g["eaten"] == pytest.approx(held)  # delivered: on it or eaten
+    assert max(tilts) < 10.0  # the wrist leveled it all the way (IMU in physics)
+    assert w.tool.mode == Mode.DISABLED and w.tool.fault == ""  # scope restored
