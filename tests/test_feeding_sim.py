@@ -8,10 +8,10 @@ from py_trees.common import Status
 
 pytest.importorskip("mujoco")
 
-from articutool.feeding.sim_arm import SimArm  # noqa: E402
-from articutool.feeding.tree import run_tree, transport_tree  # noqa: E402
-from articutool.sim.world import FeedingWorld  # noqa: E402
-from articutool.tool.api import Mode  # noqa: E402
+from articutool.feeding.sim_arm import SimArm
+from articutool.feeding.tree import run_tree, transport_tree
+from articutool.sim.world import FeedingWorld
+from articutool.tool.api import Mode
 
 
 def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> None:
