@@ -38,3 +38,26 @@ def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> Non
     assert g["utensil"] + g["eaten"] == pytest.approx(held)  # delivered: on it or eaten
     assert max(tilts) < 10.0  # the wrist leveled it all the way (IMU in physics)
     assert w.tool.mode == Mode.DISABLED and w.tool.fault == ""  # scope restored
+
+
+def test_baseline_strict_transport_from_a_rigid_level_start() -> None:
+    py_trees.blackboard.Blackboard.clear()
+    w = FeedingWorld("water", seed=0, load_g=8.0)  # the wrist stays locked (DISABLED)
+    arm = SimArm(w, tolerance_deg=20.0)
+    try:
+        w.move_arm(arm.rigid_level_configuration("Resting"))
+        w.run(0.5)
+        assert w.tilt_deg() < 3.0
+        w.tare_ft(0.3)
+        w.place_load(1.0)
+        tilts = []
+        w.on_tick.append(lambda world: tilts.append(world.tilt_deg()))
+        root = transport_tree(arm, w.tool, "Staging", "strict6", attempts=3, budget_s=10.0,
+                              clock=w.clock)
+        status, rec = run_tree(root, w.run, w.clock, timeout_s=90.0)
+    finally:
+        arm.close()
+    assert status == Status.SUCCESS, rec.failed_stage
+    # ±20° per axis (pitch and roll of the tip) is up to 28° from vertical in all.
+    assert max(tilts) < 28.5
+    assert w.tool.mode == Mode.DISABLED and w.wrist_q == pytest.approx([0.0, 0.0], abs=0.05)
