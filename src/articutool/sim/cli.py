@@ -54,7 +54,12 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     if args.snapshot is not None and Path(args.snapshot).suffix.lower() != ".png":
         raise UsageError("--snapshot: the file must end in .png")
     kw = _world_args(args)
-    world = FeedingWorld(args.food, args.utensil, **kw)
+    if args.load is not None and not (math.isfinite(args.load) and 0 < args.load <= 100):
+        raise UsageError(f"--load must be a mass in (0, 100] g; got {args.load}")
+    try:
+        world = FeedingWorld(args.food, args.utensil, load_g=args.load, **kw)
+    except ValueError as err:  # e.g. strands cannot be placed as a load
+        raise UsageError(f"--load: {err}") from None
     recorder = None
     try:
         if args.video is not None:
@@ -86,8 +91,10 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     print(f"  in the bowl    {report.in_bowl_g:7.2f} g")
     print(f"  on the table   {report.table_g:7.2f} g (non-critical spill)")
     print(f"  critical       {report.critical_g:7.2f} g (user, wheelchair, floor)")
-    for s in report.spills:
+    for s in report.spills[:8]:
         print(f"  spill at {s.t:6.2f} s: {s.mass_g:.2f} g on {s.where} ({s.place})")
+    if len(report.spills) > 8:
+        print(f"  … {len(report.spills) - 8} more spill events (--json lists them all)")
     print(f"  utensil tilt at the end {world.tilt_deg():.1f}°; arm tracking error max "
           f"{math.degrees(report.arm_tracking_error_rad):.2f}°"
           + (f"; tool fault: {world.tool.fault}" if world.tool.fault else ""))
@@ -135,6 +142,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--level", action=argparse.BooleanOptionalAction, default=True,
                    help="level the utensil after acquiring (default) or keep the wrist "
                         "locked like a rigid tool")
+    p.add_argument("--load", type=float, metavar="G", default=None,
+                   help="instead of acquiring, place G grams on the leveled, tared utensil "
+                        "(the thesis' Exp. 2b/2c protocol), then run the script's motion")
     p.add_argument("--video", metavar="FILE", default=None,
                    help="record the scene (.mp4 or .gif); never overwrites")
     p.add_argument("--snapshot", metavar="FILE", default=None,

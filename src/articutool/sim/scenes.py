@@ -254,9 +254,24 @@ def _lift(world: FeedingWorld, model: ArmModel, height: float = 0.12,
     world.follow_arm(lift, settle_s=0.5)
 
 
+def load(world: FeedingWorld, level: bool = True) -> None:
+    """The thesis' Exp. 2b/2c protocol instead of an acquisition: level the empty utensil,
+    tare the F/T sensor, and place the world's ``load_g`` on it; with ``level`` off the wrist
+    then stays locked (DISABLED) at those angles."""
+    world.tool.set_mode(Mode.LEVELING)
+    world.run(1.0)
+    if not level:
+        world.tool.set_mode(Mode.DISABLED)
+    world.tare_ft(0.3)
+    world.place_load(settle_s=1.0)
+
+
 def acquire(world: FeedingWorld, level: bool = True) -> None:
-    """The utensil's acquisition: a twirling skewer with a fork, a scoop with a spoon."""
-    if world.spec.utensil(world.utensil).physics.kind == "fork":
+    """The utensil's acquisition: a placed load if the world holds one (``load_g``), else a
+    twirling skewer with a fork, a scoop with a spoon."""
+    if world.layout.parked:
+        load(world, level)
+    elif world.spec.utensil(world.utensil).physics.kind == "fork":
         skewer(world, level)
     else:
         scoop(world, level)

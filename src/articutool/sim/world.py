@@ -433,7 +433,7 @@ class FeedingWorld:
                 m.tree_sleep_policy[m.body_treeid[b]] = int(mujoco.mjtSleepPolicy.mjSLEEP_NEVER)
         self._codes = np.full(self.n_items, acc.AIRBORNE, dtype=np.int64)
         self._where = np.full(self.n_items, -1, dtype=np.int64)
-        self._spilled = np.zeros(self.n_items, dtype=bool)
+        self._worst = np.zeros(self.n_items, dtype=np.int64)  # worst spill class reached
         self.spills: list[acc.SpillEvent] = []
         self._mouth = next(((np.asarray(r.xyz), r.radius) for r in self.scene.regions
                             if r.name == "mouth"), None)
@@ -473,12 +473,15 @@ class FeedingWorld:
         codes, where = acc.classify_items(self.n_items, ii, iu, isf, self._surface_codes,
                                           prev, prev_where, asleep)
         mass_g = self.layout.piece_mass * 1000.0
-        new = (~self._spilled) & self._active & ((codes == acc.TABLE) | (codes == acc.CRITICAL))
+        # An event each time an item reaches a spill place worse than any it reached before
+        # (a drop that lands on the table and rolls onto the floor is two events).
+        spill = self._active & ((codes == acc.TABLE) | (codes == acc.CRITICAL))
+        new = spill & (codes > self._worst)
         for k in np.flatnonzero(new):
             self.spills.append(acc.SpillEvent(
                 t=round(self.time, 4), mass_g=mass_g, place=acc.CLASS_NAMES[codes[k]],
                 where=self._surface_names[where[k]] if where[k] >= 0 else "", item=int(k)))
-        self._spilled |= new
+        self._worst = np.where(new, codes, self._worst)
         self._codes, self._where = codes, where
 
     def _place_below(self, p: NDArray[np.float64]) -> tuple[int, int]:
