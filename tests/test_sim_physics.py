@@ -19,7 +19,7 @@ from articutool.datafile import read_document  # noqa: E402
 from articutool.sim import accounting as acc  # noqa: E402
 from articutool.sim.mjcf import build_mjcf, tip_site_name  # noqa: E402
 from articutool.sim.params import PhysicsError, PhysicsParams, default_physics_path  # noqa: E402
-from articutool.sim.scenes import base_tilt_motion  # noqa: E402
+from articutool.sim.scenes import base_tilt_motion, load  # noqa: E402
 from articutool.sim.world import FeedingWorld  # noqa: E402
 from articutool.spec import load_spec  # noqa: E402
 from articutool.tool.api import Mode  # noqa: E402
@@ -49,12 +49,7 @@ def _leveled(food: str, load_g: float, seed: int = 0, level: bool = True) -> Fee
     """A world whose tool leveled (then, unless ``level``, locked its wrist), tared its F/T
     sensor, and was loaded with ``load_g`` of ``food``."""
     w = FeedingWorld(food, seed=seed, load_g=load_g)
-    w.tool.set_mode(Mode.LEVELING)
-    w.run(1.0)
-    if not level:
-        w.tool.set_mode(Mode.DISABLED)
-    w.tare_ft(0.3)
-    w.place_load(settle_s=1.0)
+    load(w, level)
     return w
 
 
