@@ -336,15 +336,23 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
         '<visual><global offwidth="1280" offheight="720"/><quality shadowsize="2048"/></visual>',
         '<worldbody>',
         '<light pos="0.3 -0.2 2.0" dir="0 0 -1" directional="true"/>',
-        '<camera name="utensil" mode="targetbody" target="utensil" pos="0.68 -0.70 0.30"/>',
+
         '<camera name="overview" pos="1.6 -0.9 1.1" xyaxes="0.5 0.87 0 -0.4 0.23 0.89"/>',
     ]
     x += _static_geoms(scene, wp.surface_friction, layout)
-    for o in scene.objects:  # a close view of each container
-        if isinstance(o, Cylinder) and o.container_wall is not None:
-            p = np.asarray(o.xyz) + np.array([0.22, -0.14, 0.16])
-            x.append(f'<camera name="{o.name}" mode="targetbody" target="scene/{o.name}" '
-                     f'pos="{_f(p)}"/>')
+    # Cameras placed from the scene: a close view of each container, and one that follows
+    # the utensil from beside the food's container (the first container if there is none).
+    containers = [o for o in scene.objects
+                  if isinstance(o, Cylinder) and o.container_wall is not None]
+    view = np.array([0.22, -0.14, 0.16])  # viewpoint offset from the object (m)
+    for o in containers:
+        x.append(f'<camera name="{o.name}" mode="targetbody" target="scene/{o.name}" '
+                 f'pos="{_f(np.asarray(o.xyz) + view)}"/>')
+    if containers:
+        home = next((o for o in containers if food_p is not None and o.name == food_p.container),
+                    containers[0])
+        x.append(f'<camera name="utensil" mode="targetbody" target="utensil" '
+                 f'pos="{_f(np.asarray(home.xyz) + 1.5 * view)}"/>')
     for r in scene.regions:
         x.append(f'<site name="region/{r.name}" pos="{_f(r.xyz)}" size="{r.radius}" '
                  'rgba="1 0.3 0.3 0.25"/>')
