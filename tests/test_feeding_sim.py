@@ -32,7 +32,7 @@ def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> Non
         arm.close()
     g = w.masses_g()
     assert status == Status.SUCCESS, rec.failed_stage
-    assert py_trees.blackboard.Blackboard.get("/bite/planning_attempts") == 1
+    assert py_trees.blackboard.Blackboard.get("/bite/planning_attempts_Staging") == 1
     assert rec.motion_time_s > 1.0
     assert g["table"] == 0 and g["critical"] == 0  # nothing spilled on the way
     assert g["utensil"] + g["eaten"] == pytest.approx(held)  # delivered: on it or eaten
