@@ -28,11 +28,13 @@ syspkgs:
 	fi
 
 # The main job: the transport figures (plan, verify, kinematic wrist simulation), then one
-# whole noodle bite by the Articutool in the physics world, its video under results/demo/.
+# whole bite by the Articutool in the physics world, its video under results/demo/. Pecans:
+# a noodle bite runs at 0.1-0.3x real time (several minutes); DEMO_FOOD=noodles make demo.
+DEMO_FOOD ?= pecans
 demo: $(VENV)/.installed
 	$(BIN)/articutool demo
 	mkdir -p results/demo
-	$(BIN)/articutool meal --food noodles --bites 1 --video results/demo/bite-$$(date +%Y%m%d-%H%M%S).mp4
+	$(BIN)/articutool meal --food $(DEMO_FOOD) --bites 1 --video results/demo/bite-$(DEMO_FOOD)-$$(date +%Y%m%d-%H%M%S).mp4
 
 test: $(VENV)/.installed
 	$(BIN)/ruff check src tests benchmarks examples

@@ -275,6 +275,7 @@ def test_a_failed_insertion_retreats_to_resting_and_names_the_stage() -> None:
     tree, rec = _run(_bite(arm, tool, clock), clock, max_ticks=2000)
     assert tree.root.status == Status.FAILURE
     assert rec.record.failures[0] == ("Plan into the food", "no path into the food: no IK")
+    assert rec.record.failed_stage == "Plan into the food: no path into the food: no IK"
     # The retreat: up out of the container, then to Resting.
     assert arm.executed[-2:] == ["path lift", "traj2"]
     assert tool.mode == Mode.DISABLED

@@ -158,6 +158,7 @@ def bite_tree(arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
         child=ToolModeScope(py_trees.composites.Sequence("retreat", memory=True,
                                                          children=[lift, home]),
                             tool, carry, Mode.DISABLED))
+    retreat.is_retreat = True  # type: ignore[attr-defined]  # the recorder keeps the cause
     body = py_trees.composites.Selector("bite or retreat", memory=True, children=[
         ToolModeScope(steps, tool, first_mode, Mode.DISABLED), retreat])
     return guarded(body, arm, tool, clock, settings.stale_s)

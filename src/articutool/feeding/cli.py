@@ -158,21 +158,28 @@ def _print_bite(r: Any) -> None:
 
 def _cmd_meal(args: argparse.Namespace) -> int:
     from articutool.cli import UsageError
-    from articutool.feeding.meal import make_bite_world, run_meal
 
     lib = _check(args)
     if args.show_tree is not False:
         return _show_tree(args, lib, _new_file("--show-tree", args.show_tree, _TREE_SUFFIXES))
     video = _new_file("--video", args.video, (".mp4", ".gif"))
+    if video is not None:
+        import articutool.sim.render  # noqa: F401  (selects EGL before MuJoCo loads)
+    from articutool.feeding.meal import make_bite_world, run_meal
+
     try:
         setup = make_bite_world(args.food, args.system, args.seed, strategies=args.strategies)
     except ValueError as err:
         raise UsageError(str(err)) from None
     recorder = None
     if video is not None:
-        from articutool.sim.render import Recorder
+        from articutool.sim.render import Recorder, RenderError
 
-        recorder = Recorder(setup.world, fps=10.0, camera="overview")
+        try:
+            recorder = Recorder(setup.world, fps=10.0, camera="overview")
+        except RenderError as err:
+            print(f"error: --video: {err}", file=sys.stderr)
+            return 1
     progress = _Progress(setup.world, live=not args.json)
     try:
         bites = run_meal(args.food, args.system, bites=args.bites, seed=args.seed,

@@ -9,9 +9,12 @@ arm base frame, relative to the centre of the container's inner floor ``floor``.
   into it at ``depth_m`` above the floor, dragged ``drag_m`` through it along the heading
   (centred on the container), then out.
 - **skewer**: straight down at the container's centre to ``depth_m``, then out.
+
+Every motion is shifted ``offset_m`` along the heading from the container's centre.
 - **out**: up 4 cm while turning towards ``extract_pitch_down_deg``, then to 7.5 cm above the
   floor at that pitch (0: the arm levels the utensil; otherwise the wrist levels it after,
-  a tool-only motion, §4.3.1).
+  a tool-only motion, §4.3.1); with ``level_height_m`` it turns to that pitch first, still
+  in the food at that height, then rises.
 """
 
 from __future__ import annotations
@@ -53,10 +56,10 @@ def acquisition_waypoints(strategy: Strategy, floor: ArrayLike,
     """The three phases' waypoints: ``above`` (the above-food pose, reached by a free arm
     motion), ``into`` (from the above-food pose into the food) and ``out`` (from the food's
     end point out); each phase starts where the previous one ended."""
-    c = np.asarray(floor, dtype=float)
     h = np.asarray(heading, dtype=float)
     h = h / np.linalg.norm(h)
     app, ins = strategy.approach, strategy.insertion
+    c = np.asarray(floor, dtype=float) + h * ins.offset_m
     a, e = ins.pitch_down_deg, ins.extract_pitch_down_deg
     if ins.motion == "skewer":
         start = end = c + _Z * ins.depth_m
@@ -75,6 +78,10 @@ def acquisition_waypoints(strategy: Strategy, floor: ArrayLike,
             into.append(_wp(end, a, _SPEED["into"]))
     last = into[-1]
     top = np.array([end[0], end[1], c[2]])
-    out = [last, _wp(top + _Z * 0.04, (a + e) / 2, _SPEED["out"]),
-           _wp(top + _Z * 0.075, e, _SPEED["out"])]
+    if ins.level_height_m is not None:  # turn in the food, then rise
+        out = [last, _wp(top + _Z * ins.level_height_m, e, _SPEED["into"]),
+               _wp(top + _Z * 0.075, e, _SPEED["out"])]
+    else:  # rise while turning
+        out = [last, _wp(top + _Z * 0.04, (a + e) / 2, _SPEED["out"]),
+               _wp(top + _Z * 0.075, e, _SPEED["out"])]
     return {"above": [above], "into": into, "out": out}

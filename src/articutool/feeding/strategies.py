@@ -84,6 +84,12 @@ class Insertion(_Strict):
     depth_m: NonNegative
     pitch_down_deg: Annotated[float, Field(ge=0, le=90)]
     drag_m: NonNegative = 0.0
+    # Where in the container, along the heading from its centre (the front of the bowl is
+    # where a level utensil is within the arm's reach).
+    offset_m: Annotated[float, Field(ge=-0.1, le=0.1)] = 0.0
+    # If set: turn to the extraction pitch at this height above the floor, still in the food
+    # (a dip that levels in the liquid), then rise; if not, rise while turning.
+    level_height_m: Annotated[float, Field(gt=0, le=0.1)] | None = None
     # Pitch at which the arm takes the utensil out (0: the arm levels it; otherwise the
     # wrist levels it after, a tool-only motion, thesis §4.3.1).
     extract_pitch_down_deg: Annotated[float, Field(ge=0, le=90)] = 0.0

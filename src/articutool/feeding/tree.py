@@ -102,13 +102,17 @@ class BiteRecord:
 
     planning_time_s: float = 0.0
     motion_time_s: float = 0.0
-    # Every leaf failure in order (behaviour, reason); a bite that failed failed at the last.
+    # Every leaf failure in order (behaviour, reason).
     failures: list[tuple[str, str]] = field(default_factory=list)
+    # The failure that made the bite retreat (a retreat's own failures come after it).
+    cause: tuple[str, str] | None = None
 
     @property
     def failed_stage(self) -> str:
-        """The last leaf that failed and why, in words (empty if none failed)."""
-        return f"{self.failures[-1][0]}: {self.failures[-1][1]}" if self.failures else ""
+        """What failed and why, in words: the failure that made the bite retreat, else the
+        last leaf that failed (empty if none failed)."""
+        f = self.cause or (self.failures[-1] if self.failures else None)
+        return f"{f[0]}: {f[1]}" if f else ""
 
 
 class BiteRecorder(py_trees.visitors.VisitorBase):
@@ -136,6 +140,9 @@ class BiteRecorder(py_trees.visitors.VisitorBase):
                     self.record.motion_time_s += dt
                 else:
                     self.record.planning_time_s += dt
+        if (getattr(behaviour, "is_retreat", False) and self.record.cause is None
+                and self.record.failures):
+            self.record.cause = self.record.failures[-1]
         if (behaviour.status == Status.FAILURE and not behaviour.children
                 and not getattr(behaviour, "is_condition", False)):
             self.record.failures.append((behaviour.name, behaviour.feedback_message))
