@@ -14,13 +14,19 @@ $(VENV)/.installed: pyproject.toml | $(BIN)/python syspkgs
 	touch $@
 
 # System packages the README promises: EGL + Mesa for headless MuJoCo rendering
-# (`articutool sim --video/--snapshot`). Installed with apt when missing (Debian/Ubuntu).
+# (`articutool sim --video/--snapshot`, `articutool view --export`), and Chromium for the
+# viewer's real-browser test (`articutool view`). Installed with apt when missing
+# (Debian/Ubuntu).
 EGL_PKGS := libegl1 libgl1-mesa-dri
+BROWSER_PKGS := chromium
 syspkgs:
-	@if ! ldconfig -p | grep -q 'libEGL.so.1'; then \
-	  echo "installing $(EGL_PKGS) for offscreen rendering"; \
+	@missing=""; \
+	ldconfig -p | grep -q 'libEGL.so.1' || missing="$(EGL_PKGS)"; \
+	command -v chromium >/dev/null 2>&1 || missing="$$missing $(BROWSER_PKGS)"; \
+	if [ -n "$$missing" ]; then \
+	  echo "installing$$missing (offscreen rendering, the viewer's browser test)"; \
 	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
-	  $$SUDO apt-get update -q && $$SUDO apt-get install -y -q $(EGL_PKGS); \
+	  $$SUDO apt-get update -q && $$SUDO apt-get install -y -q $$missing; \
 	fi
 
 demo: $(VENV)/.installed
