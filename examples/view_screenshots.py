@@ -40,7 +40,7 @@ def _shoot(out: Path, *view_args: str) -> None:
         save_png(shot, out)
         print(f"{out} ({shot.seconds_to_stable:.1f} s to a stable frame)")
     finally:
-        p.send_signal(signal.SIGINT)
+        p.send_signal(signal.SIGTERM)
         p.wait(timeout=30)
 
 

@@ -208,7 +208,8 @@ class ViewerApp:
             k = view.sample_at(t)
             pairs = view.collisions[k]
             self.pose(view.q[k], highlight=[b for p in pairs for b in p])
-            m = "" if view.margin is None else f", margin {view.margin[k]:.1%}"
+            m = ("" if view.margin is None else f", margin {view.margin[k]:.1%}"
+                 if np.isfinite(view.margin[k]) else ", past the first failure (not leveled)")
             status.content = (f"t = {view.t[k]:.2f} s: tilt {view.tilt_deg[k]:.1f}°{m}; "
                               + ("colliding: " + ", ".join(f"{a} × {b}" for a, b in pairs)
                                  if pairs else "no collision"))
@@ -247,7 +248,7 @@ class ViewerApp:
             f"**replay**: {meta.get('food') or 'no food'} on the {meta['utensil']}, seed "
             f"{meta['seed']}, {len(rec)} frames over {rec.t[-1] - rec.t[0]:.1f} s "
             f"({meta['rate_hz']:g} Hz); {n_sp} spill event(s), {spilled:.2f} g"
-            + (f"; {meta['extra']}" if meta.get("extra") else "")
+            + "".join(f"; {k} {v}" for k, v in (meta.get("extra") or {}).items())
             + "\n\nfood: green utensil · brown container · orange table · red critical · "
               "amber airborne")
         t = rec.t.astype(np.float64)

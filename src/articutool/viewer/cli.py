@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 import socket
 import sys
 import time
@@ -162,6 +163,10 @@ def _cmd_view(args: argparse.Namespace) -> int:
                    for name, q in spec.arm.configurations.items()}
         if view is not None:
             configs = {}
+    def _terminate(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt  # SIGTERM stops the server cleanly, as Ctrl-C does
+
+    previous = signal.signal(signal.SIGTERM, _terminate)
     server = viser.ViserServer(host=args.host, port=args.port, verbose=False)
     app = None
     try:
@@ -185,6 +190,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
         if app is not None:
             app.close()
         server.stop()
+        signal.signal(signal.SIGTERM, previous)
     return 0
 
 
