@@ -264,3 +264,17 @@ def test_view_refuses_a_port_in_use() -> None:
     finally:
         s.close()
     assert r.returncode == 2 and "--port" in r.stderr and "in use" in r.stderr
+
+
+def test_view_plans_a_benchmark_task_then_serves_it() -> None:
+    r = _run("view", "--plan-task", "0", "--system", "strict8", "--timeout", "20",
+             "--duration", "1", "--port", str(_free_port()))
+    assert r.returncode == 0, r.stderr
+    assert "planning task 0 with strict8" in r.stdout
+    assert "8-joint trajectory" in r.stdout and "viewer: http://127.0.0.1:" in r.stdout
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
