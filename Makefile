@@ -15,16 +15,19 @@ $(VENV)/.installed: pyproject.toml | $(BIN)/python syspkgs
 
 # System packages the README promises, installed with apt when missing (Debian/Ubuntu):
 # EGL + Mesa for headless MuJoCo rendering (`articutool sim --video/--snapshot`, `meal
-# --video`); Graphviz's `dot` for the rendered tree (`articutool meal --show-tree F.png`).
+# --video`, `view --export`); Graphviz's `dot` for the rendered tree (`articutool meal
+# --show-tree F.png`); Chromium for the viewer's real-browser test (`articutool view`).
 EGL_PKGS := libegl1 libgl1-mesa-dri
+BROWSER_PKGS := chromium
 syspkgs:
-	@MISSING=""; \
-	ldconfig -p | grep -q 'libEGL.so.1' || MISSING="$(EGL_PKGS)"; \
-	command -v dot >/dev/null || MISSING="$$MISSING graphviz"; \
-	if [ -n "$$MISSING" ]; then \
-	  echo "installing$$MISSING"; \
+	@missing=""; \
+	ldconfig -p | grep -q 'libEGL.so.1' || missing="$(EGL_PKGS)"; \
+	command -v dot >/dev/null 2>&1 || missing="$$missing graphviz"; \
+	command -v chromium >/dev/null 2>&1 || missing="$$missing $(BROWSER_PKGS)"; \
+	if [ -n "$$missing" ]; then \
+	  echo "installing$$missing (offscreen rendering, tree pictures, the viewer's browser test)"; \
 	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
-	  $$SUDO apt-get update -q && $$SUDO apt-get install -y -q $$MISSING; \
+	  $$SUDO apt-get update -q && $$SUDO apt-get install -y -q $$missing; \
 	fi
 
 # The main job: the transport figures (plan, verify, kinematic wrist simulation), then one

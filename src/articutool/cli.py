@@ -29,6 +29,7 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "articutool.sim.cli",
     "articutool.feeding.cli",
     "articutool.bench.cli",
+    "articutool.viewer.cli",
 )
 
 

@@ -53,6 +53,14 @@ def _cmd_sim(args: argparse.Namespace) -> int:
         raise UsageError("--video: the file must end in .mp4 or .gif")
     if args.snapshot is not None and Path(args.snapshot).suffix.lower() != ".png":
         raise UsageError("--snapshot: the file must end in .png")
+    if args.record is not None:
+        p = Path(args.record)
+        if p.suffix.lower() != ".npz":
+            raise UsageError("--record: the file must end in .npz")
+        if p.exists():
+            raise UsageError(f"--record: {p} exists; choose a new file (nothing is overwritten)")
+        if not p.parent.is_dir():
+            raise UsageError(f"--record: folder {p.parent} does not exist")
     kw = _world_args(args)
     if args.load is not None and not (math.isfinite(args.load) and 0 < args.load <= 100):
         raise UsageError(f"--load must be a mass in (0, 100] g; got {args.load}")
@@ -61,14 +69,27 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     except ValueError as err:  # e.g. strands cannot be placed as a load
         raise UsageError(f"--load: {err}") from None
     recorder = None
+    data_rec = None
     try:
         if args.video is not None:
             from articutool.sim.render import Recorder
 
             recorder = Recorder(world)
+        if args.record is not None:
+            from articutool.viewer.recording import Recorder as DataRecorder
+
+            data_rec = DataRecorder(world, extra={
+                "script": args.script, "level": args.level, "load_g": args.load})
         report = run_script(world, args.script, level=args.level)
         if recorder is not None:
             recorder.save(args.video)
+        if data_rec is not None:
+            from articutool.viewer.recording import RecordingError
+
+            try:
+                data_rec.save(args.record)
+            except RecordingError as err:
+                raise UsageError(f"--record: {err}") from None
         if args.snapshot is not None:
             from articutool.sim.render import save_png
 
@@ -98,7 +119,8 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     print(f"  utensil tilt at the end {world.tilt_deg():.1f}°; arm tracking error max "
           f"{math.degrees(report.arm_tracking_error_rad):.2f}°"
           + (f"; tool fault: {world.tool.fault}" if world.tool.fault else ""))
-    for what, path in (("video", args.video), ("snapshot", args.snapshot)):
+    for what, path in (("video", args.video), ("snapshot", args.snapshot),
+                       ("recording", args.record)):
         if path is not None:
             print(f"  {what}: {path}")
     return 0
@@ -149,6 +171,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    help="record the scene (.mp4 or .gif); never overwrites")
     p.add_argument("--snapshot", metavar="FILE", default=None,
                    help="save a PNG of the last frame; never overwrites")
+    p.add_argument("--record", metavar="FILE", default=None,
+                   help="record the run (.npz: joints, food, spills, tool telemetry) for "
+                        "`articutool view --recording`; never overwrites")
     p.set_defaults(func=_cmd_sim)
     c = sub.add_parser("sim-calibrate", help="calibration experiments of a food model "
                        "(angle of repose, what a level utensil holds)")

@@ -18,7 +18,8 @@ from numpy.typing import NDArray
 
 from articutool.sim.world import FeedingWorld
 
-__all__ = ["CAMERAS", "Recorder", "RenderError", "render_frame", "save_png"]
+__all__ = ["CAMERAS", "Recorder", "RenderError", "model_renderer", "render_frame", "save_png",
+           "write_video"]
 
 CAMERAS = ("utensil", "overview", "bowl")
 _HINT = ("offscreen rendering needs EGL: install the system packages libegl1 and "
@@ -30,11 +31,17 @@ class RenderError(RuntimeError):
     """Offscreen rendering is not available, or a file cannot be written."""
 
 
-def _renderer(world: FeedingWorld, width: int, height: int) -> mujoco.Renderer:
+def model_renderer(model: mujoco.MjModel, width: int = 640,
+                   height: int = 480) -> mujoco.Renderer:
+    """An offscreen renderer for ``model`` (:class:`RenderError` when EGL/GL is missing)."""
     try:
-        return mujoco.Renderer(world.model, height, width)
+        return mujoco.Renderer(model, height, width)
     except Exception as err:  # EGL/GL missing: MuJoCo raises various types
         raise RenderError(f"{_HINT} ({type(err).__name__}: {err})") from None
+
+
+def _renderer(world: FeedingWorld, width: int, height: int) -> mujoco.Renderer:
+    return model_renderer(world.model, width, height)
 
 
 def render_frame(world: FeedingWorld, camera: str = "utensil", width: int = 640,
@@ -45,6 +52,33 @@ def render_frame(world: FeedingWorld, camera: str = "utensil", width: int = 640,
     r = renderer or _renderer(world, width, height)
     r.update_scene(world.data, camera=camera)
     return r.render().copy()
+
+
+def write_video(frames: list[NDArray[np.uint8]], path: str | Path, fps: float) -> Path:
+    """Write RGB frames as a video (format by suffix: ``.mp4`` via the ffmpeg bundled with
+    imageio-ffmpeg, ``.gif`` via Pillow); returns the path."""
+    p = Path(path)
+    if not frames:
+        raise RenderError("no frames were recorded")
+    suffix = p.suffix.lower()
+    try:
+        if suffix == ".gif":
+            from PIL import Image
+
+            imgs = [Image.fromarray(f) for f in frames]
+            imgs[0].save(p, save_all=True, append_images=imgs[1:], loop=0,
+                         duration=int(1000 / fps))
+        elif suffix == ".mp4":
+            import imageio.v2 as imageio
+
+            with imageio.get_writer(p, fps=fps, codec="libx264", macro_block_size=8) as w:
+                for f in frames:
+                    w.append_data(f)
+        else:
+            raise RenderError(f"video: unknown format {suffix!r}; use .mp4 or .gif")
+    except OSError as err:
+        raise RenderError(f"video: cannot write {p}: {err}") from None
+    return p
 
 
 def save_png(world: FeedingWorld, path: str | Path, camera: str = "utensil") -> Path:
@@ -78,26 +112,4 @@ class Recorder:
 
     def save(self, path: str | Path) -> Path:
         """Write the video (format by suffix: .mp4 or .gif); returns its path."""
-        p = Path(path)
-        if not self.frames:
-            raise RenderError("no frames were recorded")
-        suffix = p.suffix.lower()
-        try:
-            if suffix == ".gif":
-                from PIL import Image
-
-                imgs = [Image.fromarray(f) for f in self.frames]
-                imgs[0].save(p, save_all=True, append_images=imgs[1:], loop=0,
-                             duration=int(1000 / self.fps))
-            elif suffix == ".mp4":
-                import imageio.v2 as imageio
-
-                with imageio.get_writer(p, fps=self.fps, codec="libx264",
-                                        macro_block_size=8) as w:
-                    for f in self.frames:
-                        w.append_data(f)
-            else:
-                raise RenderError(f"video: unknown format {suffix!r}; use .mp4 or .gif")
-        except OSError as err:
-            raise RenderError(f"video: cannot write {p}: {err}") from None
-        return p
+        return write_video(self.frames, path, self.fps)

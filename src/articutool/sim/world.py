@@ -655,6 +655,11 @@ class FeedingWorld:
         # The sensor reads the reaction on the utensil: extra weight pulls along −down.
         return float(-f @ down / self.spec.imu.gravity * 1000.0)
 
+    def item_classes(self) -> NDArray[np.int64]:
+        """Where each food item is now: its code in ``accounting.CLASS_NAMES`` (utensil,
+        container, table, …), or −1 for a piece of a load not yet placed."""
+        return np.where(self._active, self._codes, -1)
+
     def masses_g(self) -> dict[str, float]:
         """Mass (g) per class: utensil, container, table, critical, airborne, eaten."""
         counts = np.bincount(self._codes[self._active], minlength=len(acc.CLASS_NAMES))
