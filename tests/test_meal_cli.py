@@ -32,6 +32,7 @@ def _main(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str
     (["--food", "soup"], "--food"),
     (["--strategies", "/nonexistent.toml"], "--strategies"),
     (["--video", "x.avi"], "--video"),
+    (["--record", "x.json"], "--record"),
 ])
 def test_bad_input_exits_2_naming_the_field(args: list[str], field: str,
                                             capsys: pytest.CaptureFixture[str]) -> None:

@@ -163,6 +163,7 @@ def _cmd_meal(args: argparse.Namespace) -> int:
     if args.show_tree is not False:
         return _show_tree(args, lib, _new_file("--show-tree", args.show_tree, _TREE_SUFFIXES))
     video = _new_file("--video", args.video, (".mp4", ".gif"))
+    record = _new_file("--record", args.record, (".npz",))
     if video is not None:
         import articutool.sim.render  # noqa: F401  (selects EGL before MuJoCo loads)
     from articutool.feeding.meal import make_bite_world, run_meal
@@ -180,6 +181,13 @@ def _cmd_meal(args: argparse.Namespace) -> int:
         except RenderError as err:
             print(f"error: --video: {err}", file=sys.stderr)
             return 1
+    data_rec = None
+    if record is not None:
+        from articutool.viewer.recording import Recorder as DataRecorder
+
+        data_rec = DataRecorder(setup.world, extra={
+            "meal": {"food": args.food, "system": args.system, "seed": args.seed,
+                     "strategy": setup.strategy_name}})
     progress = _Progress(setup.world, live=not args.json)
     try:
         bites = run_meal(args.food, args.system, bites=args.bites, seed=args.seed,
@@ -189,13 +197,18 @@ def _cmd_meal(args: argparse.Namespace) -> int:
         progress.stop()
     if recorder is not None:
         recorder.save(video)
+    if data_rec is not None:
+        data_rec.save(record)
     if args.json:
         print(json.dumps({"food": args.food, "system": args.system, "seed": args.seed,
                           "threshold_g": args.threshold,
                           "bites": [b.to_dict() for b in bites],
-                          "video": str(video) if video else None}, indent=2))
-    elif video is not None:
-        print(f"video: {video}")
+                          "video": str(video) if video else None,
+                          "recording": str(record) if record else None}, indent=2))
+    else:
+        for what, path in (("video", video), ("recording", record)):
+            if path is not None:
+                print(f"{what}: {path}")
     return 0
 
 
@@ -219,6 +232,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    help="a bite above G grams is a meaningful success (thesis Exp. 3: 3.0)")
     p.add_argument("--video", metavar="FILE", default=None,
                    help="record the meal (.mp4 or .gif, overview camera); never overwrites")
+    p.add_argument("--record", metavar="FILE", default=None,
+                   help="record the meal (.npz) for `articutool view --recording`; never "
+                        "overwrites")
     p.add_argument("--json", action="store_true", help="the bite records as JSON")
     p.add_argument("--show-tree", nargs="?", const=None, default=False, metavar="FILE",
                    help="print the bite tree and write it to FILE (.dot, .png, .svg) "
