@@ -312,3 +312,22 @@ def test_preempting_the_whole_bite_at_any_tick_restores_the_tool_and_stops_every
         running = tool.primitive is not None and clock.t < tool.primitive[1]
         assert not running, k  # no primitive left running (cancel_primitive clears it)
         assert all(j.done() for j in arm.jobs), k  # no plan or motion left running
+
+
+def test_a_failed_acquisition_is_retried_up_to_the_strategy_s_limit() -> None:
+    from articutool.feeding.bite import bite_tree
+    from articutool.feeding.insertion import acquisition_waypoints
+    from articutool.feeding.strategies import StrategyLibrary
+    from articutool.spec import load_spec
+
+    s = StrategyLibrary.load(load_spec()).strategies["pecans_tilted_scoop"]
+    s = s.model_copy(update={"attempts": s.attempts.model_copy(update={"acquire": 3})})
+    clock = Clock()
+    arm, tool = FakeArm(clock, [], []), FakeTool(clock)
+    arm.fail_paths.add("out of the food")
+    root = bite_tree(arm, tool, s, acquisition_waypoints(s, [0.45, -0.45, 0.0], [0, -1, 0]),
+                     clock, stages=("acquire", "resting"))
+    tree, rec = _run(root, clock, max_ticks=2000)
+    assert tree.root.status == Status.FAILURE
+    assert arm.executed.count("path into the food") == 3  # three tries, then the retreat
+    assert py_trees.blackboard.Blackboard.get("/bite/acquisition_attempts") == 3

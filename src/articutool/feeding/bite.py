@@ -7,7 +7,8 @@ Stages, in order (:data:`STAGES`; a bite may run any ordered subset, e.g. Exp. 1
 - ``above``:   move to AbovePlate (a preparatory motion, empty utensil: no verification),
   then to the strategy's above-food pose (a free joint motion);
 - ``acquire``: Pre-Move-Into primitive, into the food (Cartesian path), Post-Move-Into
-  primitive, out of the food, tool-only leveling (Articutool), lift;
+  primitive, out of the food, tool-only leveling (Articutool), lift; up to the strategy's
+  ``attempts.acquire`` times;
 - ``shed``:    Post-Acquisition primitive over the container (shedding), then level again;
 - ``resting``: transport to Resting (plan → verify → execute, bounded attempts);
 - ``staging``: transport to Staging (the same; the thesis' planning attempts count here);
@@ -38,6 +39,7 @@ import py_trees
 
 from articutool.feeding.behaviours import (
     ArmInterface,
+    Attempts,
     Execute,
     PlanLift,
     PlanPath,
@@ -106,7 +108,9 @@ def stage_tree(name: str, arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
             steps.append(Settle(tool, Mode.LEVELING, settings.level_s, clock))
         steps.append(seq(f"lift {settings.lift_m * 100:g} cm", memory=True, children=[
             PlanLift(arm, settings.lift_m), Execute(arm, "lift")]))
-        return seq("acquire", memory=True, children=steps)
+        # Bounded retries of the whole acquisition (each from the above-food pose).
+        return Attempts(seq("acquire", memory=True, children=steps),
+                        strategy.attempts.acquire, "acquisition_attempts")
     if name == "shed":
         steps = [_primitive(tool, st.post_acquisition, "post-acquisition", carry)]
         if wrist:

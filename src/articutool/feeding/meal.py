@@ -66,6 +66,7 @@ class BiteResult:
     ft_delivered_g: float | None  # the F/T sensor's reading of delivered_g, when comparable
     planning_attempts: int  # to Staging (the thesis' count), else to the last goal planned
     planning_attempts_by_goal: dict[str, int]
+    acquisition_attempts: int  # 0 if the bite had no acquire stage
     planning_time_s: float
     motion_time_s: float
     sim_time_s: float
@@ -200,9 +201,10 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
     delivered = end["utensil"] + end["eaten"] - before["eaten"]
     completed = status == Status.SUCCESS
     # Attempts per goal, from this tree's own counters (in tree order; a retreat's last).
-    attempts = {n.key.removeprefix("planning_attempts_"): int(n.bb.get(n.key))
-                for n in root.iterate()
-                if isinstance(n, Attempts) and n.status != Status.INVALID}
+    counted = {n.key: int(n.bb.get(n.key)) for n in root.iterate()
+               if isinstance(n, Attempts) and n.status != Status.INVALID}
+    attempts = {k.removeprefix("planning_attempts_"): v for k, v in counted.items()
+                if k.startswith("planning_attempts_")}
     goal = "Staging" if "Staging" in attempts else (list(attempts)[-1] if attempts else "")
     ft = after.get("present", {}).get("ft")
     return BiteResult(
@@ -213,6 +215,7 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
         spilled_g=sum(spilled.values()), spilled_by_place=spilled,
         ft_delivered_g=None if ft is None or ft != ft else float(ft),
         planning_attempts=attempts.get(goal, 0), planning_attempts_by_goal=attempts,
+        acquisition_attempts=counted.get("acquisition_attempts", 0),
         planning_time_s=rec.record.planning_time_s, motion_time_s=rec.record.motion_time_s,
         sim_time_s=w.time - t0, wall_time_s=time.perf_counter() - wall0,
         failed_stage="" if completed else rec.record.failed_stage or "stopped",
