@@ -327,7 +327,7 @@ def test_a_failed_acquisition_is_retried_up_to_the_strategy_s_limit() -> None:
     arm.fail_paths.add("out of the food")
     root = bite_tree(arm, tool, s, acquisition_waypoints(s, [0.45, -0.45, 0.0], [0, -1, 0]),
                      clock, stages=("acquire", "resting"))
-    tree, rec = _run(root, clock, max_ticks=2000)
+    tree, _ = _run(root, clock, max_ticks=2000)
     assert tree.root.status == Status.FAILURE
     assert arm.executed.count("path into the food") == 3  # three tries, then the retreat
     assert py_trees.blackboard.Blackboard.get("/bite/acquisition_attempts") == 3
