@@ -299,8 +299,9 @@ class Attempts(py_trees.decorators.Retry):
     """py_trees' Retry, counting attempts on the blackboard (``<key>``), and not mistaking a
     child left INVALID (e.g. by a timeout) for success (py_trees issue #434)."""
 
-    def __init__(self, child: py_trees.behaviour.Behaviour, num_attempts: int, key: str) -> None:
-        super().__init__(name=f"up to {num_attempts} attempts", child=child,
+    def __init__(self, child: py_trees.behaviour.Behaviour, num_attempts: int, key: str,
+                 name: str | None = None) -> None:
+        super().__init__(name=name or f"up to {num_attempts} attempts", child=child,
                          num_failures=num_attempts)
         self.key = key
         self.bb = _bb(self, (key, Access.WRITE))

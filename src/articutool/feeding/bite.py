@@ -109,8 +109,9 @@ def stage_tree(name: str, arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
         steps.append(seq(f"lift {settings.lift_m * 100:g} cm", memory=True, children=[
             PlanLift(arm, settings.lift_m), Execute(arm, "lift")]))
         # Bounded retries of the whole acquisition (each from the above-food pose).
-        return Attempts(seq("acquire", memory=True, children=steps),
-                        strategy.attempts.acquire, "acquisition_attempts")
+        n = strategy.attempts.acquire
+        return Attempts(seq("acquire steps", memory=True, children=steps), n,
+                        "acquisition_attempts", name=f"acquire (up to {n} attempts)")
     if name == "shed":
         steps = [_primitive(tool, st.post_acquisition, "post-acquisition", carry)]
         if wrist:

@@ -177,7 +177,9 @@ def _cmd_meal(args: argparse.Namespace) -> int:
         from articutool.sim.render import Recorder, RenderError
 
         try:
-            recorder = Recorder(setup.world, fps=10.0, camera="overview")
+            # A short video: 8 frames/s at 480×360 (software EGL renders ~0.2 s a frame).
+            recorder = Recorder(setup.world, fps=8.0, camera="overview", width=480,
+                                height=360)
         except RenderError as err:
             print(f"error: --video: {err}", file=sys.stderr)
             return 1
