@@ -30,16 +30,20 @@ from numpy.typing import ArrayLike, NDArray
 
 from articutool.tool.drivers.base import (
     DriverError,
-    FTDriver,
     FTSample,
     HardwareError,
-    ImuDriver,
     ImuSample,
     MotorDriver,
     MotorMode,
     MotorState,
     validate_position_command,
     validate_velocity_command,
+)
+from articutool.tool.drivers.sim import (
+    QueuedFTDriver,
+    QueuedImuDriver,
+    SampleQueue,
+    imu_noise_sigmas,
 )
 
 if TYPE_CHECKING:
@@ -175,21 +179,16 @@ class MjMotorDriver(MotorDriver):
         self._torque[joint] = False
 
 
-class MjImuDriver(ImuDriver):
+class MjImuDriver(QueuedImuDriver):
     """The IMU on F0: MuJoCo accelerometer + gyro, datasheet noise, constant gyro bias."""
 
     def __init__(self, world: FeedingWorld, gyro_bias: ArrayLike, noise: bool,
                  rng: np.random.Generator) -> None:
-        from articutool.tool.drivers.sim import imu_noise_sigmas
-
+        super().__init__(SampleQueue("IMU", _QUEUE_LEN))
         self.world = world
-        self._open = False
-        self.lines_ok = 0
-        self.lines_bad = 0
         self.gyro_bias = np.asarray(gyro_bias, dtype=np.float64).reshape(3)
         self._sigma = imu_noise_sigmas(world.spec) if noise else (0.0, 0.0)
         self._rng = rng
-        self._queue: deque[ImuSample] = deque(maxlen=_QUEUE_LEN)
 
     def _sample(self, accel: NDArray[np.float64], gyro: NDArray[np.float64],
                 stamp: float) -> None:
@@ -198,66 +197,27 @@ class MjImuDriver(ImuDriver):
             accel = accel + self._rng.normal(0.0, sa, 3)
         if sg:
             gyro = gyro + self._rng.normal(0.0, sg, 3)
-        self._queue.append(ImuSample(accel=accel, gyro=gyro + self.gyro_bias, stamp=stamp,
-                                     temperature=30.0))
-
-    def open(self) -> None:
-        """Start receiving (drops samples produced before opening)."""
-        self._queue.clear()
-        self._open = True
-
-    def close(self) -> None:
-        """Stop receiving."""
-        self._open = False
-
-    def read_all(self) -> list[ImuSample]:
-        """Samples produced since the last call, oldest first."""
-        if not self._open:
-            raise DriverError("simulated IMU is not open")
-        out = list(self._queue)
-        self._queue.clear()
-        self.lines_ok += len(out)
-        return out
+        self.samples.push(ImuSample(accel=accel, gyro=gyro + self.gyro_bias, stamp=stamp,
+                                    temperature=30.0))
 
 
-class MjFTDriver(FTDriver):
+class MjFTDriver(QueuedFTDriver):
     """The F/T sensor between roll output and utensil; keeps the tared samples it returned
     (``history``) so the world can report the mass it measures."""
 
     def __init__(self, world: FeedingWorld, noise: bool, rng: np.random.Generator) -> None:
         spec = world.spec
-        super().__init__(spec.ft.tare_samples)
+        super().__init__(SampleQueue("F/T sensor", _QUEUE_LEN), spec.ft.tare_samples)
         self.world = world
-        self._open = False
-        self.frames_ok = 0
-        self.frames_bad = 0
         self._sigma = (np.repeat([spec.ft.force_noise_n, spec.ft.torque_noise_nm], 3)
                        if noise else np.zeros(6))
         self._rng = rng
-        self._queue: deque[FTSample] = deque(maxlen=_QUEUE_LEN)
         self.history: deque[FTSample] = deque(maxlen=4 * int(spec.ft.rate_hz))
 
     def _sample(self, force: NDArray[np.float64], torque: NDArray[np.float64],
                 stamp: float) -> None:
         w = np.concatenate([force, torque]) + self._rng.normal(0.0, 1.0, 6) * self._sigma
-        self._queue.append(FTSample(force=w[:3], torque=w[3:], temperature=32.0, stamp=stamp))
-
-    def open(self) -> None:
-        """Start receiving."""
-        self._queue.clear()
-        self._open = True
-
-    def close(self) -> None:
-        """Stop receiving."""
-        self._open = False
-
-    def _read_raw(self) -> list[FTSample]:
-        if not self._open:
-            raise DriverError("simulated F/T sensor is not open")
-        out = list(self._queue)
-        self._queue.clear()
-        self.frames_ok += len(out)
-        return out
+        self.samples.push(FTSample(force=w[:3], torque=w[3:], temperature=32.0, stamp=stamp))
 
     def read_all(self) -> list[FTSample]:
         """Tared samples since the last call (also kept in ``history``)."""

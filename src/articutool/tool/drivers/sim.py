@@ -25,6 +25,7 @@ import math
 import threading
 from collections import deque
 from collections.abc import Callable, Sequence
+from typing import Generic, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -48,6 +49,9 @@ from articutool.tool.drivers.base import (
 
 __all__ = [
     "BaseMotion",
+    "QueuedFTDriver",
+    "QueuedImuDriver",
+    "SampleQueue",
     "SimFTDriver",
     "SimImuDriver",
     "SimMotorDriver",
@@ -62,6 +66,7 @@ BaseMotion = Callable[[float], Sequence[ArrayLike]]
 _SHUTDOWN_BITS = HardwareError.OVERHEATING | HardwareError.ELECTRICAL_SHOCK | HardwareError.OVERLOAD
 _MAX_SUBSTEP = 0.002  # s; resolution of limit contact and position-mode tracking
 _QUEUE_LEN = 256  # samples kept for a driver that is not being read
+_S = TypeVar("_S")
 
 
 def imu_noise_sigmas(spec: Spec) -> tuple[float, float]:
@@ -182,12 +187,12 @@ class SimWrist:
         self._imu_period = 1.0 / rate
         self._next_imu = self._imu_period
         self._imu_stale = False
-        self._imu_queue: deque[ImuSample] = deque(maxlen=_QUEUE_LEN)
+        self.imu_samples: SampleQueue[ImuSample] = SampleQueue("IMU")
         self.imu_temperature = 30.0
         # F/T
         self._ft_period = 1.0 / spec.ft.rate_hz
         self._next_ft = self._ft_period
-        self._ft_queue: deque[FTSample] = deque(maxlen=_QUEUE_LEN)
+        self.ft_samples: SampleQueue[FTSample] = SampleQueue("F/T sensor")
         self._ft_offset = np.asarray(ft_offset, dtype=np.float64).reshape(6)
         self._wrench = np.zeros(6)
         self.ft_noise_sigma = np.repeat([spec.ft.force_noise_n, spec.ft.torque_noise_nm], 3)
@@ -309,10 +314,10 @@ class SimWrist:
                 self._t = t_next
                 if self._t >= self._next_imu - 1e-12:
                     if not self._imu_stale:
-                        self._imu_queue.append(self._imu_sample(self._next_imu))
+                        self.imu_samples.push(self._imu_sample(self._next_imu))
                     self._next_imu += self._imu_period
                 if self._t >= self._next_ft - 1e-12:
-                    self._ft_queue.append(self._ft_sample(self._next_ft))
+                    self.ft_samples.push(self._ft_sample(self._next_ft))
                     self._next_ft += self._ft_period
 
     def _integrate(self, h: float) -> None:
@@ -369,18 +374,6 @@ class SimWrist:
     def ft_driver(self) -> SimFTDriver:
         """An ``FTDriver`` reading this world's F/T sensor."""
         return SimFTDriver(self)
-
-    def _drain_imu(self) -> list[ImuSample]:
-        with self._lock:
-            out = list(self._imu_queue)
-            self._imu_queue.clear()
-        return out
-
-    def _drain_ft(self) -> list[FTSample]:
-        with self._lock:
-            out = list(self._ft_queue)
-            self._ft_queue.clear()
-        return out
 
 
 class SimMotorDriver(MotorDriver):
@@ -490,55 +483,110 @@ class SimMotorDriver(MotorDriver):
                     s._cmd_vel[i] = 0.0
 
 
-class SimImuDriver(ImuDriver):
-    """The twin of ``OpenLogImuDriver``: samples synthesised by ``SimWrist.step``."""
+class SampleQueue(Generic[_S]):
+    """A simulated sensor's samples as its driver sees them: bounded (a driver that is not
+    read keeps the newest), opening drops what came before, reading drains; thread-safe (the
+    world steps in one thread while the runtime reads in another)."""
 
-    def __init__(self, sim: SimWrist) -> None:
-        self.sim = sim
-        self._open = False
-        self.lines_ok = 0
-        self.lines_bad = 0
+    def __init__(self, what: str, maxlen: int = _QUEUE_LEN) -> None:
+        self.what = what
+        self._q: deque[_S] = deque(maxlen=maxlen)
+        self._lock = threading.Lock()
+        self.is_open = False
+        self.read_count = 0
+
+    def push(self, sample: _S) -> None:
+        """A new sample from the simulated device."""
+        with self._lock:
+            self._q.append(sample)
+
+    def _drain(self) -> list[_S]:
+        with self._lock:
+            out = list(self._q)
+            self._q.clear()
+        return out
 
     def open(self) -> None:
         """Start receiving (drops samples produced before opening)."""
-        self.sim._drain_imu()
-        self._open = True
+        self._drain()
+        self.is_open = True
 
     def close(self) -> None:
         """Stop receiving."""
-        self._open = False
+        self.is_open = False
+
+    def read(self) -> list[_S]:
+        """Samples since the last read, oldest first; ``DriverError`` when not open."""
+        if not self.is_open:
+            raise DriverError(f"simulated {self.what} is not open")
+        out = self._drain()
+        self.read_count += len(out)
+        return out
+
+
+class QueuedImuDriver(ImuDriver):
+    """An ``ImuDriver`` reading a :class:`SampleQueue` (the simulated IMUs)."""
+
+    lines_bad = 0
+
+    def __init__(self, samples: SampleQueue[ImuSample]) -> None:
+        self.samples = samples
+
+    @property
+    def lines_ok(self) -> int:  # type: ignore[override]
+        """Samples read so far."""
+        return self.samples.read_count
+
+    def open(self) -> None:
+        """Start receiving (drops samples produced before opening)."""
+        self.samples.open()
+
+    def close(self) -> None:
+        """Stop receiving."""
+        self.samples.close()
 
     def read_all(self) -> list[ImuSample]:
         """Samples produced since the last call, oldest first."""
-        if not self._open:
-            raise DriverError("simulated IMU is not open")
-        out = self.sim._drain_imu()
-        self.lines_ok += len(out)
-        return out
+        return self.samples.read()
 
 
-class SimFTDriver(FTDriver):
-    """The twin of ``ResenseFTDriver``: raw samples carry ``ft_offset``; tare removes it."""
+class QueuedFTDriver(FTDriver):
+    """An ``FTDriver`` reading a :class:`SampleQueue` (the simulated F/T sensors)."""
 
-    def __init__(self, sim: SimWrist) -> None:
-        super().__init__(sim.spec.ft.tare_samples)
-        self.sim = sim
-        self._open = False
-        self.frames_ok = 0
-        self.frames_bad = 0
+    frames_bad = 0
+
+    def __init__(self, samples: SampleQueue[FTSample], tare_samples: int) -> None:
+        super().__init__(tare_samples)
+        self.samples = samples
+
+    @property
+    def frames_ok(self) -> int:  # type: ignore[override]
+        """Frames read so far."""
+        return self.samples.read_count
 
     def open(self) -> None:
         """Start receiving."""
-        self.sim._drain_ft()
-        self._open = True
+        self.samples.open()
 
     def close(self) -> None:
         """Stop receiving."""
-        self._open = False
+        self.samples.close()
 
     def _read_raw(self) -> list[FTSample]:
-        if not self._open:
-            raise DriverError("simulated F/T sensor is not open")
-        out = self.sim._drain_ft()
-        self.frames_ok += len(out)
-        return out
+        return self.samples.read()
+
+
+class SimImuDriver(QueuedImuDriver):
+    """The twin of ``OpenLogImuDriver``: samples synthesised by ``SimWrist.step``."""
+
+    def __init__(self, sim: SimWrist) -> None:
+        super().__init__(sim.imu_samples)
+        self.sim = sim
+
+
+class SimFTDriver(QueuedFTDriver):
+    """The twin of ``ResenseFTDriver``: raw samples carry ``ft_offset``; tare removes it."""
+
+    def __init__(self, sim: SimWrist) -> None:
+        super().__init__(sim.ft_samples, sim.spec.ft.tare_samples)
+        self.sim = sim
