@@ -26,10 +26,7 @@ import argparse
 import json
 import os
 import platform
-import socket
-import subprocess
 import sys
-import tempfile
 import threading
 import time
 import uuid
@@ -41,25 +38,9 @@ import zenoh
 from articutool.link import messages as m
 from articutool.link.client import ArticutoolClient
 from articutool.link.config import load_config
-from articutool.link.pairing import pair
 from articutool.link.transport import key_expr
 from articutool.link.zenoh_transport import ZenohTransport
-
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def rss_mb(pid: int) -> float:
-    """Resident set size of ``pid`` in MB (Linux)."""
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024.0
-    return float("nan")
+from paired_tool import rss_mb, start_paired_tool
 
 
 def _health(client: ArticutoolClient) -> dict[str, float]:
@@ -108,20 +89,10 @@ class Flood:
 
 def run_once(a: argparse.Namespace, max_rate_hz: float | None) -> dict[str, Any]:
     """One tool process, a quiet phase and a flood; ``max_rate_hz`` None: the default."""
-    port = _free_port()
-    tmp = Path(tempfile.mkdtemp(prefix="articutool-flood-"))
-    pair(tmp, "wrist-1", ["pc-1"])
-    tool_cfg = tmp / "wrist-1" / "link.toml"
-    if max_rate_hz is not None:
-        tool_cfg.write_text(tool_cfg.read_text() + f"max_rate_hz = {max_rate_hz}\n")
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
-    tool = subprocess.Popen(
-        [sys.executable, "-m", "articutool", "tool", "--no-level", "--link-config",
-         str(tool_cfg), "--listen", f"tls/127.0.0.1:{port}", "--duration",
-         str(a.quiet + a.duration + 60)], stdin=subprocess.DEVNULL,
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
-    cfg = load_config(tmp / "pc-1" / "link.toml").replace(
-        connect=(f"tls/127.0.0.1:{port}",), listen=())
+    started = start_paired_tool(
+        "articutool-flood-", duration_s=a.quiet + a.duration + 60,
+        extra_tool_config="" if max_rate_hz is None else f"max_rate_hz = {max_rate_hz}\n")
+    tool, cfg, tool_cfg = started.proc, started.pc_config, started.tool_config
     watcher = ArticutoolClient(cfg)
     flood_tr = ZenohTransport(cfg, "client")
     result: dict[str, Any] = {"tool_max_rate_hz": max_rate_hz or load_config(

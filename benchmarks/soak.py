@@ -22,10 +22,8 @@ import math
 import os
 import platform
 import random
-import socket
 import subprocess
 import sys
-import tempfile
 import time
 import uuid
 from collections import Counter
@@ -35,30 +33,11 @@ from typing import Any
 import numpy as np
 
 from articutool.link.client import ArticutoolClient, LinkError
-from articutool.link.config import LinkConfig, load_config
-from articutool.link.pairing import pair
+from articutool.link.config import LinkConfig
 from articutool.link.transport import Names
 from articutool.spec import load_spec
 from articutool.trajectory import JointTrajectory
-
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def rss_mb(pid: int) -> float:
-    """Resident set size of ``pid`` in MB (Linux)."""
-    try:
-        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024.0
-    except OSError:
-        pass
-    return float("nan")
+from paired_tool import free_port, rss_mb, start_paired_tool
 
 
 def _num(v: float) -> float | None:
@@ -72,17 +51,9 @@ class Soak:
         self.a = a
         self.rng = random.Random(a.seed)
         self.spec = load_spec()
-        self.tmp = Path(tempfile.mkdtemp(prefix="articutool-soak-"))
-        pair(self.tmp, "wrist-1", ["pc-1"])
-        self.tls, self.plain = _free_port(), _free_port()
-        env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
-        self.tool = subprocess.Popen(
-            [sys.executable, "-m", "articutool", "tool", "--no-level", "--link-config",
-             str(self.tmp / "wrist-1" / "link.toml"), "--listen", f"tls/127.0.0.1:{self.tls}",
-             "--listen", f"tcp/127.0.0.1:{self.plain}"], stdin=subprocess.DEVNULL,
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
-        self.cfg = load_config(self.tmp / "pc-1" / "link.toml").replace(
-            connect=(f"tls/127.0.0.1:{self.tls}",), listen=())
+        self.plain = free_port()
+        started = start_paired_tool("articutool-soak-", plain_port=self.plain)
+        self.tmp, self.tool, self.cfg = started.folder, started.proc, started.pc_config
         self.client: ArticutoolClient | None = None
         self.outcomes: list[dict[str, Any]] = []
         self.samples: list[dict[str, Any]] = []
