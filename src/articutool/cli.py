@@ -28,6 +28,7 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "articutool.sim.demo",
     "articutool.sim.cli",
     "articutool.bench.cli",
+    "articutool.experiments.cli",
 )
 
 

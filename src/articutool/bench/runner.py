@@ -16,7 +16,7 @@ import functools
 import json
 import math
 import os
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Hashable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -170,17 +170,21 @@ class LogState:
     torn: int = 0  # an incomplete last line (0 or 1)
     corrupt: int = 0  # complete lines that are not a valid record
     valid_bytes: int = 0  # length of the file up to the end of the last complete line
+    key: Callable[[dict[str, Any]], Hashable] = field(default=record_key, repr=False)
 
     @property
-    def done(self) -> set[tuple[str, int, int, float | None]]:
+    def done(self) -> set[Any]:
         """Keys of the finished trials."""
-        return {record_key(r) for r in self.records}
+        return {self.key(r) for r in self.records}
 
 
-def read_log(path: str | Path) -> LogState:
-    """Read a results log; a missing file is an empty log."""
+def read_log(path: str | Path,
+             key: Callable[[dict[str, Any]], Hashable] = record_key) -> LogState:
+    """Read a results log; a missing file is an empty log. ``key`` gives a record's trial
+    identity (a line it cannot key is corrupt); other JSON-lines logs (the experiments)
+    pass their own."""
     p = Path(path)
-    state = LogState()
+    state = LogState(key=key)
     try:
         data = p.read_bytes()
     except FileNotFoundError:
@@ -194,7 +198,7 @@ def read_log(path: str | Path) -> LogState:
             continue
         try:
             rec = json.loads(line)
-            record_key(rec)
+            key(rec)
         except (ValueError, KeyError, TypeError):
             state.corrupt += 1
             continue
