@@ -43,9 +43,9 @@ __all__ = [
     "Scene",
     "SceneError",
     "SceneObject",
+    "Sphere",
     "StagingGoal",
     "StagingSet",
-    "Sphere",
     "default_scene_path",
     "rpy_matrix",
 ]

@@ -73,7 +73,9 @@ def summarize_capacity(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
     for f in foods:
         rs = _where(ok, food=f)
         out["foods"][f] = {"capacity_g": describe([r["capacity_g"] for r in rs]).to_dict(),
-                           "utensil": rs[0]["utensil"], "overfill_g": rs[0]["overfill_g"]}
+                           "utensil": rs[0]["utensil"], "overfill_g": rs[0]["overfill_g"],
+                           # Nothing fell in some trial: the load, not the utensil, bounded it.
+                           "lower_bound": any(r["fell_g"] <= 1e-9 for r in rs)}
     return out
 
 

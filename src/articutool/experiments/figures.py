@@ -49,7 +49,7 @@ def mass_bars(records: Sequence[dict[str, Any]], summary: Mapping[str, Any],
             lo.append(m - d["ci_low"] if d.get("ci_low") is not None else 0.0)
             hi.append(d["ci_high"] - m if d.get("ci_high") is not None else 0.0)
         ax.bar(x, means, width, yerr=[lo, hi], capsize=4, label=s,
-               color=COLORS.get(s, None), alpha=0.85)
+               color=COLORS.get(s), alpha=0.85)
         for xi, f in zip(x, foods, strict=True):
             v = [r[field] for r in records if r.get("food") == f and r.get("system") == s
                  and not r.get("error")]

@@ -136,7 +136,8 @@ def _sec_capacity(s: Mapping[str, Any], cfg: Any) -> str:
         c = v["capacity_g"]
         diff = (f"{c['mean'] - th[f]:+.1f} g ({100 * (c['mean'] / th[f] - 1):+.0f} %)"
                 if c.get("mean") is not None and f in th else "–")
-        rows.append([f, v["utensil"], c["n"], _msd(c), _ci(c), f"{th.get(f, '–')}", diff])
+        held = ("≥ " if v.get("lower_bound") else "") + _msd(c)
+        rows.append([f, v["utensil"], c["n"], held, _ci(c), f"{th.get(f, '–')}", diff])
     return (_table(["food", "utensil", "n", "ours: held level (g), mean ± SD", "95 % CI",
                     "thesis (g)", "ours − thesis"], rows)
             + "\n\nProtocol (ours; the thesis' was an experimenter's repeated maximal manual "
@@ -144,7 +145,11 @@ def _sec_capacity(s: Mapping[str, Any], cfg: Any) -> str:
               "holds (`[capacity] overfill_g`: pieces dropped one by one, particles poured "
               "in) and held level for `settle_s`; what stays is one maximal load; the mean is "
               "Exp. 2c's load. Our scripted scoop takes only 1–3 pecan pieces and no water, "
-              "so it cannot be the protocol (see the README's *Not reproduced*).")
+              "so it cannot be the protocol (see the README's *Not reproduced*). \"≥\" marks "
+              "a food for which nothing fell off in some trial: the most the world's loader "
+              "places (water: 15.5 g, a heap above the rim) all stayed, so the spoon's "
+              "capacity is at least that — a limit of our loader, not a measurement of the "
+              "spoon's maximum.")
 
 
 def _sec_exp2b(s: Mapping[str, Any], cfg: Any) -> str:
