@@ -10,9 +10,9 @@ import pytest
 pytest.importorskip("mujoco")
 
 import articutool.cli as cli
+from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import conditions, make_trials
 from articutool.experiments.runner import run_trial
-from articutool.experiments.config import ExperimentsConfig
 
 CFG = ExperimentsConfig.load()
 
