@@ -211,7 +211,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         pin_run(d / "run.json", settings)
     except RunError as err:
         raise _usage(str(err)) from None
-    executor = _make_executor(args)
+    from articutool.bench.cli import make_executor
+
+    executor = make_executor(args)
     summary_run = _run_with_progress(trials, log_path(out, exp), executor, exp)
     records = summary_run.records
     th, th_src = _thresholds(args, out, cfg) if exp == "exp2c" else (None, "")
@@ -244,17 +246,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
               "same command again to resume them", file=sys.stderr)
         return 1
     return 0
-
-
-def _make_executor(args: argparse.Namespace) -> Any:
-    from articutool.bench.executors import DaskExecutor, ExecutorError, LocalExecutor
-
-    if args.scheduler:
-        try:
-            return DaskExecutor(args.scheduler)
-        except ExecutorError as err:
-            raise _usage(f"--scheduler: {err}") from None
-    return LocalExecutor(args.workers)
 
 
 def _run_with_progress(trials: list[Any], log: Path, executor: Any, exp: str) -> Any:

@@ -152,19 +152,30 @@ def _sec_capacity(s: Mapping[str, Any], cfg: Any) -> str:
               "spoon's maximum.")
 
 
+def _mass_rows(block: Mapping[str, Any], foods: Sequence[str], systems: Sequence[str],
+               thesis: Mapping[str, Any], cell: Any) -> list[list[Any]]:
+    """Rows food | system | n | mean ± SD | 95 % CI | thesis cell | Welch p | thesis p (the
+    p-values on each food's first row)."""
+    rows = []
+    for f in foods:
+        e = block[f]
+        for sys_ in systems:
+            d, first = e[sys_], sys_ == systems[0]
+            rows.append([f, sys_, d["n"], _msd(d), _ci(d), *cell(f, sys_, d),
+                         _p(e.get("welch", {}).get("p")) if first else "",
+                         thesis.get(f, {}).get("p", "–") if first else ""])
+    return rows
+
+
 def _sec_exp2b(s: Mapping[str, Any], cfg: Any) -> str:
     th = cfg.thesis["exp2b"]
-    rows = []
-    for f in cfg.exp2b.foods:
-        e = s["spilled_g"][f]
-        for sys_ in cfg.exp2b.systems:
-            d = e[sys_]
-            t = th.get(f, {})
-            rows.append([f, sys_, d["n"], _msd(d), _ci(d),
-                         f"{d['nonzero']['k']}/{d['nonzero']['n']}",
-                         _f(t.get(sys_)) if sys_ in t else "not in text",
-                         _p(e.get("welch", {}).get("p")) if sys_ == cfg.exp2b.systems[0] else "",
-                         t.get("p", "–") if sys_ == cfg.exp2b.systems[0] else ""])
+
+    def cell(f: str, sys_: str, d: Mapping[str, Any]) -> list[str]:
+        t = th.get(f, {})
+        return [f"{d['nonzero']['k']}/{d['nonzero']['n']}",
+                _f(t.get(sys_)) if sys_ in t else "not in text"]
+
+    rows = _mass_rows(s["spilled_g"], cfg.exp2b.foods, cfg.exp2b.systems, th, cell)
     out = _table(["food", "system", "n", "spilled (g), mean ± SD", "95 % CI",
                   "trials with spill", "thesis mean (g)", "Welch p (ours)", "p (thesis)"],
                  rows)
@@ -222,16 +233,12 @@ def _sec_exp2c(s: Mapping[str, Any], cfg: Any) -> str:
 
 def _sec_exp1(s: Mapping[str, Any], cfg: Any) -> str:
     th = cfg.thesis["exp1"]
-    rows = []
-    for f in cfg.exp1.foods:
-        e = s["acquired_g"][f]
-        for sys_ in cfg.exp1.systems:
-            d = e[sys_]
-            t = th.get(f, {}).get(sys_)
-            rows.append([f, sys_, d["n"], _msd(d), _ci(d),
-                         f"{t[0]:.2f} ± {t[1]:.2f}" if t else "–",
-                         _p(e.get("welch", {}).get("p")) if sys_ == cfg.exp1.systems[0] else "",
-                         th.get(f, {}).get("p", "") if sys_ == cfg.exp1.systems[0] else ""])
+
+    def cell(f: str, sys_: str, d: Mapping[str, Any]) -> list[str]:
+        t = th.get(f, {}).get(sys_)
+        return [f"{t[0]:.2f} ± {t[1]:.2f}" if t else "–"]
+
+    rows = _mass_rows(s["acquired_g"], cfg.exp1.foods, cfg.exp1.systems, th, cell)
     return _table(["food", "system", "n", "acquired (g), mean ± SD", "95 % CI",
                    "thesis (g)", "Welch p (ours)", "p (thesis)"], rows)
 

@@ -14,20 +14,19 @@ trial from its :class:`~articutool.experiments.design.TrialSpec` alone.
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import json
 import os
 import time
 import traceback
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from articutool.bench.executors import Executor
-from articutool.bench.runner import append_record, read_log
+from articutool.bench.runner import read_log, run_logged
 from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import TrialSpec
 
@@ -122,6 +121,25 @@ def run_trial(spec: TrialSpec, hook: Any = None,
             "error": error}
 
 
+def run_experiment(trials: Sequence[TrialSpec], log: str | Path, executor: Executor, *,
+                   worker: Callable[[TrialSpec], dict[str, Any]] | None = None,
+                   on_start: Callable[[int, int], None] | None = None,
+                   on_result: Callable[[dict[str, Any]], None] | None = None) -> RunResult:
+    """Run the trials not yet in ``log`` on ``executor`` (the benchmark's
+    :func:`~articutool.bench.runner.run_logged`), appending each as it finishes; the result's
+    records are the requested trials' (old and new), by index.
+
+    ``worker`` (default :func:`run_trial`) must be picklable for process executors."""
+    t0 = time.perf_counter()
+    res = run_logged(trials, log, executor, worker or run_trial, trial_key, on_result,
+                     on_start)
+    wanted = {t.key for t in trials}
+    res.records = sorted({trial_key(r): r for r in res.records
+                          if trial_key(r) in wanted}.values(), key=lambda r: r["trial"])
+    return RunResult(res.records, res.ran, res.skipped, res.torn, res.corrupt, res.lost,
+                     time.perf_counter() - t0)
+
+
 @dataclass
 class RunResult:
     """What :func:`run_experiment` did."""
@@ -129,48 +147,7 @@ class RunResult:
     records: list[dict[str, Any]]  # the requested trials' records (old and new), by index
     ran: int
     skipped: int
-    torn: int
-    corrupt: int
-    lost: list[tuple[TrialSpec, str]] = field(default_factory=list)
-    wall_time_s: float = 0.0
-
-
-def run_experiment(trials: Sequence[TrialSpec], log: str | Path, executor: Executor, *,
-                   worker: Callable[[TrialSpec], dict[str, Any]] | None = None,
-                   on_start: Callable[[int, int], None] | None = None,
-                   on_result: Callable[[dict[str, Any]], None] | None = None) -> RunResult:
-    """Run the trials not yet in ``log`` on ``executor``, appending each as it finishes.
-
-    ``worker`` (default :func:`run_trial`) must be picklable for process executors.
-    ``on_start(pending, skipped)`` is called once, ``on_result(rec)`` after each trial is
-    durably logged."""
-    t0 = time.perf_counter()
-    log = Path(log)
-    state = read_log(log, key=trial_key)
-    done = state.done
-    pending = list({t.key: t for t in trials if t.key not in done}.values())
-    skipped = len(trials) - len(pending)
-    if on_start is not None:
-        on_start(len(pending), skipped)
-    log.parent.mkdir(parents=True, exist_ok=True)
-    fd = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
-    lost: list[tuple[TrialSpec, str]] = []
-    try:
-        if state.torn:
-            os.ftruncate(fd, state.valid_bytes)
-        fn = worker or functools.partial(run_trial)
-        for spec, rec, err in executor.run(fn, pending):
-            if err is not None:
-                lost.append((spec, f"{type(err).__name__}: {err}"))
-                continue
-            append_record(fd, rec)
-            state.records.append(rec)
-            if on_result is not None:
-                on_result(rec)
-    finally:
-        os.close(fd)
-    wanted = {t.key for t in trials}
-    recs = sorted({trial_key(r): r for r in state.records if trial_key(r) in wanted}.values(),
-                  key=lambda r: r["trial"])
-    return RunResult(recs, len(pending) - len(lost), skipped, state.torn, state.corrupt, lost,
-                     time.perf_counter() - t0)
+    torn: int  # torn last lines cut off
+    corrupt: int  # unreadable lines ignored
+    lost: list[tuple[Any, str]]  # trials whose worker failed (not logged; a rerun resumes)
+    wall_time_s: float
