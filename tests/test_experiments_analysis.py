@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from articutool.experiments.analysis import classify, classify_exp2c, summarize
@@ -110,3 +112,31 @@ def test_exp2b_summary_welch_on_spilled_mass(cfg) -> None:
     ref = ttest_ind([0.0] * 4, [0.0, PIECE, PIECE, 0.0], equal_var=False)
     assert e["welch"]["p"] == pytest.approx(ref.pvalue)
     assert s["per_goal"]["pecans"]["baseline"]["left"]["n"] == 4
+
+
+def test_report_puts_ours_beside_the_thesis_and_lists_what_did_not_run(cfg, tmp_path) -> None:
+    from articutool.experiments import report
+    from articutool.experiments.runner import log_path
+
+    recs = [{**rec(8.0 - x, critical=x, food="water", system=s, goal="centre",
+                   planning_attempts=1, max_tilt_deg=3.0), "experiment": "exp2b", "trial": k}
+            for k, (s, x) in enumerate([("articutool", 0.0), ("baseline", 0.42),
+                                        ("articutool", 0.0), ("baseline", 0.0)])]
+    log = log_path(tmp_path, "exp2b")
+    log.parent.mkdir(parents=True)
+    log.write_text("".join(json.dumps(r) + "\n" for r in recs))
+    (tmp_path / "exp2b" / "summary.json").write_text(json.dumps(
+        {"run": {"command": "articutool experiment exp2b --trials 2", "machine": {
+            "host": "h", "cpus": 2}, "date": "2026-01-01"}}))
+    (tmp_path / "exp2b" / "notes.md").write_text("Why: our water does not slosh.")
+    md_path, html_path = report.write_report(tmp_path, cfg, thresholds_g=None,
+                                             thresholds_source="none", threshold_g=None)
+    md = md_path.read_text()
+    assert "| water | baseline | 2 | 0.21 ± 0.30" in md
+    assert "1.31" in md and "0.0030" in md  # the thesis' water figures beside ours
+    assert "water, baseline: spilled 0.21 g vs the thesis' 1.31 g (-1.10 g)" in md
+    assert "Why: our water does not slosh." in md
+    assert "articutool experiment exp2b --trials 2" in md
+    assert "Not run yet" in md and "exp1" in md.split("Not run yet")[1]
+    assert (tmp_path / "exp2b" / "exp2b.png").exists()
+    assert "<img" in html_path.read_text()

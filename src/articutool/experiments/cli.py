@@ -205,7 +205,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.trial is not None:
         return _replay(args, exp, trials, out)
     d = out / exp
-    settings = {"experiment": exp, "seed": args.seed, "data_hash": data_hash(),
+    settings = {"experiment": exp, "seed": args.seed, "data_hash": data_hash(exp, cfg),
                 "conditions": extra["conditions"]}
     try:
         pin_run(d / "run.json", settings)

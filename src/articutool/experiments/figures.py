@@ -56,10 +56,11 @@ def mass_bars(records: Sequence[dict[str, Any]], summary: Mapping[str, Any],
             jitter = np.linspace(-width / 4, width / 4, len(v)) if v else []
             ax.scatter(xi + np.asarray(jitter), v, s=10, color="k", zorder=3)
     top = ax.get_ylim()[1]
+    ax.set_ylim(top=top * 1.12)  # room for the p-values above the highest trial
     for i, f in enumerate(foods):
         p = summary.get(f, {}).get("welch", {}).get("p")
-        ax.text(i, top * 0.97, "p = n/a" if p is None else f"p = {p:.3g}", ha="center",
-                va="top", fontsize=9)
+        ax.text(i, top * 1.1, "Welch p = n/a" if p is None else f"Welch p = {p:.3g}",
+                ha="center", va="top", fontsize=9)
     ax.set_xticks(np.arange(len(foods)), foods)
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=10)

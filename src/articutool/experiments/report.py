@@ -18,7 +18,7 @@ from articutool.experiments.analysis import EXP2C_CLASSES, summarize
 from articutool.experiments.figures import mass_bars, outcome_bars
 from articutool.feeding.outcomes import OUTCOMES
 
-__all__ = ["HONESTY", "figure", "section", "write_report"]
+__all__ = ["HONESTY", "differences", "figure", "section", "write_report"]
 
 ORDER = ("exp1", "exp2b", "capacity", "exp2c", "exp3")
 TITLES = {
@@ -262,11 +262,64 @@ def _sec_exp3(s: Mapping[str, Any], cfg: Any) -> str:
     return out
 
 
-def section(exp: str, summary: Mapping[str, Any], cfg: Any, figure_name: str | None) -> str:
-    """One experiment's Markdown: title, our numbers beside the thesis', figure, run line."""
+def differences(exp: str, s: Mapping[str, Any], cfg: Any) -> list[str]:
+    """Where our numbers differ from the thesis', by how much (one line each)."""
+    th = cfg.thesis
+    out: list[str] = []
+    if exp == "exp2b":
+        for f, t in th["exp2b"].items():
+            for sys_ in cfg.exp2b.systems:
+                m = s["spilled_g"].get(f, {}).get(sys_, {}).get("mean")
+                if m is not None and isinstance(t.get(sys_), float | int):
+                    out.append(f"{f}, {sys_}: spilled {m:.2f} g vs the thesis' "
+                               f"{t[sys_]:.2f} g ({m - t[sys_]:+.2f} g)")
+            p = s["spilled_g"].get(f, {}).get("welch", {}).get("p")
+            if "p" in t:
+                out.append(f"{f}: Welch p {_p(p)} vs the thesis' {t['p']}")
+    elif exp == "exp2c" and s.get("thresholds_g"):
+        for f in cfg.exp2c.foods:
+            for c in ("control", "primitive"):
+                d, t = s["foods"][f][c], th["exp2c"].get(f"{f}_{c}", {})
+                for k, v in t.items():
+                    ours = d.get("percent", {}).get(k)
+                    if ours is not None:
+                        out.append(f"{f} {c}: {k.replace('_', ' ')} {ours:.0f} % vs the "
+                                   f"thesis' {v:g} % ({ours - v:+.0f} points)")
+    elif exp == "exp1":
+        for f in cfg.exp1.foods:
+            for sys_ in cfg.exp1.systems:
+                m = s["acquired_g"][f][sys_].get("mean")
+                t = th["exp1"].get(f, {}).get(sys_)
+                if m is not None and t:
+                    out.append(f"{f}, {sys_}: {m:.2f} g vs the thesis' {t[0]:.2f} g "
+                               f"({m - t[0]:+.2f} g)")
+    elif exp == "exp3":
+        for sys_, d in s["systems"].items():
+            t = th["exp3"].get(sys_, {})
+            if d["n"]:
+                ms = 100.0 * d["counts"]["meaningful_success"] / d["n"]
+                out.append(f"{sys_}: meaningful success {ms:.0f} % vs the thesis' "
+                           f"{5 * t.get('meaningful_success', 0):.0f} % "
+                           f"({ms - 5 * t.get('meaningful_success', 0):+.0f} points)")
+            a = d["planning_attempts"].get("mean")
+            if a is not None and "planning_attempts" in t:
+                out.append(f"{sys_}: {a:.2f} planning attempts to Staging vs the thesis' "
+                           f"{t['planning_attempts']:.2f}")
+    return out
+
+
+def section(exp: str, summary: Mapping[str, Any], cfg: Any, figure_name: str | None,
+            notes: str = "") -> str:
+    """One experiment's Markdown: title, our numbers beside the thesis', the differences,
+    ``notes`` (why we believe they differ), the figure and the run line."""
     body = {"capacity": _sec_capacity, "exp1": _sec_exp1, "exp2b": _sec_exp2b,
             "exp2c": _sec_exp2c, "exp3": _sec_exp3}[exp](summary, cfg)
     md = f"## {TITLES[exp]}\n\n{body}\n"
+    diff = differences(exp, summary, cfg)
+    if diff:
+        md += "\n**Beside the thesis:** " + "; ".join(diff) + ".\n"
+    if notes:
+        md += f"\n{notes.strip()}\n"
     if figure_name:
         md += f"\n![{exp}]({figure_name})\n"
     md += f"\n*Run:* {_run_line(summary)}.\n"
@@ -278,10 +331,11 @@ def section(exp: str, summary: Mapping[str, Any], cfg: Any, figure_name: str | N
 
 # ------------------------------------------------------------------------- report --
 def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | None,
-                 thresholds_source: str, threshold_g: float | None,
-                 notes: Mapping[str, str] | None = None) -> tuple[Path, Path]:
-    """Write ``out/report.md`` and ``out/report.html`` (figures copied beside them as
-    ``<exp>.png``); experiments not yet run are listed as missing."""
+                 thresholds_source: str, threshold_g: float | None) -> tuple[Path, Path]:
+    """Write ``out/report.md`` and ``out/report.html`` (figures in each experiment's
+    directory); experiments not yet run are listed as missing. ``out/<exp>/notes.md``, if
+    present, is included in the experiment's section: the physical reasons we believe explain
+    where our numbers differ, written by whoever examined the run (trials, videos)."""
     from articutool.experiments.runner import read_trials
 
     parts = ["# The thesis' physical experiments in simulation\n",
@@ -308,9 +362,9 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
             summary["thresholds_source"] = thresholds_source
         fig = figure(exp, recs, summary, cfg, out / exp)
         rel = f"{exp}/{fig.name}" if fig else None
-        parts.append(section(exp, summary, cfg, rel))
-        if notes and exp in notes:
-            parts.append(notes[exp] + "\n")
+        npath = out / exp / "notes.md"
+        notes = npath.read_text(encoding="utf-8") if npath.exists() else ""
+        parts.append(section(exp, summary, cfg, rel, notes))
         m = old.get("run", {}).get("machine")
         if m:
             machines[exp] = (m, old["run"].get("date"))

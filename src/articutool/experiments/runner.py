@@ -56,15 +56,17 @@ def read_trials(out: str | Path, experiment: str) -> list[dict[str, Any]]:
     return sorted({trial_key(r): r for r in recs}.values(), key=lambda r: r["trial"])
 
 
-def data_hash() -> str:
-    """Short SHA-256 over every packaged data file a trial reads (spec, scene, physics,
-    strategies, experiments): a result is only comparable to one made from the same data."""
+def data_hash(experiment: str, cfg: ExperimentsConfig) -> str:
+    """Short SHA-256 over the data a trial of ``experiment`` reads: the packaged spec, scene,
+    physics and strategies files, and the experiments file's shared settings and this
+    experiment's own section (another experiment's section does not matter)."""
     h = hashlib.sha256()
     base = resources.files("articutool") / "data"
-    for name in ("hardware.toml", "scene.toml", "physics.toml", "strategies.toml",
-                 "experiments.toml"):
+    for name in ("hardware.toml", "scene.toml", "physics.toml", "strategies.toml"):
         h.update(name.encode())
         h.update((base / name).read_bytes())
+    own = cfg.model_dump(mode="json", include={"settings", experiment})
+    h.update(json.dumps(own, sort_keys=True).encode())
     return h.hexdigest()[:16]
 
 
