@@ -69,8 +69,11 @@ def test_cli_exp2b_one_trial_per_condition_then_report(tmp_path, capsys) -> None
                      str(out), "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
     assert s["run"]["trials"] == 4 and (out / "exp2b" / "exp2b.png").exists()
-    assert cli.main(["experiment", "exp2b", "--trial", "3", "--out", str(out)]) == 0
+    video = tmp_path / "t3.gif"
+    assert cli.main(["experiment", "exp2b", "--trial", "3", "--video", str(video), "--out",
+                     str(out)]) == 0
     assert "reproduces the logged record" in capsys.readouterr().out
+    assert video.stat().st_size > 0
     assert cli.main(["experiment", "report", "--out", str(out)]) == 0
     md = (out / "report.md").read_text()
     assert "Exp. 2b" in md and "1.31" in md and "Honesty rules" in md

@@ -161,6 +161,9 @@ def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) ->
 
     rec = run_trial(spec, hook if args.video else None)
     logged = {r["trial"]: r for r in read_trials(out, exp)}.get(spec.trial)
+    if rec.get("error"):
+        print(f"error: trial {spec.trial} failed: {rec['error']}", file=sys.stderr)
+        return 1
     if args.video:
         rec_holder["r"].save(args.video)
     skip = {"wall_time_s", "pid", "realtime_factor", "planning_time_s", "traceback"}
@@ -188,6 +191,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     exp = args.experiment
     out = _check_common(args)
+    if args.video:
+        import articutool.sim.render  # noqa: F401  (chooses the EGL backend before MuJoCo loads)
     if getattr(args, "threshold_g", None) is not None and not (
             math.isfinite(args.threshold_g) and args.threshold_g >= 0):
         raise _usage(f"--threshold-g must be a finite mass >= 0 g; got {args.threshold_g}")
