@@ -13,18 +13,26 @@ $(VENV)/.installed: pyproject.toml | $(BIN)/python syspkgs
 	$(BIN)/python -m pip install -q -e '.[pc,dev,ros]'
 	touch $@
 
-# System packages the README promises: EGL + Mesa for headless MuJoCo rendering
-# (`articutool sim --video/--snapshot`). Installed with apt when missing (Debian/Ubuntu).
+# System packages the README promises, installed with apt when missing (Debian/Ubuntu):
+# EGL + Mesa for headless MuJoCo rendering (`articutool sim --video/--snapshot`, `meal
+# --video`); Graphviz's `dot` for the rendered tree (`articutool meal --show-tree F.png`).
 EGL_PKGS := libegl1 libgl1-mesa-dri
 syspkgs:
-	@if ! ldconfig -p | grep -q 'libEGL.so.1'; then \
-	  echo "installing $(EGL_PKGS) for offscreen rendering"; \
+	@MISSING=""; \
+	ldconfig -p | grep -q 'libEGL.so.1' || MISSING="$(EGL_PKGS)"; \
+	command -v dot >/dev/null || MISSING="$$MISSING graphviz"; \
+	if [ -n "$$MISSING" ]; then \
+	  echo "installing$$MISSING"; \
 	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
-	  $$SUDO apt-get update -q && $$SUDO apt-get install -y -q $(EGL_PKGS); \
+	  $$SUDO apt-get update -q && $$SUDO apt-get install -y -q $$MISSING; \
 	fi
 
+# The main job: the transport figures (plan, verify, kinematic wrist simulation), then one
+# whole noodle bite by the Articutool in the physics world, its video under results/demo/.
 demo: $(VENV)/.installed
 	$(BIN)/articutool demo
+	mkdir -p results/demo
+	$(BIN)/articutool meal --food noodles --bites 1 --video results/demo/bite-$$(date +%Y%m%d-%H%M%S).mp4
 
 test: $(VENV)/.installed
 	$(BIN)/ruff check src tests benchmarks examples

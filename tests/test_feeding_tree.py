@@ -43,6 +43,7 @@ class FakeArm:
         self.plan_s, self.motion_s = plan_s, motion_s
         self.started_plans, self.executed, self.stopped = 0, [], 0
         self.jobs: list[FakeJob] = []
+        self.fail_paths: set[str] = set()
 
     def start_plan(self, goal: str, planner: str, budget_s: float) -> FakeJob:
         self.started_plans += 1
@@ -51,6 +52,16 @@ class FakeArm:
                       JobResult(ok, "" if ok else "no path in budget", f"traj{self.started_plans}"))
         self.jobs.append(job)
         return job
+
+    def start_plan_path(self, name: str, waypoints) -> FakeJob:
+        fail = name in self.fail_paths
+        job = FakeJob(self.clock, self.plan_s, JobResult(not fail, "no IK" if fail else "",
+                                                         f"path {name}"))
+        self.jobs.append(job)
+        return job
+
+    def start_plan_lift(self, height_m: float) -> FakeJob:
+        return self.start_plan_path("lift", None)
 
     def verify(self, trajectory: str) -> JobResult:
         ok = self.verdicts.pop(0) if self.verdicts else True
@@ -74,6 +85,7 @@ class FakeTool:
         self.primitive: tuple[str, float] | None = None
         self.cancelled = 0
         self.stale = False
+        self.primitives: list[str] = []
 
     def set_mode(self, mode, pitch_offset_deg=0.0, roll_offset_deg=0.0):
         self.mode = Mode(mode)
@@ -88,7 +100,10 @@ class FakeTool:
                          linear_acceleration=(0.0, 0.0, 9.81), fault=self.fault)
 
     def start_primitive(self, name, parameters):
+        if self.mode == Mode.LEVELING:  # as the runtime: no primitive while leveling
+            return False, "refused: the tool is LEVELING"
         self.primitive = (name, self.clock.t + 1.0)
+        self.primitives.append(name)
         return True, "started"
 
     def primitive_status(self):
@@ -123,7 +138,7 @@ def _run(root, clock: Clock, max_ticks: int = 500, every=None):
 
 
 def _bb_attempts() -> int:
-    return py_trees.blackboard.Blackboard.get("/bite/planning_attempts")
+    return py_trees.blackboard.Blackboard.get("/bite/planning_attempts_Staging")
 
 
 def test_success_path_plans_verifies_executes_and_restores_the_tool() -> None:
@@ -217,3 +232,82 @@ def test_primitive_is_cancelled_when_preempted_and_none_succeeds_at_once() -> No
     none = py_trees.trees.BehaviourTree(RunPrimitive(tool, "NONE", [], "pre_move_into"))
     none.tick()
     assert none.root.status == Status.SUCCESS
+
+
+# ---- the whole bite (articutool.feeding.bite) -------------------------------------------
+
+def _bite(arm, tool, clock, system: str = "articutool", stages=None):
+    from articutool.feeding.bite import STAGES, bite_tree
+    from articutool.feeding.insertion import acquisition_waypoints
+    from articutool.feeding.strategies import StrategyLibrary
+    from articutool.spec import load_spec
+
+    lib = StrategyLibrary.load(load_spec())
+    strat = lib.strategies["noodles_twirl" if system == "articutool" else "noodles_baseline"]
+    wps = acquisition_waypoints(strat, [0.45, -0.45, 0.004], [0.0, -1.0, 0.0])
+    return bite_tree(arm, tool, strat, wps, clock, stages=stages or STAGES)
+
+
+def test_a_whole_bite_runs_its_stages_in_order_and_restores_the_tool() -> None:
+    clock = Clock()
+    arm, tool = FakeArm(clock, [], []), FakeTool(clock)
+    tree, rec = _run(_bite(arm, tool, clock), clock, max_ticks=2000)
+    assert tree.root.status == Status.SUCCESS, rec.record.failed_stage
+    assert arm.executed == ["traj1", "path to above the food", "path into the food",
+                            "path out of the food", "path lift", "traj2", "traj3", "traj4"]
+    # Thesis §4.4: TWIRL_CW before insertion, TWIRL_CCW inside, NOODLE_SHED after leveling.
+    assert tool.primitives == ["TWIRL_CW", "TWIRL_CCW", "NOODLE_SHED"]
+    assert Mode.LEVELING in tool.modes and tool.mode == Mode.DISABLED
+
+
+def test_the_baseline_never_levels_with_the_wrist_nor_runs_primitives() -> None:
+    clock = Clock()
+    arm, tool = FakeArm(clock, [], []), FakeTool(clock)
+    tree, rec = _run(_bite(arm, tool, clock, "baseline"), clock, max_ticks=2000)
+    assert tree.root.status == Status.SUCCESS, rec.record.failed_stage
+    assert tool.primitives == [] and Mode.LEVELING not in tool.modes
+
+
+def test_a_failed_insertion_retreats_to_resting_and_names_the_stage() -> None:
+    clock = Clock()
+    arm, tool = FakeArm(clock, [], []), FakeTool(clock)
+    arm.fail_paths.add("into the food")
+    tree, rec = _run(_bite(arm, tool, clock), clock, max_ticks=2000)
+    assert tree.root.status == Status.FAILURE
+    assert rec.record.failures[0] == ("Plan into the food", "no path into the food: no IK")
+    # The retreat: up out of the container, then to Resting.
+    assert arm.executed[-2:] == ["path lift", "traj2"]
+    assert tool.mode == Mode.DISABLED
+
+
+def test_a_subset_of_stages_runs_alone() -> None:
+    clock = Clock()
+    arm, tool = FakeArm(clock, [], []), FakeTool(clock)
+    tree, _ = _run(_bite(arm, tool, clock, stages=("shed", "staging")), clock)
+    assert tree.root.status == Status.SUCCESS
+    assert tool.primitives == ["NOODLE_SHED"] and arm.executed == ["traj1"]
+
+
+def test_stages_out_of_order_or_unknown_are_refused() -> None:
+    clock = Clock()
+    with pytest.raises(ValueError, match="order"):
+        _bite(FakeArm(clock, [], []), FakeTool(clock), clock, stages=("staging", "acquire"))
+    with pytest.raises(ValueError, match="unknown"):
+        _bite(FakeArm(clock, [], []), FakeTool(clock), clock, stages=("eat",))
+
+
+def test_preempting_the_whole_bite_at_any_tick_restores_the_tool_and_stops_everything() -> None:
+    clock = Clock()
+    arm, tool = FakeArm(clock, [], []), FakeTool(clock)
+    _, _ = _run(_bite(arm, tool, clock), clock, max_ticks=2000)
+    n_ticks = round(clock.t / 0.1)
+    for k in range(0, n_ticks, 3):
+        clock = Clock()
+        arm, tool = FakeArm(clock, [], []), FakeTool(clock)
+        root = _bite(arm, tool, clock)
+        tree, _ = _run(root, clock, max_ticks=k + 1)
+        tree.root.stop(Status.INVALID)
+        assert tool.mode == Mode.DISABLED, k
+        running = tool.primitive is not None and clock.t < tool.primitive[1]
+        assert not running, k  # no primitive left running (cancel_primitive clears it)
+        assert all(j.done() for j in arm.jobs), k  # no plan or motion left running

@@ -27,6 +27,7 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "articutool.link.cli",
     "articutool.sim.demo",
     "articutool.sim.cli",
+    "articutool.feeding.cli",
     "articutool.bench.cli",
     "articutool.experiments.cli",
 )

@@ -29,8 +29,11 @@ __all__ = [
     "Job",
     "JobResult",
     "Plan",
+    "PlanLift",
+    "PlanPath",
     "RunPrimitive",
     "SafeStop",
+    "Settle",
     "ToolModeScope",
     "Unsafe",
     "Verify",
@@ -69,6 +72,14 @@ class ArmInterface(Protocol):
 
     def verify(self, trajectory: Any) -> JobResult:
         """Plan-then-verify (Alg. 2) for the tool that will follow it."""
+
+    def start_plan_path(self, name: str, waypoints: Any) -> Job:
+        """Plan a Cartesian path of the utensil tip through ``waypoints`` (a list of
+        :class:`~articutool.feeding.insertion.TipWaypoint`), from the first waypoint (reached
+        first by a free motion if the arm is elsewhere); value: the trajectory."""
+
+    def start_plan_lift(self, height_m: float) -> Job:
+        """Plan lifting the tool base straight up by ``height_m``, its orientation kept."""
 
     def start_execute(self, trajectory: Any) -> Job:
         """Execute a trajectory."""
@@ -115,23 +126,80 @@ class _JobBehaviour(py_trees.behaviour.Behaviour):
             self.feedback_message = "cancelled"
 
 
-class Plan(_JobBehaviour):
-    """Plan to ``goal`` with ``planner``; the trajectory goes on the blackboard."""
+class _PlanJob(_JobBehaviour):
+    """A planning job whose trajectory goes on the blackboard; a failure says what had no
+    plan (``self.what``)."""
 
-    def __init__(self, arm: ArmInterface, goal: str, planner: str, budget_s: float) -> None:
-        super().__init__(f"Plan to {goal}")
-        self.arm, self.goal, self.planner, self.budget_s = arm, goal, planner, budget_s
+    what = ""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
         self.bb = _bb(self, ("trajectory", Access.WRITE))
-
-    def start(self) -> Job:
-        return self.arm.start_plan(self.goal, self.planner, self.budget_s)
 
     def finished(self, r: JobResult) -> Status:
         if r.ok:
             self.bb.trajectory = r.value
             return Status.SUCCESS
-        self.feedback_message = f"no plan to {self.goal}: {r.message}"
+        self.feedback_message = f"no {self.what}: {r.message}"
         return Status.FAILURE
+
+
+class Plan(_PlanJob):
+    """Plan to ``goal`` with ``planner``; the trajectory goes on the blackboard."""
+
+    def __init__(self, arm: ArmInterface, goal: str, planner: str, budget_s: float) -> None:
+        super().__init__(f"Plan to {goal}")
+        self.arm, self.goal, self.planner, self.budget_s = arm, goal, planner, budget_s
+        self.what = f"plan to {goal}"
+
+    def start(self) -> Job:
+        return self.arm.start_plan(self.goal, self.planner, self.budget_s)
+
+
+class PlanPath(_PlanJob):
+    """Plan the tip's Cartesian path through ``waypoints``; the trajectory goes on the
+    blackboard (insertion and extraction, §4.3.1)."""
+
+    def __init__(self, arm: ArmInterface, what: str, waypoints: Any) -> None:
+        super().__init__(f"Plan {what}")
+        self.arm, self.waypoints = arm, waypoints
+        self.path, self.what = what, f"path {what}"
+
+    def start(self) -> Job:
+        return self.arm.start_plan_path(self.path, self.waypoints)
+
+
+class PlanLift(PlanPath):
+    """Plan lifting the tool base straight up (the utensil keeps its orientation)."""
+
+    def __init__(self, arm: ArmInterface, height_m: float) -> None:
+        super().__init__(arm, f"lift {height_m * 100:g} cm", None)
+        self.height_m = height_m
+
+    def start(self) -> Job:
+        return self.arm.start_plan_lift(self.height_m)
+
+
+class Settle(py_trees.behaviour.Behaviour):
+    """Put the tool in ``mode`` and let ``seconds`` pass on ``clock`` (the tool-only leveling
+    of §4.3.1: the wrist levels the utensil while the arm holds still)."""
+
+    def __init__(self, tool: ToolAPI, mode: Mode, seconds: float,
+                 clock: Callable[[], float], name: str | None = None) -> None:
+        super().__init__(name or f"{mode.name} {seconds:g} s")
+        self.tool, self.mode, self.seconds, self.clock = tool, mode, seconds, clock
+        self._until = 0.0
+        self._ok = False
+
+    def initialise(self) -> None:
+        self._ok, msg = self.tool.set_mode(self.mode)
+        self.feedback_message = msg
+        self._until = self.clock() + self.seconds
+
+    def update(self) -> Status:
+        if not self._ok:
+            return Status.FAILURE  # refused: the message says why
+        return Status.RUNNING if self.clock() < self._until else Status.SUCCESS
 
 
 class Verify(py_trees.behaviour.Behaviour):
@@ -217,6 +285,14 @@ class ToolModeScope(py_trees.decorators.Decorator):
 
     def terminate(self, new_status: Status) -> None:
         self.tool.set_mode(self.restore)
+
+    def stop(self, new_status: Status = Status.INVALID) -> None:
+        """Stop the child first, then restore: py_trees' Decorator.stop runs ``terminate``
+        before stopping the child, so a scope nested inside (a primitive's DISABLED, then
+        LEVELING) would restore its mode after this one and leave the tool LEVELING."""
+        if new_status == Status.INVALID and self.decorated.status != Status.INVALID:
+            self.decorated.stop(Status.INVALID)
+        super().stop(new_status)
 
 
 class Attempts(py_trees.decorators.Retry):

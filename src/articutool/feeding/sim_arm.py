@@ -5,11 +5,21 @@
 Plans run in a worker thread (the tree polls them); motions run through the world's arm
 servos while the caller keeps stepping the world. Goals are the spec's named configurations
 (``Resting``, ``AbovePlate``, ``Home``) and ``Staging`` (the spec's pose, solved by IK and
-backed off until the tool clears the user, as in ``articutool demo``).
+backed off until the tool clears the user, as in ``articutool demo``). With ``rigid`` (the
+6-DOF baseline, wrist locked), a goal where a food-carrying utensil waits (Resting, Staging)
+is the arm configuration that holds the locked utensil level there
+(:meth:`SimArm.rigid_level_configuration`).
+
+Cartesian paths (insertion, extraction, lift) are solved by the Pinocchio IK for the arm
+joints with the wrist where it is, timed by TOPP-RA (:mod:`articutool.sim.scenes`); the first
+waypoint is reached by a rest-to-rest joint motion from where the arm is.
 """
 
 from __future__ import annotations
 
+import itertools
+import math
+from collections.abc import Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
@@ -17,12 +27,31 @@ import numpy as np
 
 from articutool.arm.model import ArmModel
 from articutool.feeding.behaviours import JobResult
+from articutool.feeding.insertion import TipWaypoint
 from articutool.planning.api import PlanRequest, TransportTask, plan
-from articutool.sim.world import FeedingWorld
+from articutool.sim.scenes import ScriptError, cartesian_path, first_ik, lift_trajectory
+from articutool.sim.world import FeedingWorld, smooth_joint_motion
 from articutool.trajectory import JointTrajectory
 from articutool.verify import verify_trajectory
 
 __all__ = ["SimArm"]
+
+# Where a rigid utensil must wait level with food on it.
+_CARRY_GOALS = ("Resting", "Staging")
+# A path whose first waypoint is this close to the tip starts from the arm as it is.
+_HERE_M = 0.02
+
+
+def _concatenate(parts: list[JointTrajectory]) -> JointTrajectory:
+    """Rest-to-rest trajectories one after the other (each starts where the last ended)."""
+    times, pos, vel, t0 = [parts[0].times], [parts[0].positions], [parts[0].velocities], 0.0
+    for a, b in itertools.pairwise(parts):
+        t0 += a.duration
+        times.append(t0 + b.times[1:])
+        pos.append(b.positions[1:])
+        vel.append(b.velocities[1:])
+    return JointTrajectory(parts[0].joint_names, np.concatenate(times), np.concatenate(pos),
+                           np.concatenate(vel))
 
 
 class _FutureJob:
@@ -65,10 +94,11 @@ class SimArm:
     """The physics world's arm for the feeding tree (see module doc)."""
 
     def __init__(self, world: FeedingWorld, tolerance_deg: float | None = None,
-                 seed: int = 0) -> None:
+                 seed: int = 0, rigid: bool = False) -> None:
         self.world = world
         self.tolerance_deg = tolerance_deg
         self.seed = seed
+        self.rigid = rigid
         self.model = ArmModel(world.spec, world.utensil, 8, world.scene)
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="plan")
         self._goals: dict[str, np.ndarray] = {}
@@ -77,7 +107,9 @@ class SimArm:
         """Arm joints of a named goal (configurations of the spec, or Staging)."""
         if goal not in self._goals:
             spec = self.world.spec
-            if goal in spec.arm.configurations:
+            if self.rigid and goal in _CARRY_GOALS:
+                self._goals[goal] = self.rigid_level_configuration(goal, free=True)
+            elif goal in spec.arm.configurations:
                 self._goals[goal] = spec.arm.configuration(goal)
             elif goal == "Staging":
                 from articutool.sim.demo import staging_configuration
@@ -88,7 +120,7 @@ class SimArm:
                                  f"{sorted([*spec.arm.configurations, 'Staging'])}")
         return self._goals[goal]
 
-    def rigid_level_configuration(self, goal: str) -> np.ndarray:
+    def rigid_level_configuration(self, goal: str, free: bool = False) -> np.ndarray:
         """For a locked wrist (the rigid baseline): an arm configuration that puts the utensil
         level at ``goal``'s tip position, pointing as close as possible to the way it points
         at ``goal`` (headings tried in 15° steps, IK from the goal and the named
@@ -99,7 +131,14 @@ class SimArm:
         from articutool.arm.ik import IKSettings, solve_pose_ik
 
         spec, wq = self.world.spec, self.world.wrist_q
-        q_goal = np.concatenate([self.goal_configuration(goal), wq])
+        named = (spec.arm.configuration(goal) if goal in spec.arm.configurations else None)
+        if named is None:
+            rigid, self.rigid = self.rigid, False  # the Articutool's Staging, to start from
+            try:
+                named = self.goal_configuration(goal)
+            finally:
+                self.rigid = rigid
+        q_goal = np.concatenate([named, wq])
         T = self.model.tip_pose(q_goal)
         h0 = float(np.arctan2(T[1, 2], T[0, 2]))
         seeds = [q_goal] + [np.concatenate([spec.arm.configuration(n), wq])
@@ -144,6 +183,51 @@ class SimArm:
         if rep.feasible:
             return JobResult(True, f"feasible, velocity margin {rep.velocity_margin:.0%}")
         return JobResult(False, f"the wrist cannot follow: {rep.reason}")
+
+    def start_plan_path(self, name: str, waypoints: Sequence[TipWaypoint]) -> _FutureJob:
+        """Plan the tip's Cartesian path through ``waypoints`` in a worker thread: a joint
+        motion to the first, then straight segments (see module doc)."""
+        q_now = np.concatenate([self.world.arm_q, self.world.wrist_q])
+        q_now[7] = math.remainder(q_now[7], 2 * math.pi)  # a twirl turns the roll whole turns
+        pts = [(np.array(w.position), w.pitch_down, w.speed) for w in waypoints]
+        spec, joints = self.world.spec, tuple(self.world.layout.arm_joints)
+
+        def work() -> JobResult:
+            try:
+                # A path that starts where the tip is (into or out of the food) starts from
+                # the arm as it is, the utensil maybe touching the container; otherwise a
+                # free joint motion to the first waypoint, which must be clear.
+                here = np.linalg.norm(self.model.tip_pose(q_now)[:3, 3] - pts[0][0]) < _HERE_M
+                if here:
+                    q0, parts = q_now, []
+                else:
+                    q0 = first_ik(self.model, q_now, pts[0][0], pts[0][1])
+                    if self.model.in_collision(q0):
+                        return JobResult(False, f"the pose {name} is in collision")
+                    parts = [smooth_joint_motion(q_now[:6], q0[:6], spec.arm.max_velocity,
+                                                 joints)]
+                if len(pts) > 1:
+                    parts.append(cartesian_path(self.model, q0, pts))
+            except ScriptError as err:
+                return JobResult(False, str(err))
+            traj = _concatenate(parts)
+            return JobResult(True, f"{traj.duration:.1f} s", traj)
+
+        return _FutureJob(self._pool.submit(work))
+
+    def start_plan_lift(self, height_m: float) -> _FutureJob:
+        """Plan lifting the tool base straight up by ``height_m`` in a worker thread."""
+        q_now = np.concatenate([self.world.arm_q, self.world.wrist_q])
+        q_now[7] = math.remainder(q_now[7], 2 * math.pi)
+
+        def work() -> JobResult:
+            try:
+                traj = lift_trajectory(self.model, q_now, height_m)
+            except ScriptError as err:
+                return JobResult(False, str(err))
+            return JobResult(True, f"{traj.duration:.1f} s", traj)
+
+        return _FutureJob(self._pool.submit(work))
 
     def start_execute(self, trajectory: Any) -> _MotionJob:
         """Run the trajectory through the world's arm servos (the caller steps the world)."""

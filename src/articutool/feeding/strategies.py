@@ -84,6 +84,9 @@ class Insertion(_Strict):
     depth_m: NonNegative
     pitch_down_deg: Annotated[float, Field(ge=0, le=90)]
     drag_m: NonNegative = 0.0
+    # Pitch at which the arm takes the utensil out (0: the arm levels it; otherwise the
+    # wrist levels it after, a tool-only motion, thesis §4.3.1).
+    extract_pitch_down_deg: Annotated[float, Field(ge=0, le=90)] = 0.0
 
 
 class Stages(_Strict):
@@ -136,6 +139,9 @@ class Strategy(_Strict):
             used = [n for n in STAGES if not getattr(self.stages, n).is_none]
             if used:
                 raise ValueError(f"a baseline locks the wrist: stages {used} must be NONE")
+            if self.insertion.extract_pitch_down_deg != 0:
+                raise ValueError("a baseline levels with the arm: "
+                                 "insertion.extract_pitch_down_deg must be 0")
             if self.transport.planner == "decoupled":
                 raise ValueError("a baseline cannot use the decoupled planner (no wrist)")
         return self

@@ -8,7 +8,7 @@ Shape of :func:`transport_tree`::
       Sequence "guard"          Unsafe? -> Safe stop
       ToolModeScope LEVELING (then DISABLED)
         Sequence "transport"
-          Attempts "up to N attempts"            (planning_attempts on the blackboard)
+          Attempts "up to N attempts"    (planning_attempts_<goal> on the blackboard)
             Timeout (> the planner's budget)
               Sequence "plan+verify"  Plan -> Verify
           Execute motion
@@ -28,6 +28,7 @@ from articutool.feeding.behaviours import (
     Attempts,
     Execute,
     Plan,
+    PlanPath,
     SafeStop,
     ToolModeScope,
     Unsafe,
@@ -35,7 +36,7 @@ from articutool.feeding.behaviours import (
 )
 from articutool.tool.api import Mode, ToolAPI
 
-__all__ = ["BiteRecorder", "ClockedTimeout", "run_tree", "transport_tree"]
+__all__ = ["BiteRecorder", "ClockedTimeout", "guarded", "motion", "run_tree", "transport_tree"]
 
 
 class ClockedTimeout(py_trees.decorators.Timeout):
@@ -58,26 +59,41 @@ class ClockedTimeout(py_trees.decorators.Timeout):
         return self.decorated.status
 
 
-def transport_tree(arm: ArmInterface, tool: ToolAPI, goal: str, planner: str, *,
-                   attempts: int, budget_s: float, clock: Callable[[], float],
-                   stale_s: float = 0.5) -> py_trees.behaviour.Behaviour:
-    """The transport subtree (see the module doc): it runs alone as a tree."""
-    # Plan-then-verify for the decoupled system; a strict plan's constraint is the planner's.
-    steps = [Plan(arm, goal, planner, budget_s)]
-    if planner == "decoupled":
+def motion(arm: ArmInterface, goal: str, planner: str, *, attempts: int, budget_s: float,
+           clock: Callable[[], float], verify: bool | None = None,
+           name: str | None = None) -> py_trees.behaviour.Behaviour:
+    """Move the arm to a named goal: bounded attempts of (plan → verify) each under a timeout,
+    then execute. ``verify`` (default: for the decoupled planner) adds plan-then-verify (Alg.
+    2); a strict plan's constraint is the planner's own. Attempts are counted on the
+    blackboard as ``planning_attempts_<goal>``."""
+    steps: list[py_trees.behaviour.Behaviour] = [Plan(arm, goal, planner, budget_s)]
+    if verify if verify is not None else planner == "decoupled":
         steps.append(Verify(arm))
     plan_verify = py_trees.composites.Sequence("plan+verify", memory=True, children=steps)
     # Every plan under a timeout longer than the planner's own budget (2×, and 1 s more).
     timed = ClockedTimeout(plan_verify, 2.0 * budget_s + 1.0, clock)
-    tries = Attempts(timed, attempts, "planning_attempts")
-    transport = py_trees.composites.Sequence(
-        f"transport to {goal}", memory=True, children=[tries, Execute(arm, f"to {goal}")])
-    # The decoupled arm needs the wrist leveling; a strict (baseline) plan keeps it locked.
-    mode = Mode.LEVELING if planner == "decoupled" else Mode.DISABLED
-    scoped = ToolModeScope(transport, tool, mode, Mode.DISABLED)
+    tries = Attempts(timed, attempts, f"planning_attempts_{goal}")
+    return py_trees.composites.Sequence(
+        name or f"move to {goal}", memory=True, children=[tries, Execute(arm, f"to {goal}")])
+
+
+def guarded(child: py_trees.behaviour.Behaviour, arm: ArmInterface, tool: ToolAPI,
+            clock: Callable[[], float], stale_s: float = 0.5) -> py_trees.behaviour.Behaviour:
+    """``child`` under the root safety guard: every tick, a tool fault, stale tool state or a
+    stop request preempts it and stops the arm with the tool DISABLED."""
     guard = py_trees.composites.Sequence(
         "guard", memory=False, children=[Unsafe(tool, clock, stale_s), SafeStop(arm, tool)])
-    return py_trees.composites.Selector("bite", memory=False, children=[guard, scoped])
+    return py_trees.composites.Selector("bite", memory=False, children=[guard, child])
+
+
+def transport_tree(arm: ArmInterface, tool: ToolAPI, goal: str, planner: str, *,
+                   attempts: int, budget_s: float, clock: Callable[[], float],
+                   stale_s: float = 0.5) -> py_trees.behaviour.Behaviour:
+    """The transport subtree (see the module doc): it runs alone as a tree."""
+    move = motion(arm, goal, planner, attempts=attempts, budget_s=budget_s, clock=clock)
+    # The decoupled arm needs the wrist leveling; a strict (baseline) plan keeps it locked.
+    mode = Mode.LEVELING if planner == "decoupled" else Mode.DISABLED
+    return guarded(ToolModeScope(move, tool, mode, Mode.DISABLED), arm, tool, clock, stale_s)
 
 
 @dataclass
@@ -96,32 +112,33 @@ class BiteRecord:
 
 
 class BiteRecorder(py_trees.visitors.VisitorBase):
-    """Visits every ticked behaviour: accumulates planning and motion time (on ``clock``) and
-    keeps every leaf failure with its reason — telemetry outside the behaviours."""
+    """Visits every ticked behaviour: accumulates planning and motion time (on ``clock``, from
+    the tick a job started to the tick it ended) and keeps every leaf failure with its reason
+    — telemetry outside the behaviours."""
 
     def __init__(self, clock: Callable[[], float] = _time.monotonic) -> None:
         super().__init__(full=False)
         self.clock = clock
         self.record = BiteRecord()
-        self._last: dict[str, float] = {}
+        self._started: dict[int, float] = {}
 
     def initialise(self) -> None:
         self._now = self.clock()
 
     def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
-        name = behaviour.name
-        prev = self._last.get(name, self._now)
-        self._last[name] = self._now
-        if behaviour.status == Status.RUNNING or behaviour.status in (Status.SUCCESS,
-                                                                      Status.FAILURE):
-            dt = max(0.0, self._now - prev)
-            if isinstance(behaviour, Plan):
-                self.record.planning_time_s += dt
-            elif isinstance(behaviour, Execute):
-                self.record.motion_time_s += dt
+        if isinstance(behaviour, Plan | PlanPath | Execute):
+            key = id(behaviour)
+            if behaviour.status == Status.RUNNING:
+                self._started.setdefault(key, self._now)
+            elif behaviour.status in (Status.SUCCESS, Status.FAILURE):
+                dt = self._now - self._started.pop(key, self._now)
+                if isinstance(behaviour, Execute):
+                    self.record.motion_time_s += dt
+                else:
+                    self.record.planning_time_s += dt
         if (behaviour.status == Status.FAILURE and not behaviour.children
                 and not getattr(behaviour, "is_condition", False)):
-            self.record.failures.append((name, behaviour.feedback_message))
+            self.record.failures.append((behaviour.name, behaviour.feedback_message))
 
 
 def run_tree(root: py_trees.behaviour.Behaviour, step: Callable[[float], None],

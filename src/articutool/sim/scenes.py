@@ -33,7 +33,8 @@ from articutool.sim.world import FeedingWorld, FoodReport
 from articutool.tool.api import Mode
 from articutool.trajectory import JointTrajectory
 
-__all__ = ["SCRIPTS", "ScriptError", "acquire", "run_script", "scoop", "skewer", "tip_target"]
+__all__ = ["SCOOP_HEADING", "SCRIPTS", "ScriptError", "acquire", "cartesian_path", "first_ik",
+           "lift_trajectory", "run_script", "scoop", "skewer", "tip_target"]
 
 SCRIPTS = ("scoop", "carry", "tilt")
 _Z = np.array([0.0, 0.0, 1.0])
@@ -69,7 +70,7 @@ def _wrist(world: FeedingWorld) -> NDArray[np.float64]:
     return q
 
 
-def _ik_segment(world: FeedingWorld, model: ArmModel, q: NDArray[np.float64],
+def _ik_segment(model: ArmModel, q: NDArray[np.float64],
                 p0: NDArray[np.float64], a0: float, p1: NDArray[np.float64], a1: float,
                 step_m: float) -> list[NDArray[np.float64]]:
     """8-DOF configurations along the straight tip segment p0 → p1 (pitch a0 → a1), IK every
@@ -89,33 +90,36 @@ def _ik_segment(world: FeedingWorld, model: ArmModel, q: NDArray[np.float64],
     return out
 
 
-def _first_ik(world: FeedingWorld, model: ArmModel, p: NDArray[np.float64],
-              a: float) -> NDArray[np.float64]:
-    """An 8-DOF configuration for the first tip pose, from the arm's present configuration or
-    a named one."""
+def first_ik(model: ArmModel, q_now: NDArray[np.float64], p: NDArray[np.float64],
+             a: float) -> NDArray[np.float64]:
+    """An 8-DOF configuration for the tip pose at ``p`` pitched ``a`` down along
+    :data:`SCOOP_HEADING`, solved for the arm joints (the wrist at ``q_now[6:]``) from the
+    present configuration ``q_now`` or a named one."""
     target = tip_target(p, SCOOP_HEADING, a)
-    for q0 in (world.arm_q, *(world.spec.arm.configuration(n) for n in ("AbovePlate", "Home"))):
-        sol = solve_pose_ik(model, "tip", target, np.concatenate([q0, _wrist(world)]),
+    spec = model.spec
+    for q0 in (q_now[:6], *(spec.arm.configuration(n) for n in ("AbovePlate", "Home"))):
+        sol = solve_pose_ik(model, "tip", target, np.concatenate([q0, q_now[6:]]),
                             IKSettings(random_seeds=0), free=6)
         if sol is not None:
             return sol
     raise ScriptError(f"no arm IK solution for the tip at {np.round(p, 3)} m")
 
 
-def _cartesian_path(world: FeedingWorld, model: ArmModel, q: NDArray[np.float64],
-                    waypoints: list[tuple[NDArray[np.float64], float, float]],
-                    step_m: float = 0.004) -> JointTrajectory:
+def cartesian_path(model: ArmModel, q: NDArray[np.float64],
+                   waypoints: list[tuple[NDArray[np.float64], float, float]],
+                   step_m: float = 0.004) -> JointTrajectory:
     """Arm trajectory through tip waypoints ``(position, pitch_down, speed m/s)``: each
     straight segment is solved by IK and timed by TOPP-RA under the arm's velocity and
     acceleration limits, slowed so the tip does not exceed the segment's speed (the speed of
-    the segment ending at the waypoint); segments run rest to rest."""
-    arm = world.spec.arm
-    names = tuple(world.layout.arm_joints)
+    the segment ending at the waypoint); segments run rest to rest. ``q``: the 8-DOF
+    configuration at the first waypoint (the wrist stays at ``q[6:]``)."""
+    arm = model.spec.arm
+    names = tuple(model.joint_names[:6])
     times, pos, vel = [np.zeros(1)], [q[None, :6]], [np.zeros((1, 6))]
     t_end = 0.0
     for (p0, a0, _), (p1, a1, speed) in itertools.pairwise(waypoints):
-        qs = np.array([q] + _ik_segment(world, model, q, p0, a0, p1, a1, step_m))[:, :6]
-        q = np.concatenate([qs[-1], _wrist(world)])
+        qs = np.array([q] + _ik_segment(model, q, p0, a0, p1, a1, step_m))[:, :6]
+        q = np.concatenate([qs[-1], q[6:]])
         want = float(np.linalg.norm(p1 - p0)) / speed
         scale, seg = 1.0, None
         for _ in range(2):
@@ -165,9 +169,9 @@ def scoop(world: FeedingWorld, level: bool = True) -> None:
     world.tool.set_mode(Mode.DISABLED)
     world.tare_ft(0.3)
     # Get above the start first (a free joint motion), then the Cartesian scoop.
-    q0 = _first_ik(world, model, pts[0][0], pts[0][1])
+    q0 = first_ik(model, np.concatenate([world.arm_q, _wrist(world)]), pts[0][0], pts[0][1])
     world.move_arm(q0[:6])
-    world.follow_arm(_cartesian_path(world, model, q0, pts), settle_s=0.3)
+    world.follow_arm(cartesian_path(model, q0, pts), settle_s=0.3)
     # Leveling starts out of the food: engaged in it, the wrist's fast pitch (up to its
     # 4 rad/s) swings the tip ~12 cm up through the pile and flings the load (measured).
     if level:
@@ -211,16 +215,16 @@ def skewer(world: FeedingWorld, level: bool = True, twirl_turns: float = 2.0) ->
     c = np.array([box.xyz[0], box.xyz[1], box.xyz[2] - box.length / 2 + box.container_wall])
     a = math.radians(60.0)
     pts = [(c + _Z * 0.12, a, 0.1), (c + _Z * 0.03, a, 0.05), (c + _Z * 0.006, a, 0.02)]
-    q0 = _first_ik(world, model, pts[0][0], a)
+    q0 = first_ik(model, np.concatenate([world.arm_q, _wrist(world)]), pts[0][0], a)
     world.move_arm(q0[:6])
-    world.follow_arm(_cartesian_path(world, model, q0, pts), settle_s=0.2)
+    world.follow_arm(cartesian_path(model, q0, pts), settle_s=0.2)
     if twirl_turns > 0:
         ok, msg = world.tool.start_primitive("TWIRL_CW", [twirl_turns, 3.0])
         if not ok:
             raise ScriptError(f"the tool refused TWIRL_CW: {msg}")
         world.run_until(lambda: world.tool.mode != Mode.PRIMITIVE, 30.0)
     q = np.concatenate([world.arm_q, _wrist(world)])
-    world.follow_arm(_cartesian_path(world, model, q, [(pts[-1][0], a, 0.02),
+    world.follow_arm(cartesian_path(model, q, [(pts[-1][0], a, 0.02),
                                                        (c + _Z * 0.04, a, 0.02)]),
                      settle_s=0.2)
     if level:
@@ -234,7 +238,14 @@ def _lift(world: FeedingWorld, model: ArmModel, height: float = 0.12,
           speed_scale: float = 0.3) -> None:
     """Lift the tool base straight up by ``height`` (its orientation kept; the wrist does what
     its mode says), slowly: the arm's limits scaled by ``speed_scale``."""
-    q = np.concatenate([world.arm_q, _wrist(world)])
+    world.follow_arm(lift_trajectory(model, np.concatenate([world.arm_q, _wrist(world)]),
+                                     height, speed_scale), settle_s=0.5)
+
+
+def lift_trajectory(model: ArmModel, q: NDArray[np.float64], height: float = 0.12,
+                    speed_scale: float = 0.3) -> JointTrajectory:
+    """Arm trajectory lifting the tool base straight up by ``height`` from ``q`` (8-DOF), its
+    orientation kept, with the arm's limits scaled by ``speed_scale``."""
     T = model.tool_base_pose(q)
     qs = [q]
     n = max(2, round(height / 0.01))
@@ -245,13 +256,13 @@ def _lift(world: FeedingWorld, model: ArmModel, height: float = 0.12,
         if sol is None:
             raise ScriptError("no arm IK solution for lifting the utensil")
         qs.append(sol)
-    arm = world.spec.arm
-    lift = time_parameterize(np.array(qs)[:, :6], tuple(world.layout.arm_joints),
+    arm = model.spec.arm
+    lift = time_parameterize(np.array(qs)[:, :6], tuple(model.joint_names[:6]),
                              arm.max_velocity * speed_scale,
                              arm.max_acceleration * speed_scale**2)
     if lift is None:
         raise ScriptError("TOPP-RA found no timing for the lift")
-    world.follow_arm(lift, settle_s=0.5)
+    return lift
 
 
 def load(world: FeedingWorld, level: bool = True) -> None:

@@ -512,12 +512,38 @@ class FeedingWorld:
         if self._mouth is None or not self.layout.food_bodies:
             return
         c, r = self._mouth
-        m, d = self.model, self.data
+        d = self.data
         n = len(self.layout.food_bodies)
         pos = d.xpos[self._item_body[:n]]
-        inside = np.flatnonzero((np.linalg.norm(pos - c, axis=1) < r)
-                                & (self._codes[:n] != acc.EATEN))
-        for k in inside:
+        self._remove_eaten(np.flatnonzero((np.linalg.norm(pos - c, axis=1) < r)
+                                          & (self._codes[:n] != acc.EATEN)))
+
+    def eat_from_utensil(self) -> float:
+        """The user takes the bite: what is on the utensil now is eaten (moved out of the
+        world). Returns the grams eaten. (The simulated user does not bite or chew; the
+        feeding tree presents the bite and this stands for the user taking it.)"""
+        n = len(self.layout.food_bodies)
+        on = np.flatnonzero(self._codes[:n] == acc.UTENSIL)
+        self._remove_eaten(on)
+        return float(len(on) * self.layout.piece_mass * 1000.0)
+
+    def _remove_eaten(self, items: NDArray[np.int64]) -> None:
+        m, d = self.model, self.data
+        n_bodies = len(self.layout.food_bodies)
+        for k in items:
+            if k >= n_bodies:  # a strand: every vertex body moves out on its slide joints
+                f = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX,
+                                      self.layout.food_strands[k - n_bodies])
+                m.flex_contype[f] = m.flex_conaffinity[f] = 0
+                adr, num = m.flex_vertadr[f], m.flex_vertnum[f]
+                away = np.array([100.0 + k, 0.0, 10.0]) - d.xpos[self._item_body[k]]
+                for b in m.flex_vertbodyid[adr:adr + num]:
+                    m.body_gravcomp[b] = 1.0
+                    for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]):
+                        d.qpos[m.jnt_qposadr[j]] += float(m.jnt_axis[j] @ away)
+                        d.qvel[m.jnt_dofadr[j]] = 0.0
+                self._codes[k] = acc.EATEN
+                continue
             b = self._item_body[k]
             g = m.geom(self.layout.food_bodies[k]).id
             m.geom_contype[g] = m.geom_conaffinity[g] = 0

@@ -1,0 +1,220 @@
+"""``articutool meal``: bites with the feeding tree in the physics world (issue 10).
+
+Prints the tree's progress live (the running behaviour, planning attempts, simulated time)
+and one record per bite; ``--json`` prints the records; ``--show-tree`` prints the tree and
+writes it as a Graphviz file instead of running.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import shutil
+import sys
+from pathlib import Path
+from typing import Any
+
+__all__ = ["add_commands"]
+
+_SYSTEMS = ("articutool", "baseline")
+_TREE_SUFFIXES = (".dot", ".png", ".svg")
+
+
+def _new_file(opt: str, path: str | None, suffixes: tuple[str, ...]) -> Path | None:
+    from articutool.cli import UsageError
+
+    if path is None:
+        return None
+    p = Path(path)
+    if p.suffix.lower() not in suffixes:
+        raise UsageError(f"{opt}: the file must end in {' or '.join(suffixes)}")
+    if p.exists():
+        raise UsageError(f"{opt}: {p} exists; choose a new file (nothing is overwritten)")
+    if not p.parent.is_dir():
+        raise UsageError(f"{opt}: folder {p.parent} does not exist")
+    return p
+
+
+def _check(args: argparse.Namespace) -> Any:
+    """Validate the arguments (exit 2 naming the field) and return the strategy library."""
+    from articutool.cli import UsageError, spec_from_args
+    from articutool.feeding.strategies import StrategyError, StrategyLibrary
+
+    if not 1 <= args.bites <= 100:
+        raise UsageError(f"--bites must be an integer in [1, 100]; got {args.bites}")
+    if args.seed < 0:
+        raise UsageError(f"--seed must be an integer >= 0; got {args.seed}")
+    if not (math.isfinite(args.threshold) and 0 <= args.threshold <= 100):
+        raise UsageError(f"--threshold must be a mass in [0, 100] g; got {args.threshold}")
+    try:
+        lib = StrategyLibrary.load(spec_from_args(args), args.strategies)
+    except StrategyError as err:
+        raise UsageError(f"--strategies: {err}") from None
+    foods = sorted({s.food for s in lib.strategies.values() if s.system == args.system})
+    if args.food not in foods:
+        raise UsageError(f"--food: no {args.system} strategy for {args.food!r}; allowed: "
+                         f"{', '.join(foods)}")
+    return lib
+
+
+def _show_tree(args: argparse.Namespace, lib: Any, out: Path | None) -> int:
+    import numpy as np
+    import py_trees
+
+    from articutool.arm.scene import Scene
+    from articutool.feeding.bite import bite_tree
+    from articutool.feeding.insertion import acquisition_waypoints
+    from articutool.feeding.meal import container_floor
+    from articutool.sim.params import PhysicsParams
+    from articutool.sim.scenes import SCOOP_HEADING
+
+    name, strat = lib.choose(args.food, args.system, np.random.default_rng(args.seed))
+    container = PhysicsParams.load().food(args.food).container
+    wps = acquisition_waypoints(strat, container_floor(Scene.load(), container), SCOOP_HEADING)
+    # The tree's shape needs no arm or tool; nothing is ticked.
+    root = bite_tree(None, None, strat, wps, lambda: 0.0)  # type: ignore[arg-type]
+    print(f"bite tree for {args.food} with {args.system} (strategy {name}):")
+    print(py_trees.display.unicode_tree(root))
+    if out is not None:
+        graph = py_trees.display.dot_tree(root)
+        if out.suffix.lower() == ".dot":
+            graph.write(str(out), format="raw")
+        else:
+            if shutil.which("dot") is None:
+                print(f"error: --show-tree: writing {out.suffix} needs Graphviz's `dot` "
+                      "(`make` installs it: Debian package graphviz); .dot works without",
+                      file=sys.stderr)
+                return 2
+            graph.write(str(out), format=out.suffix.lower()[1:])
+        print(f"tree: {out}")
+    return 0
+
+
+class _Progress:
+    """One line each time the running behaviour changes (stderr), or a live tree on a
+    terminal."""
+
+    def __init__(self, world: Any, live: bool) -> None:
+        from rich.console import Console
+
+        self.world, self.last = world, ""
+        self.console = Console(stderr=True)
+        self.live = None
+        if live and self.console.is_terminal:
+            from rich.live import Live
+
+            self.live = Live(console=self.console, refresh_per_second=4, transient=True)
+            self.live.start()
+
+    def __call__(self, root: Any) -> None:
+        import py_trees
+
+        tip = root.tip()
+        where = " › ".join(n.name for n in _path_to(root, tip)
+                           if getattr(n, "bite_stage", None) or n is tip) if tip else ""
+        attempts = "".join(f" (attempt {n.bb.get(n.key)})" for n in _path_to(root, tip)
+                           if hasattr(n, "key") and n.key.startswith("planning_attempts_"))
+        line = f"{where}{attempts}"
+        if self.live is not None:
+            self.live.update(py_trees.display.unicode_tree(root, show_status=True,
+                                                            show_only_visited=True))
+        elif line != self.last:
+            self.console.print(f"[dim]{self.world.time:7.1f} s[/dim] {line}"
+                               + (f" [dim]– {tip.feedback_message}[/dim]"
+                                  if tip and tip.feedback_message else ""),
+                               highlight=False)
+        self.last = line
+
+    def stop(self) -> None:
+        if self.live is not None:
+            self.live.stop()
+
+
+def _path_to(root: Any, node: Any) -> list[Any]:
+    path = []
+    while node is not None:
+        path.append(node)
+        if node is root:
+            break
+        node = node.parent
+    return path[::-1]
+
+
+def _print_bite(r: Any) -> None:
+    spills = ", ".join(f"{g:.2f} g on the {'user' if p == 'critical' else p}"
+                       for p, g in r.spilled_by_place.items() if g > 0) or "none"
+    attempts = ", ".join(f"{k} {v}" for k, v in r.planning_attempts_by_goal.items())
+    print(f"bite {r.bite + 1}: {r.outcome.replace('_', ' ')} ({r.strategy})")
+    print(f"  acquired {r.acquired_g:.2f} g, shed into the bowl {r.shed_g:.2f} g, "
+          f"delivered {r.delivered_g:.2f} g; spilled: {spills}")
+    print(f"  planning attempts: {attempts or 'none'}; planning {r.planning_time_s:.1f} s, "
+          f"motion {r.motion_time_s:.1f} s; utensil tilt in transport max "
+          f"{r.transport_max_tilt_deg:.1f}°")
+    print(f"  {r.sim_time_s:.1f} s simulated in {r.wall_time_s:.1f} s wall")
+    if r.failed_stage:
+        print(f"  failed at: {r.failed_stage}")
+
+
+def _cmd_meal(args: argparse.Namespace) -> int:
+    from articutool.cli import UsageError
+    from articutool.feeding.meal import make_bite_world, run_meal
+
+    lib = _check(args)
+    if args.show_tree is not False:
+        return _show_tree(args, lib, _new_file("--show-tree", args.show_tree, _TREE_SUFFIXES))
+    video = _new_file("--video", args.video, (".mp4", ".gif"))
+    try:
+        setup = make_bite_world(args.food, args.system, args.seed, strategies=args.strategies)
+    except ValueError as err:
+        raise UsageError(str(err)) from None
+    recorder = None
+    if video is not None:
+        from articutool.sim.render import Recorder
+
+        recorder = Recorder(setup.world, fps=10.0, camera="overview")
+    progress = _Progress(setup.world, live=not args.json)
+    try:
+        bites = run_meal(args.food, args.system, bites=args.bites, seed=args.seed,
+                         threshold_g=args.threshold, setup=setup, on_tick=progress,
+                         on_bite=None if args.json else _print_bite)
+    finally:
+        progress.stop()
+    if recorder is not None:
+        recorder.save(video)
+    if args.json:
+        print(json.dumps({"food": args.food, "system": args.system, "seed": args.seed,
+                          "threshold_g": args.threshold,
+                          "bites": [b.to_dict() for b in bites],
+                          "video": str(video) if video else None}, indent=2))
+    elif video is not None:
+        print(f"video: {video}")
+    return 0
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    """Register ``meal``."""
+    from articutool.cli import add_spec_option
+
+    p = sub.add_parser("meal", help="bites with the feeding behaviour tree in the physics "
+                       "world (acquire, level, shed, transport, present, return)")
+    p.add_argument("--food", default="noodles", help="food with a strategy in the action "
+                   "library (packaged: noodles, pecans, water; default: noodles)")
+    p.add_argument("--system", choices=_SYSTEMS, default="articutool",
+                   help="articutool (active wrist, decoupled transport) or baseline (rigid "
+                        "6-DOF, wrist locked, strict ±20° transport)")
+    p.add_argument("--bites", type=int, default=1, help="bites in the meal (1–100)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="food placement, sensor noise, planner and strategy choice")
+    p.add_argument("--strategies", metavar="FILE", default=None,
+                   help="action library TOML/YAML (default: the packaged strategies.toml)")
+    p.add_argument("--threshold", type=float, default=3.0, metavar="G",
+                   help="a bite above G grams is a meaningful success (thesis Exp. 3: 3.0)")
+    p.add_argument("--video", metavar="FILE", default=None,
+                   help="record the meal (.mp4 or .gif, overview camera); never overwrites")
+    p.add_argument("--json", action="store_true", help="the bite records as JSON")
+    p.add_argument("--show-tree", nargs="?", const=None, default=False, metavar="FILE",
+                   help="print the bite tree and write it to FILE (.dot, .png, .svg) "
+                        "instead of running")
+    add_spec_option(p)
+    p.set_defaults(func=_cmd_meal)

@@ -1,0 +1,243 @@
+"""Bites and meals in the physics world: the feeding tree driving the MuJoCo arm and the
+tool's own runtime, with the food accounted by physics (issue 10).
+
+:func:`make_bite_world` builds the world for a food and a system (the strategy, drawn from
+the action library with the seed, picks the utensil), puts the arm at Resting (the rigid
+baseline: the configuration that holds its locked utensil level there), levels the empty
+utensil and tares the F/T sensor. :func:`run_bite` ticks the bite tree
+(:mod:`articutool.feeding.bite`) at 10 Hz of simulated time while the world steps, and
+returns a :class:`BiteResult`: masses from the world's accounting at the end of each stage
+(a visitor, :class:`FoodLedger`), spills by place, planning attempts and times (the tree's
+:class:`~articutool.feeding.tree.BiteRecorder`), and the outcome class
+(:func:`~articutool.feeding.outcomes.classify_bite`). After ``present`` the simulated user
+takes the bite (:meth:`FeedingWorld.eat_from_utensil`). :func:`run_meal` runs N bites with
+the same tree.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import py_trees
+from numpy.typing import NDArray
+from py_trees.common import Status
+
+from articutool.arm.scene import Cylinder, Scene
+from articutool.feeding.behaviours import Attempts
+from articutool.feeding.bite import STAGES, BiteSettings, bite_tree
+from articutool.feeding.insertion import acquisition_waypoints
+from articutool.feeding.outcomes import SPILL_PLACES, classify_bite
+from articutool.feeding.sim_arm import SimArm
+from articutool.feeding.strategies import Strategy, StrategyLibrary
+from articutool.feeding.tree import BiteRecorder
+from articutool.sim.scenes import SCOOP_HEADING
+from articutool.sim.world import FeedingWorld
+from articutool.spec import load_spec
+from articutool.tool.api import Mode
+
+__all__ = ["BiteResult", "FoodLedger", "MealSetup", "container_floor", "make_bite_world",
+           "run_bite", "run_meal"]
+
+DEFAULT_THRESHOLD_G = 3.0  # thesis Exp. 3: a technically successful bite is > 3.0 g
+DEFAULT_SETTINGS = BiteSettings()
+
+
+@dataclass
+class BiteResult:
+    """One bite's record (``to_dict`` is the ``--json`` form)."""
+
+    bite: int
+    food: str
+    system: str
+    strategy: str
+    seed: int
+    outcome: str
+    completed: bool
+    acquired_g: float  # on the utensil after acquisition (before shedding)
+    shed_g: float  # shed back into the container by the post-acquisition primitive
+    delivered_g: float  # on the utensil when presented (or at the last stage run)
+    spilled_g: float  # table + user during the bite
+    spilled_by_place: dict[str, float]
+    ft_delivered_g: float | None  # the F/T sensor's reading of delivered_g, when comparable
+    planning_attempts: int  # to Staging (the thesis' count), else to the last goal planned
+    planning_attempts_by_goal: dict[str, int]
+    planning_time_s: float
+    motion_time_s: float
+    sim_time_s: float
+    wall_time_s: float
+    failed_stage: str
+    stages: list[str]
+    masses_after: dict[str, dict[str, float]] = field(default_factory=dict)
+    transport_max_tilt_deg: float = float("nan")  # utensil tilt during resting + staging
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready record."""
+        return asdict(self)
+
+
+class FoodLedger(py_trees.visitors.VisitorBase):
+    """Visitor: the world's food masses when each stage subtree ends, the utensil's tilt
+    while transporting, and the user's bite when ``present`` succeeds."""
+
+    def __init__(self, world: FeedingWorld) -> None:
+        super().__init__(full=False)
+        self.world = world
+        self.after: dict[str, dict[str, float]] = {}
+        self.eaten_g = 0.0
+        self.tilts: list[float] = []
+
+    def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
+        stage = getattr(behaviour, "bite_stage", None)
+        if stage is None:
+            return
+        if behaviour.status == Status.RUNNING and stage in ("resting", "staging"):
+            self.tilts.append(self.world.tilt_deg())
+        if behaviour.status in (Status.SUCCESS, Status.FAILURE) and stage not in self.after:
+            self.after[stage] = self.world.masses_g()
+            if stage == "present" and behaviour.status == Status.SUCCESS:
+                self.after["present"]["ft"] = (self.world.ft_mass_g(0.5)
+                                               if self.world.ft_comparable() else float("nan"))
+                self.eaten_g += self.world.eat_from_utensil()
+
+
+@dataclass
+class MealSetup:
+    """What :func:`make_bite_world` built."""
+
+    world: FeedingWorld
+    arm: SimArm
+    strategy_name: str
+    strategy: Strategy
+    seed: int
+
+
+def make_bite_world(food: str, system: str, seed: int = 0, *,
+                    strategies: str | Path | None = None, load_g: float | None = None) -> MealSetup:
+    """The world, the arm and the strategy for ``food`` with ``system`` (see module doc).
+    ``load_g`` builds a world with a load to place by hand (Exp. 2b/2c) instead of a full
+    container. Raises ``StrategyError`` / ``ValueError`` naming the field for bad input."""
+    spec = load_spec()
+    lib = StrategyLibrary.load(spec, strategies)
+    name, strat = lib.choose(food, system, np.random.default_rng(seed))
+    world = FeedingWorld(food, strat.utensil, spec=spec, seed=seed, load_g=load_g)
+    rigid = system == "baseline"
+    arm = SimArm(world, tolerance_deg=strat.transport.tolerance_deg, seed=seed, rigid=rigid)
+    if rigid:
+        world.move_arm(arm.goal_configuration("Resting"))
+        world.run(0.5)
+    else:
+        world.tool.set_mode(Mode.LEVELING)
+        world.run(1.0)
+        world.tool.set_mode(Mode.DISABLED)
+    world.tare_ft(0.3)  # level and empty, as one would before a meal
+    return MealSetup(world, arm, name, strat, seed)
+
+
+def container_floor(scene: Scene, container: str) -> NDArray[np.float64]:
+    """Centre of the container's inner floor (arm base frame)."""
+    box = scene.get(container)
+    if not isinstance(box, Cylinder) or box.container_wall is None:
+        raise ValueError(f"container: {container!r} is not an open container of the scene")
+    return np.array([box.xyz[0], box.xyz[1], box.xyz[2] - box.length / 2 + box.container_wall])
+
+
+def _tree(setup: MealSetup, stages: Sequence[str], settings: BiteSettings
+          ) -> py_trees.behaviour.Behaviour:
+    w = setup.world
+    wps = acquisition_waypoints(setup.strategy,
+                                container_floor(w.scene, w.layout.container or "bowl"),
+                                SCOOP_HEADING)
+    return bite_tree(setup.arm, w.tool, setup.strategy, wps, w.clock, stages=stages,
+                     settings=settings)
+
+
+def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
+             threshold_g: float = DEFAULT_THRESHOLD_G, settings: BiteSettings = DEFAULT_SETTINGS,
+             root: py_trees.behaviour.Behaviour | None = None, timeout_s: float = 240.0,
+             on_tick: Callable[[py_trees.behaviour.Behaviour], None] | None = None
+             ) -> BiteResult:
+    """Run one bite (``stages`` of :data:`~articutool.feeding.bite.STAGES`) and return its
+    record. ``root``: a tree from an earlier bite of the same meal (the same tree runs again);
+    ``on_tick`` is called after every tree tick (live display)."""
+    w = setup.world
+    if root is None:
+        root = _tree(setup, stages, settings)
+    tree = py_trees.trees.BehaviourTree(root)
+    rec, ledger = BiteRecorder(w.clock), FoodLedger(w)
+    tree.visitors += [rec, ledger]
+    tree.setup()
+    t0, wall0, n_spills = w.time, time.perf_counter(), len(w.spills)
+    before = w.masses_g()
+    status = Status.FAILURE
+    t_end = w.time + timeout_s
+    while w.time < t_end:
+        tree.tick()
+        if on_tick is not None:
+            on_tick(root)
+        if root.status in (Status.SUCCESS, Status.FAILURE):
+            status = root.status
+            break
+        w.run(0.1)
+    else:
+        root.stop(Status.INVALID)
+        rec.record.failures.append((root.name, f"did not finish within {timeout_s:g} s"))
+    spilled = {p: 0.0 for p in SPILL_PLACES}
+    for ev in w.spills[n_spills:]:
+        spilled[ev.place] = spilled.get(ev.place, 0.0) + ev.mass_g
+    after = ledger.after
+    acquired = after.get("acquire", before)["utensil"]
+    # Shed: what fell from the utensil back into the container during the shed stage.
+    shed = (max(0.0, after["shed"]["container"] - after.get("acquire", before)["container"])
+            if "shed" in after else 0.0)
+    # Delivered: on the utensil when presented (or after the last stage run), plus what
+    # reached the mouth region on the way (eaten by the world's accounting).
+    end = after.get("present") or after.get(stages[-1]) or w.masses_g()
+    delivered = end["utensil"] + end["eaten"] - before["eaten"]
+    completed = status == Status.SUCCESS
+    # Attempts per goal, from this tree's own counters (in tree order; a retreat's last).
+    attempts = {n.key.removeprefix("planning_attempts_"): int(n.bb.get(n.key))
+                for n in root.iterate()
+                if isinstance(n, Attempts) and n.status != Status.INVALID}
+    goal = "Staging" if "Staging" in attempts else (list(attempts)[-1] if attempts else "")
+    ft = after.get("present", {}).get("ft")
+    return BiteResult(
+        bite=bite, food=w.food or "", system=setup.strategy.system,
+        strategy=setup.strategy_name, seed=setup.seed,
+        outcome=classify_bite(delivered, spilled, threshold_g, completed),
+        completed=completed, acquired_g=acquired, shed_g=shed, delivered_g=delivered,
+        spilled_g=sum(spilled.values()), spilled_by_place=spilled,
+        ft_delivered_g=None if ft is None or ft != ft else float(ft),
+        planning_attempts=attempts.get(goal, 0), planning_attempts_by_goal=attempts,
+        planning_time_s=rec.record.planning_time_s, motion_time_s=rec.record.motion_time_s,
+        sim_time_s=w.time - t0, wall_time_s=time.perf_counter() - wall0,
+        failed_stage="" if completed else rec.record.failed_stage or "stopped",
+        stages=list(stages), masses_after=after,
+        transport_max_tilt_deg=max(ledger.tilts) if ledger.tilts else float("nan"))
+
+
+def run_meal(food: str, system: str, *, bites: int = 1, seed: int = 0,
+             strategies: str | Path | None = None, threshold_g: float = DEFAULT_THRESHOLD_G,
+             settings: BiteSettings = DEFAULT_SETTINGS,
+             on_tick: Callable[[py_trees.behaviour.Behaviour], None] | None = None,
+             on_bite: Callable[[BiteResult], None] | None = None,
+             setup: MealSetup | None = None) -> list[BiteResult]:
+    """N bites of ``food`` with ``system`` with the same tree (one strategy per meal, drawn
+    with ``seed``); a failed bite retreats to Resting and the meal goes on."""
+    setup = setup or make_bite_world(food, system, seed, strategies=strategies)
+    root = _tree(setup, STAGES, settings)
+    out = []
+    try:
+        for k in range(bites):
+            r = run_bite(setup, bite=k, threshold_g=threshold_g, settings=settings, root=root,
+                         on_tick=on_tick)
+            out.append(r)
+            if on_bite is not None:
+                on_bite(r)
+    finally:
+        setup.arm.close()
+    return out

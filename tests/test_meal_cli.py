@@ -1,0 +1,72 @@
+"""``articutool meal``: bad input refused before anything moves; the tree rendered."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("mujoco")
+
+
+def _run(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "articutool", "meal", *args],
+                          capture_output=True, text=True, timeout=300)
+
+
+def _main(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
+    from articutool.cli import main
+
+    rc = main(["meal", *args])
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+@pytest.mark.parametrize(("args", "field"), [
+    (["--bites", "0"], "--bites"),
+    (["--seed", "-1"], "--seed"),
+    (["--threshold", "nan"], "--threshold"),
+    (["--food", "soup"], "--food"),
+    (["--strategies", "/nonexistent.toml"], "--strategies"),
+    (["--video", "x.avi"], "--video"),
+])
+def test_bad_input_exits_2_naming_the_field(args: list[str], field: str,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    rc, _, err = _main(capsys, *args)
+    assert rc == 2, err
+    assert field in err and "Traceback" not in err
+
+
+def test_a_strategy_file_with_an_unknown_primitive_is_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from articutool.feeding.strategies import default_strategies_path
+
+    bad = tmp_path / "s.toml"
+    bad.write_text(default_strategies_path().read_text().replace('"VIBRATE_ROLL"', '"SHAKE"'))
+    rc, _, err = _main(capsys, "--food", "pecans", "--strategies", str(bad))
+    assert rc == 2
+    assert "stages.post_acquisition" in err and "SHAKE" in err
+
+
+def test_show_tree_prints_every_stage_and_writes_dot_without_overwriting(
+        tmp_path: Path) -> None:
+    out = tmp_path / "tree.dot"
+    r = _run("--food", "noodles", "--show-tree", str(out))
+    assert r.returncode == 0, r.stderr
+    for name in ("above", "acquire", "shed", "transport to Staging", "pre-move-into: TWIRL_CW",
+                 "post-acquisition: NOODLE_SHED", "retreat (the bite failed)", "Unsafe?"):
+        assert name in r.stdout
+    assert "digraph" in out.read_text() and "NOODLE_SHED" in out.read_text()
+    again = _run("--food", "noodles", "--show-tree", str(out))
+    assert again.returncode == 2 and "exists" in again.stderr
+
+
+@pytest.mark.skipif(shutil.which("dot") is None, reason="Graphviz `dot` is not installed")
+def test_show_tree_renders_a_png(tmp_path: Path) -> None:
+    out = tmp_path / "tree.png"
+    r = _run("--food", "water", "--system", "baseline", "--show-tree", str(out))
+    assert r.returncode == 0, r.stderr
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
