@@ -78,3 +78,26 @@ def test_cli_exp2b_one_trial_per_condition_then_report(tmp_path, capsys) -> None
     md = (out / "report.md").read_text()
     assert "Exp. 2b" in md and "1.31" in md and "Honesty rules" in md
     assert "<table>" in (out / "report.html").read_text()
+
+
+@pytest.mark.slow
+def test_exp1_trial_pecans_acquires_and_weighs_at_resting() -> None:
+    trials = make_trials("exp1", conditions("exp1", CFG), 1, 0)
+    spec = next(t for t in trials if t.cond == {"food": "pecans", "system": "articutool"})
+    r = run_trial(spec)
+    assert r["error"] is None, r.get("traceback")
+    assert r["stages"] == ["above", "acquire", "resting"] and r["completed"]
+    assert r["mass_g"] == pytest.approx(r["masses_end_g"]["utensil"])
+    assert r["mass_g"] > 0 and r["spilled_g"] >= 0
+    json.dumps(r, allow_nan=False)  # strict JSON: NaN became None
+
+
+@pytest.mark.slow
+def test_exp3_trial_noodles_whole_bite_has_an_outcome_class() -> None:
+    trials = make_trials("exp3", conditions("exp3", CFG), 1, 0)
+    r = run_trial(trials[0])
+    assert r["error"] is None, r.get("traceback")
+    assert r["stages"][-1] == "present"
+    assert r["outcome"] in ("meaningful_success", "trivial_success", "table_spill",
+                            "user_spill", "failed")
+    json.dumps(r, allow_nan=False)

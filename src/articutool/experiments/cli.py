@@ -200,12 +200,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
         cfg = ExperimentsConfig.load()
     except ExperimentsConfigError as err:
         raise _usage(str(err)) from None
-    if exp in ("exp1", "exp3"):
-        from articutool.experiments import protocols
-
-        if exp not in getattr(protocols, "BITE_PROTOCOLS", {}):
-            raise _usage(f"{exp} needs the feeding tree's bite runner "
-                         "(articutool.feeding.meal), which this build does not have yet")
     trials, extra = _trials_for(exp, args, out, cfg)
     if args.trial is not None:
         return _replay(args, exp, trials, out)
@@ -306,10 +300,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p0 = sub.add_parser("experiment", help="the thesis' physical experiments in simulation")
     esub = p0.add_subparsers(dest="experiment", required=True, metavar="EXPERIMENT")
     helps = {"capacity": "maximum-capacity loads (Exp. 2c's load)",
-             "exp1": "acquisition, H1 (§5.1; needs the bite runner)",
+             "exp1": "acquisition, H1 (§5.1)",
              "exp2b": "transport of placed loads to five Staging goals, H2 (§5.2.2)",
              "exp2c": "shedding primitives vs control, H2 (§5.2.3)",
-             "exp3": "noodles end to end, H3 (§5.3; needs the bite runner)"}
+             "exp3": "noodles end to end, H3 (§5.3)"}
     for name in RUN_EXPERIMENTS:
         p = esub.add_parser(name, help=helps[name])
         p.add_argument("--trials", type=int, default=20,

@@ -39,6 +39,7 @@ class Exp1(_Strict):
 
     foods: Names
     systems: Names
+    timeout_s: Positive
 
 
 class Exp2b(_Strict):
@@ -69,6 +70,7 @@ class Exp3(_Strict):
     food: Annotated[str, Field(min_length=1)]
     systems: Names
     threshold_g: Annotated[float, Field(ge=0)]
+    timeout_s: Positive
 
 
 class ExperimentsConfig(_Strict):

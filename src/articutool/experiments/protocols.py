@@ -26,7 +26,8 @@ from articutool.experiments.config import ExperimentsConfig
 from articutool.feeding.sim_arm import SimArm
 from articutool.sim.world import FeedingWorld
 
-__all__ = ["Hook", "capacity_trial", "exp2b_trial", "exp2c_trial", "transport"]
+__all__ = ["BITE_PROTOCOLS", "Hook", "capacity_trial", "exp1_trial", "exp2b_trial",
+           "exp2c_trial", "exp3_trial", "json_safe", "transport"]
 
 Hook = Callable[[FeedingWorld], None] | None
 SPILL_KEYS = ("table", "critical")
@@ -79,7 +80,7 @@ def transport(world: FeedingWorld, arm: SimArm, goal: str, planner: str, *, atte
         status, rec = run_tree(root, world.run, world.clock, timeout_s=s.tree_timeout_s)
     finally:
         world.on_tick.remove(watch)
-    attempts_used = py_trees.blackboard.Blackboard.get("/bite/planning_attempts")
+    attempts_used = py_trees.blackboard.Blackboard.get(f"/bite/planning_attempts_{goal}")
     world.run(s.settle_s)
     return {
         "completed": status == Status.SUCCESS,
@@ -218,6 +219,61 @@ def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
             "realtime_factor": _r(w.realtime_factor)}
 
 
-def finite_or_none(x: float | None) -> float | None:
-    """JSON-safe number."""
-    return None if x is None or not math.isfinite(x) else float(x)
+def json_safe(x: Any) -> Any:
+    """``x`` with every non-finite float replaced by ``None`` (the log is strict JSON)."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: json_safe(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [json_safe(v) for v in x]
+    return x
+
+
+def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
+          stages: tuple[str, ...], timeout_s: float, threshold_g: float) -> dict[str, Any]:
+    """One bite through the feeding tree (:func:`articutool.feeding.meal.run_bite`): the
+    world, arm and strategy from :func:`~articutool.feeding.meal.make_bite_world` (the
+    strategy drawn from the action library with the seed), the given stages."""
+    from articutool.feeding.bite import BiteSettings
+    from articutool.feeding.meal import make_bite_world, run_bite
+
+    setup = make_bite_world(cond["food"], cond["system"], seed)
+    if hook:
+        hook(setup.world)
+    try:
+        r = run_bite(setup, stages=stages, threshold_g=threshold_g, timeout_s=timeout_s,
+                     settings=BiteSettings(budget_s=cfg.settings.plan_budget_s))
+    finally:
+        setup.arm.close()
+    w = setup.world
+    w.run(cfg.settings.settle_s)
+    rec = r.to_dict()
+    rec["bite_wall_time_s"] = rec.pop("wall_time_s")
+    for k in ("bite", "food", "system", "seed"):
+        rec.pop(k)
+    return json_safe({**rec, "utensil": w.utensil, "masses_end_g": _masses(w),
+                      "realtime_factor": _r(w.realtime_factor)})
+
+
+def exp1_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
+               hook: Hook = None) -> dict[str, Any]:
+    """Exp. 1 (§5.1): from AbovePlate, acquire with the system's strategy, move
+    level-constrained to Resting; the mass on the utensil there (``mass_g``, ground truth;
+    ``ft_mass_g`` as the F/T sensor weighs it when comparable)."""
+    rec = _bite(cond, seed, cfg, hook, ("above", "acquire", "resting"), cfg.exp1.timeout_s,
+                cfg.exp3.threshold_g)
+    rec["mass_g"] = rec["masses_end_g"]["utensil"]
+    return rec
+
+
+def exp3_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
+               hook: Hook = None) -> dict[str, Any]:
+    """Exp. 3 (§5.3): the whole bite — above the food, acquire, shed, Resting, Staging,
+    present (the simulated user takes it). The outcome class is re-derived at analysis time
+    with the configured threshold; ``outcome`` here is at ``cfg.exp3.threshold_g``."""
+    return _bite(cond, seed, cfg, hook, ("above", "acquire", "shed", "resting", "staging",
+                                         "present"), cfg.exp3.timeout_s, cfg.exp3.threshold_g)
+
+
+BITE_PROTOCOLS = {"exp1": exp1_trial, "exp3": exp3_trial}

@@ -94,12 +94,10 @@ def _protocol(experiment: str) -> Callable[..., dict[str, Any]]:
         "capacity": protocols.capacity_trial,
         "exp2b": protocols.exp2b_trial,
         "exp2c": protocols.exp2c_trial,
+        **protocols.BITE_PROTOCOLS,
     }
-    extra = getattr(protocols, "BITE_PROTOCOLS", {})
-    table.update(extra)
     if experiment not in table:
-        raise RunError(f"experiment {experiment!r} has no protocol in this build "
-                       f"(available: {sorted(table)})")
+        raise RunError(f"experiment must be one of {sorted(table)}; got {experiment!r}")
     return table[experiment]
 
 
