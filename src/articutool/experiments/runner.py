@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import tomllib
 import time
 import traceback
 from collections.abc import Callable, Sequence
@@ -58,13 +59,15 @@ def read_trials(out: str | Path, experiment: str) -> list[dict[str, Any]]:
 
 def data_hash(experiment: str, cfg: ExperimentsConfig) -> str:
     """Short SHA-256 over the data a trial of ``experiment`` reads: the packaged spec, scene,
-    physics and strategies files, and the experiments file's shared settings and this
-    experiment's own section (another experiment's section does not matter)."""
+    physics and strategies files (their parsed content: comments do not count), and the
+    experiments file's shared settings and this experiment's own section (another
+    experiment's section does not matter)."""
     h = hashlib.sha256()
     base = resources.files("articutool") / "data"
     for name in ("hardware.toml", "scene.toml", "physics.toml", "strategies.toml"):
         h.update(name.encode())
-        h.update((base / name).read_bytes())
+        content = tomllib.loads((base / name).read_text(encoding="utf-8"))
+        h.update(json.dumps(content, sort_keys=True).encode())
     own = cfg.model_dump(mode="json", include={"settings", experiment})
     h.update(json.dumps(own, sort_keys=True).encode())
     return h.hexdigest()[:16]
