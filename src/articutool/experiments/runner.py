@@ -17,8 +17,8 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import tomllib
 import time
+import tomllib
 import traceback
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
