@@ -219,7 +219,7 @@ def _sec_exp2c(s: Mapping[str, Any], cfg: Any) -> str:
                    for k in EXP2C_CLASSES]
             rows.append([f, c, d["spill"]["n"], _msd(d["held_g"]), _msd(d["shed_g"]),
                          _msd(d["delivered_g"]), *cls,
-                         ", ".join(f"{k.split('_')[0]} {v:g} %" for k, v in t.items()),
+                         ", ".join(f"{k.replace('_', ' ')} {v:g} %" for k, v in t.items()),
                          _p(e.get("fisher_meaningful", {}).get("p")) if c == "primitive"
                          else ""])
     out += _table(["food", "condition", "n", "held (g)", "shed into container (g)",
