@@ -342,6 +342,12 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
              f"Generated {_dt.datetime.now(_dt.UTC).isoformat(timespec='seconds')} by "
              f"`articutool experiment report --out {out}`. Thesis: J. J. Martinez, *Articutool* "
              "(MS thesis, UW 2025), Ch. 5 (protocols) and Ch. 6 (results).\n",
+             "## Regenerate\n",
+             "Every experiment resumes from its trial log (`<exp>/trials.jsonl`); each section "
+             "below gives the exact command that made it. All five and this page:\n\n"
+             "```sh\nmake experiments                 # 20 trials per condition, as the thesis\n"
+             "EXP_TRIALS=5 make experiments    # a shorter run\n"
+             "articutool experiment exp2b --trial K --video trial.mp4   # replay one trial\n```\n",
              "## Honesty rules\n", HONESTY]
     missing = []
     machines = {}
