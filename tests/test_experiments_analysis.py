@@ -93,6 +93,12 @@ def test_exp3_summary_four_classes_and_planning_attempts(cfg) -> None:
     assert a["counts"]["meaningful_success"] == 1 and a["counts"]["trivial_success"] == 1
     assert b["counts"]["table_spill"] == 1 and b["counts"]["user_spill"] == 1
     assert a["planning_attempts"]["mean"] == 1.5 and b["planning_attempts"]["mean"] == 2.5
+    # Attempts count to Staging only: a bite that failed planning to Resting has none.
+    failed = rec(0.0, completed=False, system="articutool", planning_attempts=3,
+                 planning_attempts_by_goal={"Resting": 3})
+    s2 = summarize("exp3", [*recs, failed], cfg)
+    assert s2["systems"]["articutool"]["planning_attempts"]["n"] == 2
+    assert s2["systems"]["articutool"]["counts"]["failed"] == 1
     # A configurable threshold: at 1.5 g the 2 g bite is meaningful too.
     assert summarize("exp3", recs, cfg, threshold_g=1.5)["systems"]["articutool"][
         "counts"]["meaningful_success"] == 2

@@ -19,7 +19,7 @@ import numpy as np
 from articutool.experiments.stats import describe, fisher, proportion_ci, welch
 from articutool.feeding.outcomes import OUTCOMES, classify_bite
 
-__all__ = ["EXP2C_CLASSES", "classify_exp2c", "summarize"]
+__all__ = ["EXP2C_CLASSES", "classify_exp2c", "staging_attempts", "summarize"]
 
 EXP2C_CLASSES = ("meaningful_success", "trivial_success", "transport_failure", "failed")
 
@@ -167,6 +167,15 @@ def summarize_exp1(records: Sequence[dict[str, Any]], cfg: Any) -> dict[str, Any
                                          "mass_g")}
 
 
+def staging_attempts(rec: Mapping[str, Any]) -> int | None:
+    """Planning attempts to Staging (the thesis' count, §6.3), or None when the bite never
+    planned to Staging (it failed before)."""
+    by = rec.get("planning_attempts_by_goal")
+    if by is not None:
+        return by.get("Staging")
+    return rec.get("planning_attempts") or None
+
+
 def summarize_exp3(records: Sequence[dict[str, Any]], cfg: Any,
                    threshold_g: float) -> dict[str, Any]:
     """The four outcome classes (and ``failed``) per system at ``threshold_g``; Fisher's
@@ -178,7 +187,7 @@ def summarize_exp3(records: Sequence[dict[str, Any]], cfg: Any,
     for s in systems:
         rs = _where(ok, system=s)
         e = _counts([classify(r, threshold_g) for r in rs], OUTCOMES)
-        att[s] = [r["planning_attempts"] for r in rs if r.get("planning_attempts")]
+        att[s] = [a for a in map(staging_attempts, rs) if a]
         e["planning_attempts"] = describe(att[s]).to_dict()
         e["delivered_g"] = describe([r["delivered_g"] for r in rs]).to_dict()
         e["no_spill"] = _rate(sum(1 for r in rs if r["spilled_g"] <= 1e-9), len(rs))

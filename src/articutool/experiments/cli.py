@@ -225,6 +225,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
         command="articutool " + " ".join(shlex.quote(a) for a in sys.argv[1:])
         if sys.argv[1:2] == ["experiment"] else f"articutool experiment {exp}",
         data_hash=settings["data_hash"])
+    old_path = d / "summary.json"
+    if summary_run.ran == 0 and old_path.exists():  # nothing ran: keep when and how it did
+        old_run = json.loads(old_path.read_text(encoding="utf-8")).get("run", {})
+        for k in ("experiment_wall_time_s", "executor", "machine", "date", "command"):
+            if k in old_run:
+                summary["run"][k] = old_run[k]
     summary.update({k: v for k, v in extra.items() if k != "conditions"})
     if exp == "exp2c":
         summary["thresholds_source"] = th_src

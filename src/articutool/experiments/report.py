@@ -381,8 +381,10 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
         rows = [[e, m.get("host"), m.get("platform"), m.get("python"), m.get("cpus"),
                  m.get("load_avg"), d] for e, (m, d) in machines.items()]
         parts.append("## Machine and date\n\n" + _table(
-            ["experiment", "host", "platform", "python", "CPUs", "load average at start",
-             "date (UTC)"], rows) + "\n")
+            ["experiment", "host", "platform", "python", "CPUs",
+             "load average (1/5/15 min) when the run ended", "date (UTC) the run ended"],
+            rows) + "\n\nThe machine's 2 cores were shared with other work during every run: "
+            "wall times are upper bounds, and planning budgets are wall-clock (see Exp. 2c).\n")
     md = "\n".join(parts)
     md_path = out / "report.md"
     md_path.write_text(md, encoding="utf-8")
