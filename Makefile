@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 export MPLBACKEND := Agg
 
-.PHONY: demo test test-slow bench bench-quick bench-full bench-sim bench-flood soak lint clean syspkgs
+.PHONY: demo test test-slow bench bench-quick bench-full bench-sim bench-flood soak lint clean syspkgs experiments
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -70,6 +70,20 @@ bench-flood: $(VENV)/.installed
 SOAK_S ?= 3600
 soak: $(VENV)/.installed
 	$(BIN)/python benchmarks/soak.py --duration $(SOAK_S) --out results/soak.json
+
+# Issue 11: the thesis' physical experiments in the physics world (results/experiments),
+# resumable: rerun to finish an interrupted run. EXP_TRIALS=5 make experiments for a short one.
+# Order: capacity gives Exp. 2c its load; Exp. 1 gives Exp. 2c its thresholds (at report time).
+EXP_TRIALS ?= 20
+EXP_OUT ?= results/experiments
+EXP_FLAGS ?=
+experiments: $(VENV)/.installed
+	$(BIN)/articutool experiment capacity --trials $(EXP_TRIALS) --out $(EXP_OUT) $(EXP_FLAGS)
+	$(BIN)/articutool experiment exp2b --trials $(EXP_TRIALS) --out $(EXP_OUT) $(EXP_FLAGS)
+	$(BIN)/articutool experiment exp2c --trials $(EXP_TRIALS) --out $(EXP_OUT) $(EXP_FLAGS)
+	$(BIN)/articutool experiment exp1 --trials $(EXP_TRIALS) --out $(EXP_OUT) $(EXP_FLAGS)
+	$(BIN)/articutool experiment exp3 --trials $(EXP_TRIALS) --out $(EXP_OUT) $(EXP_FLAGS)
+	$(BIN)/articutool experiment report --out $(EXP_OUT)
 
 lint: $(VENV)/.installed
 	$(BIN)/ruff check src tests benchmarks examples

@@ -30,6 +30,7 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "articutool.feeding.cli",
     "articutool.bench.cli",
     "articutool.viewer.cli",
+    "articutool.experiments.cli",
 )
 
 

@@ -44,6 +44,8 @@ __all__ = [
     "SceneError",
     "SceneObject",
     "Sphere",
+    "StagingGoal",
+    "StagingSet",
     "default_scene_path",
     "rpy_matrix",
 ]
@@ -186,6 +188,45 @@ class Region(BaseModel):
     radius: Positive
 
 
+Joints6 = Annotated[list[Finite], Field(min_length=6, max_length=6)]
+
+
+class StagingGoal(BaseModel):
+    """One named Staging goal: arm joint configuration (rad, joints 1..6)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    name: Annotated[str, Field(min_length=1)]
+    q: Joints6
+    note: str = ""
+
+
+class StagingSet(BaseModel):
+    """The thesis' Exp. 2b transport set (§5.2.2, Fig. 5.2): a common start and diverse
+    Staging goals, all arm joint configurations (rad) at which the locked (rigid) utensil is
+    level, so that both the Articutool and the rigid baseline can start and end there."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    start: Joints6
+    goals: list[StagingGoal] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _unique(self) -> StagingSet:
+        names = [g.name for g in self.goals]
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            raise ValueError(f"duplicate staging goal name(s) {sorted(dup)}")
+        return self
+
+    def goal(self, name: str) -> list[float]:
+        """The named goal's configuration; unknown names list the known ones."""
+        for g in self.goals:
+            if g.name == name:
+                return list(g.q)
+        raise KeyError(f"unknown staging goal {name!r}; known: {[g.name for g in self.goals]}")
+
+
 def default_scene_path() -> Path:
     """Path of the scene shipped with the package."""
     return Path(str(resources.files("articutool") / "data" / "scene.toml"))
@@ -222,6 +263,7 @@ class Scene(BaseModel):
     frame: str = "j2n6s200_link_base"
     objects: list[SceneObject] = Field(default_factory=list)
     regions: list[Region] = Field(default_factory=list)
+    staging_set: StagingSet | None = None
 
     @model_validator(mode="after")
     def _unique(self) -> Scene:

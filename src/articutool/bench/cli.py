@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-__all__ = ["add_commands"]
+__all__ = ["add_commands", "make_executor"]
 
 
 def _usage(msg: str) -> Exception:
@@ -72,7 +72,9 @@ def _cmd_tasks(args: argparse.Namespace) -> int:
 
 
 # --------------------------------------------------------------- transport --
-def _make_executor(args: argparse.Namespace) -> Any:
+def make_executor(args: argparse.Namespace) -> Any:
+    """A Dask executor for ``--scheduler``, else a local pool of ``--workers`` processes
+    (a scheduler that cannot be reached is bad input)."""
     from articutool.bench.executors import DaskExecutor, ExecutorError, LocalExecutor
 
     if args.scheduler:
@@ -147,7 +149,7 @@ def _cmd_transport(args: argparse.Namespace) -> int:
     if ts.spec_hash != spec_hash(spec):
         err_console.print("[yellow]warning:[/] the tasks were generated with another spec "
                           f"(hash {ts.spec_hash}, this spec {spec_hash(spec)})")
-    executor = _make_executor(args)
+    executor = make_executor(args)
 
     # ---- run ----
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn

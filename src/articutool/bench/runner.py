@@ -16,7 +16,7 @@ import functools
 import json
 import math
 import os
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Hashable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -37,6 +37,7 @@ __all__ = [
     "parse_systems",
     "read_log",
     "record_key",
+    "run_logged",
     "run_trial",
     "run_trials",
 ]
@@ -170,17 +171,21 @@ class LogState:
     torn: int = 0  # an incomplete last line (0 or 1)
     corrupt: int = 0  # complete lines that are not a valid record
     valid_bytes: int = 0  # length of the file up to the end of the last complete line
+    key: Callable[[dict[str, Any]], Hashable] = field(default=record_key, repr=False)
 
     @property
-    def done(self) -> set[tuple[str, int, int, float | None]]:
+    def done(self) -> set[Any]:
         """Keys of the finished trials."""
-        return {record_key(r) for r in self.records}
+        return {self.key(r) for r in self.records}
 
 
-def read_log(path: str | Path) -> LogState:
-    """Read a results log; a missing file is an empty log."""
+def read_log(path: str | Path,
+             key: Callable[[dict[str, Any]], Hashable] = record_key) -> LogState:
+    """Read a results log; a missing file is an empty log. ``key`` gives a record's trial
+    identity (a line it cannot key is corrupt); other JSON-lines logs (the experiments)
+    pass their own."""
     p = Path(path)
-    state = LogState()
+    state = LogState(key=key)
     try:
         data = p.read_bytes()
     except FileNotFoundError:
@@ -194,7 +199,7 @@ def read_log(path: str | Path) -> LogState:
             continue
         try:
             rec = json.loads(line)
-            record_key(rec)
+            key(rec)
         except (ValueError, KeyError, TypeError):
             state.corrupt += 1
             continue
@@ -254,7 +259,53 @@ class RunSummary:
     skipped: int  # trials already in the log
     torn: int  # torn last lines found (and cut off)
     corrupt: int  # unreadable complete lines (ignored)
-    lost: list[tuple[Trial, str]]  # trials whose worker failed (not logged; rerun resumes)
+    lost: list[tuple[Any, str]]  # trials whose worker failed (not logged; rerun resumes)
+
+
+def run_logged(
+    items: Sequence[Any],
+    log_path: str | Path,
+    executor: Executor,
+    worker: Callable[[Any], dict[str, Any]],
+    key: Callable[[dict[str, Any]], Hashable] = record_key,
+    on_result: Callable[[dict[str, Any]], None] | None = None,
+    on_start: Callable[[int, int], None] | None = None,
+) -> RunSummary:
+    """Run ``worker`` on the ``items`` (each with a ``.key`` equal to ``key(record)``) not
+    yet in ``log_path`` on ``executor``, appending each record as it finishes.
+
+    ``on_start(pending, skipped)`` is called once before any work, ``on_result(rec)`` after
+    each record is durably logged (progress bars). Shared by the Exp. 2a benchmark and the
+    physical experiments (``articutool.experiments``).
+    """
+    log_path = Path(log_path)
+    state = read_log(log_path, key=key)
+    done = state.done
+    pending = [t for t in items if t.key not in done]
+    # Unique keys only: a duplicate trial in the input would be run twice.
+    pending = list({t.key: t for t in pending}.values())
+    skipped = len(items) - len(pending)
+    if on_start is not None:
+        on_start(len(pending), skipped)
+    log_path.parent.mkdir(parents=True, exist_ok=True)
+    fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+    lost: list[tuple[Any, str]] = []
+    records = list(state.records)
+    try:
+        if state.torn:
+            os.ftruncate(fd, state.valid_bytes)  # drop the torn tail before appending
+        for item, rec, err in executor.run(worker, pending):
+            if err is not None:
+                lost.append((item, f"{type(err).__name__}: {err}"))
+                continue
+            append_record(fd, rec)
+            records.append(rec)
+            if on_result is not None:
+                on_result(rec)
+    finally:
+        os.close(fd)
+    return RunSummary(records, len(pending) - len(lost), skipped, state.torn, state.corrupt,
+                      lost)
 
 
 def run_trials(
@@ -265,40 +316,10 @@ def run_trials(
     on_result: Callable[[dict[str, Any]], None] | None = None,
     on_start: Callable[[int, int], None] | None = None,
 ) -> RunSummary:
-    """Run the trials not yet in ``log_path`` on ``executor``, appending each as it finishes.
-
-    ``on_start(pending, skipped)`` is called once before any work, ``on_result(rec)`` after
-    each trial is durably logged (progress bars).
-    """
-    log_path = Path(log_path)
-    state = read_log(log_path)
-    done = state.done
-    pending = [t for t in trials if t.key not in done]
-    # Unique keys only: a duplicate trial in the input would be run twice.
-    pending = list({t.key: t for t in pending}.values())
-    skipped = len(trials) - len(pending)
-    if on_start is not None:
-        on_start(len(pending), skipped)
-    log_path.parent.mkdir(parents=True, exist_ok=True)
-    fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
-    lost: list[tuple[Trial, str]] = []
-    records = list(state.records)
-    try:
-        if state.torn:
-            os.ftruncate(fd, state.valid_bytes)  # drop the torn tail before appending
-        worker = run_trial if plan_fn is None else functools.partial(run_trial, plan_fn=plan_fn)
-        for trial, rec, err in executor.run(worker, pending):
-            if err is not None:
-                lost.append((trial, f"{type(err).__name__}: {err}"))
-                continue
-            append_record(fd, rec)
-            records.append(rec)
-            if on_result is not None:
-                on_result(rec)
-    finally:
-        os.close(fd)
-    return RunSummary(records, len(pending) - len(lost), skipped, state.torn, state.corrupt,
-                      lost)
+    """Run the trials not yet in ``log_path`` on ``executor``, appending each as it finishes
+    (:func:`run_logged` with :func:`run_trial`)."""
+    worker = run_trial if plan_fn is None else functools.partial(run_trial, plan_fn=plan_fn)
+    return run_logged(trials, log_path, executor, worker, record_key, on_result, on_start)
 
 
 def select(records: Iterable[dict[str, Any]], trials: Sequence[Trial]) -> list[dict[str, Any]]:

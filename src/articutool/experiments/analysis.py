@@ -1,0 +1,231 @@
+"""From trial records to each experiment's summary, pure (no I/O).
+
+Outcome classes come from :func:`articutool.feeding.outcomes.classify_bite` (the Exp. 3
+hierarchy); Exp. 2c reads it the thesis' way (§5.2.3): meaningful success, trivial success,
+transport failure (any spill, table or user), and a trial the tree could not finish
+(``failed``). Thresholds are applied here, at analysis time, so a trial never has to be rerun
+when Exp. 1's means (Exp. 2c's thresholds) change. Trials whose protocol raised (``error``)
+are counted and left out of every statistic.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from articutool.experiments.stats import describe, fisher, proportion_ci, welch
+from articutool.feeding.outcomes import OUTCOMES, classify_bite
+
+__all__ = ["EXP2C_CLASSES", "classify_exp2c", "staging_attempts", "summarize"]
+
+EXP2C_CLASSES = ("meaningful_success", "trivial_success", "transport_failure", "failed")
+
+
+def _ok(records: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [r for r in records if not r.get("error")]
+
+
+def _where(records: Iterable[dict[str, Any]], **kv: Any) -> list[dict[str, Any]]:
+    return [r for r in records if all(r.get(k) == v for k, v in kv.items())]
+
+
+def _wall(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    w = [float(r["wall_time_s"]) for r in records if r.get("wall_time_s") is not None]
+    return {"trials": len(records), "errors": sum(1 for r in records if r.get("error")),
+            "wall_time_per_trial_s": describe(w).to_dict() if w else None,
+            "wall_time_total_s": round(sum(w), 1)}
+
+
+def classify(rec: Mapping[str, Any], threshold_g: float) -> str:
+    """A record's Exp. 3 outcome class (:func:`classify_bite`) at ``threshold_g``."""
+    return classify_bite(float(rec["delivered_g"]), dict(rec["spilled_by_place"]),
+                         threshold_g, bool(rec["completed"]))
+
+
+def classify_exp2c(rec: Mapping[str, Any], threshold_g: float) -> str:
+    """Exp. 2c's class (§5.2.3): a table or user spill is a transport failure."""
+    c = classify(rec, threshold_g)
+    return "transport_failure" if c in ("table_spill", "user_spill") else c
+
+
+def _counts(classes: Sequence[str], names: Sequence[str]) -> dict[str, Any]:
+    n = len(classes)
+    cnt = Counter(classes)
+    return {"n": n, "counts": {k: cnt.get(k, 0) for k in names},
+            "percent": {k: (100.0 * cnt.get(k, 0) / n if n else None) for k in names}}
+
+
+def _rate(k: int, n: int) -> dict[str, Any]:
+    lo, hi = proportion_ci(k, n)
+    return {"k": k, "n": n, "rate": k / n if n else None,
+            "ci95": [lo, hi] if n else None}
+
+
+# ------------------------------------------------------------------ per experiment --
+def summarize_capacity(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """Mean maximal load per food (the Exp. 2c load)."""
+    ok = _ok(records)
+    foods = list(dict.fromkeys(r["food"] for r in ok))
+    out: dict[str, Any] = {"foods": {}}
+    for f in foods:
+        rs = _where(ok, food=f)
+        out["foods"][f] = {"capacity_g": describe([r["capacity_g"] for r in rs]).to_dict(),
+                           "utensil": rs[0]["utensil"], "overfill_g": rs[0]["overfill_g"],
+                           # Nothing fell in some trial: the load, not the utensil, bounded it.
+                           "lower_bound": any(r["fell_g"] <= 1e-9 for r in rs)}
+    return out
+
+
+def summarize_mass(records: Sequence[dict[str, Any]], foods: Sequence[str],
+                   systems: Sequence[str], field: str) -> dict[str, Any]:
+    """Per food: ``field`` per system (mean ± SD, 95 % CI), Welch of the first system
+    against the second, and how many trials had a non-zero value."""
+    ok = _ok(records)
+    out: dict[str, Any] = {}
+    for f in foods:
+        per = {s: [float(r[field]) for r in _where(ok, food=f, system=s)] for s in systems}
+        entry: dict[str, Any] = {s: {**describe(v).to_dict(),
+                                     "nonzero": _rate(sum(1 for x in v if x > 1e-9), len(v))}
+                                 for s, v in per.items()}
+        if len(systems) == 2:
+            a, b = (per[s] for s in systems)
+            entry["welch"] = welch(a, b).to_dict()
+        out[f] = entry
+    return out
+
+
+def summarize_exp2b(records: Sequence[dict[str, Any]], cfg: Any) -> dict[str, Any]:
+    """Spilled mass per food and system (Welch), spill frequency (Fisher), per goal, and the
+    planning and completion figures."""
+    ok = _ok(records)
+    systems = list(cfg.exp2b.systems)
+    out: dict[str, Any] = {"spilled_g": summarize_mass(ok, cfg.exp2b.foods, systems,
+                                                       "spilled_g")}
+    freq: dict[str, Any] = {}
+    per_goal: dict[str, Any] = {}
+    plan: dict[str, Any] = {}
+    for f in cfg.exp2b.foods:
+        rs = {s: _where(ok, food=f, system=s) for s in systems}
+        spill = {s: sum(1 for r in v if r["spilled_g"] > 1e-9) for s, v in rs.items()}
+        if len(systems) == 2:
+            a, b = systems
+            freq[f] = fisher(spill[a], len(rs[a]), spill[b], len(rs[b])).to_dict()
+        per_goal[f] = {s: {g: describe([r["spilled_g"] for r in v if r["goal"] == g]).to_dict()
+                           for g in dict.fromkeys(r["goal"] for r in v)} for s, v in rs.items()}
+        plan[f] = {s: {"completed": _rate(sum(1 for r in v if r["completed"]), len(v)),
+                       "planning_attempts": describe([r["planning_attempts"] for r in v]
+                                                     ).to_dict(),
+                       "max_tilt_deg": describe([r["max_tilt_deg"] for r in v
+                                                 if r.get("max_tilt_deg") is not None]
+                                                ).to_dict(),
+                       "held_g": describe([r["held_g"] for r in v]).to_dict()}
+                   for s, v in rs.items()}
+    out.update(spill_frequency_fisher=freq, per_goal=per_goal, transport=plan)
+    return out
+
+
+def summarize_exp2c(records: Sequence[dict[str, Any]], cfg: Any,
+                    thresholds_g: Mapping[str, float] | None) -> dict[str, Any]:
+    """Outcome classes per food and condition at ``thresholds_g`` (per food); Fisher's exact
+    test of meaningful success, primitive against control. Without thresholds only the
+    spill/no-spill split is given."""
+    ok = _ok(records)
+    out: dict[str, Any] = {"thresholds_g": dict(thresholds_g) if thresholds_g else None,
+                           "foods": {}}
+    for f in cfg.exp2c.foods:
+        entry: dict[str, Any] = {}
+        for c in ("control", "primitive"):
+            rs = _where(ok, food=f, condition=c)
+            e: dict[str, Any] = {
+                "spill": _rate(sum(1 for r in rs if r["spilled_g"] > 1e-9), len(rs)),
+                "delivered_g": describe([r["delivered_g"] for r in rs]).to_dict(),
+                "held_g": describe([r["held_g"] for r in rs]).to_dict(),
+                "shed_g": describe([r["shed_g"] for r in rs]).to_dict()}
+            if thresholds_g and f in thresholds_g:
+                e.update(_counts([classify_exp2c(r, thresholds_g[f]) for r in rs],
+                                 EXP2C_CLASSES))
+            entry[c] = e
+        if thresholds_g and f in thresholds_g:
+            t, c = entry["primitive"], entry["control"]
+            entry["fisher_meaningful"] = fisher(
+                t["counts"]["meaningful_success"], t["n"],
+                c["counts"]["meaningful_success"], c["n"]).to_dict()
+        t_rs, c_rs = (_where(ok, food=f, condition=k) for k in ("primitive", "control"))
+        entry["fisher_no_spill"] = fisher(
+            sum(1 for r in t_rs if r["spilled_g"] <= 1e-9), len(t_rs),
+            sum(1 for r in c_rs if r["spilled_g"] <= 1e-9), len(c_rs)).to_dict()
+        out["foods"][f] = entry
+    return out
+
+
+def summarize_exp1(records: Sequence[dict[str, Any]], cfg: Any) -> dict[str, Any]:
+    """Mass on the utensil at Resting per food and system, Welch (§5.1)."""
+    return {"acquired_g": summarize_mass(_ok(records), cfg.exp1.foods, cfg.exp1.systems,
+                                         "mass_g")}
+
+
+def staging_attempts(rec: Mapping[str, Any]) -> int | None:
+    """Planning attempts to Staging (the thesis' count, §6.3), or None when the bite never
+    planned to Staging (it failed before)."""
+    by = rec.get("planning_attempts_by_goal")
+    if by is not None:
+        return by.get("Staging")
+    return rec.get("planning_attempts") or None
+
+
+def summarize_exp3(records: Sequence[dict[str, Any]], cfg: Any,
+                   threshold_g: float) -> dict[str, Any]:
+    """The four outcome classes (and ``failed``) per system at ``threshold_g``; Fisher's
+    exact test of meaningful success and of no spill; planning attempts (Welch)."""
+    ok = _ok(records)
+    systems = list(cfg.exp3.systems)
+    out: dict[str, Any] = {"threshold_g": threshold_g, "systems": {}}
+    att = {}
+    for s in systems:
+        rs = _where(ok, system=s)
+        e = _counts([classify(r, threshold_g) for r in rs], OUTCOMES)
+        att[s] = [a for a in map(staging_attempts, rs) if a]
+        e["planning_attempts"] = describe(att[s]).to_dict()
+        e["delivered_g"] = describe([r["delivered_g"] for r in rs]).to_dict()
+        e["no_spill"] = _rate(sum(1 for r in rs if r["spilled_g"] <= 1e-9), len(rs))
+        out["systems"][s] = e
+    if len(systems) == 2:
+        a, b = (out["systems"][s] for s in systems)
+        out["fisher_meaningful"] = fisher(a["counts"]["meaningful_success"], a["n"],
+                                          b["counts"]["meaningful_success"], b["n"]).to_dict()
+        out["fisher_no_spill"] = fisher(a["no_spill"]["k"], a["n"], b["no_spill"]["k"],
+                                        b["n"]).to_dict()
+        out["welch_planning_attempts"] = welch(*(att[s] for s in systems)).to_dict()
+    return out
+
+
+def summarize(experiment: str, records: Sequence[dict[str, Any]], cfg: Any, *,
+              thresholds_g: Mapping[str, float] | None = None,
+              threshold_g: float | None = None) -> dict[str, Any]:
+    """The summary of ``experiment`` (see the per-experiment functions), with run figures."""
+    if experiment == "capacity":
+        body = summarize_capacity(records)
+    elif experiment == "exp1":
+        body = summarize_exp1(records, cfg)
+    elif experiment == "exp2b":
+        body = summarize_exp2b(records, cfg)
+    elif experiment == "exp2c":
+        body = summarize_exp2c(records, cfg, thresholds_g)
+    elif experiment == "exp3":
+        body = summarize_exp3(records, cfg, cfg.exp3.threshold_g if threshold_g is None
+                              else threshold_g)
+    else:
+        raise ValueError(f"unknown experiment {experiment!r}")
+    seeds = sorted({int(r["seed"]) for r in records})
+    return {"experiment": experiment, **body, "run": {**_wall(records), "seeds": seeds},
+            "per_condition_n": dict(Counter(
+                "/".join(str(r.get(k)) for k in ("food", "system", "condition") if k in r)
+                for r in _ok(records)))}
+
+
+def mean_or_none(values: Sequence[float]) -> float | None:
+    """Mean of a non-empty sequence, else None."""
+    return float(np.mean(values)) if len(values) else None

@@ -1,0 +1,356 @@
+"""``articutool experiment …``: the thesis' physical experiments in the physics world.
+
+* ``experiment capacity|exp1|exp2b|exp2c|exp3 [--trials N] [--workers N] [--scheduler ADDR]
+  [--out DIR] [--seed S] [--json]``: run (resumable; a progress bar on stderr), then write
+  ``DIR/<experiment>/summary.json`` and the figure and print our numbers beside the thesis'.
+* ``… --trial K [--video FILE]``: replay trial K alone (its seed is in its record), print its
+  record, and say whether it reproduces the logged one.
+* ``experiment report [--out DIR]``: one Markdown + HTML page with every table and figure.
+
+Every input is checked before anything runs (bad input: exit 2 naming the field).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import json
+import math
+import os
+import shlex
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+__all__ = ["add_commands"]
+
+RUN_EXPERIMENTS = ("capacity", "exp1", "exp2b", "exp2c", "exp3")
+DEFAULT_OUT = "results/experiments"
+
+
+def _usage(msg: str) -> Exception:
+    from articutool.cli import UsageError
+
+    return UsageError(msg)
+
+
+def _parse_food_grams(text: str, field: str) -> dict[str, float]:
+    """``"pecans=7,water=20"`` → ``{"pecans": 7.0, "water": 20.0}`` (grams > 0, finite)."""
+    out: dict[str, float] = {}
+    for part in text.split(","):
+        if not part.strip():
+            continue
+        food, sep, val = part.partition("=")
+        try:
+            g = float(val)
+        except ValueError:
+            g = math.nan
+        if not sep or not food.strip() or not math.isfinite(g) or g < 0:
+            raise _usage(f"{field} must be FOOD=GRAMS[,FOOD=GRAMS] with grams >= 0; "
+                         f"got {part.strip()!r}")
+        out[food.strip()] = g
+    return out
+
+
+def _check_common(args: argparse.Namespace) -> Path:
+    from articutool.experiments.design import MAX_TRIALS
+
+    if not 1 <= args.trials <= MAX_TRIALS:
+        raise _usage(f"--trials must be in [1, {MAX_TRIALS}] per condition; got {args.trials}")
+    if args.workers < 1:
+        raise _usage(f"--workers must be >= 1; got {args.workers}")
+    if args.seed < 0:
+        raise _usage(f"--seed must be >= 0; got {args.seed}")
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise _usage(f"--out {out} exists and is not a directory")
+    if args.video is not None:
+        if args.trial is None:
+            raise _usage("--video needs --trial K (a video of one replayed trial)")
+        v = Path(args.video)
+        if v.suffix.lower() not in (".mp4", ".gif"):
+            raise _usage(f"--video must end in .mp4 or .gif; got {v.name!r}")
+        if v.exists():
+            raise _usage(f"--video {v} exists; refusing to overwrite it")
+        if not v.parent.is_dir():
+            raise _usage(f"--video: directory {v.parent} does not exist")
+    return out
+
+
+def _thresholds(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str, float] | None,
+                                                                         str]:
+    """Exp. 2c's thresholds: ``--thresholds-g``, else OUR Exp. 1 Articutool means (the thesis
+    took its own Exp. 1 means), else none (only spill / no spill is reported)."""
+    if getattr(args, "thresholds_g", None):
+        return _parse_food_grams(args.thresholds_g, "--thresholds-g"), "--thresholds-g"
+    p = out / "exp1" / "summary.json"
+    if p.exists():
+        s = json.loads(p.read_text(encoding="utf-8"))
+        acq = s.get("acquired_g", {})
+        th = {f: acq[f]["articutool"]["mean"] for f in cfg.exp2c.foods
+              if acq.get(f, {}).get("articutool", {}).get("mean") is not None}
+        if th:
+            return th, f"our Exp. 1 Articutool means ({p})"
+    return None, "none: run exp1 first or pass --thresholds-g"
+
+
+def _exp2c_loads(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str, float], str]:
+    if args.load_g:
+        loads = _parse_food_grams(args.load_g, "--load-g")
+        src = "--load-g"
+    else:
+        p = out / "capacity" / "summary.json"
+        if not p.exists():
+            raise _usage(f"exp2c needs the capacity load: run `articutool experiment capacity "
+                         f"--out {out}` first, or pass --load-g pecans=G,water=G")
+        s = json.loads(p.read_text(encoding="utf-8"))
+        loads = {f: v["capacity_g"]["mean"] for f, v in s["foods"].items()
+                 if v["capacity_g"].get("mean")}
+        src = f"our capacity means ({p})"
+    missing = [f for f in cfg.exp2c.foods if f not in loads or loads[f] <= 0]
+    if missing:
+        raise _usage(f"--load-g: no load > 0 g for {missing}")
+    return loads, src
+
+
+def _trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
+                ) -> tuple[list[Any], dict[str, Any]]:
+    from articutool.experiments.design import conditions, make_trials
+
+    goals: list[str] = []
+    extra: dict[str, Any] = {}
+    loads = None
+    if exp == "exp2b":
+        from articutool.arm.scene import Scene
+
+        sset = Scene.load().staging_set
+        if sset is None:
+            raise _usage("the scene has no [staging_set] (Exp. 2b's start and goals)")
+        goals = [g.name for g in sset.goals]
+        extra["goals"] = goals
+    if exp == "exp2c":
+        loads, src = _exp2c_loads(args, out, cfg)
+        extra.update(load_g=loads, load_source=src)
+    conds = conditions(exp, cfg, goals=goals, load_g=loads)
+    return make_trials(exp, conds, args.trials, args.seed, goals=goals), {
+        "conditions": conds, **extra}
+
+
+def _machine() -> dict[str, Any]:
+    import platform
+
+    return {"host": platform.node(), "platform": platform.platform(),
+            "python": platform.python_version(), "cpus": os.cpu_count(),
+            "load_avg": [round(x, 2) for x in os.getloadavg()]}
+
+
+def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) -> int:
+    from articutool.experiments.runner import read_trials, run_trial
+
+    spec = next((t for t in trials if t.trial == args.trial), None)
+    if spec is None:
+        raise _usage(f"--trial must be in [0, {len(trials) - 1}] for --trials {args.trials}; "
+                     f"got {args.trial}")
+    rec_holder: dict[str, Any] = {}
+
+    def hook(world: Any) -> None:
+        from articutool.sim.render import Recorder
+
+        rec_holder["r"] = Recorder(world, fps=15.0, camera="overview")
+
+    rec = run_trial(spec, hook if args.video else None)
+    logged = {r["trial"]: r for r in read_trials(out, exp)}.get(spec.trial)
+    if rec.get("error"):
+        print(f"error: trial {spec.trial} failed: {rec['error']}", file=sys.stderr)
+        return 1
+    if args.video:
+        rec_holder["r"].save(args.video)
+    # Plans run in a thread while the world steps, so when a plan is ready in simulated time
+    # depends on the machine's speed: these may differ slightly between runs of one seed.
+    timing = {"wall_time_s", "pid", "realtime_factor", "planning_time_s", "motion_time_s",
+              "sim_time_s", "bite_wall_time_s", "max_tilt_deg", "transport_max_tilt_deg",
+              "traceback"}
+    if logged is None:
+        verdict = "no logged record to compare with"
+    else:
+        diff = sorted(k for k in rec if k not in timing and logged.get(k) != rec[k])
+        verdict = "reproduces the logged record" if not diff else (
+            f"differs from the logged record in {diff}")
+        moved = [f"{k} {logged.get(k)} → {rec[k]}" for k in sorted(timing & rec.keys())
+                 if k not in ("wall_time_s", "pid", "realtime_factor", "bite_wall_time_s",
+                              "traceback") and logged.get(k) != rec[k]]
+        if moved:
+            verdict += f" (timing-dependent: {'; '.join(moved)})"
+    if args.json:
+        print(json.dumps({"record": rec, "replay": verdict}, indent=1))
+    else:
+        print(json.dumps(rec, indent=1))
+        print(f"trial {spec.trial} (seed {spec.seed}): {verdict}")
+        if args.video:
+            print(f"video {args.video}")
+    return 0 if not rec.get("error") else 1
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from articutool.experiments import report
+    from articutool.experiments.analysis import summarize
+    from articutool.experiments.config import ExperimentsConfig, ExperimentsConfigError
+    from articutool.experiments.runner import RunError, data_hash, log_path, pin_run
+
+    exp = args.experiment
+    out = _check_common(args)
+    if args.video:
+        import articutool.sim.render  # noqa: F401  (chooses the EGL backend before MuJoCo loads)
+    if getattr(args, "threshold_g", None) is not None and not (
+            math.isfinite(args.threshold_g) and args.threshold_g >= 0):
+        raise _usage(f"--threshold-g must be a finite mass >= 0 g; got {args.threshold_g}")
+    try:
+        cfg = ExperimentsConfig.load()
+    except ExperimentsConfigError as err:
+        raise _usage(str(err)) from None
+    trials, extra = _trials_for(exp, args, out, cfg)
+    if args.trial is not None:
+        return _replay(args, exp, trials, out)
+    d = out / exp
+    settings = {"experiment": exp, "seed": args.seed, "data_hash": data_hash(exp, cfg),
+                "conditions": extra["conditions"]}
+    try:
+        pin_run(d / "run.json", settings)
+    except RunError as err:
+        raise _usage(str(err)) from None
+    from articutool.bench.cli import make_executor
+
+    executor = make_executor(args)
+    summary_run = _run_with_progress(trials, log_path(out, exp), executor, exp)
+    records = summary_run.records
+    th, th_src = _thresholds(args, out, cfg) if exp == "exp2c" else (None, "")
+    summary = summarize(exp, records, cfg, thresholds_g=th,
+                        threshold_g=getattr(args, "threshold_g", None))
+    summary["run"].update(
+        trials_per_condition=args.trials, base_seed=args.seed, executor=executor.description,
+        experiment_wall_time_s=round(summary_run.wall_time_s, 1), ran_now=summary_run.ran,
+        machine=_machine(), date=_dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        command="articutool " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+        if sys.argv[1:2] == ["experiment"] else f"articutool experiment {exp}",
+        data_hash=settings["data_hash"])
+    old_path = d / "summary.json"
+    if summary_run.ran == 0 and old_path.exists():  # nothing ran: keep when and how it did
+        old_run = json.loads(old_path.read_text(encoding="utf-8")).get("run", {})
+        for k in ("experiment_wall_time_s", "executor", "machine", "date", "command"):
+            if k in old_run:
+                summary["run"][k] = old_run[k]
+    summary.update({k: v for k, v in extra.items() if k != "conditions"})
+    if exp == "exp2c":
+        summary["thresholds_source"] = th_src
+    (d / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n",
+                                    encoding="utf-8")
+    figure = report.figure(exp, records, summary, cfg, d)
+    md = report.section(exp, summary, cfg, figure.name if figure else None)
+    if args.json:
+        print(json.dumps(summary, indent=1))
+    else:
+        from rich.console import Console
+        from rich.markdown import Markdown
+
+        Console(width=None if sys.stdout.isatty() else 150).print(Markdown(md))
+        print(f"wrote {d / 'summary.json'}" + (f", {figure}" if figure else ""))
+    if summary_run.lost:
+        print(f"{len(summary_run.lost)} trial(s) did not finish (worker failure); run the "
+              "same command again to resume them", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _run_with_progress(trials: list[Any], log: Path, executor: Any, exp: str) -> Any:
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
+
+    from articutool.experiments.runner import run_experiment
+
+    con = Console(stderr=True)
+    with Progress("[progress.description]{task.description}", BarColumn(),
+                  MofNCompleteColumn(), TimeElapsedColumn(), console=con) as bar:
+        job = bar.add_task(exp, total=0)
+        t0 = time.perf_counter()
+
+        def started(pending: int, skipped: int) -> None:
+            bar.update(job, total=pending)
+            con.print(f"{exp}: {len(trials)} trials on {executor.description}: {skipped} "
+                      f"already in {log}, {pending} to run")
+
+        def finished(rec: dict[str, Any]) -> None:
+            bar.update(job, advance=1, description=(
+                f"{exp} (last trial {rec['trial']}: {rec['wall_time_s']:.0f} s"
+                f"{', ERROR' if rec.get('error') else ''})"))
+
+        try:
+            res = run_experiment(trials, log, executor, on_start=started, on_result=finished)
+        finally:
+            executor.close()
+        con.print(f"{exp}: ran {res.ran} trial(s) in {time.perf_counter() - t0:.1f} s")
+    return res
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from articutool.experiments import report
+    from articutool.experiments.config import ExperimentsConfig
+
+    out = Path(args.out)
+    if not out.is_dir():
+        raise _usage(f"--out {out} is not a directory of experiment results")
+    if args.threshold_g is not None and not (math.isfinite(args.threshold_g)
+                                             and args.threshold_g >= 0):
+        raise _usage(f"--threshold-g must be a finite mass >= 0 g; got {args.threshold_g}")
+    cfg = ExperimentsConfig.load()
+    th, src = _thresholds(args, out, cfg)
+    md, html = report.write_report(out, cfg, thresholds_g=th, thresholds_source=src,
+                                   threshold_g=args.threshold_g)
+    print(f"wrote {md} and {html}")
+    return 0
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    """Register ``experiment …``."""
+    p0 = sub.add_parser("experiment", help="the thesis' physical experiments in simulation")
+    esub = p0.add_subparsers(dest="experiment", required=True, metavar="EXPERIMENT")
+    helps = {"capacity": "maximum-capacity loads (Exp. 2c's load)",
+             "exp1": "acquisition, H1 (§5.1)",
+             "exp2b": "transport of placed loads to five Staging goals, H2 (§5.2.2)",
+             "exp2c": "shedding primitives vs control, H2 (§5.2.3)",
+             "exp3": "noodles end to end, H3 (§5.3)"}
+    for name in RUN_EXPERIMENTS:
+        p = esub.add_parser(name, help=helps[name])
+        p.add_argument("--trials", type=int, default=20,
+                       help="trials per condition (default 20, as the thesis)")
+        p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                       help="local worker processes (default: CPU count)")
+        p.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                       help="run on a Dask distributed cluster at ADDRESS")
+        p.add_argument("--out", metavar="DIR", default=DEFAULT_OUT,
+                       help=f"results root (default {DEFAULT_OUT}); rerun to resume")
+        p.add_argument("--seed", type=int, default=0,
+                       help="base seed (repeat r has seed 1000·S + r)")
+        p.add_argument("--json", action="store_true", help="print the summary as JSON")
+        p.add_argument("--trial", type=int, default=None, metavar="K",
+                       help="replay trial K alone and print its record")
+        p.add_argument("--video", metavar="FILE", default=None,
+                       help="with --trial: record a video (.mp4 or .gif)")
+        if name == "exp2c":
+            p.add_argument("--load-g", default=None, metavar="FOOD=G,…",
+                           help="the load per food (default: our capacity means)")
+            p.add_argument("--thresholds-g", default=None, metavar="FOOD=G,…",
+                           help="meaningful-success thresholds (default: our Exp. 1 "
+                                "Articutool means)")
+        if name == "exp3":
+            p.add_argument("--threshold-g", type=float, default=None,
+                           help="meaningful-success threshold (default 3.0 g, §5.3)")
+        p.set_defaults(func=_cmd_run)
+    p = esub.add_parser("report", help="one Markdown + HTML page with every experiment")
+    p.add_argument("--out", metavar="DIR", default=DEFAULT_OUT,
+                   help=f"results root (default {DEFAULT_OUT})")
+    p.add_argument("--thresholds-g", default=None, metavar="FOOD=G,…",
+                   help="Exp. 2c thresholds (default: our Exp. 1 Articutool means)")
+    p.add_argument("--threshold-g", type=float, default=None,
+                   help="Exp. 3 threshold (default 3.0 g)")
+    p.set_defaults(func=_cmd_report)

@@ -1,0 +1,102 @@
+"""The experiments' settings and the thesis' reference numbers: ``data/experiments.toml``,
+validated (errors name the field). One file, so no protocol value is restated in code."""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from articutool.datafile import format_validation_error, read_document
+from articutool.spec import Positive
+
+__all__ = ["ExperimentsConfig", "ExperimentsConfigError", "default_experiments_path"]
+
+Names = Annotated[list[Annotated[str, Field(min_length=1)]], Field(min_length=1)]
+
+
+class ExperimentsConfigError(ValueError):
+    """The experiments file is missing, malformed or invalid."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Settings(_Strict):
+    """Shared by every experiment and both systems."""
+
+    plan_budget_s: Positive
+    tree_timeout_s: Positive
+    settle_s: Positive
+    arm_tolerance_deg: Annotated[float, Field(gt=0, lt=90)]
+
+
+class Exp1(_Strict):
+    """Exp. 1 (§5.1)."""
+
+    foods: Names
+    systems: Names
+    timeout_s: Positive
+
+
+class Exp2b(_Strict):
+    """Exp. 2b (§5.2.2)."""
+
+    foods: Names
+    systems: Names
+    load_g: dict[str, Positive]
+
+
+class Exp2c(_Strict):
+    """Exp. 2c (§5.2.3): the strategy whose post-acquisition primitive is the test."""
+
+    foods: Names
+    strategy: dict[str, str]
+
+
+class Capacity(_Strict):
+    """Our "maximum capacity" protocol (see the data file)."""
+
+    foods: Names
+    overfill_g: dict[str, Positive]
+
+
+class Exp3(_Strict):
+    """Exp. 3 (§5.3)."""
+
+    food: Annotated[str, Field(min_length=1)]
+    systems: Names
+    threshold_g: Annotated[float, Field(ge=0)]
+    timeout_s: Positive
+
+
+class ExperimentsConfig(_Strict):
+    """The validated ``experiments.toml``."""
+
+    version: Annotated[int, Field(ge=1, le=1)] = 1
+    settings: Settings
+    exp1: Exp1
+    exp2b: Exp2b
+    exp2c: Exp2c
+    capacity: Capacity
+    exp3: Exp3
+    thesis: dict[str, Any]
+
+    @classmethod
+    def load(cls, path: str | Path | None = None) -> ExperimentsConfig:
+        """Load and validate; ``None`` loads the packaged file."""
+        p = Path(path) if path is not None else default_experiments_path()
+        data = read_document(p, "experiments file", ExperimentsConfigError)
+        try:
+            return cls.model_validate(data)
+        except ValidationError as err:
+            raise ExperimentsConfigError(
+                format_validation_error(err, f"invalid experiments file {p}:")) from None
+
+
+def default_experiments_path() -> Path:
+    """Path of the packaged experiments file."""
+    return Path(str(resources.files("articutool") / "data" / "experiments.toml"))

@@ -1,0 +1,86 @@
+"""Which trials each experiment runs, pure: conditions × repeats, their seeds and indices.
+
+Trials are numbered trial-major: trial ``K = r · C + c`` is repeat ``r`` of condition ``c``
+(``C`` conditions). Raising ``--trials`` appends trials and never renumbers the ones run, and a
+partial run is balanced across conditions. Repeat ``r`` has the seed ``1000 · S + r`` for base
+seed ``S`` in every condition (common random numbers: the systems face the same food placement,
+sensor noise and planner seed), so a trial is reproduced alone from its record.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = ["EXPERIMENTS", "MAX_TRIALS", "TrialSpec", "conditions", "make_trials", "trial_seed"]
+
+EXPERIMENTS = ("capacity", "exp1", "exp2b", "exp2c", "exp3")
+MAX_TRIALS = 1000  # per condition (the seed stride)
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """One trial: experiment, index ``K``, repeat, seed, and its condition (sorted items)."""
+
+    experiment: str
+    trial: int
+    repeat: int
+    seed: int
+    condition: tuple[tuple[str, Any], ...]
+
+    @property
+    def key(self) -> tuple[str, int]:
+        """Identity in the log: ``(experiment, trial)``."""
+        return (self.experiment, self.trial)
+
+    @property
+    def cond(self) -> dict[str, Any]:
+        """The condition as a dict."""
+        return dict(self.condition)
+
+
+def trial_seed(base_seed: int, repeat: int) -> int:
+    """The seed of repeat ``repeat`` (see module doc)."""
+    return MAX_TRIALS * base_seed + repeat
+
+
+def conditions(experiment: str, cfg: Any, *, goals: Sequence[str] = (),
+               load_g: Mapping[str, float] | None = None) -> list[dict[str, Any]]:
+    """The conditions of ``experiment`` in a fixed order (``cfg``: the experiments config;
+    ``goals``: the staging set's goal names for exp2b; ``load_g``: exp2c's load per food)."""
+    if experiment == "capacity":
+        return [{"food": f} for f in cfg.capacity.foods]
+    if experiment == "exp1":
+        return [{"food": f, "system": s} for f in cfg.exp1.foods for s in cfg.exp1.systems]
+    if experiment == "exp2b":
+        return [{"food": f, "system": s} for f in cfg.exp2b.foods for s in cfg.exp2b.systems]
+    if experiment == "exp2c":
+        if load_g is None:
+            raise ValueError("exp2c needs the load per food (the capacity)")
+        return [{"food": f, "condition": c, "load_g": round(float(load_g[f]), 2)}
+                for f in cfg.exp2c.foods for c in ("control", "primitive")]
+    if experiment == "exp3":
+        return [{"food": cfg.exp3.food, "system": s} for s in cfg.exp3.systems]
+    raise ValueError(f"experiment must be one of {EXPERIMENTS}; got {experiment!r}")
+
+
+def make_trials(experiment: str, conds: Sequence[dict[str, Any]], trials: int, seed: int,
+                *, goals: Sequence[str] = ()) -> list[TrialSpec]:
+    """``trials`` repeats of every condition (see module doc). Exp. 2b spreads repeats over
+    the ``goals`` in turn (repeat ``r`` → goal ``r mod len(goals)``: 20 trials = 4 per goal)."""
+    if isinstance(trials, bool) or not isinstance(trials, int) or not 1 <= trials <= MAX_TRIALS:
+        raise ValueError(f"trials must be an integer in [1, {MAX_TRIALS}]; got {trials!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0; got {seed!r}")
+    if experiment == "exp2b" and not goals:
+        raise ValueError("exp2b needs the staging set's goals")
+    out = []
+    for r in range(trials):
+        for c, cond in enumerate(conds):
+            full = dict(cond)
+            if experiment == "exp2b":
+                full["goal"] = goals[r % len(goals)]
+            out.append(TrialSpec(experiment, r * len(conds) + c, r, trial_seed(seed, r),
+                                 tuple(sorted(full.items()))))
+    return out

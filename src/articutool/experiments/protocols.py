@@ -1,0 +1,279 @@
+"""One trial of each experiment in the physics world (imperative shell).
+
+Each protocol takes a trial's condition, its seed and the settings, runs the world and the
+project's own code (the feeding tree's transport subtree, the tool's primitives, the planners
+and verifier), and returns a flat dict of every measured quantity. Trials differ only by
+their seed (food placement, sensor noise and gyro bias, planner seed). A ``hook`` may be
+given the world before anything moves (video recording for ``--trial K --video``).
+
+- :func:`capacity_trial` — our "maximum capacity" protocol (§5.2.3; see ``experiments.toml``);
+- :func:`exp2b_trial` — a placed load carried from the common start to one Staging goal of
+  the scene's ``[staging_set]`` (§5.2.2): the Articutool (decoupled + LEVELING) or the
+  baseline (strict ±20°, wrist locked);
+- :func:`exp2c_trial` — the capacity load carried Resting → Staging by the Articutool, with or
+  without its shedding primitive first, over the food's container (§5.2.3).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from articutool.experiments.config import ExperimentsConfig
+from articutool.feeding.sim_arm import SimArm
+from articutool.sim.world import FeedingWorld
+
+__all__ = ["BITE_PROTOCOLS", "Hook", "capacity_trial", "exp1_trial", "exp2b_trial",
+           "exp2c_trial", "exp3_trial", "json_safe", "transport"]
+
+Hook = Callable[[FeedingWorld], None] | None
+SPILL_KEYS = ("table", "critical")
+
+
+class _GoalArm(SimArm):
+    """:class:`SimArm` with extra named goals (the scene's staging set)."""
+
+    def __init__(self, world: FeedingWorld, goals: dict[str, Any],
+                 tolerance_deg: float | None = None, seed: int = 0) -> None:
+        super().__init__(world, tolerance_deg=tolerance_deg, seed=seed)
+        self.extra = {k: np.asarray(v, dtype=float) for k, v in goals.items()}
+
+    def goal_configuration(self, goal: str) -> np.ndarray:
+        """A staging-set goal, else the spec's configurations and Staging."""
+        if goal in self.extra:
+            return self.extra[goal]
+        return super().goal_configuration(goal)
+
+
+def _r(x: float) -> float:
+    return round(float(x), 4)
+
+
+def _masses(world: FeedingWorld) -> dict[str, float]:
+    return {k: _r(v) for k, v in world.masses_g().items()}
+
+
+def transport(world: FeedingWorld, arm: SimArm, goal: str, planner: str, *, attempts: int,
+              cfg: ExperimentsConfig) -> dict[str, Any]:
+    """Run the feeding tree's transport subtree (plan → verify → execute, bounded attempts,
+    the tool's mode scoped) to ``goal``; then hold still ``settle_s``. Returns what the tree
+    recorded and the tilt the utensil reached on the way."""
+    import py_trees
+    from py_trees.common import Status
+
+    from articutool.feeding.tree import run_tree, transport_tree
+
+    py_trees.blackboard.Blackboard.clear()
+    s = cfg.settings
+    tilts: list[float] = []
+
+    def watch(w: FeedingWorld) -> None:
+        tilts.append(w.tilt_deg())
+
+    world.on_tick.append(watch)
+    try:
+        root = transport_tree(arm, world.tool, goal, planner, attempts=attempts,
+                              budget_s=s.plan_budget_s, clock=world.clock)
+        status, rec = run_tree(root, world.run, world.clock, timeout_s=s.tree_timeout_s)
+    finally:
+        world.on_tick.remove(watch)
+    attempts_used = py_trees.blackboard.Blackboard.get(f"/bite/planning_attempts_{goal}")
+    world.run(s.settle_s)
+    return {
+        "completed": status == Status.SUCCESS,
+        "planning_attempts": int(attempts_used or 0),
+        "planning_time_s": _r(rec.planning_time_s),
+        "motion_time_s": _r(rec.motion_time_s),
+        "failed_stage": rec.failed_stage,
+        "max_tilt_deg": _r(max(tilts)) if tilts else None,
+    }
+
+
+def _outcome_fields(before: dict[str, float], after: dict[str, float]) -> dict[str, Any]:
+    """Spill during the transport by place, and what was delivered (on the utensil or
+    eaten at the mouth)."""
+    spilled = {k: _r(max(0.0, after[k] - before[k])) for k in SPILL_KEYS}
+    return {
+        "spilled_by_place": spilled,
+        "spilled_g": _r(sum(spilled.values())),
+        "shed_g": _r(max(0.0, after["container"] - before["container"])),
+        "delivered_g": _r(after["utensil"] + after["eaten"]),
+        "airborne_g": after["airborne"],
+    }
+
+
+def capacity_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
+                   hook: Hook = None) -> dict[str, Any]:
+    """One maximal load: the leveled, tared utensil loaded with ``overfill_g``; what stays
+    after ``settle_s`` level, by ground truth and as the F/T sensor weighs it."""
+    from articutool.tool.api import Mode
+
+    food = cond["food"]
+    over = cfg.capacity.overfill_g[food]
+    w = FeedingWorld(food, seed=seed, load_g=over)
+    if hook:
+        hook(w)
+    w.tool.set_mode(Mode.LEVELING)
+    w.run(1.0)
+    w.tare_ft(0.3)
+    w.place_load(settle_s=cfg.settings.settle_s)
+    g = w.masses_g()
+    return {"utensil": w.utensil, "overfill_g": over, "capacity_g": _r(g["utensil"]),
+            "ft_mass_g": _r(w.ft_mass_g()) if w.ft_comparable() else None,
+            "fell_g": _r(g["container"] + g["table"] + g["critical"])}
+
+
+def exp2b_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
+                hook: Hook = None) -> dict[str, Any]:
+    """Exp. 2b: load placed at the common start, carried to ``cond['goal']``."""
+    from articutool.arm.scene import Scene
+    from articutool.tool.api import Mode
+
+    food, system, goal = cond["food"], cond["system"], cond["goal"]
+    sset = Scene.load().staging_set
+    if sset is None:
+        raise ValueError("the scene has no [staging_set]")
+    load = cfg.exp2b.load_g[food]
+    w = FeedingWorld(food, seed=seed, load_g=load, q_arm=sset.start)
+    if hook:
+        hook(w)
+    goals = {g.name: g.q for g in sset.goals}
+    articutool = system == "articutool"
+    tol = None if articutool else cfg.settings.arm_tolerance_deg
+    arm = _GoalArm(w, goals, tolerance_deg=tol, seed=seed)
+    try:
+        if articutool:
+            w.tool.set_mode(Mode.LEVELING)
+        w.run(1.0)
+        w.tare_ft(0.3)
+        held = w.place_load(settle_s=cfg.settings.settle_s)
+        before = w.masses_g()
+        tr = transport(w, arm, goal, "decoupled" if articutool else "strict6",
+                       attempts=_plan_attempts(food, system), cfg=cfg)
+    finally:
+        arm.close()
+    after = w.masses_g()
+    return {"load_g": load, "held_g": _r(held), "planner": "decoupled" if articutool
+            else "strict6", "tolerance_deg": tol, **tr, **_outcome_fields(before, after),
+            "masses_after_g": _masses(w), "realtime_factor": _r(w.realtime_factor)}
+
+
+def _plan_attempts(food: str, system: str) -> int:
+    """The strategy library's plan-attempt limit for the food and system (the same for both
+    systems in the shipped file)."""
+    from articutool.feeding.strategies import StrategyLibrary
+    from articutool.spec import load_spec
+
+    lib = StrategyLibrary.load(load_spec())
+    found = lib.for_food(food, system)
+    return max(s.attempts.plan for s in found.values()) if found else 3
+
+
+def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
+                hook: Hook = None) -> dict[str, Any]:
+    """Exp. 2c: ``cond['load_g']`` placed at Resting, the shedding primitive (test) or not
+    (control), transport to Staging with the Articutool."""
+    from articutool.feeding.strategies import StrategyLibrary
+    from articutool.spec import load_spec
+    from articutool.tool.api import Mode
+
+    food, arm_cond, load = cond["food"], cond["condition"], float(cond["load_g"])
+    spec = load_spec()
+    strat = StrategyLibrary.load(spec).strategies[cfg.exp2c.strategy[food]]
+    stage = strat.stages.post_acquisition
+    w = FeedingWorld(food, seed=seed, load_g=load)
+    if hook:
+        hook(w)
+    arm = SimArm(w, seed=seed)
+    prim: dict[str, Any] = {"primitive": None}
+    try:
+        w.tool.set_mode(Mode.LEVELING)
+        w.run(1.0)
+        w.tare_ft(0.3)
+        held = w.place_load(settle_s=cfg.settings.settle_s)
+        loaded = w.masses_g()
+        if arm_cond == "primitive":
+            w.tool.set_mode(Mode.DISABLED)  # primitives are refused while leveling
+            ok, msg = w.tool.start_primitive(stage.primitive, list(stage.params))
+            done = ok and w.run_until(lambda: w.tool.mode != Mode.PRIMITIVE, 60.0)
+            st = w.tool.primitive_status()
+            w.run(cfg.settings.settle_s)
+            prim = {"primitive": stage.primitive, "primitive_params": list(stage.params),
+                    "primitive_ok": bool(done and st is not None and st.success),
+                    "primitive_message": msg if not ok else (st.message if st else "")}
+        before = w.masses_g()
+        tr = transport(w, arm, "Staging", strat.transport.planner,
+                       attempts=strat.attempts.plan, cfg=cfg)
+    finally:
+        arm.close()
+    after = w.masses_g()
+    # Food on the table or the user is a spill whenever it falls (during the primitive too);
+    # into the container it is shed (thesis §5: not a failure).
+    by_primitive = {k: _r(max(0.0, before[k] - loaded[k])) for k in ("container", *SPILL_KEYS)}
+    return {"load_g": load, "held_g": _r(held), **prim, "primitive_moved_g": by_primitive,
+            "after_primitive_g": _r(before["utensil"]), **tr,
+            **_outcome_fields(loaded, after), "masses_after_g": _masses(w),
+            "realtime_factor": _r(w.realtime_factor)}
+
+
+def json_safe(x: Any) -> Any:
+    """``x`` with every non-finite float replaced by ``None`` (the log is strict JSON)."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: json_safe(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [json_safe(v) for v in x]
+    return x
+
+
+def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
+          stages: tuple[str, ...], timeout_s: float, threshold_g: float) -> dict[str, Any]:
+    """One bite through the feeding tree (:func:`articutool.feeding.meal.run_bite`): the
+    world, arm and strategy from :func:`~articutool.feeding.meal.make_bite_world` (the
+    strategy drawn from the action library with the seed), the given stages."""
+    from articutool.feeding.bite import BiteSettings
+    from articutool.feeding.meal import make_bite_world, run_bite
+
+    setup = make_bite_world(cond["food"], cond["system"], seed)
+    if hook:
+        hook(setup.world)
+    try:
+        r = run_bite(setup, stages=stages, threshold_g=threshold_g, timeout_s=timeout_s,
+                     settings=BiteSettings(budget_s=cfg.settings.plan_budget_s))
+    finally:
+        setup.arm.close()
+    w = setup.world
+    w.run(cfg.settings.settle_s)
+    rec = r.to_dict()
+    rec["bite_wall_time_s"] = rec.pop("wall_time_s")
+    for k in ("bite", "food", "system", "seed"):
+        rec.pop(k)
+    return json_safe({**rec, "utensil": w.utensil, "masses_end_g": _masses(w),
+                      "realtime_factor": _r(w.realtime_factor)})
+
+
+def exp1_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
+               hook: Hook = None) -> dict[str, Any]:
+    """Exp. 1 (§5.1): from AbovePlate, acquire with the system's strategy, move
+    level-constrained to Resting; the mass on the utensil there (``mass_g``, ground truth;
+    ``ft_mass_g`` as the F/T sensor weighs it when comparable)."""
+    rec = _bite(cond, seed, cfg, hook, ("above", "acquire", "resting"), cfg.exp1.timeout_s,
+                cfg.exp3.threshold_g)
+    rec["mass_g"] = rec["masses_end_g"]["utensil"]
+    return rec
+
+
+def exp3_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
+               hook: Hook = None) -> dict[str, Any]:
+    """Exp. 3 (§5.3): the whole bite — above the food, acquire, shed, Resting, Staging,
+    present (the simulated user takes it). The outcome class is re-derived at analysis time
+    with the configured threshold; ``outcome`` here is at ``cfg.exp3.threshold_g``."""
+    return _bite(cond, seed, cfg, hook, ("above", "acquire", "shed", "resting", "staging",
+                                         "present"), cfg.exp3.timeout_s, cfg.exp3.threshold_g)
+
+
+BITE_PROTOCOLS = {"exp1": exp1_trial, "exp3": exp3_trial}

@@ -1,0 +1,401 @@
+"""Our numbers beside the thesis': one Markdown section per experiment, the figures, and the
+whole report (Markdown + HTML) — the shell that turns summaries into pages and files.
+
+The report re-summarises every experiment from its trial log, so thresholds (Exp. 2c from our
+Exp. 1, Exp. 3's 3.0 g) are applied when the report is written; commands, machine, date and
+wall times come from each experiment's ``summary.json``.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from articutool.experiments.analysis import EXP2C_CLASSES, summarize
+from articutool.experiments.figures import mass_bars, outcome_bars
+from articutool.feeding.outcomes import OUTCOMES
+
+__all__ = ["HONESTY", "differences", "figure", "section", "write_report"]
+
+ORDER = ("exp1", "exp2b", "capacity", "exp2c", "exp3")
+TITLES = {
+    "capacity": "Maximum capacity (Exp. 2c's load, §5.2.3)",
+    "exp1": "Exp. 1 — acquisition (H1, §5.1; cf. Fig. 6.1)",
+    "exp2b": "Exp. 2b — transport of placed loads (H2, §5.2.2; cf. Fig. 6.3)",
+    "exp2c": "Exp. 2c — shedding primitives (H2, §5.2.3; cf. Fig. 6.4)",
+    "exp3": "Exp. 3 — noodles end to end (H3, §5.3; cf. Fig. 6.5)",
+}
+HONESTY = """\
+- **Trials differ only by seed.** Repeat *r* of every condition has seed 1000·S + r: the food's
+  placement, the sensors' noise and gyro bias, and the planner's seed. The systems face the
+  same seeds (common random numbers). Every trial's record holds its seed;
+  `articutool experiment EXP --trial K` replays it alone.
+- **Nothing is tuned to match the thesis.** Food models, utensils, primitives' parameters,
+  planners, budgets and tolerances are the project's data files (`data/physics.toml`,
+  `hardware.toml`, `strategies.toml`, `experiments.toml`, `scene.toml`) as they were; the
+  thesis' numbers appear only beside ours. Where ours differ, the section says by how much
+  and what physical reason we believe explains it.
+- **The baseline gets the same care.** Its strategy is its best one in the action library
+  (wrist locked, strict ±20° transport as in the thesis' physical trials), with the same
+  planners (OMPL RRT-Connect), the same per-attempt budget and attempt limit, the same
+  feeding-tree transport subtree, and the same world.
+- **Outcomes come from physics and the tool's own code**: masses are the world's accounting
+  of every piece or particle (on the utensil, shed into a container, on the table, on the
+  user/wheelchair/floor, eaten at the mouth); the classes are
+  `articutool.feeding.outcomes.classify_bite`; a shed into the bowl or plate is no spill.
+"""
+
+
+def _f(x: Any, nd: int = 2) -> str:
+    if x is None:
+        return "–"
+    if isinstance(x, float):
+        return f"{x:.{nd}f}"
+    return str(x)
+
+
+def _p(x: Any) -> str:
+    if x is None:
+        return "n/a"
+    return f"{x:.2g}" if x >= 1e-3 else f"{x:.1e}"
+
+
+def _msd(d: Mapping[str, Any] | None, nd: int = 2) -> str:
+    if not d or d.get("mean") is None:
+        return "–"
+    s = f"{d['mean']:.{nd}f}"
+    if d.get("sd") is not None:
+        s += f" ± {d['sd']:.{nd}f}"
+    return s
+
+
+def _ci(d: Mapping[str, Any] | None, nd: int = 2) -> str:
+    if not d or d.get("ci_low") is None:
+        return "–"
+    return f"[{d['ci_low']:.{nd}f}, {d['ci_high']:.{nd}f}]"
+
+
+def _table(head: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+# ------------------------------------------------------------------------ figures --
+def figure(exp: str, records: Sequence[dict[str, Any]], summary: Mapping[str, Any], cfg: Any,
+           directory: Path) -> Path | None:
+    """Write the experiment's figure into ``directory``; None if there is nothing to draw."""
+    ok = [r for r in records if not r.get("error")]
+    if not ok:
+        return None
+    if exp == "exp2b":
+        return mass_bars(ok, summary["spilled_g"], cfg.exp2b.foods, cfg.exp2b.systems,
+                         "spilled_g", "spilled during transport (g), mean ± 95% CI",
+                         "Exp. 2b: spill carrying placed loads to five Staging goals "
+                         "(cf. thesis Fig. 6.3)", directory / "exp2b.png")
+    if exp == "exp1":
+        return mass_bars(ok, summary["acquired_g"], cfg.exp1.foods, cfg.exp1.systems,
+                         "mass_g", "mass on the utensil at Resting (g), mean ± 95% CI",
+                         "Exp. 1: acquisition (cf. thesis Fig. 6.1)", directory / "exp1.png")
+    if exp == "exp2c" and summary.get("thresholds_g"):
+        groups = {f"{f}\n{c}": summary["foods"][f][c]["counts"]
+                  for f in cfg.exp2c.foods for c in ("control", "primitive")
+                  if "counts" in summary["foods"][f][c]}
+        return outcome_bars(groups, EXP2C_CLASSES, "Exp. 2c: shedding primitive vs control "
+                            "(cf. thesis Fig. 6.4)", directory / "exp2c.png")
+    if exp == "exp3":
+        groups = {s: v["counts"] for s, v in summary["systems"].items()}
+        return outcome_bars(groups, OUTCOMES, f"Exp. 3: noodles end to end, threshold "
+                            f"{summary['threshold_g']:g} g (cf. thesis Fig. 6.5)",
+                            directory / "exp3.png")
+    return None
+
+
+# ----------------------------------------------------------------------- sections --
+def _run_line(s: Mapping[str, Any]) -> str:
+    r = s.get("run", {})
+    w = r.get("wall_time_per_trial_s") or {}
+    parts = [f"{r.get('trials', 0)} trials ({r.get('trials_per_condition', '?')} per "
+             f"condition; {r.get('errors', 0)} errors)"]
+    if w.get("mean") is not None:
+        parts.append(f"wall time per trial {w['mean']:.1f} ± {_f(w.get('sd'), 1)} s, "
+                     f"sum {r.get('wall_time_total_s')} s")
+    if r.get("experiment_wall_time_s") is not None:
+        parts.append(f"last invocation {r['experiment_wall_time_s']} s on "
+                     f"{r.get('executor', '?')}")
+    return "; ".join(parts)
+
+
+def _sec_capacity(s: Mapping[str, Any], cfg: Any) -> str:
+    th = cfg.thesis["exp2c"]["capacity_g"]
+    rows = []
+    for f, v in s["foods"].items():
+        c = v["capacity_g"]
+        diff = (f"{c['mean'] - th[f]:+.1f} g ({100 * (c['mean'] / th[f] - 1):+.0f} %)"
+                if c.get("mean") is not None and f in th else "–")
+        held = ("≥ " if v.get("lower_bound") else "") + _msd(c)
+        rows.append([f, v["utensil"], c["n"], held, _ci(c), f"{th.get(f, '–')}", diff])
+    return (_table(["food", "utensil", "n", "ours: held level (g), mean ± SD", "95 % CI",
+                    "thesis (g)", "ours − thesis"], rows)
+            + "\n\nProtocol (ours; the thesis' was an experimenter's repeated maximal manual "
+              "scoops, their mean): the leveled, tared utensil is loaded far beyond what it "
+              "holds (`[capacity] overfill_g`: pieces dropped one by one, particles poured "
+              "in) and held level for `settle_s`; what stays is one maximal load; the mean is "
+              "Exp. 2c's load. Our scripted scoop takes only 1–3 pecan pieces and no water, "
+              "so it cannot be the protocol (see the README's *Not reproduced*). \"≥\" marks "
+              "a food for which nothing fell off in some trial: the most the world's loader "
+              "places (water: 15.5 g, a heap above the rim) all stayed, so the spoon's "
+              "capacity is at least that — a limit of our loader, not a measurement of the "
+              "spoon's maximum.")
+
+
+def _mass_rows(block: Mapping[str, Any], foods: Sequence[str], systems: Sequence[str],
+               thesis: Mapping[str, Any], cell: Any) -> list[list[Any]]:
+    """Rows food | system | n | mean ± SD | 95 % CI | thesis cell | Welch p | thesis p (the
+    p-values on each food's first row)."""
+    rows = []
+    for f in foods:
+        e = block[f]
+        for sys_ in systems:
+            d, first = e[sys_], sys_ == systems[0]
+            rows.append([f, sys_, d["n"], _msd(d), _ci(d), *cell(f, sys_, d),
+                         _p(e.get("welch", {}).get("p")) if first else "",
+                         thesis.get(f, {}).get("p", "–") if first else ""])
+    return rows
+
+
+def _sec_exp2b(s: Mapping[str, Any], cfg: Any) -> str:
+    th = cfg.thesis["exp2b"]
+
+    def cell(f: str, sys_: str, d: Mapping[str, Any]) -> list[str]:
+        t = th.get(f, {})
+        return [f"{d['nonzero']['k']}/{d['nonzero']['n']}",
+                _f(t.get(sys_)) if sys_ in t else "not in text"]
+
+    rows = _mass_rows(s["spilled_g"], cfg.exp2b.foods, cfg.exp2b.systems, th, cell)
+    out = _table(["food", "system", "n", "spilled (g), mean ± SD", "95 % CI",
+                  "trials with spill", "thesis mean (g)", "Welch p (ours)", "p (thesis)"],
+                 rows)
+    rows = []
+    for f in cfg.exp2b.foods:
+        for sys_ in cfg.exp2b.systems:
+            t = s["transport"][f][sys_]
+            rows.append([f, sys_, _msd(t["held_g"]), f"{t['completed']['k']}/{t['completed']['n']}",
+                         _msd(t["planning_attempts"]), _msd(t["max_tilt_deg"], 1),
+                         _p(s["spill_frequency_fisher"].get(f, {}).get("p"))
+                         if sys_ == cfg.exp2b.systems[0] else ""])
+    out += "\n\n" + _table(["food", "system", "load held after placing (g)", "completed",
+                            "planning attempts", "max utensil tilt (°)",
+                            "Fisher p, spill frequency"], rows)
+    rows = []
+    for f in cfg.exp2b.foods:
+        for sys_ in cfg.exp2b.systems:
+            pg = s["per_goal"][f][sys_]
+            rows.append([f, sys_] + [f"{_msd(v)} (n={v['n']})" for v in pg.values()])
+    goals = list(next(iter(s["per_goal"][cfg.exp2b.foods[0]].values())).keys()) if rows else []
+    out += "\n\nSpilled per goal (g):\n\n" + _table(["food", "system", *goals], rows)
+    return out
+
+
+def _sec_exp2c(s: Mapping[str, Any], cfg: Any) -> str:
+    th = cfg.thesis["exp2c"]
+    ths = s.get("thresholds_g")
+    out = (f"Loads: {', '.join(f'{f} {g:.2f} g' for f, g in s.get('load_g', {}).items())} "
+           f"({s.get('load_source', '?')}); thesis: 7 g / 20 g. Thresholds: "
+           + (", ".join(f"{f} {g:.2f} g" for f, g in ths.items()) if ths else "none")
+           + f" ({s.get('thresholds_source', '?')}); thesis: > 1.83 g / > 5.02 g (its Exp. 1 "
+             "means).\n\n")
+    rows = []
+    for f in cfg.exp2c.foods:
+        e = s["foods"][f]
+        for c in ("control", "primitive"):
+            d = e[c]
+            t = th.get(f"{f}_{c}", {})
+            pct = d.get("percent", {})
+            cls = [f"{d['counts'][k]} ({pct[k]:.0f} %)" if "counts" in d and d["n"] else "–"
+                   for k in EXP2C_CLASSES]
+            rows.append([f, c, d["spill"]["n"], _msd(d["held_g"]), _msd(d["shed_g"]),
+                         _msd(d["delivered_g"]), *cls,
+                         ", ".join(f"{k.replace('_', ' ')} {v:g} %" for k, v in t.items()),
+                         _p(e.get("fisher_meaningful", {}).get("p")) if c == "primitive"
+                         else ""])
+    out += _table(["food", "condition", "n", "held (g)", "shed into container (g)",
+                   "delivered (g)", "meaningful", "trivial", "transport failure",
+                   "tree failed", "thesis", "Fisher p (meaningful)"], rows)
+    out += ("\n\nSpill frequency alone (Fisher, no-spill trials, primitive vs control): "
+            + ", ".join(f"{f} p = {_p(s['foods'][f]['fisher_no_spill'].get('p'))}"
+                        for f in cfg.exp2c.foods) + ".")
+    return out
+
+
+def _sec_exp1(s: Mapping[str, Any], cfg: Any) -> str:
+    th = cfg.thesis["exp1"]
+
+    def cell(f: str, sys_: str, d: Mapping[str, Any]) -> list[str]:
+        t = th.get(f, {}).get(sys_)
+        return [f"{t[0]:.2f} ± {t[1]:.2f}" if t else "–"]
+
+    rows = _mass_rows(s["acquired_g"], cfg.exp1.foods, cfg.exp1.systems, th, cell)
+    return _table(["food", "system", "n", "acquired (g), mean ± SD", "95 % CI",
+                   "thesis (g)", "Welch p (ours)", "p (thesis)"], rows)
+
+
+def _sec_exp3(s: Mapping[str, Any], cfg: Any) -> str:
+    th = cfg.thesis["exp3"]
+    rows = []
+    for sys_, d in s["systems"].items():
+        t = th.get(sys_, {})
+        rows.append([sys_, d["n"], *(d["counts"][k] for k in OUTCOMES),
+                     " / ".join(str(t.get(k, "–")) for k in OUTCOMES[:4]),
+                     _msd(d["planning_attempts"]), _f(t.get("planning_attempts")),
+                     _msd(d["delivered_g"])])
+    out = _table(["system", "n", *(k.replace("_", " ") for k in OUTCOMES),
+                  "thesis (meaningful / trivial / table / user, of 20)",
+                  "planning attempts to Staging", "thesis attempts", "delivered (g)"], rows)
+    out += (f"\n\nThreshold {s['threshold_g']:g} g. Fisher p, meaningful success: "
+            f"{_p(s.get('fisher_meaningful', {}).get('p'))}; no spill: "
+            f"{_p(s.get('fisher_no_spill', {}).get('p'))} (thesis: {th.get('p_no_spill')}); "
+            f"Welch p, planning attempts: {_p(s.get('welch_planning_attempts', {}).get('p'))}.")
+    return out
+
+
+def differences(exp: str, s: Mapping[str, Any], cfg: Any) -> list[str]:
+    """Where our numbers differ from the thesis', by how much (one line each)."""
+    th = cfg.thesis
+    out: list[str] = []
+    if exp == "exp2b":
+        for f, t in th["exp2b"].items():
+            for sys_ in cfg.exp2b.systems:
+                m = s["spilled_g"].get(f, {}).get(sys_, {}).get("mean")
+                if m is not None and isinstance(t.get(sys_), float | int):
+                    out.append(f"{f}, {sys_}: spilled {m:.2f} g vs the thesis' "
+                               f"{t[sys_]:.2f} g ({m - t[sys_]:+.2f} g)")
+            p = s["spilled_g"].get(f, {}).get("welch", {}).get("p")
+            if "p" in t:
+                out.append(f"{f}: Welch p {_p(p)} vs the thesis' {t['p']}")
+    elif exp == "exp2c" and s.get("thresholds_g"):
+        for f in cfg.exp2c.foods:
+            for c in ("control", "primitive"):
+                d, t = s["foods"][f][c], th["exp2c"].get(f"{f}_{c}", {})
+                for k, v in t.items():
+                    ours = d.get("percent", {}).get(k)
+                    if ours is not None:
+                        out.append(f"{f} {c}: {k.replace('_', ' ')} {ours:.0f} % vs the "
+                                   f"thesis' {v:g} % ({ours - v:+.0f} points)")
+    elif exp == "exp1":
+        for f in cfg.exp1.foods:
+            for sys_ in cfg.exp1.systems:
+                m = s["acquired_g"][f][sys_].get("mean")
+                t = th["exp1"].get(f, {}).get(sys_)
+                if m is not None and t:
+                    out.append(f"{f}, {sys_}: {m:.2f} g vs the thesis' {t[0]:.2f} g "
+                               f"({m - t[0]:+.2f} g)")
+    elif exp == "exp3":
+        for sys_, d in s["systems"].items():
+            t = th["exp3"].get(sys_, {})
+            if d["n"]:
+                ms = 100.0 * d["counts"]["meaningful_success"] / d["n"]
+                out.append(f"{sys_}: meaningful success {ms:.0f} % vs the thesis' "
+                           f"{5 * t.get('meaningful_success', 0):.0f} % "
+                           f"({ms - 5 * t.get('meaningful_success', 0):+.0f} points)")
+            a = d["planning_attempts"].get("mean")
+            if a is not None and "planning_attempts" in t:
+                out.append(f"{sys_}: {a:.2f} planning attempts to Staging vs the thesis' "
+                           f"{t['planning_attempts']:.2f}")
+    return out
+
+
+def section(exp: str, summary: Mapping[str, Any], cfg: Any, figure_name: str | None,
+            notes: str = "") -> str:
+    """One experiment's Markdown: title, our numbers beside the thesis', the differences,
+    ``notes`` (why we believe they differ), the figure and the run line."""
+    body = {"capacity": _sec_capacity, "exp1": _sec_exp1, "exp2b": _sec_exp2b,
+            "exp2c": _sec_exp2c, "exp3": _sec_exp3}[exp](summary, cfg)
+    md = f"## {TITLES[exp]}\n\n{body}\n"
+    diff = differences(exp, summary, cfg)
+    if diff:
+        md += "\n**Beside the thesis:** " + "; ".join(diff) + ".\n"
+    if notes:
+        md += f"\n{notes.strip()}\n"
+    if figure_name:
+        md += f"\n![{exp}]({figure_name})\n"
+    md += f"\n*Run:* {_run_line(summary)}.\n"
+    cmd = summary.get("run", {}).get("command")
+    if cmd:
+        md += f"\n```sh\n{cmd}\n```\n"
+    return md
+
+
+# ------------------------------------------------------------------------- report --
+def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | None,
+                 thresholds_source: str, threshold_g: float | None) -> tuple[Path, Path]:
+    """Write ``out/report.md`` and ``out/report.html`` (figures in each experiment's
+    directory); experiments not yet run are listed as missing. ``out/<exp>/notes.md``, if
+    present, is included in the experiment's section: the physical reasons we believe explain
+    where our numbers differ, written by whoever examined the run (trials, videos)."""
+    from articutool.experiments.runner import read_trials
+
+    parts = ["# The thesis' physical experiments in simulation\n",
+             f"Generated {_dt.datetime.now(_dt.UTC).isoformat(timespec='seconds')} by "
+             f"`articutool experiment report --out {out}`. Thesis: J. J. Martinez, *Articutool* "
+             "(MS thesis, UW 2025), Ch. 5 (protocols) and Ch. 6 (results).\n",
+             "## Regenerate\n",
+             "Every experiment resumes from its trial log (`<exp>/trials.jsonl`); each section "
+             "below gives the exact command that made it. All five and this page:\n\n"
+             "```sh\nmake experiments                 # 20 trials per condition, as the thesis\n"
+             "EXP_TRIALS=5 make experiments    # a shorter run\n"
+             "articutool experiment exp2b --trial K --video trial.mp4   # replay one trial\n```\n",
+             "## Honesty rules\n", HONESTY]
+    missing = []
+    machines = {}
+    for exp in ORDER:
+        recs = read_trials(out, exp)
+        spath = out / exp / "summary.json"
+        if not recs or not spath.exists():
+            missing.append(exp)
+            continue
+        old = json.loads(spath.read_text(encoding="utf-8"))
+        summary = summarize(exp, recs, cfg, thresholds_g=thresholds_g, threshold_g=threshold_g)
+        summary["run"].update({k: v for k, v in old.get("run", {}).items()
+                               if k not in summary["run"]})
+        for k in ("load_g", "load_source", "goals"):
+            if k in old:
+                summary[k] = old[k]
+        if exp == "exp2c":
+            summary["thresholds_source"] = thresholds_source
+        fig = figure(exp, recs, summary, cfg, out / exp)
+        rel = f"{exp}/{fig.name}" if fig else None
+        npath = out / exp / "notes.md"
+        notes = npath.read_text(encoding="utf-8") if npath.exists() else ""
+        parts.append(section(exp, summary, cfg, rel, notes))
+        m = old.get("run", {}).get("machine")
+        if m:
+            machines[exp] = (m, old["run"].get("date"))
+    if missing:
+        parts.append("## Not run yet\n\n" + ", ".join(missing) + " (no trials or no "
+                     "summary under this directory).\n")
+    if machines:
+        rows = [[e, m.get("host"), m.get("platform"), m.get("python"), m.get("cpus"),
+                 m.get("load_avg"), d] for e, (m, d) in machines.items()]
+        parts.append("## Machine and date\n\n" + _table(
+            ["experiment", "host", "platform", "python", "CPUs",
+             "load average (1/5/15 min) when the run ended", "date (UTC) the run ended"],
+            rows) + "\n\nThe machine's 2 cores were shared with other work during every run: "
+            "wall times are upper bounds, and planning budgets are wall-clock (see Exp. 2c).\n")
+    md = "\n".join(parts)
+    md_path = out / "report.md"
+    md_path.write_text(md, encoding="utf-8")
+    from markdown_it import MarkdownIt
+
+    body = MarkdownIt("commonmark").enable("table").render(md)
+    html = ("<!doctype html><html><head><meta charset='utf-8'><title>Articutool experiments"
+            "</title><style>body{font-family:sans-serif;max-width:1100px;margin:auto;padding:1em}"
+            "table{border-collapse:collapse;font-size:90%}td,th{border:1px solid #ccc;"
+            "padding:3px 6px}img{max-width:100%}code,pre{background:#f4f4f4}</style></head>"
+            f"<body>{body}</body></html>\n")
+    html_path = out / "report.html"
+    html_path.write_text(html, encoding="utf-8")
+    return md_path, html_path

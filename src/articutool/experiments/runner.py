@@ -1,0 +1,156 @@
+"""Running an experiment's trials: in parallel processes or on a Dask cluster, resumable.
+
+Every finished trial is appended to ``<out>/<experiment>/trials.jsonl`` as one JSON line,
+written and fsync'ed at once (the benchmark runner's log: :func:`articutool.bench.runner.
+append_record`); a rerun reads the log and runs only the trials not in it, so a finished trial
+is never run again or lost, and a torn last line (a crash mid-write) is cut off. ``run.json``
+pins what makes trials comparable (the base seed, the hash of every data file a trial reads,
+and the condition list); resuming with other settings is refused. Raising ``--trials`` adds
+trials to the same log.
+
+:func:`run_trial` is top-level and picklable: a worker process (or Dask worker) runs one
+trial from its :class:`~articutool.experiments.design.TrialSpec` alone.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+import tomllib
+import traceback
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from articutool.bench.executors import Executor
+from articutool.bench.runner import read_log, run_logged
+from articutool.experiments.config import ExperimentsConfig
+from articutool.experiments.design import TrialSpec
+
+__all__ = ["RunError", "RunResult", "data_hash", "log_path", "pin_run", "read_trials",
+           "run_experiment", "run_trial"]
+
+LOG_NAME = "trials.jsonl"
+
+
+class RunError(ValueError):
+    """A resume with other settings, or an unreadable ``run.json``."""
+
+
+def trial_key(rec: dict[str, Any]) -> tuple[str, int]:
+    """The trial identity of a record."""
+    return (str(rec["experiment"]), int(rec["trial"]))
+
+
+def log_path(out: str | Path, experiment: str) -> Path:
+    """Where an experiment's trials are logged under the results root ``out``."""
+    return Path(out) / experiment / LOG_NAME
+
+
+def read_trials(out: str | Path, experiment: str) -> list[dict[str, Any]]:
+    """Every logged trial of ``experiment`` under ``out`` (empty if none), by trial index."""
+    recs = read_log(log_path(out, experiment), key=trial_key).records
+    return sorted({trial_key(r): r for r in recs}.values(), key=lambda r: r["trial"])
+
+
+def data_hash(experiment: str, cfg: ExperimentsConfig) -> str:
+    """Short SHA-256 over the data a trial of ``experiment`` reads: the packaged spec, scene,
+    physics and strategies files (their parsed content: comments do not count), and the
+    experiments file's shared settings and this experiment's own section (another
+    experiment's section does not matter)."""
+    h = hashlib.sha256()
+    base = resources.files("articutool") / "data"
+    for name in ("hardware.toml", "scene.toml", "physics.toml", "strategies.toml"):
+        h.update(name.encode())
+        content = tomllib.loads((base / name).read_text(encoding="utf-8"))
+        h.update(json.dumps(content, sort_keys=True).encode())
+    own = cfg.model_dump(mode="json", include={"settings", experiment})
+    h.update(json.dumps(own, sort_keys=True).encode())
+    return h.hexdigest()[:16]
+
+
+def pin_run(path: Path, settings: dict[str, Any]) -> None:
+    """Write ``run.json`` on a fresh run; on a resume refuse different settings."""
+    if path.exists():
+        try:
+            old = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError) as err:
+            raise RunError(f"{path} is unreadable ({err}); use another --out") from None
+        diff = [k for k in settings if old.get(k) != settings[k]]
+        if diff:
+            parts = "; ".join(f"{k}: {old.get(k)!r} → {settings[k]!r}" for k in diff)
+            raise RunError(f"{path.parent} holds trials run with other settings ({parts}); "
+                           "use the same settings to resume, or another --out")
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(settings, indent=1) + "\n", encoding="utf-8")
+
+
+def _protocol(experiment: str) -> Callable[..., dict[str, Any]]:
+    from articutool.experiments import protocols
+
+    table: dict[str, Callable[..., dict[str, Any]]] = {
+        "capacity": protocols.capacity_trial,
+        "exp2b": protocols.exp2b_trial,
+        "exp2c": protocols.exp2c_trial,
+        **protocols.BITE_PROTOCOLS,
+    }
+    if experiment not in table:
+        raise RunError(f"experiment must be one of {sorted(table)}; got {experiment!r}")
+    return table[experiment]
+
+
+def run_trial(spec: TrialSpec, hook: Any = None,
+              config_path: str | None = None) -> dict[str, Any]:
+    """Run one trial and return its record: the trial's identity, condition and seed, every
+    quantity the protocol measured, the wall time, and ``error`` (the exception, if the
+    protocol raised one: the trial is then recorded as an error, not rerun)."""
+    cfg = ExperimentsConfig.load(config_path)
+    fn = _protocol(spec.experiment)
+    t0 = time.perf_counter()
+    error = None
+    try:
+        measured = fn(spec.cond, spec.seed, cfg, hook)
+    except Exception as err:  # a trial that crashes is reported, not silently dropped
+        error = f"{type(err).__name__}: {err}"
+        measured = {"traceback": traceback.format_exc(limit=6)}
+    return {"experiment": spec.experiment, "trial": spec.trial, "repeat": spec.repeat,
+            "seed": spec.seed, **spec.cond, **measured,
+            "wall_time_s": round(time.perf_counter() - t0, 3), "pid": os.getpid(),
+            "error": error}
+
+
+def run_experiment(trials: Sequence[TrialSpec], log: str | Path, executor: Executor, *,
+                   worker: Callable[[TrialSpec], dict[str, Any]] | None = None,
+                   on_start: Callable[[int, int], None] | None = None,
+                   on_result: Callable[[dict[str, Any]], None] | None = None) -> RunResult:
+    """Run the trials not yet in ``log`` on ``executor`` (the benchmark's
+    :func:`~articutool.bench.runner.run_logged`), appending each as it finishes; the result's
+    records are the requested trials' (old and new), by index.
+
+    ``worker`` (default :func:`run_trial`) must be picklable for process executors."""
+    t0 = time.perf_counter()
+    res = run_logged(trials, log, executor, worker or run_trial, trial_key, on_result,
+                     on_start)
+    wanted = {t.key for t in trials}
+    res.records = sorted({trial_key(r): r for r in res.records
+                          if trial_key(r) in wanted}.values(), key=lambda r: r["trial"])
+    return RunResult(res.records, res.ran, res.skipped, res.torn, res.corrupt, res.lost,
+                     time.perf_counter() - t0)
+
+
+@dataclass
+class RunResult:
+    """What :func:`run_experiment` did."""
+
+    records: list[dict[str, Any]]  # the requested trials' records (old and new), by index
+    ran: int
+    skipped: int
+    torn: int  # torn last lines cut off
+    corrupt: int  # unreadable lines ignored
+    lost: list[tuple[Any, str]]  # trials whose worker failed (not logged; a rerun resumes)
+    wall_time_s: float

@@ -1,0 +1,163 @@
+"""The experiment runner: a killed run resumes without losing or repeating a trial; a torn
+last line is cut off; a resume with other settings is refused; bad arguments exit 2 naming
+the field, before any trial runs; the trial design is stable when trials are added."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import articutool.cli as cli
+from articutool.experiments.config import ExperimentsConfig
+from articutool.experiments.design import conditions, make_trials, trial_seed
+from articutool.experiments.runner import (
+    RunError,
+    log_path,
+    pin_run,
+    read_trials,
+    run_experiment,
+)
+
+pytest.importorskip("mujoco")
+
+ARTICUTOOL = [sys.executable, "-m", "articutool.cli"]
+
+
+def _lines(p: Path) -> list[dict]:
+    return [json.loads(x) for x in p.read_text().splitlines() if x.strip()]
+
+
+def test_design_numbers_trials_trial_major_and_seeds_are_shared_by_conditions() -> None:
+    cfg = ExperimentsConfig.load()
+    conds = conditions("exp2b", cfg, goals=["a", "b", "c"])
+    t4 = make_trials("exp2b", conds, 4, 2, goals=["a", "b", "c"])
+    t6 = make_trials("exp2b", conds, 6, 2, goals=["a", "b", "c"])
+    assert t6[: len(t4)] == t4  # more trials never renumber the ones run
+    assert [t.trial for t in t4] == list(range(16))
+    assert {t.seed for t in t4 if t.repeat == 1} == {trial_seed(2, 1)} == {2001}
+    assert [t.cond["goal"] for t in t6 if t.cond["system"] == "baseline"
+            and t.cond["food"] == "water"] == ["a", "b", "c", "a", "b", "c"]
+    with pytest.raises(ValueError, match="trials"):
+        make_trials("exp2b", conds, 0, 0, goals=["a"])
+
+
+def test_pin_run_refuses_other_settings(tmp_path: Path) -> None:
+    pin_run(tmp_path / "run.json", {"seed": 0, "data_hash": "x"})
+    pin_run(tmp_path / "run.json", {"seed": 0, "data_hash": "x"})  # same: a resume
+    with pytest.raises(RunError, match="seed"):
+        pin_run(tmp_path / "run.json", {"seed": 1, "data_hash": "x"})
+
+
+class _Serial:
+    """The executor protocol in this process (the runner under test is real)."""
+
+    description = "serial"
+
+    def run(self, fn, items):
+        for it in items:
+            yield it, fn(it), None
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_torn_last_line_is_cut_off_and_its_trial_rerun(tmp_path: Path) -> None:
+    cfg = ExperimentsConfig.load()
+    trials = make_trials("capacity", conditions("capacity", cfg), 1, 0)
+    log = log_path(tmp_path, "capacity")
+    first = run_experiment(trials[:1], log, _Serial())
+    assert first.ran == 1
+    with open(log, "ab") as f:
+        f.write(b'{"experiment": "capacity", "trial": 1, "cap')  # a crash mid-write
+    res = run_experiment(trials, log, _Serial())
+    assert res.torn == 1 and res.skipped == 1 and res.ran == 1
+    recs = _lines(log)
+    assert [r["trial"] for r in recs] == [0, 1]
+    assert recs[1]["food"] == "water" and recs[1]["capacity_g"] > 0
+
+
+@pytest.mark.slow  # two real CLI runs with spawned workers: ~30 s on the shared 2 cores
+def test_a_killed_run_resumes_and_loses_or_repeats_no_trial(tmp_path: Path) -> None:
+    out = tmp_path / "res"
+    cmd = [*ARTICUTOOL, "experiment", "capacity", "--trials", "3", "--workers", "1",
+           "--out", str(out)]
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                         start_new_session=True, env=env)
+    log = log_path(out, "capacity")
+    t_end = time.monotonic() + 240
+    while time.monotonic() < t_end and p.poll() is None:
+        if log.exists() and len(log.read_text().splitlines()) >= 2:
+            break
+        time.sleep(0.1)
+    assert p.poll() is None, "the run finished before it could be killed; use more trials"
+    os.killpg(p.pid, signal.SIGKILL)  # the CLI and its worker processes, at once
+    p.wait()
+    before = log.read_bytes()
+    done_before = {r["trial"] for r in _lines(log)} if before.endswith(b"\n") else {
+        r["trial"] for r in _lines(log)[:-1]}
+    assert 2 <= len(done_before) < 6
+    r = subprocess.run([*cmd, "--json"], capture_output=True, text=True, env=env,
+                       timeout=600)
+    assert r.returncode == 0, r.stderr
+    recs = _lines(log)
+    trials = [x["trial"] for x in recs]
+    assert sorted(trials) == list(range(6))  # none lost, none repeated
+    assert log.read_bytes().startswith(before.rsplit(b"\n", 1)[0])  # old lines untouched
+    assert f"{len(done_before)} already in" in r.stderr
+    summary = json.loads(r.stdout)
+    assert summary["run"]["trials"] == 6
+    assert summary["foods"]["pecans"]["capacity_g"]["n"] == 3
+    assert read_trials(out, "capacity")[0]["trial"] == 0
+
+
+@pytest.mark.parametrize("argv, field", [
+    (["capacity", "--trials", "0"], "--trials"),
+    (["capacity", "--trials", "1001"], "--trials"),
+    (["capacity", "--workers", "0"], "--workers"),
+    (["capacity", "--seed", "-1"], "--seed"),
+    (["capacity", "--trial", "99"], "--trial"),
+    (["capacity", "--video", "x.mp4"], "--video needs --trial"),
+    (["capacity", "--trial", "0", "--video", "x.avi"], "--video must end"),
+    (["exp2c", "--trials", "1"], "capacity"),
+    (["exp2c", "--load-g", "pecans=abc"], "--load-g"),
+    (["exp2c", "--load-g", "pecans=7"], "--load-g: no load"),
+    (["exp3", "--threshold-g", "-1"], "--threshold-g"),
+    (["report"], "--out"),
+])
+def test_bad_arguments_exit_2_naming_the_field_and_run_nothing(tmp_path, capsys, argv,
+                                                               field) -> None:
+    out = tmp_path / ("missing" if argv == ["report"] else "res")
+    code = cli.main(["experiment", *argv, "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert field in err and "Traceback" not in err
+    assert not any(out.rglob("trials.jsonl")) if out.exists() else True
+
+
+def test_out_that_is_a_file_and_an_existing_video_are_refused(tmp_path, capsys) -> None:
+    f = tmp_path / "file"
+    f.write_text("keep")
+    assert cli.main(["experiment", "capacity", "--out", str(f)]) == 2
+    assert "--out" in capsys.readouterr().err and f.read_text() == "keep"
+    v = tmp_path / "v.mp4"
+    v.write_text("keep")
+    assert cli.main(["experiment", "capacity", "--trial", "0", "--video", str(v),
+                     "--out", str(tmp_path / "r")]) == 2
+    assert "refusing to overwrite" in capsys.readouterr().err and v.read_text() == "keep"
+
+
+def test_resume_with_another_seed_is_refused(tmp_path, capsys) -> None:
+    out = tmp_path / "r"
+    (out / "capacity").mkdir(parents=True)
+    pin_run(out / "capacity" / "run.json", {"experiment": "capacity", "seed": 5})
+    assert cli.main(["experiment", "capacity", "--trials", "1", "--out", str(out)]) == 2
+    assert "seed" in capsys.readouterr().err
+    assert not log_path(out, "capacity").exists()
