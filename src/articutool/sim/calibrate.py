@@ -65,14 +65,19 @@ def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = 80,
 
 
 def level_capacity_g(food_name: str, spec: Spec, params: PhysicsParams, utensil: str | None,
-                     seed: int = 0, load_g: float = 20.0) -> float:
-    """Mass (g) the leveled utensil still holds 1 s after being loaded with ``load_g``."""
+                     seed: int = 0, load_g: float = 20.0) -> tuple[float, float]:
+    """(held, loaded) in g: what the leveled utensil still holds 1 s after being loaded with
+    ``load_g``, or with as much as the loader can pour if that is less (a liquid heaped
+    above the rim); if all of it stays, the capacity is at least that."""
     world = FeedingWorld(food_name, utensil, spec=spec, params=params, seed=seed,
                          load_g=load_g)
+    if world.max_load_g() < load_g:
+        world = FeedingWorld(food_name, utensil, spec=spec, params=params, seed=seed,
+                             load_g=world.max_load_g() - 1e-6)
     world.tool.set_mode(Mode.LEVELING)
     world.run(1.0)
     world.place_load(settle_s=1.0)
-    return world.masses_g()["utensil"]
+    return world.masses_g()["utensil"], world.n_items * world.layout.piece_mass * 1000.0
 
 
 def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
@@ -84,8 +89,11 @@ def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
     if isinstance(food, Granular):
         out["angle_of_repose_deg"] = round(angle_of_repose_deg(food, params, seed=seed), 1)
     if isinstance(food, Granular | Liquid):
-        out["level_capacity_g"] = round(level_capacity_g(food_name, spec, params, utensil,
-                                                         seed), 2)
+        held, loaded = level_capacity_g(food_name, spec, params, utensil, seed)
+        out["level_capacity_g"] = round(held, 2)
+        out["loaded_g"] = round(loaded, 2)
+        if held >= loaded - 1e-9:  # all of it stayed: the utensil holds at least this
+            out["level_capacity_is_lower_bound"] = "yes"
     if isinstance(food, Liquid):
         box = Scene.load().get(food.container)
         world = FeedingWorld(food_name, utensil, spec=spec, params=params, seed=seed)

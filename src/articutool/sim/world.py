@@ -588,10 +588,10 @@ class FeedingWorld:
         body = self.model.body("utensil").id
         fp = self.params.food(self.food or "")
         if ph.kind == "spoon":
-            zc, a, b, a0, b0, depth = spoon_dish(u)
+            zc, *_, depth = spoon_dish(u)
         else:
             assert ph.tine_length is not None
-            zc, a, b, a0, b0, depth = u.tip_z - ph.tine_length / 2, 0, 0, 0, 0, 0.0
+            zc, depth = u.tip_z - ph.tine_length / 2, 0.0
         if isinstance(fp, Granular):
             rng = np.random.default_rng(self.seed + 7)
             lift = depth + 2.5 * fp.piece_radius
@@ -600,26 +600,44 @@ class FeedingWorld:
                 self._unpark(k, body, (u.tip_x + lift, dy, zc + dz))
                 self.run(0.2)
         else:
-            cell = self.layout.piece_size
-            pts: list[tuple[float, float, float]] = []
-            layer = 0
-            while len(pts) < self.n_items:
-                h = cell / 2 + layer * cell  # centre height above the floor
-                # The dish widens with height (45° walls); above the rim the heap narrows.
-                grow = min(h / depth, 1.0) - max(h - depth, 0.0) / depth if depth else 0.0
-                al, bl = a0 + (a - a0) * grow - cell / 2, b0 + (b - b0) * grow - cell / 2
-                if layer > 40 or (al < 0 and bl < 0 and layer > 0):
-                    raise ValueError(f"load_g: {self.n_items} particles do not fit on the "
-                                     f"{self.utensil}; place less")
-                ni, nj = int(max(al, 0.0) / cell), int(max(bl, 0.0) / cell)
-                pts += [(u.tip_x + h, j * cell, zc + i * cell)
-                        for i in range(-ni, ni + 1) for j in range(-nj, nj + 1)]
-                layer += 1
+            pts = self._pour_lattice()
+            if len(pts) < self.n_items:
+                raise ValueError(f"load_g: {self.n_items} particles do not fit on the "
+                                 f"{self.utensil} (at most {len(pts)}, "
+                                 f"{self.max_load_g():.1f} g); place less")
             for k in range(self.n_items):
                 self._unpark(k, body, pts[k])
             mujoco.mj_forward(self.model, self.data)
         self.run(settle_s)
         return self.masses_g()["utensil"]
+
+    def _pour_lattice(self) -> list[tuple[float, float, float]]:
+        """Particle centres (utensil frame) filling the dish from its floor up, then heaped
+        above its rim until the heap closes: every place a poured liquid can be put."""
+        u = self.spec.utensil(self.utensil)
+        if u.physics.kind != "spoon":
+            return []
+        zc, a, b, a0, b0, depth = spoon_dish(u)
+        cell = self.layout.piece_size
+        pts: list[tuple[float, float, float]] = []
+        for layer in range(41):
+            h = cell / 2 + layer * cell  # centre height above the floor
+            # The dish widens with height (45° walls); above the rim the heap narrows.
+            grow = min(h / depth, 1.0) - max(h - depth, 0.0) / depth if depth else 0.0
+            al, bl = a0 + (a - a0) * grow - cell / 2, b0 + (b - b0) * grow - cell / 2
+            if al < 0 and bl < 0 and layer > 0:
+                break
+            ni, nj = int(max(al, 0.0) / cell), int(max(bl, 0.0) / cell)
+            pts += [(u.tip_x + h, j * cell, zc + i * cell)
+                    for i in range(-ni, ni + 1) for j in range(-nj, nj + 1)]
+        return pts
+
+    def max_load_g(self) -> float:
+        """The most a liquid load :meth:`place_load` can pour onto this utensil (g); infinite
+        for pieces (they are dropped one by one, what does not stay falls)."""
+        if isinstance(self.params.food(self.food or ""), Granular):
+            return math.inf
+        return len(self._pour_lattice()) * self.layout.piece_mass * 1000.0
 
     def _unpark(self, k: int, body: int, local: tuple[float, float, float]) -> None:
         """Give parked piece ``k`` its collisions and weight, at ``local`` in ``body``'s frame
