@@ -99,7 +99,7 @@ class _Progress:
         from rich.console import Console
 
         self.world, self.last = world, ""
-        self.console = Console(stderr=True)
+        self.console = Console(stderr=True, soft_wrap=True)  # log lines are not wrapped
         self.live = None
         if live and self.console.is_terminal:
             from rich.live import Live
