@@ -87,7 +87,7 @@ def test_exp3_summary_four_classes_and_planning_attempts(cfg) -> None:
             rec(2.0, system="articutool", planning_attempts=2),
             rec(5.0, table=PIECE, system="baseline", planning_attempts=3),
             rec(5.0, critical=PIECE, system="baseline", planning_attempts=2)]
-    s = summarize("exp3", recs, cfg)
+    s = summarize("exp3", recs, cfg, threshold_g=3.0)
     a, b = s["systems"]["articutool"], s["systems"]["baseline"]
     assert s["threshold_g"] == 3.0
     assert a["counts"]["meaningful_success"] == 1 and a["counts"]["trivial_success"] == 1
@@ -96,7 +96,7 @@ def test_exp3_summary_four_classes_and_planning_attempts(cfg) -> None:
     # Attempts count to Staging only: a bite that failed planning to Resting has none.
     failed = rec(0.0, completed=False, system="articutool", planning_attempts=3,
                  planning_attempts_by_goal={"Resting": 3})
-    s2 = summarize("exp3", [*recs, failed], cfg)
+    s2 = summarize("exp3", [*recs, failed], cfg, threshold_g=3.0)
     assert s2["systems"]["articutool"]["planning_attempts"]["n"] == 2
     assert s2["systems"]["articutool"]["counts"]["failed"] == 1
     # A configurable threshold: at 1.5 g the 2 g bite is meaningful too.

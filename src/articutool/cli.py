@@ -15,11 +15,12 @@ import json
 import sys
 import traceback
 from collections.abc import Sequence
+from pathlib import Path
 
 from articutool.spec import Spec, SpecError, load_spec
 from articutool.trajectory import TrajectoryError
 
-__all__ = ["main"]
+__all__ = ["main", "new_output_file"]
 
 _COMMAND_MODULES: tuple[str, ...] = (
     "articutool.verify.cli",
@@ -42,6 +43,22 @@ def add_spec_option(p: argparse.ArgumentParser) -> None:
     """The ``--spec FILE`` option every hardware-facing command takes."""
     p.add_argument("--spec", metavar="FILE", default=None,
                    help="hardware spec TOML (default: the packaged spec)")
+
+
+def new_output_file(opt: str, path: str | None, suffixes: tuple[str, ...]) -> Path | None:
+    """``path`` checked as a new output file for option ``opt`` (``None`` passes through):
+    one of ``suffixes``, not existing (nothing is overwritten), in an existing folder;
+    ``UsageError`` naming the option otherwise."""
+    if path is None:
+        return None
+    p = Path(path)
+    if p.suffix.lower() not in suffixes:
+        raise UsageError(f"{opt} must end in {' or '.join(suffixes)}; got {p.name!r}")
+    if p.exists():
+        raise UsageError(f"{opt}: {p} exists; refusing to overwrite it (choose a new file)")
+    if not p.parent.is_dir():
+        raise UsageError(f"{opt}: folder {p.parent} does not exist")
+    return p
 
 
 def spec_from_args(args: argparse.Namespace) -> Spec:

@@ -215,8 +215,9 @@ def summarize(experiment: str, records: Sequence[dict[str, Any]], cfg: Any, *,
     elif experiment == "exp2c":
         body = summarize_exp2c(records, cfg, thresholds_g)
     elif experiment == "exp3":
-        body = summarize_exp3(records, cfg, cfg.exp3.threshold_g if threshold_g is None
-                              else threshold_g)
+        if threshold_g is None:
+            raise ValueError("exp3 needs threshold_g (our Exp. 1 mean, or --threshold-g)")
+        body = summarize_exp3(records, cfg, threshold_g)
     else:
         raise ValueError(f"unknown experiment {experiment!r}")
     seeds = sorted({int(r["seed"]) for r in records})

@@ -66,15 +66,11 @@ def _check_common(args: argparse.Namespace) -> Path:
     if out.exists() and not out.is_dir():
         raise _usage(f"--out {out} exists and is not a directory")
     if args.video is not None:
+        from articutool.cli import new_output_file
+
         if args.trial is None:
             raise _usage("--video needs --trial K (a video of one replayed trial)")
-        v = Path(args.video)
-        if v.suffix.lower() not in (".mp4", ".gif"):
-            raise _usage(f"--video must end in .mp4 or .gif; got {v.name!r}")
-        if v.exists():
-            raise _usage(f"--video {v} exists; refusing to overwrite it")
-        if not v.parent.is_dir():
-            raise _usage(f"--video: directory {v.parent} does not exist")
+        new_output_file("--video", args.video, (".mp4", ".gif"))
     return out
 
 
@@ -82,17 +78,29 @@ def _thresholds(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str
                                                                          str]:
     """Exp. 2c's thresholds: ``--thresholds-g``, else OUR Exp. 1 Articutool means (the thesis
     took its own Exp. 1 means), else none (only spill / no spill is reported)."""
+    from articutool.experiments.runner import exp1_means
+
     if getattr(args, "thresholds_g", None):
         return _parse_food_grams(args.thresholds_g, "--thresholds-g"), "--thresholds-g"
-    p = out / "exp1" / "summary.json"
-    if p.exists():
-        s = json.loads(p.read_text(encoding="utf-8"))
-        acq = s.get("acquired_g", {})
-        th = {f: acq[f]["articutool"]["mean"] for f in cfg.exp2c.foods
-              if acq.get(f, {}).get("articutool", {}).get("mean") is not None}
-        if th:
-            return th, f"our Exp. 1 Articutool means ({p})"
+    means = exp1_means(out)
+    th = {f: means[f] for f in cfg.exp2c.foods if f in means}
+    if th:
+        return th, f"our Exp. 1 Articutool means ({out / 'exp1' / 'summary.json'})"
     return None, "none: run exp1 first or pass --thresholds-g"
+
+
+def _exp3_threshold(args: argparse.Namespace, out: Path, cfg: Any) -> float:
+    """Exp. 3's threshold: ``--threshold-g``, else our Exp. 1 Articutool mean for its food
+    (the thesis derived its 3.0 g from its own data; we do not borrow it)."""
+    from articutool.experiments.runner import exp1_means
+
+    if getattr(args, "threshold_g", None) is not None:
+        return float(args.threshold_g)
+    mean = exp1_means(out).get(cfg.exp3.food)
+    if mean is None:
+        raise _usage(f"--threshold-g: no Exp. 1 result for {cfg.exp3.food} under {out} to "
+                     "derive it from; run `articutool experiment exp1` first or pass it")
+    return mean
 
 
 def _exp2c_loads(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str, float], str]:
@@ -210,6 +218,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except ExperimentsConfigError as err:
         raise _usage(str(err)) from None
     trials, extra = _trials_for(exp, args, out, cfg)
+    # Checked before any trial runs; the trials themselves do not depend on it.
+    threshold = _exp3_threshold(args, out, cfg) if exp == "exp3" else None
     if args.trial is not None:
         return _replay(args, exp, trials, out)
     d = out / exp
@@ -225,8 +235,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     summary_run = _run_with_progress(trials, log_path(out, exp), executor, exp)
     records = summary_run.records
     th, th_src = _thresholds(args, out, cfg) if exp == "exp2c" else (None, "")
-    summary = summarize(exp, records, cfg, thresholds_g=th,
-                        threshold_g=getattr(args, "threshold_g", None))
+    summary = summarize(exp, records, cfg, thresholds_g=th, threshold_g=threshold)
     summary["run"].update(
         trials_per_condition=args.trials, base_seed=args.seed, executor=executor.description,
         experiment_wall_time_s=round(summary_run.wall_time_s, 1), ran_now=summary_run.ran,
@@ -304,8 +313,10 @@ def _cmd_report(args: argparse.Namespace) -> int:
         raise _usage(f"--threshold-g must be a finite mass >= 0 g; got {args.threshold_g}")
     cfg = ExperimentsConfig.load()
     th, src = _thresholds(args, out, cfg)
+    threshold = (_exp3_threshold(args, out, cfg) if (out / "exp3" / "trials.jsonl").exists()
+                 else None)
     md, html = report.write_report(out, cfg, thresholds_g=th, thresholds_source=src,
-                                   threshold_g=args.threshold_g)
+                                   threshold_g=threshold)
     print(f"wrote {md} and {html}")
     return 0
 
@@ -344,7 +355,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                                 "Articutool means)")
         if name == "exp3":
             p.add_argument("--threshold-g", type=float, default=None,
-                           help="meaningful-success threshold (default 3.0 g, §5.3)")
+                           help="meaningful-success threshold (default: our Exp. 1 Articutool "
+                                "mean for the food; the thesis derived its 3.0 g likewise)")
         p.set_defaults(func=_cmd_run)
     p = esub.add_parser("report", help="one Markdown + HTML page with every experiment")
     p.add_argument("--out", metavar="DIR", default=DEFAULT_OUT,
@@ -352,5 +364,5 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--thresholds-g", default=None, metavar="FOOD=G,…",
                    help="Exp. 2c thresholds (default: our Exp. 1 Articutool means)")
     p.add_argument("--threshold-g", type=float, default=None,
-                   help="Exp. 3 threshold (default 3.0 g)")
+                   help="Exp. 3 threshold (default: our Exp. 1 Articutool mean)")
     p.set_defaults(func=_cmd_report)

@@ -69,7 +69,6 @@ class Exp3(_Strict):
 
     food: Annotated[str, Field(min_length=1)]
     systems: Names
-    threshold_g: Annotated[float, Field(ge=0)]
     timeout_s: Positive
 
 

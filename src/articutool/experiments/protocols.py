@@ -231,7 +231,7 @@ def json_safe(x: Any) -> Any:
 
 
 def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
-          stages: tuple[str, ...], timeout_s: float, threshold_g: float) -> dict[str, Any]:
+          stages: tuple[str, ...], timeout_s: float) -> dict[str, Any]:
     """One bite through the feeding tree (:func:`articutool.feeding.meal.run_bite`): the
     world, arm and strategy from :func:`~articutool.feeding.meal.make_bite_world` (the
     strategy drawn from the action library with the seed), the given stages."""
@@ -242,7 +242,7 @@ def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
     if hook:
         hook(setup.world)
     try:
-        r = run_bite(setup, stages=stages, threshold_g=threshold_g, timeout_s=timeout_s,
+        r = run_bite(setup, stages=stages, timeout_s=timeout_s,
                      settings=BiteSettings(budget_s=cfg.settings.plan_budget_s))
     finally:
         setup.arm.close()
@@ -261,8 +261,7 @@ def exp1_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
     """Exp. 1 (§5.1): from AbovePlate, acquire with the system's strategy, move
     level-constrained to Resting; the mass on the utensil there (``mass_g``, ground truth;
     ``ft_mass_g`` as the F/T sensor weighs it when comparable)."""
-    rec = _bite(cond, seed, cfg, hook, ("above", "acquire", "resting"), cfg.exp1.timeout_s,
-                cfg.exp3.threshold_g)
+    rec = _bite(cond, seed, cfg, hook, ("above", "acquire", "resting"), cfg.exp1.timeout_s)
     rec["mass_g"] = rec["masses_end_g"]["utensil"]
     return rec
 
@@ -270,10 +269,10 @@ def exp1_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
 def exp3_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
                hook: Hook = None) -> dict[str, Any]:
     """Exp. 3 (§5.3): the whole bite — above the food, acquire, shed, Resting, Staging,
-    present (the simulated user takes it). The outcome class is re-derived at analysis time
-    with the configured threshold; ``outcome`` here is at ``cfg.exp3.threshold_g``."""
+    present (the simulated user takes it). The outcome class is derived at analysis time,
+    at the report's threshold (``outcome`` here is ``None``)."""
     return _bite(cond, seed, cfg, hook, ("above", "acquire", "shed", "resting", "staging",
-                                         "present"), cfg.exp3.timeout_s, cfg.exp3.threshold_g)
+                                         "present"), cfg.exp3.timeout_s)
 
 
 BITE_PROTOCOLS = {"exp1": exp1_trial, "exp3": exp3_trial}

@@ -2,7 +2,7 @@
 whole report (Markdown + HTML) — the shell that turns summaries into pages and files.
 
 The report re-summarises every experiment from its trial log, so thresholds (Exp. 2c from our
-Exp. 1, Exp. 3's 3.0 g) are applied when the report is written; commands, machine, date and
+Exp. 1, Exp. 3's likewise) are applied when the report is written; commands, machine, date and
 wall times come from each experiment's ``summary.json``.
 """
 
@@ -204,10 +204,12 @@ def _sec_exp2c(s: Mapping[str, Any], cfg: Any) -> str:
     th = cfg.thesis["exp2c"]
     ths = s.get("thresholds_g")
     out = (f"Loads: {', '.join(f'{f} {g:.2f} g' for f, g in s.get('load_g', {}).items())} "
-           f"({s.get('load_source', '?')}); thesis: 7 g / 20 g. Thresholds: "
+           f"({s.get('load_source', '?')}); thesis: "
+           + " / ".join(f"{g:g} g" for g in th["capacity_g"].values()) + ". Thresholds: "
            + (", ".join(f"{f} {g:.2f} g" for f, g in ths.items()) if ths else "none")
-           + f" ({s.get('thresholds_source', '?')}); thesis: > 1.83 g / > 5.02 g (its Exp. 1 "
-             "means).\n\n")
+           + f" ({s.get('thresholds_source', '?')}); thesis: "
+           + " / ".join(f"> {g:g} g" for g in th["thresholds_g"].values())
+           + " (its Exp. 1 means).\n\n")
     rows = []
     for f in cfg.exp2c.foods:
         e = s["foods"][f]

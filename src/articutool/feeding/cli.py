@@ -21,21 +21,6 @@ _SYSTEMS = ("articutool", "baseline")
 _TREE_SUFFIXES = (".dot", ".png", ".svg")
 
 
-def _new_file(opt: str, path: str | None, suffixes: tuple[str, ...]) -> Path | None:
-    from articutool.cli import UsageError
-
-    if path is None:
-        return None
-    p = Path(path)
-    if p.suffix.lower() not in suffixes:
-        raise UsageError(f"{opt}: the file must end in {' or '.join(suffixes)}")
-    if p.exists():
-        raise UsageError(f"{opt}: {p} exists; choose a new file (nothing is overwritten)")
-    if not p.parent.is_dir():
-        raise UsageError(f"{opt}: folder {p.parent} does not exist")
-    return p
-
-
 def _check(args: argparse.Namespace) -> Any:
     """Validate the arguments (exit 2 naming the field) and return the strategy library."""
     from articutool.cli import UsageError, spec_from_args
@@ -45,8 +30,6 @@ def _check(args: argparse.Namespace) -> Any:
         raise UsageError(f"--bites must be an integer in [1, 100]; got {args.bites}")
     if args.seed < 0:
         raise UsageError(f"--seed must be an integer >= 0; got {args.seed}")
-    if not (math.isfinite(args.threshold) and 0 <= args.threshold <= 100):
-        raise UsageError(f"--threshold must be a mass in [0, 100] g; got {args.threshold}")
     try:
         lib = StrategyLibrary.load(spec_from_args(args), args.strategies)
     except StrategyError as err:
@@ -55,6 +38,16 @@ def _check(args: argparse.Namespace) -> Any:
     if args.food not in foods:
         raise UsageError(f"--food: no {args.system} strategy for {args.food!r}; allowed: "
                          f"{', '.join(foods)}")
+    if args.threshold is None:  # derived from our own data, as the thesis derived its own
+        from articutool.experiments.runner import DEFAULT_OUT, exp1_means
+
+        args.threshold = exp1_means().get(args.food)
+        if args.threshold is None:
+            raise UsageError(f"--threshold: no Exp. 1 result for {args.food} in {DEFAULT_OUT} "
+                             "to derive it from; run `articutool experiment exp1` or pass "
+                             "--threshold G")
+    if not (math.isfinite(args.threshold) and 0 <= args.threshold <= 100):
+        raise UsageError(f"--threshold must be a mass in [0, 100] g; got {args.threshold}")
     return lib
 
 
@@ -157,13 +150,13 @@ def _print_bite(r: Any) -> None:
 
 
 def _cmd_meal(args: argparse.Namespace) -> int:
-    from articutool.cli import UsageError
+    from articutool.cli import UsageError, new_output_file
 
     lib = _check(args)
     if args.show_tree is not False:
-        return _show_tree(args, lib, _new_file("--show-tree", args.show_tree, _TREE_SUFFIXES))
-    video = _new_file("--video", args.video, (".mp4", ".gif"))
-    record = _new_file("--record", args.record, (".npz",))
+        return _show_tree(args, lib, new_output_file("--show-tree", args.show_tree, _TREE_SUFFIXES))
+    video = new_output_file("--video", args.video, (".mp4", ".gif"))
+    record = new_output_file("--record", args.record, (".npz",))
     if video is not None:
         import articutool.sim.render  # noqa: F401  (selects EGL before MuJoCo loads)
     from articutool.feeding.meal import make_bite_world, run_meal
@@ -230,8 +223,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    help="food placement, sensor noise, planner and strategy choice")
     p.add_argument("--strategies", metavar="FILE", default=None,
                    help="action library TOML/YAML (default: the packaged strategies.toml)")
-    p.add_argument("--threshold", type=float, default=3.0, metavar="G",
-                   help="a bite above G grams is a meaningful success (thesis Exp. 3: 3.0)")
+    p.add_argument("--threshold", type=float, default=None, metavar="G",
+                   help="a bite above G grams is a meaningful success (default: our Exp. 1 "
+                        "Articutool mean for the food, results/experiments)")
     p.add_argument("--video", metavar="FILE", default=None,
                    help="record the meal (.mp4 or .gif, overview camera); never overwrites")
     p.add_argument("--record", metavar="FILE", default=None,

@@ -43,7 +43,6 @@ from articutool.tool.api import Mode
 __all__ = ["BiteResult", "FoodLedger", "MealSetup", "container_floor", "make_bite_world",
            "run_bite", "run_meal"]
 
-DEFAULT_THRESHOLD_G = 3.0  # thesis Exp. 3: a technically successful bite is > 3.0 g
 DEFAULT_SETTINGS = BiteSettings()
 
 
@@ -56,7 +55,7 @@ class BiteResult:
     system: str
     strategy: str
     seed: int
-    outcome: str
+    outcome: str | None  # None when no threshold was given (classified later)
     completed: bool
     acquired_g: float  # on the utensil after acquisition (before shedding)
     shed_g: float  # shed back into the container by the post-acquisition primitive
@@ -158,7 +157,7 @@ def _tree(setup: MealSetup, stages: Sequence[str], settings: BiteSettings
 
 
 def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
-             threshold_g: float = DEFAULT_THRESHOLD_G, settings: BiteSettings = DEFAULT_SETTINGS,
+             threshold_g: float | None = None, settings: BiteSettings = DEFAULT_SETTINGS,
              root: py_trees.behaviour.Behaviour | None = None, timeout_s: float = 240.0,
              on_tick: Callable[[py_trees.behaviour.Behaviour], None] | None = None
              ) -> BiteResult:
@@ -210,7 +209,8 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
     return BiteResult(
         bite=bite, food=w.food or "", system=setup.strategy.system,
         strategy=setup.strategy_name, seed=setup.seed,
-        outcome=classify_bite(delivered, spilled, threshold_g, completed),
+        outcome=(None if threshold_g is None
+                 else classify_bite(delivered, spilled, threshold_g, completed)),
         completed=completed, acquired_g=acquired, shed_g=shed, delivered_g=delivered,
         spilled_g=sum(spilled.values()), spilled_by_place=spilled,
         ft_delivered_g=None if ft is None or ft != ft else float(ft),
@@ -224,7 +224,7 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
 
 
 def run_meal(food: str, system: str, *, bites: int = 1, seed: int = 0,
-             strategies: str | Path | None = None, threshold_g: float = DEFAULT_THRESHOLD_G,
+             strategies: str | Path | None = None, threshold_g: float | None = None,
              settings: BiteSettings = DEFAULT_SETTINGS,
              on_tick: Callable[[py_trees.behaviour.Behaviour], None] | None = None,
              on_bite: Callable[[BiteResult], None] | None = None,
