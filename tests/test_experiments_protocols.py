@@ -14,7 +14,7 @@ pytest.importorskip("mujoco")
 import articutool.cli as cli
 from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import conditions, make_trials
-from articutool.experiments.runner import run_trial
+from articutool.experiments.runner import run_trial, source_version
 
 CFG = ExperimentsConfig.load()
 
@@ -71,6 +71,8 @@ def test_cli_exp2b_one_trial_per_condition_then_report(tmp_path, capsys) -> None
                      str(out), "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
     assert s["run"]["trials"] == 4 and (out / "exp2b" / "exp2b.png").exists()
+    # Every trial records the code it ran; the summary counts trials per code version.
+    assert s["run"]["sources"] == {source_version(): 4}
     video = tmp_path / "t3.gif"
     # A fresh process, as a user runs it (MuJoCo picks its GL backend when first imported).
     r = subprocess.run([sys.executable, "-m", "articutool.cli", "experiment", "exp2b",

@@ -73,6 +73,54 @@ def test_leveling_angles_level_the_tool(p: float, r: float, yaw: float) -> None:
     assert bool(c.satisfied(R_f0)) == (abs(q[1]) <= math.radians(45))
 
 
+@given(st.floats(-3.1, 3.1), st.floats(-1.2, 1.2), angles, st.floats(-1.5, 1.5))
+def test_loose_constraint_keeps_the_leveling_pitch_inside_the_wrist_range(
+        p: float, r: float, yaw: float, ref_p: float) -> None:
+    # Regression: from a start whose wrist is already pitched (Exp. 2c's Resting with a
+    # load), the ±90° band about the start's reference reached past the pitch stop; the
+    # planner kept proposing paths whose leveling solution switched branch there, and the
+    # verifier rejected every one (4 of 20 Exp. 2c trials per condition failed to plan).
+    R_f0 = _rz(yaw) @ _LEVEL @ wrist_rotation(np.array([p, r])).T
+    lim = tuple(SPEC.wrist.pitch_limits)
+    c = LooseConstraint(math.radians(90), math.radians(45), (ref_p, 0.0), 0, lim)
+    dp = math.remainder(p - ref_p, 2 * math.pi)
+    inside = (abs(dp) <= math.radians(90) and abs(r) <= math.radians(45)
+              and lim[0] <= ref_p + dp <= lim[1])
+    margin = min(abs(abs(dp) - math.radians(90)), abs(abs(r) - math.radians(45)),
+                 abs(ref_p + dp - lim[0]), abs(ref_p + dp - lim[1]))
+    if margin > 1e-9:  # away from a boundary, where rounding decides
+        assert bool(c.satisfied(R_f0)) == inside
+
+
+def test_decoupled_states_past_the_pitch_stop_are_refused_by_the_planner() -> None:
+    # The planner's scalar fast path agrees with the constraint: an arm configuration whose
+    # leveling pitch lies past the stop is invalid even inside the ±90° band.
+    from articutool.planning.ompl_planner import PlannerSettings, _Problem
+
+    m = ArmModel(SPEC, dof=6)
+    rng = np.random.default_rng(0)
+    qs = rng.uniform(m.lower, m.upper, size=(400, 6))
+    R = m.tool_base_rotations(qs)
+    # A start whose wrist levels the tool at about −0.8 rad of pitch.
+    lev = f0_leveling_angles(R)
+    k = int(np.flatnonzero((lev[:, 0] > -1.0) & (lev[:, 0] < -0.6)
+                           & (np.abs(lev[:, 1]) < 0.3))[0])
+    task = dataclasses.replace(TASK, start=tuple(qs[k]), start_wrist=tuple(lev[k]))
+    prob = _Problem(PlanRequest("decoupled", task, timeout_s=1.0, seed=0), SPEC,
+                    PlannerSettings(), "rejection")
+    assert prob.loose.reference[0] < -0.6
+    ok = prob.loose.satisfied(R)
+    fast = np.array([prob.leveling_wrist(q) is not None for q in qs])
+    assert (ok == fast).all()
+    lim = SPEC.wrist.pitch_limits
+    wide = dataclasses.replace(prob.loose, pitch_limits=(-math.inf, math.inf))
+    past = wide.satisfied(R) & ~ok
+    assert past.any()  # some states in the band are past the stop, and refused
+    for q in qs[ok]:
+        w = prob.leveling_wrist(q)
+        assert w is not None and lim[0] <= w[0] <= lim[1]
+
+
 @settings(max_examples=25, deadline=None)
 @given(st.lists(st.floats(-0.5, 0.5), min_size=6, max_size=6))
 def test_deadzone_jacobian_matches_finite_differences(dq: list[float]) -> None:

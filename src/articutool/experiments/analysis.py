@@ -36,7 +36,9 @@ def _wall(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
     w = [float(r["wall_time_s"]) for r in records if r.get("wall_time_s") is not None]
     return {"trials": len(records), "errors": sum(1 for r in records if r.get("error")),
             "wall_time_per_trial_s": describe(w).to_dict() if w else None,
-            "wall_time_total_s": round(sum(w), 1)}
+            "wall_time_total_s": round(sum(w), 1),
+            # The code each trial ran (trials logged before it was recorded: "not recorded").
+            "sources": dict(Counter(str(r.get("source", "not recorded")) for r in records))}
 
 
 def classify(rec: Mapping[str, Any], threshold_g: float) -> str:

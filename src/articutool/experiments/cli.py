@@ -178,7 +178,7 @@ def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) ->
     # depends on the machine's speed: these may differ slightly between runs of one seed.
     timing = {"wall_time_s", "pid", "realtime_factor", "planning_time_s", "motion_time_s",
               "sim_time_s", "bite_wall_time_s", "max_tilt_deg", "transport_max_tilt_deg",
-              "traceback"}
+              "traceback", "source"}
     if logged is None:
         verdict = "no logged record to compare with"
     else:
@@ -187,9 +187,12 @@ def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) ->
             f"differs from the logged record in {diff}")
         moved = [f"{k} {logged.get(k)} → {rec[k]}" for k in sorted(timing & rec.keys())
                  if k not in ("wall_time_s", "pid", "realtime_factor", "bite_wall_time_s",
-                              "traceback") and logged.get(k) != rec[k]]
+                              "traceback", "source") and logged.get(k) != rec[k]]
         if moved:
             verdict += f" (timing-dependent: {'; '.join(moved)})"
+        if logged.get("source") != rec.get("source"):
+            verdict += (f"; logged by code {logged.get('source', 'not recorded')}, "
+                        f"replayed by {rec.get('source')}")
     if args.json:
         print(json.dumps({"record": rec, "replay": verdict}, indent=1))
     else:

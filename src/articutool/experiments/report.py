@@ -123,6 +123,8 @@ def _run_line(s: Mapping[str, Any]) -> str:
     if w.get("mean") is not None:
         parts.append(f"wall time per trial {w['mean']:.1f} ± {_f(w.get('sd'), 1)} s, "
                      f"sum {r.get('wall_time_total_s')} s")
+    if r.get("sources"):
+        parts.append("code: " + ", ".join(f"{k} ({n} trials)" for k, n in r["sources"].items()))
     if r.get("experiment_wall_time_s") is not None:
         parts.append(f"last invocation {r['experiment_wall_time_s']} s on "
                      f"{r.get('executor', '?')}")

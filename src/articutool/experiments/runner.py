@@ -14,9 +14,11 @@ trial from its :class:`~articutool.experiments.design.TrialSpec` alone.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
+import subprocess
 import time
 import tomllib
 import traceback
@@ -32,7 +34,7 @@ from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import TrialSpec
 
 __all__ = ["DEFAULT_OUT", "RunError", "RunResult", "data_hash", "exp1_means", "log_path",
-           "pin_run", "read_trials", "run_experiment", "run_trial"]
+           "pin_run", "read_trials", "run_experiment", "run_trial", "source_version"]
 
 LOG_NAME = "trials.jsonl"
 
@@ -88,6 +90,27 @@ def data_hash(experiment: str, cfg: ExperimentsConfig) -> str:
     return h.hexdigest()[:16]
 
 
+@functools.cache
+def source_version() -> str:
+    """The code a trial ran: the git commit of the source tree (``+modified`` when ``src/``
+    differs from it), or ``articutool <version>`` outside a git checkout. Recorded in every
+    trial, because a resumed log may span commits, which ``run.json`` does not pin."""
+    from articutool import __version__
+
+    pkg = Path(__file__).resolve().parents[1]
+    root = pkg.parents[1]
+    if pkg != root / "src" / "articutool":  # an installed copy, not a source checkout
+        return f"articutool {__version__}"
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short=12", "HEAD"],
+                              capture_output=True, text=True, timeout=10, check=True)
+        dirty = subprocess.run(["git", "-C", str(root), "diff", "--quiet", "HEAD", "--",
+                                "src"], capture_output=True, timeout=10).returncode != 0
+    except (OSError, subprocess.SubprocessError):
+        return f"articutool {__version__}"
+    return head.stdout.strip() + ("+modified" if dirty else "")
+
+
 def pin_run(path: Path, settings: dict[str, Any]) -> None:
     """Write ``run.json`` on a fresh run; on a resume refuse different settings."""
     if path.exists():
@@ -136,7 +159,7 @@ def run_trial(spec: TrialSpec, hook: Any = None,
     return {"experiment": spec.experiment, "trial": spec.trial, "repeat": spec.repeat,
             "seed": spec.seed, **spec.cond, **measured,
             "wall_time_s": round(time.perf_counter() - t0, 3), "pid": os.getpid(),
-            "error": error}
+            "source": source_version(), "error": error}
 
 
 def run_experiment(trials: Sequence[TrialSpec], log: str | Path, executor: Executor, *,

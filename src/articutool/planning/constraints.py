@@ -21,7 +21,11 @@ Conventions (arm base frame, z up = against gravity):
   reference is the leveling solution at the start configuration (the rotation that puts the
   tool level there; ``(0, 0)`` when the tool is level with the wrist at zero). The loose
   constraint keeps ``|θp − θp_ref| ≤ pitch_tol`` and ``|θr − θr_ref| ≤ roll_tol`` along the
-  path (thesis: ±90° pitch, ±45° roll), using the reference's branch.
+  path (thesis: ±90° pitch, ±45° roll), using the reference's branch — and keeps that
+  branch's pitch ``θp_ref + Δθp`` inside the wrist's pitch range. The ±90° band is about the
+  start's reference, so from a start whose wrist is already pitched it reaches past the pitch
+  stop; there the leveling solution can only continue on the other branch, a jump the
+  motors cannot make, and the verifier (§4.3.2) rejects the plan.
 """
 
 from __future__ import annotations
@@ -145,6 +149,7 @@ class LooseConstraint:
     roll_tol: float
     reference: tuple[float, float] = (0.0, 0.0)  # leveling angles [θp, θr] at the start
     branch: int = 0
+    pitch_limits: tuple[float, float] = (-np.inf, np.inf)  # the wrist's pitch range (rad)
 
     def deviation(self, R_f0: ArrayLike) -> NDArray[np.float64]:
         """Leveling-angle deviation from the reference (..., 2), pitch wrapped to (−π, π]."""
@@ -152,18 +157,26 @@ class LooseConstraint:
         return np.stack([wrap_angle(a[..., 0]), wrap_angle(a[..., 1])], axis=-1)
 
     def satisfied(self, R_f0: ArrayLike) -> NDArray[np.bool_]:
-        """True where both deviations are within tolerance."""
-        d = np.abs(self.deviation(R_f0))
-        return (d[..., 0] <= self.pitch_tol) & (d[..., 1] <= self.roll_tol)
+        """True where both deviations are within tolerance and the leveling pitch is inside
+        the wrist's pitch range."""
+        d = self.deviation(R_f0)
+        p = self.reference[0] + d[..., 0]
+        lo, hi = self.pitch_limits
+        return ((np.abs(d[..., 0]) <= self.pitch_tol) & (np.abs(d[..., 1]) <= self.roll_tol)
+                & (p >= lo) & (p <= hi))
 
     @staticmethod
     def from_start(
-        R_f0_start: ArrayLike, q_wrist_start: ArrayLike, pitch_tol: float, roll_tol: float
+        R_f0_start: ArrayLike, q_wrist_start: ArrayLike, pitch_tol: float, roll_tol: float,
+        pitch_limits: tuple[float, float] = (-np.inf, np.inf),
     ) -> LooseConstraint:
-        """Reference = the branch of the start's leveling solution nearest ``q_wrist_start``."""
+        """Reference = the branch of the start's leveling solution nearest ``q_wrist_start``;
+        ``pitch_limits``: the wrist's pitch range (``spec.wrist.pitch_limits``)."""
         qs = np.asarray(q_wrist_start, dtype=np.float64)
         cands = [f0_leveling_angles(R_f0_start, b) for b in (0, 1)]
         d = [np.linalg.norm(wrap_angle(c - qs)) for c in cands]
         b = int(np.argmin(d))
         ref = cands[b]
-        return LooseConstraint(pitch_tol, roll_tol, (float(ref[0]), float(ref[1])), b)
+        lo, hi = pitch_limits
+        return LooseConstraint(pitch_tol, roll_tol, (float(ref[0]), float(ref[1])), b,
+                               (float(lo), float(hi)))

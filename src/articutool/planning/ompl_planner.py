@@ -271,7 +271,8 @@ class _Problem:
             self.executed = _Kin(_arm_model(spec, req.utensil, 8, cached), TOOL_BASE_FRAME, bp)
             self.loose = LooseConstraint.from_start(
                 self.kin.rotation(self.start), task.start_wrist,
-                math.radians(pl.loose_pitch_deg), math.radians(pl.loose_roll_deg))
+                math.radians(pl.loose_pitch_deg), math.radians(pl.loose_roll_deg),
+                spec.wrist.pitch_limits)
             self.strict = None
             self.band = None
             self._q_executed = np.zeros(8)
@@ -292,7 +293,7 @@ class _Problem:
     def leveling_wrist(self, q: NDArray[np.float64]) -> tuple[float, float] | None:
         """Decoupled: the wrist angles that level the tool at arm configuration ``q``
         (Eqs. 4.2–4.3 on the loose reference's branch, continuous about the reference), or
-        ``None`` outside the loose constraint.
+        ``None`` outside the loose constraint (its band, or past the wrist's pitch stop).
 
         Scalar fast path of ``LooseConstraint.satisfied``: called for every checked state,
         plain ``math`` on three numbers is ~10× cheaper than the vectorised NumPy form (which
@@ -306,8 +307,10 @@ class _Problem:
             p, r = p + math.pi, math.pi - r
         dp = (p - c.reference[0] + math.pi) % _TWO_PI - math.pi
         dr = (r - c.reference[1] + math.pi) % _TWO_PI - math.pi
-        if abs(dp) <= c.pitch_tol and abs(dr) <= c.roll_tol:
-            return c.reference[0] + dp, c.reference[1] + dr
+        p = c.reference[0] + dp
+        if abs(dp) <= c.pitch_tol and abs(dr) <= c.roll_tol and (
+                c.pitch_limits[0] <= p <= c.pitch_limits[1]):
+            return p, c.reference[1] + dr
         return None
 
     def constraint_ok(self, q: NDArray[np.float64]) -> bool:
@@ -351,10 +354,13 @@ class _Problem:
                 R = self.kin.rotation(q)
                 if self.loose is not None:
                     dev = np.degrees(self.loose.deviation(R))
+                    lo, hi = np.degrees(self.loose.pitch_limits)
+                    pitch = math.degrees(self.loose.reference[0]) + dev[0]
                     return (f"{name} violates the loose tool-base constraint: pitch/roll "
                             f"deviation {dev[0]:.1f}°/{dev[1]:.1f}° from the start's level "
                             f"reference (allowed ±{self.spec.planning.loose_pitch_deg:g}°/"
-                            f"±{self.spec.planning.loose_roll_deg:g}°)")
+                            f"±{self.spec.planning.loose_roll_deg:g}°), leveling pitch "
+                            f"{pitch:.1f}° (the wrist reaches [{lo:g}°, {hi:g}°])")
                 assert self.strict is not None
                 return (f"{name} tip pitch/roll {float(tip_axis_tilt_deg(R)):.1f}° exceeds "
                         f"±{math.degrees(self.strict.tol):g}°")
