@@ -163,12 +163,12 @@ def test_resume_with_another_seed_is_refused(tmp_path, capsys) -> None:
     assert not log_path(out, "capacity").exists()
 
 
-def test_source_version_is_the_checkout_commit_and_flags_modified_sources() -> None:
+def test_source_version_is_the_last_source_commit_and_flags_modified_sources() -> None:
     from articutool.experiments.runner import source_version
 
     root = Path(__file__).resolve().parents[1]
-    head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short=12", "HEAD"],
-                          capture_output=True, text=True)
+    head = subprocess.run(["git", "-C", str(root), "log", "-1", "--format=%h", "--abbrev=12",
+                           "--", "src"], capture_output=True, text=True)
     if head.returncode != 0:
         pytest.skip("not a git checkout")
     modified = subprocess.run(["git", "-C", str(root), "diff", "--quiet", "HEAD", "--",

@@ -92,9 +92,10 @@ def data_hash(experiment: str, cfg: ExperimentsConfig) -> str:
 
 @functools.cache
 def source_version() -> str:
-    """The code a trial ran: the git commit of the source tree (``+modified`` when ``src/``
-    differs from it), or ``articutool <version>`` outside a git checkout. Recorded in every
-    trial, because a resumed log may span commits, which ``run.json`` does not pin."""
+    """The code a trial ran: the last git commit that changed ``src/`` (``+modified`` when
+    ``src/`` differs from it; commits of results or docs do not count), or ``articutool
+    <version>`` outside a git checkout. Recorded in every trial, because a resumed log may
+    span commits, which ``run.json`` does not pin."""
     from articutool import __version__
 
     pkg = Path(__file__).resolve().parents[1]
@@ -102,7 +103,8 @@ def source_version() -> str:
     if pkg != root / "src" / "articutool":  # an installed copy, not a source checkout
         return f"articutool {__version__}"
     try:
-        head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short=12", "HEAD"],
+        head = subprocess.run(["git", "-C", str(root), "log", "-1", "--format=%h",
+                               "--abbrev=12", "--", "src"],
                               capture_output=True, text=True, timeout=10, check=True)
         dirty = subprocess.run(["git", "-C", str(root), "diff", "--quiet", "HEAD", "--",
                                 "src"], capture_output=True, timeout=10).returncode != 0
