@@ -80,8 +80,8 @@ EXP_FLAGS ?=
 experiments: $(VENV)/.installed
 	$(BIN)/articutool experiment capacity --trials $(EXP_TRIALS) --out $(EXP_OUT) $(EXP_FLAGS)
 	$(BIN)/articutool experiment exp2b --trials $(EXP_TRIALS) --out $(EXP_OUT) $(EXP_FLAGS)
-	$(BIN)/articutool experiment exp2c --trials $(EXP_TRIALS) --out $(EXP_OUT) $(EXP_FLAGS)
 	$(BIN)/articutool experiment exp1 --trials $(EXP_TRIALS) --out $(EXP_OUT) $(EXP_FLAGS)
+	$(BIN)/articutool experiment exp2c --trials $(EXP_TRIALS) --out $(EXP_OUT) $(EXP_FLAGS)
 	$(BIN)/articutool experiment exp3 --trials $(EXP_TRIALS) --out $(EXP_OUT) $(EXP_FLAGS)
 	$(BIN)/articutool experiment report --out $(EXP_OUT)
 
