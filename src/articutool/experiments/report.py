@@ -210,7 +210,8 @@ def _sec_exp2c(s: Mapping[str, Any], cfg: Any) -> str:
            + " / ".join(f"{g:g} g" for g in th["capacity_g"].values()) + ". Thresholds: "
            + (", ".join(f"{f} {g:.2f} g" for f, g in ths.items()) if ths else "none")
            + f" ({s.get('thresholds_source', '?')}); thesis: "
-           + " / ".join(f"> {g:g} g" for g in th["thresholds_g"].values())
+           + " / ".join(f"> {cfg.thesis['exp1'][f]['articutool'][0]:g} g"
+                        for f in cfg.exp2c.foods)
            + " (its Exp. 1 means).\n\n")
     rows = []
     for f in cfg.exp2c.foods:
