@@ -34,23 +34,31 @@ def main() -> None:
     m = w.model
     floor = container_floor(w.scene, w.layout.container or "bowl")
     acts = [m.actuator(f"{n}/motor").id for n in w.layout.wrist_joints]
-    last: list[str | None] = [None]
-    next_t = [0.0]
 
-    def trace(root: py_trees.behaviour.Behaviour) -> None:
-        tip = root.tip()
-        name = tip.name if tip is not None else "-"
-        h = float(w.tip_pose()[2, 3] - floor[2])
-        dense = h < args.near_m and w.time >= next_t[0]
-        if name != last[0] or dense:
-            tau = np.round(w.data.actuator_force[acts], 2)
-            print(f"{w.time:7.2f} s  {name:28.28s} tip {100 * h:5.1f} cm  "
-                  f"tilt {w.tilt_deg():5.1f}°  utensil {w.masses_g()['utensil']:5.1f} g  "
-                  f"wrist {np.round(w.wrist_q, 2)} rad  torque {tau} N·m", flush=True)
-            last[0], next_t[0] = name, w.time + 0.2
+    class Trace(py_trees.visitors.VisitorBase):
+        """After each tick, a line if the running behaviour changed or the tip is low."""
+
+        def __init__(self) -> None:
+            super().__init__(full=False)
+            self.root, self.last, self.next_t = None, None, 0.0
+
+        def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
+            if behaviour.parent is None:
+                self.root = behaviour
+
+        def finalise(self) -> None:
+            tip = self.root.tip() if self.root is not None else None
+            name = tip.name if tip is not None else "-"
+            h = float(w.tip_pose()[2, 3] - floor[2])
+            if name != self.last or (h < args.near_m and w.time >= self.next_t):
+                tau = np.round(w.data.actuator_force[acts], 2)
+                print(f"{w.time:7.2f} s  {name:28.28s} tip {100 * h:5.1f} cm  "
+                      f"tilt {w.tilt_deg():5.1f}°  utensil {w.masses_g()['utensil']:5.1f} g  "
+                      f"wrist {np.round(w.wrist_q, 2)} rad  torque {tau} N·m", flush=True)
+                self.last, self.next_t = name, w.time + 0.2
 
     print(f"{args.food} / {args.system}: strategy {setup.strategy_name}")
-    r = run_bite(setup, stages=("above", "acquire", "resting"), on_tick=trace)
+    r = run_bite(setup, stages=("above", "acquire", "resting"), visitors=[Trace()])
     print(f"acquired {r.acquired_g:.2f} g, at Resting {r.delivered_g:.2f} g, "
           f"failed stage {r.failed_stage or 'none'}")
 

@@ -71,3 +71,49 @@ def test_show_tree_renders_a_png(tmp_path: Path) -> None:
     r = _run("--food", "water", "--system", "baseline", "--show-tree", str(out))
     assert r.returncode == 0, r.stderr
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def _run_on_a_terminal(*args: str, timeout_s: float = 600.0) -> tuple[int, str]:
+    """Run ``articutool meal`` with stdout and stderr on a real pseudo-terminal; return its
+    exit code and everything it wrote, ANSI escapes removed."""
+    import os
+    import re
+    import select
+    import time
+
+    master, slave = os.openpty()
+    env = {**os.environ, "TERM": "xterm-256color", "COLUMNS": "160", "LINES": "60"}
+    env.pop("NO_COLOR", None)
+    proc = subprocess.Popen([sys.executable, "-m", "articutool", "meal", *args],
+                            stdin=subprocess.DEVNULL, stdout=slave, stderr=slave, env=env)
+    os.close(slave)
+    chunks: list[bytes] = []
+    deadline = time.monotonic() + timeout_s
+    try:
+        while time.monotonic() < deadline:
+            if select.select([master], [], [], 1.0)[0]:
+                try:
+                    data = os.read(master, 65536)
+                except OSError:  # EIO: the child closed the terminal
+                    break
+                if not data:
+                    break
+                chunks.append(data)
+            elif proc.poll() is not None:
+                break
+        rc = proc.wait(timeout=max(1.0, deadline - time.monotonic()))
+    finally:
+        proc.kill()
+        os.close(master)
+    text = b"".join(chunks).decode("utf-8", "replace")
+    return rc, re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text)
+
+
+def test_a_meal_on_a_terminal_shows_the_live_tree_verbatim() -> None:
+    # The live tree is py_trees' text, whose "[o]" (a selector) and "[-]" look like rich
+    # markup; it must reach the terminal as written, and the bite's record after it.
+    rc, out = _run_on_a_terminal("--food", "pecans")
+    assert rc == 0, out[-2000:]
+    assert "[o] bite" in out and "[-] guard" in out
+    assert "move to AbovePlate" in out
+    assert "bite 1: " in out and "planning attempts: " in out

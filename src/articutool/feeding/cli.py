@@ -84,56 +84,6 @@ def _show_tree(args: argparse.Namespace, lib: Any, out: Path | None) -> int:
     return 0
 
 
-class _Progress:
-    """One line each time the running behaviour changes (stderr), or a live tree on a
-    terminal."""
-
-    def __init__(self, world: Any, live: bool) -> None:
-        from rich.console import Console
-
-        self.world, self.last = world, ""
-        self.console = Console(stderr=True, soft_wrap=True)  # log lines are not wrapped
-        self.live = None
-        if live and self.console.is_terminal:
-            from rich.live import Live
-
-            self.live = Live(console=self.console, refresh_per_second=4, transient=True)
-            self.live.start()
-
-    def __call__(self, root: Any) -> None:
-        import py_trees
-
-        tip = root.tip()
-        where = " › ".join(n.name for n in _path_to(root, tip)
-                           if getattr(n, "bite_stage", None) or n is tip) if tip else ""
-        attempts = "".join(f" (attempt {n.bb.get(n.key)})" for n in _path_to(root, tip)
-                           if hasattr(n, "key") and n.key.startswith("planning_attempts_"))
-        line = f"{where}{attempts}"
-        if self.live is not None:
-            self.live.update(py_trees.display.unicode_tree(root, show_status=True,
-                                                            show_only_visited=True))
-        elif line != self.last:
-            self.console.print(f"[dim]{self.world.time:7.1f} s[/dim] {line}"
-                               + (f" [dim]– {tip.feedback_message}[/dim]"
-                                  if tip and tip.feedback_message else ""),
-                               highlight=False)
-        self.last = line
-
-    def stop(self) -> None:
-        if self.live is not None:
-            self.live.stop()
-
-
-def _path_to(root: Any, node: Any) -> list[Any]:
-    path = []
-    while node is not None:
-        path.append(node)
-        if node is root:
-            break
-        node = node.parent
-    return path[::-1]
-
-
 def _print_bite(r: Any) -> None:
     spills = ", ".join(f"{g:.2f} g on the {'user' if p == 'critical' else p}"
                        for p, g in r.spilled_by_place.items() if g > 0) or "none"
@@ -160,6 +110,7 @@ def _cmd_meal(args: argparse.Namespace) -> int:
     if video is not None:
         import articutool.sim.render  # noqa: F401  (selects EGL before MuJoCo loads)
     from articutool.feeding.meal import make_bite_world, run_meal
+    from articutool.feeding.progress import TreeProgress
 
     try:
         setup = make_bite_world(args.food, args.system, args.seed, strategies=args.strategies)
@@ -183,10 +134,10 @@ def _cmd_meal(args: argparse.Namespace) -> int:
         data_rec = DataRecorder(setup.world, extra={
             "meal": {"food": args.food, "system": args.system, "seed": args.seed,
                      "strategy": setup.strategy_name}})
-    progress = _Progress(setup.world, live=not args.json)
+    progress = TreeProgress(setup.world, live=not args.json)
     try:
         bites = run_meal(args.food, args.system, bites=args.bites, seed=args.seed,
-                         threshold_g=args.threshold, setup=setup, on_tick=progress,
+                         threshold_g=args.threshold, setup=setup, visitors=[progress],
                          on_bite=None if args.json else _print_bite)
     finally:
         progress.stop()

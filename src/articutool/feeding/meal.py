@@ -159,17 +159,16 @@ def _tree(setup: MealSetup, stages: Sequence[str], settings: BiteSettings
 def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
              threshold_g: float | None = None, settings: BiteSettings = DEFAULT_SETTINGS,
              root: py_trees.behaviour.Behaviour | None = None, timeout_s: float = 240.0,
-             on_tick: Callable[[py_trees.behaviour.Behaviour], None] | None = None
-             ) -> BiteResult:
+             visitors: Sequence[py_trees.visitors.VisitorBase] = ()) -> BiteResult:
     """Run one bite (``stages`` of :data:`~articutool.feeding.bite.STAGES`) and return its
     record. ``root``: a tree from an earlier bite of the same meal (the same tree runs again);
-    ``on_tick`` is called after every tree tick (live display)."""
+    ``visitors`` join the tree's own (e.g. a progress display or a trace)."""
     w = setup.world
     if root is None:
         root = _tree(setup, stages, settings)
     tree = py_trees.trees.BehaviourTree(root)
     rec, ledger = BiteRecorder(w.clock), FoodLedger(w)
-    tree.visitors += [rec, ledger]
+    tree.visitors += [rec, ledger, *visitors]
     tree.setup()
     t0, wall0, n_spills = w.time, time.perf_counter(), len(w.spills)
     before = w.masses_g()
@@ -177,8 +176,6 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
     t_end = w.time + timeout_s
     while w.time < t_end:
         tree.tick()
-        if on_tick is not None:
-            on_tick(root)
         if root.status in (Status.SUCCESS, Status.FAILURE):
             status = root.status
             break
@@ -226,7 +223,7 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
 def run_meal(food: str, system: str, *, bites: int = 1, seed: int = 0,
              strategies: str | Path | None = None, threshold_g: float | None = None,
              settings: BiteSettings = DEFAULT_SETTINGS,
-             on_tick: Callable[[py_trees.behaviour.Behaviour], None] | None = None,
+             visitors: Sequence[py_trees.visitors.VisitorBase] = (),
              on_bite: Callable[[BiteResult], None] | None = None,
              setup: MealSetup | None = None) -> list[BiteResult]:
     """N bites of ``food`` with ``system`` with the same tree (one strategy per meal, drawn
@@ -237,7 +234,7 @@ def run_meal(food: str, system: str, *, bites: int = 1, seed: int = 0,
     try:
         for k in range(bites):
             r = run_bite(setup, bite=k, threshold_g=threshold_g, settings=settings, root=root,
-                         on_tick=on_tick)
+                         visitors=visitors)
             out.append(r)
             if on_bite is not None:
                 on_bite(r)
