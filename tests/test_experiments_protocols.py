@@ -12,9 +12,11 @@ import pytest
 pytest.importorskip("mujoco")
 
 import articutool.cli as cli
+from articutool.experiments.analysis import classify
 from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import conditions, make_trials
 from articutool.experiments.runner import run_trial, source_version
+from articutool.feeding.outcomes import OUTCOMES
 
 CFG = ExperimentsConfig.load()
 
@@ -106,6 +108,9 @@ def test_exp3_trial_noodles_whole_bite_has_an_outcome_class() -> None:
     r = run_trial(trials[0])
     assert r["error"] is None, r.get("traceback")
     assert r["stages"][-1] == "present"
-    assert r["outcome"] in ("meaningful_success", "trivial_success", "table_spill",
-                            "user_spill", "failed")
+    # The class is derived at analysis time, at the report's threshold (our Exp. 1 mean).
+    assert r["outcome"] is None
+    assert r["completed"] or r["failed_stage"], r
+    for threshold_g in (0.0, 3.0):
+        assert classify(r, threshold_g) in OUTCOMES
     json.dumps(r, allow_nan=False)
