@@ -184,8 +184,8 @@ def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) ->
     if logged is None:
         verdict = "no logged record to compare with"
     else:
-        diff = sorted(k for k in rec
-                      if k not in timing | bookkeeping and logged.get(k) != rec[k])
+        ignored = timing | bookkeeping
+        diff = sorted(k for k in rec if k not in ignored and logged.get(k) != rec[k])
         verdict = "reproduces the logged record" if not diff else (
             f"differs from the logged record in {diff}")
         moved = [f"{k} {logged.get(k)} → {rec[k]}" for k in sorted(timing & rec.keys())

@@ -46,23 +46,24 @@ class TreeProgress(py_trees.visitors.SnapshotVisitor):
         changed."""
         if self.root is None:
             return
-        tip = self.root.tip()
-        path = _path_to(self.root, tip)
-        where = " › ".join(n.name for n in path if getattr(n, "bite_stage", None) or n is tip)
-        attempts = "".join(f" (attempt {n.bb.get(n.key)})" for n in path
-                           if hasattr(n, "key") and n.key.startswith("planning_attempts_"))
-        line = f"{where}{attempts}"
         if self.live is not None:
             # py_trees' text holds ANSI colours and "[o]"/"[-]" symbols, which are not markup.
             self.live.update(Text.from_ansi(py_trees.display.unicode_tree(
                 self.root, show_status=True, show_only_visited=True, visited=self.visited,
                 previously_visited=self.previously_visited)))
-        elif line != self.last:
+            return
+        tip = self.root.tip()
+        path = _ancestry(tip)
+        where = " › ".join(n.name for n in path if getattr(n, "bite_stage", None) or n is tip)
+        attempts = "".join(f" (attempt {n.bb.get(n.key)})" for n in path
+                           if hasattr(n, "key") and n.key.startswith("planning_attempts_"))
+        line = f"{where}{attempts}"
+        if line != self.last:
             feedback = tip.feedback_message if tip is not None else ""
             self.console.print(f"[dim]{self.world.time:7.1f} s[/dim] {escape(line)}"
                                + (f" [dim]– {escape(feedback)}[/dim]" if feedback else ""),
                                highlight=False)
-        self.last = line
+            self.last = line
 
     def stop(self) -> None:
         """End the live display (it leaves no trace on the terminal)."""
@@ -70,11 +71,10 @@ class TreeProgress(py_trees.visitors.SnapshotVisitor):
             self.live.stop()
 
 
-def _path_to(root: Any, node: Any) -> list[Any]:
+def _ancestry(node: Any) -> list[Any]:
+    """``node`` and its parents, root first (empty for ``None``)."""
     path = []
     while node is not None:
         path.append(node)
-        if node is root:
-            break
         node = node.parent
     return path[::-1]
