@@ -146,3 +146,25 @@ def test_report_puts_ours_beside_the_thesis_and_lists_what_did_not_run(cfg, tmp_
     assert "Not run yet" in md and "exp1" in md.split("Not run yet")[1]
     assert (tmp_path / "exp2b" / "exp2b.png").exists()
     assert "<img" in html_path.read_text()
+
+
+def test_no_summary_reads_the_thesis_numbers(cfg) -> None:
+    # The thesis' results in experiments.toml are printed beside ours only: no outcome,
+    # threshold or statistic may change if they are removed.
+    blind = cfg.model_copy(update={"thesis": {}})
+    runs = {
+        "exp1": ([rec(0.0, food=f, system=s, mass_g=m) for f in ("pecans", "water", "noodles")
+                  for s, m in (("articutool", 1.8), ("articutool", 0.9), ("baseline", 0.9),
+                               ("baseline", 0.0))], {}),
+        "exp2b": ([rec(2.5 - x, table=x, food=f, system=s, goal="left", planning_attempts=1,
+                       max_tilt_deg=5.0) for f in ("pecans", "water")
+                   for s, x in (("articutool", 0.0), ("baseline", PIECE))], {}),
+        "exp2c": ([rec(d, table=t, food=f, condition=c) for f in ("pecans", "water")
+                   for c, d, t in (("control", 5.0, PIECE), ("primitive", 2.0, 0.0))],
+                  {"thresholds_g": {"pecans": 1.5, "water": 0.0}}),
+        "exp3": ([rec(d, system=s, planning_attempts=1) for s, d in (("articutool", 5.0),
+                                                                     ("baseline", 1.0))],
+                 {"threshold_g": 0.0}),
+    }
+    for exp, (recs, kw) in runs.items():
+        assert summarize(exp, recs, blind, **kw) == summarize(exp, recs, cfg, **kw), exp
