@@ -66,7 +66,8 @@ class BiteResult:
     planning_attempts: int  # to Staging (the thesis' count), else to the last goal planned
     planning_attempts_by_goal: dict[str, int]
     acquisition_attempts: int  # 0 if the bite had no acquire stage
-    planning_time_s: float
+    planning_wall_s: float  # the planners' own wall time (the attempts' budget is on it)
+    planning_wait_sim_s: float  # simulated time that passed while planning (machine-dependent)
     motion_time_s: float
     sim_time_s: float
     wall_time_s: float
@@ -213,7 +214,9 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
         ft_delivered_g=None if ft is None or ft != ft else float(ft),
         planning_attempts=attempts.get(goal, 0), planning_attempts_by_goal=attempts,
         acquisition_attempts=counted.get("acquisition_attempts", 0),
-        planning_time_s=rec.record.planning_time_s, motion_time_s=rec.record.motion_time_s,
+        planning_wall_s=rec.record.planning_wall_s,
+        planning_wait_sim_s=rec.record.planning_wait_sim_s,
+        motion_time_s=rec.record.motion_time_s,
         sim_time_s=w.time - t0, wall_time_s=time.perf_counter() - wall0,
         failed_stage="" if completed else rec.record.failed_stage or "stopped",
         stages=list(stages), masses_after=after,
