@@ -339,3 +339,32 @@ def test_a_failed_acquisition_is_retried_up_to_the_strategy_s_limit() -> None:
     assert tree.root.status == Status.FAILURE
     assert arm.executed.count("path into the food") == 3  # three tries, then the retreat
     assert py_trees.blackboard.Blackboard.get("/bite/acquisition_attempts") == 3
+
+
+def test_the_trees_timeout_does_not_count_the_wait_for_a_plan() -> None:
+    """A plan that takes 50 s of the tree's clock (a slow machine) inside a 20 s tree
+    timeout: the transport still completes, because the timeout counts the rest of the time
+    (the plan itself ends within the planner's own budget)."""
+    from articutool.feeding.tree import run_tree
+
+    py_trees.blackboard.Blackboard.clear()
+    clock = Clock()
+    arm, tool = FakeArm(clock, [], [], plan_s=50.0, motion_s=5.0), FakeTool(clock)
+
+    def step(dt: float) -> None:
+        clock.t += dt
+
+    status, rec = run_tree(transport_tree(arm, tool, "Staging", "decoupled", attempts=2,
+                                          budget_s=1.0, clock=clock), step, clock,
+                           timeout_s=20.0)
+    assert status == Status.SUCCESS and arm.executed == ["traj1"], rec.failures
+    assert rec.planning_wait_sim_s == pytest.approx(50.0, abs=0.11)
+    # Work that is not planning still times out: a motion longer than the timeout.
+    py_trees.blackboard.Blackboard.clear()
+    clock = Clock()
+    arm, tool = FakeArm(clock, [], [], plan_s=0.2, motion_s=30.0), FakeTool(clock)
+    status, rec = run_tree(transport_tree(arm, tool, "Staging", "decoupled", attempts=2,
+                                          budget_s=1.0, clock=clock), step, clock,
+                           timeout_s=20.0)
+    assert status == Status.FAILURE and "did not finish within 20 s" in rec.failed_stage
+    assert all(j.done() for j in arm.jobs)

@@ -162,7 +162,9 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
              root: py_trees.behaviour.Behaviour | None = None, timeout_s: float = 240.0,
              visitors: Sequence[py_trees.visitors.VisitorBase] = ()) -> BiteResult:
     """Run one bite (``stages`` of :data:`~articutool.feeding.bite.STAGES`) and return its
-    record. ``root``: a tree from an earlier bite of the same meal (the same tree runs again);
+    record. ``timeout_s`` is simulated time not counting the waits for plans (those depend on
+    the machine's speed; each plan ends within the planner's own budget). ``root``: a tree
+    from an earlier bite of the same meal (the same tree runs again);
     ``visitors`` join the tree's own (e.g. a progress display or a trace)."""
     w = setup.world
     if root is None:
@@ -174,8 +176,8 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
     t0, wall0, n_spills = w.time, time.perf_counter(), len(w.spills)
     before = w.masses_g()
     status = Status.FAILURE
-    t_end = w.time + timeout_s
-    while w.time < t_end:
+    t_end = w.time + timeout_s  # simulated time, not counting the waits for plans
+    while w.time - rec.planning_wait_s(w.time) < t_end:
         tree.tick()
         if root.status in (Status.SUCCESS, Status.FAILURE):
             status = root.status

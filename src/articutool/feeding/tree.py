@@ -110,16 +110,27 @@ class BiteRecorder(py_trees.visitors.VisitorBase):
         self.clock = clock
         self.record = BiteRecord()
         self._started: dict[int, float] = {}
+        self._planning: dict[int, tuple[float, py_trees.behaviour.Behaviour]] = {}
 
     def initialise(self) -> None:
         self._now = self.clock()
+
+    def planning_wait_s(self, now: float) -> float:
+        """Time on ``clock`` spent waiting for plans so far, the plans still running
+        included: what a timeout on ``clock`` must not count, since on a slower machine the
+        world steps further while the same plan is computed."""
+        running = [(t0, b) for t0, b in self._planning.values() if b.status == Status.RUNNING]
+        return self.record.planning_wait_sim_s + sum(now - t0 for t0, _ in running)
 
     def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
         if isinstance(behaviour, Plan | PlanPath | Execute):
             key = id(behaviour)
             if behaviour.status == Status.RUNNING:
                 self._started.setdefault(key, self._now)
+                if not isinstance(behaviour, Execute):
+                    self._planning.setdefault(key, (self._started[key], behaviour))
             elif behaviour.status in (Status.SUCCESS, Status.FAILURE):
+                self._planning.pop(key, None)
                 dt = self._now - self._started.pop(key, self._now)
                 if isinstance(behaviour, Execute):
                     self.record.motion_time_s += dt
@@ -137,15 +148,16 @@ class BiteRecorder(py_trees.visitors.VisitorBase):
 def run_tree(root: py_trees.behaviour.Behaviour, step: Callable[[float], None],
              clock: Callable[[], float], *, period_s: float = 0.1,
              timeout_s: float = 120.0) -> tuple[Status, BiteRecord]:
-    """Tick ``root`` every ``period_s`` of ``clock`` until it ends or ``timeout_s`` passes,
-    calling ``step(period_s)`` between ticks (the physics world's ``run``); returns the final
-    status and the telemetry. A timeout stops the tree (its clean-up runs)."""
+    """Tick ``root`` every ``period_s`` of ``clock`` until it ends or ``timeout_s`` passes
+    (not counting the waits for plans, :meth:`BiteRecorder.planning_wait_s`), calling
+    ``step(period_s)`` between ticks (the physics world's ``run``); returns the final status
+    and the telemetry. A timeout stops the tree (its clean-up runs)."""
     tree = py_trees.trees.BehaviourTree(root)
     rec = BiteRecorder(clock)
     tree.visitors.append(rec)
     tree.setup()
     t_end = clock() + timeout_s
-    while clock() < t_end:
+    while clock() - rec.planning_wait_s(clock()) < t_end:
         tree.tick()
         if tree.root.status in (Status.SUCCESS, Status.FAILURE):
             return tree.root.status, rec.record
