@@ -322,6 +322,13 @@ def test_level_beyond_the_pitch_limit_never_drives_pitch_into_its_stop(base_pitc
     assert rt.fault == "" and rt.mode is Mode.LEVELING
     assert lo <= qs[:, 0].min() and qs[:, 0].max() <= hi
     assert abs(abs(qs[-1, 0]) - hi) < 0.01  # pressed against the limit, as close as it can
+    # Not level: reported, never silent, with the level configuration on the other branch
+    # (half a roll turn away), which the wrist does not swing to on its own.
+    last = rec[-1][2]
+    assert last.extra.get("leveling_stalled", 0.0) == 1.0
+    target = np.array([last.extra["leveling_target_pitch"], last.extra["leveling_target_roll"]])
+    assert lo <= target[0] <= hi and abs(target[1] - qs[-1, 1]) > 2.0
+    assert math.degrees(math.acos(min(1.0, sim.base_state()[0] @ up_vector(target) @ Z))) < 2.0
 
 
 def test_leveling_that_would_need_roll_beyond_the_cable_budget_is_refused():

@@ -47,8 +47,9 @@ singularity) while the tool is still tilted, though a level configuration exists
 side of the joint space (reaching it would swing the utensil through large tilts, so the
 controller does not go there on its own). :attr:`LevelingController.stalled` says so: the error
 has stayed above ``stall_angle`` for ``stall_s`` while the command was below the one Alg. 1
-gives at the deadband edge (``kp × deadband``). The same holds when no level configuration is
-reachable (the base pitched beyond the wrist's range).
+gives at the deadband edge (``kp × deadband``). The same holds when the base pitches so far
+that leveling on the present branch would need pitch past its limit (the level configuration
+is then on the other branch, half a roll turn away).
 
 **Rate feed-forward** (optional, beyond Alg. 1). Pure feedback lags a base turning at ω by
 about ω/Kp (0.84 rad/s / 5 ≈ 10°). If the runtime passes the base's angular velocity in F0

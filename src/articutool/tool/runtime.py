@@ -696,10 +696,12 @@ class ToolRuntime:
         cmd = self.controller.update(R, q, dt, base_rate=rate)
         if not self.controller.stalled:
             self._stall_target = None
-        elif self._stall_target is None:  # once per stall: where level could be reached
-            target = self.controller.nearest_level(R, q)
-            self._stall_target = ((math.nan, math.nan) if target is None
-                                  else (float(target[0]), float(target[1])))
+            return cmd
+        new = self._stall_target is None
+        target = self.controller.nearest_level(R, q)  # where level could be reached now
+        self._stall_target = ((math.nan, math.nan) if target is None
+                              else (float(target[0]), float(target[1])))
+        if new:
             log.warning("leveling stalled at %.1f° of tilt (nearest level configuration: %s)",
                         math.degrees(self.controller.error_angle), self._stall_target)
         return cmd
