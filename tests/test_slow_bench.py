@@ -15,9 +15,7 @@ def test_bench_transport_first_tasks_all_systems(tmp_path, capsys):
     out = json.loads(capsys.readouterr().out)
     assert set(out) == {"decoupled", "strict6", "strict8"}
     assert out["decoupled"]["success_rate"] == 1.0
-    # Decoupled is the fastest system on the same tasks (thesis Fig. 6.2).
-    for strict in ("strict6", "strict8"):
-        if out[strict]["median_time_s"] is not None:
-            assert out["decoupled"]["median_time_s"] < out[strict]["median_time_s"]
+    # Which system plans fastest is wall time on this machine: measured, not asserted, by
+    # benchmarks/system_speed.py (JSON).
     assert code == 0  # every trial finished (a lost worker would exit 1)
     assert (tmp_path / "run" / "cactus.png").exists()

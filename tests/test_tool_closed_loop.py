@@ -19,6 +19,7 @@ import pytest
 from articutool import load_spec
 from articutool.tool.api import Mode
 from articutool.tool.drivers.sim import SimWrist, axis_angle_rotation
+from articutool.tool.kinematics import up_vector
 from articutool.tool.runtime import ToolRuntime
 
 SPEC = load_spec()
@@ -127,6 +128,7 @@ def test_leveling_holds_the_utensil_level_during_arm_transport(case):
     err = np.degrees([e for _, e, _, _ in rec])
     states = [s for _, _, s, _ in rec]
     assert all(s.mode is Mode.LEVELING and not s.fault for s in states)
+    assert not any(s.extra["leveling_stalled"] for s in states)  # no false stall report
     # The base really moved: its tool-base up direction swept tens of degrees.
     ups = np.array([motion(t)[0].T @ Z for t, _, _, _ in rec])
     sweep = math.degrees(max(math.acos(np.clip(u @ ups[0], -1, 1)) for u in ups))
@@ -320,6 +322,13 @@ def test_level_beyond_the_pitch_limit_never_drives_pitch_into_its_stop(base_pitc
     assert rt.fault == "" and rt.mode is Mode.LEVELING
     assert lo <= qs[:, 0].min() and qs[:, 0].max() <= hi
     assert abs(abs(qs[-1, 0]) - hi) < 0.01  # pressed against the limit, as close as it can
+    # Not level: reported, never silent, with the level configuration on the other branch
+    # (half a roll turn away), which the wrist does not swing to on its own.
+    last = rec[-1][2]
+    assert last.extra.get("leveling_stalled", 0.0) == 1.0
+    target = np.array([last.extra["leveling_target_pitch"], last.extra["leveling_target_roll"]])
+    assert lo <= target[0] <= hi and abs(target[1] - qs[-1, 1]) > 2.0
+    assert math.degrees(math.acos(min(1.0, sim.base_state()[0] @ up_vector(target) @ Z))) < 2.0
 
 
 def test_leveling_that_would_need_roll_beyond_the_cable_budget_is_refused():
@@ -368,3 +377,55 @@ def test_a_rotated_imu_mount_is_one_matrix_for_the_sim_and_the_runtime():
     assert rt.fault == "" and rt.mode is Mode.LEVELING
     # The same bounds as the identity mount (CASES["ff-rotation+accel"]).
     assert err.max() < 5.0 and np.sqrt(np.mean(err**2)) < 3.0 and err[-25:].max() < 1.5
+
+
+def _static_tilted_base(rng, lo_deg, hi_deg):
+    """A still base tilted lo..hi degrees from R0 about a random horizontal axis, any yaw."""
+    tilt = math.radians(rng.uniform(lo_deg, hi_deg))
+    az, yaw = rng.uniform(0.0, 2 * math.pi, size=2)
+    axis = np.array([math.cos(az), math.sin(az), 0.0])
+    return axis_angle_rotation(axis, tilt) @ axis_angle_rotation(Z, yaw) @ R0
+
+
+def _level_from(R, seed):
+    sim, rt = make(seed)
+    sim.set_base_pose(R)
+    run_loop(sim, rt, 1.0)
+    ok, msg = rt.set_mode(Mode.LEVELING)
+    assert ok, msg
+    states = []
+    run_loop(sim, rt, 6.0, states)
+    return sim, rt, [s for _, _, s, _ in states]
+
+
+def test_leveling_from_a_base_tilted_under_30_degrees_converges_without_a_stall():
+    rng = np.random.default_rng(30)
+    for k in range(12):
+        sim, rt, states = _level_from(_static_tilted_base(rng, 0.0, 30.0), k)
+        assert math.degrees(sim.tilt_error()) < 1.5 and rt.fault == ""
+        assert all(s.extra.get("leveling_stalled", 0.0) == 0.0 for s in states)
+
+
+def test_leveling_from_a_base_tilted_60_to_120_degrees_levels_or_reports_the_stall():
+    """Alg. 1 is local: from a base tilted this far it can rest at a pitch limit (or at the
+    roll singularity) still tilted. It must then say so — in the state's telemetry, with the
+    reachable level configuration — never stay tilted silently (issue 21)."""
+    rng = np.random.default_rng(60)
+    stalls = 0
+    for k in range(16):
+        sim, rt, states = _level_from(_static_tilted_base(rng, 60.0, 120.0), k)
+        last = states[-1]
+        assert rt.fault == "" and last.mode is Mode.LEVELING
+        if math.degrees(sim.tilt_error()) < SPEC.controller.stall_deg + 0.5:
+            assert last.extra.get("leveling_stalled", 0.0) == 0.0
+            continue
+        stalls += 1
+        assert last.extra.get("leveling_stalled", 0.0) == 1.0, math.degrees(sim.tilt_error())
+        target = np.array([last.extra["leveling_target_pitch"],
+                           last.extra["leveling_target_roll"]])
+        # The reported target is reachable and levels the tool for this base.
+        lo, hi = SPEC.wrist.pitch_limits
+        assert lo <= target[0] <= hi
+        y = sim.base_state()[0] @ up_vector(target)
+        assert math.degrees(math.acos(min(1.0, y @ Z))) < 2.0
+    assert stalls >= 3  # the sample does hold stalls (measured: 8 of 16)

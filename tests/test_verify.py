@@ -227,3 +227,61 @@ def test_report_serialises():
     d = rep.to_dict(include_trajectory=True)
     assert d["feasible"] is True and len(d["max_required_velocity"]) == 2
     assert d["wrist_trajectory"]["joint_names"] == list(SPEC.wrist.joint_names)
+
+
+def _near_singularity_pass(eps, rate=0.3):
+    """The base rolled 90° less ``eps`` (the up vector in F0 near the pitch axis, |cos roll| ≈
+    eps), then tilted through it: the leveling pitch swings by nearly π within a few
+    milliseconds along one solution curve, while the Eq. 4.7 rates at the 1° samples stay
+    small (the samples are far from the pole compared with eps)."""
+    t = np.linspace(0, 0.2 / rate, 3)
+    g = np.tile(mid_offsets(), (3, 1)).astype(float)
+    r = np.zeros((3, 3))
+    g[:, 2] += np.pi / 2 - eps
+    g[:, 1] += -0.1 + rate * t
+    r[:, 1] = rate
+    return arm_traj(t, g, r)
+
+
+@pytest.mark.parametrize("eps", [0.0, 1e-4, 1e-3, -1e-3])
+def test_a_jump_along_one_solution_curve_is_a_discontinuity(eps):
+    rep = verify_trajectory(_near_singularity_pass(eps), CARM, SPEC)
+    assert not rep.feasible and rep.reason == "discontinuity", rep.message
+    assert rep.branch_switches == 0 and "along one solution" in rep.message
+    t = rep.first_failure_time
+    assert 0.0 < t < 0.2 / 0.3
+    # Where it fails the base is at the pole: its tilt has crossed 0.1 rad (t = 1/3 s).
+    assert abs(t - 0.1 / 0.3) < 0.04
+    # Every step of the wrist trajectory before the failure is one the motors can make.
+    w = rep.wrist_trajectory
+    assert (np.abs(np.diff(w.positions, axis=0))
+            <= SPEC.wrist.velocity_limits * np.diff(w.times)[:, None] + 1e-12).all()
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(-0.01, 0.01), st.floats(0.05, 0.8))
+def test_the_wrist_trajectory_never_steps_faster_than_the_motors(eps, rate):
+    """Whatever the verdict, the leveling trajectory it returns (up to any failure) is one
+    the motors can follow, sample to sample — near the singularity too."""
+    rep = verify_trajectory(_near_singularity_pass(eps, rate), CARM, SPEC)
+    w = rep.wrist_trajectory
+    assert w is not None and len(w) > 1
+    steps = np.abs(np.diff(w.positions, axis=0))
+    assert (steps <= SPEC.wrist.velocity_limits * np.diff(w.times)[:, None] + 1e-12).all()
+
+
+def test_no_sample_evaluated_gives_no_velocity_margin():
+    """An arm limit stops the check before any wrist rate is computed: the margin is unknown
+    (NaN; null in JSON), not 100 %."""
+    tr = ramp(0, 0.0, 1.0)
+    q = tr.positions.copy()
+    q[0, 1] = SPEC.arm.upper[1] + 0.1
+    rep = verify_trajectory(JointTrajectory(tr.joint_names, tr.times, q, tr.velocities),
+                            CARM, SPEC)
+    assert rep.reason == "arm_joint_limit" and rep.samples_checked == 0
+    assert np.isnan(rep.velocity_margin) and np.isnan(rep.max_required_velocity).all()
+    d = rep.to_dict()
+    assert d["velocity_margin"] is None and d["max_required_velocity"] == [None, None]
+    import json
+
+    json.loads(json.dumps(d, allow_nan=False))  # strict JSON

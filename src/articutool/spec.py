@@ -262,6 +262,8 @@ class ControllerSpec(_Strict):
     damping_threshold: Annotated[float, AfterValidator(_finite), Field(gt=0, le=1)]
     damping_power: Positive
     limit_gain: Positive  # 1/s: speed towards a joint limit ≤ limit_gain × distance left
+    stall_deg: Positive  # leveling error above which a near-zero command is a stall
+    stall_s: Positive  # ... for this long
 
 
 class PrimitivesSpec(_Strict):

@@ -85,7 +85,8 @@ def transport(world: FeedingWorld, arm: SimArm, goal: str, planner: str, *, atte
     return {
         "completed": status == Status.SUCCESS,
         "planning_attempts": int(attempts_used or 0),
-        "planning_time_s": _r(rec.planning_time_s),
+        "planning_wall_s": _r(rec.planning_wall_s),
+        "planning_wait_sim_s": _r(rec.planning_wait_sim_s),
         "motion_time_s": _r(rec.motion_time_s),
         "failed_stage": rec.failed_stage,
         "max_tilt_deg": _r(max(tilts)) if tilts else None,

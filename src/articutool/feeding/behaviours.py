@@ -44,11 +44,14 @@ NS = "/bite"
 
 @dataclass(frozen=True)
 class JobResult:
-    """How a job ended: ``ok``, a message a person understands, and its value (a plan)."""
+    """How a job ended: ``ok``, a message a person understands, its value (a plan), and
+    ``wall_s``, the wall time the job's own work took (a plan: the planner's time, not the
+    simulated time that passed meanwhile)."""
 
     ok: bool
     message: str = ""
     value: Any = None
+    wall_s: float = 0.0
 
 
 class Job(Protocol):
@@ -68,7 +71,9 @@ class ArmInterface(Protocol):
     """What the tree needs of the arm (the physics world's arm now; a driver later)."""
 
     def start_plan(self, goal: str, planner: str, budget_s: float) -> Job:
-        """Plan from the present configuration to the named goal; value: the trajectory."""
+        """Plan from the present configuration to the named goal; value: the trajectory. The
+        job ends on its own: ``budget_s`` is the planner's wall time, however fast the
+        caller's clock runs meanwhile."""
 
     def verify(self, trajectory: Any) -> JobResult:
         """Plan-then-verify (Alg. 2) for the tool that will follow it."""
@@ -101,6 +106,7 @@ class _JobBehaviour(py_trees.behaviour.Behaviour):
     def __init__(self, name: str) -> None:
         super().__init__(name)
         self.job: Job | None = None
+        self.job_wall_s = 0.0  # the finished job's own wall time (``JobResult.wall_s``)
 
     def start(self) -> Job:
         raise NotImplementedError
@@ -109,6 +115,7 @@ class _JobBehaviour(py_trees.behaviour.Behaviour):
         return Status.SUCCESS if r.ok else Status.FAILURE
 
     def initialise(self) -> None:
+        self.job_wall_s = 0.0
         self.job = self.start()
         self.feedback_message = "started"
 
@@ -117,7 +124,7 @@ class _JobBehaviour(py_trees.behaviour.Behaviour):
         if not self.job.done():
             return Status.RUNNING
         r = self.job.result()
-        self.feedback_message = r.message
+        self.feedback_message, self.job_wall_s = r.message, r.wall_s
         return self.finished(r)
 
     def terminate(self, new_status: Status) -> None:

@@ -61,7 +61,7 @@ STAGES = ("above", "acquire", "shed", "resting", "staging", "present", "return")
 class BiteSettings:
     """Timing of a bite (our choices; the thesis gives none)."""
 
-    budget_s: float = 10.0  # the planner's own budget per attempt
+    budget_s: float = 10.0  # the planner's own budget per attempt (its wall time)
     level_s: float = 1.0  # tool-only leveling: the wrist settles well within 1 s (measured)
     lift_m: float = 0.10  # straight up out of the container after extraction
     present_s: float = 3.0  # the bite is held still at Staging for the user
@@ -90,8 +90,7 @@ def stage_tree(name: str, arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
     wrist = strategy.system == "articutool"
     carry = Mode.LEVELING if wrist else Mode.DISABLED
     planner = strategy.transport.planner
-    plan_kw = {"attempts": strategy.attempts.plan, "budget_s": settings.budget_s,
-               "clock": clock}
+    plan_kw = {"attempts": strategy.attempts.plan, "budget_s": settings.budget_s}
     seq = py_trees.composites.Sequence
     st = strategy.stages
     if name == "above":
@@ -157,7 +156,7 @@ def bite_tree(arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
             children=[PlanLift(arm, settings.lift_m), Execute(arm, "retreat lift")]))
     home = motion(arm, "Resting", strategy.transport.planner if carry is Mode.DISABLED
                   else "decoupled", attempts=strategy.attempts.plan,
-                  budget_s=settings.budget_s, clock=clock)
+                  budget_s=settings.budget_s)
     retreat = py_trees.decorators.SuccessIsFailure(
         name="retreat (the bite failed)",
         child=ToolModeScope(py_trees.composites.Sequence("retreat", memory=True,

@@ -91,7 +91,8 @@ def _print_bite(r: Any) -> None:
     print(f"bite {r.bite + 1}: {r.outcome.replace('_', ' ')} ({r.strategy})")
     print(f"  acquired {r.acquired_g:.2f} g, shed into the bowl {r.shed_g:.2f} g, "
           f"delivered {r.delivered_g:.2f} g; spilled: {spills}")
-    print(f"  planning attempts: {attempts or 'none'}; planning {r.planning_time_s:.1f} s, "
+    print(f"  planning attempts: {attempts or 'none'}; planning {r.planning_wall_s:.1f} s "
+          f"(planner wall time; {r.planning_wait_sim_s:.1f} s simulated wait), "
           f"motion {r.motion_time_s:.1f} s; utensil tilt in transport max "
           f"{r.transport_max_tilt_deg:.1f}°")
     print(f"  {r.sim_time_s:.1f} s simulated in {r.wall_time_s:.1f} s wall")

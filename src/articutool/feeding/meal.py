@@ -66,7 +66,8 @@ class BiteResult:
     planning_attempts: int  # to Staging (the thesis' count), else to the last goal planned
     planning_attempts_by_goal: dict[str, int]
     acquisition_attempts: int  # 0 if the bite had no acquire stage
-    planning_time_s: float
+    planning_wall_s: float  # the planners' own wall time (the attempts' budget is on it)
+    planning_wait_sim_s: float  # simulated time that passed while planning (machine-dependent)
     motion_time_s: float
     sim_time_s: float
     wall_time_s: float
@@ -161,7 +162,9 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
              root: py_trees.behaviour.Behaviour | None = None, timeout_s: float = 240.0,
              visitors: Sequence[py_trees.visitors.VisitorBase] = ()) -> BiteResult:
     """Run one bite (``stages`` of :data:`~articutool.feeding.bite.STAGES`) and return its
-    record. ``root``: a tree from an earlier bite of the same meal (the same tree runs again);
+    record. ``timeout_s`` is simulated time not counting the waits for plans (those depend on
+    the machine's speed; each plan ends within the planner's own budget). ``root``: a tree
+    from an earlier bite of the same meal (the same tree runs again);
     ``visitors`` join the tree's own (e.g. a progress display or a trace)."""
     w = setup.world
     if root is None:
@@ -173,8 +176,8 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
     t0, wall0, n_spills = w.time, time.perf_counter(), len(w.spills)
     before = w.masses_g()
     status = Status.FAILURE
-    t_end = w.time + timeout_s
-    while w.time < t_end:
+    t_end = w.time + timeout_s  # simulated time, not counting the waits for plans
+    while w.time - rec.planning_wait_s(w.time) < t_end:
         tree.tick()
         if root.status in (Status.SUCCESS, Status.FAILURE):
             status = root.status
@@ -213,7 +216,9 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
         ft_delivered_g=None if ft is None or ft != ft else float(ft),
         planning_attempts=attempts.get(goal, 0), planning_attempts_by_goal=attempts,
         acquisition_attempts=counted.get("acquisition_attempts", 0),
-        planning_time_s=rec.record.planning_time_s, motion_time_s=rec.record.motion_time_s,
+        planning_wall_s=rec.record.planning_wall_s,
+        planning_wait_sim_s=rec.record.planning_wait_sim_s,
+        motion_time_s=rec.record.motion_time_s,
         sim_time_s=w.time - t0, wall_time_s=time.perf_counter() - wall0,
         failed_stage="" if completed else rec.record.failed_stage or "stopped",
         stages=list(stages), masses_after=after,

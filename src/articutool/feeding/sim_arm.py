@@ -2,7 +2,8 @@
 :class:`~articutool.feeding.behaviours.ArmInterface` on a
 :class:`~articutool.sim.world.FeedingWorld`, with the project's planners and verifier.
 
-Plans run in a worker thread (the tree polls them); motions run through the world's arm
+Plans run in a worker thread (the tree polls them) under the planner's own wall-time budget,
+and report that wall time; motions run through the world's arm
 servos while the caller keeps stepping the world. Goals are the spec's named configurations
 (``Resting``, ``AbovePlate``, ``Home``) and ``Staging`` (the spec's pose, solved by IK and
 backed off until the tool clears the user, as in ``articutool demo``). With ``rigid`` (the
@@ -17,9 +18,11 @@ waypoint is reached by a rest-to-rest joint motion from where the arm is.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
@@ -52,6 +55,18 @@ def _concatenate(parts: list[JointTrajectory]) -> JointTrajectory:
         vel.append(b.velocities[1:])
     return JointTrajectory(parts[0].joint_names, np.concatenate(times), np.concatenate(pos),
                            np.concatenate(vel))
+
+
+def _timed(work: Callable[[], JobResult]) -> Callable[[], JobResult]:
+    """``work`` that reports its own wall time (``JobResult.wall_s``), measured in the worker
+    thread: the planner's time, whatever the simulated clock did meanwhile."""
+
+    def run() -> JobResult:
+        t0 = time.perf_counter()
+        r = work()
+        return dataclasses.replace(r, wall_s=time.perf_counter() - t0)
+
+    return run
 
 
 class _FutureJob:
@@ -171,7 +186,7 @@ class SimArm:
             return JobResult(True, f"{r.attempts} attempt(s), {r.planning_time_s:.2f} s",
                              r.trajectory)
 
-        return _FutureJob(self._pool.submit(work))
+        return _FutureJob(self._pool.submit(_timed(work)))
 
     def verify(self, trajectory: Any) -> JobResult:
         """Plan-then-verify: can the wrist level along this arm trajectory (Alg. 2)?"""
@@ -213,7 +228,7 @@ class SimArm:
             traj = _concatenate(parts)
             return JobResult(True, f"{traj.duration:.1f} s", traj)
 
-        return _FutureJob(self._pool.submit(work))
+        return _FutureJob(self._pool.submit(_timed(work)))
 
     def start_plan_lift(self, height_m: float) -> _FutureJob:
         """Plan lifting the tool base straight up by ``height_m`` in a worker thread."""
@@ -227,7 +242,7 @@ class SimArm:
                 return JobResult(False, str(err))
             return JobResult(True, f"{traj.duration:.1f} s", traj)
 
-        return _FutureJob(self._pool.submit(work))
+        return _FutureJob(self._pool.submit(_timed(work)))
 
     def start_execute(self, trajectory: Any) -> _MotionJob:
         """Run the trajectory through the world's arm servos (the caller steps the world)."""

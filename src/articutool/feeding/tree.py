@@ -1,6 +1,10 @@
 """Assembling the feeding tree (issue 10): the transport subtree with plan → verify → execute,
-bounded attempts and a timeout per plan, the tool's mode scoped, a safety guard at the root,
-and a visitor that records the bite's telemetry.
+bounded attempts, the tool's mode scoped, a safety guard at the root, and a visitor that
+records the bite's telemetry.
+
+Each attempt's budget is the planner's own (``budget_s`` of wall time inside ``plan()``, as
+OMPL counts it), never the simulated clock: the world keeps stepping while a plan is computed
+in a worker thread, so a sim-time timeout would fail plans on a slower machine (issue 21).
 
 Shape of :func:`transport_tree`::
 
@@ -9,8 +13,7 @@ Shape of :func:`transport_tree`::
       ToolModeScope LEVELING (then DISABLED)
         Sequence "transport"
           Attempts "up to N attempts"    (planning_attempts_<goal> on the blackboard)
-            Timeout (> the planner's budget)
-              Sequence "plan+verify"  Plan -> Verify
+            Sequence "plan+verify"  Plan (the planner's own budget) -> Verify
           Execute motion
 """
 
@@ -36,43 +39,21 @@ from articutool.feeding.behaviours import (
 )
 from articutool.tool.api import Mode, ToolAPI
 
-__all__ = ["BiteRecorder", "ClockedTimeout", "guarded", "motion", "run_tree", "transport_tree"]
-
-
-class ClockedTimeout(py_trees.decorators.Timeout):
-    """py_trees' Timeout on an injected clock (the simulation's, or a test's)."""
-
-    def __init__(self, child: py_trees.behaviour.Behaviour, duration: float,
-                 clock: Callable[[], float]) -> None:
-        super().__init__(name=f"timeout {duration:g} s", child=child, duration=duration)
-        self.clock = clock
-
-    def initialise(self) -> None:
-        self.finish_time = self.clock() + self.duration
-        self.feedback_message = ""
-
-    def update(self) -> Status:
-        if self.decorated.status == Status.RUNNING and self.clock() > self.finish_time:
-            self.feedback_message = f"timed out after {self.duration:g} s"
-            self.decorated.stop(Status.INVALID)
-            return Status.FAILURE
-        return self.decorated.status
+__all__ = ["BiteRecorder", "guarded", "motion", "run_tree", "transport_tree"]
 
 
 def motion(arm: ArmInterface, goal: str, planner: str, *, attempts: int, budget_s: float,
-           clock: Callable[[], float], verify: bool | None = None,
-           name: str | None = None) -> py_trees.behaviour.Behaviour:
-    """Move the arm to a named goal: bounded attempts of (plan → verify) each under a timeout,
-    then execute. ``verify`` (default: for the decoupled planner) adds plan-then-verify (Alg.
-    2); a strict plan's constraint is the planner's own. Attempts are counted on the
-    blackboard as ``planning_attempts_<goal>``."""
+           verify: bool | None = None, name: str | None = None) -> py_trees.behaviour.Behaviour:
+    """Move the arm to a named goal: bounded attempts of (plan → verify), then execute. Each
+    plan gets ``budget_s`` of the planner's own wall time (see the module doc). ``verify``
+    (default: for the decoupled planner) adds plan-then-verify (Alg. 2, thesis §4.2); a strict
+    plan's constraint is the planner's own. Attempts are counted on the blackboard as
+    ``planning_attempts_<goal>``."""
     steps: list[py_trees.behaviour.Behaviour] = [Plan(arm, goal, planner, budget_s)]
     if verify if verify is not None else planner == "decoupled":
         steps.append(Verify(arm))
     plan_verify = py_trees.composites.Sequence("plan+verify", memory=True, children=steps)
-    # Every plan under a timeout longer than the planner's own budget (2×, and 1 s more).
-    timed = ClockedTimeout(plan_verify, 2.0 * budget_s + 1.0, clock)
-    tries = Attempts(timed, attempts, f"planning_attempts_{goal}")
+    tries = Attempts(plan_verify, attempts, f"planning_attempts_{goal}")
     return py_trees.composites.Sequence(
         name or f"move to {goal}", memory=True, children=[tries, Execute(arm, f"to {goal}")])
 
@@ -90,7 +71,7 @@ def transport_tree(arm: ArmInterface, tool: ToolAPI, goal: str, planner: str, *,
                    attempts: int, budget_s: float, clock: Callable[[], float],
                    stale_s: float = 0.5) -> py_trees.behaviour.Behaviour:
     """The transport subtree (see the module doc): it runs alone as a tree."""
-    move = motion(arm, goal, planner, attempts=attempts, budget_s=budget_s, clock=clock)
+    move = motion(arm, goal, planner, attempts=attempts, budget_s=budget_s)
     # The decoupled arm needs the wrist leveling; a strict (baseline) plan keeps it locked.
     mode = Mode.LEVELING if planner == "decoupled" else Mode.DISABLED
     return guarded(ToolModeScope(move, tool, mode, Mode.DISABLED), arm, tool, clock, stale_s)
@@ -100,8 +81,11 @@ def transport_tree(arm: ArmInterface, tool: ToolAPI, goal: str, planner: str, *,
 class BiteRecord:
     """Telemetry of one bite, collected by :class:`BiteRecorder`."""
 
-    planning_time_s: float = 0.0
-    motion_time_s: float = 0.0
+    # The planners' own wall time (inside the planning jobs): what a real robot's user waits.
+    planning_wall_s: float = 0.0
+    # Simulated time that passed while plans were computed (depends on the machine's speed).
+    planning_wait_sim_s: float = 0.0
+    motion_time_s: float = 0.0  # on the tree's clock
     # Every leaf failure in order (behaviour, reason).
     failures: list[tuple[str, str]] = field(default_factory=list)
     # The failure that made the bite retreat (a retreat's own failures come after it).
@@ -116,30 +100,43 @@ class BiteRecord:
 
 
 class BiteRecorder(py_trees.visitors.VisitorBase):
-    """Visits every ticked behaviour: accumulates planning and motion time (on ``clock``, from
-    the tick a job started to the tick it ended) and keeps every leaf failure with its reason
-    — telemetry outside the behaviours."""
+    """Visits every ticked behaviour: accumulates the planning jobs' own wall time (as they
+    report it), and the time on ``clock`` from the tick a planning or motion job started to the
+    tick it ended; keeps every leaf failure with its reason — telemetry outside the
+    behaviours."""
 
     def __init__(self, clock: Callable[[], float] = _time.monotonic) -> None:
         super().__init__(full=False)
         self.clock = clock
         self.record = BiteRecord()
         self._started: dict[int, float] = {}
+        self._planning: dict[int, tuple[float, py_trees.behaviour.Behaviour]] = {}
 
     def initialise(self) -> None:
         self._now = self.clock()
+
+    def planning_wait_s(self, now: float) -> float:
+        """Time on ``clock`` spent waiting for plans so far, the plans still running
+        included: what a timeout on ``clock`` must not count, since on a slower machine the
+        world steps further while the same plan is computed."""
+        running = [(t0, b) for t0, b in self._planning.values() if b.status == Status.RUNNING]
+        return self.record.planning_wait_sim_s + sum(now - t0 for t0, _ in running)
 
     def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
         if isinstance(behaviour, Plan | PlanPath | Execute):
             key = id(behaviour)
             if behaviour.status == Status.RUNNING:
                 self._started.setdefault(key, self._now)
+                if not isinstance(behaviour, Execute):
+                    self._planning.setdefault(key, (self._started[key], behaviour))
             elif behaviour.status in (Status.SUCCESS, Status.FAILURE):
+                self._planning.pop(key, None)
                 dt = self._now - self._started.pop(key, self._now)
                 if isinstance(behaviour, Execute):
                     self.record.motion_time_s += dt
                 else:
-                    self.record.planning_time_s += dt
+                    self.record.planning_wait_sim_s += dt
+                    self.record.planning_wall_s += behaviour.job_wall_s
         if (getattr(behaviour, "is_retreat", False) and self.record.cause is None
                 and self.record.failures):
             self.record.cause = self.record.failures[-1]
@@ -151,15 +148,16 @@ class BiteRecorder(py_trees.visitors.VisitorBase):
 def run_tree(root: py_trees.behaviour.Behaviour, step: Callable[[float], None],
              clock: Callable[[], float], *, period_s: float = 0.1,
              timeout_s: float = 120.0) -> tuple[Status, BiteRecord]:
-    """Tick ``root`` every ``period_s`` of ``clock`` until it ends or ``timeout_s`` passes,
-    calling ``step(period_s)`` between ticks (the physics world's ``run``); returns the final
-    status and the telemetry. A timeout stops the tree (its clean-up runs)."""
+    """Tick ``root`` every ``period_s`` of ``clock`` until it ends or ``timeout_s`` passes
+    (not counting the waits for plans, :meth:`BiteRecorder.planning_wait_s`), calling
+    ``step(period_s)`` between ticks (the physics world's ``run``); returns the final status
+    and the telemetry. A timeout stops the tree (its clean-up runs)."""
     tree = py_trees.trees.BehaviourTree(root)
     rec = BiteRecorder(clock)
     tree.visitors.append(rec)
     tree.setup()
     t_end = clock() + timeout_s
-    while clock() < t_end:
+    while clock() - rec.planning_wait_s(clock()) < t_end:
         tree.tick()
         if tree.root.status in (Status.SUCCESS, Status.FAILURE):
             return tree.root.status, rec.record

@@ -465,8 +465,9 @@ HEALTH_NAME = "articutool: control loop"
 
 def health_msg(state: ToolState, t: float, link_counters: dict[str, int],
                tool_id: str = "articutool", lease_holder: str = "") -> Any:
-    """``DiagnosticArray`` with one status: OK, or ERROR with the fault as message;
-    ``hardware_id`` is the tool's identity, ``lease_holder`` the commanding client."""
+    """``DiagnosticArray`` with one status: OK, WARN while leveling is stalled, or ERROR with
+    the fault as message; ``hardware_id`` is the tool's identity, ``lease_holder`` the
+    commanding client."""
     values = {"mode": state.mode.name, "lease_holder": lease_holder,
               "loop_period_mean": repr(state.loop_period_mean),
               "loop_jitter": repr(state.loop_jitter), "loop_overruns": str(state.loop_overruns),
@@ -474,9 +475,11 @@ def health_msg(state: ToolState, t: float, link_counters: dict[str, int],
     values.update({k: repr(v) for k, v in state.extra.items()})
     values.update({f"link_{k}": str(v) for k, v in link_counters.items()})
     kvs = [msg("diagnostic_msgs/msg/KeyValue", key=k, value=v) for k, v in values.items()]
-    level = 2 if state.fault else 0  # DiagnosticStatus.ERROR / OK
+    stalled = state.extra.get("leveling_stalled", 0.0) == 1.0
+    level = 2 if state.fault else 1 if stalled else 0  # DiagnosticStatus.ERROR / WARN / OK
+    text = state.fault or ("leveling stalled short of level" if stalled else "OK")
     st = msg("diagnostic_msgs/msg/DiagnosticStatus", level=level, name=HEALTH_NAME,
-             message=state.fault or "OK", hardware_id=tool_id, values=kvs)
+             message=text, hardware_id=tool_id, values=kvs)
     return msg(DIAGNOSTIC_ARRAY, header=header(t), status=[st])
 
 

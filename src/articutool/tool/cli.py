@@ -146,6 +146,8 @@ def format_status(s: ToolState) -> str:
     ]
     if ex.get("imu_stale", 0.0):
         parts.append("IMU stale")
+    if ex.get("leveling_stalled", 0.0):
+        parts.append("leveling STALLED")
     parts.append(f"FAULT: {s.fault}" if s.fault else "ok")
     return " | ".join(parts)
 

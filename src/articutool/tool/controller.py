@@ -41,6 +41,16 @@ base. In words: the tool is levelled, then turned a further ``a`` in pitch and `
 about its own joints. Steps 1–6 use ``q − o``; the joint limits (step 7) apply to the
 physical ``q``.
 
+**Stall report** (beyond Alg. 1; issue 21). Alg. 1 is local: from a base tilted 60–120° it
+can come to rest with pitch pressed against a limit (or pitch damped away at the roll
+singularity) while the tool is still tilted, though a level configuration exists on the other
+side of the joint space (reaching it would swing the utensil through large tilts, so the
+controller does not go there on its own). :attr:`LevelingController.stalled` says so: the error
+has stayed above ``stall_angle`` for ``stall_s`` while the command was below the one Alg. 1
+gives at the deadband edge (``kp × deadband``). The same holds when the base pitches so far
+that leveling on the present branch would need pitch past its limit (the level configuration
+is then on the other branch, half a roll turn away).
+
 **Rate feed-forward** (optional, beyond Alg. 1). Pure feedback lags a base turning at ω by
 about ω/Kp (0.84 rad/s / 5 ≈ 10°). If the runtime passes the base's angular velocity in F0
 (the bias-corrected gyro, see :meth:`LevelingController.tool_base_rate`), the controller adds
@@ -120,7 +130,8 @@ class LevelingController:
     IMU axes expressed in F0 (identity: the IMU axes are F0's axes). ``roll_budget`` (rad) is
     the net roll either side of zero that :meth:`engage` may shift the roll window to
     (default: the window stays ``limits``); ``limit_gain`` (1/s) bounds the speed towards a
-    joint limit (default: only the one-tick prediction).
+    joint limit (default: only the one-tick prediction). ``stall_angle`` (rad) and ``stall_s``
+    (s) define :attr:`stalled` (default: never).
     """
 
     def __init__(
@@ -138,6 +149,8 @@ class LevelingController:
         R_base_imu: ArrayLike | None = None,
         roll_budget: float | None = None,
         limit_gain: float = math.inf,
+        stall_angle: float = math.inf,
+        stall_s: float = 1.0,
     ) -> None:
         self.kp = _check("kp", kp, 0.0)
         self.ki = _check("ki", ki, 0.0)
@@ -164,6 +177,9 @@ class LevelingController:
         self.limit_gain = float(limit_gain)
         if not self.limit_gain > 0.0:  # inf: only the one-tick prediction
             raise ValueError(f"limit_gain must be > 0 1/s (inf allowed); got {limit_gain}")
+        self.stall_angle = (math.inf if stall_angle == math.inf
+                            else _check("stall_angle", stall_angle, 0.0, lo_open=True))
+        self.stall_s = _check("stall_s", stall_s, 0.0, lo_open=True)
         if R_base_imu is None:
             self._R_imu_base = np.eye(3)
         else:
@@ -175,6 +191,7 @@ class LevelingController:
         self._integral = np.zeros(3)
         self._last_error: NDArray[np.float64] | None = None
         self._error_angle = math.nan
+        self._stall_time = 0.0
 
     @classmethod
     def from_spec(cls, spec: Spec, R_base_imu: ArrayLike | None = None) -> LevelingController:
@@ -195,6 +212,8 @@ class LevelingController:
             R_base_imu=R_base_imu,
             roll_budget=spec.wrist.roll_turn_budget * 2.0 * math.pi,
             limit_gain=c.limit_gain,
+            stall_angle=math.radians(c.stall_deg),
+            stall_s=c.stall_s,
         )
 
     # ----------------------------------------------------------------- state --
@@ -212,6 +231,11 @@ class LevelingController:
     def error_angle(self) -> float:
         """Tilt error (rad) seen by the last :meth:`update`; NaN before the first."""
         return self._error_angle
+
+    @property
+    def stalled(self) -> bool:
+        """True when leveling has stopped short of level (see the module docstring)."""
+        return self._stall_time >= self.stall_s
 
     def set_offsets(self, pitch_offset_rad: float, roll_offset_rad: float) -> None:
         """Hold the tool at the level configuration plus these joint offsets; resets the PID."""
@@ -267,6 +291,7 @@ class LevelingController:
         self._integral[:] = 0.0
         self._last_error = None
         self._error_angle = math.nan
+        self._stall_time = 0.0
 
     # --------------------------------------------------------------- helpers --
     def tool_base_orientation(self, R_world_imu: ArrayLike) -> NDArray[np.float64]:
@@ -338,6 +363,7 @@ class LevelingController:
         if angle < self.deadband:
             self._integral[:] = 0.0
             self._last_error = err
+            self._stall_time = 0.0
             return np.zeros(2)
 
         integral = self._integral
@@ -365,4 +391,7 @@ class LevelingController:
         hi = np.maximum(self._hi, qm)
         k = min(self.limit_gain, 1.0 / dt)
         qdot = np.clip(qdot, k * (lo - qm), k * (hi - qm))
-        return np.clip(qdot, -self._vmax, self._vmax, out=qdot)
+        np.clip(qdot, -self._vmax, self._vmax, out=qdot)
+        idle = math.hypot(float(qdot[0]), float(qdot[1])) < self.kp * self.deadband
+        self._stall_time = self._stall_time + dt if angle > self.stall_angle and idle else 0.0
+        return qdot

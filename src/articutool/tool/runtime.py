@@ -12,7 +12,11 @@ Modes (``Mode``):
   the joints hold where they are (a hardware error may have dropped torque on one motor).
 - ``LEVELING``: filter + :class:`LevelingController` with the pitch/roll offsets (degrees)
   given to :meth:`ToolRuntime.set_mode`. The bias-corrected gyro is fed forward (Eq. 4.5) to
-  cancel the base's own rotation unless ``rate_feedforward=False``.
+  cancel the base's own rotation unless ``rate_feedforward=False``. A stall (the controller
+  at rest short of level, :attr:`LevelingController.stalled`) is no fault: the tool keeps
+  leveling, and ``extra`` reports ``leveling_stalled`` = 1 with the tilt and the nearest
+  reachable level configuration (``leveling_target_pitch``/``_roll``, rad; NaN when none is
+  reachable), so the PC sees it (issue 21).
 - ``PRIMITIVE``: a primitive from :func:`~articutool.tool.primitives.make_primitive`; when it
   finishes the runtime returns to ``DISABLED`` and keeps its result.
 - ``TRAJECTORY``: follows a wrist :class:`~articutool.trajectory.JointTrajectory` (e.g. the
@@ -242,6 +246,8 @@ class ToolRuntime:
         self._tilt = math.nan
         # modes
         self._offsets_deg = (0.0, 0.0)
+        # While leveling is stalled: the nearest reachable level configuration (NaN: none).
+        self._stall_target: tuple[float, float] | None = None
         self._primitive: Primitive | None = None
         self._primitive_status: PrimitiveStatus | None = None
         self._traj: JointTrajectory | None = None
@@ -687,7 +693,18 @@ class ToolRuntime:
     def _leveling_command(self, q: NDArray[np.float64], dt: float) -> NDArray[np.float64]:
         R = self.controller.tool_base_orientation(quaternion_to_matrix(self.filter.orientation))
         rate = self.controller.tool_base_rate(self._gyro_corrected) if self._rate_ff else None
-        return self.controller.update(R, q, dt, base_rate=rate)
+        cmd = self.controller.update(R, q, dt, base_rate=rate)
+        if not self.controller.stalled:
+            self._stall_target = None
+            return cmd
+        new = self._stall_target is None
+        target = self.controller.nearest_level(R, q)  # where level could be reached now
+        self._stall_target = ((math.nan, math.nan) if target is None
+                              else (float(target[0]), float(target[1])))
+        if new:
+            log.warning("leveling stalled at %.1f° of tilt (nearest level configuration: %s)",
+                        math.degrees(self.controller.error_angle), self._stall_target)
+        return cmd
 
     def _primitive_command(self, q: NDArray[np.float64], dt: float) -> NDArray[np.float64] | None:
         prim = self._primitive
@@ -966,6 +983,11 @@ class ToolRuntime:
         }
         if ms is not None:
             extra["motor_temperature"] = float(ms.temperature)
+        if self._mode is Mode.LEVELING:
+            stall = self._stall_target
+            extra["leveling_stalled"] = 0.0 if stall is None else 1.0
+            if stall is not None:
+                extra["leveling_target_pitch"], extra["leveling_target_roll"] = stall
         if self._mode is Mode.TRAJECTORY:
             extra["trajectory_progress_pct"] = self._traj_progress
             extra["trajectory_error"] = self._traj_error

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 __all__ = ["add_commands"]
@@ -38,7 +39,9 @@ def _cmd_verify(args: argparse.Namespace) -> int:
               f"(≤ {rep.max_step_deg:g}° tool rotation per step)")
         print(f"  max required wrist velocity [pitch, roll]: "
               f"[{rep.max_required_velocity[0]:.3f}, {rep.max_required_velocity[1]:.3f}] rad/s "
-              f"(limits {list(rep.velocity_limits)}), margin {rep.velocity_margin:.1%}")
+              f"(limits {list(rep.velocity_limits)}), margin "
+              + (f"{rep.velocity_margin:.1%}" if math.isfinite(rep.velocity_margin)
+                 else "unknown (no sample's rates evaluated)"))
         print(f"  branch switches {rep.branch_switches}, "
               f"min |cos roll| {rep.min_singularity_measure:.3f}")
         if rep.first_failure_time is not None:

@@ -12,9 +12,11 @@ rotates at most ``max_step_deg`` between samples *and* no arm joint moves more t
    (Alg. 2 line 6);
 2. *kinematic check*: finds the leveling solutions inside the wrist limits (Eqs. 4.2–4.3, both
    branches) and follows the one nearest to the previous sample (Alg. 2 line 12);
-3. *continuity check*: when the followed solution leaves the limits, the wrist must jump to
-   another one (a branch switch or a whole roll turn); the jump is allowed only if the motors
-   can make it within the sample's time step;
+3. *continuity check*: every step of the followed solution must be one the motors can make
+   within the sample's time step — along one solution curve too (issue 21: passing close to
+   the wrist singularity, ``|cos θr| ≈ 0``, the leveling pitch swings by nearly π between two
+   samples whose Eq. 4.7 rates are both small), and when the followed solution leaves the
+   limits and the wrist must jump to another one (a branch switch or a whole roll turn);
 4. *dynamic check*: the arm's angular velocity ``ω = J_jaco q̇`` gives the correction
    ``ω_corr = −Rᵀ ω`` (Eq. 4.5), the up vector's velocity ``ω_corr × u`` (Eq. 4.6, the cross
    product the reference implementation omitted) and the joint rates ``J⁺(q)(ω_corr × u)``
@@ -56,8 +58,10 @@ class VerificationReport:
     ``"discontinuity"`` (a branch switch or jump the motors cannot make in the time step) and
     ``"velocity"`` (Eq. 4.7 rate above the limit). ``velocity_margin`` is
     ``1 − max_j(max|q̇_j| / q̇max_j)`` over the checked samples: the fraction of motor speed
-    left (negative when infeasible). ``wrist_trajectory`` levels the tool up to the first
-    failure (the whole trajectory when feasible).
+    left (negative when infeasible; NaN, like ``max_required_velocity``, when no sample's
+    rates were evaluated — an arm limit or no leveling solution at the start).
+    ``wrist_trajectory`` levels the tool up to the first failure (the whole trajectory when
+    feasible).
     """
 
     feasible: bool
@@ -82,11 +86,18 @@ class VerificationReport:
             "max_required_velocity", "velocity_limits", "velocity_margin",
             "min_singularity_measure", "branch_switches", "samples_checked", "waypoints",
             "max_step_deg")}
-        d["max_required_velocity"] = list(self.max_required_velocity)
+        d["max_required_velocity"] = [_num(v) for v in self.max_required_velocity]
         d["velocity_limits"] = list(self.velocity_limits)
+        d["velocity_margin"] = _num(self.velocity_margin)
+        d["min_singularity_measure"] = _num(self.min_singularity_measure)
         if include_trajectory and self.wrist_trajectory is not None:
             d["wrist_trajectory"] = self.wrist_trajectory.to_dict()
         return d
+
+
+def _num(x: float) -> float | None:
+    """JSON has no NaN: an unknown number is null."""
+    return float(x) if np.isfinite(x) else None
 
 
 def _step_angles(R: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -172,7 +183,9 @@ def _follow(
     t: NDArray[np.float64],
     vmax: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], int, int | None, str]:
-    """Follow the nearest valid solution; returns (q, switches, fail_index, fail_reason)."""
+    """Follow the nearest valid solution; returns (q, switches, fail_index, fail_reason).
+    Every step, along a curve or across a switch, must fit ``vmax`` × the time step;
+    ``fail_reason`` "discontinuity" (a switch) or "discontinuity_along" (along one curve)."""
     n = t.size
     q = np.full((n, 2), np.nan)
     if curves.shape[0] == 0 or not valid[:, 0].any():
@@ -185,6 +198,10 @@ def _follow(
         bad = np.flatnonzero(~valid[c, k:])
         end = n if bad.size == 0 else k + int(bad[0])
         q[k:end] = curves[c, k:end]
+        fast = np.flatnonzero((np.abs(np.diff(q[k:end], axis=0))
+                               > vmax * np.diff(t[k:end])[:, None]).any(axis=-1))
+        if fast.size:
+            return q, switches, k + int(fast[0]) + 1, "discontinuity_along"
         if end == n:
             return q, switches, None, ""
         if not valid[:, end].any():
@@ -230,7 +247,7 @@ def verify_trajectory(
                switches: int, fail_wp: int | None = None) -> VerificationReport:
         # n_level: samples the wrist trajectory covers (before the first failure);
         # n_eval: samples whose required rates were evaluated (peak and margin use them).
-        peak = np.abs(qdw[:n_eval]).max(axis=0) if n_eval else np.zeros(2)
+        peak = np.abs(qdw[:n_eval]).max(axis=0) if n_eval else np.full(2, np.nan)
         sing = np.abs(np.cos(qw[:n_eval, 1]))
         wp = fail_wp
         if fail is not None and wp is None:
@@ -306,10 +323,14 @@ def verify_trajectory(
                    f"{np.array2string(u[fail], precision=3)})")
         else:
             dt = t[fail] - t[fail - 1]
+            what = ("along one solution (near the wrist singularity, min |cos roll| "
+                    f"{np.abs(np.cos(qw[fail - 1:fail + 1, 1])).min():.4f})"
+                    if fail_reason == "discontinuity_along" else "a branch switch")
             msg = (f"t = {t[fail]:.3f} s: the leveling solution jumps from "
                    f"{np.array2string(qw[fail - 1], precision=3)} to "
-                   f"{np.array2string(qw[fail], precision=3)} rad in {dt:.4f} s "
-                   f"(branch switch the motors cannot make at {vmax.tolist()} rad/s)")
+                   f"{np.array2string(qw[fail], precision=3)} rad in {dt:.4f} s, {what} "
+                   f"the motors cannot make at {vmax.tolist()} rad/s")
+            fail_reason = "discontinuity"
         return report(False, fail_reason, msg, fail, t, qw, qdw, fail, fail, switches)
     peak = np.abs(qdw).max(axis=0)
     msg = (f"feasible: {t.size} samples, peak wrist rates {peak[0]:.3f} / {peak[1]:.3f} "
