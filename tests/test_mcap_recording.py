@@ -1,0 +1,219 @@
+"""MCAP recordings (issue 28, item 4): ROS 2 CDR messages with embedded ``ros2msg`` schemas,
+read back with the standard readers (``mcap``'s reader and the ``mcap_ros2`` decoder).
+
+The tool and the client are real processes (``articutool tool --record``, ``articutool client
+--record``); a recording cut by SIGKILL is read with mcap's streaming reader up to its last
+complete chunk; nothing overwrites an existing file.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from mcap.exceptions import McapError
+from mcap.reader import NonSeekingReader, make_reader
+from mcap_ros2.decoder import DecoderFactory
+
+from articutool.link import messages as m
+from articutool.link.recording import McapRecorder, RecordingError, schema_name
+from articutool.tool.api import Mode, PrimitiveStatus, ToolState
+from articutool.trajectory import JointTrajectory
+
+SRC = Path(__file__).resolve().parent.parent / "src"
+ENV = dict(os.environ, PYTHONPATH=str(SRC))
+
+
+def _state() -> ToolState:
+    return ToolState(stamp=1.0, mode=Mode.LEVELING, joint_names=("atool_pitch", "atool_roll"),
+                     position=(0.1, -0.25), velocity=(0.5, 0.0),
+                     orientation_wxyz=(0.9, 0.1, -0.2, 0.3), angular_velocity=(0.01, 0.02, 0.03),
+                     linear_acceleration=(0.1, 0.2, 9.81), battery_voltage=11.9,
+                     loop_period_mean=0.02, loop_jitter=0.0004, loop_overruns=1, fault="",
+                     extra={})
+
+
+def _read(path: Path) -> list[tuple[str, str, Any]]:
+    """(topic, schema name, decoded message) of every message, via the summary (a whole
+    file) with mcap_ros2's decoder."""
+    with path.open("rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        return [(ch.topic, sch.name, dec) for sch, ch, _, dec in reader.iter_decoded_messages()]
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+T = 1_700_000_000.5
+GID = bytes(range(16))
+ALL: list[tuple[str, Any]] = [
+    (m.JOINT_STATE, m.joint_state_msg(_state(), T)),
+    (m.IMU, m.imu_msg(_state(), T)),
+    (m.DIAGNOSTIC_ARRAY, m.health_msg(_state(), T, {"decode_errors": 2}, "wrist_1", "pc_1")),
+    (m.BATTERY_STATE, m.battery_msg(_state(), T)),
+    (m.HEADER, m.heartbeat_msg(T, "pc_1")),
+    (m.JOINT_TRAJECTORY, m.trajectory_msg(JointTrajectory(
+        ("atool_pitch", "atool_roll"), np.array([0.0, 1.5]), np.array([[0, 0], [0.3, 0.1]]),
+        np.zeros((2, 2))), T)),
+    (m.GOAL_STATUS_ARRAY, m.status_array([(GID, T, m.GoalStatus.EXECUTING)])),
+    (m.FEEDBACK_MESSAGE, m.feedback_msg(GID, PrimitiveStatus("TWIRL_CW", 40.0, "twirl",
+                                                             (0.0, 2.5), False))),
+    (f"{m.SET_ORIENTATION_CONTROL}_Request", m.soc_request(Mode.LEVELING, 10.0, -5.0)),
+    (f"{m.SET_ORIENTATION_CONTROL}_Response", m.soc_response(False, "refused")),
+    (f"{m.SEND_GOAL}_Request", m.send_goal_request(GID, "TWIRL_CW", [1.0, 3.0])),
+    (f"{m.SEND_GOAL}_Response", m.send_goal_response(True, T)),
+    (f"{m.GET_RESULT}_Request", m.msg(f"{m.GET_RESULT}_Request", goal_id=m.goal_uuid(GID))),
+    (f"{m.GET_RESULT}_Response", m.result_msg(m.PrimitiveResult(True, "done", (0.0, 6.28), 4))),
+    (f"{m.CANCEL_GOAL}_Request", m.cancel_request(GID)),
+    (f"{m.CANCEL_GOAL}_Response", m.cancel_response(0, [(GID, T)])),
+    (f"{m.TRIGGER}_Request", m.trigger_request()),
+    (f"{m.TRIGGER}_Response", m.trigger_response(False, "no fault to clear")),
+]
+
+
+def test_every_link_type_decodes_with_the_standard_reader(tmp_path: Path) -> None:
+    path = tmp_path / "all.mcap"
+    with McapRecorder(path) as rec:
+        for i, (typename, message) in enumerate(ALL):
+            rec.write_msg(f"/t{i}", typename, message, T + i)
+    got = _read(path)
+    assert [(t, s) for t, s, _ in got] == [(f"/t{i}", schema_name(tn))
+                                           for i, (tn, _) in enumerate(ALL)]
+    by_topic = {t: d for t, _, d in got}
+    js = by_topic["/t0"]
+    assert list(js.name) == ["atool_pitch", "atool_roll"]
+    assert list(js.position) == [0.1, -0.25] and js.header.stamp.sec == int(T)
+    fb = by_topic["/t7"]
+    assert fb.feedback.feedback_string == "twirl" and fb.feedback.percent_complete == 40.0
+    assert bytes(fb.goal_id.uuid) == GID
+    goal = by_topic["/t10"]
+    assert goal.goal.primitive_name == "TWIRL_CW" and list(goal.goal.parameters) == [1.0, 3.0]
+    assert by_topic["/t8"].control_mode == 1 and by_topic["/t8"].roll_offset == -5.0
+    health = by_topic["/t2"].status[0]
+    assert health.hardware_id == "wrist_1"
+    assert {kv.key: kv.value for kv in health.values}["lease_holder"] == "pc_1"
+
+
+def test_a_recording_never_overwrites(tmp_path: Path) -> None:
+    path = tmp_path / "mine.mcap"
+    path.write_bytes(b"the user's file")
+    with pytest.raises(RecordingError, match="exists"):
+        McapRecorder(path)
+    assert path.read_bytes() == b"the user's file"
+    for args in (["tool", "--duration", "1", "--record", str(path)],
+                 ["client", "--record", str(path), "state"]):
+        p = subprocess.run([sys.executable, "-m", "articutool", *args], env=ENV,
+                           capture_output=True, text=True, timeout=60)
+        assert p.returncode == 2, p.stderr
+        assert "--record" in p.stderr and "exists" in p.stderr
+    assert path.read_bytes() == b"the user's file"
+
+
+@pytest.mark.parametrize(("args", "says"), [
+    (["--record", "run.bag"], ".mcap"),
+    (["--no-serve", "--record", "run.mcap"], "--serve"),
+    (["--record", "no/such/folder/run.mcap"], "folder"),
+])
+def test_tool_record_bad_input_exits_2(tmp_path: Path, args: list[str], says: str) -> None:
+    p = subprocess.run([sys.executable, "-m", "articutool", "tool", "--duration", "1", *args],
+                       env=ENV, capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert p.returncode == 2, p.stderr
+    assert "--record" in p.stderr and says in p.stderr and "Traceback" not in p.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def _tool(tmp_path: Path, port: int, *extra: str) -> subprocess.Popen[str]:
+    return subprocess.Popen([sys.executable, "-m", "articutool", "tool", "--no-level",
+                             "--listen", f"tcp/127.0.0.1:{port}", *extra], env=ENV,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for(path: Path, size: int, timeout: float) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if path.exists() and path.stat().st_size >= size:
+            return
+        time.sleep(0.1)
+    raise AssertionError(f"{path} did not reach {size} bytes")
+
+
+def test_a_killed_tools_recording_is_readable_to_its_last_chunk(tmp_path: Path) -> None:
+    path = tmp_path / "killed.mcap"
+    tool = _tool(tmp_path, _free_port(), "--record", str(path))
+    try:
+        _wait_for(path, 60_000, 60)  # a few complete chunks (each about a second)
+    finally:
+        tool.send_signal(signal.SIGKILL)
+        tool.wait(10)
+    with path.open("rb") as f, pytest.raises(McapError):  # no summary: the file was cut
+        make_reader(f).get_summary()
+    counts: Counter[str] = Counter()
+    decode = DecoderFactory()
+    with path.open("rb") as f:
+        try:  # in file order: every complete chunk's messages, then the cut
+            for sch, ch, msg in NonSeekingReader(f).iter_messages(log_time_order=False):
+                dec = decode.decoder_for(ch.message_encoding, sch)(msg.data)
+                counts[ch.topic.rsplit("/", 1)[-1]] += 1
+                if ch.topic.endswith("joint_states"):
+                    assert len(dec.position) == 2
+        except (McapError, EOFError):
+            pass
+    assert counts["joint_states"] >= 10 and counts["battery"] >= 10
+
+
+def test_ctrl_c_closes_the_tools_recording(tmp_path: Path) -> None:
+    path = tmp_path / "tool.mcap"
+    tool = _tool(tmp_path, _free_port(), "--record", str(path))
+    _wait_for(path, 1, 60)
+    time.sleep(2.0)
+    tool.send_signal(signal.SIGINT)
+    _, err = tool.communicate(timeout=30)
+    assert tool.returncode == 0, err
+    with path.open("rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None and summary.statistics is not None
+    got = _read(path)
+    assert len(got) == summary.statistics.message_count > 0
+    topics = {t.rsplit("/articutool/default/", 1)[-1] for t, _, _ in got}
+    assert {"joint_states", "imu/data", "health", "battery", "heartbeat"} <= topics
+
+
+def test_the_clients_recording_holds_its_goal(tmp_path: Path) -> None:
+    port = _free_port()
+    tool = _tool(tmp_path, port)
+    path = tmp_path / "client.mcap"
+    try:
+        p = subprocess.run([sys.executable, "-m", "articutool", "client", "--connect",
+                            f"tcp/127.0.0.1:{port}", "--wait", "30", "--record", str(path),
+                            "primitive", "TWIRL_CW", "0.25", "3", "--json"], env=ENV,
+                           capture_output=True, text=True, timeout=120)
+    finally:
+        tool.send_signal(signal.SIGINT)
+        tool.wait(30)
+    assert p.returncode == 0, p.stderr
+    got = _read(path)
+    by: dict[str, list[Any]] = {}
+    for topic, _, dec in got:
+        by.setdefault(topic.split("/articutool/default/", 1)[-1], []).append(dec)
+    (goal,) = by["execute_primitive/_action/send_goal/request"]
+    assert goal.goal.primitive_name == "TWIRL_CW" and list(goal.goal.parameters) == [0.25, 3.0]
+    (accepted,) = by["execute_primitive/_action/send_goal/response"]
+    assert accepted.accepted
+    fbs = [f for f in by["execute_primitive/_action/feedback"]
+           if bytes(f.goal_id.uuid) == bytes(goal.goal_id.uuid)]
+    assert len(fbs) >= 3
+    results = by["execute_primitive/_action/get_result/response"]
+    assert results[-1].status == m.GoalStatus.SUCCEEDED and results[-1].result.success
+    assert len(by["joint_states"]) >= 5
