@@ -217,3 +217,47 @@ def test_the_clients_recording_holds_its_goal(tmp_path: Path) -> None:
     results = by["execute_primitive/_action/get_result/response"]
     assert results[-1].status == m.GoalStatus.SUCCEEDED and results[-1].result.success
     assert len(by["joint_states"]) >= 5
+
+
+def test_a_recorded_simulated_bite_opens_with_the_standard_reader(tmp_path: Path) -> None:
+    """``articutool meal --record``: the bite's own record (--json) agrees with the file."""
+    import json
+
+    path = tmp_path / "bite.mcap"
+    p = subprocess.run([sys.executable, "-m", "articutool", "meal", "--food", "pecans",
+                        "--bites", "1", "--json", "--record", str(path)], env=ENV,
+                       capture_output=True, text=True, timeout=900)
+    assert p.returncode == 0, p.stderr[-2000:]
+    bite = json.loads(p.stdout)["bites"][0]
+    with path.open("rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        (meta,) = list(reader.iter_metadata())
+        got = [(ch.topic, dec) for _, ch, _, dec in reader.iter_decoded_messages()]
+    assert meta.metadata["food"] == "pecans" and meta.metadata["strategy"] == bite["strategy"]
+    by: dict[str, list[Any]] = {}
+    for topic, dec in got:
+        by.setdefault(topic.replace("/articutool/default/", "tool:"), []).append(dec)
+    # telemetry at the tool's 50 Hz through the whole simulated bite
+    n = len(by["tool:joint_states"])
+    assert n == len(by["tool:imu/data"]) == len(by["tool:health"]) == len(by["/arm/joint_states"])
+    assert abs(n - 50 * bite["sim_time_s"]) <= 0.02 * n
+    arm = by["/arm/joint_states"][-1]
+    assert list(arm.name) == [f"j2n6s200_joint_{i}" for i in range(1, 7)]
+    # the food accounting's last word is the bite's delivered mass
+    last = {kv.key: float(kv.value) for kv in by["/sim/food"][-1].status[0].values}
+    assert last["eaten_g"] == pytest.approx(bite["delivered_g"])
+    assert last["table_g"] + last["critical_g"] == pytest.approx(bite["spilled_g"])
+    # the tree's status: each stage's behaviour reached SUCCESS in a completed bite
+    done = {s.name.rsplit(" / ", 1)[-1] for arr in by["/feeding/tree"] for s in arr.status
+            if s.message == "SUCCESS"}
+    assert any(name.startswith("present at Staging") for name in done), sorted(done)[:20]
+    # the commands as the link carries them: leveling on, a primitive with feedback, a result
+    modes = [r.control_mode for r in by["tool:set_orientation_control/request"]]
+    assert 1 in modes and 0 in modes
+    assert all(r.success for r in by["tool:set_orientation_control/response"])
+    goals = by["tool:execute_primitive/_action/send_goal/request"]
+    results = by["tool:execute_primitive/_action/get_result/response"]
+    assert len(goals) == len(results) >= 1
+    assert len(by["tool:execute_primitive/_action/feedback"]) > 5
+    assert bite["completed"]
+    assert all(r.status == m.GoalStatus.SUCCEEDED and r.result.success for r in results)

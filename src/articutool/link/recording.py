@@ -159,6 +159,14 @@ class McapRecorder:
         """Record a message object (encoded with :func:`messages.encode`)."""
         self.write(topic, typename, m.encode(message, typename), t)
 
+    def metadata(self, name: str, values: dict[str, str]) -> None:
+        """An MCAP metadata record (e.g. the run's food, system and seed)."""
+        with self._lock:
+            if not self.closed:
+                self._writer.add_metadata(name=name, data={k: str(v) for k, v in
+                                                           values.items()})
+                self._file.flush()
+
     def close(self) -> None:
         """Write the summary and close the file (idempotent)."""
         with self._lock:
