@@ -261,3 +261,25 @@ def test_a_recorded_simulated_bite_opens_with_the_standard_reader(tmp_path: Path
     assert len(by["tool:execute_primitive/_action/feedback"]) > 5
     assert bite["completed"]
     assert all(r.status == m.GoalStatus.SUCCEEDED and r.result.success for r in results)
+
+
+def test_an_experiment_trial_recording_agrees_with_its_record(tmp_path: Path) -> None:
+    import json
+
+    path = tmp_path / "capacity.mcap"
+    base = [sys.executable, "-m", "articutool", "experiment", "capacity", "--trials", "1",
+            "--out", str(tmp_path / "out")]
+    p = subprocess.run([*base, "--trial", "0", "--json", "--record", str(path)], env=ENV,
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr[-2000:]
+    rec = json.loads(p.stdout)["record"]
+    got = _read(path)
+    food = [d for t, _, d in got if t == "/sim/food"]
+    on_spoon = {kv.key: float(kv.value) for kv in food[-1].status[0].values}["utensil_g"]
+    assert on_spoon == pytest.approx(rec["capacity_g"], abs=1e-3)  # the trial's own measure
+    assert sum(t.endswith("/joint_states") for t, _, _ in got) > 100
+    for args, says in ((["--record", str(path), "--trial", "0"], "exists"),
+                       (["--record", str(tmp_path / "new.mcap")], "--trial")):
+        p = subprocess.run([*base, *args], env=ENV, capture_output=True, text=True, timeout=60)
+        assert p.returncode == 2 and "--record" in p.stderr and says in p.stderr, p.stderr
+    assert not (tmp_path / "new.mcap").exists()
