@@ -283,3 +283,57 @@ def test_an_experiment_trial_recording_agrees_with_its_record(tmp_path: Path) ->
         p = subprocess.run([*base, *args], env=ENV, capture_output=True, text=True, timeout=60)
         assert p.returncode == 2 and "--record" in p.stderr and says in p.stderr, p.stderr
     assert not (tmp_path / "new.mcap").exists()
+
+
+def _joint_states(names: list[str], t: float, q: list[float]) -> Any:
+    return m.msg(m.JOINT_STATE, header=m.header(t), name=names,
+                 position=np.asarray(q, dtype=np.float64), velocity=np.zeros(0),
+                 effort=np.zeros(0))
+
+
+def test_view_replays_an_mcap_recordings_joint_states(tmp_path: Path) -> None:
+    from articutool import load_spec
+    from articutool.viewer.mcap_replay import load_mcap_motion
+    from articutool.viewer.recording import RecordingError
+
+    spec = load_spec()
+    arm, wrist = list(spec.arm.joint_names), list(spec.wrist.joint_names)
+    t = T + np.arange(0.0, 2.0, 0.02)
+    q_arm = np.stack([0.1 * j + 0.05 * np.sin(t - T + j) for j in range(6)], axis=1)
+    q_wrist = np.stack([0.2 * np.sin(t - T), 0.5 * (t - T)], axis=1)
+    path = tmp_path / "run.mcap"
+    with McapRecorder(path) as rec:
+        for k, tk in enumerate(t):
+            rec.write_msg("/articutool/wrist_1/joint_states", m.JOINT_STATE,
+                          _joint_states(wrist, tk, list(q_wrist[k])), tk)
+            rec.write_msg("/arm/joint_states", m.JOINT_STATE,
+                          _joint_states(arm, tk + 0.001, list(q_arm[k])), tk + 0.001)
+            rec.write_msg("/articutool/wrist_1/health", m.DIAGNOSTIC_ARRAY,
+                          m.health_msg(_state(), tk, {}), tk)
+    motion = load_mcap_motion(path, spec)
+    assert motion.joint_names == (*arm, *wrist)
+    assert motion.times[0] == 0.0 and motion.times[-1] == pytest.approx(t[-1] - t[0])
+    assert np.allclose(motion.positions[:, 6:], q_wrist)
+    assert np.allclose(motion.positions[1:-1, :6], q_arm[1:-1], atol=2e-4)  # 1 ms apart
+    # a tool-only recording: the arm rests at Resting
+    tool_only = tmp_path / "tool.mcap"
+    with McapRecorder(tool_only) as rec:
+        for k, tk in enumerate(t[:10]):
+            rec.write_msg("/articutool/default/joint_states", m.JOINT_STATE,
+                          _joint_states(wrist, tk, list(q_wrist[k])), tk)
+    rest = load_mcap_motion(tool_only, spec).positions[:, :6]
+    assert np.allclose(rest, spec.arm.configuration("Resting"))
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"not an mcap file")
+    with pytest.raises(RecordingError, match="not a readable MCAP"):
+        load_mcap_motion(junk, spec)
+    view = [sys.executable, "-m", "articutool", "view", "--recording"]
+    p = subprocess.run([*view, str(path), "--duration", "1", "--port", str(_free_port())],
+                       env=ENV, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert "8-joint trajectory" in p.stdout and "viewer: http://" in p.stdout
+    for args, says in (([str(junk)], "not a readable MCAP"),
+                       ([str(path), "--export", str(tmp_path / "v.mp4")], ".npz")):
+        p = subprocess.run([*view, *args, "--duration", "1"], env=ENV, capture_output=True,
+                           text=True, timeout=120)
+        assert p.returncode == 2 and says in p.stderr and "Traceback" not in p.stderr, p.stderr
