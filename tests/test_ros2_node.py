@@ -317,3 +317,11 @@ def _health(graph: Graph) -> dict[str, str]:
         return {}
     return {kv.key: kv.value for kv in graph.received["health"][-1].status[0].values}
 
+
+
+def test_no_tool_heard_exits_1_saying_so() -> None:
+    p = _articutool("ros2", "--connect", f"tcp/127.0.0.1:{_free_port()}", "--wait", "1",
+                    stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    out, err = p.communicate(timeout=60)
+    assert p.returncode == 1, (out, err)
+    assert "no Articutool heard within 1 s" in err and "serving" not in out
