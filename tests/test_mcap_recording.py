@@ -13,6 +13,7 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from collections import Counter
 from pathlib import Path
@@ -20,6 +21,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from mcap.exceptions import McapError
 from mcap.reader import NonSeekingReader, make_reader
 from mcap_ros2.decoder import DecoderFactory
@@ -337,3 +340,38 @@ def test_view_replays_an_mcap_recordings_joint_states(tmp_path: Path) -> None:
         p = subprocess.run([*view, *args, "--duration", "1"], env=ENV, capture_output=True,
                            text=True, timeout=120)
         assert p.returncode == 2 and says in p.stderr and "Traceback" not in p.stderr, p.stderr
+
+
+_text = st.text(st.characters(blacklist_categories=("Cs",), blacklist_characters="\x00"),
+                max_size=20)
+_f64 = st.floats(allow_nan=False, width=64)
+_f32 = st.floats(allow_nan=False, width=32)
+
+
+@settings(max_examples=40, deadline=None)
+@given(names=st.lists(_text, max_size=4), data=st.data(), fb=_text,
+       pct=_f32, joints=st.lists(_f32, max_size=5), prim=_text,
+       params=st.lists(_f32, max_size=6))
+def test_recorded_messages_decode_to_what_was_written(names: list[str], data: Any, fb: str,
+                                                      pct: float, joints: list[float],
+                                                      prim: str, params: list[float]) -> None:
+    """Any field contents survive our schema text + mcap_ros2's decoder (strings, arrays)."""
+    pos = data.draw(st.lists(_f64, min_size=len(names), max_size=len(names)))
+    js = m.msg(m.JOINT_STATE, header=m.header(T, "f"), name=names,
+               position=np.asarray(pos, dtype=np.float64), velocity=np.zeros(0),
+               effort=np.zeros(0))
+    fbm = m.feedback_msg(GID, PrimitiveStatus(prim, pct, fb, tuple(joints), False))  # type: ignore[arg-type]
+    goal = m.send_goal_request(GID, prim, params)
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "p.mcap"
+        with McapRecorder(path) as rec:
+            rec.write_msg("/js", m.JOINT_STATE, js, T)
+            rec.write_msg("/fb", m.FEEDBACK_MESSAGE, fbm, T)
+            rec.write_msg("/goal", f"{m.SEND_GOAL}_Request", goal, T)
+        got = {t: dec for t, _, dec in _read(path)}
+    assert list(got["/js"].name) == names and list(got["/js"].position) == pos
+    f = got["/fb"].feedback
+    assert (f.feedback_string, f.percent_complete) == (fb, pct)
+    assert list(f.current_joint_values) == joints
+    g = got["/goal"].goal
+    assert g.primitive_name == prim and list(g.parameters) == params
