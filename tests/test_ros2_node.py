@@ -46,7 +46,7 @@ from std_srvs.srv import Trigger  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
 SRC = Path(__file__).resolve().parent.parent / "src"
-TOOL = "wrist_1"
+TOOL = f"wrist_{os.getpid()}"  # with the domain below: apart from other runs on this host
 NS = f"/articutool/{TOOL}"
 DOMAIN = random.Random(os.getpid()).randint(120, 220)  # away from others' default domain 0
 ENV = dict(os.environ, PYTHONPATH=str(SRC), ROS_DOMAIN_ID=str(DOMAIN),
@@ -70,7 +70,7 @@ def _start_node(pc_cfg: Path, port: int, log: Path) -> subprocess.Popen[str]:
                            f"tls/127.0.0.1:{port}", stdout=subprocess.PIPE, stderr=err)
     assert node.stdout is not None
     line = node.stdout.readline()  # the node prints one line once it serves
-    assert "serving /articutool/wrist_1/" in line, (line, log.read_text())
+    assert f"serving {NS}/" in line, (line, log.read_text())
     return node
 
 
