@@ -19,6 +19,7 @@ from articutool.tool.drivers import make_drivers
 from articutool.tool.drivers.sim import SimWrist
 from articutool.link.server import ToolServer
 from articutool.link.client import ArticutoolClient
+from articutool.link.recording import McapRecorder, RecordingTransport
 from articutool.cli import build_parser
 spec = articutool.load_spec()
 sim = SimWrist(spec, seed=0)

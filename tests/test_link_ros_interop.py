@@ -4,7 +4,8 @@ Every standard message type the link sends or receives is serialised by our enco
 deserialised by ROS 2 (``rclpy.serialization``, rmw_fastrtps_cpp typesupport), and the other
 way round; our RIHS01 type hashes are compared with the ``hash_string`` of ROS 2's installed
 interface descriptions (``share/<pkg>/<kind>/<Name>.json``). Our own
-``articutool_interfaces`` types are not in ROS 2's packages and are not checked here.
+``articutool_interfaces`` types are checked against the built package in
+``test_ros2_interfaces.py``.
 
 The ROS 2 wheels are the ``ros`` extra (CPython 3.11 on x86_64, installed by ``make``);
 elsewhere this module is skipped, saying so.

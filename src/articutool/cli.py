@@ -26,6 +26,7 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "articutool.verify.cli",
     "articutool.tool.cli",
     "articutool.link.cli",
+    "articutool.ros2.cli",
     "articutool.sim.demo",
     "articutool.sim.cli",
     "articutool.feeding.cli",

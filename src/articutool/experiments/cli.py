@@ -71,6 +71,12 @@ def _check_common(args: argparse.Namespace) -> Path:
         if args.trial is None:
             raise _usage("--video needs --trial K (a video of one replayed trial)")
         new_output_file("--video", args.video, (".mp4", ".gif"))
+    if args.record is not None:
+        from articutool.cli import new_output_file
+
+        if args.trial is None:
+            raise _usage("--record needs --trial K (a recording of one replayed trial)")
+        new_output_file("--record", args.record, (".mcap",))
     return out
 
 
@@ -163,11 +169,22 @@ def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) ->
     rec_holder: dict[str, Any] = {}
 
     def hook(world: Any) -> None:
-        from articutool.sim.render import Recorder
+        if args.video:
+            from articutool.sim.render import Recorder
 
-        rec_holder["r"] = Recorder(world, fps=15.0, camera="overview")
+            rec_holder["r"] = Recorder(world, fps=15.0, camera="overview")
+        if args.record:
+            from articutool.sim.mcap_record import WorldMcapRecorder
 
-    rec = run_trial(spec, hook if args.video else None)
+            rec_holder["mcap"] = WorldMcapRecorder(world, args.record, metadata={
+                "experiment": exp, "trial": spec.trial, "seed": spec.seed,
+                "condition": json.dumps(spec.cond, default=str)})
+
+    try:
+        rec = run_trial(spec, hook if args.video or args.record else None)
+    finally:
+        if "mcap" in rec_holder:  # complete also when the trial failed or was interrupted
+            rec_holder["mcap"].close()
     logged = {r["trial"]: r for r in read_trials(out, exp)}.get(spec.trial)
     if rec.get("error"):
         print(f"error: trial {spec.trial} failed: {rec['error']}", file=sys.stderr)
@@ -203,6 +220,8 @@ def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) ->
         print(f"trial {spec.trial} (seed {spec.seed}): {verdict}")
         if args.video:
             print(f"video {args.video}")
+        if args.record:
+            print(f"recording {args.record}")
     return 0 if not rec.get("error") else 1
 
 
@@ -353,6 +372,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                        help="replay trial K alone and print its record")
         p.add_argument("--video", metavar="FILE", default=None,
                        help="with --trial: record a video (.mp4 or .gif)")
+        p.add_argument("--record", metavar="FILE.mcap", default=None,
+                       help="with --trial: record the trial as ROS 2 messages in MCAP (tool "
+                            "telemetry and commands, arm joints, food); never overwrites")
         if name == "exp2c":
             p.add_argument("--load-g", default=None, metavar="FOOD=G,…",
                            help="the load per food (default: our capacity means)")

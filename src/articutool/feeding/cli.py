@@ -107,7 +107,7 @@ def _cmd_meal(args: argparse.Namespace) -> int:
     if args.show_tree is not False:
         return _show_tree(args, lib, new_output_file("--show-tree", args.show_tree, _TREE_SUFFIXES))
     video = new_output_file("--video", args.video, (".mp4", ".gif"))
-    record = new_output_file("--record", args.record, (".npz",))
+    record = new_output_file("--record", args.record, (".npz", ".mcap"))
     if video is not None:
         import articutool.sim.render  # noqa: F401  (selects EGL before MuJoCo loads)
     from articutool.feeding.meal import make_bite_world, run_meal
@@ -128,20 +128,33 @@ def _cmd_meal(args: argparse.Namespace) -> int:
         except RenderError as err:
             print(f"error: --video: {err}", file=sys.stderr)
             return 1
-    data_rec = None
-    if record is not None:
+    data_rec = mcap_rec = None
+    meta = {"food": args.food, "system": args.system, "seed": args.seed,
+            "strategy": setup.strategy_name}
+    visitors: list[Any] = []
+    if record is not None and record.suffix.lower() == ".mcap":
+        from articutool.link.recording import RecordingError
+        from articutool.sim.mcap_record import WorldMcapRecorder
+
+        try:
+            mcap_rec = WorldMcapRecorder(setup.world, record, metadata=meta)
+        except RecordingError as err:
+            raise UsageError(f"--record: {err}") from None
+        visitors.append(mcap_rec.tree_visitor)
+    elif record is not None:
         from articutool.viewer.recording import Recorder as DataRecorder
 
-        data_rec = DataRecorder(setup.world, extra={
-            "meal": {"food": args.food, "system": args.system, "seed": args.seed,
-                     "strategy": setup.strategy_name}})
+        data_rec = DataRecorder(setup.world, extra={"meal": meta})
     progress = TreeProgress(setup.world, live=not args.json)
     try:
         bites = run_meal(args.food, args.system, bites=args.bites, seed=args.seed,
-                         threshold_g=args.threshold, setup=setup, visitors=[progress],
+                         threshold_g=args.threshold, setup=setup,
+                         visitors=[progress, *visitors],
                          on_bite=None if args.json else _print_bite)
     finally:
         progress.stop()
+        if mcap_rec is not None:  # also on Ctrl-C: the file is then complete
+            mcap_rec.close()
     if recorder is not None:
         recorder.save(video)
     if data_rec is not None:
@@ -181,7 +194,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--video", metavar="FILE", default=None,
                    help="record the meal (.mp4 or .gif, overview camera); never overwrites")
     p.add_argument("--record", metavar="FILE", default=None,
-                   help="record the meal (.npz) for `articutool view --recording`; never "
+                   help="record the meal: .mcap (ROS 2 messages: tool telemetry and commands "
+                        "as the link carries them, arm joints, food, tree status) or .npz "
+                        "(the full MuJoCo state for `articutool view --recording`); never "
                         "overwrites")
     p.add_argument("--json", action="store_true", help="the bite records as JSON")
     p.add_argument("--show-tree", nargs="?", const=None, default=False, metavar="FILE",

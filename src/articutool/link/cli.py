@@ -92,6 +92,9 @@ def add_commands(subparsers: Any) -> None:
     add_spec_option(p)  # the wrist limits that bound the leveling offsets
     p.add_argument("--wait", type=_seconds, default=3.0, metavar="S",
                    help="seconds to wait for the tool to be heard (default 3)")
+    p.add_argument("--record", metavar="FILE.mcap", default=None,
+                   help="record every message this client's link carries (ROS 2 CDR in "
+                        "MCAP, schemas embedded); never overwrites")
     sub = p.add_subparsers(dest="client_command", required=True, metavar="ACTION")
     pm = sub.add_parser("mode", help="set the control mode (SetOrientationControl)")
     pm.add_argument("mode", choices=("leveling", "disabled"))
@@ -135,15 +138,21 @@ def _check_offsets(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Handler of ``articutool client``."""
+    from articutool.cli import new_output_file
     from articutool.link.client import ArticutoolClient, LinkError, ToolConflictError
     from articutool.link.config import ConfigError, config_from_args
     from articutool.link.transport import LinkOpenError
 
     if args.client_command == "mode":
         _check_offsets(args)
+    record = new_output_file("--record", args.record, (".mcap",))
+    recorder = None
     try:
         cfg = config_from_args(args)
-        client = ArticutoolClient(cfg)
+        if record is None:
+            client = ArticutoolClient(cfg)
+        else:
+            client, recorder = _recording_client(cfg, record)
     except (ConfigError, LinkOpenError) as err:
         return _usage(str(err))
     try:
@@ -211,3 +220,29 @@ def run(args: argparse.Namespace) -> int:
         return 1
     finally:
         client.close()
+        if recorder is not None:
+            recorder.close()
+            print(f"recording: {record} ({recorder.count} messages)", file=sys.stderr)
+
+
+def _recording_client(cfg: Any, path: Any) -> tuple[Any, Any]:
+    """An ArticutoolClient whose Zenoh transport records into the new MCAP file ``path``."""
+    import uuid
+
+    from articutool.cli import UsageError
+    from articutool.link.client import ArticutoolClient
+    from articutool.link.recording import McapRecorder, RecordingError, RecordingTransport
+    from articutool.link.zenoh_transport import ZenohTransport
+
+    sender = cfg.identity or f"articutool-client-{uuid.uuid4().hex[:8]}"
+    try:
+        recorder = McapRecorder(path)
+    except RecordingError as err:
+        raise UsageError(f"--record: {err}") from None
+    try:
+        link = ZenohTransport(cfg, "client", identity=sender)
+    except BaseException:
+        recorder.close()
+        path.unlink()  # nothing recorded: the file this run created
+        raise
+    return ArticutoolClient(cfg, RecordingTransport(link, recorder), sender=sender), recorder

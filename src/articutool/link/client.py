@@ -303,8 +303,12 @@ class ArticutoolClient:
 
     def run_primitive(self, name: str, params: list[float] | tuple[float, ...] = (),
                       feedback_cb: Callable[[PrimitiveStatus], None] | None = None,
-                      timeout: float | None = None) -> m.PrimitiveResult:
+                      timeout: float | None = None,
+                      goal_id: bytes | None = None) -> m.PrimitiveResult:
         """Run a primitive through the action and wait for its result.
+
+        ``goal_id``: the goal's 16-byte UUID (default random), e.g. a ROS 2 goal's own id
+        when ``articutool ros2`` forwards it, so :meth:`cancel` can address it.
 
         ``feedback_cb(PrimitiveStatus)`` receives feedback (percent, text, joints). On
         ``timeout`` the goal is cancelled and a result with ``success=False`` returned. A
@@ -316,7 +320,9 @@ class ArticutoolClient:
         if not isinstance(name, str) or not name:
             raise ValueError("primitive name must be a non-empty string")
         params = [float(p) for p in params]
-        gid = uuid.uuid4().bytes
+        gid = uuid.uuid4().bytes if goal_id is None else bytes(goal_id)
+        if len(gid) != 16:
+            raise ValueError(f"goal_id must be 16 bytes; got {len(gid)}")
         with self._lock:
             self._feedback[gid] = (name, feedback_cb)
             self._goal = gid

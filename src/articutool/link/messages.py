@@ -10,39 +10,24 @@ orientation), ``diagnostic_msgs/DiagnosticArray`` (loop health, fault, mode, lin
 Payloads are serialised with ``rosbags`` as ROS 2 CDR, including the 4-byte encapsulation
 header, i.e. the bytes a ROS 2 node puts on the wire. Every decoder raises
 :class:`LinkDecodeError` on malformed input (never another exception type), so a receiver can
-count and drop bad payloads. This module is pure: no I/O, no threads.
+count and drop bad payloads. This module is pure (no threads; its only I/O is reading its own
+interface files once, at import).
 
-Message definitions (``.msg``/``.srv``/``.action`` text)::
-
-    # articutool_interfaces/srv/SetOrientationControl
-    uint8 MODE_DISABLED=0
-    uint8 MODE_LEVELING=1
-    uint8 control_mode
-    float32 pitch_offset   # degrees
-    float32 roll_offset    # degrees
-    ---
-    bool success
-    string message
-
-    # articutool_interfaces/action/ExecuteArticutoolPrimitive
-    string primitive_name
-    float32[] parameters
-    ---
-    bool success
-    string message
-    float32[] final_joint_values
-    ---
-    string feedback_string
-    float32 percent_complete
-    float32[] current_joint_values
+The Articutool's own types are defined once, in the ROS 2 interface package shipped beside this
+module (``articutool_interfaces/srv/SetOrientationControl.srv`` and
+``articutool_interfaces/action/ExecuteArticutoolPrimitive.action``, thesis Listings 3.1-3.2):
+this module parses those files, and ``make`` builds the same files into a real ROS 2 package
+(:mod:`articutool.ros2.build_interfaces`).
 """
 
 from __future__ import annotations
 
 import math
+import re
 import uuid
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -94,24 +79,30 @@ DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
 BATTERY_STATE = "sensor_msgs/msg/BatteryState"
 HEADER = "std_msgs/msg/Header"
 
+IDL_DIR = Path(__file__).resolve().parent / PKG  # the ROS 2 package's source
+
+
+def _idl(rel: str, parts: tuple[str, ...]) -> dict[str, str]:
+    """The ``---``-separated sections of an interface file as {type name: .msg text}."""
+    text = (IDL_DIR / rel).read_text(encoding="utf-8")
+    sections = re.split(r"^---[ \t]*$", text, flags=re.MULTILINE)
+    if len(sections) != len(parts):
+        raise RuntimeError(f"{IDL_DIR / rel}: expected {len(parts)} sections separated by "
+                           f"'---'; found {len(sections)}")
+    return {name: body.strip("\n") + "\n" for name, body in zip(parts, sections, strict=True)}
+
+
 # (final type name, .msg text); names of our own types are rewritten from pkg/msg/X.
-_SRV_SOC = {
-    "SetOrientationControl_Request": (
-        "uint8 MODE_DISABLED=0\nuint8 MODE_LEVELING=1\n"
-        "uint8 control_mode\nfloat32 pitch_offset\nfloat32 roll_offset\n"),
-    "SetOrientationControl_Response": "bool success\nstring message\n",
-}
+_SRV_SOC = _idl("srv/SetOrientationControl.srv",
+                ("SetOrientationControl_Request", "SetOrientationControl_Response"))
 # std_srvs/srv/Trigger; an empty ROS 2 request carries the IDL generator's placeholder byte.
 _SRV_TRIGGER = {
     "Trigger_Request": "uint8 structure_needs_at_least_one_member\n",
     "Trigger_Response": "bool success\nstring message\n",
 }
 _ACTION_MSGS = {
-    "ExecuteArticutoolPrimitive_Goal": "string primitive_name\nfloat32[] parameters\n",
-    "ExecuteArticutoolPrimitive_Result": (
-        "bool success\nstring message\nfloat32[] final_joint_values\n"),
-    "ExecuteArticutoolPrimitive_Feedback": (
-        "string feedback_string\nfloat32 percent_complete\nfloat32[] current_joint_values\n"),
+    **_idl("action/ExecuteArticutoolPrimitive.action",
+           tuple(f"ExecuteArticutoolPrimitive_{p}" for p in ("Goal", "Result", "Feedback"))),
     "ExecuteArticutoolPrimitive_SendGoal_Request": (
         "unique_identifier_msgs/UUID goal_id\nExecuteArticutoolPrimitive_Goal goal\n"),
     "ExecuteArticutoolPrimitive_SendGoal_Response": (

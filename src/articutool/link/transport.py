@@ -50,7 +50,8 @@ not been tested against a ROS 2 installation):
 * Type hashes are computed with ``rosbags`` (``hash_rihs01``) over REP 2011 type
   descriptions, for services and actions from hand-built description structs. The standard
   types' hashes equal ROS 2's installed descriptions (``tests/test_link_ros_interop.py``,
-  rclpy 9.1.2); our own ``articutool_interfaces`` hashes cannot be checked that way.
+  rclpy 9.1.2), and so do our own ``articutool_interfaces`` hashes to those of the package
+  ``make`` builds (``tests/test_ros2_interfaces.py``).
   ``type_hash_in_keys=False`` in the config replaces the hash with ``*`` on
   subscribers/queries if a mismatch ever shows up.
 * The action's ``get_result`` is a long poll as in ROS 2: the server replies when the goal

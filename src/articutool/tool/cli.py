@@ -85,6 +85,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--insecure-listen", action="store_true",
                    help="allow a plain (non-TLS) listen endpoint on a network address without "
                         "pairing: anyone on that network can then command the tool")
+    p.add_argument("--record", metavar="FILE.mcap", default=None,
+                   help="record every message the link carries (ROS 2 CDR in MCAP, schemas "
+                        "embedded); needs --serve; never overwrites")
     p.set_defaults(func=_cmd_tool)
 
 
@@ -267,11 +270,14 @@ def _check_exposure(cfg: object, insecure: bool) -> None:
 
 
 def _cmd_tool(args: argparse.Namespace) -> int:
-    from articutool.cli import UsageError, spec_from_args
+    from articutool.cli import UsageError, new_output_file, spec_from_args
 
     spec = spec_from_args(args)
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UsageError(f"--duration must be a number of seconds > 0; got {args.duration}")
+    record = new_output_file("--record", args.record, (".mcap",))
+    if record is not None and not args.serve:
+        raise UsageError("--record records the link's messages: it needs --serve")
     # The loop thread shares the interpreter with the link's threads: a waiting thread gets
     # the GIL after at most one switch interval per thread ahead of it, 5 ms by default.
     # 1 ms bounds what the network's threads can add to a tick (benchmarks/
@@ -292,11 +298,24 @@ def _cmd_tool(args: argparse.Namespace) -> int:
         except LinkOpenError as err:
             raise UsageError(f"cannot serve the link: {err} (is another articutool tool "
                              "running on that endpoint?)") from None
+    recorder = None
+    if record is not None and link is not None:
+        from articutool.link.recording import McapRecorder, RecordingError, RecordingTransport
+
+        try:
+            recorder = McapRecorder(record)
+        except RecordingError as err:
+            link.close()
+            raise UsageError(f"--record: {err}") from None
+        link = RecordingTransport(link, recorder)  # type: ignore[assignment]
     try:
         return _run_with_drivers(args, spec, link)
     finally:
         if link is not None:
             link.close()  # last: after the loop stopped and the motors are off
+        if recorder is not None:
+            recorder.close()
+            print(f"recording: {record} ({recorder.count} messages)", file=sys.stderr)
 
 
 def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: ZenohTransport | None) -> int:

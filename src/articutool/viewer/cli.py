@@ -96,8 +96,18 @@ def _cmd_view(args: argparse.Namespace) -> int:
     if args.utensil not in spec.utensils:
         raise UsageError(f"--utensil must be one of {sorted(spec.utensils)}; got "
                          f"{args.utensil!r}")
-    rec = None
-    if args.recording is not None:
+    rec = motion = None
+    if args.recording is not None and Path(args.recording).suffix.lower() == ".mcap":
+        from articutool.viewer.mcap_replay import load_mcap_motion
+
+        if args.export is not None:
+            raise UsageError("--export renders .npz recordings (the full MuJoCo state); an "
+                             ".mcap recording holds joint states only")
+        try:
+            motion = load_mcap_motion(args.recording, spec)
+        except RecordingError as err:
+            raise UsageError(f"--recording: {err}") from None
+    elif args.recording is not None:
         try:
             rec = Recording.load(args.recording)
         except RecordingError as err:
@@ -124,11 +134,13 @@ def _cmd_view(args: argparse.Namespace) -> int:
     except SceneError as err:
         raise UsageError(f"--scene: {err}") from None
     view = None
-    if args.plan is not None or args.plan_task is not None:
+    if args.plan is not None or args.plan_task is not None or motion is not None:
         from articutool.arm.model import ArmModel
         from articutool.viewer.plan import plan_view
 
-        if args.plan is not None:
+        if motion is not None:
+            traj, wrist, title = motion, args.wrist, Path(args.recording).name
+        elif args.plan is not None:
             from articutool.trajectory import JointTrajectory
 
             traj = JointTrajectory.load(args.plan)  # TrajectoryError → exit 2 in main
@@ -207,7 +219,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     src.add_argument("--plan-task", metavar="ID", type=int, default=None,
                      help="plan this task of the benchmark set with --system, then show it")
     src.add_argument("--recording", metavar="FILE", default=None,
-                     help="replay a recording of the physics world (articutool sim --record)")
+                     help="replay a recording: .npz (the physics world, articutool sim/meal "
+                          "--record F.npz) or .mcap (joint states of any --record F.mcap)")
     p.add_argument("--system", choices=("decoupled", "strict6", "strict8"),
                    default="decoupled", help="planner for --plan-task (default: decoupled)")
     p.add_argument("--tasks", metavar="FILE", default=None,

@@ -1,0 +1,86 @@
+"""``articutool view --recording FILE.mcap``: an MCAP recording replayed as an 8-joint motion.
+
+An MCAP recording (``--record FILE.mcap`` of ``tool``, ``client``, ``meal``, ``experiment``)
+holds ROS 2 messages, not the MuJoCo state: the viewer replays the wrist's joint states
+(``/articutool/<id>/joint_states``) and, when recorded (the physics world), the arm's
+(``/arm/joint_states``), on the model, with the plan view's tilt colouring. Without arm
+joint states (a tool or client recording) the arm rests at ``Resting``. The food is not in an
+MCAP recording: the ``.npz`` recording (``articutool sim/meal --record F.npz``) keeps the full
+MuJoCo state for that.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from articutool.link import messages as m
+from articutool.spec import Spec
+from articutool.trajectory import JointTrajectory
+from articutool.viewer.recording import RecordingError
+
+__all__ = ["load_mcap_motion"]
+
+_ARM_TOPIC = "/arm/joint_states"
+
+
+def _series(stamps: list[float], rows: list[NDArray[np.float64]]
+            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    t = np.asarray(stamps, dtype=float)
+    q = np.asarray(rows, dtype=float)
+    keep = np.concatenate([[True], np.diff(t) > 0])  # strictly increasing times
+    return t[keep], q[keep]
+
+
+def load_mcap_motion(path: str | Path, spec: Spec) -> JointTrajectory:
+    """The recorded motion as an 8-joint trajectory (arm 1..6, pitch, roll) from time 0.
+
+    Raises :class:`RecordingError` naming the problem (not an MCAP file, no wrist joint
+    states).
+    """
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    p = Path(path)
+    if not p.is_file():
+        raise RecordingError(f"recording {p} does not exist (or is not a file)")
+    wrist_names = tuple(spec.wrist.joint_names)
+    arm_names = tuple(spec.arm.joint_names)
+    wt: list[float] = []
+    wq: list[NDArray[np.float64]] = []
+    at: list[float] = []
+    aq: list[NDArray[np.float64]] = []
+    try:
+        with p.open("rb") as f:
+            for _, ch, msg in make_reader(f).iter_messages(log_time_order=True):
+                arm = ch.topic == _ARM_TOPIC
+                if not (arm or ch.topic.endswith("/joint_states")):
+                    continue
+                try:
+                    js = m.decode(msg.data, m.JOINT_STATE)
+                except m.LinkDecodeError:
+                    continue
+                names = tuple(str(n) for n in js.name)
+                want = arm_names if arm else wrist_names
+                if set(names) != set(want) or len(js.position) != len(names):
+                    continue
+                pos = dict(zip(names, np.asarray(js.position, dtype=float), strict=True))
+                (at if arm else wt).append(msg.log_time * 1e-9)
+                (aq if arm else wq).append(np.array([pos[n] for n in want]))
+    except (McapError, OSError, ValueError) as err:
+        raise RecordingError(f"recording {p} is not a readable MCAP file "
+                             f"({type(err).__name__}: {err})") from None
+    if len(wt) < 2:
+        raise RecordingError(f"recording {p} holds fewer than two wrist joint states "
+                             f"({'/'.join(wrist_names)}); nothing to replay")
+    t, qw = _series(wt, wq)
+    if len(at) >= 2:
+        ta, qa = _series(at, aq)
+        qa = np.stack([np.interp(t, ta, qa[:, j]) for j in range(qa.shape[1])], axis=1)
+    else:
+        qa = np.tile(np.asarray(spec.arm.configuration("Resting"), dtype=float), (t.size, 1))
+    q = np.concatenate([qa, qw], axis=1)
+    v = np.gradient(q, t, axis=0) if t.size > 1 else np.zeros_like(q)
+    return JointTrajectory((*arm_names, *wrist_names), t - t[0], q, v)

@@ -1,0 +1,377 @@
+"""MCAP recordings (issue 28, item 4): ROS 2 CDR messages with embedded ``ros2msg`` schemas,
+read back with the standard readers (``mcap``'s reader and the ``mcap_ros2`` decoder).
+
+The tool and the client are real processes (``articutool tool --record``, ``articutool client
+--record``); a recording cut by SIGKILL is read with mcap's streaming reader up to its last
+complete chunk; nothing overwrites an existing file.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from mcap.exceptions import McapError
+from mcap.reader import NonSeekingReader, make_reader
+from mcap_ros2.decoder import DecoderFactory
+
+from articutool.link import messages as m
+from articutool.link.recording import McapRecorder, RecordingError, schema_name
+from articutool.tool.api import Mode, PrimitiveStatus, ToolState
+from articutool.trajectory import JointTrajectory
+
+SRC = Path(__file__).resolve().parent.parent / "src"
+ENV = dict(os.environ, PYTHONPATH=str(SRC))
+
+
+def _state() -> ToolState:
+    return ToolState(stamp=1.0, mode=Mode.LEVELING, joint_names=("atool_pitch", "atool_roll"),
+                     position=(0.1, -0.25), velocity=(0.5, 0.0),
+                     orientation_wxyz=(0.9, 0.1, -0.2, 0.3), angular_velocity=(0.01, 0.02, 0.03),
+                     linear_acceleration=(0.1, 0.2, 9.81), battery_voltage=11.9,
+                     loop_period_mean=0.02, loop_jitter=0.0004, loop_overruns=1, fault="",
+                     extra={})
+
+
+def _read(path: Path) -> list[tuple[str, str, Any]]:
+    """(topic, schema name, decoded message) of every message, via the summary (a whole
+    file) with mcap_ros2's decoder."""
+    with path.open("rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        return [(ch.topic, sch.name, dec) for sch, ch, _, dec in reader.iter_decoded_messages()]
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+T = 1_700_000_000.5
+GID = bytes(range(16))
+ALL: list[tuple[str, Any]] = [
+    (m.JOINT_STATE, m.joint_state_msg(_state(), T)),
+    (m.IMU, m.imu_msg(_state(), T)),
+    (m.DIAGNOSTIC_ARRAY, m.health_msg(_state(), T, {"decode_errors": 2}, "wrist_1", "pc_1")),
+    (m.BATTERY_STATE, m.battery_msg(_state(), T)),
+    (m.HEADER, m.heartbeat_msg(T, "pc_1")),
+    (m.JOINT_TRAJECTORY, m.trajectory_msg(JointTrajectory(
+        ("atool_pitch", "atool_roll"), np.array([0.0, 1.5]), np.array([[0, 0], [0.3, 0.1]]),
+        np.zeros((2, 2))), T)),
+    (m.GOAL_STATUS_ARRAY, m.status_array([(GID, T, m.GoalStatus.EXECUTING)])),
+    (m.FEEDBACK_MESSAGE, m.feedback_msg(GID, PrimitiveStatus("TWIRL_CW", 40.0, "twirl",
+                                                             (0.0, 2.5), False))),
+    (f"{m.SET_ORIENTATION_CONTROL}_Request", m.soc_request(Mode.LEVELING, 10.0, -5.0)),
+    (f"{m.SET_ORIENTATION_CONTROL}_Response", m.soc_response(False, "refused")),
+    (f"{m.SEND_GOAL}_Request", m.send_goal_request(GID, "TWIRL_CW", [1.0, 3.0])),
+    (f"{m.SEND_GOAL}_Response", m.send_goal_response(True, T)),
+    (f"{m.GET_RESULT}_Request", m.msg(f"{m.GET_RESULT}_Request", goal_id=m.goal_uuid(GID))),
+    (f"{m.GET_RESULT}_Response", m.result_msg(m.PrimitiveResult(True, "done", (0.0, 6.28), 4))),
+    (f"{m.CANCEL_GOAL}_Request", m.cancel_request(GID)),
+    (f"{m.CANCEL_GOAL}_Response", m.cancel_response(0, [(GID, T)])),
+    (f"{m.TRIGGER}_Request", m.trigger_request()),
+    (f"{m.TRIGGER}_Response", m.trigger_response(False, "no fault to clear")),
+]
+
+
+def test_every_link_type_decodes_with_the_standard_reader(tmp_path: Path) -> None:
+    path = tmp_path / "all.mcap"
+    with McapRecorder(path) as rec:
+        for i, (typename, message) in enumerate(ALL):
+            rec.write_msg(f"/t{i}", typename, message, T + i)
+    got = _read(path)
+    assert [(t, s) for t, s, _ in got] == [(f"/t{i}", schema_name(tn))
+                                           for i, (tn, _) in enumerate(ALL)]
+    by_topic = {t: d for t, _, d in got}
+    js = by_topic["/t0"]
+    assert list(js.name) == ["atool_pitch", "atool_roll"]
+    assert list(js.position) == [0.1, -0.25] and js.header.stamp.sec == int(T)
+    fb = by_topic["/t7"]
+    assert fb.feedback.feedback_string == "twirl" and fb.feedback.percent_complete == 40.0
+    assert bytes(fb.goal_id.uuid) == GID
+    goal = by_topic["/t10"]
+    assert goal.goal.primitive_name == "TWIRL_CW" and list(goal.goal.parameters) == [1.0, 3.0]
+    assert by_topic["/t8"].control_mode == 1 and by_topic["/t8"].roll_offset == -5.0
+    health = by_topic["/t2"].status[0]
+    assert health.hardware_id == "wrist_1"
+    assert {kv.key: kv.value for kv in health.values}["lease_holder"] == "pc_1"
+
+
+def test_a_recording_never_overwrites(tmp_path: Path) -> None:
+    path = tmp_path / "mine.mcap"
+    path.write_bytes(b"the user's file")
+    with pytest.raises(RecordingError, match="exists"):
+        McapRecorder(path)
+    assert path.read_bytes() == b"the user's file"
+    for args in (["tool", "--duration", "1", "--record", str(path)],
+                 ["client", "--record", str(path), "state"]):
+        p = subprocess.run([sys.executable, "-m", "articutool", *args], env=ENV,
+                           capture_output=True, text=True, timeout=60)
+        assert p.returncode == 2, p.stderr
+        assert "--record" in p.stderr and "exists" in p.stderr
+    assert path.read_bytes() == b"the user's file"
+
+
+@pytest.mark.parametrize(("args", "says"), [
+    (["--record", "run.bag"], ".mcap"),
+    (["--no-serve", "--record", "run.mcap"], "--serve"),
+    (["--record", "no/such/folder/run.mcap"], "folder"),
+])
+def test_tool_record_bad_input_exits_2(tmp_path: Path, args: list[str], says: str) -> None:
+    p = subprocess.run([sys.executable, "-m", "articutool", "tool", "--duration", "1", *args],
+                       env=ENV, capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert p.returncode == 2, p.stderr
+    assert "--record" in p.stderr and says in p.stderr and "Traceback" not in p.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def _tool(tmp_path: Path, port: int, *extra: str) -> subprocess.Popen[str]:
+    return subprocess.Popen([sys.executable, "-m", "articutool", "tool", "--no-level",
+                             "--listen", f"tcp/127.0.0.1:{port}", *extra], env=ENV,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for(path: Path, size: int, timeout: float) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if path.exists() and path.stat().st_size >= size:
+            return
+        time.sleep(0.1)
+    raise AssertionError(f"{path} did not reach {size} bytes")
+
+
+def test_a_killed_tools_recording_is_readable_to_its_last_chunk(tmp_path: Path) -> None:
+    path = tmp_path / "killed.mcap"
+    tool = _tool(tmp_path, _free_port(), "--record", str(path))
+    try:
+        _wait_for(path, 60_000, 60)  # a few complete chunks (each about a second)
+    finally:
+        tool.send_signal(signal.SIGKILL)
+        tool.wait(10)
+    with path.open("rb") as f, pytest.raises(McapError):  # no summary: the file was cut
+        make_reader(f).get_summary()
+    counts: Counter[str] = Counter()
+    decode = DecoderFactory()
+    with path.open("rb") as f:
+        try:  # in file order: every complete chunk's messages, then the cut
+            for sch, ch, msg in NonSeekingReader(f).iter_messages(log_time_order=False):
+                dec = decode.decoder_for(ch.message_encoding, sch)(msg.data)
+                counts[ch.topic.rsplit("/", 1)[-1]] += 1
+                if ch.topic.endswith("joint_states"):
+                    assert len(dec.position) == 2
+        except (McapError, EOFError):
+            pass
+    assert counts["joint_states"] >= 10 and counts["battery"] >= 10
+
+
+def test_ctrl_c_closes_the_tools_recording(tmp_path: Path) -> None:
+    path = tmp_path / "tool.mcap"
+    tool = _tool(tmp_path, _free_port(), "--record", str(path))
+    _wait_for(path, 1, 60)
+    time.sleep(2.0)
+    tool.send_signal(signal.SIGINT)
+    _, err = tool.communicate(timeout=30)
+    assert tool.returncode == 0, err
+    with path.open("rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None and summary.statistics is not None
+    got = _read(path)
+    assert len(got) == summary.statistics.message_count > 0
+    topics = {t.rsplit("/articutool/default/", 1)[-1] for t, _, _ in got}
+    assert {"joint_states", "imu/data", "health", "battery", "heartbeat"} <= topics
+
+
+def test_the_clients_recording_holds_its_goal(tmp_path: Path) -> None:
+    port = _free_port()
+    tool = _tool(tmp_path, port)
+    path = tmp_path / "client.mcap"
+    try:
+        p = subprocess.run([sys.executable, "-m", "articutool", "client", "--connect",
+                            f"tcp/127.0.0.1:{port}", "--wait", "30", "--record", str(path),
+                            "primitive", "TWIRL_CW", "0.25", "3", "--json"], env=ENV,
+                           capture_output=True, text=True, timeout=120)
+    finally:
+        tool.send_signal(signal.SIGINT)
+        tool.wait(30)
+    assert p.returncode == 0, p.stderr
+    got = _read(path)
+    by: dict[str, list[Any]] = {}
+    for topic, _, dec in got:
+        by.setdefault(topic.split("/articutool/default/", 1)[-1], []).append(dec)
+    (goal,) = by["execute_primitive/_action/send_goal/request"]
+    assert goal.goal.primitive_name == "TWIRL_CW" and list(goal.goal.parameters) == [0.25, 3.0]
+    (accepted,) = by["execute_primitive/_action/send_goal/response"]
+    assert accepted.accepted
+    fbs = [f for f in by["execute_primitive/_action/feedback"]
+           if bytes(f.goal_id.uuid) == bytes(goal.goal_id.uuid)]
+    assert len(fbs) >= 3
+    results = by["execute_primitive/_action/get_result/response"]
+    assert results[-1].status == m.GoalStatus.SUCCEEDED and results[-1].result.success
+    assert len(by["joint_states"]) >= 5
+
+
+def test_a_recorded_simulated_bite_opens_with_the_standard_reader(tmp_path: Path) -> None:
+    """``articutool meal --record``: the bite's own record (--json) agrees with the file."""
+    import json
+
+    path = tmp_path / "bite.mcap"
+    p = subprocess.run([sys.executable, "-m", "articutool", "meal", "--food", "pecans",
+                        "--bites", "1", "--json", "--record", str(path)], env=ENV,
+                       capture_output=True, text=True, timeout=900)
+    assert p.returncode == 0, p.stderr[-2000:]
+    bite = json.loads(p.stdout)["bites"][0]
+    with path.open("rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        (meta,) = list(reader.iter_metadata())
+        got = [(ch.topic, dec) for _, ch, _, dec in reader.iter_decoded_messages()]
+    assert meta.metadata["food"] == "pecans" and meta.metadata["strategy"] == bite["strategy"]
+    by: dict[str, list[Any]] = {}
+    for topic, dec in got:
+        by.setdefault(topic.replace("/articutool/default/", "tool:"), []).append(dec)
+    # telemetry at the tool's 50 Hz through the whole simulated bite
+    n = len(by["tool:joint_states"])
+    assert n == len(by["tool:imu/data"]) == len(by["tool:health"]) == len(by["/arm/joint_states"])
+    assert abs(n - 50 * bite["sim_time_s"]) <= 0.02 * n
+    arm = by["/arm/joint_states"][-1]
+    assert list(arm.name) == [f"j2n6s200_joint_{i}" for i in range(1, 7)]
+    # the food accounting's last word is the bite's delivered mass
+    last = {kv.key: float(kv.value) for kv in by["/sim/food"][-1].status[0].values}
+    assert last["eaten_g"] == pytest.approx(bite["delivered_g"])
+    assert last["table_g"] + last["critical_g"] == pytest.approx(bite["spilled_g"])
+    # the tree's status: each stage's behaviour reached SUCCESS in a completed bite
+    done = {s.name.rsplit(" / ", 1)[-1] for arr in by["/feeding/tree"] for s in arr.status
+            if s.message == "SUCCESS"}
+    assert any(name.startswith("present at Staging") for name in done), sorted(done)[:20]
+    # the commands as the link carries them: leveling on, a primitive with feedback, a result
+    modes = [r.control_mode for r in by["tool:set_orientation_control/request"]]
+    assert 1 in modes and 0 in modes
+    assert all(r.success for r in by["tool:set_orientation_control/response"])
+    goals = by["tool:execute_primitive/_action/send_goal/request"]
+    results = by["tool:execute_primitive/_action/get_result/response"]
+    assert len(goals) == len(results) >= 1
+    assert len(by["tool:execute_primitive/_action/feedback"]) > 5
+    assert bite["completed"]
+    assert all(r.status == m.GoalStatus.SUCCEEDED and r.result.success for r in results)
+
+
+def test_an_experiment_trial_recording_agrees_with_its_record(tmp_path: Path) -> None:
+    import json
+
+    path = tmp_path / "capacity.mcap"
+    base = [sys.executable, "-m", "articutool", "experiment", "capacity", "--trials", "1",
+            "--out", str(tmp_path / "out")]
+    p = subprocess.run([*base, "--trial", "0", "--json", "--record", str(path)], env=ENV,
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr[-2000:]
+    rec = json.loads(p.stdout)["record"]
+    got = _read(path)
+    food = [d for t, _, d in got if t == "/sim/food"]
+    on_spoon = {kv.key: float(kv.value) for kv in food[-1].status[0].values}["utensil_g"]
+    assert on_spoon == pytest.approx(rec["capacity_g"], abs=1e-3)  # the trial's own measure
+    assert sum(t.endswith("/joint_states") for t, _, _ in got) > 100
+    for args, says in ((["--record", str(path), "--trial", "0"], "exists"),
+                       (["--record", str(tmp_path / "new.mcap")], "--trial")):
+        p = subprocess.run([*base, *args], env=ENV, capture_output=True, text=True, timeout=60)
+        assert p.returncode == 2 and "--record" in p.stderr and says in p.stderr, p.stderr
+    assert not (tmp_path / "new.mcap").exists()
+
+
+def _joint_states(names: list[str], t: float, q: list[float]) -> Any:
+    return m.msg(m.JOINT_STATE, header=m.header(t), name=names,
+                 position=np.asarray(q, dtype=np.float64), velocity=np.zeros(0),
+                 effort=np.zeros(0))
+
+
+def test_view_replays_an_mcap_recordings_joint_states(tmp_path: Path) -> None:
+    from articutool import load_spec
+    from articutool.viewer.mcap_replay import load_mcap_motion
+    from articutool.viewer.recording import RecordingError
+
+    spec = load_spec()
+    arm, wrist = list(spec.arm.joint_names), list(spec.wrist.joint_names)
+    t = T + np.arange(0.0, 2.0, 0.02)
+    q_arm = np.stack([0.1 * j + 0.05 * np.sin(t - T + j) for j in range(6)], axis=1)
+    q_wrist = np.stack([0.2 * np.sin(t - T), 0.5 * (t - T)], axis=1)
+    path = tmp_path / "run.mcap"
+    with McapRecorder(path) as rec:
+        for k, tk in enumerate(t):
+            rec.write_msg("/articutool/wrist_1/joint_states", m.JOINT_STATE,
+                          _joint_states(wrist, tk, list(q_wrist[k])), tk)
+            rec.write_msg("/arm/joint_states", m.JOINT_STATE,
+                          _joint_states(arm, tk + 0.001, list(q_arm[k])), tk + 0.001)
+            rec.write_msg("/articutool/wrist_1/health", m.DIAGNOSTIC_ARRAY,
+                          m.health_msg(_state(), tk, {}), tk)
+    motion = load_mcap_motion(path, spec)
+    assert motion.joint_names == (*arm, *wrist)
+    assert motion.times[0] == 0.0 and motion.times[-1] == pytest.approx(t[-1] - t[0])
+    assert np.allclose(motion.positions[:, 6:], q_wrist)
+    assert np.allclose(motion.positions[1:-1, :6], q_arm[1:-1], atol=2e-4)  # 1 ms apart
+    # a tool-only recording: the arm rests at Resting
+    tool_only = tmp_path / "tool.mcap"
+    with McapRecorder(tool_only) as rec:
+        for k, tk in enumerate(t[:10]):
+            rec.write_msg("/articutool/default/joint_states", m.JOINT_STATE,
+                          _joint_states(wrist, tk, list(q_wrist[k])), tk)
+    rest = load_mcap_motion(tool_only, spec).positions[:, :6]
+    assert np.allclose(rest, spec.arm.configuration("Resting"))
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"not an mcap file")
+    with pytest.raises(RecordingError, match="not a readable MCAP"):
+        load_mcap_motion(junk, spec)
+    view = [sys.executable, "-m", "articutool", "view", "--recording"]
+    p = subprocess.run([*view, str(path), "--duration", "1", "--port", str(_free_port())],
+                       env=ENV, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert "8-joint trajectory" in p.stdout and "viewer: http://" in p.stdout
+    for args, says in (([str(junk)], "not a readable MCAP"),
+                       ([str(path), "--export", str(tmp_path / "v.mp4")], ".npz")):
+        p = subprocess.run([*view, *args, "--duration", "1"], env=ENV, capture_output=True,
+                           text=True, timeout=120)
+        assert p.returncode == 2 and says in p.stderr and "Traceback" not in p.stderr, p.stderr
+
+
+_text = st.text(st.characters(blacklist_categories=("Cs",), blacklist_characters="\x00"),
+                max_size=20)
+_f64 = st.floats(allow_nan=False, width=64)
+_f32 = st.floats(allow_nan=False, width=32)
+
+
+@settings(max_examples=40, deadline=None)
+@given(names=st.lists(_text, max_size=4), data=st.data(), fb=_text,
+       pct=_f32, joints=st.lists(_f32, max_size=5), prim=_text,
+       params=st.lists(_f32, max_size=6))
+def test_recorded_messages_decode_to_what_was_written(names: list[str], data: Any, fb: str,
+                                                      pct: float, joints: list[float],
+                                                      prim: str, params: list[float]) -> None:
+    """Any field contents survive our schema text + mcap_ros2's decoder (strings, arrays)."""
+    pos = data.draw(st.lists(_f64, min_size=len(names), max_size=len(names)))
+    js = m.msg(m.JOINT_STATE, header=m.header(T, "f"), name=names,
+               position=np.asarray(pos, dtype=np.float64), velocity=np.zeros(0),
+               effort=np.zeros(0))
+    fbm = m.feedback_msg(GID, PrimitiveStatus(prim, pct, fb, tuple(joints), False))  # type: ignore[arg-type]
+    goal = m.send_goal_request(GID, prim, params)
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "p.mcap"
+        with McapRecorder(path) as rec:
+            rec.write_msg("/js", m.JOINT_STATE, js, T)
+            rec.write_msg("/fb", m.FEEDBACK_MESSAGE, fbm, T)
+            rec.write_msg("/goal", f"{m.SEND_GOAL}_Request", goal, T)
+        got = {t: dec for t, _, dec in _read(path)}
+    assert list(got["/js"].name) == names and list(got["/js"].position) == pos
+    f = got["/fb"].feedback
+    assert (f.feedback_string, f.percent_complete) == (fb, pct)
+    assert list(f.current_joint_values) == joints
+    g = got["/goal"].goal
+    assert g.primitive_name == prim and list(g.parameters) == params

@@ -1,0 +1,327 @@
+"""``articutool ros2`` on a real ROS 2 graph (issue 28): three processes.
+
+The real tool (``articutool tool`` on the simulated drivers, paired, loopback TLS), the node
+(``articutool ros2``, forwarding over the paired link), and this test process as a plain
+rclpy client written here (rclpy's own Client/ActionClient/Subscription, none of our code),
+on a DDS domain of its own restricted to localhost. The refusals a ROS 2 client gets are
+compared with what the link client gets for the same bad requests.
+
+Skipped where rclpy or the built ``articutool_interfaces`` are unavailable (``make`` builds
+the package on CPython 3.11 x86-64 only).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import random
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from articutool.link.client import ArticutoolClient
+from articutool.link.config import load_config
+from articutool.link.pairing import pair
+
+_why = "rclpy and the built articutool_interfaces (make; CPython 3.11 on x86_64 only)"
+rclpy = pytest.importorskip("rclpy", reason=_why)
+pytest.importorskip("articutool_interfaces.action", reason=_why)
+
+from action_msgs.msg import GoalStatus  # noqa: E402
+from articutool_interfaces.action import ExecuteArticutoolPrimitive  # noqa: E402
+from articutool_interfaces.srv import SetOrientationControl  # noqa: E402
+from builtin_interfaces.msg import Duration  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from rclpy.action import ActionClient  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from sensor_msgs.msg import BatteryState, Imu, JointState  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
+
+SRC = Path(__file__).resolve().parent.parent / "src"
+TOOL = f"wrist_{os.getpid()}"  # with the domain below: apart from other runs on this host
+NS = f"/articutool/{TOOL}"
+DOMAIN = random.Random(os.getpid()).randint(120, 220)  # away from others' default domain 0
+ENV = dict(os.environ, PYTHONPATH=str(SRC), ROS_DOMAIN_ID=str(DOMAIN),
+           ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _articutool(*args: str, **kw: Any) -> subprocess.Popen[str]:
+    return subprocess.Popen([sys.executable, "-m", "articutool", *args], env=ENV, text=True,
+                            **kw)
+
+
+def _start_node(pc_cfg: Path, port: int, log: Path) -> subprocess.Popen[str]:
+    with log.open("a") as err:
+        node = _articutool("ros2", "--link-config", str(pc_cfg), "--connect",
+                           f"tls/127.0.0.1:{port}", stdout=subprocess.PIPE, stderr=err)
+    assert node.stdout is not None
+    line = node.stdout.readline()  # the node prints one line once it serves
+    assert f"serving {NS}/" in line, (line, log.read_text())
+    return node
+
+
+class Graph:
+    """The processes, the link's refusals and the plain rclpy client's node."""
+
+    def __init__(self, folder: Path) -> None:
+        pair(folder, TOOL, ["pc_1"])
+        self.port = _free_port()
+        self.pc_cfg = folder / "pc_1" / "link.toml"
+        self.tool = _articutool("tool", "--no-level", "--link-config",
+                                str(folder / TOOL / "link.toml"), "--listen",
+                                f"tls/127.0.0.1:{self.port}", stdin=subprocess.DEVNULL,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self.link_cfg = load_config(self.pc_cfg).replace(
+            connect=(f"tls/127.0.0.1:{self.port}",), listen=())
+        # What the link itself answers to the bad requests the ROS 2 client will send.
+        with ArticutoolClient(self.link_cfg) as c:
+            assert c.wait_for_tool(30), "the tool was not heard"
+            self.link_refusals = {
+                "offset": c.set_mode("leveling", 500.0, 0.0),
+                "nan": _refusal(lambda: c.set_mode("leveling", math.nan, 0.0)),
+                "mode": _refusal(lambda: c.set_mode(7)),
+                "params": c.run_primitive("TWIRL_CW", [1.0]).to_dict(),
+                "unknown": c.run_primitive("NO_SUCH_PRIMITIVE", []).to_dict(),
+                "clear": c.clear_fault(),
+            }
+        self.log = folder / "node.log"
+        self.node_proc = _start_node(self.pc_cfg, self.port, self.log)
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx, domain_id=DOMAIN)
+        self.node = rclpy.create_node("plain_test_client", context=self.ctx)
+        self.executor = SingleThreadedExecutor(context=self.ctx)
+        self.executor.add_node(self.node)
+        self.received: dict[str, list[Any]] = {"js": [], "imu": [], "health": [], "battery": []}
+        for key, cls, rel in (("js", JointState, "joint_states"), ("imu", Imu, "imu/data"),
+                              ("health", DiagnosticArray, "health"),
+                              ("battery", BatteryState, "battery")):
+            self.node.create_subscription(cls, f"{NS}/{rel}", self.received[key].append, 10)
+        self.soc = self.node.create_client(SetOrientationControl,
+                                           f"{NS}/set_orientation_control")
+        self.clear = self.node.create_client(Trigger, f"{NS}/clear_fault")
+        self.action = ActionClient(self.node, ExecuteArticutoolPrimitive,
+                                   f"{NS}/execute_primitive")
+        self.traj_pub = self.node.create_publisher(JointTrajectory, f"{NS}/joint_trajectory", 10)
+        assert self.soc.wait_for_service(timeout_sec=30)
+        assert self.clear.wait_for_service(timeout_sec=30)
+        assert self.action.wait_for_server(timeout_sec=30)
+
+    def wait(self, future: Any, timeout: float = 30.0) -> Any:
+        self.executor.spin_until_future_complete(future, timeout_sec=timeout)
+        assert future.done(), "no answer in time"
+        return future.result()
+
+    def spin_until(self, cond: Callable[[], bool], timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.05)
+            if cond():
+                return True
+        return False
+
+    def set_mode(self, mode: int, pitch: float = 0.0, roll: float = 0.0) -> Any:
+        req = SetOrientationControl.Request(control_mode=mode, pitch_offset=pitch,
+                                            roll_offset=roll)
+        return self.wait(self.soc.call_async(req))
+
+    def send_goal(self, name: str, params: list[float],
+                  feedback: list[Any] | None = None) -> Any:
+        cb = None if feedback is None else (lambda f: feedback.append(f.feedback))
+        handle = self.wait(self.action.send_goal_async(
+            ExecuteArticutoolPrimitive.Goal(primitive_name=name, parameters=params),
+            feedback_callback=cb))
+        assert handle.accepted
+        return handle
+
+    def close(self) -> None:
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
+        for p in (self.node_proc, self.tool):
+            if p.poll() is None:
+                p.send_signal(signal.SIGINT)
+                try:
+                    p.wait(20)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+                    p.wait()
+
+
+def _refusal(fn: Callable[[], Any]) -> str:
+    try:
+        fn()
+    except ValueError as err:
+        return str(err)
+    raise AssertionError("the link client accepted a bad request")
+
+
+@pytest.fixture(scope="module")
+def graph(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Graph]:
+    g = Graph(tmp_path_factory.mktemp("ros2-pair"))
+    try:
+        yield g
+    finally:
+        g.close()
+
+
+def test_the_service_sets_the_mode_on_the_tool(graph: Graph) -> None:
+    resp = graph.set_mode(SetOrientationControl.Request.MODE_LEVELING)
+    assert resp.success, resp.message
+    assert graph.spin_until(lambda: _health(graph).get("mode") == "LEVELING", 10)
+    resp = graph.set_mode(SetOrientationControl.Request.MODE_DISABLED)
+    assert resp.success, resp.message
+    assert graph.spin_until(lambda: _health(graph).get("mode") == "DISABLED", 10)
+
+
+def test_bad_requests_get_the_links_refusals(graph: Graph) -> None:
+    ref = graph.link_refusals
+    resp = graph.set_mode(1, pitch=500.0)
+    assert (resp.success, resp.message) == ref["offset"]
+    assert not ref["offset"][0] and "pitch_offset" in resp.message
+    resp = graph.set_mode(1, pitch=math.nan)
+    assert (resp.success, resp.message) == (False, ref["nan"])
+    resp = graph.set_mode(7)
+    assert (resp.success, resp.message) == (False, ref["mode"])
+    for key, name, params in (("params", "TWIRL_CW", [1.0]),
+                              ("unknown", "NO_SUCH_PRIMITIVE", [])):
+        handle = graph.send_goal(name, params)
+        res = graph.wait(handle.get_result_async())
+        assert res.status == GoalStatus.STATUS_ABORTED
+        assert (res.result.success, res.result.message) == (False, ref[key]["message"])
+    resp = graph.wait(graph.clear.call_async(Trigger.Request()))
+    assert (resp.success, resp.message) == ref["clear"]
+
+
+def test_twirl_through_the_action_with_feedback(graph: Graph) -> None:
+    assert graph.set_mode(0).success
+    graph.spin_until(lambda: bool(graph.received["js"]), 10)
+    roll0 = graph.received["js"][-1].position[1]
+    feedback: list[Any] = []
+    handle = graph.send_goal("TWIRL_CW", [1.0, 3.0], feedback)
+    res = graph.wait(handle.get_result_async(), 60)
+    assert res.status == GoalStatus.STATUS_SUCCEEDED, res.result.message
+    assert res.result.success
+    assert res.result.final_joint_values[1] == pytest.approx(roll0 + 2 * math.pi, abs=0.05)
+    assert len(feedback) >= 10
+    pct = [f.percent_complete for f in feedback]
+    assert pct == sorted(pct) and pct[-1] > 90
+    # the joint states the node forwards show the same twirl
+    assert graph.spin_until(lambda: abs(graph.received["js"][-1].position[1]
+                                        - res.result.final_joint_values[1]) < 0.05, 5)
+
+
+def test_a_cancelled_goal_stops_the_tool(graph: Graph) -> None:
+    assert graph.set_mode(0).success
+    feedback: list[Any] = []
+    handle = graph.send_goal("TWIRL_CCW", [1.0, 0.5], feedback)  # 12.6 s
+    assert graph.spin_until(lambda: len(feedback) >= 5, 10)
+    cancel = graph.wait(handle.cancel_goal_async())
+    assert len(cancel.goals_canceling) == 1
+    res = graph.wait(handle.get_result_async(), 30)
+    assert res.status == GoalStatus.STATUS_CANCELED
+    assert not res.result.success
+    travelled = abs(feedback[-1].current_joint_values[1] - feedback[0].current_joint_values[1])
+    assert travelled < math.pi  # far short of the goal's full turn
+    # the roll no longer moves once the tool has taken the cancel
+    graph.spin_until(lambda: False, 0.5)
+    r1 = graph.received["js"][-1].position[1]
+    graph.spin_until(lambda: False, 1.0)
+    assert graph.received["js"][-1].position[1] == pytest.approx(r1, abs=1e-3)
+
+
+def test_telemetry_is_forwarded(graph: Graph) -> None:
+    assert graph.spin_until(lambda: all(len(v) >= 5 for v in graph.received.values()), 10)
+    js = graph.received["js"][-1]
+    assert list(js.name) == ["atool_pitch", "atool_roll"] and len(js.position) == 2
+    q = graph.received["imu"][-1].orientation
+    assert math.isclose(q.w**2 + q.x**2 + q.y**2 + q.z**2, 1.0, rel_tol=1e-6)
+    assert graph.received["health"][-1].status[0].hardware_id == TOOL
+    assert graph.received["battery"][-1].serial_number == TOOL
+
+
+def test_a_ros2_trajectory_moves_the_wrist(graph: Graph) -> None:
+    assert graph.set_mode(0).success
+    # the twirls left roll outside the trajectory's joint limits [-pi, pi]: home first
+    res = graph.wait(graph.send_goal("HOMING", [2.0]).get_result_async(), 30)
+    assert res.status == GoalStatus.STATUS_SUCCEEDED, res.result.message
+    graph.spin_until(lambda: bool(graph.received["js"]), 10)
+    q0 = list(graph.received["js"][-1].position)
+    target = [0.3, q0[1]]
+    traj = JointTrajectory(joint_names=["atool_pitch", "atool_roll"], points=[
+        JointTrajectoryPoint(positions=q0, velocities=[0.0, 0.0],
+                             time_from_start=Duration(sec=0, nanosec=0)),
+        JointTrajectoryPoint(positions=target, velocities=[0.0, 0.0],
+                             time_from_start=Duration(sec=1, nanosec=500_000_000))])
+    graph.traj_pub.publish(traj)
+    assert graph.spin_until(lambda: abs(graph.received["js"][-1].position[0] - 0.3) < 0.02,
+                            15), graph.log.read_text()
+    assert graph.set_mode(0).success
+
+
+def test_sigint_mid_goal_cancels_it_and_exits_0(graph: Graph) -> None:
+    """Runs last: it stops the module's node."""
+    assert graph.set_mode(0).success
+    feedback: list[Any] = []
+    graph.send_goal("TWIRL_CW", [1.0, 0.5], feedback)
+    assert graph.spin_until(lambda: len(feedback) >= 3, 10)
+    graph.node_proc.send_signal(signal.SIGINT)
+    out, _ = graph.node_proc.communicate(timeout=30)
+    assert graph.node_proc.returncode == 0
+    assert "cancelling forwarded goals" in out
+    with ArticutoolClient(graph.link_cfg) as c:  # reads telemetry only
+        assert c.wait_for_tool(10)
+        time.sleep(0.5)
+        s1 = c.latest_state()
+        time.sleep(1.0)
+        s2 = c.latest_state()
+    assert s1 is not None and s2 is not None
+    assert s2.position[1] == pytest.approx(s1.position[1], abs=1e-3)
+
+
+def test_sigterm_stops_an_idle_node(graph: Graph) -> None:
+    node = _start_node(graph.pc_cfg, graph.port, graph.log)
+    node.send_signal(signal.SIGTERM)
+    out, _ = node.communicate(timeout=30)
+    assert node.returncode == 0, graph.log.read_text()
+    assert "stopping" in out
+
+
+@pytest.mark.parametrize(("args", "field"), [
+    (["--tool-id", "wrist-1"], "--tool-id"),
+    (["--ros-tool-id", "9lives"], "--ros-tool-id"),
+    (["--connect", "tcp/nowhere"], "connect"),
+    (["--wait", "-1"], "--wait"),
+])
+def test_bad_input_exits_2_naming_the_field(args: list[str], field: str) -> None:
+    p = _articutool("ros2", *args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    out, err = p.communicate(timeout=60)
+    assert p.returncode == 2, (out, err)
+    assert field in err and "Traceback" not in err
+
+
+def _health(graph: Graph) -> dict[str, str]:
+    if not graph.received["health"]:
+        return {}
+    return {kv.key: kv.value for kv in graph.received["health"][-1].status[0].values}
+
+
+
+def test_no_tool_heard_exits_1_saying_so() -> None:
+    p = _articutool("ros2", "--connect", f"tcp/127.0.0.1:{_free_port()}", "--wait", "1",
+                    stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    out, err = p.communicate(timeout=60)
+    assert p.returncode == 1, (out, err)
+    assert "no Articutool heard within 1 s" in err and "serving" not in out
