@@ -34,7 +34,7 @@ from articutool.link.transport import (
     LinkOpenError,
     LinkRefusedError,
     LinkTimeoutError,
-    RateGate,
+    RefusalError,
     Transport,
     key_expr,
 )
@@ -190,13 +190,8 @@ class ZenohTransport(Transport):
         pub.put(payload, attachment=self._attachment(ep, payload))
 
     def subscribe(self, ep: Endpoint, callback: Callable[..., None], with_sender: bool = False,
-                  max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
-        gate = RateGate(max_rate) if max_rate else None
-
+                  max_bytes: int | None = None) -> Handle:
         def on_sample(sample: zenoh.Sample) -> None:
-            if gate is not None and not gate.allow():
-                self._dropped(ep, "rate")
-                return
             if self._too_big(ep, len(sample.payload), max_bytes):  # before copying it
                 return
             data = sample.payload.to_bytes()
@@ -208,18 +203,8 @@ class ZenohTransport(Transport):
             self._key(ep, exact=False), self._callback(on_sample, ep.name)))
 
     def serve(self, ep: Endpoint, handler: Callable[..., None], with_sender: bool = False,
-              max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
-        gate = RateGate(max_rate) if max_rate else None
-
+              max_bytes: int | None = None) -> Handle:
         def on_query(query: zenoh.Query) -> None:
-            if gate is not None and not gate.allow():
-                self._dropped(ep, "rate")
-                try:  # tell the caller at once rather than letting it time out
-                    query.reply_err(f"{_REFUSED}rate limited: more than {max_rate:g} "
-                                    f"requests/s on {ep.name}")
-                finally:
-                    query.drop()
-                return
             size = len(query.payload) if query.payload is not None else 0
             if self._too_big(ep, size, max_bytes):
                 query.drop()
@@ -235,11 +220,18 @@ class ZenohTransport(Transport):
                 finally:
                     query.drop()  # finalise: the querier learns no more replies are coming
 
-            if with_sender:
-                handler(data, _guard(respond, ep.name),
-                        self._sender(ep, data, query.attachment))
-            else:
-                handler(data, _guard(respond, ep.name))
+            try:
+                if with_sender:
+                    handler(data, _guard(respond, ep.name),
+                            self._sender(ep, data, query.attachment))
+                else:
+                    handler(data, _guard(respond, ep.name))
+            except RefusalError as why:  # tell the caller at once, with the reason
+                if once.acquire(blocking=False):
+                    try:
+                        query.reply_err(f"{_REFUSED}{why}")
+                    finally:
+                        query.drop()
         return _ZHandle(self._session.declare_queryable(
             self._key(ep, exact=True), self._callback(on_query, ep.name)))
 
