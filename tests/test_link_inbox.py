@@ -253,3 +253,26 @@ def test_prevalidated_trajectories_leave_the_loop_only_the_start_to_check() -> N
         good = JointTrajectory(names, np.array([0.5, 1.0]), np.vstack([q, q + 0.05]),
                                np.zeros((2, 2)))
         assert rt.follow_trajectory(rt.prevalidate_trajectory(good))[0]
+
+
+def test_a_flood_of_malformed_payloads_logs_a_few_lines_and_counts_them_all(caplog) -> None:  # type: ignore[no-untyped-def]
+    """Issue 22: one WARNING per malformed payload was ~1 800 lines/s under a flood."""
+    import logging
+
+    bus = MemoryBus()
+    server = ToolServer(FakeTool(), MemoryTransport(bus, "tool"), CFG.replace(
+        max_rate_hz=100_000))  # every payload reaches the decoder
+    server.start()
+    raw = MemoryTransport(bus, "pc-1")
+    ep = Names(tool_id=CFG.tool_id).client_heartbeat
+    try:
+        with caplog.at_level(logging.WARNING, logger="articutool.link.server"):
+            for i in range(3000):
+                raw.publish(ep, b"\x00\x01\x00\x00" + i.to_bytes(2, "little"))
+            assert wait_until(lambda: server.counters["decode_errors"] == 3000, 10.0)
+            assert wait_until(lambda: "3000 decode_errors so far" in caplog.text, 2.0)
+        lines = [r for r in caplog.records if "malformed" in r.getMessage()]
+        assert len(lines) == 13, len(lines)  # the first 10, then 1 in 1000
+    finally:
+        server.stop()
+        bus.close()
