@@ -2,7 +2,7 @@
 who reaches the tool's port would::
 
     python tests/link_flooder.py --connect ENDPOINT --mode MODE [--rate HZ] [--seconds S]
-        [--tool-id NAME] [--cert PEM] [--capture FILE]
+        [--tool-id NAME] [--cert PEM] [--capture FILE] [--link-config FILE]
 
 Modes (every request is sent with its reply ignored, ``--rate`` requests per second in
 batches every 10 ms, round robin over the endpoints named):
@@ -12,12 +12,14 @@ batches every 10 ms, round robin over the endpoints named):
 - ``forged``: the same requests carrying a paired PC's real certificate (``--cert``, public)
   with a fresh timestamp and nonce and a random signature, so the tool must check each
   signature;
+- ``signed``: the same requests signed by the paired PC of ``--link-config`` (its session
+  is then mutual TLS as that PC's): a paired PC flooding, which must not use another's share;
 - ``replay``: one captured signed request (``--capture``: JSON with key, payload and
   attachment, hex) sent again and again;
 - ``cancels``: cancel_goal for all goals and for random goal ids (an unpaired tool's stop
   queue was filled this way).
 
-Prints ``SENT <n>`` on exit (stdin closed, or after ``--seconds``).
+Prints ``SENT <n> <seconds>`` on exit (stdin closed, or after ``--seconds``).
 """
 
 from __future__ import annotations
@@ -35,8 +37,9 @@ import zenoh
 
 from articutool.link import messages as m
 from articutool.link.auth import claim
-from articutool.link.config import LinkConfig
+from articutool.link.config import LinkConfig, load_config
 from articutool.link.transport import Endpoint, Names, key_expr
+from articutool.link.zenoh_transport import zenoh_config
 from articutool.tool.api import Mode
 
 
@@ -65,22 +68,19 @@ def main(argv: list[str]) -> int:
     """Flood until stdin closes or ``--seconds`` pass."""
     p = argparse.ArgumentParser()
     p.add_argument("--connect", required=True)
-    p.add_argument("--mode", choices=("unsigned", "forged", "replay", "cancels"),
+    p.add_argument("--mode", choices=("unsigned", "forged", "signed", "replay", "cancels"),
                    required=True)
     p.add_argument("--rate", type=float, default=3000.0)
     p.add_argument("--seconds", type=float, default=3600.0)
     p.add_argument("--tool-id", default="wrist-1")
     p.add_argument("--cert", default=None)
+    p.add_argument("--link-config", default=None)
     p.add_argument("--capture", default=None)
     a = p.parse_args(argv)
-    cfg = LinkConfig(connect=(a.connect,), listen=(), tool_id=a.tool_id)
+    base = load_config(a.link_config) if a.link_config else LinkConfig()
+    cfg = base.replace(connect=(a.connect,), listen=(), tool_id=a.tool_id)
     names = Names(tool_id=a.tool_id)
-    z = zenoh.Config()
-    z.insert_json5("mode", '"peer"')
-    z.insert_json5("scouting/multicast/enabled", "false")
-    z.insert_json5("listen/endpoints", "[]")
-    z.insert_json5("connect/endpoints", json.dumps([a.connect]))
-    session = zenoh.open(z)
+    session = zenoh.open(zenoh_config(cfg, "client"))
     if a.mode == "replay":
         cap = json.loads(open(a.capture).read())  # noqa: SIM115 - read once, tiny
         plan = [(cap["key"], bytes.fromhex(cap["payload"]), lambda c=cap: bytes.fromhex(
@@ -100,6 +100,11 @@ def main(argv: list[str]) -> int:
             b64 = base64.b64encode(der).decode()
             plan = [(key_expr(cfg.domain_id, ep), pl, lambda b=b64: forged(b))
                     for ep, pl in reqs]
+        elif a.mode == "signed":
+            from articutool.link.auth import Signer
+            signer = Signer(cfg.tls_certificate, cfg.tls_private_key)  # type: ignore[arg-type]
+            plan = [(key_expr(cfg.domain_id, ep), pl,
+                     lambda n=ep.name, pl=pl: signer.attachment(n, pl)) for ep, pl in reqs]
         else:
             unsigned = claim("pc-1")
             plan = [(key_expr(cfg.domain_id, ep), pl, lambda c=unsigned: c)
@@ -108,7 +113,7 @@ def main(argv: list[str]) -> int:
     threading.Thread(target=lambda: (sys.stdin.read(), stop.set()), daemon=True).start()
     end = time.monotonic() + a.seconds
     batch, sent, i = max(1, round(a.rate / 100)), 0, 0
-    next_t = time.monotonic()
+    next_t = t0 = time.monotonic()
     print("READY", flush=True)
     while not stop.is_set() and time.monotonic() < end:
         for _ in range(batch):
@@ -119,8 +124,9 @@ def main(argv: list[str]) -> int:
             sent += 1
         next_t += 0.01
         stop.wait(max(0.0, next_t - time.monotonic()))
+    elapsed = time.monotonic() - t0
     session.close()
-    print(f"SENT {sent}", flush=True)
+    print(f"SENT {sent} {elapsed:.3f}", flush=True)
     return 0
 
 
