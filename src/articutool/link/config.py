@@ -108,7 +108,7 @@ class LinkConfig:
     max_trajectory_bytes: int = 1 << 20  # a JointTrajectory larger than this is dropped
     max_request_bytes: int = 4096  # a service request or heartbeat larger than this is dropped
     inbox_size: int = 16  # commands waiting for the loop; excess ones are refused and counted
-    max_rate_hz: float = 200.0  # tool: messages/s per endpoint handled; the rest dropped unread
+    max_rate_hz: float = 200.0  # tool: messages/s per sender and endpoint; stops are exempt
     audit_log: str | None = None  # tool: JSON lines of lease transitions (take-overs…) appended
 
     @property
