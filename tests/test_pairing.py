@@ -128,6 +128,15 @@ def test_every_way_to_expose_an_unpaired_tool_is_refused(
     assert "accepts unsigned commands" in err and "--insecure-listen" in err, err
 
 
+def test_an_extra_zenoh_setting_zenoh_refuses_exits_2_naming_it(
+        tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    f = tmp_path / "link.toml"
+    f.write_text('[extra]\n"nonsense/key" = 1\n')
+    assert main(["tool", "--link-config", str(f), "--duration", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "extra['nonsense/key']" in err and "Traceback" not in err, err
+
+
 def test_loopback_unix_sockets_and_mutual_tls_are_not_exposure(tmp_path: Path) -> None:
     from articutool.link.zenoh_transport import exposure
 

@@ -29,7 +29,7 @@ from typing import Any, Literal
 import zenoh
 
 from articutool.link.auth import AuthError, Sender, Signer, Verifier, claim, sender_of
-from articutool.link.config import LinkConfig
+from articutool.link.config import ConfigError, LinkConfig
 from articutool.link.transport import (
     Endpoint,
     Handle,
@@ -77,7 +77,11 @@ def zenoh_config(cfg: LinkConfig, role: Literal["tool", "client"]) -> zenoh.Conf
             z.insert_json5(f"{tls}{side}_certificate", json.dumps(cfg.tls_certificate))
             z.insert_json5(f"{tls}{side}_private_key", json.dumps(cfg.tls_private_key))
     for path, value in cfg.extra.items():
-        z.insert_json5(path, json.dumps(value))
+        try:
+            z.insert_json5(path, json.dumps(value))
+        except (zenoh.ZError, TypeError, ValueError) as err:
+            raise ConfigError(f"extra[{path!r}]: zenoh does not accept {value!r} there: "
+                              f"{_reason(err)}") from None
     return z
 
 

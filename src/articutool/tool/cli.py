@@ -83,8 +83,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
 
     add_config_args(p)
     p.add_argument("--insecure-listen", action="store_true",
-                   help="allow a plain (non-TLS) listen endpoint on a network address without "
-                        "pairing: anyone on that network can then command the tool")
+                   help="start although the tool accepts unsigned commands and could be "
+                        "reached from the network (a plain endpoint on a network address, "
+                        "multicast scouting): anyone on that network can then command it")
     p.set_defaults(func=_cmd_tool)
 
 
