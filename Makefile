@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 export MPLBACKEND := Agg
 
-.PHONY: demo test test-slow bench bench-quick bench-full bench-sim bench-flood soak lint clean syspkgs experiments
+.PHONY: demo test test-slow bench bench-quick bench-full bench-sim bench-flood bench-stops soak lint clean syspkgs experiments
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -70,6 +70,10 @@ bench-sim: $(VENV)/.installed
 # Issue 13: the real tool (sim) under 1000 goals/s + 16 MB payloads, rate limit on vs off.
 bench-flood: $(VENV)/.installed
 	$(BIN)/python benchmarks/bench_link_flood.py --duration 60 --compare-unlimited --out results/link_flood.json
+
+# Issue 22: a PC's stops under floods (unsigned, forged, replayed, another paired PC, all).
+bench-stops: $(VENV)/.installed
+	$(BIN)/python benchmarks/bench_link_stops.py --out results/link_stops.json
 
 # Issue 13: the tool against a random, hostile client; SOAK_S=600 make soak for a short one.
 SOAK_S ?= 3600

@@ -49,13 +49,14 @@ class PairedTool:
 
 
 def start_paired_tool(prefix: str, *, extra_tool_config: str = "",
-                      plain_port: int | None = None,
-                      duration_s: float | None = None) -> PairedTool:
-    """Pair a tool with one PC in a new temporary folder and start ``articutool tool
+                      plain_port: int | None = None, duration_s: float | None = None,
+                      pcs: tuple[str, ...] = ("pc-1",)) -> PairedTool:
+    """Pair a tool with ``pcs`` in a new temporary folder and start ``articutool tool
     --no-level`` listening on loopback TLS (and plain TCP on ``plain_port``, to test that it
-    refuses commands there). ``extra_tool_config`` is appended to the tool's link.toml."""
+    refuses commands there); the config returned is the first PC's. ``extra_tool_config``
+    is appended to the tool's link.toml."""
     folder = Path(tempfile.mkdtemp(prefix=prefix))
-    pair(folder, "wrist-1", ["pc-1"])
+    pair(folder, "wrist-1", list(pcs))
     tool_cfg = folder / "wrist-1" / "link.toml"
     if extra_tool_config:
         tool_cfg.write_text(tool_cfg.read_text() + extra_tool_config)
@@ -69,6 +70,6 @@ def start_paired_tool(prefix: str, *, extra_tool_config: str = "",
     proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL,
                             env=dict(os.environ, PYTHONPATH=str(ROOT / "src")))
-    cfg = load_config(folder / "pc-1" / "link.toml").replace(
+    cfg = load_config(folder / pcs[0] / "link.toml").replace(
         connect=(f"tls/127.0.0.1:{tls}",), listen=())
     return PairedTool(proc, folder, cfg, tool_cfg)

@@ -4,7 +4,10 @@ Used by the link tests in-process (MemoryTransport) and as the tool process of t
 two-process tests::
 
     python tests/link_fake_tool.py --listen tcp/127.0.0.1:PORT [--policy cancel]
-        [--link-config FILE] [--tool-id NAME] [--connect ENDPOINT]
+        [--link-config FILE] [--tool-id NAME] [--connect ENDPOINT] [--tick-hz HZ]
+
+With ``--tick-hz`` the tool has a loop, as the runtime: the server's commands run one per
+tick at that rate (else a server thread runs them as they come).
 
 Primitives: ``TWIRL [turns]`` (1 parameter in [-2, 2], rolls that many turns in
 ``TWIRL_S`` seconds), ``SLOW`` (no parameters, 5 s of pitch motion, for cancel tests) and
@@ -157,6 +160,26 @@ class FakeTool:
                              loop_period_mean=0.02, loop_jitter=0.0005, loop_overruns=0)
 
 
+class TickingTool(FakeTool):
+    """A FakeTool with a loop of its own: one link command per tick, as ToolRuntime."""
+
+    def __init__(self, hz: float) -> None:
+        super().__init__()
+        self._work = None
+        self._period = 1.0 / hz
+        threading.Thread(target=self._loop, daemon=True).start()
+
+    def set_link_work(self, work):  # type: ignore[no-untyped-def]
+        self._work = work
+
+    def _loop(self) -> None:
+        while True:
+            time.sleep(self._period)
+            work = self._work
+            if work is not None:
+                work()
+
+
 def wait_until(pred, timeout: float = 5.0) -> bool:  # type: ignore[no-untyped-def]
     """Poll ``pred`` every 10 ms until it is true (True) or ``timeout`` seconds pass (False)."""
     end = time.monotonic() + timeout
@@ -182,6 +205,7 @@ def main(argv: list[str]) -> int:
     p.add_argument("--client-timeout", type=float, default=2.0)
     p.add_argument("--link-config", default=None)
     p.add_argument("--tool-id", default=None)
+    p.add_argument("--tick-hz", type=float, default=None)
     a = p.parse_args(argv)
     from articutool.link.config import load_config
 
@@ -191,7 +215,7 @@ def main(argv: list[str]) -> int:
                        tool_id=a.tool_id or base.tool_id)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    tool = FakeTool()
+    tool = FakeTool() if a.tick_hz is None else TickingTool(a.tick_hz)
 
     def watch_stdin() -> None:
         sys.stdin.read()

@@ -13,6 +13,9 @@ import time
 import uuid
 from pathlib import Path
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from articutool.link import messages as m
 from articutool.link.client import ArticutoolClient, LinkError
 from articutool.link.config import LinkConfig
@@ -253,3 +256,94 @@ def test_prevalidated_trajectories_leave_the_loop_only_the_start_to_check() -> N
         good = JointTrajectory(names, np.array([0.5, 1.0]), np.vstack([q, q + 0.05]),
                                np.zeros((2, 2)))
         assert rt.follow_trajectory(rt.prevalidate_trajectory(good))[0]
+
+
+def test_a_flood_of_malformed_payloads_logs_a_few_lines_and_counts_them_all(caplog) -> None:  # type: ignore[no-untyped-def]
+    """Issue 22: one WARNING per malformed payload was ~1 800 lines/s under a flood."""
+    import logging
+
+    bus = MemoryBus()
+    server = ToolServer(FakeTool(), MemoryTransport(bus, "tool"), CFG.replace(
+        max_rate_hz=100_000))  # every payload reaches the decoder
+    server.start()
+    raw = MemoryTransport(bus, "pc-1")
+    ep = Names(tool_id=CFG.tool_id).client_heartbeat
+    try:
+        with caplog.at_level(logging.WARNING, logger="articutool.link.server"):
+            for i in range(3000):
+                raw.publish(ep, b"\x00\x01\x00\x00" + i.to_bytes(2, "little"))
+            assert wait_until(lambda: server.counters["decode_errors"] == 3000, 10.0)
+            assert wait_until(lambda: "3000 decode_errors so far" in caplog.text, 2.0)
+        lines = [r for r in caplog.records if "malformed" in r.getMessage()]
+        assert len(lines) == 13, len(lines)  # the first 10, then 1 in 1000
+    finally:
+        server.stop()
+        bus.close()
+
+
+_OPS = ("disable", "level", "cancel_all", "cancel_other", "goal", "tick")
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(_OPS), st.sampled_from(("pc-1", "pc-2"))),
+                max_size=60))
+def test_stops_are_never_refused_and_go_first_whatever_the_order(ops) -> None:  # type: ignore[no-untyped-def]
+    """Issue 22, S1, as a property over every interleaving of requests and loop ticks: no
+    stop is refused, at most one DISABLED and one cancel wait, a tick with a stop waiting runs
+    a stop, and every request is answered exactly once (equal stops joined, not dropped)."""
+    tool = LoopTool()
+    bus = MemoryBus()
+    server = ToolServer(tool, MemoryTransport(bus, "tool"), CFG.replace(inbox_size=2))
+    try:
+        _play(server, tool, ops)
+    finally:
+        bus.close()
+
+
+def _play(server: ToolServer, tool: LoopTool, ops: list[tuple[str, str]]) -> None:
+    from articutool.link.auth import Sender
+    from articutool.link.transport import RefusalError
+
+    n = server.names
+    answers: dict[int, list[object]] = {}
+    stops: set[int] = set()
+
+    def send(i: int, handler, ep, request, who: str) -> None:  # type: ignore[no-untyped-def]
+        answers[i] = []
+        try:
+            handler(m.encode(request, ep.request_type), answers[i].append,
+                    Sender(who, True, "pc"))
+        except RefusalError as why:  # an error reply (rate, inbox full)
+            answers[i].append(f"error: {why}")
+
+    for i, (op, who) in enumerate(ops):
+        if op == "tick":
+            waiting = len(server._stops)
+            calls = len(tool.calls)
+            server.work_once()
+            if waiting:  # a stop ran (a cancel may find nothing left to cancel), nothing else
+                assert tool.calls[calls:] in ([], ["set_mode DISABLED"], ["cancel"])
+            continue
+        if op == "disable":
+            stops.add(i)
+            send(i, server._on_set_mode, n.set_orientation_control,
+                 m.soc_request(Mode.DISABLED, 0.0, 0.0), who)
+        elif op == "level":
+            send(i, server._on_set_mode, n.set_orientation_control,
+                 m.soc_request(Mode.LEVELING, 1.0, 0.0), who)
+        elif op in ("cancel_all", "cancel_other"):
+            stops.add(i)
+            gid = None if op == "cancel_all" else uuid.uuid4().bytes
+            send(i, server._on_cancel, n.cancel_goal, m.cancel_request(gid), who)
+        else:
+            send(i, server._on_send_goal, n.send_goal,
+                 m.send_goal_request(uuid.uuid4().bytes, "SLOW", []), who)
+        assert len(server._stops) <= 2
+    while server._stops or server._inbox:
+        server.work_once()
+    assert all(len(a) == 1 for a in answers.values()), answers
+    for i in stops:
+        reply = answers[i][0]
+        assert isinstance(reply, bytes), reply  # a reply, not an error
+        if ops[i][0] == "disable":
+            assert m.decode(reply, n.set_orientation_control.response_type).success

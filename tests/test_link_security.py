@@ -38,21 +38,26 @@ def free_port() -> int:
 
 
 class Tool:
-    """``link_fake_tool.py`` in its own process."""
+    """``link_fake_tool.py`` (or another ``script`` here) in its own process."""
 
-    def __init__(self, *args: str) -> None:
+    def __init__(self, *args: str, script: str = "link_fake_tool.py") -> None:
         env = dict(os.environ, PYTHONPATH=str(HERE.parent / "src"))
-        self.proc = subprocess.Popen([sys.executable, str(HERE / "link_fake_tool.py"), *args],
+        self.proc = subprocess.Popen([sys.executable, str(HERE / script), *args],
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
                                      env=env)
 
-    def calls(self) -> list[str]:
-        """Stop the tool; the API calls it received."""
+    def output(self) -> str:
+        """Close its stdin (it ends then) and return what it printed."""
         try:
-            out, _ = self.proc.communicate(input="", timeout=10)
+            out, _ = self.proc.communicate(input="", timeout=15)
         except subprocess.TimeoutExpired:
             self.proc.kill()
             out, _ = self.proc.communicate(timeout=5)
+        return out
+
+    def calls(self) -> list[str]:
+        """Stop the tool; the API calls it received."""
+        out = self.output()
         line = next((ln for ln in out.splitlines() if ln.startswith("CALLS")), "CALLS ")
         return [c for c in line[6:].split(";") if c]
 

@@ -102,4 +102,50 @@ def test_an_unpaired_tool_refuses_a_plain_network_listener(capsys: pytest.Captur
                                                            ) -> None:
     assert main(["tool", "--listen", "tcp/0.0.0.0:7447", "--duration", "1"]) == 2
     err = capsys.readouterr().err
-    assert "--listen tcp/0.0.0.0:7447" in err and "articutool pair" in err
+    assert "listen endpoint tcp/0.0.0.0:7447" in err and "articutool pair" in err
+
+
+@pytest.mark.parametrize("setting", [
+    'listen = ["tcp/0.0.0.0:7447"]',
+    'connect = ["tcp/192.0.2.7:7447"]',
+    'listen = ["tcp/127.attacker.invalid:7447"]',  # spelled like loopback, does not resolve
+    'listen = ["ws/[::]:7447"]',
+    "multicast_scouting = true",
+    '[extra]\n"listen/endpoints" = ["tcp/0.0.0.0:7447"]',
+    '[extra]\n"mode" = "router"\n"listen/endpoints" = {router = ["tcp/0.0.0.0:7447"]}',
+    '[extra]\n"listen/endpoints" = {peer = ["udp/0.0.0.0:7447"]}',
+    '[extra]\n"listen" = {}',  # zenoh's default then: every interface
+    '[extra]\n"connect" = {endpoints = ["tcp/192.0.2.7:7447"]}',
+    '[extra]\n"scouting/multicast/enabled" = true',
+])
+def test_every_way_to_expose_an_unpaired_tool_is_refused(
+        setting: str, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """Issue 22, S3: before, only --listen/listen were checked, by their spelling."""
+    f = tmp_path / "link.toml"
+    f.write_text(setting + "\n")
+    assert main(["tool", "--link-config", str(f), "--duration", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "accepts unsigned commands" in err and "--insecure-listen" in err, err
+
+
+def test_an_extra_zenoh_setting_zenoh_refuses_exits_2_naming_it(
+        tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    f = tmp_path / "link.toml"
+    f.write_text('[extra]\n"nonsense/key" = 1\n')
+    assert main(["tool", "--link-config", str(f), "--duration", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "extra['nonsense/key']" in err and "Traceback" not in err, err
+
+
+def test_loopback_unix_sockets_and_mutual_tls_are_not_exposure(tmp_path: Path) -> None:
+    from articutool.link.zenoh_transport import exposure
+
+    for ok in ("tcp/127.0.0.1:7447", "tcp/localhost:7447", "tcp/[::1]:7447",
+               "udp/127.0.0.2:7447#iface=lo", f"unixsock-stream/{tmp_path / 's'}"):
+        assert exposure(LinkConfig(listen=(ok,))) == [], ok
+    assert exposure(LinkConfig()) == []  # the default
+    main(["pair", "--dir", str(tmp_path / "p"), "--tool", "wrist-1", "--pc", "pc-1"])
+    tool = load_config(tmp_path / "p" / "wrist-1" / "link.toml")
+    assert exposure(tool) == []  # tls/0.0.0.0 with mutual TLS by the pairing CA
+    no_mtls = tool.replace(extra={"transport/link/tls/enable_mtls": False})
+    assert exposure(no_mtls) == ["listen endpoint tls/0.0.0.0:7447"]

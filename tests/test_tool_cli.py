@@ -121,6 +121,15 @@ def test_a_non_utf8_link_config_exits_2(tmp_path: Path) -> None:
         assert str(f) in r.stderr and "UTF-8" in r.stderr and "Traceback" not in r.stderr
 
 
+def test_client_wait_is_bounded() -> None:
+    """Issue 22: --wait 1e300 waited 1e300 s for a tool that was not there."""
+    for bad in ("1e300", "3601", "0", "nan"):
+        r = run("client", "--connect", "tcp/127.0.0.1:9", "--wait", bad, "state", timeout=60)
+        assert r.returncode == 2, r
+        assert "--wait" in r.stderr and "Traceback" not in r.stderr and r.stdout == ""
+    assert "(0, 3600]" in run("client", "--wait", "1e300", "state", timeout=60).stderr
+
+
 def test_hardware_driver_without_hardware_is_one_clear_line() -> None:
     r = run("tool", "--driver", "hardware", "--no-serve", "--duration", "30")
     assert r.returncode == 2, r

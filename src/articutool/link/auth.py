@@ -9,6 +9,12 @@ and the tool's clocks are synchronised already, for trajectory start times) and 
 not seen within that window (no replay on a plain link). The verified identity is the
 certificate's common name. Certificates already verified are cached by their bytes.
 
+Replay protection keys on what cannot be re-encoded (issue 22, S2): the signer's public key
+(DER SubjectPublicKeyInfo, canonical), the nonce and the timestamp. ECDSA signatures are
+malleable (``s → n − s`` verifies too), so a certificate's bytes are not a stable name for
+it: a captured command re-sent with a re-encoded certificate is the same command. A message
+already seen is refused before its signature is checked, so a replay flood costs a lookup.
+
 An unpaired sender (no ``tls_*`` in its config) attaches only ``{"id": name}``: a claim,
 never trusted by a tool that requires pairing, and used as a name only on an unpaired
 (loopback, development) link, where nothing is authenticated.
@@ -95,12 +101,12 @@ class Verifier:
         self._ca = x509.load_pem_x509_certificate(Path(ca_path).read_bytes())
         self.peers = None if peers is None else frozenset(peers)
         self.window = float(window)
-        self._certs: dict[bytes, tuple[str, str, object, dt.datetime]] = {}
+        self._certs: dict[bytes, tuple[str, str, object, dt.datetime, bytes]] = {}
         self._nonces: OrderedDict[bytes, float] = OrderedDict()
         self._max_nonces = max_nonces
         self._lock = threading.Lock()
 
-    def _cert(self, der: bytes) -> tuple[str, str, object]:
+    def _cert(self, der: bytes) -> tuple[str, str, object, bytes]:
         with self._lock:
             hit = self._certs.get(der)
         now = dt.datetime.now(dt.UTC)
@@ -115,23 +121,26 @@ class Verifier:
                 raise AuthError("certificate not yet valid")
             cn = cert.subject.get_attributes_for_oid(NameOID.COMMON_NAME)
             ou = cert.subject.get_attributes_for_oid(NameOID.ORGANIZATIONAL_UNIT_NAME)
+            pub = cert.public_key()
+            spki = pub.public_bytes(serialization.Encoding.DER,
+                                    serialization.PublicFormat.SubjectPublicKeyInfo)
             hit = (str(cn[0].value) if cn else "", str(ou[0].value) if ou else "",
-                   cert.public_key(), cert.not_valid_after_utc)
+                   pub, cert.not_valid_after_utc, hashlib.sha256(spki).digest())
             with self._lock:
                 if len(self._certs) > 1024:  # bounded: paired devices are few
                     self._certs.clear()
                 self._certs[der] = hit
-        name, role, pub, until = hit
+        name, role, pub, until, key_id = hit
         if now > until:
             raise AuthError(f"certificate of {name!r} expired on {until:%Y-%m-%d}")
         if self.peers is not None and name not in self.peers:
             raise AuthError(f"{name!r} is not among the paired peers {sorted(self.peers)}")
-        return name, role, pub
+        return name, role, pub, key_id
 
     def verify(self, key: str, payload: bytes, attachment: bytes | None) -> Sender:
         """The verified sender of ``payload`` on ``key``; AuthError says why not."""
         if not attachment:
-            raise AuthError("no signature (not a paired sender)")
+            raise AuthError("not a paired PC: no signature")
         if len(attachment) > _MAX_ATTACHMENT:
             raise AuthError(f"attachment of {len(attachment)} bytes is too large")
         try:
@@ -141,22 +150,31 @@ class Verifier:
         except (ValueError, KeyError, TypeError) as err:
             claimed = a.get("id") if isinstance(locals().get("a"), dict) else None
             why = f"unsigned claim to be {claimed!r}" if claimed else f"malformed ({err})"
-            raise AuthError(f"no valid signature: {why}") from None
-        name, role, pub = self._cert(der)
-        skew = abs(time.time() - t_ns * 1e-9)
-        if skew > self.window:
-            raise AuthError(f"timestamp {skew:.1f} s from the tool's clock (limit "
-                            f"{self.window:g} s): replayed, or clocks not synchronised")
+            raise AuthError(f"not a paired PC: no valid signature: {why}") from None
+        name, role, pub, key_id = self._cert(der)
+        skew = time.time() - t_ns * 1e-9
+        if abs(skew) > self.window:
+            raise AuthError(
+                f"clocks not synchronised (or a replay): the message's timestamp is "
+                f"{abs(skew):.1f} s {'behind' if skew > 0 else 'ahead of'} the tool's clock "
+                f"(limit {self.window:g} s, auth_window); synchronise the PC's and the tool's "
+                "clocks (NTP)")
+        tag = hashlib.sha256(key_id + nonce + str(t_ns).encode()).digest()[:16]
+        with self._lock:
+            seen = tag in self._nonces
+        if seen:  # before the signature check: a replay flood costs a lookup
+            raise AuthError(f"replayed: this signed message from {name!r} was already received "
+                            "(each is accepted once)")
         try:
             pub.verify(sig, _digest(key, t_ns, nonce, payload),  # type: ignore[attr-defined]
                        ec.ECDSA(hashes.SHA256()))
         except InvalidSignature:
             raise AuthError(f"signature of {name!r} does not match the message") from None
-        tag = hashlib.sha256(der[-64:] + nonce + str(t_ns).encode()).digest()[:16]
         now = time.monotonic()
         with self._lock:
-            if tag in self._nonces:
-                raise AuthError(f"replayed message from {name!r}")
+            if tag in self._nonces:  # a twin verified on another thread meanwhile
+                raise AuthError(f"replayed: this signed message from {name!r} was already "
+                                "received (each is accepted once)")
             self._nonces[tag] = now
             while self._nonces and (len(self._nonces) > self._max_nonces
                                     or next(iter(self._nonces.values())) < now - 2 * self.window):

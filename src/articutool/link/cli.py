@@ -35,6 +35,17 @@ def _seconds(s: str) -> float:
     return v
 
 
+_MAX_WAIT_S = 3600.0  # an hour: longer is a typo, not a wait (1e300 hung the client)
+
+
+def _wait_seconds(s: str) -> float:
+    v = _finite(s)
+    if not 0 < v <= _MAX_WAIT_S:
+        raise argparse.ArgumentTypeError(
+            f"must be a number of seconds in (0, {_MAX_WAIT_S:g}]: {s!r}")
+    return v
+
+
 def _add_pair(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "pair", help="create the certificates that let a tool and PCs trust each other",
@@ -90,8 +101,9 @@ def add_commands(subparsers: Any) -> None:
     p = subparsers.add_parser("client", help="command an Articutool over the link (PC side)")
     add_config_args(p)
     add_spec_option(p)  # the wrist limits that bound the leveling offsets
-    p.add_argument("--wait", type=_seconds, default=3.0, metavar="S",
-                   help="seconds to wait for the tool to be heard (default 3)")
+    p.add_argument("--wait", type=_wait_seconds, default=3.0, metavar="S",
+                   help=f"seconds to wait for the tool to be heard, in (0, {_MAX_WAIT_S:g}] "
+                        "(default 3)")
     p.add_argument("--record", metavar="FILE.mcap", default=None,
                    help="record every message this client's link carries (ROS 2 CDR in "
                         "MCAP, schemas embedded); never overwrites")

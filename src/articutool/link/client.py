@@ -31,13 +31,19 @@ from articutool.link.transport import (
 from articutool.tool.api import Mode, PrimitiveStatus, ToolState
 from articutool.trajectory import JointTrajectory
 
-__all__ = ["ArticutoolClient", "LinkError", "ToolConflictError", "ToolSilentError"]
+__all__ = ["ArticutoolClient", "LinkError", "ToolConflictError", "ToolRefusedError",
+           "ToolSilentError"]
 
 _log = logging.getLogger(__name__)
 
 
 class LinkError(RuntimeError):
     """The link failed to carry a command (malformed reply, tool restarted mid-goal, …)."""
+
+
+class ToolRefusedError(LinkError):
+    """The tool answered with an error naming why it refused (rate limited, not paired,
+    clocks out of sync, a replay …)."""
 
 
 class ToolSilentError(LinkError):
@@ -202,7 +208,7 @@ class ArticutoolClient:
         try:
             reply = self.transport.call(ep, payload, t)
         except LinkRefusedError as err:
-            raise LinkError(str(err)) from None
+            raise ToolRefusedError(str(err)) from None
         except LinkTimeoutError as err:
             raise ToolSilentError(f"{ep.name}: no reply within {t:g} s ({self._silence()}): "
                                   f"{err}") from None
@@ -327,7 +333,10 @@ class ArticutoolClient:
             self._feedback[gid] = (name, feedback_cb)
             self._goal = gid
         try:
-            resp = self._call(self.names.send_goal, m.send_goal_request(gid, name, params))
+            try:
+                resp = self._call(self.names.send_goal, m.send_goal_request(gid, name, params))
+            except ToolRefusedError as err:  # the reason, where ROS's reply has no text
+                return m.PrimitiveResult(False, str(err), (), m.GoalStatus.UNKNOWN)
             if not resp.accepted:
                 return m.PrimitiveResult(False, "goal rejected by the tool", (),
                                          m.GoalStatus.UNKNOWN)

@@ -4,7 +4,8 @@ Loopback by default: the tool listens on ``tcp/127.0.0.1:7447`` and the client c
 with multicast scouting off so nothing leaves the host. For a Pi on the network, pair first
 (``articutool pair``): the tool listens on ``tls/0.0.0.0:7447`` with mutual TLS and the PC
 connects to ``tls/<pi address>:7447``; a plain endpoint on a network address without pairing
-is refused (:func:`plain_network_endpoints`; ``articutool tool --insecure-listen`` overrides).
+is refused (:func:`articutool.link.zenoh_transport.exposure`; ``articutool tool
+--insecure-listen`` overrides).
 A config file is TOML or JSON with the field names below at top level (or under a ``[link]``
 table)::
 
@@ -33,7 +34,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 __all__ = ["DEFAULT_ENDPOINT", "ConfigError", "LinkConfig", "add_config_args",
-           "check_endpoint", "config_from_args", "load_config", "plain_network_endpoints"]
+           "check_endpoint", "config_from_args", "load_config"]
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
@@ -73,22 +74,6 @@ def check_endpoint(endpoint: object, field_name: str) -> str:
     return endpoint
 
 
-_LOOPBACK = ("127.", "[::1]", "::1", "localhost")
-
-
-def plain_network_endpoints(endpoints: tuple[str, ...]) -> list[str]:
-    """The endpoints that are neither TLS nor loopback nor a Unix socket: anyone on the
-    network reaches them without authentication or encryption."""
-    out = []
-    for e in endpoints:
-        proto, _, rest = e.partition("/")
-        host = rest.split("?", 1)[0].split("#", 1)[0].rpartition(":")[0]
-        if proto in ("tls", "unixsock-stream") or host.startswith(_LOOPBACK):
-            continue
-        out.append(e)
-    return out
-
-
 @dataclass(frozen=True)
 class LinkConfig:
     """Everything the tool server and the PC client need to find each other.
@@ -123,7 +108,7 @@ class LinkConfig:
     max_trajectory_bytes: int = 1 << 20  # a JointTrajectory larger than this is dropped
     max_request_bytes: int = 4096  # a service request or heartbeat larger than this is dropped
     inbox_size: int = 16  # commands waiting for the loop; excess ones are refused and counted
-    max_rate_hz: float = 200.0  # tool: messages/s per endpoint handled; the rest dropped unread
+    max_rate_hz: float = 200.0  # tool: messages/s per sender and endpoint; stops are exempt
     audit_log: str | None = None  # tool: JSON lines of lease transitions (take-overs…) appended
 
     @property

@@ -15,7 +15,9 @@ from collections.abc import Callable
 from articutool.link.transport import (
     Endpoint,
     Handle,
+    LinkRefusedError,
     LinkTimeoutError,
+    RefusalError,
     Sender,
     Transport,
 )
@@ -91,14 +93,14 @@ class MemoryTransport(Transport):
             self.bus.post(lambda cb=cb, ws=ws: self._deliver(cb, (data,), ws, self.sender))
 
     def subscribe(self, ep: Endpoint, callback: Callable[..., None], with_sender: bool = False,
-                  max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
+                  max_bytes: int | None = None) -> Handle:
         item = (self, callback, with_sender, max_bytes)
         with self.bus.lock:
             self.bus.subs.setdefault(ep.name, []).append(item)
         return _Handle(self.bus.subs, ep.name, item, self.bus.lock)
 
     def serve(self, ep: Endpoint, handler: Callable[..., None], with_sender: bool = False,
-              max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
+              max_bytes: int | None = None) -> Handle:
         item = (self, handler, with_sender, max_bytes)
         with self.bus.lock:
             self.bus.services.setdefault(ep.name, []).append(item)
@@ -111,6 +113,7 @@ class MemoryTransport(Transport):
             raise LinkTimeoutError(f"no server for {ep.name}")
         done = threading.Event()
         box: list[bytes] = []
+        refused: list[str] = []
         server, handler, ws, mb = servers[0]
 
         def respond(reply: bytes) -> None:
@@ -118,13 +121,22 @@ class MemoryTransport(Transport):
                 box.append(bytes(reply))
                 done.set()
 
+        def serve() -> None:
+            try:
+                self._deliver(handler, (data, respond), ws, self.sender)
+            except RefusalError as why:
+                refused.append(str(why))
+                done.set()
+
         data = bytes(payload)
         if mb is not None and len(data) > mb:
             server._dropped(ep, f"oversized ({len(data)} > {mb} bytes)")
         else:
-            self.bus.post(lambda: self._deliver(handler, (data, respond), ws, self.sender))
+            self.bus.post(serve)
         if not done.wait(timeout):
             raise LinkTimeoutError(f"no reply from {ep.name} within {timeout:g} s")
+        if refused:
+            raise LinkRefusedError(f"{ep.name}: the tool refused: {refused[0]}")
         return box[0]
 
     def close(self) -> None:

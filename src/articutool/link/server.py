@@ -27,6 +27,10 @@ anything else is refused (services answer ``success=false`` with the reason, top
 dropped) and counted (``refused_unpaired``). Telemetry is open to any session that reached the
 tool (on a paired tool, over mutual TLS, only paired devices reach it).
 
+A paired PC's refusals say why (issue 22): clocks out of sync, a replay, an expired
+certificate; "not a paired PC" only when it is not. Refused goals and cancels, whose ROS
+replies carry no text, are answered with an error naming the reason (the client reads it).
+
 One commander at a time: the first command from a client gives it the *command lease*, which
 its heartbeats (and commands) renew and which expires ``client_timeout`` seconds after it was
 last heard, or when it calls ``release``. Another client's commands are refused with a message
@@ -37,12 +41,19 @@ with ``LinkConfig.audit_log``, a JSON line per lease transition: granted, releas
 take_over). On an unpaired
 link the names are the clients' own claims, so the lease orders honest clients only.
 
-The network cannot slow the loop: the transport drops messages beyond ``max_rate_hz`` per
-endpoint and payloads above a per-type size (``max_trajectory_bytes``, ``max_request_bytes``)
-before copying them (``rate_limited``, ``oversized``), the link threads
-verify, decode and validate, and only then queue the ToolAPI call in a bounded inbox
-(``inbox_size``; stops in a queue of their own, served first); a full inbox refuses the
-command (``dropped_excess``). Replies and publishes that follow a command are sent from a
+The network cannot slow the loop, and no flood can hold back a stop (issue 22, S1): the
+transport drops payloads above a per-type size (``max_trajectory_bytes``,
+``max_request_bytes``) before copying them (``oversized``) and verifies the sender; this
+server then refuses what is not admitted, limits each *sender* to ``max_rate_hz`` per
+endpoint (``rate_limited``; a sender is its verified identity, and on a paired tool all
+unverified senders share one limit), decodes and validates, and only then queues the
+ToolAPI call in a bounded inbox (``inbox_size``; a full inbox refuses the command,
+``dropped_excess``). Stops (DISABLED, a cancel) are never rate-limited and never refused
+for room: a stop identical to one already waiting (every DISABLED; a cancel of the same
+goal) joins it and gets the same answer, a cancel of a goal that is not running is
+answered at once, so the stops waiting (served first) are one DISABLED and a cancel of
+the running goal at most. Unsigned or replayed traffic on a paired tool is refused before
+it reaches a gate or a queue. Replies and publishes that follow a command are sent from a
 ``link-io`` thread, never from the thread that ran the command (a send can block on a
 congested or dead peer). The tool's loop drains it, one command per tick, when the API
 offers ``set_link_work`` (``ToolRuntime``: called once per tick, after the tick); an API
@@ -67,10 +78,20 @@ import uuid
 from collections import OrderedDict, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 
 from articutool.link import messages as m
 from articutool.link.config import LinkConfig
-from articutool.link.transport import Endpoint, Handle, Names, Responder, Sender, Transport
+from articutool.link.transport import (
+    Endpoint,
+    Handle,
+    Names,
+    RateGate,
+    RefusalError,
+    Responder,
+    Sender,
+    Transport,
+)
 from articutool.tool.api import Mode, PrimitiveStatus, ToolAPI
 
 __all__ = ["ToolServer", "serve_forever"]
@@ -78,6 +99,9 @@ __all__ = ["ToolServer", "serve_forever"]
 _log = logging.getLogger(__name__)
 _ZERO_ID = bytes(16)
 _KEEP_GOALS = 32  # finished goals remembered for late get_result calls
+_MAX_GATES = 1024  # per-sender rate gates kept (oldest forgotten: a fresh gate is full)
+_LOGGED = 10  # log lines per kind of dropped/refused/malformed message, then 1 in _EVERY
+_EVERY = 1000
 
 
 @dataclass
@@ -116,7 +140,10 @@ class ToolServer:
         self._holder_seen = 0.0
         self.audit: deque[str] = deque(maxlen=100)  # JSON lines, newest last
         self._inbox: deque[Callable[[], None]] = deque()
-        self._stops: deque[Callable[[], None]] = deque()
+        # Stops waiting for the loop, by what they do: (run, answers); see _submit_stop.
+        self._stops: OrderedDict[object, tuple[Callable[[], object],
+                                                list[Callable[[object], None]]]] = OrderedDict()
+        self._gates: OrderedDict[tuple[str, str], RateGate] = OrderedDict()
         self._loop_drains = False
         self._worker: threading.Thread | None = None
         self._wake = threading.Condition()
@@ -145,15 +172,14 @@ class ToolServer:
                     (n.clear_fault, self._on_clear_fault), (n.send_goal, self._on_send_goal),
                     (n.get_result, self._on_get_result), (n.cancel_goal, self._on_cancel),
                     (n.take_over, self._on_take_over), (n.release, self._on_release))
-        rate = self.cfg.max_rate_hz
         self._handles = [t.serve(ep, self._guarded(self._replies_off_loop(fn)),
-                                 with_sender=True, max_bytes=small, max_rate=rate)
+                                 with_sender=True, max_bytes=small)
                          for ep, fn in services]
         self._handles += [
             t.subscribe(n.joint_trajectory, self._guarded(self._on_trajectory), with_sender=True,
-                        max_bytes=self.cfg.max_trajectory_bytes, max_rate=rate),
+                        max_bytes=self.cfg.max_trajectory_bytes),
             t.subscribe(n.client_heartbeat, self._guarded(self._on_client_heartbeat),
-                        with_sender=True, max_bytes=small, max_rate=rate),
+                        with_sender=True, max_bytes=small),
         ]
         hook = getattr(self.api, "set_link_work", None)
         self._stop.clear()
@@ -199,10 +225,10 @@ class ToolServer:
         def wrapped(*args: object) -> None:
             try:
                 fn(*args)
+            except RefusalError:  # the transport answers it with the reason
+                raise
             except m.LinkDecodeError as err:
-                with self._lock:
-                    self.counters["decode_errors"] += 1
-                _log.warning("dropped malformed payload: %s", err)
+                self._note("decode_errors", "dropped a malformed payload (%s)", err)
             except Exception:
                 with self._lock:
                     self.counters["handler_errors"] += 1
@@ -216,27 +242,58 @@ class ToolServer:
             if self.holder is None or self.holder == who:
                 self._last_client_rx = time.monotonic()
 
-    def _on_drop(self, name: str, reason: str) -> None:
-        key = "rate_limited" if reason == "rate" else "oversized"
+    def _note(self, key: str, fmt: str, *args: object) -> None:
+        """Count one dropped, refused or malformed message under ``key`` and log it: the
+        first few of each kind, then one in _EVERY with the count (a flood must not flood
+        the log: issue 22)."""
         with self._lock:
             self.counters[key] += 1
             n = self.counters[key]
-        if n <= 10 or n % 1000 == 0:  # a flood must not flood the log
-            _log.warning("dropped a message on %s (%s); %d %s so far", name, reason, n, key)
+        if n <= _LOGGED or n % _EVERY == 0:
+            _log.warning(fmt + "; %d %s so far", *args, n, key)
 
-    def _admit(self, sender: Sender, what: str) -> str | None:
-        """The client's identity if it may command, else None (counted, logged)."""
+    def _on_drop(self, name: str, reason: str) -> None:
+        self._note("oversized", "dropped a message on %s (%s)", name, reason)
+
+    def _admit(self, sender: Sender, what: str) -> tuple[str | None, str]:
+        """(the client's identity, '') if it may command, else (None, the refusal naming
+        the real reason: a paired PC whose clock is off is told so); counted, logged."""
         if self.cfg.requires_pairing and not (sender.verified and sender.role == "pc"):
             why = sender.refused or (f"{sender.identity!r} is not a PC" if sender.verified
-                                     else "not signed")
-            with self._lock:
-                self.counters["refused_unpaired"] += 1
-                n = self.counters["refused_unpaired"]
-            if n <= 10 or n % 100 == 0:  # a flood must not flood the log
-                _log.warning("refused %s from an unpaired sender (%s); %d refused so far",
-                             what, why, n)
-            return None
-        return sender.identity or "anonymous"
+                                     else "not a paired PC: not signed")
+            self._note("refused_unpaired", "refused %s (%s)", what, why)
+            return None, f"refused: {why}"
+        return sender.identity or "anonymous", ""
+
+    def _sender_key(self, sender: Sender) -> str:
+        """Whose rate limit a message counts against: the verified identity; on a paired
+        tool every unverified sender shares one (a claimed name proves nothing)."""
+        if sender.verified or not self.cfg.requires_pairing:
+            return sender.identity or "anonymous"
+        return "(unverified)"
+
+    def _within_rate(self, ep: Endpoint, sender: Sender) -> bool:
+        """Take one of the sender's ``max_rate_hz`` tokens on ``ep``; False (counted) if it
+        has none left. One sender's flood never uses another's."""
+        k = (ep.name, self._sender_key(sender))
+        with self._lock:
+            gate = self._gates.get(k)
+            if gate is None:
+                gate = self._gates[k] = RateGate(self.cfg.max_rate_hz)
+                if len(self._gates) > _MAX_GATES:
+                    self._gates.popitem(last=False)
+            else:
+                self._gates.move_to_end(k)
+        if gate.allow():
+            return True
+        self._note("rate_limited", "dropped a message on %s (rate, from %s)", ep.name, k[1])
+        return False
+
+    def _rate_limit(self, ep: Endpoint, sender: Sender) -> None:
+        """Raise RefusalError (an immediate error reply) when the sender is over its rate."""
+        if not self._within_rate(ep, sender):
+            raise RefusalError(f"rate limited: more than {self.cfg.max_rate_hz:g} requests/s from "
+                          f"{self._sender_key(sender)} on {ep.name}")
 
     def _lease(self, who: str, stop: bool = False) -> str:
         """'' if ``who`` may command now (taking a free or expired lease, renewing its own);
@@ -281,17 +338,31 @@ class ToolServer:
             except OSError as err:
                 _log.error("cannot append to the audit log %s: %s", self.cfg.audit_log, err)
 
-    def _submit(self, work: Callable[[], None], stop: bool = False) -> bool:
+    def _submit(self, work: Callable[[], None]) -> bool:
         """Queue a ToolAPI call for the loop; False (counted) when the inbox is full."""
-        q = self._stops if stop else self._inbox
         with self._lock:
-            if len(q) >= self.cfg.inbox_size:
+            if len(self._inbox) >= self.cfg.inbox_size:
                 self.counters["dropped_excess"] += 1
                 return False
-            q.append(work)
+            self._inbox.append(work)
         with self._wake:
             self._wake.notify()
         return True
+
+    def _submit_stop(self, key: object, run: Callable[[], object],
+                     answer: Callable[[object], None]) -> None:
+        """Queue a stop for the loop, never refused: a stop equal to one waiting (same
+        ``key``) joins it, the loop runs it once and every caller gets ``answer(result)``.
+        Stops are idempotent, so this is the same as running each; and however many
+        arrive, the stops waiting stay as few as their kinds."""
+        with self._lock:
+            waiting = self._stops.get(key)
+            if waiting is None:
+                self._stops[key] = (run, [answer])
+            else:
+                waiting[1].append(answer)
+        with self._wake:
+            self._wake.notify()
 
     def _drain(self) -> None:
         """Worker thread (APIs without a loop): run queued commands one at a time."""
@@ -308,8 +379,11 @@ class ToolServer:
         """Run at most one queued ToolAPI call (stops first). Called once per loop tick; never
         raises."""
         with self._lock:
-            q = self._stops if self._stops else self._inbox
-            work = q.popleft() if q else None
+            if self._stops:
+                _, (run, answers) = self._stops.popitem(last=False)
+                work: Callable[[], None] | None = partial(self._run_stop, run, answers)
+            else:
+                work = self._inbox.popleft() if self._inbox else None
         if work is None:
             return
         self._exec_ident = threading.get_ident()
@@ -321,6 +395,12 @@ class ToolServer:
             with self._lock:
                 self.counters["handler_errors"] += 1
             _log.exception("link command failed")
+
+    @staticmethod
+    def _run_stop(run: Callable[[], object], answers: list[Callable[[object], None]]) -> None:
+        result = run()
+        for answer in answers:
+            answer(result)
 
     def _off_loop(self, io: Callable[[], None]) -> None:
         """Run network I/O now, unless on the command-executing thread: then on link-io."""
@@ -388,12 +468,14 @@ class ToolServer:
     # ---------------------------------------------------------------- handlers --
     def _on_set_mode(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.set_orientation_control
-        req = m.decode(data, ep.request_type)
-        who = self._admit(sender, "set_orientation_control")
+        who, refusal = self._admit(sender, "set_orientation_control")
         if who is None:
-            return self._refuse(respond, ep, "refused: not a paired PC")
-        self._client_seen(who)
+            return self._refuse(respond, ep, refusal)
+        req = m.decode(data, ep.request_type)
         stop = req.control_mode == Mode.DISABLED
+        if not stop:
+            self._rate_limit(ep, sender)
+        self._client_seen(who)
         refusal = self._lease(who, stop=stop)
         if refusal:
             return self._refuse(respond, ep, refusal)
@@ -401,20 +483,26 @@ class ToolServer:
             return self._refuse(respond, ep, (
                 f"control_mode must be {Mode.DISABLED.value} (DISABLED) or "
                 f"{Mode.LEVELING.value} (LEVELING); got {req.control_mode}"))
+        pitch, roll = float(req.pitch_offset), float(req.roll_offset)
 
-        def work() -> None:
-            ok, msg = self._ask(self.api.set_mode, Mode(req.control_mode),
-                                float(req.pitch_offset), float(req.roll_offset))
-            respond(m.encode(m.soc_response(ok, msg), ep.response_type))
-        if not self._submit(work, stop=stop):
+        def run() -> tuple[bool, str]:
+            return self._ask(self.api.set_mode, Mode(req.control_mode), pitch, roll)
+
+        def answer(result: object) -> None:
+            respond(m.encode(m.soc_response(*result), ep.response_type))  # type: ignore[misc]
+        if stop:  # every DISABLED is the same stop: waiting ones are run once
+            return self._submit_stop("disable", run, answer)
+        if not self._submit(lambda: answer(run())):
             self._refuse(respond, ep, "refused: the tool's command inbox is full")
+        return None
 
     def _on_clear_fault(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.clear_fault
-        m.decode(data, ep.request_type)
-        who = self._admit(sender, "clear_fault")
+        who, refusal = self._admit(sender, "clear_fault")
         if who is None:
-            return self._refuse(respond, ep, "refused: not a paired PC")
+            return self._refuse(respond, ep, refusal)
+        self._rate_limit(ep, sender)
+        m.decode(data, ep.request_type)
         self._client_seen(who)
         refusal = self._lease(who)
         if refusal:
@@ -425,13 +513,15 @@ class ToolServer:
             respond(m.encode(m.trigger_response(ok, msg), ep.response_type))
         if not self._submit(work):
             self._refuse(respond, ep, "refused: the tool's command inbox is full")
+        return None
 
     def _on_take_over(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.take_over
-        m.decode(data, ep.request_type)
-        who = self._admit(sender, "take_over")
+        who, refusal = self._admit(sender, "take_over")
         if who is None:
-            return self._refuse(respond, ep, "refused: not a paired PC")
+            return self._refuse(respond, ep, refusal)
+        self._rate_limit(ep, sender)
+        m.decode(data, ep.request_type)
         self._client_seen(who)
         with self._lock:
             before = self.holder
@@ -443,13 +533,15 @@ class ToolServer:
         self._audit("take_over", who, before)
         respond(m.encode(m.trigger_response(True, f"{who} holds the command lease (was: "
                                                   f"{before or 'nobody'})"), ep.response_type))
+        return None
 
     def _on_release(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.release
-        m.decode(data, ep.request_type)
-        who = self._admit(sender, "release")
+        who, refusal = self._admit(sender, "release")
         if who is None:
-            return self._refuse(respond, ep, "refused: not a paired PC")
+            return self._refuse(respond, ep, refusal)
+        self._rate_limit(ep, sender)
+        m.decode(data, ep.request_type)
         with self._lock:
             mine = self.holder == who
             if mine:
@@ -460,13 +552,15 @@ class ToolServer:
         respond(m.encode(m.trigger_response(mine, "released" if mine else
                                             f"not held by {who} (holder: {self.holder})"),
                          ep.response_type))
+        return None
 
     def _on_send_goal(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.send_goal
+        who, refusal = self._admit(sender, "send_goal")
+        if who is None:  # SendGoal's reply has no text: an error reply names the reason
+            raise RefusalError(refusal)
+        self._rate_limit(ep, sender)
         req = m.decode(data, ep.request_type)
-        who = self._admit(sender, "send_goal")
-        if who is None:
-            return self._refuse(respond, ep, "")
         self._client_seen(who)
         refusal = self._lease(who)
         gid = m.uuid_bytes(req.goal_id)
@@ -486,7 +580,7 @@ class ToolServer:
         def work() -> None:
             self._start_goal(gid, name, params, respond)
         if not self._submit(work):
-            self._refuse(respond, ep, "")
+            raise RefusalError("the tool's command inbox is full")
         return None
 
     def _remember(self, goal: _Goal) -> None:
@@ -523,7 +617,9 @@ class ToolServer:
         self._publish_status()
 
     def _on_get_result(self, data: bytes, respond: Responder, sender: Sender) -> None:
-        req = m.decode(data, self.names.get_result.request_type)  # read-only: open to all
+        ep = self.names.get_result  # read-only: open to all, within each sender's rate
+        self._rate_limit(ep, sender)
+        req = m.decode(data, ep.request_type)
         gid = m.uuid_bytes(req.goal_id)
         with self._lock:
             goal = self._goals.get(gid)
@@ -532,44 +628,54 @@ class ToolServer:
                 return
             result = goal.result if goal is not None else m.PrimitiveResult(
                 False, "unknown goal id", (), m.GoalStatus.UNKNOWN)
-        respond(m.encode(m.result_msg(result), self.names.get_result.response_type))
+        respond(m.encode(m.result_msg(result), ep.response_type))
 
     def _on_cancel(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.cancel_goal
-        req = m.decode(data, ep.request_type)
-        who = self._admit(sender, "cancel_goal")
-        if who is None:
-            return self._refuse(respond, ep, "")
+        who, refusal = self._admit(sender, "cancel_goal")
+        if who is None:  # CancelGoal's reply has no text: an error reply names the reason
+            raise RefusalError(refusal)
+        req = m.decode(data, ep.request_type)  # a stop: no rate limit, never refused for room
         self._client_seen(who)
         self._lease(who, stop=True)  # a stop: accepted from any admitted client
         gid = m.uuid_bytes(req.goal_info.goal_id)
+        R = m.typestore().types[ep.response_type]
 
-        def work() -> None:
-            R = m.typestore().types[ep.response_type]
+        def answer(result: object) -> None:
+            respond(m.encode(m.cancel_response(*result), ep.response_type))  # type: ignore[misc]
+        with self._lock:
+            goal = self._active if gid == _ZERO_ID else self._goals.get(gid)
+            if goal is None:
+                now: tuple[int, list] | None = (R.ERROR_NONE if gid == _ZERO_ID else
+                                                R.ERROR_UNKNOWN_GOAL_ID, [])
+            elif goal.result is not None:
+                now = (R.ERROR_GOAL_TERMINATED, [])
+            else:
+                now = None
+        if now is not None:  # nothing to stop: answered here, without the loop
+            return answer(now)
+
+        def run() -> tuple[int, list]:
             with self._lock:
-                goal = self._active if gid == _ZERO_ID else self._goals.get(gid)
-                if goal is None:
-                    code, canceling = (R.ERROR_NONE if gid == _ZERO_ID else
-                                       R.ERROR_UNKNOWN_GOAL_ID), []
-                elif goal.result is not None:
-                    code, canceling = R.ERROR_GOAL_TERMINATED, []
+                if goal.result is not None or self._active is not goal:
+                    out: tuple[int, list] = (R.ERROR_GOAL_TERMINATED, [])
                 elif self.api.cancel_primitive():
                     goal.cancel_requested = True
                     goal.status = m.GoalStatus.CANCELING
-                    code, canceling = R.ERROR_NONE, [(goal.goal_id, goal.accepted_at)]
+                    out = (R.ERROR_NONE, [(goal.goal_id, goal.accepted_at)])
                 else:  # finished in between: the next tick reports its result
-                    code, canceling = R.ERROR_GOAL_TERMINATED, []
-            respond(m.encode(m.cancel_response(code, canceling), ep.response_type))
+                    out = (R.ERROR_GOAL_TERMINATED, [])
             self._publish_status()
-        if not self._submit(work, stop=True):
-            self._refuse(respond, ep, "")
+            return out
+        self._submit_stop(("cancel", goal.goal_id), run, answer)
         return None
 
     def _on_trajectory(self, data: bytes, sender: Sender) -> None:
-        who = self._admit(sender, "a trajectory")
-        if who is None:
+        ep = self.names.joint_trajectory
+        who, _ = self._admit(sender, "a trajectory")
+        if who is None or not self._within_rate(ep, sender):
             return
-        message = m.decode(data, self.names.joint_trajectory.type)  # in the link thread
+        message = m.decode(data, ep.type)  # in the link thread
         traj = m.trajectory_from_msg(message)
         pre = getattr(self.api, "prevalidate_trajectory", None)
         if callable(pre):  # the length-dependent checks here, not in the loop's tick
@@ -603,10 +709,11 @@ class ToolServer:
                 self.counters["rejected_trajectories"] += 1
 
     def _on_client_heartbeat(self, data: bytes, sender: Sender) -> None:
-        who = self._admit(sender, "a client heartbeat")
-        if who is None:  # a forged heartbeat neither keeps a lease nor the link alive
-            return
-        m.decode(data, self.names.client_heartbeat.type)
+        ep = self.names.client_heartbeat
+        who, _ = self._admit(sender, "a client heartbeat")
+        if who is None or not self._within_rate(ep, sender):  # a forged heartbeat keeps
+            return  # neither a lease nor the link alive
+        m.decode(data, ep.type)
         self._client_seen(who)
         with self._lock:
             if self.holder == who:

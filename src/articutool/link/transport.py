@@ -68,7 +68,7 @@ from articutool.link import messages as m
 from articutool.link.auth import Sender
 
 __all__ = ["Endpoint", "LinkOpenError", "LinkRefusedError", "LinkTimeoutError", "Names",
-           "RateGate", "Responder", "Sender", "Transport", "key_expr"]
+           "RateGate", "RefusalError", "Responder", "Sender", "Transport", "key_expr"]
 
 Responder = Callable[[bytes], None]
 """Sends the reply to one service request; may be called later, from any thread, once."""
@@ -84,6 +84,12 @@ class LinkTimeoutError(TimeoutError):
 
 class LinkRefusedError(RuntimeError):
     """The server answered with an error instead of a reply (e.g. rate limited)."""
+
+
+class RefusalError(Exception):
+    """Raised by a service handler, before it returns, to answer with an error that names
+    the reason (the caller gets LinkRefusedError): for refusals whose reply type has no text
+    (SendGoal, CancelGoal) and for rate limits."""
 
 
 @dataclass(frozen=True)
@@ -222,8 +228,7 @@ class Handle(ABC):
 
 
 class RateGate:
-    """Token bucket: at most ``rate`` messages per second on average, bursts of ``burst``.
-    Checked before any Python work on a message, so a flood costs the receiver a counter."""
+    """Token bucket: at most ``rate`` messages per second on average, bursts of ``burst``."""
 
     def __init__(self, rate: float, burst: float | None = None) -> None:
         import threading
@@ -256,9 +261,9 @@ class Transport(ABC):
 
     Every message sent carries its sender (``articutool.link.auth``: a signature on a paired
     transport, a bare name otherwise). With ``with_sender=True`` a callback also receives the
-    :class:`Sender`. With ``max_bytes`` a larger payload is dropped before it is copied or
-    decoded, with ``max_rate`` (messages/s, per endpoint) messages beyond that rate are
-    dropped before any other work; ``on_drop(endpoint name, reason)`` (if set) is told.
+    :class:`Sender` (verified before the callback runs, so the receiver can limit each
+    sender's rate on its own: issue 22, S1). With ``max_bytes`` a larger payload is dropped
+    before it is copied or decoded; ``on_drop(endpoint name, reason)`` (if set) is told.
     """
 
     on_drop: Callable[[str, str], None] | None = None
@@ -274,15 +279,16 @@ class Transport(ABC):
 
     @abstractmethod
     def subscribe(self, ep: Endpoint, callback: Callable[..., None], with_sender: bool = False,
-                  max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
+                  max_bytes: int | None = None) -> Handle:
         """Call ``callback(payload[, sender])`` for every sample published on ``ep``."""
 
     @abstractmethod
     def serve(self, ep: Endpoint, handler: Callable[..., None], with_sender: bool = False,
-              max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
+              max_bytes: int | None = None) -> Handle:
         """Serve a service: ``handler(request, respond[, sender])``; ``respond(reply)`` may be
-        deferred. An oversized request is dropped unanswered (the caller times out); one
-        beyond ``max_rate`` gets an error reply at once (LinkRefusedError for the caller)."""
+        deferred. An oversized request is dropped unanswered (the caller times out); a
+        handler raising :class:`RefusalError` answers with an error naming the reason
+        (LinkRefusedError for the caller)."""
 
     @abstractmethod
     def call(self, ep: Endpoint, payload: bytes, timeout: float) -> bytes:

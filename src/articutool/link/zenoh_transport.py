@@ -16,30 +16,32 @@ waits, bounded, until zenoh has dropped every callback and joins those threads.
 from __future__ import annotations
 
 import contextlib
+import ipaddress
 import json
 import logging
 import re
+import socket
 import threading
 import time
 from collections.abc import Callable
-from typing import Literal
+from typing import Any, Literal
 
 import zenoh
 
 from articutool.link.auth import AuthError, Sender, Signer, Verifier, claim, sender_of
-from articutool.link.config import LinkConfig
+from articutool.link.config import ConfigError, LinkConfig
 from articutool.link.transport import (
     Endpoint,
     Handle,
     LinkOpenError,
     LinkRefusedError,
     LinkTimeoutError,
-    RateGate,
+    RefusalError,
     Transport,
     key_expr,
 )
 
-__all__ = ["ZenohTransport", "zenoh_config"]
+__all__ = ["ZenohTransport", "exposure", "zenoh_config"]
 
 _log = logging.getLogger(__name__)
 _DRAIN_S = 5.0  # bound on waiting for zenoh's callback threads to end at close
@@ -75,8 +77,66 @@ def zenoh_config(cfg: LinkConfig, role: Literal["tool", "client"]) -> zenoh.Conf
             z.insert_json5(f"{tls}{side}_certificate", json.dumps(cfg.tls_certificate))
             z.insert_json5(f"{tls}{side}_private_key", json.dumps(cfg.tls_private_key))
     for path, value in cfg.extra.items():
-        z.insert_json5(path, json.dumps(value))
+        try:
+            z.insert_json5(path, json.dumps(value))
+        except (zenoh.ZError, TypeError, ValueError) as err:
+            raise ConfigError(f"extra[{path!r}]: zenoh does not accept {value!r} there: "
+                              f"{_reason(err)}") from None
     return z
+
+
+_ZENOH_DEFAULT_LISTEN = {"router": ["tcp/[::]:7447"], "peer": ["tcp/[::]:0"]}
+
+
+def _loopback(host: str) -> bool:
+    """Whether ``host`` (an IP literal or a name) resolves to loopback addresses only: a name
+    is resolved, never judged by its spelling ('127.x.example', 'localhost.example' are not
+    loopback unless they resolve there)."""
+    host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+    try:
+        infos = socket.getaddrinfo(host, None)
+    except (OSError, UnicodeError):
+        return False
+    addrs = {ipaddress.ip_address(str(i[4][0]).split("%", 1)[0]) for i in infos}
+
+    def lo(a: ipaddress.IPv4Address | ipaddress.IPv6Address) -> bool:
+        mapped = getattr(a, "ipv4_mapped", None)
+        return a.is_loopback or (mapped is not None and mapped.is_loopback)
+    return bool(addrs) and all(lo(a) for a in addrs)
+
+
+def exposure(cfg: LinkConfig, role: Literal["tool", "client"] = "tool") -> list[str]:
+    """How anyone but a local process could reach a session of ``role`` opened with
+    ``cfg`` and, unless it requires signatures, command it (issue 22, S3); [] if nobody.
+
+    Read from the zenoh config the session would open with, after every way of setting it
+    (flags, the link config's fields, its raw ``extra`` zenoh settings, zenoh's defaults):
+    each listen and connect endpoint that is neither a Unix socket, nor on a host that
+    resolves to loopback only, nor TLS with mutual authentication by the pairing CA; and
+    multicast scouting (it connects to peers found on the network).
+    """
+    z = zenoh_config(cfg, role)
+
+    def get(path: str) -> Any:
+        return json.loads(z.get_json(path))
+    mode = get("mode") or "peer"
+    mtls = bool(get("transport/link/tls/enable_mtls")) and bool(
+        get("transport/link/tls/root_ca_certificate"))
+    out = []
+    for side in ("listen", "connect"):
+        eps = get(f"{side}/endpoints")
+        if isinstance(eps, dict):  # per-mode lists, zenoh's default for listen
+            eps = eps.get(mode, _ZENOH_DEFAULT_LISTEN.get(mode, []) if side == "listen" else [])
+        for e in eps if isinstance(eps, list) else [eps]:
+            proto, _, rest = str(e).partition("/")
+            host = rest.split("?", 1)[0].split("#", 1)[0].rpartition(":")[0]
+            if proto == "unixsock-stream" or (proto == "tls" and mtls) or (
+                    proto in ("tcp", "udp", "tls", "quic", "ws") and host and _loopback(host)):
+                continue
+            out.append(f"{side} endpoint {e}")
+    if get("scouting/multicast/enabled") is not False:  # zenoh's default is on
+        out.append("multicast scouting (it connects to peers found on the network)")
+    return out
 
 
 class _ZHandle(Handle):
@@ -190,13 +250,8 @@ class ZenohTransport(Transport):
         pub.put(payload, attachment=self._attachment(ep, payload))
 
     def subscribe(self, ep: Endpoint, callback: Callable[..., None], with_sender: bool = False,
-                  max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
-        gate = RateGate(max_rate) if max_rate else None
-
+                  max_bytes: int | None = None) -> Handle:
         def on_sample(sample: zenoh.Sample) -> None:
-            if gate is not None and not gate.allow():
-                self._dropped(ep, "rate")
-                return
             if self._too_big(ep, len(sample.payload), max_bytes):  # before copying it
                 return
             data = sample.payload.to_bytes()
@@ -208,18 +263,8 @@ class ZenohTransport(Transport):
             self._key(ep, exact=False), self._callback(on_sample, ep.name)))
 
     def serve(self, ep: Endpoint, handler: Callable[..., None], with_sender: bool = False,
-              max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
-        gate = RateGate(max_rate) if max_rate else None
-
+              max_bytes: int | None = None) -> Handle:
         def on_query(query: zenoh.Query) -> None:
-            if gate is not None and not gate.allow():
-                self._dropped(ep, "rate")
-                try:  # tell the caller at once rather than letting it time out
-                    query.reply_err(f"{_REFUSED}rate limited: more than {max_rate:g} "
-                                    f"requests/s on {ep.name}")
-                finally:
-                    query.drop()
-                return
             size = len(query.payload) if query.payload is not None else 0
             if self._too_big(ep, size, max_bytes):
                 query.drop()
@@ -235,11 +280,18 @@ class ZenohTransport(Transport):
                 finally:
                     query.drop()  # finalise: the querier learns no more replies are coming
 
-            if with_sender:
-                handler(data, _guard(respond, ep.name),
-                        self._sender(ep, data, query.attachment))
-            else:
-                handler(data, _guard(respond, ep.name))
+            try:
+                if with_sender:
+                    handler(data, _guard(respond, ep.name),
+                            self._sender(ep, data, query.attachment))
+                else:
+                    handler(data, _guard(respond, ep.name))
+            except RefusalError as why:  # tell the caller at once, with the reason
+                if once.acquire(blocking=False):
+                    try:
+                        query.reply_err(f"{_REFUSED}{why}")
+                    finally:
+                        query.drop()
         return _ZHandle(self._session.declare_queryable(
             self._key(ep, exact=True), self._callback(on_query, ep.name)))
 

@@ -83,8 +83,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
 
     add_config_args(p)
     p.add_argument("--insecure-listen", action="store_true",
-                   help="allow a plain (non-TLS) listen endpoint on a network address without "
-                        "pairing: anyone on that network can then command the tool")
+                   help="start although the tool accepts unsigned commands and could be "
+                        "reached from the network (a plain endpoint on a network address, "
+                        "multicast scouting): anyone on that network can then command it")
     p.add_argument("--record", metavar="FILE.mcap", default=None,
                    help="record every message the link carries (ROS 2 CDR in MCAP, schemas "
                         "embedded); needs --serve; never overwrites")
@@ -256,17 +257,21 @@ def _close_failed(runtime: object) -> None:
 
 
 def _check_exposure(cfg: object, insecure: bool) -> None:
-    """Refuse (exit 2) an unpaired tool listening in plain text on a network address."""
+    """Refuse (exit 2) a tool that accepts unsigned commands and could be reached from the
+    network, however its endpoints were configured (issue 22, S3)."""
     from articutool.cli import UsageError
-    from articutool.link.config import plain_network_endpoints
+    from articutool.link.zenoh_transport import exposure
 
-    plain = plain_network_endpoints(cfg.endpoints("tool")[0])  # type: ignore[attr-defined]
-    if plain and not cfg.paired and not insecure:  # type: ignore[attr-defined]
+    if cfg.requires_pairing or insecure:  # type: ignore[attr-defined]
+        return
+    found = exposure(cfg, "tool")  # type: ignore[arg-type]
+    if found:
         raise UsageError(
-            f"--listen {plain[0]}: a plain endpoint on a network address lets anyone on that "
-            "network command the tool; pair first ('articutool pair', then --link-config "
-            "<tool>/link.toml, which listens on tls/), listen on loopback only, or pass "
-            "--insecure-listen")
+            f"{'; '.join(found)}: the tool accepts unsigned commands, so anyone on that "
+            "network could command it (set by --listen/--connect, the link config's "
+            "listen/connect/multicast_scouting or its [extra] zenoh settings); pair first "
+            "('articutool pair', then --link-config <tool>/link.toml, which listens on "
+            "tls/), use loopback only, or pass --insecure-listen")
 
 
 def _cmd_tool(args: argparse.Namespace) -> int:
