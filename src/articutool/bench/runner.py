@@ -199,8 +199,10 @@ def read_log(path: str | Path,
             continue
         try:
             rec = json.loads(line)
+            if not isinstance(rec, dict):  # JSON, but not a record ([1, 2], 42, null)
+                raise TypeError(rec)
             key(rec)
-        except (ValueError, KeyError, TypeError):
+        except (ValueError, KeyError, TypeError, RecursionError):
             state.corrupt += 1
             continue
         state.records.append(rec)
