@@ -185,6 +185,11 @@ def _cmd_transport(args: argparse.Namespace) -> int:
         finally:
             executor.close()
     wall = time.perf_counter() - t0
+    if summary_run.interrupted:
+        err_console.print(f"interrupted: {summary_run.ran} trial(s) finished now and are "
+                          f"logged in {log}; run the same command again to resume (no "
+                          "report written)")
+        return 130
     if summary_run.torn:
         err_console.print(f"ignored {summary_run.torn} torn last line in {log} (cut off)")
     if summary_run.corrupt:

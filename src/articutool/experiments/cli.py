@@ -246,6 +246,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     executor = make_executor(args)
     summary_run = _run_with_progress(trials, log_path(out, exp), executor, exp)
+    if summary_run.interrupted:
+        print(f"interrupted: {summary_run.ran} trial(s) finished now and are logged in "
+              f"{log_path(out, exp)}, {len(trials) - summary_run.skipped - summary_run.ran} "
+              "not run; run the same command again to resume (no summary written)",
+              file=sys.stderr)
+        return 130
     records = summary_run.records
     summary = summarize(exp, records, cfg, thresholds_g=th, threshold_g=threshold)
     summary["run"].update(
