@@ -331,3 +331,36 @@ def test_a_failed_acquisition_is_retried_up_to_the_strategy_s_limit() -> None:
     assert tree.root.status == Status.FAILURE
     assert arm.executed.count("path into the food") == 3  # three tries, then the retreat
     assert py_trees.blackboard.Blackboard.get("/bite/acquisition_attempts") == 3
+
+
+def test_run_tree_reports_a_safe_stop_as_a_failure_naming_its_reason() -> None:
+    # The guard's branch succeeds (the safe state was reached), but the task did not: the
+    # experiments' transports must not count it as completed (issue 22).
+    from articutool.feeding.tree import run_tree
+
+    clock = Clock()
+    arm, tool = FakeArm(clock, [True], [True], motion_s=5.0), FakeTool(clock)
+    py_trees.blackboard.Blackboard.clear()
+
+    def step(dt: float) -> None:
+        clock.t += dt
+        if clock.t >= 1.0:
+            tool.fault = "motor hardware error: roll: OVERLOAD"
+
+    status, rec = run_tree(transport_tree(arm, tool, "Staging", "decoupled", attempts=3,
+                                          budget_s=1.0, clock=clock), step, clock)
+    assert status == Status.FAILURE
+    assert rec.failed_stage == "Safe stop: tool fault: motor hardware error: roll: OVERLOAD"
+    assert tool.mode == Mode.DISABLED and arm.stopped >= 1
+
+
+def test_a_retreat_step_failing_in_its_first_tick_is_not_taken_for_the_cause() -> None:
+    # Found by the fault-injection suite: a lift whose IK fails at once was recorded as the
+    # bite's cause instead of the exhausted planning attempts (issue 22).
+    clock = Clock()
+    arm, tool = FakeArm(clock, [False] * 10, [], plan_s=0.0), FakeTool(clock)
+    arm.fail_paths.add("lift")
+    tree, rec = _run(_bite(arm, tool, clock, stages=("staging",)), clock)
+    assert tree.root.status == Status.FAILURE
+    assert rec.record.failed_stage == "Plan to Staging: no plan to Staging: no path in budget"
+    assert ("Plan lift 10 cm", "no path lift 10 cm: no IK") in rec.record.failures

@@ -36,7 +36,8 @@ from articutool.feeding.behaviours import (
 )
 from articutool.tool.api import Mode, ToolAPI
 
-__all__ = ["BiteRecorder", "ClockedTimeout", "guarded", "motion", "run_tree", "transport_tree"]
+__all__ = ["BiteRecorder", "ClockedTimeout", "guarded", "motion", "run_tree", "safe_stop_reason",
+           "transport_tree"]
 
 
 class ClockedTimeout(py_trees.decorators.Timeout):
@@ -84,6 +85,18 @@ def guarded(child: py_trees.behaviour.Behaviour, arm: ArmInterface, tool: ToolAP
     guard = py_trees.composites.Sequence(
         "guard", memory=False, children=[Unsafe(tool, clock, stale_s), SafeStop(arm, tool)])
     return py_trees.composites.Selector("bite", memory=False, children=[guard, child])
+
+
+def safe_stop_reason(root: py_trees.behaviour.Behaviour) -> str | None:
+    """Why the guard of :func:`guarded` stopped the tree in its last tick (the reason its
+    ``Unsafe?`` gave: a tool fault, stale state, a stop request), or None if it did not. The
+    guard's branch *succeeds* — the tree reached its safe state — but the task did not: the
+    callers report it as stopped, never as completed."""
+    for node in root.iterate():
+        if isinstance(node, SafeStop) and node.status == Status.SUCCESS:
+            cond = next((c for c in node.parent.children if isinstance(c, Unsafe)), None)
+            return cond.feedback_message if cond is not None else "safe stop"
+    return None
 
 
 def transport_tree(arm: ArmInterface, tool: ToolAPI, goal: str, planner: str, *,
@@ -140,12 +153,23 @@ class BiteRecorder(py_trees.visitors.VisitorBase):
                     self.record.motion_time_s += dt
                 else:
                     self.record.planning_time_s += dt
-        if (getattr(behaviour, "is_retreat", False) and self.record.cause is None
-                and self.record.failures):
+        # The cause is the last failure before anything of the retreat ran: a decorator is
+        # visited after its children, so a retreat step that fails in the retreat's first
+        # tick (an instant IK failure) must not be mistaken for it.
+        if self.record.cause is None and self.record.failures and _in_retreat(behaviour):
             self.record.cause = self.record.failures[-1]
         if (behaviour.status == Status.FAILURE and not behaviour.children
                 and not getattr(behaviour, "is_condition", False)):
             self.record.failures.append((behaviour.name, behaviour.feedback_message))
+
+
+def _in_retreat(behaviour: py_trees.behaviour.Behaviour) -> bool:
+    node: py_trees.behaviour.Behaviour | None = behaviour
+    while node is not None:
+        if getattr(node, "is_retreat", False):
+            return True
+        node = node.parent
+    return False
 
 
 def run_tree(root: py_trees.behaviour.Behaviour, step: Callable[[float], None],
@@ -153,7 +177,8 @@ def run_tree(root: py_trees.behaviour.Behaviour, step: Callable[[float], None],
              timeout_s: float = 120.0) -> tuple[Status, BiteRecord]:
     """Tick ``root`` every ``period_s`` of ``clock`` until it ends or ``timeout_s`` passes,
     calling ``step(period_s)`` between ticks (the physics world's ``run``); returns the final
-    status and the telemetry. A timeout stops the tree (its clean-up runs)."""
+    status and the telemetry. A timeout stops the tree (its clean-up runs); a safe stop by
+    the guard is a FAILURE whose recorded reason is the guard's."""
     tree = py_trees.trees.BehaviourTree(root)
     rec = BiteRecorder(clock)
     tree.visitors.append(rec)
@@ -162,7 +187,11 @@ def run_tree(root: py_trees.behaviour.Behaviour, step: Callable[[float], None],
     while clock() < t_end:
         tree.tick()
         if tree.root.status in (Status.SUCCESS, Status.FAILURE):
-            return tree.root.status, rec.record
+            stopped = safe_stop_reason(tree.root)
+            if stopped is None:
+                return tree.root.status, rec.record
+            rec.record.failures.append(("Safe stop", stopped))
+            return Status.FAILURE, rec.record
         step(period_s)
     tree.root.stop(Status.INVALID)
     rec.record.failures.append((root.name, f"did not finish within {timeout_s:g} s"))
