@@ -7,7 +7,8 @@ The bite is the loaded part of one (a placed pecan load, then ``staging``, ``pre
 ``return``): the stages a fault can hurt most, at a fraction of a whole bite's cost.
 
 Covered: the user's stop request, a motor overload, an IMU that freezes, planning failures
-past the attempts (fast); a planning failure that is retried (slow: a whole transport).
+past the attempts (fast); a planning failure that is retried, and a stop request or an
+overload during the shedding primitive after a real acquisition (slow).
 Not covered yet: link loss and return, a stop from a second paired PC, an F/T spike (the
 tree talks to the in-process runtime here, not over the link, and nothing in the tree reads
 the F/T sensor).
@@ -167,3 +168,32 @@ def test_planning_failures_past_the_attempts_retreat_and_deliver_nothing() -> No
     assert r.planning_attempts_by_goal["Staging"] == setup.strategy.attempts.plan
     assert r.delivered_g == 0.0 and r.outcome in ("failed", "table_spill", "user_spill")
     assert setup.world.tool.mode == Mode.DISABLED and setup.world.tool.fault == ""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fault", ["stop request", "overload"])
+def test_a_fault_during_the_shedding_primitive_answers_its_goal_and_stops_safely(
+        fault: str) -> None:
+    # The whole acquisition first (a full bowl), then the fault 0.3 s into VIBRATE_ROLL.
+    py_trees.blackboard.Blackboard.clear()
+    setup = make_bite_world("pecans", "articutool", 0)
+    w = setup.world
+
+    def inject() -> None:
+        if fault == "overload":
+            w.motors.inject_hardware_error(1)
+        else:
+            py_trees.blackboard.Blackboard.set("/bite/stop_requested", True)
+
+    at = FaultAt("post-acquisition: VIBRATE_ROLL", 0.3, w.clock, inject)
+    try:
+        r = run_bite(setup, stages=("above", "acquire", "shed", "resting"),
+                     threshold_g=THRESHOLD_G, visitors=[at])
+    finally:
+        setup.arm.close()
+    assert at.fired_at is not None
+    _assert_stopped_safely(setup, r, "tool fault: " if fault == "overload" else fault)
+    st = w.tool.primitive_status()
+    assert st is not None and st.name == "VIBRATE_ROLL"
+    assert st.done and not st.success  # the goal was answered: aborted, not left running
+    assert r.acquired_g > 0  # it did hold food, and none of it counts as delivered
