@@ -13,6 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from articutool.bench.runner import read_log
@@ -64,6 +65,16 @@ def test_a_100000_deep_document_is_refused_naming_the_file(command, deep, tmp_pa
             for a in command]
     path = next(a for a in args if a.startswith(str(deep["json"].parent)))
     _refused(_cli(*args), path, "nested too deeply")
+
+
+def test_a_recording_whose_meta_is_100000_deep_is_refused(deep, tmp_path):
+    from articutool.viewer.recording import _ARRAYS
+
+    rec = tmp_path / "deep.npz"
+    np.savez(rec, meta=np.array(deep["json"].read_text()), mjcf=np.array(""),
+             **{k: np.zeros(1) for k in _ARRAYS})
+    _refused(_cli("view", "--recording", str(rec), "--export", str(tmp_path / "v.mp4")),
+             "--recording", "meta", "nested too deeply")
 
 
 @pytest.mark.parametrize("kind", ["fifo", "/dev/zero", "folder"])
