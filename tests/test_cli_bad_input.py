@@ -67,6 +67,16 @@ def test_a_100000_deep_document_is_refused_naming_the_file(command, deep, tmp_pa
     _refused(_cli(*args), path, "nested too deeply")
 
 
+def test_a_run_json_100000_deep_in_the_results_folder_is_refused(deep, tmp_path):
+    (tmp_path / "run.json").write_text(deep["json"].read_text())
+    _refused(_cli("bench", "transport", "--out", str(tmp_path), "--workers", "1", "--limit",
+                  "1"), "run.json", "use another --out")
+    (tmp_path / "capacity").mkdir()
+    (tmp_path / "capacity" / "run.json").write_text(deep["json"].read_text())
+    _refused(_cli("experiment", "capacity", "--trials", "1", "--workers", "1", "--out",
+                  str(tmp_path)), "run.json", "use another --out")
+
+
 def test_a_recording_whose_meta_is_100000_deep_is_refused(deep, tmp_path):
     from articutool.viewer.recording import _ARRAYS
 

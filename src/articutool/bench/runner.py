@@ -241,7 +241,7 @@ class RunConfig:
         if path.exists():
             try:
                 old = json.loads(path.read_text(encoding="utf-8"))
-            except (OSError, ValueError) as err:
+            except (OSError, ValueError, RecursionError) as err:  # Recursion: too deep
                 raise RunConfigError(f"{path} is unreadable ({err}); use another --out") from None
             new = self.to_dict()
             diff = [k for k in new if old.get(k) != new[k]]

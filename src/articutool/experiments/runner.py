@@ -118,7 +118,7 @@ def pin_run(path: Path, settings: dict[str, Any]) -> None:
     if path.exists():
         try:
             old = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as err:
+        except (OSError, ValueError, RecursionError) as err:  # Recursion: too deep
             raise RunError(f"{path} is unreadable ({err}); use another --out") from None
         diff = [k for k in settings if old.get(k) != settings[k]]
         if diff:
