@@ -60,7 +60,7 @@ class _Serial:
 
     description = "serial"
 
-    def run(self, fn, items):
+    def run(self, fn, items, stop=None):
         for it in items:
             yield it, fn(it), None
 

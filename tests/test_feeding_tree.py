@@ -368,3 +368,36 @@ def test_the_trees_timeout_does_not_count_the_wait_for_a_plan() -> None:
                            timeout_s=20.0)
     assert status == Status.FAILURE and "did not finish within 20 s" in rec.failed_stage
     assert all(j.done() for j in arm.jobs)
+
+
+def test_run_tree_reports_a_safe_stop_as_a_failure_naming_its_reason() -> None:
+    # The guard's branch succeeds (the safe state was reached), but the task did not: the
+    # experiments' transports must not count it as completed (issue 22).
+    from articutool.feeding.tree import run_tree
+
+    clock = Clock()
+    arm, tool = FakeArm(clock, [True], [True], motion_s=5.0), FakeTool(clock)
+    py_trees.blackboard.Blackboard.clear()
+
+    def step(dt: float) -> None:
+        clock.t += dt
+        if clock.t >= 1.0:
+            tool.fault = "motor hardware error: roll: OVERLOAD"
+
+    status, rec = run_tree(transport_tree(arm, tool, "Staging", "decoupled", attempts=3,
+                                          budget_s=1.0, clock=clock), step, clock)
+    assert status == Status.FAILURE
+    assert rec.failed_stage == "Safe stop: tool fault: motor hardware error: roll: OVERLOAD"
+    assert tool.mode == Mode.DISABLED and arm.stopped >= 1
+
+
+def test_a_retreat_step_failing_in_its_first_tick_is_not_taken_for_the_cause() -> None:
+    # Found by the fault-injection suite: a lift whose IK fails at once was recorded as the
+    # bite's cause instead of the exhausted planning attempts (issue 22).
+    clock = Clock()
+    arm, tool = FakeArm(clock, [False] * 10, [], plan_s=0.0), FakeTool(clock)
+    arm.fail_paths.add("lift")
+    tree, rec = _run(_bite(arm, tool, clock, stages=("staging",)), clock)
+    assert tree.root.status == Status.FAILURE
+    assert rec.record.failed_stage == "Plan to Staging: no plan to Staging: no path in budget"
+    assert ("Plan lift 10 cm", "no path lift 10 cm: no IK") in rec.record.failures

@@ -12,15 +12,18 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import os
 import sys
+import tempfile
 import traceback
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from articutool.spec import Spec, SpecError, load_spec
 from articutool.trajectory import TrajectoryError
 
-__all__ = ["main", "new_output_file"]
+__all__ = ["main", "new_output_file", "output_dir"]
 
 _COMMAND_MODULES: tuple[str, ...] = (
     "articutool.verify.cli",
@@ -48,8 +51,9 @@ def add_spec_option(p: argparse.ArgumentParser) -> None:
 
 def new_output_file(opt: str, path: str | None, suffixes: tuple[str, ...]) -> Path | None:
     """``path`` checked as a new output file for option ``opt`` (``None`` passes through):
-    one of ``suffixes``, not existing (nothing is overwritten), in an existing folder;
-    ``UsageError`` naming the option otherwise."""
+    one of ``suffixes``, not existing (nothing is overwritten), creatable (it is created and
+    removed again, so a folder that cannot be written, e.g. in ``/proc``, is found before any
+    work); ``UsageError`` naming the option otherwise."""
     if path is None:
         return None
     p = Path(path)
@@ -59,6 +63,31 @@ def new_output_file(opt: str, path: str | None, suffixes: tuple[str, ...]) -> Pa
         raise UsageError(f"{opt}: {p} exists; refusing to overwrite it (choose a new file)")
     if not p.parent.is_dir():
         raise UsageError(f"{opt}: folder {p.parent} does not exist")
+    try:
+        p.open("xb").close()
+    except OSError as err:
+        raise UsageError(f"{opt}: cannot create {p}: {err.strerror}") from None
+    p.unlink()
+    return p
+
+
+def output_dir(opt: str, path: str | Path, files: tuple[str, ...] = ()) -> Path:
+    """The results folder ``path`` of option ``opt``, created if needed and checked writable
+    (with an unnamed temporary file: nothing is left in it); each of ``files`` inside it
+    that exists must be a regular file. ``UsageError`` naming the option otherwise."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise UsageError(f"{opt} {p} exists and is not a directory")
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=p).close()
+    except OSError as err:
+        raise UsageError(f"{opt}: cannot write into the folder {p}: {err.strerror}") from None
+    for name in files:
+        f = p / name
+        if f.exists() and not f.is_file():
+            raise UsageError(f"{opt}: {f} must be a regular file (this run's {name}); it is "
+                             "a folder or a device: move it away or use another folder")
     return p
 
 
@@ -126,24 +155,77 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class _StdoutError(Exception):
+    """Standard output cannot be written (a full disk, ``> /dev/full``, a closed file)."""
+
+
+class _GuardedStdout:
+    """``sys.stdout`` whose write failures raise :class:`_StdoutError` (a broken pipe stays
+    ``BrokenPipeError``), so they are told apart from a bug's OSError."""
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            raise
+        except OSError as err:
+            raise _StdoutError(err.strerror or str(err)) from None
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            raise
+        except OSError as err:
+            raise _StdoutError(err.strerror or str(err)) from None
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null, so the interpreter's own flush at exit does not fail again
+    on what is still buffered."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.__stdout__.fileno())
+        os.close(devnull)
+    except (OSError, AttributeError, ValueError):
+        pass
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``articutool``; returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    real_stdout = sys.stdout
+    sys.stdout = _GuardedStdout(real_stdout)  # type: ignore[assignment]
     try:
-        return int(args.func(args))
+        code = int(args.func(args))
+        sys.stdout.flush()
+        return code
     except (SpecError, UsageError, TrajectoryError) as err:
         print(f"error: {err}", file=sys.stderr)
+        return 2
+    except _StdoutError as err:
+        print(f"error: cannot write to standard output: {err}", file=sys.stderr)
+        _silence_stdout()
         return 2
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:  # output piped into e.g. `head`
+        _silence_stdout()
         return 0
     except Exception:  # a bug, not bad input: keep it distinguishable from exit 1 ("no")
         traceback.print_exc()
         print("error: internal error (please report it with the traceback above)",
               file=sys.stderr)
         return 3
+    finally:
+        sys.stdout = real_stdout
 
 
 if __name__ == "__main__":

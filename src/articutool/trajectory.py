@@ -22,6 +22,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from articutool.datafile import read_document
+
 __all__ = ["JointTrajectory", "TrajectoryError"]
 
 
@@ -182,17 +184,7 @@ class JointTrajectory:
     @classmethod
     def load(cls, path: str | Path) -> JointTrajectory:
         """Read a trajectory JSON file."""
-        p = Path(path)
-        try:
-            data = json.loads(p.read_text(encoding="utf-8"))
-        except OSError as err:
-            raise TrajectoryError(f"cannot read {p}: {err.strerror}") from None
-        except UnicodeDecodeError as err:
-            raise TrajectoryError(f"trajectory file {p} is not UTF-8 text (byte "
-                                  f"0x{err.object[err.start]:02x} at offset {err.start}); "
-                                  "save it as UTF-8") from None
-        except json.JSONDecodeError as err:
-            raise TrajectoryError(f"{p} is not valid JSON: {err}") from None
+        data = read_document(path, "trajectory file", TrajectoryError, fmt="json")
         return cls.from_dict(data)
 
     def save(self, path: str | Path) -> None:

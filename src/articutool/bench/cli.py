@@ -36,17 +36,15 @@ def _stderr_console() -> Any:
 
 # ------------------------------------------------------------------- tasks --
 def _cmd_tasks(args: argparse.Namespace) -> int:
-    from articutool.cli import spec_from_args
+    from articutool.bench.tasks import MAX_CANDIDATES
+    from articutool.cli import new_output_file, spec_from_args
 
-    if args.count < 1:
-        raise _usage(f"--count must be >= 1; got {args.count}")
+    if not 1 <= args.count <= MAX_CANDIDATES:
+        raise _usage(f"--count must be in [1, {MAX_CANDIDATES}]; got {args.count}")
     if args.seed < 0:
         raise _usage(f"--seed must be >= 0; got {args.seed}")
-    out = Path(args.out)
-    if out.exists():
-        raise _usage(f"--out {out} exists; refusing to overwrite it")
-    if not out.parent.is_dir():
-        raise _usage(f"--out: directory {out.parent} does not exist")
+    out = new_output_file("--out", args.out, (".json",))
+    assert out is not None
     spec = spec_from_args(args)
     if args.utensil not in spec.utensils:
         raise _usage(f"--utensil must be one of {sorted(spec.utensils)}; got {args.utensil!r}")
@@ -85,6 +83,20 @@ def make_executor(args: argparse.Namespace) -> Any:
     return LocalExecutor(args.workers)
 
 
+def _tolerances(text: str) -> tuple[float, ...]:
+    """``--tolerances``: one or more comma-separated degrees, each in (0, 90) (a strict
+    planner's ± pitch/roll band)."""
+    parts = [x.strip() for x in text.split(",") if x.strip()]
+    try:
+        tols = tuple(float(x) for x in parts)
+    except ValueError:
+        tols = ()
+    if not tols or not all(0 < t < 90 for t in tols):  # also refuses NaN
+        raise _usage("--tolerances must be one or more comma-separated degrees, each in "
+                     f"(0, 90); got {text!r}")
+    return tols
+
+
 def _cmd_transport(args: argparse.Namespace) -> int:
     from articutool.bench import report
     from articutool.bench.runner import (
@@ -100,7 +112,7 @@ def _cmd_transport(args: argparse.Namespace) -> int:
         load_task_set,
         spec_hash,
     )
-    from articutool.cli import spec_from_args
+    from articutool.cli import output_dir, spec_from_args
 
     # ---- validate everything before any work ----
     if args.workers < 1:
@@ -112,11 +124,7 @@ def _cmd_transport(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise _usage(f"--out {out} exists and is not a directory")
-    try:
-        tolerances = tuple(float(x) for x in args.tolerances.split(",") if x.strip())
-    except ValueError:
-        raise _usage(f"--tolerances must be comma-separated degrees; got {args.tolerances!r}"
-                     ) from None
+    tolerances = _tolerances(args.tolerances)
     spec = spec_from_args(args)
     try:
         ts = load_task_set(args.tasks)
@@ -141,7 +149,7 @@ def _cmd_transport(args: argparse.Namespace) -> int:
         systems = tuple(dict.fromkeys(t.system for t in trials))
         config = RunConfig(ts.sha256, float(args.timeout), args.planner, ts.utensil,
                            spec_hash(spec))
-        out.mkdir(parents=True, exist_ok=True)
+        output_dir("--out", out, ("run.json", "results.jsonl", "tolerance_sweep.jsonl"))
         config.check_or_write(out / "run.json")
     except RunConfigError as err:
         raise _usage(str(err)) from None
@@ -177,6 +185,11 @@ def _cmd_transport(args: argparse.Namespace) -> int:
         finally:
             executor.close()
     wall = time.perf_counter() - t0
+    if summary_run.interrupted:
+        err_console.print(f"interrupted: {summary_run.ran} trial(s) finished now and are "
+                          f"logged in {log}; run the same command again to resume (no "
+                          "report written)")
+        return 130
     if summary_run.torn:
         err_console.print(f"ignored {summary_run.torn} torn last line in {log} (cut off)")
     if summary_run.corrupt:

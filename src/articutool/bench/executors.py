@@ -5,12 +5,22 @@ Both run a top-level, picklable function over independent items and yield
 runner can append every finished trial to its log at once. ``error`` is the exception a
 trial raised or the failure of the worker running it (a crashed process, a lost Dask
 worker); the runner does not record such trials, so a rerun resumes them.
+
+Both stop when the runner's ``stop`` event is set (SIGINT or SIGTERM to the main process):
+the trials already finished are still yielded (the runner logs them), the running ones are
+abandoned (local: their processes are terminated; Dask: their tasks are cancelled) and the
+rest never start; a rerun resumes them.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import multiprocessing as mp
+import os
+import signal
+import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any, Protocol, TypeVar
 
@@ -18,6 +28,8 @@ __all__ = ["DaskExecutor", "Executor", "ExecutorError", "LocalExecutor"]
 
 T = TypeVar("T")
 Outcome = tuple[Any, Any, BaseException | None]
+# How often a waiting executor looks at the stop event (s): the delay of an interruption.
+POLL_S = 0.2
 
 
 class ExecutorError(RuntimeError):
@@ -29,8 +41,10 @@ class Executor(Protocol):
 
     description: str
 
-    def run(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[Outcome]:
-        """Yield ``(item, fn(item), None)`` or ``(item, None, error)`` per item, unordered."""
+    def run(self, fn: Callable[[Any], Any], items: Sequence[Any],
+            stop: threading.Event | None = None) -> Iterator[Outcome]:
+        """Yield ``(item, fn(item), None)`` or ``(item, None, error)`` per item, unordered;
+        once ``stop`` is set, only the items already finished, then return."""
         ...
 
     def close(self) -> None:
@@ -53,27 +67,76 @@ class LocalExecutor:
         self.description = f"local process pool ({workers} worker{'s' * (workers > 1)})"
         self._pool: cf.ProcessPoolExecutor | None = None
 
-    def run(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[Outcome]:
+    def run(self, fn: Callable[[Any], Any], items: Sequence[Any],
+            stop: threading.Event | None = None) -> Iterator[Outcome]:
         if not items:
             return
         if self._pool is None:
-            self._pool = cf.ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"))
+            self._pool = cf.ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
+                                                initializer=_worker_init,
+                                                initargs=(os.getpid(),))
         futures = {self._pool.submit(fn, item): item for item in items}
+        pending = set(futures)
         try:
-            for fut in cf.as_completed(futures):
-                item = futures[fut]
-                try:
-                    yield item, fut.result(), None
-                except Exception as err:  # the trial or its process failed
-                    yield item, None, err
+            while pending:
+                done, pending = cf.wait(pending, timeout=POLL_S,
+                                        return_when=cf.FIRST_COMPLETED)
+                for fut in done:
+                    yield _outcome(futures[fut], fut)
+                if stop is not None and stop.is_set():
+                    self._terminate()
+                    # Results that arrived while the workers were stopped are kept too.
+                    late = {f for f in pending if f.done() and not f.cancelled()
+                            and f.exception() is None}
+                    pending -= late
+                    for fut in late:
+                        yield _outcome(futures[fut], fut)
+                    return
         finally:
-            for fut in futures:
+            for fut in pending:
                 fut.cancel()
+
+    def _terminate(self) -> None:
+        """Stop the pool now: its worker processes are terminated (their running trials are
+        abandoned) and reaped, so none outlives the run."""
+        pool, self._pool = self._pool, None
+        if pool is None:
+            return
+        procs = list((getattr(pool, "_processes", None) or {}).values())
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            p.join(timeout=5)
+            if p.is_alive():
+                p.kill()
+                p.join()
+        pool.shutdown(wait=True, cancel_futures=True)
 
     def close(self) -> None:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
+
+
+def _outcome(item: Any, fut: Any) -> Outcome:
+    try:
+        return item, fut.result(), None
+    except Exception as err:  # the trial or its process failed
+        return item, None, err
+
+
+def _worker_init(parent: int) -> None:
+    """In each local worker: leave SIGINT to the main process (a Ctrl-C reaches the whole
+    process group; the main process decides what stops), and exit when the main process is
+    gone (killed with SIGKILL, say), so no worker is ever left running on its own."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
 
 
 class DaskExecutor:
@@ -103,25 +166,30 @@ class DaskExecutor:
         self.client = client
         self.description = f"Dask cluster at {client.scheduler.address}"
 
-    def run(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[Outcome]:
+    def run(self, fn: Callable[[Any], Any], items: Sequence[Any],
+            stop: threading.Event | None = None) -> Iterator[Outcome]:
         if not items:
             return
-        from distributed import as_completed
+        from distributed import wait
 
         futures = {}
         for item in items:
             fut = self.client.submit(fn, item, pure=False)
             futures[fut.key] = (fut, item)
+        pending = [f for f, _ in futures.values()]
         try:
-            for fut in as_completed([f for f, _ in futures.values()]):
-                item = futures[fut.key][1]
-                try:
-                    yield item, fut.result(), None
-                except Exception as err:  # the trial failed or its worker was lost
-                    yield item, None, err
+            while pending:
+                with contextlib.suppress(TimeoutError):  # a poll of the stop event
+                    wait(pending, timeout=POLL_S, return_when="FIRST_COMPLETED")
+                done = [f for f in pending if f.done()]
+                pending = [f for f in pending if not f.done()]
+                for fut in done:
+                    yield _outcome(futures[fut.key][1], fut)
+                if stop is not None and stop.is_set():
+                    return  # the finally cancels the rest on the cluster
         finally:
-            for fut, _ in futures.values():
-                fut.cancel()
+            if pending:
+                self.client.cancel(pending)
 
     def close(self) -> None:
         if self._owns_client:

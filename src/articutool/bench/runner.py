@@ -12,11 +12,14 @@ refused rather than mixing incomparable trials.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import math
 import os
-from collections.abc import Callable, Hashable, Iterable, Sequence
+import signal
+import threading
+from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -199,8 +202,10 @@ def read_log(path: str | Path,
             continue
         try:
             rec = json.loads(line)
+            if not isinstance(rec, dict):  # JSON, but not a record ([1, 2], 42, null)
+                raise TypeError(rec)
             key(rec)
-        except (ValueError, KeyError, TypeError):
+        except (ValueError, KeyError, TypeError, RecursionError):
             state.corrupt += 1
             continue
         state.records.append(rec)
@@ -236,7 +241,7 @@ class RunConfig:
         if path.exists():
             try:
                 old = json.loads(path.read_text(encoding="utf-8"))
-            except (OSError, ValueError) as err:
+            except (OSError, ValueError, RecursionError) as err:  # Recursion: too deep
                 raise RunConfigError(f"{path} is unreadable ({err}); use another --out") from None
             new = self.to_dict()
             diff = [k for k in new if old.get(k) != new[k]]
@@ -260,6 +265,28 @@ class RunSummary:
     torn: int  # torn last lines found (and cut off)
     corrupt: int  # unreadable complete lines (ignored)
     lost: list[tuple[Any, str]]  # trials whose worker failed (not logged; rerun resumes)
+    interrupted: bool = False  # SIGINT/SIGTERM stopped the run (the rest: a rerun resumes)
+
+
+@contextlib.contextmanager
+def stop_on_signals(stop: threading.Event) -> Iterator[None]:
+    """While inside: SIGINT and SIGTERM set ``stop`` instead of raising in the middle of the
+    run (a ``KeyboardInterrupt`` inside the pool's machinery could deadlock it, and one
+    between a trial's end and its log line would lose the trial). Only in the main thread
+    (elsewhere signals cannot be handled: nothing changes)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: object) -> None:
+        stop.set()
+
+    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
 
 
 def run_logged(
@@ -277,6 +304,10 @@ def run_logged(
     ``on_start(pending, skipped)`` is called once before any work, ``on_result(rec)`` after
     each record is durably logged (progress bars). Shared by the Exp. 2a benchmark and the
     physical experiments (``articutool.experiments``).
+
+    SIGINT or SIGTERM (to this process alone, or to its group as Ctrl-C sends) stops the run
+    within ``POLL_S``: every trial finished by then is logged, the running ones are abandoned
+    with their worker processes, and the summary says ``interrupted``.
     """
     log_path = Path(log_path)
     state = read_log(log_path, key=key)
@@ -291,21 +322,24 @@ def run_logged(
     fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
     lost: list[tuple[Any, str]] = []
     records = list(state.records)
+    stop = threading.Event()
+    ran = 0
     try:
         if state.torn:
             os.ftruncate(fd, state.valid_bytes)  # drop the torn tail before appending
-        for item, rec, err in executor.run(worker, pending):
-            if err is not None:
-                lost.append((item, f"{type(err).__name__}: {err}"))
-                continue
-            append_record(fd, rec)
-            records.append(rec)
-            if on_result is not None:
-                on_result(rec)
+        with stop_on_signals(stop):
+            for item, rec, err in executor.run(worker, pending, stop):
+                if err is not None:
+                    lost.append((item, f"{type(err).__name__}: {err}"))
+                    continue
+                append_record(fd, rec)
+                records.append(rec)
+                ran += 1
+                if on_result is not None:
+                    on_result(rec)
     finally:
         os.close(fd)
-    return RunSummary(records, len(pending) - len(lost), skipped, state.torn, state.corrupt,
-                      lost)
+    return RunSummary(records, ran, skipped, state.torn, state.corrupt, lost, stop.is_set())
 
 
 def run_trials(

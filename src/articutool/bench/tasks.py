@@ -67,6 +67,9 @@ __all__ = [
 FILE_FORMAT = "articutool.transport_tasks"
 FILE_VERSION = 1
 GENERATOR_VERSION = "1.0"
+# Candidates per generated set: IK-filtering one takes ~0.1-1 s, so this bounds a run to
+# hours (the thesis' set came from 100); a typo such as 1000000000 is refused, not run.
+MAX_CANDIDATES = 10_000
 _WORLD_UP = np.array([0.0, 0.0, 1.0])
 
 
@@ -446,8 +449,8 @@ def generate_tasks(
     Deterministic given ``seed`` (NumPy PCG64 stream; Pinocchio IK is deterministic).
     ``progress(k)`` is called after each candidate. Task ids are the candidate indices.
     """
-    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
-        raise ValueError(f"count must be an integer >= 1; got {count!r}")
+    if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= MAX_CANDIDATES:
+        raise ValueError(f"count must be an integer in [1, {MAX_CANDIDATES}]; got {count!r}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ValueError(f"seed must be an integer >= 0; got {seed!r}")
     scene = scene if scene is not None else Scene.load()

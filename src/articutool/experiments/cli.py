@@ -87,7 +87,12 @@ def _thresholds(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str
     from articutool.experiments.runner import exp1_means
 
     if getattr(args, "thresholds_g", None):
-        return _parse_food_grams(args.thresholds_g, "--thresholds-g"), "--thresholds-g"
+        th = _parse_food_grams(args.thresholds_g, "--thresholds-g")
+        other = sorted(set(th) - set(cfg.exp2c.foods))
+        if other or not th:
+            raise _usage(f"--thresholds-g must give grams for foods of Exp. 2c "
+                         f"({', '.join(cfg.exp2c.foods)}); got {args.thresholds_g!r}")
+        return th, "--thresholds-g"
     means = exp1_means(out)
     th = {f: means[f] for f in cfg.exp2c.foods if f in means}
     if th:
@@ -245,9 +250,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     trials, extra = _trials_for(exp, args, out, cfg)
     # Checked before any trial runs; the trials themselves do not depend on it.
     threshold = _exp3_threshold(args, out, cfg) if exp == "exp3" else None
+    th, th_src = _thresholds(args, out, cfg) if exp == "exp2c" else (None, "")
     if args.trial is not None:
         return _replay(args, exp, trials, out)
-    d = out / exp
+    from articutool.cli import output_dir
+
+    d = output_dir("--out", out / exp, ("run.json", "trials.jsonl", "summary.json"))
     settings = {"experiment": exp, "seed": args.seed, "data_hash": data_hash(exp, cfg),
                 "conditions": extra["conditions"]}
     try:
@@ -258,8 +266,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     executor = make_executor(args)
     summary_run = _run_with_progress(trials, log_path(out, exp), executor, exp)
+    if summary_run.interrupted:
+        print(f"interrupted: {summary_run.ran} trial(s) finished now and are logged in "
+              f"{log_path(out, exp)}, {len(trials) - summary_run.skipped - summary_run.ran} "
+              "not run; run the same command again to resume (no summary written)",
+              file=sys.stderr)
+        return 130
     records = summary_run.records
-    th, th_src = _thresholds(args, out, cfg) if exp == "exp2c" else (None, "")
     summary = summarize(exp, records, cfg, thresholds_g=th, threshold_g=threshold)
     summary["run"].update(
         trials_per_condition=args.trials, base_seed=args.seed, executor=executor.description,
@@ -340,8 +353,12 @@ def _cmd_report(args: argparse.Namespace) -> int:
     th, src = _thresholds(args, out, cfg)
     threshold = (_exp3_threshold(args, out, cfg) if (out / "exp3" / "trials.jsonl").exists()
                  else None)
+    def kept(path: Path, copy: Path) -> None:
+        print(f"note: {path} was not as `articutool experiment report` wrote it (edited?): "
+              f"kept it as {copy}", file=sys.stderr)
+
     md, html = report.write_report(out, cfg, thresholds_g=th, thresholds_source=src,
-                                   threshold_g=threshold)
+                                   threshold_g=threshold, on_kept=kept)
     print(f"wrote {md} and {html}")
     return 0
 

@@ -9,8 +9,10 @@ wall times come from each experiment's ``summary.json``.
 from __future__ import annotations
 
 import datetime as _dt
+import hashlib
 import json
-from collections.abc import Mapping, Sequence
+import os
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -359,11 +361,14 @@ def section(exp: str, summary: Mapping[str, Any], cfg: Any, figure_name: str | N
 
 # ------------------------------------------------------------------------- report --
 def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | None,
-                 thresholds_source: str, threshold_g: float | None) -> tuple[Path, Path]:
+                 thresholds_source: str, threshold_g: float | None,
+                 on_kept: Callable[[Path, Path], None] | None = None) -> tuple[Path, Path]:
     """Write ``out/report.md`` and ``out/report.html`` (figures in each experiment's
     directory); experiments not yet run are listed as missing. ``out/<exp>/notes.md``, if
     present, is included in the experiment's section: the physical reasons we believe explain
-    where our numbers differ, written by whoever examined the run (trials, videos)."""
+    where our numbers differ, written by whoever examined the run (trials, videos).
+    A report there that is not as this command wrote it (edited) is kept beside it first
+    (:func:`_write_generated`), and ``on_kept(report, copy)`` is told."""
     from articutool.experiments.runner import read_trials
 
     parts = ["# The thesis' physical experiments in simulation\n",
@@ -415,7 +420,7 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
             "wall times are upper bounds, and planning budgets are wall-clock (see Exp. 2c).\n")
     md = "\n".join(parts)
     md_path = out / "report.md"
-    md_path.write_text(md, encoding="utf-8")
+    _write_generated(md_path, md, on_kept)
     from markdown_it import MarkdownIt
 
     body = MarkdownIt("commonmark").enable("table").render(md)
@@ -425,5 +430,42 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
             "padding:3px 6px}img{max-width:100%}code,pre{background:#f4f4f4}</style></head>"
             f"<body>{body}</body></html>\n")
     html_path = out / "report.html"
-    html_path.write_text(html, encoding="utf-8")
+    _write_generated(html_path, html, on_kept)
     return md_path, html_path
+
+
+_MARK = "<!-- written by articutool experiment report; sha256 "
+
+
+def _ours(text: str) -> bool:
+    """Whether ``text`` is a report as this command wrote it: it ends in the mark carrying
+    the SHA-256 of everything before it (any edit changes that)."""
+    body, sep, tail = text.rpartition(_MARK)
+    digest = tail.removesuffix(" -->\n")
+    return bool(sep) and hashlib.sha256(body.encode("utf-8")).hexdigest() == digest
+
+
+def _write_generated(path: Path, text: str, on_kept: Callable[[Path, Path], None] | None
+                     ) -> None:
+    """Write ``text`` and its mark to ``path``. A file there that is not, unchanged, one this
+    command wrote (a user edited it, or an older version wrote it) is first kept as
+    ``<name>.edited-<UTC time>`` (never overwritten) and ``on_kept(path, kept)`` is told."""
+    if path.exists():
+        try:
+            old = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError):
+            old = ""
+        if not _ours(old):
+            stamp = _dt.datetime.now(_dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+            kept = path.with_name(f"{path.name}.edited-{stamp}")
+            n = 1
+            while kept.exists():
+                n += 1
+                kept = path.with_name(f"{path.name}.edited-{stamp}-{n}")
+            os.link(path, kept)  # fails rather than replace anything
+            path.unlink()  # the new report is a new file; the kept name holds the old one
+            if on_kept is not None:
+                on_kept(path, kept)
+    text = text if text.endswith("\n") else text + "\n"
+    digest = hashlib.sha256(text.encode("utf-8")).hexdigest()
+    path.write_text(f"{text}{_MARK}{digest} -->\n", encoding="utf-8")

@@ -118,7 +118,7 @@ def pin_run(path: Path, settings: dict[str, Any]) -> None:
     if path.exists():
         try:
             old = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as err:
+        except (OSError, ValueError, RecursionError) as err:  # Recursion: too deep
             raise RunError(f"{path} is unreadable ({err}); use another --out") from None
         diff = [k for k in settings if old.get(k) != settings[k]]
         if diff:
@@ -180,7 +180,7 @@ def run_experiment(trials: Sequence[TrialSpec], log: str | Path, executor: Execu
     res.records = sorted({trial_key(r): r for r in res.records
                           if trial_key(r) in wanted}.values(), key=lambda r: r["trial"])
     return RunResult(res.records, res.ran, res.skipped, res.torn, res.corrupt, res.lost,
-                     time.perf_counter() - t0)
+                     time.perf_counter() - t0, res.interrupted)
 
 
 @dataclass
@@ -194,3 +194,4 @@ class RunResult:
     corrupt: int  # unreadable lines ignored
     lost: list[tuple[Any, str]]  # trials whose worker failed (not logged; a rerun resumes)
     wall_time_s: float
+    interrupted: bool = False  # SIGINT/SIGTERM stopped it (the finished trials are logged)

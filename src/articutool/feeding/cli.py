@@ -97,7 +97,7 @@ def _print_bite(r: Any) -> None:
           f"{r.transport_max_tilt_deg:.1f}°")
     print(f"  {r.sim_time_s:.1f} s simulated in {r.wall_time_s:.1f} s wall")
     if r.failed_stage:
-        print(f"  failed at: {r.failed_stage}")
+        print(f"  {r.end_state} at: {r.failed_stage}")
 
 
 def _cmd_meal(args: argparse.Namespace) -> int:

@@ -34,7 +34,7 @@ from articutool.feeding.insertion import acquisition_waypoints
 from articutool.feeding.outcomes import SPILL_PLACES, classify_bite
 from articutool.feeding.sim_arm import SimArm
 from articutool.feeding.strategies import Strategy, StrategyLibrary
-from articutool.feeding.tree import BiteRecorder
+from articutool.feeding.tree import BiteRecorder, safe_stop_reason
 from articutool.sim.scenes import SCOOP_HEADING
 from articutool.sim.world import FeedingWorld
 from articutool.spec import load_spec
@@ -75,6 +75,11 @@ class BiteResult:
     stages: list[str]
     masses_after: dict[str, dict[str, float]] = field(default_factory=dict)
     transport_max_tilt_deg: float = float("nan")  # utensil tilt during resting + staging
+    # How the tree ended: "completed"; "retreated" (a stage failed after its retries, the
+    # retreat to Resting ran); "stopped" (the guard's safe stop: a tool fault, stale tool
+    # state or a stop request; the arm stopped where it was, the tool DISABLED);
+    # "timed_out" (the bite's own time limit).
+    end_state: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready record."""
@@ -91,6 +96,7 @@ class FoodLedger(py_trees.visitors.VisitorBase):
         self.after: dict[str, dict[str, float]] = {}
         self.eaten_g = 0.0
         self.tilts: list[float] = []
+        self.presented = False  # ``present`` succeeded: the user was offered the bite
 
     def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
         stage = getattr(behaviour, "bite_stage", None)
@@ -101,6 +107,7 @@ class FoodLedger(py_trees.visitors.VisitorBase):
         if behaviour.status in (Status.SUCCESS, Status.FAILURE) and stage not in self.after:
             self.after[stage] = self.world.masses_g()
             if stage == "present" and behaviour.status == Status.SUCCESS:
+                self.presented = True
                 self.after["present"]["ft"] = (self.world.ft_mass_g(0.5)
                                                if self.world.ft_comparable() else float("nan"))
                 self.eaten_g += self.world.eat_from_utensil()
@@ -173,19 +180,29 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
     rec, ledger = BiteRecorder(w.clock), FoodLedger(w)
     tree.visitors += [rec, ledger, *visitors]
     tree.setup()
+    counters = [n for n in root.iterate() if isinstance(n, Attempts)]
+    for n in counters:  # the same tree runs every bite of a meal: count this bite's only
+        n.bb.set(n.key, 0)
     t0, wall0, n_spills = w.time, time.perf_counter(), len(w.spills)
     before = w.masses_g()
     status = Status.FAILURE
     t_end = w.time + timeout_s  # simulated time, not counting the waits for plans
+    stopped: str | None = None
+    end_state = "timed_out"
     while w.time - rec.planning_wait_s(w.time) < t_end:
         tree.tick()
         if root.status in (Status.SUCCESS, Status.FAILURE):
             status = root.status
+            stopped = safe_stop_reason(root)
+            end_state = ("stopped" if stopped is not None else
+                         "completed" if status == Status.SUCCESS else "retreated")
             break
         w.run(0.1)
     else:
         root.stop(Status.INVALID)
         rec.record.failures.append((root.name, f"did not finish within {timeout_s:g} s"))
+    if stopped is not None:
+        rec.record.cause = ("Safe stop", stopped)
     spilled = {p: 0.0 for p in SPILL_PLACES}
     for ev in w.spills[n_spills:]:
         spilled[ev.place] = spilled.get(ev.place, 0.0) + ev.mass_g
@@ -194,14 +211,21 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
     # Shed: what fell from the utensil back into the container during the shed stage.
     shed = (max(0.0, after["shed"]["container"] - after.get("acquire", before)["container"])
             if "shed" in after else 0.0)
-    # Delivered: on the utensil when presented (or after the last stage run), plus what
-    # reached the mouth region on the way (eaten by the world's accounting).
-    end = after.get("present") or after.get(stages[-1]) or w.masses_g()
+    completed = end_state == "completed"
+    # Delivered: on the utensil when presented (or after the last stage of a completed run
+    # without ``present``), plus what reached the mouth region on the way (eaten by the
+    # world's accounting). A bite stopped or failed before that delivered only what was
+    # eaten: the food still on the utensil was never offered.
+    if ledger.presented:
+        end = after["present"]
+    elif completed:
+        end = after.get(stages[-1]) or w.masses_g()
+    else:
+        end = {**w.masses_g(), "utensil": 0.0}
     delivered = end["utensil"] + end["eaten"] - before["eaten"]
-    completed = status == Status.SUCCESS
-    # Attempts per goal, from this tree's own counters (in tree order; a retreat's last).
-    counted = {n.key: int(n.bb.get(n.key)) for n in root.iterate()
-               if isinstance(n, Attempts) and n.status != Status.INVALID}
+    # Attempts per goal, from this tree's own counters (zeroed before the bite; in tree
+    # order, a retreat's last), also of a stage that failed and was stopped (INVALID since).
+    counted = {n.key: int(n.bb.get(n.key)) for n in counters if int(n.bb.get(n.key)) > 0}
     attempts = {k.removeprefix("planning_attempts_"): v for k, v in counted.items()
                 if k.startswith("planning_attempts_")}
     goal = "Staging" if "Staging" in attempts else (list(attempts)[-1] if attempts else "")
@@ -222,7 +246,8 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
         sim_time_s=w.time - t0, wall_time_s=time.perf_counter() - wall0,
         failed_stage="" if completed else rec.record.failed_stage or "stopped",
         stages=list(stages), masses_after=after,
-        transport_max_tilt_deg=max(ledger.tilts) if ledger.tilts else float("nan"))
+        transport_max_tilt_deg=max(ledger.tilts) if ledger.tilts else float("nan"),
+        end_state=end_state)
 
 
 def run_meal(food: str, system: str, *, bites: int = 1, seed: int = 0,

@@ -39,7 +39,28 @@ from articutool.feeding.behaviours import (
 )
 from articutool.tool.api import Mode, ToolAPI
 
-__all__ = ["BiteRecorder", "guarded", "motion", "run_tree", "transport_tree"]
+__all__ = ["BiteRecorder", "ClockedTimeout", "guarded", "motion", "run_tree", "safe_stop_reason",
+           "transport_tree"]
+
+
+class ClockedTimeout(py_trees.decorators.Timeout):
+    """py_trees' Timeout on an injected clock (the simulation's, or a test's)."""
+
+    def __init__(self, child: py_trees.behaviour.Behaviour, duration: float,
+                 clock: Callable[[], float]) -> None:
+        super().__init__(name=f"timeout {duration:g} s", child=child, duration=duration)
+        self.clock = clock
+
+    def initialise(self) -> None:
+        self.finish_time = self.clock() + self.duration
+        self.feedback_message = ""
+
+    def update(self) -> Status:
+        if self.decorated.status == Status.RUNNING and self.clock() > self.finish_time:
+            self.feedback_message = f"timed out after {self.duration:g} s"
+            self.decorated.stop(Status.INVALID)
+            return Status.FAILURE
+        return self.decorated.status
 
 
 def motion(arm: ArmInterface, goal: str, planner: str, *, attempts: int, budget_s: float,
@@ -65,6 +86,18 @@ def guarded(child: py_trees.behaviour.Behaviour, arm: ArmInterface, tool: ToolAP
     guard = py_trees.composites.Sequence(
         "guard", memory=False, children=[Unsafe(tool, clock, stale_s), SafeStop(arm, tool)])
     return py_trees.composites.Selector("bite", memory=False, children=[guard, child])
+
+
+def safe_stop_reason(root: py_trees.behaviour.Behaviour) -> str | None:
+    """Why the guard of :func:`guarded` stopped the tree in its last tick (the reason its
+    ``Unsafe?`` gave: a tool fault, stale state, a stop request), or None if it did not. The
+    guard's branch *succeeds* — the tree reached its safe state — but the task did not: the
+    callers report it as stopped, never as completed."""
+    for node in root.iterate():
+        if isinstance(node, SafeStop) and node.status == Status.SUCCESS:
+            cond = next((c for c in node.parent.children if isinstance(c, Unsafe)), None)
+            return cond.feedback_message if cond is not None else "safe stop"
+    return None
 
 
 def transport_tree(arm: ArmInterface, tool: ToolAPI, goal: str, planner: str, *,
@@ -137,12 +170,23 @@ class BiteRecorder(py_trees.visitors.VisitorBase):
                 else:
                     self.record.planning_wait_sim_s += dt
                     self.record.planning_wall_s += behaviour.job_wall_s
-        if (getattr(behaviour, "is_retreat", False) and self.record.cause is None
-                and self.record.failures):
+        # The cause is the last failure before anything of the retreat ran: a decorator is
+        # visited after its children, so a retreat step that fails in the retreat's first
+        # tick (an instant IK failure) must not be mistaken for it.
+        if self.record.cause is None and self.record.failures and _in_retreat(behaviour):
             self.record.cause = self.record.failures[-1]
         if (behaviour.status == Status.FAILURE and not behaviour.children
                 and not getattr(behaviour, "is_condition", False)):
             self.record.failures.append((behaviour.name, behaviour.feedback_message))
+
+
+def _in_retreat(behaviour: py_trees.behaviour.Behaviour) -> bool:
+    node: py_trees.behaviour.Behaviour | None = behaviour
+    while node is not None:
+        if getattr(node, "is_retreat", False):
+            return True
+        node = node.parent
+    return False
 
 
 def run_tree(root: py_trees.behaviour.Behaviour, step: Callable[[float], None],
@@ -151,7 +195,8 @@ def run_tree(root: py_trees.behaviour.Behaviour, step: Callable[[float], None],
     """Tick ``root`` every ``period_s`` of ``clock`` until it ends or ``timeout_s`` passes
     (not counting the waits for plans, :meth:`BiteRecorder.planning_wait_s`), calling
     ``step(period_s)`` between ticks (the physics world's ``run``); returns the final status
-    and the telemetry. A timeout stops the tree (its clean-up runs)."""
+    and the telemetry. A timeout stops the tree (its clean-up runs); a safe stop by the guard
+    is a FAILURE whose recorded reason is the guard's."""
     tree = py_trees.trees.BehaviourTree(root)
     rec = BiteRecorder(clock)
     tree.visitors.append(rec)
@@ -160,7 +205,11 @@ def run_tree(root: py_trees.behaviour.Behaviour, step: Callable[[float], None],
     while clock() - rec.planning_wait_s(clock()) < t_end:
         tree.tick()
         if tree.root.status in (Status.SUCCESS, Status.FAILURE):
-            return tree.root.status, rec.record
+            stopped = safe_stop_reason(tree.root)
+            if stopped is None:
+                return tree.root.status, rec.record
+            rec.record.failures.append(("Safe stop", stopped))
+            return Status.FAILURE, rec.record
         step(period_s)
     tree.root.stop(Status.INVALID)
     rec.record.failures.append((root.name, f"did not finish within {timeout_s:g} s"))

@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -72,6 +73,13 @@ def check_endpoint(endpoint: object, field_name: str) -> str:
     if not colon or not host or not port.isdigit() or int(port) > 65535:
         raise bad
     return endpoint
+
+
+# A ROS namespace: every name is a literal key-expression chunk, so no Zenoh wildcard
+# ('*', '**', '$*') or empty chunk can make the tool's names match another tool's.
+NAMESPACE_FORM = ("'/' or '/'-separated names of letters, digits and '_' (each starting with a "
+                  "letter or '_'), e.g. '/articutool'")
+_NAMESPACE = re.compile(r"^/$|^(/[A-Za-z_][A-Za-z0-9_]*)+$")
 
 
 @dataclass(frozen=True)
@@ -152,8 +160,8 @@ class LinkConfig:
         if self.publish_rate_hz is not None and not (
                 isinstance(self.publish_rate_hz, int | float) and 0 < self.publish_rate_hz <= 1000):
             raise ConfigError(f"publish_rate_hz must be in (0, 1000]; got {self.publish_rate_hz!r}")
-        if not isinstance(self.namespace, str) or not self.namespace.startswith("/"):
-            raise ConfigError(f"namespace must start with '/'; got {self.namespace!r}")
+        if not isinstance(self.namespace, str) or not _NAMESPACE.match(self.namespace):
+            raise ConfigError(f"namespace must be {NAMESPACE_FORM}; got {self.namespace!r}")
         from articutool.link.pairing import NAME_FORM, check_name
         for name in ("tool_id", "identity"):
             v = getattr(self, name)

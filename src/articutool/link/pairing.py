@@ -30,7 +30,9 @@ hold CA-signed certificates.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
+import ipaddress
 import os
 import re
 from dataclasses import dataclass
@@ -41,7 +43,7 @@ from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
-__all__ = ["NAME_FORM", "Paired", "PairingError", "check_name", "pair"]
+__all__ = ["NAME_FORM", "Paired", "PairingError", "check_name", "check_tool_host", "pair"]
 
 NAME_FORM = "1-63 characters from a-z, A-Z, 0-9, '-' and '_', starting with a letter or digit"
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,62}$")
@@ -72,16 +74,58 @@ def _write(path: Path, data: bytes, mode: int) -> Path:
     """Create ``path`` with ``mode`` (never overwrite; exclusive create, no umask widening)."""
     fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, mode)
     try:
-        os.write(fd, data)
+        view = memoryview(data)
+        while view:
+            view = view[os.write(fd, view):]
         os.fchmod(fd, mode)
+    except BaseException:
+        path.unlink(missing_ok=True)  # created here: a partial file is not left behind
+        raise
     finally:
         os.close(fd)
     return path
 
 
-def _mkdir(path: Path) -> None:
+def _mkdir(path: Path, created: list[Path]) -> None:
+    """Create ``path`` (0700) and its missing parents, appending each one made to
+    ``created`` (so a failed pairing can remove them again)."""
+    missing = [p for p in (path, *path.parents) if not p.exists()]
     path.mkdir(mode=0o700, parents=True, exist_ok=True)
+    created.extend(reversed(missing))
     os.chmod(path, 0o700)
+
+
+# The folder that holds the CA: no device may be named so (its key would land beside the
+# CA's).
+CA_FOLDER = "ca"
+_LABEL = re.compile(r"^[A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?$")
+TOOL_HOST_FORM = ("a host name (dot-separated labels of letters, digits and '-', at most 253 "
+                  "characters) or an IPv4 or IPv6 address")
+
+
+def check_tool_host(host: object) -> str:
+    """``--tool-host`` as it goes into a PC's endpoint ``tls/<host>:<port>`` (an IPv6 address
+    in brackets)."""
+    if isinstance(host, str):
+        try:
+            ip = ipaddress.ip_address(host.removeprefix("[").removesuffix("]"))
+        except ValueError:
+            labels = host.removesuffix(".").split(".")
+            if len(host) <= 253 and all(_LABEL.match(x) for x in labels):
+                return host
+        else:
+            return f"[{ip}]" if ip.version == 6 else str(ip)
+    raise PairingError(f"--tool-host must be {TOOL_HOST_FORM}; got {host!r}")
+
+
+def _role(cert_path: Path) -> str | None:
+    """The role (``OU``) in a device certificate, None if unreadable."""
+    try:
+        cert = x509.load_pem_x509_certificate(cert_path.read_bytes())
+        ou = cert.subject.get_attributes_for_oid(NameOID.ORGANIZATIONAL_UNIT_NAME)
+    except (OSError, ValueError):
+        return None
+    return str(ou[0].value) if ou else None
 
 
 def _key_pem(key: ec.EllipticCurvePrivateKey) -> bytes:
@@ -164,8 +208,11 @@ def pair(directory: str | Path, tool: str, pcs: list[str], days: int = 3650, por
         raise PairingError(f"--days must be an integer in [1, 36500]; got {days!r}")
     if not isinstance(port, int) or not 1 <= port <= 65535:
         raise PairingError(f"--port must be an integer in [1, 65535]; got {port!r}")
-    if not tool_host or any(c.isspace() or c in "/\"'" for c in tool_host):
-        raise PairingError(f"--tool-host must be a host name or address; got {tool_host!r}")
+    tool_host = check_tool_host(tool_host)
+    for field_name, name in (("--tool", tool), *((f"--pc[{i}]", pc) for i, pc in enumerate(pcs))):
+        if name.lower() == CA_FOLDER:
+            raise PairingError(f"{field_name} must not be {CA_FOLDER!r}: that folder holds the "
+                               "pairing CA (choose another device name)")
     root = Path(directory)
     ca_dir = root / "ca"
     ca_pem, ca_key_path = ca_dir / "ca.pem", ca_dir / "ca.key"
@@ -178,12 +225,15 @@ def pair(directory: str | Path, tool: str, pcs: list[str], days: int = 3650, por
     # A tool paired before is kept as it is (adding a PC to it); anything else that exists
     # is refused before writing anything.
     keep_tool = ca_exists and all((root / tool / f).exists() for f in files)
+    if keep_tool and _role(root / tool / "cert.pem") != "tool":
+        raise PairingError(f"--tool {tool}: {root / tool / 'cert.pem'} is not a tool's "
+                           "certificate (a PC's, or unreadable); name the tool paired in "
+                           f"{root}")
     for name in names if not keep_tool else pcs:
         for f in files:
             if (root / name / f).exists():
                 raise PairingError(f"{root / name / f} exists: never overwritten (pair the "
                                    "device under another name, or remove it first)")
-    written: list[Path] = []
     if ca_exists:
         try:
             ca = x509.load_pem_x509_certificate(ca_pem.read_bytes())
@@ -192,21 +242,35 @@ def pair(directory: str | Path, tool: str, pcs: list[str], days: int = 3650, por
             raise PairingError(f"{ca_dir}: cannot read the existing CA: {err}") from None
         if not isinstance(ca_key, ec.EllipticCurvePrivateKey):
             raise PairingError(f"{ca_key_path}: not an EC private key")
-    else:
-        _mkdir(ca_dir)
-        ca, ca_key = _new_ca(days)
-        written.append(_write(ca_key_path, _key_pem(ca_key), 0o600))
-        written.append(_write(ca_pem, ca.public_bytes(serialization.Encoding.PEM), 0o644))
-    ca_bytes = ca.public_bytes(serialization.Encoding.PEM)
-    for name in names if not keep_tool else pcs:
-        role = "tool" if name == tool else "pc"
-        cert, key = _device_cert(name, role, ca, ca_key, days)
-        d = root / name
-        _mkdir(d)
-        written.append(_write(d / "key.pem", _key_pem(key), 0o600))
-        written.append(_write(d / "cert.pem", cert.public_bytes(serialization.Encoding.PEM),
-                              0o644))
-        written.append(_write(d / "ca.pem", ca_bytes, 0o644))
-        written.append(_write(d / "link.toml",
-                              _link_toml(role, name, tool, port, tool_host).encode(), 0o644))
+    written: list[Path] = []
+    created: list[Path] = []
+    try:
+        if not ca_exists:
+            _mkdir(ca_dir, created)
+            ca, ca_key = _new_ca(days)
+            written.append(_write(ca_key_path, _key_pem(ca_key), 0o600))
+            written.append(_write(ca_pem, ca.public_bytes(serialization.Encoding.PEM), 0o644))
+        ca_bytes = ca.public_bytes(serialization.Encoding.PEM)
+        for name in names if not keep_tool else pcs:
+            role = "tool" if name == tool else "pc"
+            cert, key = _device_cert(name, role, ca, ca_key, days)
+            d = root / name
+            _mkdir(d, created)
+            written.append(_write(d / "key.pem", _key_pem(key), 0o600))
+            written.append(_write(d / "cert.pem", cert.public_bytes(serialization.Encoding.PEM),
+                                  0o644))
+            written.append(_write(d / "ca.pem", ca_bytes, 0o644))
+            written.append(_write(d / "link.toml",
+                                  _link_toml(role, name, tool, port, tool_host).encode(), 0o644))
+    except BaseException as err:
+        # All or nothing: remove what this call wrote, newest first.
+        for f in reversed(written):
+            f.unlink(missing_ok=True)
+        for d in reversed(created):
+            with contextlib.suppress(OSError):
+                d.rmdir()
+        if isinstance(err, OSError):
+            raise PairingError(f"cannot write {err.filename or root}: {err.strerror} "
+                               "(nothing was kept)") from None
+        raise
     return Paired(not ca_exists, tuple(written), keep_tool)

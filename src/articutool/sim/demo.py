@@ -146,14 +146,18 @@ def _plot(sim: Any, path: Path) -> None:
     plt.close(fig)
 
 
-def _plot_path(arg: str) -> Path:
-    """Where ``--plot`` says: a file, or ``demo_transport.png`` inside a directory (an
-    existing one, or one written with a trailing slash). Checked before any planning."""
+def _plot_path(arg: str, default: bool) -> Path:
+    """Where ``--plot`` says: a file, which must not exist (never overwritten), or, in a
+    folder (an existing one, or one written with a trailing slash, created), the first of
+    ``demo_transport.png``, ``demo_transport-2.png``, … that does not exist; the default
+    ``--plot`` is such a folder choice too, so ``make demo`` can run again. Checked (the file
+    created and removed) before any planning."""
     from matplotlib.figure import Figure
 
-    from articutool.cli import UsageError
+    from articutool.cli import UsageError, new_output_file, output_dir
 
     p = Path(arg)
+    pick_free = default or p.is_dir() or arg.endswith(("/", "\\"))
     if p.is_dir() or arg.endswith(("/", "\\")):
         p = p / _DEFAULT_PLOT.name
     formats = Figure().canvas.get_supported_filetypes()
@@ -162,7 +166,15 @@ def _plot_path(arg: str) -> Path:
                          f"{', '.join('.' + f for f in sorted(formats))} (e.g. .png)")
     if p.parent.exists() and not p.parent.is_dir():
         raise UsageError(f"--plot {arg}: {p.parent} is not a directory")
-    return p
+    if pick_free:
+        output_dir("--plot", p.parent)
+        stem, n = p.stem, 1
+        while p.exists():
+            n += 1
+            p = p.with_name(f"{stem}-{n}{p.suffix}")
+    out = new_output_file("--plot", str(p), tuple("." + f for f in formats))
+    assert out is not None
+    return out
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
@@ -175,7 +187,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         raise UsageError(f"--timeout must be a number of seconds > 0; got {args.timeout}")
     if args.seed < 0:
         raise UsageError(f"--seed must be an integer >= 0; got {args.seed}")
-    plot = None if args.no_plot else _plot_path(args.plot)
+    plot = None if args.no_plot else _plot_path(args.plot or str(_DEFAULT_PLOT),
+                                                 default=args.plot is None)
     figures = run_demo(spec, utensil=args.utensil, seed=args.seed, timeout_s=args.timeout,
                        plot_path=plot)
     if args.json:
@@ -215,9 +228,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--utensil", default="spoon", help="utensil (default: spoon)")
     p.add_argument("--seed", type=int, default=0, help="planner and simulation seed")
     p.add_argument("--timeout", type=float, default=10.0, help="planning budget (s)")
-    p.add_argument("--plot", default=str(_DEFAULT_PLOT),
-                   help=f"where to save the plot: a .png/.pdf/.svg file, or a directory to "
-                        f"write {_DEFAULT_PLOT.name} into (default: {_DEFAULT_PLOT})")
+    p.add_argument("--plot", default=None,
+                   help=f"where to save the plot: a new .png/.pdf/.svg file, or a directory to "
+                        f"write {_DEFAULT_PLOT.name} (or -2, -3, … when taken) into (default: "
+                        f"{_DEFAULT_PLOT})")
     p.add_argument("--no-plot", action="store_true", help="do not save a plot")
     p.add_argument("--json", action="store_true", help="machine-readable figures")
     add_spec_option(p)

@@ -88,8 +88,23 @@ def _cmd_view(args: argparse.Namespace) -> int:
         raise UsageError("give at most one of --plan, --plan-task, --recording")
     if args.export is not None and args.recording is None:
         raise UsageError("--export needs --recording FILE")
-    if args.at is not None and not math.isfinite(args.at):
-        raise UsageError(f"--at must be a finite time in seconds; got {args.at}")
+    if args.at is not None and not (math.isfinite(args.at) and args.at >= 0):
+        raise UsageError(f"--at must be a time >= 0 s from the start; got {args.at}")
+    if args.at is not None and args.plan is None and args.plan_task is None and (
+            args.recording is None or args.export is not None):
+        raise UsageError("--at applies to a plan or a recording shown in the viewer "
+                         "(--plan, --plan-task, --recording without --export)")
+    if args.export is None and (args.camera is not None or args.fps is not None):
+        raise UsageError("--camera and --fps apply only with --export")
+    if args.export is not None:
+        from articutool.sim.render import CAMERAS  # --export renders: it loads this anyway
+        from articutool.viewer.export import MAX_FPS
+
+        if args.fps is not None and not (math.isfinite(args.fps) and 0 < args.fps <= MAX_FPS):
+            raise UsageError(f"--fps must be in (0, {MAX_FPS:g}] frames/s; got {args.fps}")
+        if args.camera is not None and args.camera not in CAMERAS:
+            raise UsageError(f"--camera must be one of {', '.join(CAMERAS)}; got "
+                             f"{args.camera!r}")
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UsageError(f"--duration must be a number of seconds > 0; got {args.duration}")
     spec = spec_from_args(args)
@@ -117,7 +132,8 @@ def _cmd_view(args: argparse.Namespace) -> int:
             from articutool.viewer.export import export_video
 
             try:
-                out = export_video(rec, args.export, camera=args.camera, fps=args.fps)
+                out = export_video(rec, args.export, camera=args.camera or "overview",
+                                   fps=args.fps)
             except RecordingError as err:
                 raise UsageError(f"--export: {err}") from None
             except RenderError as err:
@@ -247,7 +263,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--export", metavar="VIDEO", default=None,
                    help="with --recording: render it to .mp4/.gif offscreen and exit "
                         "(no browser); never overwrites")
-    p.add_argument("--camera", default="overview",
+    p.add_argument("--camera", default=None,
                    help="camera for --export: overview, utensil or bowl (default overview)")
     p.add_argument("--fps", type=float, default=None,
                    help="frame rate for --export (default: the recording's rate)")

@@ -15,7 +15,9 @@ import numpy as np
 
 from articutool.viewer.recording import Recording, RecordingError
 
-__all__ = ["export_video"]
+MAX_FPS = 120.0  # frames/s of an exported video
+
+__all__ = ["MAX_FPS", "export_video"]
 
 
 def export_video(rec: Recording, path: str | Path, camera: str = "overview",
@@ -42,8 +44,8 @@ def export_video(rec: Recording, path: str | Path, camera: str = "overview",
         raise RecordingError(f"camera must be one of {list(CAMERAS)}; got {camera!r}")
     rate = float(rec.meta.get("rate_hz", 25.0))
     fps = rate if fps is None else float(fps)
-    if not (math.isfinite(fps) and 0 < fps <= 120):
-        raise RecordingError(f"fps must be in (0, 120]; got {fps}")
+    if not (math.isfinite(fps) and 0 < fps <= MAX_FPS):
+        raise RecordingError(f"fps must be in (0, {MAX_FPS:g}]; got {fps}")
     model = mujoco.MjModel.from_xml_string(rec.mjcf)
     if rec.qpos.shape[1] != model.nq:
         raise RecordingError(f"recording: qpos has {rec.qpos.shape[1]} values per frame; its "

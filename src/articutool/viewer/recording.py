@@ -51,6 +51,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from articutool.datafile import parse_json
+
 if TYPE_CHECKING:
     from articutool.sim.world import FeedingWorld
 
@@ -265,10 +267,7 @@ class Recording:
                 raise
             raise RecordingError(f"recording {p} is not a readable .npz archive "
                                  f"({type(err).__name__}: {err})") from None
-        try:
-            meta = json.loads(str(data["meta"]))
-        except json.JSONDecodeError as err:
-            raise RecordingError(f"recording {p}: meta is not valid JSON: {err}") from None
+        meta = parse_json(str(data["meta"]), f"recording {p}: meta", RecordingError)
         if not isinstance(meta, dict) or meta.get("format") != FORMAT:
             raise RecordingError(f"recording {p}: meta.format must be {FORMAT!r}")
         if meta.get("version") != VERSION:
