@@ -19,6 +19,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -26,6 +27,7 @@ from typing import Any
 
 import pytest
 
+from articutool.link import messages as m
 from articutool.link.client import ArticutoolClient
 from articutool.link.config import load_config
 from articutool.link.pairing import pair
@@ -325,3 +327,77 @@ def test_no_tool_heard_exits_1_saying_so() -> None:
     out, err = p.communicate(timeout=60)
     assert p.returncode == 1, (out, err)
     assert "no Articutool heard within 1 s" in err and "serving" not in out
+
+
+class _ResultBeforeCancelReply:
+    """A link client for which the tool's CANCELED result arrives before the reply to the
+    cancel that caused it: the link promises no order between the replies to two calls (the
+    tick answers get_result, the link-io thread the cancel), and on a loaded host the result
+    may win."""
+
+    def __init__(self) -> None:
+        from articutool.link.config import LinkConfig
+        from articutool.link.memory_transport import MemoryBus, MemoryTransport
+        from articutool.link.transport import Names
+        self.cfg = LinkConfig()
+        self.names = Names(self.cfg.namespace, self.cfg.tool_id)
+        self.transport = MemoryTransport(MemoryBus())
+        self.running = threading.Event()
+        self.cancelled = threading.Event()
+        self.cancels: list[bytes | None] = []
+
+    def run_primitive(self, name: str, params: list[float], feedback_cb: Any = None,
+                      timeout: float | None = None, goal_id: bytes | None = None) -> Any:
+        self.running.set()
+        if not self.cancelled.wait(30):
+            return m.PrimitiveResult(True, "done", (0.0, 0.0), m.GoalStatus.SUCCEEDED)
+        return m.PrimitiveResult(False, "cancelled", (0.0, 0.0), m.GoalStatus.CANCELED)
+
+    def cancel(self, goal_id: bytes | None = None) -> bool:
+        self.cancels.append(goal_id)
+        self.cancelled.set()  # the tool cancels and its result goes out ...
+        time.sleep(0.3)  # ... before the cancel's own reply arrives
+        return True
+
+
+def test_a_cancel_whose_result_arrives_before_its_reply_still_cancels() -> None:
+    """The node, in process, with a client whose tool result beats the cancel's reply: the
+    ROS 2 cancel is accepted and the goal ends CANCELED (before the fix: the goal ended
+    ABORTED and the cancel answered goals_canceling=[])."""
+    from rclpy.executors import MultiThreadedExecutor
+
+    from articutool.ros2.node import ArticutoolRos2Node
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=DOMAIN)
+    fake = _ResultBeforeCancelReply()
+    ros_id = f"race_{os.getpid()}"
+    server = ArticutoolRos2Node(fake, ros_id, context=ctx)  # type: ignore[arg-type]
+    server_exec = MultiThreadedExecutor(num_threads=4, context=ctx)
+    server_exec.add_node(server.node)
+    spinner = threading.Thread(target=server_exec.spin, daemon=True)
+    spinner.start()
+    node = rclpy.create_node("plain_race_client", context=ctx)
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    try:
+        action = ActionClient(node, ExecuteArticutoolPrimitive,
+                              f"/articutool/{ros_id}/execute_primitive")
+        assert action.wait_for_server(timeout_sec=30)
+
+        def wait(future: Any) -> Any:
+            ex.spin_until_future_complete(future, timeout_sec=30)
+            assert future.done(), "no answer in time"
+            return future.result()
+        handle = wait(action.send_goal_async(ExecuteArticutoolPrimitive.Goal(
+            primitive_name="TWIRL_CW", parameters=[1.0, 0.5])))
+        assert handle.accepted and fake.running.wait(10)
+        cancel = wait(handle.cancel_goal_async())
+        assert len(cancel.goals_canceling) == 1
+        res = wait(handle.get_result_async())
+        assert res.status == GoalStatus.STATUS_CANCELED
+        assert fake.cancels == [bytes(handle.goal_id.uuid)]
+    finally:
+        server_exec.shutdown(timeout_sec=2.0)
+        server.destroy()
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)

@@ -15,7 +15,11 @@ replies are the tool's own. Names (``<id>`` is the tool's identity)::
 
 Telemetry is forwarded as the CDR bytes the tool sent (rclpy publishes serialised messages
 as they are), so ROS 2 subscribers see exactly the link's messages. A ROS 2 goal's UUID is
-the link goal's UUID, so a ROS 2 cancel reaches the tool's goal. Services and goals never
+the link goal's UUID, so a ROS 2 cancel reaches the tool's goal. A ROS 2 cancel of a goal
+this node runs is accepted at once and forwarded to the tool only once rclpy has marked the
+goal CANCELING: the tool's CANCELED result can then never reach the goal before the cancel
+does (it would end the goal ABORTED and rclpy would drop the accepted cancel). Services and
+goals never
 raise into the executor: a request the client refuses (bad numbers, a silent tool) is
 answered ``success=false`` with the same message ``articutool client`` prints.
 """
@@ -25,6 +29,8 @@ from __future__ import annotations
 import logging
 import re
 import threading
+import time
+from dataclasses import dataclass, field
 from typing import Any
 
 from articutool.link import messages as m
@@ -45,6 +51,14 @@ def check_ros_token(value: str, field: str) -> str:
         raise ValueError(f"{field} must be a ROS 2 name token (letters, digits and single "
                          f"underscores, not starting with a digit); got {value!r}")
     return value
+
+
+@dataclass
+class _Forwarded:
+    """A ROS 2 goal this node forwards: ``done`` once its execute callback has its result."""
+
+    done: threading.Event = field(default_factory=threading.Event)
+    cancel_requested: bool = False
 
 
 class ArticutoolRos2Node:
@@ -77,7 +91,11 @@ class ArticutoolRos2Node:
         self._terminal = {GoalStatus.STATUS_SUCCEEDED, GoalStatus.STATUS_CANCELED,
                           GoalStatus.STATUS_ABORTED}
         self._lock = threading.Lock()
-        self._active: set[bytes] = set()
+        self._running: dict[bytes, _Forwarded] = {}  # accepted, result not yet sent
+        # Before any callback can run: the telemetry subscriptions below fire at once.
+        self.counters = {"forwarded": 0, "dropped": 0, "trajectories": 0}
+        self._cancel_ok = CancelResponse.ACCEPT
+        self._cancel_no = CancelResponse.REJECT
         group = ReentrantCallbackGroup()
         qos = QoSProfile(depth=10)  # reliable, volatile: matches ROS 2's default subscribers
         p = self.prefix
@@ -88,9 +106,8 @@ class ArticutoolRos2Node:
         self._action = ActionServer(
             self.node, ExecuteArticutoolPrimitive, f"{p}/execute_primitive", self._execute,
             goal_callback=lambda _goal: GoalResponse.ACCEPT,
+            handle_accepted_callback=self._on_accepted,
             cancel_callback=self._on_cancel_request, callback_group=group)
-        self._cancel_ok = CancelResponse.ACCEPT
-        self._cancel_no = CancelResponse.REJECT
         self.node.create_subscription(JointTrajectory, f"{p}/joint_trajectory",
                                       self._on_trajectory, qos, callback_group=group, raw=True)
         n = client.names
@@ -100,7 +117,6 @@ class ArticutoolRos2Node:
             rel = ep.name.rsplit(f"/{client.cfg.tool_id}/", 1)[1]
             pub = self.node.create_publisher(cls, f"{p}/{rel}", qos)
             self._forward.append(client.transport.subscribe(ep, self._forwarder(pub, ep.type)))
-        self.counters = {"forwarded": 0, "dropped": 0, "trajectories": 0}
 
     # ------------------------------------------------------------------ telemetry --
     def _forwarder(self, pub: Any, typename: str) -> Any:
@@ -151,14 +167,52 @@ class ArticutoolRos2Node:
             self.node.get_logger().warning(f"joint_trajectory not forwarded: {err}")
 
     # --------------------------------------------------------------------- action --
+    def _on_accepted(self, goal_handle: Any) -> None:
+        """Known from acceptance on, so a cancel before the execute callback starts counts."""
+        with self._lock:
+            self._running[bytes(goal_handle.goal_id.uuid)] = _Forwarded()
+        goal_handle.execute()
+
     def _on_cancel_request(self, goal_handle: Any) -> Any:
+        """Accept the cancel of a goal this node runs; a thread forwards it to the tool once
+        rclpy has marked the goal CANCELING (see :meth:`_forward_cancel`)."""
         gid = bytes(goal_handle.goal_id.uuid)
-        try:
-            started = self.client.cancel(gid)
-        except (ValueError, LinkError) as err:
-            self.node.get_logger().warning(f"cancel not forwarded: {err}")
-            return self._cancel_no
-        return self._cancel_ok if started else self._cancel_no
+        with self._lock:
+            fwd = self._running.get(gid)
+            if fwd is None or fwd.done.is_set():
+                return self._cancel_no
+            first, fwd.cancel_requested = not fwd.cancel_requested, True
+        if first:
+            threading.Thread(target=self._forward_cancel, args=(gid, goal_handle, fwd),
+                             name="ros2-cancel", daemon=True).start()
+        return self._cancel_ok
+
+    def _forward_cancel(self, gid: bytes, goal_handle: Any, fwd: _Forwarded) -> None:
+        """Cancel ``gid`` on the tool, after rclpy has taken the accepted cancel (the callback
+        has returned): forwarding from the callback itself let the tool's CANCELED result
+        reach :meth:`_execute` first, which then aborted the goal, and rclpy dropped the
+        cancel (``goals_canceling=[]``). A goal whose send_goal has not reached the tool yet
+        is unknown there: retried until it runs, or ends, or the link's call bound passes."""
+        bound = self.client.cfg.call_timeout + self.client.cfg.tool_timeout
+        deadline = time.monotonic() + bound
+        while not goal_handle.is_cancel_requested:
+            if fwd.done.wait(0.005) or time.monotonic() > deadline:
+                return  # ended meanwhile (rclpy then refused the cancel), or never marked
+        deadline = time.monotonic() + bound
+        while not fwd.done.is_set():
+            try:
+                if self.client.cancel(gid):
+                    return
+            except (ValueError, LinkError) as err:
+                self.node.get_logger().warning(f"cancel of goal {gid.hex()} not forwarded: "
+                                               f"{err}")
+                return
+            if fwd.done.wait(0.05):
+                return
+            if time.monotonic() > deadline:
+                self.node.get_logger().warning(
+                    f"the tool did not cancel goal {gid.hex()} within {bound:g} s")
+                return
 
     def _execute(self, goal_handle: Any) -> Any:
         A = self._action_type
@@ -175,7 +229,14 @@ class ArticutoolRos2Node:
                 _log.debug("feedback dropped: %s", err)
 
         with self._lock:
-            self._active.add(gid)
+            fwd = self._running.setdefault(gid, _Forwarded())
+        if goal_handle.is_cancel_requested:  # cancelled before it was sent: never start it
+            fwd.done.set()
+            with self._lock:
+                self._running.pop(gid, None)
+            goal_handle.canceled()
+            return A.Result(success=False, message="cancelled before it started",
+                            final_joint_values=[])
         try:
             res = self.client.run_primitive(str(goal.primitive_name),
                                             [float(v) for v in goal.parameters], feedback,
@@ -189,8 +250,9 @@ class ArticutoolRos2Node:
             ok, msg, joints, status = (False, f"internal error: {type(err).__name__}: {err}",
                                        (), m.GoalStatus.ABORTED)
         finally:
+            fwd.done.set()
             with self._lock:
-                self._active.discard(gid)
+                self._running.pop(gid, None)
         if status == m.GoalStatus.CANCELED and goal_handle.is_cancel_requested:
             goal_handle.canceled()
         elif ok:
@@ -203,7 +265,7 @@ class ArticutoolRos2Node:
     def cancel_all(self) -> None:
         """Cancel every goal this node forwarded that is still running (on shutdown)."""
         with self._lock:
-            active = list(self._active)
+            active = list(self._running)
         for gid in active:
             try:
                 self.client.cancel(gid)
