@@ -220,14 +220,14 @@ class RecordingTransport(Transport):
         self.inner.publish(ep, payload)
 
     def subscribe(self, ep: Endpoint, callback: Callable[..., None], with_sender: bool = False,
-                  max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
+                  max_bytes: int | None = None) -> Handle:
         def on_data(payload: bytes, *sender: Any) -> None:
             self._rec(ep.name, ep.type, payload)
             callback(payload, *sender)
-        return self.inner.subscribe(ep, on_data, with_sender, max_bytes, max_rate)
+        return self.inner.subscribe(ep, on_data, with_sender, max_bytes)
 
     def serve(self, ep: Endpoint, handler: Callable[..., None], with_sender: bool = False,
-              max_bytes: int | None = None, max_rate: float | None = None) -> Handle:
+              max_bytes: int | None = None) -> Handle:
         def on_request(request: bytes, respond: Callable[[bytes], None], *sender: Any) -> None:
             self._rec(f"{ep.name}/request", ep.request_type, request)
 
@@ -235,7 +235,7 @@ class RecordingTransport(Transport):
                 self._rec(f"{ep.name}/response", ep.response_type, data)
                 respond(data)
             handler(request, reply, *sender)
-        return self.inner.serve(ep, on_request, with_sender, max_bytes, max_rate)
+        return self.inner.serve(ep, on_request, with_sender, max_bytes)
 
     def call(self, ep: Endpoint, payload: bytes, timeout: float) -> bytes:
         self._rec(f"{ep.name}/request", ep.request_type, payload)
