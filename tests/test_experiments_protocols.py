@@ -114,3 +114,26 @@ def test_exp3_trial_noodles_whole_bite_has_an_outcome_class() -> None:
     for threshold_g in (0.0, 3.0):
         assert classify(r, threshold_g) in OUTCOMES
     json.dumps(r, allow_nan=False)
+
+
+def test_a_particle_on_the_table_then_the_floor_is_spilled_once_in_a_record() -> None:
+    # Exp. 3 used to sum spill events (table + floor for one particle) while Exp. 2b/2c took
+    # net mass changes; both now read one definition. A locked 40° carry of 8 g of water
+    # (seed 0) sends particles over the table's edge onto the floor.
+    from articutool.experiments.protocols import _outcome_fields
+    from articutool.sim.scenes import base_tilt_motion, load
+    from articutool.sim.world import FeedingWorld
+
+    w = FeedingWorld("water", seed=0, load_g=8.0)
+    load(w, level=False)
+    before, n0 = w.masses_g(), len(w.spills)
+    w.move_arm(base_tilt_motion(w, 40.0))
+    w.run(3.0)
+    events = w.spills[n0:]
+    items = {e.item for e in events}
+    assert len(events) > len(items)  # some particle spilled twice: table, then floor
+    r = _outcome_fields(w, before, n0)
+    m = w.layout.piece_mass * 1000.0
+    assert r["spilled_g"] == pytest.approx(m * len(items), abs=1e-3)
+    floor = {e.item for e in events if e.place == "critical"}
+    assert r["spilled_by_place"]["critical"] == pytest.approx(m * len(floor), abs=1e-3)

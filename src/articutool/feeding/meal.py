@@ -31,10 +31,11 @@ from articutool.arm.scene import Cylinder, Scene
 from articutool.feeding.behaviours import Attempts
 from articutool.feeding.bite import STAGES, BiteSettings, bite_tree
 from articutool.feeding.insertion import acquisition_waypoints
-from articutool.feeding.outcomes import SPILL_PLACES, classify_bite
+from articutool.feeding.outcomes import classify_bite
 from articutool.feeding.sim_arm import SimArm
 from articutool.feeding.strategies import Strategy, StrategyLibrary
 from articutool.feeding.tree import BiteRecorder
+from articutool.sim import accounting as acc
 from articutool.sim.scenes import SCOOP_HEADING
 from articutool.sim.world import FeedingWorld
 from articutool.spec import load_spec
@@ -183,9 +184,8 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
     else:
         root.stop(Status.INVALID)
         rec.record.failures.append((root.name, f"did not finish within {timeout_s:g} s"))
-    spilled = {p: 0.0 for p in SPILL_PLACES}
-    for ev in w.spills[n_spills:]:
-        spilled[ev.place] = spilled.get(ev.place, 0.0) + ev.mass_g
+    # Spilled and delivered as everywhere (sim.accounting): each item once, at its worst place.
+    spilled = acc.spilled_by_place(w.spills, n_spills)
     after = ledger.after
     acquired = after.get("acquire", before)["utensil"]
     # Shed: what fell from the utensil back into the container during the shed stage.
@@ -194,7 +194,7 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
     # Delivered: on the utensil when presented (or after the last stage run), plus what
     # reached the mouth region on the way (eaten by the world's accounting).
     end = after.get("present") or after.get(stages[-1]) or w.masses_g()
-    delivered = end["utensil"] + end["eaten"] - before["eaten"]
+    delivered = acc.delivered_g(before, end)
     completed = status == Status.SUCCESS
     # Attempts per goal, from this tree's own counters (in tree order; a retreat's last).
     counted = {n.key: int(n.bb.get(n.key)) for n in root.iterate()
