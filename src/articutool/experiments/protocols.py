@@ -10,8 +10,10 @@ given the world before anything moves (video recording for ``--trial K --video``
 - :func:`exp2b_trial` — a placed load carried from the common start to one Staging goal of
   the scene's ``[staging_set]`` (§5.2.2): the Articutool (decoupled + LEVELING) or the
   baseline (strict ±20°, wrist locked);
-- :func:`exp2c_trial` — the capacity load carried Resting → Staging by the Articutool, with or
-  without its shedding primitive first, over the food's container (§5.2.3).
+- :func:`exp2c_trial` — the capacity load placed over the bowl (the thesis' "fixed Resting
+  configuration (over the bowl)", :func:`~articutool.feeding.meal.shed_configuration`), the
+  shedding primitive there (or not: control), then carried to Staging by the Articutool
+  (§5.2.3).
 """
 
 from __future__ import annotations
@@ -176,8 +178,10 @@ def _plan_attempts(food: str, system: str) -> int:
 
 def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
                 hook: Hook = None) -> dict[str, Any]:
-    """Exp. 2c: ``cond['load_g']`` placed at Resting, the shedding primitive (test) or not
-    (control), transport to Staging with the Articutool."""
+    """Exp. 2c: ``cond['load_g']`` placed at the shedding pose over the bowl, the shedding
+    primitive there (test) or not (control), transport to Staging with the Articutool."""
+    from articutool.arm.scene import Scene
+    from articutool.feeding.meal import shed_configuration
     from articutool.feeding.strategies import StrategyLibrary
     from articutool.spec import load_spec
     from articutool.tool.api import Mode
@@ -186,7 +190,10 @@ def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
     spec = load_spec()
     strat = StrategyLibrary.load(spec).strategies[cfg.exp2c.strategy[food]]
     stage = strat.stages.post_acquisition
-    w = FeedingWorld(food, seed=seed, load_g=load)
+    scene = Scene.load()
+    q_shed = shed_configuration(spec, scene, strat.utensil)
+    w = FeedingWorld(food, strat.utensil, spec=spec, scene=scene, seed=seed, load_g=load,
+                     q_arm=q_shed)
     if hook:
         hook(w)
     arm = SimArm(w, seed=seed)
