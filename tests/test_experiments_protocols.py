@@ -18,7 +18,6 @@ from articutool.experiments.analysis import classify
 from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import conditions, make_trials
 from articutool.experiments.runner import run_trial, source_version
-from articutool.feeding.outcomes import OUTCOMES
 
 CFG = ExperimentsConfig.load()
 
@@ -105,16 +104,22 @@ def test_exp1_trial_pecans_acquires_and_weighs_at_resting() -> None:
 
 
 @pytest.mark.slow
-def test_exp3_trial_noodles_whole_bite_has_an_outcome_class() -> None:
+def test_exp3_trial_noodles_whole_bite_is_classified_from_its_masses_at_analysis() -> None:
     trials = make_trials("exp3", conditions("exp3", CFG), 1, 0)
     r = run_trial(trials[0])
     assert r["error"] is None, r.get("traceback")
-    assert r["stages"][-1] == "present"
+    assert r["stages"] == ["above", "acquire", "shed", "resting", "staging", "present"]
+    assert r["completed"] and r["failed_stage"] == "", r
+    assert r["planning_attempts_by_goal"]["Staging"] >= 1
     # The class is derived at analysis time, at the report's threshold (our Exp. 1 mean).
     assert r["outcome"] is None
-    assert r["completed"] or r["failed_stage"], r
-    for threshold_g in (0.0, 3.0):
-        assert classify(r, threshold_g) in OUTCOMES
+    spilled, d = r["spilled_by_place"], r["delivered_g"]
+    assert r["spilled_g"] == pytest.approx(sum(spilled.values()))
+    for threshold_g in (0.0, d, 3.0):
+        assert classify(r, threshold_g) == ("user_spill" if spilled["critical"] > 0 else
+                                            "table_spill" if spilled["table"] > 0 else
+                                            "meaningful_success" if d > threshold_g else
+                                            "trivial_success")
     json.dumps(r, allow_nan=False)
 
 
