@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import py_trees
 import pytest
 from py_trees.common import Status
@@ -160,3 +161,38 @@ def test_a_bites_spill_counts_a_particle_that_rolls_from_table_to_floor_once() -
     assert r.spilled_by_place["critical"] == pytest.approx(m * len(floor))
     assert r.spilled_by_place["table"] == pytest.approx(m * (len(items) - len(floor)))
     assert r.outcome == "user_spill"  # the floor is a critical place
+
+
+@pytest.mark.parametrize("food", [
+    "pecans",
+    pytest.param("water", marks=pytest.mark.slow),
+    pytest.param("noodles", marks=pytest.mark.slow),
+])
+def test_the_bite_tree_sheds_over_the_bowl(food: str) -> None:
+    # Every Articutool strategy's post-acquisition primitive runs after the lift out of the
+    # bowl: the tip is then over the bowl (thesis §4.4: shed "harmlessly back into the bowl").
+    from articutool.feeding.meal import container_floor, make_bite_world, run_bite
+
+    setup = make_bite_world(food, "articutool", seed=0)
+    w = setup.world
+    bowl = w.scene.get("bowl")
+    floor = container_floor(w.scene, "bowl")
+    seen: list[np.ndarray] = []
+
+    class AtShed(py_trees.visitors.VisitorBase):
+        def run(self, b: py_trees.behaviour.Behaviour) -> None:
+            shedding = getattr(b, "bite_stage", None) == "shed" and b.status == Status.RUNNING
+            if shedding and not seen:
+                seen.append(w.tip_pose()[:3, 3].copy())
+
+    try:
+        r = run_bite(setup, stages=("above", "acquire", "shed"), visitors=[AtShed()])
+    finally:
+        setup.arm.close()
+    assert r.completed, r.failed_stage
+    (tip,) = seen
+    assert np.hypot(*(tip[:2] - floor[:2])) < bowl.radius
+    assert tip[2] > floor[2] + 0.05  # lifted out, above the food
+    # What the primitive moved off the utensil went into the bowl: nothing spilled.
+    assert r.spilled_g == 0.0
+    assert r.shed_g == pytest.approx(r.acquired_g - r.masses_after["shed"]["utensil"])
