@@ -10,8 +10,10 @@ given the world before anything moves (video recording for ``--trial K --video``
 - :func:`exp2b_trial` — a placed load carried from the common start to one Staging goal of
   the scene's ``[staging_set]`` (§5.2.2): the Articutool (decoupled + LEVELING) or the
   baseline (strict ±20°, wrist locked);
-- :func:`exp2c_trial` — the capacity load carried Resting → Staging by the Articutool, with or
-  without its shedding primitive first, over the food's container (§5.2.3).
+- :func:`exp2c_trial` — the capacity load placed over the bowl (the thesis' "fixed Resting
+  configuration (over the bowl)", :func:`~articutool.feeding.meal.shed_configuration`), the
+  shedding primitive there (or not: control), then carried to Staging by the Articutool
+  (§5.2.3).
 """
 
 from __future__ import annotations
@@ -24,13 +26,13 @@ import numpy as np
 
 from articutool.experiments.config import ExperimentsConfig
 from articutool.feeding.sim_arm import SimArm
+from articutool.sim import accounting as acc
 from articutool.sim.world import FeedingWorld
 
 __all__ = ["BITE_PROTOCOLS", "Hook", "capacity_trial", "exp1_trial", "exp2b_trial",
            "exp2c_trial", "exp3_trial", "json_safe", "transport"]
 
 Hook = Callable[[FeedingWorld], None] | None
-SPILL_KEYS = ("table", "critical")
 
 
 class _GoalArm(SimArm):
@@ -93,15 +95,18 @@ def transport(world: FeedingWorld, arm: SimArm, goal: str, planner: str, *, atte
     }
 
 
-def _outcome_fields(before: dict[str, float], after: dict[str, float]) -> dict[str, Any]:
-    """Spill during the transport by place, and what was delivered (on the utensil or
-    eaten at the mouth)."""
-    spilled = {k: _r(max(0.0, after[k] - before[k])) for k in SPILL_KEYS}
+def _outcome_fields(world: FeedingWorld, before: dict[str, float], n_spills: int
+                    ) -> dict[str, Any]:
+    """Spill since ``before`` (the world's spill events from index ``n_spills``) by place,
+    and what was delivered (on the utensil or eaten at the mouth), by the one definition of
+    both (:mod:`articutool.sim.accounting`)."""
+    after = world.masses_g()
+    spilled = {k: _r(v) for k, v in acc.spilled_by_place(world.spills, n_spills).items()}
     return {
         "spilled_by_place": spilled,
         "spilled_g": _r(sum(spilled.values())),
         "shed_g": _r(max(0.0, after["container"] - before["container"])),
-        "delivered_g": _r(after["utensil"] + after["eaten"]),
+        "delivered_g": _r(acc.delivered_g(before, after)),
         "airborne_g": after["airborne"],
     }
 
@@ -151,14 +156,13 @@ def exp2b_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
         w.run(1.0)
         w.tare_ft(0.3)
         held = w.place_load(settle_s=cfg.settings.settle_s)
-        before = w.masses_g()
+        before, n_spills = w.masses_g(), len(w.spills)
         tr = transport(w, arm, goal, "decoupled" if articutool else "strict6",
                        attempts=_plan_attempts(food, system), cfg=cfg)
     finally:
         arm.close()
-    after = w.masses_g()
     return {"load_g": load, "held_g": _r(held), "planner": "decoupled" if articutool
-            else "strict6", "tolerance_deg": tol, **tr, **_outcome_fields(before, after),
+            else "strict6", "tolerance_deg": tol, **tr, **_outcome_fields(w, before, n_spills),
             "masses_after_g": _masses(w), "realtime_factor": _r(w.realtime_factor)}
 
 
@@ -175,8 +179,10 @@ def _plan_attempts(food: str, system: str) -> int:
 
 def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
                 hook: Hook = None) -> dict[str, Any]:
-    """Exp. 2c: ``cond['load_g']`` placed at Resting, the shedding primitive (test) or not
-    (control), transport to Staging with the Articutool."""
+    """Exp. 2c: ``cond['load_g']`` placed at the shedding pose over the bowl, the shedding
+    primitive there (test) or not (control), transport to Staging with the Articutool."""
+    from articutool.arm.scene import Scene
+    from articutool.feeding.meal import shed_configuration
     from articutool.feeding.strategies import StrategyLibrary
     from articutool.spec import load_spec
     from articutool.tool.api import Mode
@@ -185,7 +191,10 @@ def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
     spec = load_spec()
     strat = StrategyLibrary.load(spec).strategies[cfg.exp2c.strategy[food]]
     stage = strat.stages.post_acquisition
-    w = FeedingWorld(food, seed=seed, load_g=load)
+    scene = Scene.load()
+    q_shed = shed_configuration(spec, scene, strat.utensil)
+    w = FeedingWorld(food, strat.utensil, spec=spec, scene=scene, seed=seed, load_g=load,
+                     q_arm=q_shed)
     if hook:
         hook(w)
     arm = SimArm(w, seed=seed)
@@ -195,7 +204,7 @@ def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
         w.run(1.0)
         w.tare_ft(0.3)
         held = w.place_load(settle_s=cfg.settings.settle_s)
-        loaded = w.masses_g()
+        loaded, n_loaded = w.masses_g(), len(w.spills)
         if arm_cond == "primitive":
             w.tool.set_mode(Mode.DISABLED)  # primitives are refused while leveling
             ok, msg = w.tool.start_primitive(stage.primitive, list(stage.params))
@@ -206,17 +215,18 @@ def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
                     "primitive_ok": bool(done and st is not None and st.success),
                     "primitive_message": msg if not ok else (st.message if st else "")}
         before = w.masses_g()
+        spills_primitive = acc.spilled_by_place(w.spills, n_loaded)
         tr = transport(w, arm, "Staging", strat.transport.planner,
                        attempts=strat.attempts.plan, cfg=cfg)
     finally:
         arm.close()
-    after = w.masses_g()
     # Food on the table or the user is a spill whenever it falls (during the primitive too);
     # into the container it is shed (thesis §5: not a failure).
-    by_primitive = {k: _r(max(0.0, before[k] - loaded[k])) for k in ("container", *SPILL_KEYS)}
+    by_primitive = {"container": _r(max(0.0, before["container"] - loaded["container"])),
+                    **{k: _r(v) for k, v in spills_primitive.items()}}
     return {"load_g": load, "held_g": _r(held), **prim, "primitive_moved_g": by_primitive,
             "after_primitive_g": _r(before["utensil"]), **tr,
-            **_outcome_fields(loaded, after), "masses_after_g": _masses(w),
+            **_outcome_fields(w, loaded, n_loaded), "masses_after_g": _masses(w),
             "realtime_factor": _r(w.realtime_factor)}
 
 

@@ -49,6 +49,11 @@ HONESTY = """\
   of every piece or particle (on the utensil, shed into a container, on the table, on the
   user/wheelchair/floor, eaten at the mouth); the classes are
   `articutool.feeding.outcomes.classify_bite`; a shed into the bowl or plate is no spill.
+- **One meaning of spilled and eaten in every experiment** (`articutool.sim.accounting`):
+  spilled grams count each piece or particle once, at the worst place it reached, once it
+  stayed 0.1 s there (a piece that lands on the table and rolls to the floor is one critical
+  spill); eaten is each item once (pieces, particles, noodle strands); delivered is what is
+  on the utensil plus what was eaten.
 """
 
 

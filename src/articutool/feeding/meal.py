@@ -16,6 +16,7 @@ the same tree.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -31,17 +32,18 @@ from articutool.arm.scene import Cylinder, Scene
 from articutool.feeding.behaviours import Attempts
 from articutool.feeding.bite import STAGES, BiteSettings, bite_tree
 from articutool.feeding.insertion import acquisition_waypoints
-from articutool.feeding.outcomes import SPILL_PLACES, classify_bite
+from articutool.feeding.outcomes import classify_bite
 from articutool.feeding.sim_arm import SimArm
 from articutool.feeding.strategies import Strategy, StrategyLibrary
 from articutool.feeding.tree import BiteRecorder, safe_stop_reason
+from articutool.sim import accounting as acc
 from articutool.sim.scenes import SCOOP_HEADING
 from articutool.sim.world import FeedingWorld
-from articutool.spec import load_spec
+from articutool.spec import Spec, load_spec
 from articutool.tool.api import Mode
 
 __all__ = ["BiteResult", "FoodLedger", "MealSetup", "container_floor", "make_bite_world",
-           "run_bite", "run_meal"]
+           "run_bite", "run_meal", "shed_configuration"]
 
 DEFAULT_SETTINGS = BiteSettings()
 
@@ -154,6 +156,47 @@ def container_floor(scene: Scene, container: str) -> NDArray[np.float64]:
     return np.array([box.xyz[0], box.xyz[1], box.xyz[2] - box.length / 2 + box.container_wall])
 
 
+def shed_configuration(spec: Spec, scene: Scene, utensil: str, container: str = "bowl",
+                       height_m: float = DEFAULT_SETTINGS.lift_m) -> NDArray[np.float64]:
+    """Arm joints (6) of the shedding pose over ``container``: the utensil, level with the
+    wrist at zero, holds its dish (a fork: the middle of its tines) over the container's
+    centre, ``height_m`` above its inner floor — the height at which the bite tree sheds
+    after its lift. The thesis' Exp. 2c sheds "while over the bowl", transporting from "a
+    fixed Resting configuration (over the bowl)" (§5.2.3), and §4.4's strategies shed
+    "harmlessly back into the bowl"; the spec's Resting holds the utensil over the plate.
+
+    Everything comes from the scene (the container's place and size) and the spec (the
+    utensil); headings are tried from the arm base's direction to the container in 15°
+    steps, IK from the spec's named configurations, and the first collision-free solution
+    is taken (deterministic). Raises ``ValueError`` naming the container when none exists.
+    """
+    from articutool.arm.ik import IKSettings, solve_pose_ik
+    from articutool.arm.model import ArmModel
+    from articutool.sim.mjcf import spoon_dish
+
+    u = spec.utensil(utensil)
+    if u.physics.kind == "spoon":
+        back = u.tip_z - spoon_dish(u)[0]
+    else:
+        assert u.physics.tine_length is not None
+        back = u.physics.tine_length / 2
+    centre = container_floor(scene, container) + np.array([0.0, 0.0, height_m])
+    model = ArmModel(spec, utensil, 8, scene)
+    h0 = math.atan2(centre[1], centre[0])
+    y = np.array([0.0, 0.0, 1.0])
+    seeds = [np.r_[spec.arm.configuration(n), 0.0, 0.0] for n in spec.arm.configurations]
+    for dh in sorted(np.radians(np.arange(-180.0, 180.0, 15.0)), key=abs):
+        z = np.array([math.cos(h0 + dh), math.sin(h0 + dh), 0.0])  # along the utensil
+        target = np.eye(4)
+        target[:3, :3] = np.column_stack([np.cross(y, z), y, z])
+        target[:3, 3] = centre + back * z
+        for q0 in seeds:
+            q = solve_pose_ik(model, "tip", target, q0, IKSettings(), free=6)
+            if q is not None and not model.in_collision(q):
+                return q[:6]
+    raise ValueError(f"container: no collision-free level utensil pose over {container!r}")
+
+
 def _tree(setup: MealSetup, stages: Sequence[str], settings: BiteSettings
           ) -> py_trees.behaviour.Behaviour:
     w = setup.world
@@ -203,9 +246,8 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
         rec.record.failures.append((root.name, f"did not finish within {timeout_s:g} s"))
     if stopped is not None:
         rec.record.cause = ("Safe stop", stopped)
-    spilled = {p: 0.0 for p in SPILL_PLACES}
-    for ev in w.spills[n_spills:]:
-        spilled[ev.place] = spilled.get(ev.place, 0.0) + ev.mass_g
+    # Spilled and delivered as everywhere (sim.accounting): each item once, at its worst place.
+    spilled = acc.spilled_by_place(w.spills, n_spills)
     after = ledger.after
     acquired = after.get("acquire", before)["utensil"]
     # Shed: what fell from the utensil back into the container during the shed stage.
@@ -222,7 +264,7 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
         end = after.get(stages[-1]) or w.masses_g()
     else:
         end = {**w.masses_g(), "utensil": 0.0}
-    delivered = end["utensil"] + end["eaten"] - before["eaten"]
+    delivered = acc.delivered_g(before, end)
     # Attempts per goal, from this tree's own counters (zeroed before the bite; in tree
     # order, a retreat's last), also of a stage that failed and was stopped (INVALID since).
     counted = {n.key: int(n.bb.get(n.key)) for n in counters if int(n.bb.get(n.key)) > 0}

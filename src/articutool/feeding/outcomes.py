@@ -11,6 +11,10 @@ In order of severity, the worst that happened decides:
 Food shed back into its container by a primitive is no spill (thesis §5: "Spillage that was
 intentionally shed back into the bowl ... was not counted as a failure"). The thesis' Exp. 3
 threshold is 3.0 g; Exp. 2c takes its thresholds from Exp. 1's mean acquisition masses.
+
+The masses it reads mean one thing in every experiment and bite record, defined once in
+:mod:`articutool.sim.accounting`: spilled grams count each item once, at the worst place it
+reached (``spilled_by_place``); delivered is on the utensil plus eaten (``delivered_g``).
 """
 
 from __future__ import annotations

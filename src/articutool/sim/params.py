@@ -52,6 +52,7 @@ class WorldParams(_Strict):
     sleep_tolerance: Positive
     settle_s: NonNegative
     surface_friction: Positive
+    spill_dwell_s: NonNegative
 
 
 class ArmServoParams(_Strict):

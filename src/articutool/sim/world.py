@@ -420,10 +420,13 @@ class FeedingWorld:
             item_body.append(m.body(b).id)
         n_bodies = len(lay.food_bodies)
         flex_node = np.full(max(m.nflex, 1), _OTHER_NODE, dtype=np.int64)
+        self._strand_verts: list[NDArray[np.int64]] = []  # each strand's vertex bodies
         for k, sname in enumerate(lay.food_strands):
             f = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX, sname)
             flex_node[f] = n_bodies + k
-            item_body.append(int(m.flex_vertbodyid[m.flex_vertadr[f]]))
+            verts = m.flex_vertbodyid[m.flex_vertadr[f]:m.flex_vertadr[f] + m.flex_vertnum[f]]
+            self._strand_verts.append(np.array(verts, dtype=np.int64))
+            item_body.append(int(verts[0]))
         self._geom_node, self._flex_node = node, flex_node
         self._item_body = np.array(item_body, dtype=np.int64)
         self.n_items = len(item_body)
@@ -433,7 +436,7 @@ class FeedingWorld:
                 m.tree_sleep_policy[m.body_treeid[b]] = int(mujoco.mjtSleepPolicy.mjSLEEP_NEVER)
         self._codes = np.full(self.n_items, acc.AIRBORNE, dtype=np.int64)
         self._where = np.full(self.n_items, -1, dtype=np.int64)
-        self._worst = np.zeros(self.n_items, dtype=np.int64)  # worst spill class reached
+        self._spill = acc.SpillTracker(self.n_items, self.params.world.spill_dwell_s)
         self.spills: list[acc.SpillEvent] = []
         self._mouth = next(((np.asarray(r.xyz), r.radius) for r in self.scene.regions
                             if r.name == "mouth"), None)
@@ -472,16 +475,15 @@ class FeedingWorld:
             prev[k], prev_where[k] = self._place_below(self.data.xpos[self._item_body[k]])
         codes, where = acc.classify_items(self.n_items, ii, iu, isf, self._surface_codes,
                                           prev, prev_where, asleep)
+        # An event each time an item has stayed on a spill place worse than any it reached
+        # before for the dwell time (a drop that lands on the table and rolls onto the floor
+        # is two events; the spilled mass counts it once, at the floor: acc.spilled_by_place).
         mass_g = self.layout.piece_mass * 1000.0
-        # An event each time an item reaches a spill place worse than any it reached before
-        # (a drop that lands on the table and rolls onto the floor is two events).
-        spill = self._active & ((codes == acc.TABLE) | (codes == acc.CRITICAL))
-        new = spill & (codes > self._worst)
-        for k in np.flatnonzero(new):
+        for k, code, w, t0 in self._spill.update(self.time, self.spec.wrist.period, codes,
+                                                  where, self._active):
             self.spills.append(acc.SpillEvent(
-                t=round(self.time, 4), mass_g=mass_g, place=acc.CLASS_NAMES[codes[k]],
-                where=self._surface_names[where[k]] if where[k] >= 0 else "", item=int(k)))
-        self._worst = np.where(new, codes, self._worst)
+                t=round(t0, 4), mass_g=mass_g, place=acc.CLASS_NAMES[code],
+                where=self._surface_names[w] if w >= 0 else "", item=k))
         self._codes, self._where = codes, where
 
     def _place_below(self, p: NDArray[np.float64]) -> tuple[int, int]:
@@ -508,22 +510,25 @@ class FeedingWorld:
         return best
 
     def _eat(self) -> None:
-        """Food that enters the mouth region is eaten: moved out of the world, frozen."""
-        if self._mouth is None or not self.layout.food_bodies:
+        """Food that enters the mouth region is eaten: moved out of the world, frozen. A
+        strand is eaten when any of its vertices enters it."""
+        if self._mouth is None or self.n_items == 0:
             return
         c, r = self._mouth
         d = self.data
         n = len(self.layout.food_bodies)
-        pos = d.xpos[self._item_body[:n]]
-        self._remove_eaten(np.flatnonzero((np.linalg.norm(pos - c, axis=1) < r)
-                                          & (self._codes[:n] != acc.EATEN)))
+        inside = np.zeros(self.n_items, dtype=bool)
+        inside[:n] = np.linalg.norm(d.xpos[self._item_body[:n]] - c, axis=1) < r
+        for k, verts in enumerate(self._strand_verts):
+            inside[n + k] = bool(np.any(np.linalg.norm(d.xpos[verts] - c, axis=1) < r))
+        self._remove_eaten(np.flatnonzero(inside & self._active & (self._codes != acc.EATEN)))
 
     def eat_from_utensil(self) -> float:
-        """The user takes the bite: what is on the utensil now is eaten (moved out of the
-        world). Returns the grams eaten. (The simulated user does not bite or chew; the
-        feeding tree presents the bite and this stands for the user taking it.)"""
-        n = len(self.layout.food_bodies)
-        on = np.flatnonzero(self._codes[:n] == acc.UTENSIL)
+        """The user takes the bite: what is on the utensil now — pieces, particles and
+        noodle strands alike — is eaten (moved out of the world, never counted again).
+        Returns the grams eaten. (The simulated user does not bite or chew; the feeding tree
+        presents the bite and this stands for the user taking it.)"""
+        on = np.flatnonzero(self._active & (self._codes == acc.UTENSIL))
         self._remove_eaten(on)
         return float(len(on) * self.layout.piece_mass * 1000.0)
 

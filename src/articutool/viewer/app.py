@@ -27,6 +27,7 @@ import viser
 import viser.uplot
 from numpy.typing import NDArray
 
+from articutool.sim.accounting import SpillEvent, spilled_by_place
 from articutool.viewer.geometry import GeomMesh, Poser, geom_meshes
 from articutool.viewer.plan import PlanView
 from articutool.viewer.recording import Recording
@@ -39,6 +40,7 @@ CLASS_COLORS = np.array([[230, 160, 30], [40, 170, 60], [150, 110, 70], [240, 12
 _UNPLACED = np.array([160, 160, 160], dtype=np.uint8)
 _HIGHLIGHT = (230, 20, 20)
 _X: dict[str, Any] = {"x": {"time": False}}  # plot x axes are seconds, not dates
+_SPILL_FIELDS = ("t", "mass_g", "place", "where", "item")
 
 
 def ramp_colors(values: NDArray[np.float64], good: float, bad: float) -> NDArray[np.uint8]:
@@ -243,7 +245,9 @@ class ViewerApp:
                                                 visible=False)
         modes = {int(k): v for k, v in meta["modes"].items()}
         n_sp = len(rec.spills)
-        spilled = sum(sp["mass_g"] for sp in rec.spills)
+        # Spilled grams as everywhere: each item once, at its worst place (sim.accounting).
+        spilled = sum(spilled_by_place([SpillEvent(**{k: sp[k] for k in _SPILL_FIELDS})
+                                        for sp in rec.spills]).values())
         s.gui.add_markdown(
             f"**replay**: {meta.get('food') or 'no food'} on the {meta['utensil']}, seed "
             f"{meta['seed']}, {len(rec)} frames over {rec.t[-1] - rec.t[0]:.1f} s "
