@@ -174,3 +174,47 @@ def test_source_version_is_the_last_source_commit_and_flags_modified_sources() -
     modified = subprocess.run(["git", "-C", str(root), "diff", "--quiet", "HEAD", "--",
                                "src"]).returncode != 0
     assert source_version() == head.stdout.strip() + ("+modified" if modified else "")
+
+
+
+class _TreeReachedError(Exception):
+    """Raised by the stand-ins for the tree runners: the trial got as far as its tree."""
+
+
+@pytest.mark.parametrize("experiment", ["exp1", "exp2b", "exp2c", "exp3"])
+def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
+        monkeypatch: pytest.MonkeyPatch, experiment: str) -> None:
+    """``run_trial(…, visitors=…)`` reaches the feeding tree of every protocol that runs one
+    (what ``--record`` relies on for ``/feeding/tree``). The physics is stubbed out here; a
+    real recording is in test_mcap_recording.py. The capacity protocol runs no tree."""
+    import inspect
+    from types import SimpleNamespace
+    from unittest import mock
+
+    import articutool.feeding.meal as meal
+    import articutool.feeding.tree as tree
+    from articutool.experiments import protocols
+    from articutool.experiments.runner import run_trial
+
+    got: list[object] = []
+
+    def runner(*_: object, **kw: object) -> None:
+        got.append(kw.get("visitors"))
+        raise _TreeReachedError
+
+    monkeypatch.setattr(tree, "run_tree", runner)  # exp2b, exp2c (transport)
+    monkeypatch.setattr(meal, "run_bite", runner)  # exp1, exp3
+    monkeypatch.setattr(tree, "transport_tree", mock.MagicMock())
+    monkeypatch.setattr(meal, "make_bite_world", lambda *a, **k: SimpleNamespace(
+        world=mock.MagicMock(), arm=mock.MagicMock()))
+    monkeypatch.setattr(meal, "shed_configuration", lambda *a, **k: None)
+    for name in ("FeedingWorld", "SimArm", "_GoalArm"):
+        monkeypatch.setattr(protocols, name, mock.MagicMock())
+    goals = ["centre"]
+    conds = conditions(experiment, ExperimentsConfig.load(), goals=goals,
+                       load_g={"pecans": 5.0, "water": 5.0})
+    mine = [object()]
+    rec = run_trial(make_trials(experiment, conds, 1, 0, goals=goals)[0], visitors=mine)
+    assert rec["error"] is not None and "_TreeReachedError" in rec["error"], rec
+    assert got == [mine] and got[0] is mine
+    assert "visitors" in inspect.signature(protocols.capacity_trial).parameters

@@ -288,6 +288,56 @@ def test_an_experiment_trial_recording_agrees_with_its_record(tmp_path: Path) ->
     assert not (tmp_path / "new.mcap").exists()
 
 
+def test_an_experiment_trials_recording_holds_its_feeding_tree(tmp_path: Path) -> None:
+    """``experiment … --trial K --record``: the protocol's own tree is on ``/feeding/tree``
+    (the recorder's visitor passed down, as ``meal`` does), and the recorded replay has the
+    outcome of the trial logged without a recorder. Exp. 2b, pecans, baseline: a few s."""
+    import json
+
+    pytest.importorskip("mujoco")
+    from articutool.experiments.config import ExperimentsConfig
+    from articutool.experiments.design import conditions, make_trials
+    from articutool.experiments.runner import log_path, run_trial
+
+    trials = make_trials("exp2b", conditions("exp2b", ExperimentsConfig.load(),
+                                             goals=["centre"]), 1, 0, goals=["centre"])
+    spec = next(t for t in trials if t.cond == {"food": "pecans", "system": "baseline",
+                                                "goal": "centre"})
+    logged = run_trial(spec)  # as a run logs it: no recorder
+    assert logged["error"] is None, logged.get("traceback")
+    out = tmp_path / "out"
+    log = log_path(out, "exp2b")
+    log.parent.mkdir(parents=True)
+    log.write_text(json.dumps(logged) + "\n", encoding="utf-8")
+    path = tmp_path / "exp2b.mcap"
+    p = subprocess.run([sys.executable, "-m", "articutool", "experiment", "exp2b", "--trials",
+                        "1", "--out", str(out), "--trial", str(spec.trial), "--json",
+                        "--record", str(path)], env=ENV, capture_output=True, text=True,
+                       timeout=300)
+    assert p.returncode == 0, p.stderr[-2000:]
+    replay = json.loads(p.stdout)
+    rec = replay["record"]
+    for k in ("completed", "held_g", "delivered_g", "spilled_g", "shed_g", "masses_after_g"):
+        assert rec[k] == logged[k], (k, replay["replay"])
+    with path.open("rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        (meta,) = list(reader.iter_metadata())
+        got = [(ch.topic, sch.name, dec) for sch, ch, _, dec in reader.iter_decoded_messages()]
+    assert meta.metadata["experiment"] == "exp2b"
+    tree = [(s, d) for t, s, d in got if t == "/feeding/tree"]
+    assert len(tree) >= 2 and {s for s, _ in tree} == {m.DIAGNOSTIC_ARRAY}
+    status = [{st.name: st.message for st in d.status} for _, d in tree]
+    assert status[0]["bite"] == "RUNNING"
+    assert status[-1]["bite"] == ("SUCCESS" if rec["completed"] else "FAILURE")
+    assert rec["completed"] and status[-1]["bite / tool DISABLED (then DISABLED) / move to "
+                                           "centre / Execute to centre"] == "SUCCESS"
+    stamps = [d.header.stamp.sec + d.header.stamp.nanosec * 1e-9 for _, d in tree]
+    assert stamps == sorted(stamps)
+    # every recording in simulation: the arm's joints and the food accounting as well
+    topics = Counter(t for t, _, _ in got)
+    assert topics["/arm/joint_states"] > 100 and topics["/sim/food"] > 10
+
+
 def _joint_states(names: list[str], t: float, q: list[float]) -> Any:
     return m.msg(m.JOINT_STATE, header=m.header(t), name=names,
                  position=np.asarray(q, dtype=np.float64), velocity=np.zeros(0),

@@ -172,6 +172,7 @@ def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) ->
         raise _usage(f"--trial must be in [0, {len(trials) - 1}] for --trials {args.trials}; "
                      f"got {args.trial}")
     rec_holder: dict[str, Any] = {}
+    visitors: list[Any] = []  # read by the protocol when it builds a tree (after the hook)
 
     def hook(world: Any) -> None:
         if args.video:
@@ -184,9 +185,10 @@ def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) ->
             rec_holder["mcap"] = WorldMcapRecorder(world, args.record, metadata={
                 "experiment": exp, "trial": spec.trial, "seed": spec.seed,
                 "condition": json.dumps(spec.cond, default=str)})
+            visitors.append(rec_holder["mcap"].tree_visitor)
 
     try:
-        rec = run_trial(spec, hook if args.video or args.record else None)
+        rec = run_trial(spec, hook if args.video or args.record else None, visitors=visitors)
     finally:
         if "mcap" in rec_holder:  # complete also when the trial failed or was interrupted
             rec_holder["mcap"].close()
@@ -391,7 +393,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                        help="with --trial: record a video (.mp4 or .gif)")
         p.add_argument("--record", metavar="FILE.mcap", default=None,
                        help="with --trial: record the trial as ROS 2 messages in MCAP (tool "
-                            "telemetry and commands, arm joints, food); never overwrites")
+                            "telemetry and commands, arm joints, food, the feeding tree's "
+                            "status); never overwrites")
         if name == "exp2c":
             p.add_argument("--load-g", default=None, metavar="FOOD=G,…",
                            help="the load per food (default: our capacity means)")

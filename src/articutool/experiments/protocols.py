@@ -4,7 +4,12 @@ Each protocol takes a trial's condition, its seed and the settings, runs the wor
 project's own code (the feeding tree's transport subtree, the tool's primitives, the planners
 and verifier), and returns a flat dict of every measured quantity. Trials differ only by
 their seed (food placement, sensor noise and gyro bias, planner seed). A ``hook`` may be
-given the world before anything moves (video recording for ``--trial K --video``).
+given the world before anything moves (video recording for ``--trial K --video``), and
+``visitors`` (py_trees visitors) join every feeding tree a trial ticks, as ``articutool meal``
+passes them to :func:`~articutool.feeding.meal.run_bite`: the list is read when the tree is
+built, after the hook, so a hook may add to it (``--record``: the recording's
+:attr:`~articutool.sim.mcap_record.WorldMcapRecorder.tree_visitor`, which only reads the
+tree's state, so a recorded replay has the logged outcome). The capacity protocol runs no tree.
 
 - :func:`capacity_trial` — our "maximum capacity" protocol (§5.2.3; see ``experiments.toml``);
 - :func:`exp2b_trial` — a placed load carried from the common start to one Staging goal of
@@ -19,8 +24,8 @@ given the world before anything moves (video recording for ``--trial K --video``
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -29,10 +34,14 @@ from articutool.feeding.sim_arm import SimArm
 from articutool.sim import accounting as acc
 from articutool.sim.world import FeedingWorld
 
+if TYPE_CHECKING:
+    import py_trees
+
 __all__ = ["BITE_PROTOCOLS", "Hook", "capacity_trial", "exp1_trial", "exp2b_trial",
            "exp2c_trial", "exp3_trial", "json_safe", "transport"]
 
 Hook = Callable[[FeedingWorld], None] | None
+Visitors = Sequence["py_trees.visitors.VisitorBase"]
 
 
 class _GoalArm(SimArm):
@@ -59,10 +68,10 @@ def _masses(world: FeedingWorld) -> dict[str, float]:
 
 
 def transport(world: FeedingWorld, arm: SimArm, goal: str, planner: str, *, attempts: int,
-              cfg: ExperimentsConfig) -> dict[str, Any]:
+              cfg: ExperimentsConfig, visitors: Visitors = ()) -> dict[str, Any]:
     """Run the feeding tree's transport subtree (plan → verify → execute, bounded attempts,
-    the tool's mode scoped) to ``goal``; then hold still ``settle_s``. Returns what the tree
-    recorded and the tilt the utensil reached on the way."""
+    the tool's mode scoped) to ``goal``, with ``visitors`` on the tree; then hold still
+    ``settle_s``. Returns what the tree recorded and the tilt the utensil reached on the way."""
     import py_trees
     from py_trees.common import Status
 
@@ -79,7 +88,8 @@ def transport(world: FeedingWorld, arm: SimArm, goal: str, planner: str, *, atte
     try:
         root = transport_tree(arm, world.tool, goal, planner, attempts=attempts,
                               budget_s=s.plan_budget_s, clock=world.clock)
-        status, rec = run_tree(root, world.run, world.clock, timeout_s=s.tree_timeout_s)
+        status, rec = run_tree(root, world.run, world.clock, timeout_s=s.tree_timeout_s,
+                               visitors=visitors)
     finally:
         world.on_tick.remove(watch)
     attempts_used = py_trees.blackboard.Blackboard.get(f"/bite/planning_attempts_{goal}")
@@ -112,9 +122,10 @@ def _outcome_fields(world: FeedingWorld, before: dict[str, float], n_spills: int
 
 
 def capacity_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
-                   hook: Hook = None) -> dict[str, Any]:
+                   hook: Hook = None, visitors: Visitors = ()) -> dict[str, Any]:
     """One maximal load: the leveled, tared utensil loaded with ``overfill_g``; what stays
-    after ``settle_s`` level, by ground truth and as the F/T sensor weighs it."""
+    after ``settle_s`` level, by ground truth and as the F/T sensor weighs it. No feeding
+    tree runs (the tool levels on its own), so ``visitors`` see nothing."""
     from articutool.tool.api import Mode
 
     food = cond["food"]
@@ -133,7 +144,7 @@ def capacity_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
 
 
 def exp2b_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
-                hook: Hook = None) -> dict[str, Any]:
+                hook: Hook = None, visitors: Visitors = ()) -> dict[str, Any]:
     """Exp. 2b: load placed at the common start, carried to ``cond['goal']``."""
     from articutool.arm.scene import Scene
     from articutool.tool.api import Mode
@@ -158,7 +169,7 @@ def exp2b_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
         held = w.place_load(settle_s=cfg.settings.settle_s)
         before, n_spills = w.masses_g(), len(w.spills)
         tr = transport(w, arm, goal, "decoupled" if articutool else "strict6",
-                       attempts=_plan_attempts(food, system), cfg=cfg)
+                       attempts=_plan_attempts(food, system), cfg=cfg, visitors=visitors)
     finally:
         arm.close()
     return {"load_g": load, "held_g": _r(held), "planner": "decoupled" if articutool
@@ -178,7 +189,7 @@ def _plan_attempts(food: str, system: str) -> int:
 
 
 def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
-                hook: Hook = None) -> dict[str, Any]:
+                hook: Hook = None, visitors: Visitors = ()) -> dict[str, Any]:
     """Exp. 2c: ``cond['load_g']`` placed at the shedding pose over the bowl, the shedding
     primitive there (test) or not (control), transport to Staging with the Articutool."""
     from articutool.arm.scene import Scene
@@ -217,7 +228,7 @@ def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
         before = w.masses_g()
         spills_primitive = acc.spilled_by_place(w.spills, n_loaded)
         tr = transport(w, arm, "Staging", strat.transport.planner,
-                       attempts=strat.attempts.plan, cfg=cfg)
+                       attempts=strat.attempts.plan, cfg=cfg, visitors=visitors)
     finally:
         arm.close()
     # Food on the table or the user is a spill whenever it falls (during the primitive too);
@@ -242,7 +253,7 @@ def json_safe(x: Any) -> Any:
 
 
 def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
-          stages: tuple[str, ...], timeout_s: float) -> dict[str, Any]:
+          stages: tuple[str, ...], timeout_s: float, visitors: Visitors) -> dict[str, Any]:
     """One bite through the feeding tree (:func:`articutool.feeding.meal.run_bite`): the
     world, arm and strategy from :func:`~articutool.feeding.meal.make_bite_world` (the
     strategy drawn from the action library with the seed), the given stages."""
@@ -254,7 +265,8 @@ def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
         hook(setup.world)
     try:
         r = run_bite(setup, stages=stages, timeout_s=timeout_s,
-                     settings=BiteSettings(budget_s=cfg.settings.plan_budget_s))
+                     settings=BiteSettings(budget_s=cfg.settings.plan_budget_s),
+                     visitors=visitors)
     finally:
         setup.arm.close()
     w = setup.world
@@ -268,22 +280,23 @@ def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
 
 
 def exp1_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
-               hook: Hook = None) -> dict[str, Any]:
+               hook: Hook = None, visitors: Visitors = ()) -> dict[str, Any]:
     """Exp. 1 (§5.1): from AbovePlate, acquire with the system's strategy, move
     level-constrained to Resting; the mass on the utensil there (``mass_g``, ground truth;
     ``ft_mass_g`` as the F/T sensor weighs it when comparable)."""
-    rec = _bite(cond, seed, cfg, hook, ("above", "acquire", "resting"), cfg.exp1.timeout_s)
+    rec = _bite(cond, seed, cfg, hook, ("above", "acquire", "resting"), cfg.exp1.timeout_s,
+                visitors)
     rec["mass_g"] = rec["masses_end_g"]["utensil"]
     return rec
 
 
 def exp3_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
-               hook: Hook = None) -> dict[str, Any]:
+               hook: Hook = None, visitors: Visitors = ()) -> dict[str, Any]:
     """Exp. 3 (§5.3): the whole bite — above the food, acquire, shed, Resting, Staging,
     present (the simulated user takes it). The outcome class is derived at analysis time,
     at the report's threshold (``outcome`` here is ``None``)."""
     return _bite(cond, seed, cfg, hook, ("above", "acquire", "shed", "resting", "staging",
-                                         "present"), cfg.exp3.timeout_s)
+                                         "present"), cfg.exp3.timeout_s, visitors)
 
 
 BITE_PROTOCOLS = {"exp1": exp1_trial, "exp3": exp3_trial}

@@ -144,17 +144,19 @@ def _protocol(experiment: str) -> Callable[..., dict[str, Any]]:
     return table[experiment]
 
 
-def run_trial(spec: TrialSpec, hook: Any = None,
-              config_path: str | None = None) -> dict[str, Any]:
+def run_trial(spec: TrialSpec, hook: Any = None, config_path: str | None = None,
+              visitors: Sequence[Any] = ()) -> dict[str, Any]:
     """Run one trial and return its record: the trial's identity, condition and seed, every
     quantity the protocol measured, the wall time, and ``error`` (the exception, if the
-    protocol raised one: the trial is then recorded as an error, not rerun)."""
+    protocol raised one: the trial is then recorded as an error, not rerun). ``hook`` and
+    ``visitors`` (py_trees visitors for the trial's feeding trees, read after the hook ran)
+    go to the protocol (:mod:`articutool.experiments.protocols`)."""
     cfg = ExperimentsConfig.load(config_path)
     fn = _protocol(spec.experiment)
     t0 = time.perf_counter()
     error = None
     try:
-        measured = fn(spec.cond, spec.seed, cfg, hook)
+        measured = fn(spec.cond, spec.seed, cfg, hook, visitors=visitors)
     except Exception as err:  # a trial that crashes is reported, not silently dropped
         error = f"{type(err).__name__}: {err}"
         measured = {"traceback": traceback.format_exc(limit=6)}

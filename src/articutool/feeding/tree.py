@@ -20,7 +20,7 @@ Shape of :func:`transport_tree`::
 from __future__ import annotations
 
 import time as _time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import py_trees
@@ -191,15 +191,18 @@ def _in_retreat(behaviour: py_trees.behaviour.Behaviour) -> bool:
 
 def run_tree(root: py_trees.behaviour.Behaviour, step: Callable[[float], None],
              clock: Callable[[], float], *, period_s: float = 0.1,
-             timeout_s: float = 120.0) -> tuple[Status, BiteRecord]:
+             timeout_s: float = 120.0,
+             visitors: Sequence[py_trees.visitors.VisitorBase] = ()
+             ) -> tuple[Status, BiteRecord]:
     """Tick ``root`` every ``period_s`` of ``clock`` until it ends or ``timeout_s`` passes
     (not counting the waits for plans, :meth:`BiteRecorder.planning_wait_s`), calling
     ``step(period_s)`` between ticks (the physics world's ``run``); returns the final status
     and the telemetry. A timeout stops the tree (its clean-up runs); a safe stop by the guard
-    is a FAILURE whose recorded reason is the guard's."""
+    is a FAILURE whose recorded reason is the guard's. ``visitors`` join the tree's own (e.g.
+    a recording's :attr:`~articutool.sim.mcap_record.WorldMcapRecorder.tree_visitor`)."""
     tree = py_trees.trees.BehaviourTree(root)
     rec = BiteRecorder(clock)
-    tree.visitors.append(rec)
+    tree.visitors += [rec, *visitors]
     tree.setup()
     t_end = clock() + timeout_s
     while clock() - rec.planning_wait_s(clock()) < t_end:
