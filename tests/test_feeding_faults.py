@@ -16,7 +16,9 @@ the F/T sensor).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import py_trees
@@ -27,6 +29,13 @@ pytest.importorskip("mujoco")
 
 from articutool.feeding.behaviours import JobResult
 from articutool.feeding.meal import BiteResult, MealSetup, make_bite_world, run_bite
+from articutool.link.auth import Sender
+from articutool.link.client import ArticutoolClient
+from articutool.link.config import load_config
+from articutool.link.memory_transport import MemoryBus, MemoryTransport
+from articutool.link.pairing import pair
+from articutool.link.remote_tool import RemoteTool
+from articutool.link.server import ToolServer
 from articutool.tool.api import Mode
 
 STAGES = ("staging", "present", "return")
@@ -197,3 +206,181 @@ def test_a_fault_during_the_shedding_primitive_answers_its_goal_and_stops_safely
     assert st is not None and st.name == "VIBRATE_ROLL"
     assert st.done and not st.success  # the goal was answered: aborted, not left running
     assert r.acquired_g > 0  # it did hold food, and none of it counts as delivered
+
+
+# ------------------------------------------------------------------ over the link --
+# The tree drives the tool through the real link: a ToolServer serving the world's runtime
+# and the PC's ArticutoolClient wrapped as the tree's ToolAPI (RemoteTool), on the memory
+# transport. Pairing is modelled by the transport: each sender is delivered as verified with
+# its role (what mutual TLS and signatures establish on Zenoh), and the tool requires it.
+# Clocks: the link's bounds (the server's lease and client silence, the client's tool
+# silence) are wall time; the world runs no faster than real time (each tool tick takes at
+# least its period of wall time), so a simulated interval is at least as long on the wall
+# clock: a loss injected for X s of simulated time silences the link for at least X s.
+
+FAST = {"heartbeat_period": 0.05, "tool_timeout": 0.5, "client_timeout": 2.0,
+        "call_timeout": 1.0}
+
+
+@pytest.fixture(scope="module")
+def paired(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A CA, the tool wrist-1 and two PCs, as ``articutool pair`` makes them."""
+    d = tmp_path_factory.mktemp("pairing")
+    pair(d, "wrist-1", ["pc-1", "pc-2"])
+    return d
+
+
+class _Loopless:
+    """The world's runtime as the server sees it. The world ticks the runtime (never its
+    own run loop), so the server runs commands on its worker thread between the world's
+    steps, as for any ToolAPI without a loop (the runtime is thread-safe)."""
+
+    def __init__(self, runtime: object) -> None:
+        self._rt = runtime
+
+    def __getattr__(self, name: str) -> object:
+        if name == "set_link_work":  # no loop of its own here: the server's worker drains
+            raise AttributeError(name)
+        return getattr(self._rt, name)
+
+
+class _RealTimePace:
+    """``world.on_tick``: each tool tick takes at least its period of wall time."""
+
+    def __init__(self, period_s: float) -> None:
+        self.period_s, self.last = period_s, time.monotonic()
+
+    def __call__(self, _world: object) -> None:
+        wait = self.period_s - (time.monotonic() - self.last)
+        if wait > 0:
+            time.sleep(wait)
+        self.last = time.monotonic()
+
+
+def _paired(bus: MemoryBus, who: str, role: str) -> MemoryTransport:
+    t = MemoryTransport(bus, who, verified=True)
+    t.sender = Sender(who, True, role)
+    return t
+
+
+class Linked:
+    """The world's tool behind a paired link with two PCs (``pc1`` drives the bite)."""
+
+    def __init__(self, setup: MealSetup, paired: Path, policy: str = "continue") -> None:
+        w = setup.world
+        cfg = load_config(paired / "wrist-1" / "link.toml").replace(
+            link_loss_policy=policy, **FAST)
+        assert cfg.requires_pairing
+        self.bus = MemoryBus()
+        self.server = ToolServer(_Loopless(w.tool), _paired(self.bus, "wrist-1", "tool"), cfg)
+        self.server.start()
+        self.pc1_link = _paired(self.bus, "pc-1", "pc")
+        self.pc1, self.pc2 = (
+            ArticutoolClient(load_config(paired / pc / "link.toml").replace(**FAST), link,
+                             sender=pc)
+            for pc, link in (("pc-1", self.pc1_link), ("pc-2", _paired(self.bus, "pc-2", "pc"))))
+        self.tool = RemoteTool(self.pc1, w.clock)
+        w.on_tick.append(_RealTimePace(1.0 / setup.world.spec.wrist.loop_rate_hz))
+        assert self.pc1.wait_for_tool(5.0) and self.pc2.wait_for_tool(5.0)
+
+    def close(self) -> None:
+        for c in (self.pc1, self.pc2):
+            c.close()
+        self.server.stop()
+        self.bus.close()
+
+
+def _linked_bite(setup: MealSetup, link: Linked, *faults: FaultAt,
+                 stages: tuple[str, ...] = STAGES) -> BiteResult:
+    try:
+        return run_bite(setup, stages=stages, threshold_g=THRESHOLD_G, visitors=faults,
+                        tool=link.tool)
+    finally:
+        setup.arm.close()
+
+
+def test_a_second_paired_pcs_stop_during_transport_disables_the_tool_and_stops_the_bite(
+        paired: Path) -> None:
+    setup, _ = _loaded()
+    w = setup.world
+    link = Linked(setup, paired)
+    answers: list[tuple[bool, str]] = []
+    try:
+        fault = FaultAt("Execute to Staging", 1.0, w.clock,
+                        lambda: answers.append(link.pc2.set_mode("disabled")))
+        r = _linked_bite(setup, link, fault)
+        assert fault.fired_at is not None
+        assert answers and answers[0][0], answers  # pc-2's stop was accepted (not pc-1's lease)
+        _assert_stopped_safely(setup, r, "DISABLED by another client")
+        assert w.tool.fault == ""
+        assert r.last_stage == "staging" and r.masses_after == {}  # nothing ended before it
+        assert link.server.counters["link_losses"] == 0
+    finally:
+        link.close()
+
+
+def test_a_link_loss_during_transport_stops_the_bite_the_tool_keeps_leveling_then_obeys(
+        paired: Path) -> None:
+    # The tool's side of the link drops 1 s into the transport for 3 s (past the tool's
+    # client_timeout of 2 s), then returns.
+    setup, _ = _loaded()
+    w = setup.world
+    link = Linked(setup, paired)
+    tool_link = link.server.transport
+    try:
+        def drop() -> None:
+            tool_link.connected = False  # type: ignore[attr-defined]
+
+        fault = FaultAt("Execute to Staging", 1.0, w.clock, drop)
+        r = _linked_bite(setup, link, fault)
+        assert fault.fired_at is not None
+        # The PC's tree saw the silence and stopped; its DISABLED could not reach the tool.
+        assert r.end_state == "stopped" and not r.completed, r
+        assert r.failed_stage.startswith("Safe stop: tool state is "), r.failed_stage
+        assert r.delivered_g == 0.0 and r.outcome in ("failed", "table_spill", "user_spill")
+        assert r.last_stage == "staging" and r.masses_after == {}
+        q = w.arm_q.copy()
+        # The tool, alone: keeps leveling (the link-loss policy), the arm holds still.
+        tilts = []
+        w.on_tick.append(lambda w: tilts.append(w.tilt_deg()))
+        w.run(max(0.0, fault.fired_at + 3.0 - w.time))
+        assert w.tool.mode == Mode.LEVELING and w.tool.fault == ""
+        assert max(tilts) < 5.0, max(tilts)
+        assert np.allclose(w.arm_q, q, atol=2e-3)
+        assert link.server.counters["link_losses"] == 1
+        # The link returns: the PC hears the tool again and its stop is obeyed.
+        tool_link.connected = True  # type: ignore[attr-defined]
+        assert link.pc1.wait_for_tool(5.0)
+        assert link.pc1.set_mode("disabled")[0]
+        assert w.tool.mode == Mode.DISABLED
+    finally:
+        link.close()
+
+
+def test_an_ft_spike_during_transport_changes_nothing_the_bite_completes() -> None:
+    # Nothing reads the F/T sensor during a transport: the runtime only publishes it. A 10 N
+    # spike for 50 ms (5 samples at 100 Hz, as a knock on the utensil) and then a NaN sample.
+    setup, held = _loaded()
+    w = setup.world
+    seen: list[float] = []
+    w.on_tick.append(lambda w: seen.append(w.tool.state().extra.get("ft_fz", 0.0)))
+    sample = w.ft._sample
+    window: list[float] = []
+
+    def spiked(force: np.ndarray, torque: np.ndarray, stamp: float) -> None:
+        if window and window[0] <= stamp < window[0] + 0.05:
+            force = force + np.array([0.0, 0.0, 10.0])
+        elif window and window[0] + 0.05 <= stamp < window[0] + 0.06:
+            force = np.full(3, np.nan)
+        sample(force, torque, stamp)
+
+    w.ft._sample = spiked  # type: ignore[method-assign]
+    fault = FaultAt("Execute to Staging", 1.0, w.clock, lambda: window.append(w.time))
+    r = _bite(setup, fault)
+    assert fault.fired_at is not None
+    assert max(seen) > 9.0  # the spike went through the driver into the tool's telemetry
+    assert r.end_state == "completed" and r.completed and r.failed_stage == "", r
+    assert w.tool.fault == "" and w.tool.mode == Mode.DISABLED
+    assert r.delivered_g > THRESHOLD_G and r.outcome == "meaningful_success"
+    assert r.delivered_g + r.spilled_g <= held + 1e-6
+    assert r.last_stage == "return" and list(r.masses_after) == list(STAGES)
