@@ -16,6 +16,7 @@ the F/T sensor).
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -78,12 +79,25 @@ def _bite(setup: MealSetup, *faults: FaultAt) -> BiteResult:
         setup.arm.close()
 
 
-def _assert_stopped_safely(setup: MealSetup, r: BiteResult, reason: str) -> None:
+def _assert_log_complete(r: BiteResult, stage: str) -> None:
+    """The run's log is the bite record (``BiteResult``, the ``--json`` line of ``meal``):
+    it has the masses after every stage that ended before the fault, none after it, and
+    names the stage the fault hit (its reason is in ``failed_stage``)."""
+    before = list(r.stages[:r.stages.index(stage)])
+    assert r.last_stage == stage, r.last_stage
+    assert [s for s in r.masses_after if s != stage] == before, list(r.masses_after)
+    assert r.failed_stage and r.end_state in ("stopped", "retreated", "timed_out")
+
+
+def _assert_stopped_safely(setup: MealSetup, r: BiteResult, reason: str,
+                           stage: str = "staging") -> None:
     """The guard's safe stop: reported as stopped (not completed, the reason named), the
-    tool DISABLED, the arm holding still, the load never counted as delivered."""
+    tool DISABLED, the arm holding still, the load never counted as delivered; the log
+    complete up to the fault in ``stage``."""
     w = setup.world
     assert r.end_state == "stopped" and not r.completed, r
     assert r.failed_stage.startswith("Safe stop: ") and reason in r.failed_stage, r.failed_stage
+    _assert_log_complete(r, stage)
     assert r.outcome in ("failed", "table_spill", "user_spill")
     assert r.delivered_g == 0.0
     assert w.tool.mode == Mode.DISABLED
@@ -174,6 +188,7 @@ def test_planning_failures_past_the_attempts_retreat_and_deliver_nothing() -> No
     r = _bite(setup)
     assert r.end_state == "retreated" and not r.completed
     assert r.failed_stage.startswith("Plan to Staging: no plan to Staging: injected")
+    _assert_log_complete(r, "staging")
     assert r.planning_attempts_by_goal["Staging"] == setup.strategy.attempts.plan
     assert r.delivered_g == 0.0 and r.outcome in ("failed", "table_spill", "user_spill")
     assert setup.world.tool.mode == Mode.DISABLED and setup.world.tool.fault == ""
@@ -201,7 +216,7 @@ def test_a_fault_during_the_shedding_primitive_answers_its_goal_and_stops_safely
     finally:
         setup.arm.close()
     assert at.fired_at is not None
-    _assert_stopped_safely(setup, r, "tool fault: " if fault == "overload" else fault)
+    _assert_stopped_safely(setup, r, "tool fault: " if fault == "overload" else fault, "shed")
     st = w.tool.primitive_status()
     assert st is not None and st.name == "VIBRATE_ROLL"
     assert st.done and not st.success  # the goal was answered: aborted, not left running
@@ -266,10 +281,11 @@ def _paired(bus: MemoryBus, who: str, role: str) -> MemoryTransport:
 class Linked:
     """The world's tool behind a paired link with two PCs (``pc1`` drives the bite)."""
 
-    def __init__(self, setup: MealSetup, paired: Path, policy: str = "continue") -> None:
+    def __init__(self, setup: MealSetup, paired: Path, policy: str = "continue",
+                 **timing: float) -> None:
         w = setup.world
         cfg = load_config(paired / "wrist-1" / "link.toml").replace(
-            link_loss_policy=policy, **FAST)
+            link_loss_policy=policy, **{**FAST, **timing})
         assert cfg.requires_pairing
         self.bus = MemoryBus()
         self.server = ToolServer(_Loopless(w.tool), _paired(self.bus, "wrist-1", "tool"), cfg)
@@ -282,6 +298,10 @@ class Linked:
         self.tool = RemoteTool(self.pc1, w.clock)
         w.on_tick.append(_RealTimePace(1.0 / setup.world.spec.wrist.loop_rate_hz))
         assert self.pc1.wait_for_tool(5.0) and self.pc2.wait_for_tool(5.0)
+
+    def tool_link(self, up: bool) -> None:
+        """Cut the tool off the link (every PC loses it) or bring it back."""
+        self.server.transport.connected = up  # type: ignore[attr-defined]
 
     def close(self) -> None:
         for c in (self.pc1, self.pc2):
@@ -313,7 +333,6 @@ def test_a_second_paired_pcs_stop_during_transport_disables_the_tool_and_stops_t
         assert answers and answers[0][0], answers  # pc-2's stop was accepted (not pc-1's lease)
         _assert_stopped_safely(setup, r, "DISABLED by another client")
         assert w.tool.fault == ""
-        assert r.last_stage == "staging" and r.masses_after == {}  # nothing ended before it
         assert link.server.counters["link_losses"] == 0
     finally:
         link.close()
@@ -326,19 +345,15 @@ def test_a_link_loss_during_transport_stops_the_bite_the_tool_keeps_leveling_the
     setup, _ = _loaded()
     w = setup.world
     link = Linked(setup, paired)
-    tool_link = link.server.transport
     try:
-        def drop() -> None:
-            tool_link.connected = False  # type: ignore[attr-defined]
-
-        fault = FaultAt("Execute to Staging", 1.0, w.clock, drop)
+        fault = FaultAt("Execute to Staging", 1.0, w.clock, lambda: link.tool_link(False))
         r = _linked_bite(setup, link, fault)
         assert fault.fired_at is not None
         # The PC's tree saw the silence and stopped; its DISABLED could not reach the tool.
         assert r.end_state == "stopped" and not r.completed, r
         assert r.failed_stage.startswith("Safe stop: tool state is "), r.failed_stage
         assert r.delivered_g == 0.0 and r.outcome in ("failed", "table_spill", "user_spill")
-        assert r.last_stage == "staging" and r.masses_after == {}
+        _assert_log_complete(r, "staging")
         q = w.arm_q.copy()
         # The tool, alone: keeps leveling (the link-loss policy), the arm holds still.
         tilts = []
@@ -349,7 +364,7 @@ def test_a_link_loss_during_transport_stops_the_bite_the_tool_keeps_leveling_the
         assert np.allclose(w.arm_q, q, atol=2e-3)
         assert link.server.counters["link_losses"] == 1
         # The link returns: the PC hears the tool again and its stop is obeyed.
-        tool_link.connected = True  # type: ignore[attr-defined]
+        link.tool_link(True)
         assert link.pc1.wait_for_tool(5.0)
         assert link.pc1.set_mode("disabled")[0]
         assert w.tool.mode == Mode.DISABLED
@@ -384,3 +399,68 @@ def test_an_ft_spike_during_transport_changes_nothing_the_bite_completes() -> No
     assert r.delivered_g > THRESHOLD_G and r.outcome == "meaningful_success"
     assert r.delivered_g + r.spilled_g <= held + 1e-6
     assert r.last_stage == "return" and list(r.masses_after) == list(STAGES)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("policy", ["continue", "cancel"])
+def test_a_link_loss_during_the_shedding_primitive_follows_the_link_loss_policy(
+        paired: Path, policy: str) -> None:
+    # A real acquisition, then the tool's side of the link drops 0.3 s into the 1 s
+    # VIBRATE_ROLL. The tool notices after client_timeout (0.25 s here, so that it is
+    # before the primitive's end): "continue" lets the primitive finish, "cancel" aborts it.
+    py_trees.blackboard.Blackboard.clear()
+    setup = make_bite_world("pecans", "articutool", 0)
+    w = setup.world
+    link = Linked(setup, paired, policy, client_timeout=0.25)
+    try:
+        at = FaultAt("post-acquisition: VIBRATE_ROLL", 0.3, w.clock,
+                     lambda: link.tool_link(False))
+        r = _linked_bite(setup, link, at, stages=("above", "acquire", "shed", "resting"))
+        assert at.fired_at is not None
+        assert r.end_state == "stopped" and "tool state is " in r.failed_stage, r
+        _assert_log_complete(r, "shed")
+        assert r.acquired_g > 0 and r.delivered_g == 0.0
+        w.run(1.5)  # past the primitive's end
+        st = w.tool.primitive_status()
+        assert st is not None and st.name == "VIBRATE_ROLL" and st.done
+        assert st.success is (policy == "continue"), st
+        assert w.tool.mode == Mode.DISABLED and w.tool.fault == ""  # a primitive ends there
+        assert link.server.counters["link_losses"] == 1
+        # The PC's goal was answered too (by the link's error: the tool went silent).
+        pc_goal = link.tool.primitive_status()
+        assert pc_goal is not None and pc_goal.done and not pc_goal.success
+        assert pc_goal.message.startswith("link: "), pc_goal.message
+        link.tool_link(True)
+        assert link.pc1.wait_for_tool(5.0)
+        assert link.pc1.set_mode("leveling")[0]  # the PC commands the tool again
+    finally:
+        link.close()
+
+
+@pytest.mark.slow
+def test_a_link_blip_shorter_than_the_silence_bounds_leaves_the_bite_unharmed(
+        paired: Path) -> None:
+    # 0.2 s of wall time without the link 1 s into the transport: under the tree's stale_s
+    # (0.5 s), the PC's tool_timeout (0.5 s) and the tool's client_timeout (2 s).
+    setup, held = _loaded()
+    w = setup.world
+    link = Linked(setup, paired)
+    timer = threading.Timer(0.2, link.tool_link, (True,))
+
+    def blip() -> None:
+        link.tool_link(False)
+        timer.start()
+
+    try:
+        fault = FaultAt("Execute to Staging", 1.0, w.clock, blip)
+        r = _linked_bite(setup, link, fault)
+        assert fault.fired_at is not None and not timer.is_alive()
+        assert r.end_state == "completed" and r.completed and r.failed_stage == "", r
+        assert r.delivered_g > THRESHOLD_G and r.outcome == "meaningful_success"
+        assert r.delivered_g + r.spilled_g <= held + 1e-6
+        assert w.tool.mode == Mode.DISABLED and w.tool.fault == ""
+        assert link.server.counters["link_losses"] == 0
+    finally:
+        timer.cancel()
+        timer.join()
+        link.close()
