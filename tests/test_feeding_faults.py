@@ -1,17 +1,17 @@
 """Faults during a meal (issue 22): the feeding tree in the physics world with the real tool
-runtime, a fault injected at a chosen moment of a bite. For each: the tool ends in its safe
-state, the tree ends in a named state the bite record reports, and nothing is counted as
-delivered that was not.
+runtime, a fault injected at a chosen moment of a bite. For each: every goal is answered, the
+tool ends in its defined safe state, the tree ends in a named state the bite record reports,
+nothing is counted as delivered that was not, and the bite record (the run's log) has every
+stage up to the fault and the fault's reason.
 
 The bite is the loaded part of one (a placed pecan load, then ``staging``, ``present`` and
 ``return``): the stages a fault can hurt most, at a fraction of a whole bite's cost.
 
 Covered: the user's stop request, a motor overload, an IMU that freezes, planning failures
-past the attempts (fast); a planning failure that is retried, and a stop request or an
-overload during the shedding primitive after a real acquisition (slow).
-Not covered yet: link loss and return, a stop from a second paired PC, an F/T spike (the
-tree talks to the in-process runtime here, not over the link, and nothing in the tree reads
-the F/T sensor).
+past the attempts, an F/T spike; over the link, a second paired PC's stop and a link loss
+that returns (fast); a planning failure that is retried, a stop request or an overload
+during the shedding primitive after a real acquisition, a link loss during it under either
+``link_loss_policy``, and a short link blip (slow).
 """
 
 from __future__ import annotations
