@@ -16,6 +16,7 @@ during the shedding primitive after a real acquisition, a link loss during it un
 
 from __future__ import annotations
 
+import socket
 import threading
 import time
 from collections.abc import Callable
@@ -282,19 +283,29 @@ class Linked:
     """The world's tool behind a paired link with two PCs (``pc1`` drives the bite)."""
 
     def __init__(self, setup: MealSetup, paired: Path, policy: str = "continue",
-                 **timing: float) -> None:
+                 zenoh: bool = False, **timing: float) -> None:
         w = setup.world
         cfg = load_config(paired / "wrist-1" / "link.toml").replace(
             link_loss_policy=policy, **{**FAST, **timing})
         assert cfg.requires_pairing
         self.bus = MemoryBus()
-        self.server = ToolServer(_Loopless(w.tool), _paired(self.bus, "wrist-1", "tool"), cfg)
+        pcs = [load_config(paired / pc / "link.toml").replace(**FAST) for pc in ("pc-1", "pc-2")]
+        if zenoh:  # mutual TLS on loopback, every command signed with the PC's certificate
+            from articutool.link.zenoh_transport import ZenohTransport
+            with socket.socket() as sock:
+                sock.bind(("127.0.0.1", 0))
+                where = f"tls/127.0.0.1:{sock.getsockname()[1]}"
+            cfg = cfg.replace(listen=(where,), connect=())
+            pcs = [c.replace(listen=(), connect=(where,)) for c in pcs]
+            tool_side = ZenohTransport(cfg, "tool")
+            links: list = [ZenohTransport(c, "client") for c in pcs]
+        else:
+            tool_side = _paired(self.bus, "wrist-1", "tool")
+            links = [_paired(self.bus, pc, "pc") for pc in ("pc-1", "pc-2")]
+        self.server = ToolServer(_Loopless(w.tool), tool_side, cfg)
         self.server.start()
-        self.pc1_link = _paired(self.bus, "pc-1", "pc")
-        self.pc1, self.pc2 = (
-            ArticutoolClient(load_config(paired / pc / "link.toml").replace(**FAST), link,
-                             sender=pc)
-            for pc, link in (("pc-1", self.pc1_link), ("pc-2", _paired(self.bus, "pc-2", "pc"))))
+        self.pc1, self.pc2 = (ArticutoolClient(c, link, sender=c.identity)
+                              for c, link in zip(pcs, links, strict=True))
         self.tool = RemoteTool(self.pc1, w.clock)
         w.on_tick.append(_RealTimePace(1.0 / setup.world.spec.wrist.loop_rate_hz))
         assert self.pc1.wait_for_tool(5.0) and self.pc2.wait_for_tool(5.0)
@@ -307,6 +318,7 @@ class Linked:
         for c in (self.pc1, self.pc2):
             c.close()
         self.server.stop()
+        self.server.transport.close()
         self.bus.close()
 
 
@@ -319,11 +331,14 @@ def _linked_bite(setup: MealSetup, link: Linked, *faults: FaultAt,
         setup.arm.close()
 
 
+@pytest.mark.parametrize("zenoh", [False, True], ids=["memory", "zenoh-tls"])
 def test_a_second_paired_pcs_stop_during_transport_disables_the_tool_and_stops_the_bite(
-        paired: Path) -> None:
+        paired: Path, zenoh: bool) -> None:
+    if zenoh:
+        pytest.importorskip("zenoh")
     setup, _ = _loaded()
     w = setup.world
-    link = Linked(setup, paired)
+    link = Linked(setup, paired, zenoh=zenoh)
     answers: list[tuple[bool, str]] = []
     try:
         fault = FaultAt("Execute to Staging", 1.0, w.clock,
@@ -334,6 +349,9 @@ def test_a_second_paired_pcs_stop_during_transport_disables_the_tool_and_stops_t
         _assert_stopped_safely(setup, r, "DISABLED by another client")
         assert w.tool.fault == ""
         assert link.server.counters["link_losses"] == 0
+        # pc-1 (its verified name) still holds the lease: a stop is taken from any paired PC
+        # without moving it.
+        assert link.server.holder == "pc-1" and link.server.counters["refused_unpaired"] == 0
     finally:
         link.close()
 
