@@ -482,3 +482,28 @@ def test_a_link_blip_shorter_than_the_silence_bounds_leaves_the_bite_unharmed(
         timer.cancel()
         timer.join()
         link.close()
+
+
+@pytest.mark.slow
+def test_a_second_paired_pcs_stop_during_the_shedding_primitive_stops_the_bite(
+        paired: Path) -> None:
+    # pc-2's DISABLED 0.3 s into pc-1's VIBRATE_ROLL (after a real acquisition) aborts the
+    # primitive; the bite stops there (before: it retreated, putting the tool back to
+    # LEVELING and moving the arm after another PC's stop).
+    py_trees.blackboard.Blackboard.clear()
+    setup = make_bite_world("pecans", "articutool", 0)
+    w = setup.world
+    link = Linked(setup, paired)
+    answers: list[tuple[bool, str]] = []
+    try:
+        at = FaultAt("post-acquisition: VIBRATE_ROLL", 0.3, w.clock,
+                     lambda: answers.append(link.pc2.set_mode("disabled")))
+        r = _linked_bite(setup, link, at, stages=("above", "acquire", "shed", "resting"))
+        assert answers and answers[0][0], answers
+        _assert_stopped_safely(setup, r, "VIBRATE_ROLL aborted by mode change to DISABLED",
+                               "shed")
+        pc_goal = link.tool.primitive_status()  # pc-1's goal was answered: aborted
+        assert pc_goal is not None and pc_goal.done and not pc_goal.success, pc_goal
+        assert r.acquired_g > 0
+    finally:
+        link.close()

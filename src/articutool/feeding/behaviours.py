@@ -21,7 +21,7 @@ from typing import Any, Protocol
 import py_trees
 from py_trees.common import Access, Status
 
-from articutool.tool.api import Mode, ToolAPI
+from articutool.tool.api import ABORTED_BY_MODE_CHANGE, Mode, ToolAPI
 
 __all__ = [
     "ArmInterface",
@@ -241,12 +241,16 @@ class Execute(_JobBehaviour):
 
 
 class RunPrimitive(py_trees.behaviour.Behaviour):
-    """Run a tool primitive (``NONE`` succeeds at once); cancelled when preempted."""
+    """Run a tool primitive (``NONE`` succeeds at once); cancelled when preempted. A
+    primitive aborted by a mode change the tree did not make (a DISABLED from another
+    client) is a stop, not a failure to retry or retreat from: it stays RUNNING for the
+    guard (:class:`Unsafe`) to stop the bite in the next tick."""
 
     def __init__(self, tool: ToolAPI, primitive: str, params: list[float], stage: str) -> None:
         super().__init__(f"{stage}: {primitive}")
         self.tool, self.primitive, self.params = tool, primitive, list(params)
         self._running = False
+        self.bb = _bb(self, ("tool_mode", Access.WRITE))
 
     def initialise(self) -> None:
         self._running = False
@@ -255,6 +259,8 @@ class RunPrimitive(py_trees.behaviour.Behaviour):
         ok, msg = self.tool.start_primitive(self.primitive, self.params)
         self.feedback_message = msg
         self._running = ok
+        if ok:
+            self.bb.set("tool_mode", Mode.PRIMITIVE)
 
     def update(self) -> Status:
         if self.primitive == "NONE":
@@ -264,14 +270,18 @@ class RunPrimitive(py_trees.behaviour.Behaviour):
         st = self.tool.primitive_status()
         if st is None or not st.done:
             return Status.RUNNING
-        self._running = False
         self.feedback_message = st.message
+        if st.message.startswith(ABORTED_BY_MODE_CHANGE):
+            return Status.RUNNING  # stopped from elsewhere: the guard stops the bite
+        self._running = False
+        self.bb.set("tool_mode", Mode.DISABLED)  # where a primitive leaves the tool
         return Status.SUCCESS if st.success else Status.FAILURE
 
     def terminate(self, new_status: Status) -> None:
         if new_status == Status.INVALID and self._running:
             self.tool.cancel_primitive()
             self._running = False
+            self.bb.set("tool_mode", Mode.DISABLED)
 
 
 class ToolModeScope(py_trees.decorators.Decorator):
@@ -342,11 +352,11 @@ class Attempts(py_trees.decorators.Retry):
 
 class Unsafe(py_trees.behaviour.Behaviour):
     """SUCCESS when the bite must stop: a tool fault, tool state older than ``stale_s``, a
-    stop request on the blackboard, or the tool DISABLED while the tree has it LEVELING (a
-    stop from elsewhere: another paired PC, the tool's own console; issue 22) — seen in two
+    stop request on the blackboard, or a stop from elsewhere (another paired PC, the tool's
+    own console; issue 22): the tool DISABLED while the tree has it LEVELING — seen in two
     ticks running, since over a link a snapshot taken just before the tree's own LEVELING
-    was carried out can arrive after it. A condition: its FAILURE ("safe") is no failure of
-    the bite."""
+    was carried out can arrive after it — or the tree's primitive aborted by a mode change.
+    A condition: its FAILURE ("safe") is no failure of the bite."""
 
     is_condition = True
 
@@ -359,9 +369,10 @@ class Unsafe(py_trees.behaviour.Behaviour):
     def update(self) -> Status:
         st = self.tool.state()
         stop = self.bb.exists("stop_requested") and bool(self.bb.stop_requested)
-        leveling = self.bb.exists("tool_mode") and self.bb.tool_mode == Mode.LEVELING
+        expected = self.bb.tool_mode if self.bb.exists("tool_mode") else None
         self._disabled_ticks = self._disabled_ticks + 1 if (
-            leveling and st.mode == Mode.DISABLED) else 0
+            expected == Mode.LEVELING and st.mode == Mode.DISABLED) else 0
+        ps = self.tool.primitive_status() if expected == Mode.PRIMITIVE else None
         if st.fault:
             self.feedback_message = f"tool fault: {st.fault}"
         elif self.clock() - st.stamp > self.stale_s:
@@ -371,6 +382,8 @@ class Unsafe(py_trees.behaviour.Behaviour):
             self.feedback_message = "stop requested"
         elif self._disabled_ticks >= 2:
             self.feedback_message = "the tool was DISABLED by another client while leveling"
+        elif ps is not None and ps.done and ps.message.startswith(ABORTED_BY_MODE_CHANGE):
+            self.feedback_message = f"{ps.name} {ps.message} by another client"
         else:
             return Status.FAILURE
         return Status.SUCCESS
