@@ -507,3 +507,41 @@ def test_a_second_paired_pcs_stop_during_the_shedding_primitive_stops_the_bite(
         assert r.acquired_g > 0
     finally:
         link.close()
+
+
+def test_the_mcap_recording_of_a_faulted_bite_has_every_stage_and_the_reason(
+        tmp_path: Path) -> None:
+    # With ``meal --record FILE.mcap`` the recording is the run's log too: a motor overload
+    # 1 s into the transport, recorded as the meal CLI records.
+    pytest.importorskip("mcap_ros2")
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    from articutool.sim.mcap_record import WorldMcapRecorder
+
+    setup, _ = _loaded()
+    w = setup.world
+    rec = WorldMcapRecorder(w, tmp_path / "bite.mcap", metadata={"food": "pecans"})
+    fault = FaultAt("Execute to Staging", 1.0, w.clock,
+                    lambda: w.motors.inject_hardware_error(1))
+    try:
+        r = _bite(setup, fault, rec.tree_visitor)
+    finally:
+        rec.close()
+    _assert_stopped_safely(setup, r, "OVERLOAD")
+    with (tmp_path / "bite.mcap").open("rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        by: dict[str, list] = {}
+        for _, ch, _, dec in reader.iter_decoded_messages():
+            by.setdefault(ch.topic.replace("/articutool/default/", "tool:"), []).append(dec)
+    seen = [(s.name.rsplit(" / ", 1)[-1], s.message, {kv.key: kv.value for kv in s.values})
+            for arr in by["/feeding/tree"] for s in arr.status]
+    # every stage up to the fault ran (staging is the first), the stop and its reason
+    assert ("transport to Staging", "RUNNING") in {(n, st) for n, st, _ in seen}
+    assert any(n == "Unsafe?" and st == "SUCCESS" and "OVERLOAD" in v.get("feedback", "")
+               for n, st, v in seen)
+    assert any(n == "Safe stop" and st == "SUCCESS" for n, st, _ in seen)
+    assert not any(n.startswith("present at Staging") and st != "INVALID" for n, st, _ in seen)
+    # the tool's own account: the fault in its health, the stop as the link carries it
+    assert any("OVERLOAD" in s.message for h in by["tool:health"] for s in h.status)
+    assert by["tool:set_orientation_control/request"][-1].control_mode == int(Mode.DISABLED)
