@@ -16,6 +16,7 @@ during the shedding primitive after a real acquisition, a link loss during it un
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import threading
 import time
@@ -279,8 +280,73 @@ def _paired(bus: MemoryBus, who: str, role: str) -> MemoryTransport:
     return t
 
 
+class _Relay:
+    """A TCP relay on loopback between the PCs and the tool over Zenoh: :meth:`cut` closes
+    every connection through it and refuses new ones until :meth:`restore` (a real link
+    loss, TLS and all; the PCs' Zenoh sessions reconnect by themselves)."""
+
+    def __init__(self, target_port: int) -> None:
+        self.target, self.up, self._lock = target_port, True, threading.Lock()
+        self._conns: list[socket.socket] = []
+        self._srv = socket.create_server(("127.0.0.1", 0))
+        self.port = int(self._srv.getsockname()[1])
+        self._thread = threading.Thread(target=self._accept, name="relay", daemon=True)
+        self._thread.start()
+
+    def _accept(self) -> None:
+        while True:
+            try:
+                c, _ = self._srv.accept()
+            except OSError:  # closed
+                return
+            try:
+                if not self.up:
+                    raise OSError("cut")
+                u = socket.create_connection(("127.0.0.1", self.target), timeout=2.0)
+                u.settimeout(None)
+            except OSError:
+                c.close()
+                continue
+            with self._lock:
+                self._conns += [c, u]
+            for a, b in ((c, u), (u, c)):
+                threading.Thread(target=self._pipe, args=(a, b), daemon=True).start()
+
+    @staticmethod
+    def _pipe(a: socket.socket, b: socket.socket) -> None:
+        try:
+            while data := a.recv(1 << 16):
+                b.sendall(data)
+        except OSError:
+            pass
+        for s in (a, b):
+            with contextlib.suppress(OSError):
+                s.shutdown(socket.SHUT_RDWR)
+
+    def cut(self) -> None:
+        self.up = False
+        with self._lock:
+            conns, self._conns = self._conns, []
+        for s in conns:
+            with contextlib.suppress(OSError):
+                s.shutdown(socket.SHUT_RDWR)
+            s.close()
+
+    def restore(self) -> None:
+        self.up = True
+
+    def close(self) -> None:
+        self._srv.close()
+        self.cut()
+        self._thread.join(timeout=5)
+
+
 class Linked:
-    """The world's tool behind a paired link with two PCs (``pc1`` drives the bite)."""
+    """The world's tool behind a paired link with two PCs (``pc1`` drives the bite): on the
+    memory transport, or on Zenoh with mutual TLS on loopback (the PCs through a
+    :class:`_Relay`, so that the link can be cut)."""
+
+    relay: _Relay | None = None
 
     def __init__(self, setup: MealSetup, paired: Path, policy: str = "continue",
                  zenoh: bool = False, **timing: float) -> None:
@@ -295,9 +361,13 @@ class Linked:
             with socket.socket() as sock:
                 sock.bind(("127.0.0.1", 0))
                 where = f"tls/127.0.0.1:{sock.getsockname()[1]}"
-            cfg = cfg.replace(listen=(where,), connect=())
-            pcs = [c.replace(listen=(), connect=(where,)) for c in pcs]
+            # No gossip: a PC must reach the tool through the relay only.
+            quiet = {"scouting/gossip/enabled": False}
+            cfg = cfg.replace(listen=(where,), connect=(), extra=quiet)
             tool_side = ZenohTransport(cfg, "tool")
+            self.relay = _Relay(int(where.rsplit(":", 1)[1]))
+            pcs = [c.replace(listen=(), connect=(f"tls/127.0.0.1:{self.relay.port}",),
+                             extra=quiet) for c in pcs]
             links: list = [ZenohTransport(c, "client") for c in pcs]
         else:
             tool_side = _paired(self.bus, "wrist-1", "tool")
@@ -312,13 +382,18 @@ class Linked:
 
     def tool_link(self, up: bool) -> None:
         """Cut the tool off the link (every PC loses it) or bring it back."""
-        self.server.transport.connected = up  # type: ignore[attr-defined]
+        if self.relay is not None:
+            self.relay.restore() if up else self.relay.cut()
+        else:
+            self.server.transport.connected = up  # type: ignore[attr-defined]
 
     def close(self) -> None:
         for c in (self.pc1, self.pc2):
             c.close()
         self.server.stop()
         self.server.transport.close()
+        if self.relay is not None:
+            self.relay.close()
         self.bus.close()
 
 
@@ -356,13 +431,17 @@ def test_a_second_paired_pcs_stop_during_transport_disables_the_tool_and_stops_t
         link.close()
 
 
+@pytest.mark.parametrize("zenoh", [False, pytest.param(True, marks=pytest.mark.slow)],
+                         ids=["memory", "zenoh-tls"])
 def test_a_link_loss_during_transport_stops_the_bite_the_tool_keeps_leveling_then_obeys(
-        paired: Path) -> None:
+        paired: Path, zenoh: bool) -> None:
     # The tool's side of the link drops 1 s into the transport for 3 s (past the tool's
     # client_timeout of 2 s), then returns.
+    if zenoh:
+        pytest.importorskip("zenoh")
     setup, _ = _loaded()
     w = setup.world
-    link = Linked(setup, paired)
+    link = Linked(setup, paired, zenoh=zenoh)
     try:
         fault = FaultAt("Execute to Staging", 1.0, w.clock, lambda: link.tool_link(False))
         r = _linked_bite(setup, link, fault)
