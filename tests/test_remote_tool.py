@@ -84,6 +84,8 @@ def test_over_a_link_that_carries_nothing_every_call_is_refused_and_the_goal_ans
         st = _answer(tool)
         assert not st.success and st.message.startswith("link: "), st
         assert not tool.cancel_primitive()
+        ok, msg = tool.set_mode(Mode.PRIMITIVE)  # bad input: refused naming it, nothing sent
+        assert not ok and "mode must be" in msg, msg
     finally:
         client.close()
         bus.close()

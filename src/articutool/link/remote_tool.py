@@ -51,11 +51,14 @@ class RemoteTool:
 
     def set_mode(self, mode: Mode, pitch_offset_deg: float = 0.0,
                  roll_offset_deg: float = 0.0) -> tuple[bool, str]:
-        """The tool's answer, or ``(False, the link's reason)``."""
+        """The tool's answer, ``(False, the link's reason)``, or ``(False, why)`` for a mode
+        the service does not carry (as the runtime refuses it)."""
         try:
             return self.client.set_mode(mode, pitch_offset_deg, roll_offset_deg)
-        except (LinkError, ValueError) as err:
+        except LinkError as err:
             return False, f"link: {err}"
+        except ValueError as err:
+            return False, str(err)
 
     def clear_fault(self) -> tuple[bool, str]:
         """The tool's answer, or ``(False, the link's reason)``."""
@@ -116,8 +119,10 @@ class RemoteTool:
         try:
             self.client.follow_trajectory(
                 trajectory, time.time() + start_delay if start_delay > 0 else None)
-        except (LinkError, ValueError, TypeError) as err:
+        except LinkError as err:
             return False, f"link: {err}"
+        except (ValueError, TypeError) as err:
+            return False, str(err)
         return True, "sent"
 
     def state(self) -> ToolState:
