@@ -8,7 +8,8 @@ driver or a ROS 2 bridge, and the in-process tool runtime or a client over Zenoh
 (never waited for), cancelled in ``terminate`` when preempted.
 
 Blackboard (namespace ``/bite``): ``trajectory`` (the last plan, passed from planning to
-verification and execution), ``stop_requested`` (set by a caregiver or a UI).
+verification and execution), ``stop_requested`` (set by a caregiver or a UI), ``tool_mode``
+(the mode the tree last put the tool in, for the guard).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from typing import Any, Protocol
 import py_trees
 from py_trees.common import Access, Status
 
-from articutool.tool.api import Mode, ToolAPI
+from articutool.tool.api import ABORTED_BY_MODE_CHANGE, Mode, ToolAPI
 
 __all__ = [
     "ArmInterface",
@@ -197,11 +198,14 @@ class Settle(py_trees.behaviour.Behaviour):
         self.tool, self.mode, self.seconds, self.clock = tool, mode, seconds, clock
         self._until = 0.0
         self._ok = False
+        self.bb = _bb(self, ("tool_mode", Access.WRITE))
 
     def initialise(self) -> None:
         self._ok, msg = self.tool.set_mode(self.mode)
         self.feedback_message = msg
         self._until = self.clock() + self.seconds
+        if self._ok:
+            self.bb.set("tool_mode", self.mode)
 
     def update(self) -> Status:
         if not self._ok:
@@ -237,12 +241,16 @@ class Execute(_JobBehaviour):
 
 
 class RunPrimitive(py_trees.behaviour.Behaviour):
-    """Run a tool primitive (``NONE`` succeeds at once); cancelled when preempted."""
+    """Run a tool primitive (``NONE`` succeeds at once); cancelled when preempted. A
+    primitive aborted by a mode change the tree did not make (a DISABLED from another
+    client) is a stop, not a failure to retry or retreat from: it stays RUNNING for the
+    guard (:class:`Unsafe`) to stop the bite in the next tick."""
 
     def __init__(self, tool: ToolAPI, primitive: str, params: list[float], stage: str) -> None:
         super().__init__(f"{stage}: {primitive}")
         self.tool, self.primitive, self.params = tool, primitive, list(params)
         self._running = False
+        self.bb = _bb(self, ("tool_mode", Access.WRITE))
 
     def initialise(self) -> None:
         self._running = False
@@ -251,6 +259,8 @@ class RunPrimitive(py_trees.behaviour.Behaviour):
         ok, msg = self.tool.start_primitive(self.primitive, self.params)
         self.feedback_message = msg
         self._running = ok
+        if ok:
+            self.bb.set("tool_mode", Mode.PRIMITIVE)
 
     def update(self) -> Status:
         if self.primitive == "NONE":
@@ -260,14 +270,18 @@ class RunPrimitive(py_trees.behaviour.Behaviour):
         st = self.tool.primitive_status()
         if st is None or not st.done:
             return Status.RUNNING
-        self._running = False
         self.feedback_message = st.message
+        if st.message.startswith(ABORTED_BY_MODE_CHANGE):
+            return Status.RUNNING  # stopped from elsewhere: the guard stops the bite
+        self._running = False
+        self.bb.set("tool_mode", Mode.DISABLED)  # where a primitive leaves the tool
         return Status.SUCCESS if st.success else Status.FAILURE
 
     def terminate(self, new_status: Status) -> None:
         if new_status == Status.INVALID and self._running:
             self.tool.cancel_primitive()
             self._running = False
+            self.bb.set("tool_mode", Mode.DISABLED)
 
 
 class ToolModeScope(py_trees.decorators.Decorator):
@@ -279,11 +293,14 @@ class ToolModeScope(py_trees.decorators.Decorator):
         super().__init__(name=f"tool {mode.name} (then {restore.name})", child=child)
         self.tool, self.mode, self.restore = tool, mode, restore
         self._ok = False
+        self.bb = _bb(self, ("tool_mode", Access.WRITE))
 
     def initialise(self) -> None:
         ok, msg = self.tool.set_mode(self.mode)
         self._ok = ok
         self.feedback_message = msg
+        if ok:
+            self.bb.set("tool_mode", self.mode)
 
     def update(self) -> Status:
         if not self._ok:
@@ -292,6 +309,7 @@ class ToolModeScope(py_trees.decorators.Decorator):
 
     def terminate(self, new_status: Status) -> None:
         self.tool.set_mode(self.restore)
+        self.bb.set("tool_mode", self.restore)
 
     def stop(self, new_status: Status = Status.INVALID) -> None:
         """Stop the child first, then restore: py_trees' Decorator.stop runs ``terminate``
@@ -333,20 +351,28 @@ class Attempts(py_trees.decorators.Retry):
 
 
 class Unsafe(py_trees.behaviour.Behaviour):
-    """SUCCESS when the bite must stop: a tool fault, tool state older than ``stale_s``, or a
-    stop request on the blackboard. A condition: its FAILURE ("safe") is no failure of the
-    bite."""
+    """SUCCESS when the bite must stop: a tool fault, tool state older than ``stale_s``, a
+    stop request on the blackboard, or a stop from elsewhere (another paired PC, the tool's
+    own console; issue 22): the tool DISABLED while the tree has it LEVELING — seen in two
+    ticks running, since over a link a snapshot taken just before the tree's own LEVELING
+    was carried out can arrive after it — or the tree's primitive aborted by a mode change.
+    A condition: its FAILURE ("safe") is no failure of the bite."""
 
     is_condition = True
 
     def __init__(self, tool: ToolAPI, clock: Callable[[], float], stale_s: float) -> None:
         super().__init__("Unsafe?")
         self.tool, self.clock, self.stale_s = tool, clock, stale_s
-        self.bb = _bb(self, ("stop_requested", Access.READ))
+        self.bb = _bb(self, ("stop_requested", Access.READ), ("tool_mode", Access.READ))
+        self._disabled_ticks = 0  # consecutive ticks (a condition is initialised each tick)
 
     def update(self) -> Status:
         st = self.tool.state()
         stop = self.bb.exists("stop_requested") and bool(self.bb.stop_requested)
+        expected = self.bb.tool_mode if self.bb.exists("tool_mode") else None
+        self._disabled_ticks = self._disabled_ticks + 1 if (
+            expected == Mode.LEVELING and st.mode == Mode.DISABLED) else 0
+        ps = self.tool.primitive_status() if expected == Mode.PRIMITIVE else None
         if st.fault:
             self.feedback_message = f"tool fault: {st.fault}"
         elif self.clock() - st.stamp > self.stale_s:
@@ -354,6 +380,10 @@ class Unsafe(py_trees.behaviour.Behaviour):
                                      f"(limit {self.stale_s:g} s)")
         elif stop:
             self.feedback_message = "stop requested"
+        elif self._disabled_ticks >= 2:
+            self.feedback_message = "the tool was DISABLED by another client while leveling"
+        elif ps is not None and ps.done and ps.message.startswith(ABORTED_BY_MODE_CHANGE):
+            self.feedback_message = f"{ps.name} {ps.message} by another client"
         else:
             return Status.FAILURE
         return Status.SUCCESS
@@ -365,9 +395,11 @@ class SafeStop(py_trees.behaviour.Behaviour):
     def __init__(self, arm: ArmInterface, tool: ToolAPI) -> None:
         super().__init__("Safe stop")
         self.arm, self.tool = arm, tool
+        self.bb = _bb(self, ("tool_mode", Access.WRITE))
 
     def update(self) -> Status:
         self.arm.stop()
         self.tool.set_mode(Mode.DISABLED)
+        self.bb.set("tool_mode", Mode.DISABLED)
         self.feedback_message = "arm stopped, tool DISABLED"
         return Status.SUCCESS

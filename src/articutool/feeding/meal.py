@@ -40,7 +40,7 @@ from articutool.sim import accounting as acc
 from articutool.sim.scenes import SCOOP_HEADING
 from articutool.sim.world import FeedingWorld
 from articutool.spec import Spec, load_spec
-from articutool.tool.api import Mode
+from articutool.tool.api import Mode, ToolAPI
 
 __all__ = ["BiteResult", "FoodLedger", "MealSetup", "container_floor", "make_bite_world",
            "run_bite", "run_meal", "shed_configuration"]
@@ -82,6 +82,8 @@ class BiteResult:
     # state or a stop request; the arm stopped where it was, the tool DISABLED);
     # "timed_out" (the bite's own time limit).
     end_state: str = ""
+    # The stage running (or the last one that ended) when the bite ended: where a fault hit.
+    last_stage: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready record."""
@@ -99,11 +101,14 @@ class FoodLedger(py_trees.visitors.VisitorBase):
         self.eaten_g = 0.0
         self.tilts: list[float] = []
         self.presented = False  # ``present`` succeeded: the user was offered the bite
+        self.last_stage = ""  # the stage ticked last
 
     def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
         stage = getattr(behaviour, "bite_stage", None)
         if stage is None:
             return
+        if behaviour.status != Status.INVALID:
+            self.last_stage = stage
         if behaviour.status == Status.RUNNING and stage in ("resting", "staging"):
             self.tilts.append(self.world.tilt_deg())
         if behaviour.status in (Status.SUCCESS, Status.FAILURE) and stage not in self.after:
@@ -197,28 +202,32 @@ def shed_configuration(spec: Spec, scene: Scene, utensil: str, container: str = 
     raise ValueError(f"container: no collision-free level utensil pose over {container!r}")
 
 
-def _tree(setup: MealSetup, stages: Sequence[str], settings: BiteSettings
-          ) -> py_trees.behaviour.Behaviour:
+def _tree(setup: MealSetup, stages: Sequence[str], settings: BiteSettings,
+          tool: ToolAPI | None = None) -> py_trees.behaviour.Behaviour:
     w = setup.world
     wps = acquisition_waypoints(setup.strategy,
                                 container_floor(w.scene, w.layout.container or "bowl"),
                                 SCOOP_HEADING)
-    return bite_tree(setup.arm, w.tool, setup.strategy, wps, w.clock, stages=stages,
+    return bite_tree(setup.arm, tool or w.tool, setup.strategy, wps, w.clock, stages=stages,
                      settings=settings)
 
 
 def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
              threshold_g: float | None = None, settings: BiteSettings = DEFAULT_SETTINGS,
              root: py_trees.behaviour.Behaviour | None = None, timeout_s: float = 240.0,
-             visitors: Sequence[py_trees.visitors.VisitorBase] = ()) -> BiteResult:
+             visitors: Sequence[py_trees.visitors.VisitorBase] = (),
+             tool: ToolAPI | None = None) -> BiteResult:
     """Run one bite (``stages`` of :data:`~articutool.feeding.bite.STAGES`) and return its
     record. ``timeout_s`` is simulated time not counting the waits for plans (those depend on
     the machine's speed; each plan ends within the planner's own budget). ``root``: a tree
     from an earlier bite of the same meal (the same tree runs again);
-    ``visitors`` join the tree's own (e.g. a progress display or a trace)."""
+    ``visitors`` join the tree's own (e.g. a progress display or a trace). ``tool``: the
+    ``ToolAPI`` the tree drives (default the world's runtime; a
+    :class:`~articutool.link.remote_tool.RemoteTool` runs the bite's tool side over the
+    link, the world still stepping the runtime behind the server)."""
     w = setup.world
     if root is None:
-        root = _tree(setup, stages, settings)
+        root = _tree(setup, stages, settings, tool)
     tree = py_trees.trees.BehaviourTree(root)
     rec, ledger = BiteRecorder(w.clock), FoodLedger(w)
     tree.visitors += [rec, ledger, *visitors]
@@ -289,7 +298,7 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
         failed_stage="" if completed else rec.record.failed_stage or "stopped",
         stages=list(stages), masses_after=after,
         transport_max_tilt_deg=max(ledger.tilts) if ledger.tilts else float("nan"),
-        end_state=end_state)
+        end_state=end_state, last_stage=ledger.last_stage)
 
 
 def run_meal(food: str, system: str, *, bites: int = 1, seed: int = 0,

@@ -199,13 +199,15 @@ class WorldMcapRecorder:
 
 
 class _TreeStatus(py_trees.visitors.VisitorBase):
-    """Records every visited behaviour's status on ``/feeding/tree`` when any changed."""
+    """Records every visited behaviour's status on ``/feeding/tree`` when any changed, with
+    its feedback message (why a guard stopped the bite, why a step failed) as the value
+    ``feedback`` when it has one."""
 
     def __init__(self, owner: WorldMcapRecorder) -> None:
         super().__init__(full=False)
         self.o = owner
-        self.now: dict[str, str] = {}
-        self.last: dict[str, str] = {}
+        self.now: dict[str, tuple[str, str]] = {}
+        self.last: dict[str, tuple[str, str]] = {}
 
     def initialise(self) -> None:
         self.now = {}
@@ -215,7 +217,8 @@ class _TreeStatus(py_trees.visitors.VisitorBase):
         while node is not None:
             path.append(node.name)
             node = node.parent
-        self.now[" / ".join(reversed(path))] = behaviour.status.name
+        self.now[" / ".join(reversed(path))] = (behaviour.status.name,
+                                                str(behaviour.feedback_message or ""))
 
     def finalise(self) -> None:
         if self.now == self.last or self.o.rec.closed:
@@ -223,7 +226,10 @@ class _TreeStatus(py_trees.visitors.VisitorBase):
         self.last = dict(self.now)
         sts = [m.msg("diagnostic_msgs/msg/DiagnosticStatus",
                       level=_LEVEL.get(py_trees.common.Status[s], 0), name=name, message=s,
-                      hardware_id="feeding tree", values=[]) for name, s in self.now.items()]
+                      hardware_id="feeding tree",
+                      values=[m.msg("diagnostic_msgs/msg/KeyValue", key="feedback", value=fb)]
+                      if fb else [])
+               for name, (s, fb) in self.now.items()]
         t = self.o.stamp()
         self.o.rec.write_msg("/feeding/tree", m.DIAGNOSTIC_ARRAY,
                              m.msg(m.DIAGNOSTIC_ARRAY, header=m.header(t), status=sts), t)

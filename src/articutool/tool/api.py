@@ -14,7 +14,11 @@ from typing import Protocol
 
 from articutool.trajectory import JointTrajectory
 
-__all__ = ["Mode", "PrimitiveStatus", "ToolAPI", "ToolState"]
+__all__ = ["ABORTED_BY_MODE_CHANGE", "Mode", "PrimitiveStatus", "ToolAPI", "ToolState"]
+
+# How a primitive's result message starts when a mode change (a DISABLED from any client)
+# aborted it, followed by the mode's name: a caller that did not ask for it was stopped.
+ABORTED_BY_MODE_CHANGE = "aborted by mode change to "
 
 
 class Mode(IntEnum):

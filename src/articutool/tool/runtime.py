@@ -93,7 +93,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from articutool.spec import Spec
-from articutool.tool.api import Mode, PrimitiveStatus, ToolState
+from articutool.tool.api import ABORTED_BY_MODE_CHANGE, Mode, PrimitiveStatus, ToolState
 from articutool.tool.controller import LevelingController, quaternion_to_matrix
 from articutool.tool.drivers.base import FTDriver, ImuDriver, ImuSample, MotorDriver, MotorState
 from articutool.tool.filter import ComplementaryFilter
@@ -837,7 +837,7 @@ class ToolRuntime:
         """Switch mode (lock held): abort a running primitive, drop a trajectory, and stop
         the motors when the new mode is DISABLED."""
         if self._primitive is not None and mode is not Mode.PRIMITIVE:
-            self._abort_primitive(f"aborted by mode change to {mode.name}")
+            self._abort_primitive(f"{ABORTED_BY_MODE_CHANGE}{mode.name}")
         if mode is not Mode.TRAJECTORY:
             self._traj = None
             self._traj_t0 = None
