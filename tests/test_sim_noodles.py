@@ -1,0 +1,74 @@
+"""Noodles as capsule chains (issue 26): the model, its stability, the fork's twirl option."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+mujoco = pytest.importorskip("mujoco")
+
+from articutool.sim.params import PhysicsParams  # noqa: E402
+from articutool.sim.scenes import max_twirl_turns  # noqa: E402
+from articutool.sim.world import FeedingWorld  # noqa: E402
+from articutool.spec import load_spec  # noqa: E402
+
+_RESETS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+           mujoco.mjtWarning.mjWARN_BADQACC)
+
+
+def test_noodle_world_builds_as_jointed_chains_and_stays_stable() -> None:
+    food = PhysicsParams.load().food("noodles")
+    w = FeedingWorld("noodles", seed=5000)
+    m, d = w.model, w.data
+    n = len(w.layout.food_strands)
+    assert n == round(food.fill_g / 1000 / food.piece_mass)
+    assert m.nflex == 0 and m.opt.noslip_iterations == food.noslip_iterations
+    # Every strand is `segments` bodies: a free root and ball joints whose spring is E·I/ds.
+    balls = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_BALL]
+    assert len(balls) == n * (food.segments - 1)
+    ei = food.young * math.pi * food.strand_radius**4 / 4
+    ds = food.strand_length / food.segments
+    assert m.jnt_stiffness[balls] == pytest.approx(ei / ds)
+    w.run(1.0)  # the heap settles for 1 s more with the tool running
+    assert np.isfinite(d.qpos).all()
+    assert all(d.warning[int(k)].number == 0 for k in _RESETS)
+    g = w.masses_g()
+    assert g["container"] == pytest.approx(n * food.piece_mass * 1000)
+    # The heap stays a heap round the bowl's centre (nothing thrown out by stored energy).
+    bowl = w.scene.get("bowl")
+    xy = np.array([d.xpos[m.body(f"{s}/{i}").id][:2] for s in w.layout.food_strands
+                   for i in range(food.segments)])
+    assert np.max(np.linalg.norm(xy - np.asarray(bowl.xyz[:2]), axis=1)) < bowl.radius
+
+
+def test_a_strand_collides_with_itself_but_not_across_a_joint() -> None:
+    w = FeedingWorld("noodles", seed=5000, settle=False)
+    m = w.model
+    a, b, c = (m.geom(f"strand0/{i}").id for i in (0, 1, 5))
+    assert m.geom_contype[a] & m.geom_conaffinity[c]  # a wrap can rest on its own strand
+    assert m.body_parentid[m.geom_bodyid[b]] == m.geom_bodyid[a]  # neighbours: parent-child
+    assert not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_FILTERPARENT
+
+
+@pytest.mark.parametrize("args", [["--twirl-turns", "5"], ["--twirl-turns", "-1"],
+                                  ["--twirl-turns", "nan"], ["--twirl-turns", "two"],
+                                  ["--utensil", "spoon", "--twirl-turns", "1"]])
+def test_twirl_turns_bad_input_exits_2_naming_the_field(args: list[str]) -> None:
+    r = subprocess.run([sys.executable, "-m", "articutool", "sim", "--food", "noodles",
+                        "--script", "scoop", *args], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 2, r.stderr
+    assert "--twirl-turns" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_twirl_turns_range_is_the_cable_budget() -> None:
+    hi = max_twirl_turns(load_spec())
+    assert hi < load_spec().wrist.roll_turn_budget
+    r = subprocess.run([sys.executable, "-m", "articutool", "sim", "--food", "noodles",
+                        "--twirl-turns", f"{hi + 0.01}"], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 2 and f"[0, {hi:g}]" in r.stderr
