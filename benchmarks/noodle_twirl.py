@@ -40,7 +40,8 @@ _RESET_WARNINGS = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC")
 
 def warnings_of(data: mujoco.MjData) -> dict[str, int]:
     """Every MuJoCo warning raised so far in ``data``, by name, with its count."""
-    return {w.name: int(data.warning[int(w)].number) for w in mujoco.mjtWarning
+    return {name: int(data.warning[int(w)].number)
+            for name, w in mujoco.mjtWarning.__members__.items()
             if int(w) < len(data.warning) and data.warning[int(w)].number > 0}
 
 

@@ -373,6 +373,9 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
                     containers[0])
         x.append(f'<camera name="utensil" mode="targetbody" target="utensil" '
                  f'pos="{_f(np.asarray(home.xyz) + 1.5 * view)}"/>')
+        # A close-up of what the utensil holds once lifted out of the container.
+        x.append(f'<camera name="utensil_close" mode="targetbody" target="utensil" '
+                 f'pos="{_f(np.asarray(home.xyz) + 0.6 * view + [0.0, 0.0, 0.1])}"/>')
     for r in scene.regions:
         x.append(f'<site name="region/{r.name}" pos="{_f(r.xyz)}" size="{r.radius}" '
                  'rgba="1 0.3 0.3 0.25"/>')
