@@ -84,6 +84,20 @@ def summarise(runs: list[dict[str, Any]], turns: float) -> dict[str, Any]:
     return out
 
 
+def table(summary: dict[str, Any]) -> str:
+    """The README's table (markdown) of a study's summary."""
+    rows = ["| condition | runs (reset, excluded) | lifted, mean ± SD (g) | runs lifting any "
+            "| real-time factor |", "|---|---|---|---|---|"]
+    for name in ("twirl", "still"):
+        c = summary[name]
+        rows.append(f"| {name} ({c['twirl_turns']:g} turns) | {c['runs']} ({c['reset']}) | "
+                    f"{c['mean_g']:.2f} ± {c['sd_g']:.2f} | {c['lifted_any']} of {c['n']} | "
+                    f"{c['rtf_mean']:.2f}× |")
+    tests = [f"{k.replace('_', ' ')}: one-sided p = {v['p_one_sided']:.3g}"
+             for k, v in summary.items() if isinstance(v, dict) and "p_one_sided" in v]
+    return "\n".join(rows) + "\n\n(twirl > still; " + "; ".join(tests) + ")"
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10)
@@ -91,7 +105,12 @@ def main(argv: list[str] | None = None) -> int:
                     help="twirl turns (default: the cable budget less 0.1 turn)")
     ap.add_argument("--out", default="results/noodle_twirl.json")
     ap.add_argument("--resume", action="store_true", help="keep the runs already in --out")
+    ap.add_argument("--table", action="store_true",
+                    help="print the README's table of the study in --out; run nothing")
     args = ap.parse_args(argv)
+    if args.table:
+        print(table(json.loads(Path(args.out).read_text())["summary"]))
+        return 0
     hi = max_twirl_turns(load_spec())
     turns = hi if args.turns is None else args.turns
     if not 0 < turns <= hi:
