@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -206,17 +206,20 @@ def max_twirl_turns(spec: Spec) -> float:
     return spec.wrist.roll_turn_budget - 0.1
 
 
-def skewer(world: FeedingWorld, level: bool = True, twirl_turns: float | None = None) -> None:
+def skewer(world: FeedingWorld, level: bool = True, twirl_turns: float | None = None,
+           tines_up: bool = True, on_phase: Callable[[str], None] | None = None) -> None:
     """The fork's acquisition (thesis §4.4, noodles): the fork, pointing 60° down, goes into
     the food's container, pressed through the pile to 2 mm above its floor (as one presses a
     fork to the plate to twirl), TWIRL_CW turns it ``twirl_turns`` times about the tool's roll
     axis at 3 rad/s (0: a still fork; default :func:`max_twirl_turns`), it rises 3.8 cm
-    turning its tines up (60° → 0° below the horizon), the tool levels (unless ``level`` is
-    off), and the arm lifts 12 cm."""
+    turning its tines up (60° → 0° below the horizon; ``tines_up`` off: still 60° down), the
+    tool levels (unless ``level`` is off), and the arm lifts 12 cm. ``on_phase`` is called
+    after each phase with its name: "in", "twirled", "risen", "levelled", "lifted"."""
     box = world.scene.get(world.layout.container or "bowl")
     if not isinstance(box, Cylinder) or box.container_wall is None:
         raise ScriptError("skewer needs the food's container (an open bowl)")
     turns = max_twirl_turns(world.spec) if twirl_turns is None else twirl_turns
+    phase = on_phase or (lambda name: None)
     model = ArmModel(world.spec, world.utensil, 8, world.scene)
     world.tool.set_mode(Mode.LEVELING)
     world.run(1.0)
@@ -228,23 +231,27 @@ def skewer(world: FeedingWorld, level: bool = True, twirl_turns: float | None = 
     q0 = first_ik(model, np.concatenate([world.arm_q, _wrist(world)]), pts[0][0], a)
     world.move_arm(q0[:6])
     world.follow_arm(cartesian_path(model, q0, pts), settle_s=0.2)
+    phase("in")
     if turns > 0:
         ok, msg = world.tool.start_primitive("TWIRL_CW", [turns, 3.0])
         if not ok:
             raise ScriptError(f"the tool refused TWIRL_CW: {msg}")
         world.run_until(lambda: world.tool.mode != Mode.PRIMITIVE, 30.0)
+    phase("twirled")
     # Tines up while rising, as one turns a fork up under a twirled bite: a wrap on tines
     # still pointing down slides off their tips (measured: 0 g for seed 5000 at 60°).
     q = np.concatenate([world.arm_q, _wrist(world)])
-    world.follow_arm(cartesian_path(model, q, [(pts[-1][0], a, 0.02),
-                                               (c + _Z * 0.012, math.radians(30.0), 0.02),
-                                               (c + _Z * 0.04, 0.0, 0.02)]),
-                     settle_s=0.2)
+    rise = ([(c + _Z * 0.012, math.radians(30.0), 0.02), (c + _Z * 0.04, 0.0, 0.02)]
+            if tines_up else [(c + _Z * 0.04, a, 0.02)])
+    world.follow_arm(cartesian_path(model, q, [(pts[-1][0], a, 0.02), *rise]), settle_s=0.2)
+    phase("risen")
     if level:
         world.tool.set_mode(Mode.LEVELING)
     world.run(1.0)
+    phase("levelled")
     _lift(world, model)  # the tool base goes straight up; the wrist keeps the fork level
     world.run(1.0)
+    phase("lifted")
 
 
 def _lift(world: FeedingWorld, model: ArmModel, height: float = 0.12,
