@@ -61,20 +61,9 @@ def one_run(seed: int, turns: float) -> dict[str, Any]:
             "wall_s": round(time.perf_counter() - t0, 1)}
 
 
-def summarise(runs: list[dict[str, Any]], turns: float) -> dict[str, Any]:
-    """Mean ± SD per condition over the runs MuJoCo did not reset, and the one-sided tests."""
+def _tests(a: list[float], b: list[float]) -> dict[str, Any]:
+    """One-sided a > b: Mann–Whitney U, and Welch's t where the samples vary."""
     out: dict[str, Any] = {}
-    for name, t in (("twirl", turns), ("still", 0.0)):
-        cond = [r for r in runs if r["twirl_turns"] == t]
-        g = [r["lifted_g"] for r in cond if not r["reset"]]
-        rtf = [r["realtime_factor"] for r in cond]
-        out[name] = {"twirl_turns": t, "runs": len(cond), "reset": len(cond) - len(g),
-                     "n": len(g), "mean_g": float(np.mean(g)) if g else math.nan,
-                     "sd_g": float(np.std(g, ddof=1)) if len(g) > 1 else math.nan,
-                     "lifted_any": sum(x > 0 for x in g),
-                     "rtf_mean": float(np.mean(rtf)) if rtf else math.nan}
-    a = [r["lifted_g"] for r in runs if r["twirl_turns"] == turns and not r["reset"]]
-    b = [r["lifted_g"] for r in runs if r["twirl_turns"] == 0.0 and not r["reset"]]
     if len(a) > 1 and len(b) > 1:
         u = stats.mannwhitneyu(a, b, alternative="greater")
         out["mann_whitney_u"] = {"U": float(u.statistic), "p_one_sided": float(u.pvalue)}
@@ -84,18 +73,72 @@ def summarise(runs: list[dict[str, Any]], turns: float) -> dict[str, Any]:
     return out
 
 
+def _mean_sd(x: list[float]) -> tuple[float, float]:
+    return (float(np.mean(x)) if x else math.nan,
+            float(np.std(x, ddof=1)) if len(x) > 1 else math.nan)
+
+
+def summarise(runs: list[dict[str, Any]], turns: float) -> dict[str, Any]:
+    """Mean ± SD per condition over the runs MuJoCo did not reset, and the one-sided tests
+    (twirl > still) of the grams lifted (primary: whole strands touching the fork and no
+    surface) and of the F/T sensor's mass (secondary: it also weighs strands that hang from
+    the fork while their ends still touch the bowl)."""
+    out: dict[str, Any] = {}
+    kept: dict[str, list[dict[str, Any]]] = {}
+    for name, t in (("twirl", turns), ("still", 0.0)):
+        cond = [r for r in runs if r["twirl_turns"] == t]
+        kept[name] = [r for r in cond if not r["reset"]]
+        g = [r["lifted_g"] for r in kept[name]]
+        ft = [r["ft_mass_g"] for r in kept[name] if r.get("ft_mass_g") is not None]
+        rtf = [r["realtime_factor"] for r in cond]
+        m, sd = _mean_sd(g)
+        fm, fsd = _mean_sd(ft)
+        out[name] = {"twirl_turns": t, "runs": len(cond), "reset": len(cond) - len(g),
+                     "n": len(g), "mean_g": m, "sd_g": sd, "lifted_any": sum(x > 0 for x in g),
+                     "ft_n": len(ft), "ft_mean_g": fm, "ft_sd_g": fsd,
+                     "rtf_mean": float(np.mean(rtf)) if rtf else math.nan}
+    out.update(_tests([r["lifted_g"] for r in kept["twirl"]],
+                      [r["lifted_g"] for r in kept["still"]]))
+    # The conditions share seeds (the same pile): the paired test, over seeds kept in both.
+    still = {r["seed"]: r["lifted_g"] for r in kept["still"]}
+    diff = [r["lifted_g"] - still[r["seed"]] for r in kept["twirl"] if r["seed"] in still]
+    if sum(d != 0 for d in diff) > 1:
+        w = stats.wilcoxon(diff, alternative="greater")
+        out["paired_wilcoxon"] = {"pairs": len(diff), "twirl_more": sum(d > 0 for d in diff),
+                                  "still_more": sum(d < 0 for d in diff),
+                                  "p_one_sided": float(w.pvalue)}
+    ft_tests = _tests([r["ft_mass_g"] for r in kept["twirl"] if r.get("ft_mass_g") is not None],
+                      [r["ft_mass_g"] for r in kept["still"] if r.get("ft_mass_g") is not None])
+    if ft_tests:
+        out["ft_mass"] = ft_tests
+    return out
+
+
 def table(summary: dict[str, Any]) -> str:
     """The README's table (markdown) of a study's summary."""
     rows = ["| condition | runs (reset, excluded) | lifted, mean ± SD (g) | runs lifting any "
-            "| real-time factor |", "|---|---|---|---|---|"]
+            "| F/T mass, mean ± SD (g) | real-time factor |", "|---|---|---|---|---|---|"]
     for name in ("twirl", "still"):
         c = summary[name]
         rows.append(f"| {name} ({c['twirl_turns']:g} turns) | {c['runs']} ({c['reset']}) | "
                     f"{c['mean_g']:.2f} ± {c['sd_g']:.2f} | {c['lifted_any']} of {c['n']} | "
-                    f"{c['rtf_mean']:.2f}× |")
-    tests = [f"{k.replace('_', ' ')}: one-sided p = {v['p_one_sided']:.3g}"
-             for k, v in summary.items() if isinstance(v, dict) and "p_one_sided" in v]
-    return "\n".join(rows) + "\n\n(twirl > still; " + "; ".join(tests) + ")"
+                    f"{c['ft_mean_g']:.2f} ± {c['ft_sd_g']:.2f} | {c['rtf_mean']:.2f}× |")
+
+    def ps(d: dict[str, Any]) -> str:
+        return ", ".join(f"{k.replace('_', ' ')} p = {v['p_one_sided']:.3g}"
+                         for k, v in d.items() if isinstance(v, dict) and "p_one_sided" in v)
+
+    return ("\n".join(rows) + f"\n\nOne-sided, twirl > still: lifted — {ps(summary)}; "
+            f"F/T mass — {ps(summary.get('ft_mass', {}))}.")
+
+
+def _write(path: Path, runs: list[dict[str, Any]], turns: float,
+           argv: list[str] | None) -> None:
+    out = {"issue": 26, "command": "benchmarks/noodle_twirl.py " + " ".join(
+               sys.argv[1:] if argv is None else argv),
+           "mujoco": mujoco.__version__, "summary": summarise(runs, turns), "runs": runs}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(out, indent=2) + "\n")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -129,12 +172,8 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             runs.append(one_run(seed, t))
             print(json.dumps(runs[-1]), flush=True)
-            out = {"issue": 26, "command": "benchmarks/noodle_twirl.py " + " ".join(
-                       sys.argv[1:] if argv is None else argv),
-                   "mujoco": mujoco.__version__, "summary": summarise(runs, turns),
-                   "runs": runs}
-            out_path.parent.mkdir(parents=True, exist_ok=True)
-            out_path.write_text(json.dumps(out, indent=2) + "\n")
+            _write(out_path, runs, turns, argv)
+    _write(out_path, runs, turns, argv)  # with --resume: the summary by this code
     print(json.dumps(summarise(runs, turns), indent=2))
     return 0
 

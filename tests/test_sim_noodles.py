@@ -124,15 +124,19 @@ def _study_module():
 
 def test_the_study_never_counts_a_run_mujoco_reset() -> None:
     study = _study_module()
-    runs = ([{"twirl_turns": 2.0, "lifted_g": g, "reset": False, "realtime_factor": 0.3}
-             for g in (4.0, 5.0, 6.0)]
-            + [{"twirl_turns": 2.0, "lifted_g": 99.0, "reset": True, "realtime_factor": 0.3}]
-            + [{"twirl_turns": 0.0, "lifted_g": g, "reset": False, "realtime_factor": 0.4}
-               for g in (0.0, 1.0, 0.0)])
+    def run(seed: int, turns: float, g: float, reset: bool = False) -> dict:
+        return {"seed": seed, "twirl_turns": turns, "lifted_g": g, "ft_mass_g": g + 0.5,
+                "reset": reset, "realtime_factor": 0.3}
+
+    runs = ([run(s, 2.0, g) for s, g in ((0, 4.0), (1, 5.0), (2, 6.0))]
+            + [run(3, 2.0, 99.0, reset=True), run(3, 0.0, 0.0)]
+            + [run(s, 0.0, g) for s, g in ((0, 0.0), (1, 1.0), (2, 0.0))])
     s = study.summarise(runs, 2.0)
     assert (s["twirl"]["runs"], s["twirl"]["reset"], s["twirl"]["n"]) == (4, 1, 3)
     assert s["twirl"]["mean_g"] == pytest.approx(5.0)  # the reset run's 99 g is not in it
-    assert s["mann_whitney_u"]["p_one_sided"] < 0.1  # 3 vs 3, all twirl above all still
+    assert s["twirl"]["ft_mean_g"] == pytest.approx(5.5)
+    assert s["mann_whitney_u"]["p_one_sided"] < 0.1  # all twirl runs above all still ones
+    assert s["paired_wilcoxon"]["pairs"] == 3  # seed 3's still run has no kept twirl pair
     # A real reset is what the study detects: MuJoCo's counter after an unstable step.
     m = mujoco.MjModel.from_xml_string(
         '<mujoco><worldbody><body><freejoint/><geom size="0.1"/></body></worldbody></mujoco>')
