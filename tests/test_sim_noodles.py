@@ -123,7 +123,8 @@ def _study_module():
     return mod
 
 
-def test_the_study_never_counts_a_run_mujoco_reset() -> None:
+def test_the_study_never_counts_a_run_mujoco_reset(tmp_path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes MUJOCO_LOG.TXT on a warning
     study = _study_module()
     def run(seed: int, turns: float, g: float, reset: bool = False) -> dict:
         return {"seed": seed, "twirl_turns": turns, "lifted_g": g, "ft_mass_g": g + 0.5,
