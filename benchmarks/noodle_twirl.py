@@ -1,48 +1,180 @@
-"""Does a twirling fork lift more noodle than a still, skewering one? (issue 9, the open
-problem). Runs the fork acquisition (``articutool.sim.scenes.skewer``) with TWIRL_CW 2 turns
-and with no twirl, same seeds, and writes the mass lifted per run as JSON.
+"""Does a twirling fork lift more noodle than a still one? (issue 26). Runs the fork's
+acquisition (``articutool.sim.scenes.skewer``: into the heaped noodles, pressed to 2 mm above
+the bowl's floor, TWIRL_CW ``--turns`` turns through the tool runtime, rise, level, lift 12 cm)
+with the twirl and with a still fork (0 turns) on the same study seeds, and writes every run,
+mean ± SD per condition, a one-sided Mann–Whitney U test and Welch's t-test (twirl > still),
+the runs MuJoCo reset after an instability (detected from its warning counters; never counted)
+and the real-time factor (simulated s ÷ CPU s of the simulation thread) as JSON.
 
-    .venv/bin/python benchmarks/noodle_twirl.py --seeds 10 --out results/noodle_twirl.json
+Study seeds are ``trial_seed(5, r)`` = 5000 + r: not seeds of the shipped experiment runs
+(base seed 0). Runs are interleaved (twirl, still, next seed) and the JSON is rewritten after
+each, so a partial study is balanced; ``--resume`` keeps the runs already in ``--out``.
+
+    nice .venv/bin/python benchmarks/noodle_twirl.py --seeds 10 --out results/noodle_twirl.json
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
-from articutool.sim.scenes import skewer
+import mujoco
+import numpy as np
+from scipy import stats
+
+from articutool.experiments.design import trial_seed
+from articutool.sim.accounting import UTENSIL
+from articutool.sim.scenes import max_twirl_turns, skewer
 from articutool.sim.world import FeedingWorld
+from articutool.spec import load_spec
+
+STUDY_BASE_SEED = 5
+# MuJoCo resets the simulation (mj_resetData) after any of these, with a warning count.
+_RESET_WARNINGS = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC")
+
+
+def warnings_of(data: mujoco.MjData) -> dict[str, int]:
+    """Every MuJoCo warning raised so far in ``data``, by name, with its count."""
+    return {name: int(data.warning[int(w)].number)
+            for name, w in mujoco.mjtWarning.__members__.items()
+            if int(w) < len(data.warning) and data.warning[int(w)].number > 0}
+
+
+def one_run(seed: int, turns: float) -> dict[str, Any]:
+    """One acquisition; what the fork holds after the lift, and whether MuJoCo reset."""
+    t0 = time.perf_counter()
+    w = FeedingWorld("noodles", seed=seed)
+    skewer(w, level=True, twirl_turns=turns)
+    warn = warnings_of(w.data)
+    classes = w.item_classes()
+    return {"seed": seed, "twirl_turns": turns,
+            "lifted_g": round(w.masses_g()["utensil"], 3),
+            "strands_lifted": int(np.sum(classes == UTENSIL)),
+            "ft_mass_g": round(w.ft_mass_g(), 3) if w.ft_comparable() else None,
+            "reset": any(k in warn for k in _RESET_WARNINGS), "warnings": warn,
+            "sim_s": round(w.time, 3), "realtime_factor": round(w.realtime_factor, 4),
+            "wall_s": round(time.perf_counter() - t0, 1)}
+
+
+def _tests(a: list[float], b: list[float]) -> dict[str, Any]:
+    """One-sided a > b: Mann–Whitney U, and Welch's t where the samples vary."""
+    out: dict[str, Any] = {}
+    if len(a) > 1 and len(b) > 1:
+        u = stats.mannwhitneyu(a, b, alternative="greater")
+        out["mann_whitney_u"] = {"U": float(u.statistic), "p_one_sided": float(u.pvalue)}
+        if np.std(a) + np.std(b) > 0:
+            t = stats.ttest_ind(a, b, equal_var=False, alternative="greater")
+            out["welch_t"] = {"t": float(t.statistic), "p_one_sided": float(t.pvalue)}
+    return out
+
+
+def _mean_sd(x: list[float]) -> tuple[float, float]:
+    return (float(np.mean(x)) if x else math.nan,
+            float(np.std(x, ddof=1)) if len(x) > 1 else math.nan)
+
+
+def summarise(runs: list[dict[str, Any]], turns: float) -> dict[str, Any]:
+    """Mean ± SD per condition over the runs MuJoCo did not reset, and the one-sided tests
+    (twirl > still) of the grams lifted (primary: whole strands touching the fork and no
+    surface) and of the F/T sensor's mass (secondary: it also weighs strands that hang from
+    the fork while their ends still touch the bowl)."""
+    out: dict[str, Any] = {}
+    kept: dict[str, list[dict[str, Any]]] = {}
+    for name, t in (("twirl", turns), ("still", 0.0)):
+        cond = [r for r in runs if r["twirl_turns"] == t]
+        kept[name] = [r for r in cond if not r["reset"]]
+        g = [r["lifted_g"] for r in kept[name]]
+        ft = [r["ft_mass_g"] for r in kept[name] if r.get("ft_mass_g") is not None]
+        rtf = [r["realtime_factor"] for r in cond]
+        m, sd = _mean_sd(g)
+        fm, fsd = _mean_sd(ft)
+        out[name] = {"twirl_turns": t, "runs": len(cond), "reset": len(cond) - len(g),
+                     "n": len(g), "mean_g": m, "sd_g": sd, "lifted_any": sum(x > 0 for x in g),
+                     "ft_n": len(ft), "ft_mean_g": fm, "ft_sd_g": fsd,
+                     "rtf_mean": float(np.mean(rtf)) if rtf else math.nan}
+    out.update(_tests([r["lifted_g"] for r in kept["twirl"]],
+                      [r["lifted_g"] for r in kept["still"]]))
+    # The conditions share seeds (the same pile): the paired test, over seeds kept in both.
+    still = {r["seed"]: r["lifted_g"] for r in kept["still"]}
+    diff = [r["lifted_g"] - still[r["seed"]] for r in kept["twirl"] if r["seed"] in still]
+    if sum(d != 0 for d in diff) > 1:
+        w = stats.wilcoxon(diff, alternative="greater")
+        out["paired_wilcoxon"] = {"pairs": len(diff), "twirl_more": sum(d > 0 for d in diff),
+                                  "still_more": sum(d < 0 for d in diff),
+                                  "p_one_sided": float(w.pvalue)}
+    ft_tests = _tests([r["ft_mass_g"] for r in kept["twirl"] if r.get("ft_mass_g") is not None],
+                      [r["ft_mass_g"] for r in kept["still"] if r.get("ft_mass_g") is not None])
+    if ft_tests:
+        out["ft_mass"] = ft_tests
+    return out
+
+
+def table(summary: dict[str, Any]) -> str:
+    """The README's table (markdown) of a study's summary."""
+    rows = ["| condition | runs (reset, excluded) | lifted, mean ± SD (g) | runs lifting any "
+            "| F/T mass, mean ± SD (g) | real-time factor |", "|---|---|---|---|---|---|"]
+    for name in ("twirl", "still"):
+        c = summary[name]
+        rows.append(f"| {name} ({c['twirl_turns']:g} turns) | {c['runs']} ({c['reset']}) | "
+                    f"{c['mean_g']:.2f} ± {c['sd_g']:.2f} | {c['lifted_any']} of {c['n']} | "
+                    f"{c['ft_mean_g']:.2f} ± {c['ft_sd_g']:.2f} | {c['rtf_mean']:.2f}× |")
+
+    def ps(d: dict[str, Any]) -> str:
+        return ", ".join(f"{k.replace('_', ' ')} p = {v['p_one_sided']:.3g}"
+                         for k, v in d.items() if isinstance(v, dict) and "p_one_sided" in v)
+
+    return ("\n".join(rows) + f"\n\nOne-sided, twirl > still: lifted — {ps(summary)}; "
+            f"F/T mass — {ps(summary.get('ft_mass', {}))}.")
+
+
+def _write(path: Path, runs: list[dict[str, Any]], turns: float,
+           argv: list[str] | None) -> None:
+    out = {"issue": 26, "command": "benchmarks/noodle_twirl.py " + " ".join(
+               sys.argv[1:] if argv is None else argv),
+           "mujoco": mujoco.__version__, "summary": summarise(runs, turns), "runs": runs}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(out, indent=2) + "\n")
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10)
-    ap.add_argument("--turns", type=float, default=2.0)
+    ap.add_argument("--turns", type=float, default=None,
+                    help="twirl turns (default: the cable budget less 0.1 turn)")
     ap.add_argument("--out", default="results/noodle_twirl.json")
+    ap.add_argument("--resume", action="store_true", help="keep the runs already in --out")
+    ap.add_argument("--table", action="store_true",
+                    help="print the README's table of the study in --out; run nothing")
     args = ap.parse_args(argv)
-    runs = []
-    for seed in range(args.seeds):
-        for turns in (args.turns, 0.0):
-            t0 = time.perf_counter()
-            w = FeedingWorld("noodles", seed=seed)
-            skewer(w, level=True, twirl_turns=turns)
-            runs.append({"seed": seed, "twirl_turns": turns,
-                         "lifted_g": round(w.masses_g()["utensil"], 3),
-                         "ft_mass_g": round(w.ft_mass_g(), 3),
-                         "realtime_factor": round(w.realtime_factor, 3),
-                         "wall_s": round(time.perf_counter() - t0, 1)})
-            print(runs[-1], flush=True)
-    twirl = [r["lifted_g"] for r in runs if r["twirl_turns"] > 0]
-    still = [r["lifted_g"] for r in runs if r["twirl_turns"] == 0]
-    out = {"twirl_mean_g": sum(twirl) / len(twirl), "still_mean_g": sum(still) / len(still),
-           "twirl_more_in": sum(a > b for a, b in zip(twirl, still, strict=True)),
-           "seeds": args.seeds, "runs": runs}
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
-    print(json.dumps({k: v for k, v in out.items() if k != "runs"}))
+    if args.table:
+        print(table(json.loads(Path(args.out).read_text())["summary"]))
+        return 0
+    hi = max_twirl_turns(load_spec())
+    turns = hi if args.turns is None else args.turns
+    if not 0 < turns <= hi:
+        ap.error(f"--turns must be in (0, {hi:g}]; got {turns}")
+    if args.seeds < 2:
+        ap.error(f"--seeds must be >= 2; got {args.seeds}")
+    out_path = Path(args.out)
+    runs: list[dict[str, Any]] = []
+    if args.resume and out_path.exists():
+        runs = json.loads(out_path.read_text())["runs"]
+    done = {(r["seed"], r["twirl_turns"]) for r in runs}
+    for r in range(args.seeds):
+        seed = trial_seed(STUDY_BASE_SEED, r)
+        for t in (turns, 0.0):
+            if (seed, t) in done:
+                continue
+            runs.append(one_run(seed, t))
+            print(json.dumps(runs[-1]), flush=True)
+            _write(out_path, runs, turns, argv)
+    _write(out_path, runs, turns, argv)  # with --resume: the summary by this code
+    print(json.dumps(summarise(runs, turns), indent=2))
     return 0
 
 

@@ -252,20 +252,16 @@ def test_a_one_tick_contact_flicker_with_the_table_is_no_spill() -> None:
     assert w._codes[k] == acc.UTENSIL
 
 
-def _strand_bodies(w: FeedingWorld, s: int) -> np.ndarray:
-    m = w.model
-    f = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX, w.layout.food_strands[s])
-    return m.flex_vertbodyid[m.flex_vertadr[f]:m.flex_vertadr[f] + m.flex_vertnum[f]]
-
-
-def _move_strand(w: FeedingWorld, s: int, points: np.ndarray) -> None:
-    """Put strand ``s``'s vertices at ``points`` (world frame), at rest."""
+def _move_strand(w: FeedingWorld, s: int, centre: np.ndarray) -> None:
+    """Move strand ``s`` (a chain of capsules) rigidly, at rest, so the centroid of its
+    capsules is at ``centre``: its root's free joint carries the chain in its laid (rest)
+    coil, which the chain's bending springs keep."""
     m, d = w.model, w.data
-    for b, p in zip(_strand_bodies(w, s), points, strict=True):
-        dp = p - d.xpos[b]
-        for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]):
-            d.qpos[m.jnt_qposadr[j]] += float(m.jnt_axis[j] @ dp)
-            d.qvel[m.jnt_dofadr[j]] = 0.0
+    bodies = w._strand_verts[s]
+    j = m.body_jntadr[bodies[0]]
+    qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
+    d.qpos[qa:qa + 3] += np.asarray(centre) - d.xpos[bodies].mean(axis=0)
+    d.qvel[va:va + 6] = 0.0
     mujoco.mj_forward(m, d)
 
 
@@ -273,15 +269,11 @@ def test_a_noodle_strand_on_the_fork_is_eaten_once_and_never_counted_again() -> 
     w = FeedingWorld("noodles", seed=0)
     w.tool.set_mode(Mode.LEVELING)
     w.run(1.0)
-    # Lay strand 0 across the level fork's tines, 6 mm above them; it drapes over them.
+    # Lay strand 0's coil on the level fork's tines, 6 mm above them; it rests there.
     tip = w.tip_pose()[:3, 3]
     along = tip - w.data.site_xpos[w._imu_site]
     along /= np.linalg.norm(along)
-    side = np.cross(along, [0.0, 0.0, 1.0])
-    side /= np.linalg.norm(side)
-    n = len(_strand_bodies(w, 0))
-    offsets = (np.arange(n) - (n - 1) / 2) * 0.25 / (n - 1)  # 25 cm strand
-    _move_strand(w, 0, tip - 0.012 * along + [0.0, 0.0, 0.006] + np.outer(offsets, side))
+    _move_strand(w, 0, tip - 0.012 * along + [0.0, 0.0, 0.006])
     w.run(1.0)
     k = len(w.layout.food_bodies)  # strand 0's item index
     strand_g = w.layout.piece_mass * 1000.0
@@ -295,7 +287,7 @@ def test_a_noodle_strand_on_the_fork_is_eaten_once_and_never_counted_again() -> 
     assert g["utensil"] == 0.0 and g["eaten"] == pytest.approx(strand_g)
     # A strand reaching into the mouth region is eaten there too.
     mouth = np.asarray(w.scene.region("mouth").xyz)
-    _move_strand(w, 1, mouth + np.outer(np.arange(n) * 0.015, [1.0, 0.0, 0.0]))
+    _move_strand(w, 1, mouth)
     w.run(0.1)
     assert w._codes[k + 1] == acc.EATEN
     assert w.masses_g()["eaten"] == pytest.approx(2 * strand_g)

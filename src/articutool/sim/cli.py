@@ -64,6 +64,8 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     kw = _world_args(args)
     if args.load is not None and not (math.isfinite(args.load) and 0 < args.load <= 100):
         raise UsageError(f"--load must be a mass in (0, 100] g; got {args.load}")
+    if args.twirl_turns is not None:
+        _check_twirl(args, kw)
     try:
         world = FeedingWorld(args.food, args.utensil, load_g=args.load, **kw)
     except ValueError as err:  # e.g. strands cannot be placed as a load
@@ -80,7 +82,8 @@ def _cmd_sim(args: argparse.Namespace) -> int:
 
             data_rec = DataRecorder(world, extra={
                 "script": args.script, "level": args.level, "load_g": args.load})
-        report = run_script(world, args.script, level=args.level)
+        report = run_script(world, args.script, level=args.level,
+                            twirl_turns=args.twirl_turns)
         if recorder is not None:
             recorder.save(args.video)
         if data_rec is not None:
@@ -126,6 +129,23 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_twirl(args: argparse.Namespace, kw: dict) -> None:
+    """``--twirl-turns``: a fork's acquisition only, within the wrist's cable budget."""
+    from articutool.cli import UsageError
+    from articutool.sim.scenes import max_twirl_turns
+
+    hi = max_twirl_turns(kw["spec"])
+    n = args.twirl_turns
+    if not (math.isfinite(n) and 0 <= n <= hi):
+        raise UsageError(f"--twirl-turns must be a number of turns in [0, {hi:g}] (the roll "
+                         f"joint's cable budget less 0.1 turn); got {n}")
+    utensil = args.utensil or kw["params"].food(args.food).utensil
+    if kw["spec"].utensil(utensil).physics.kind != "fork" or args.load is not None:
+        raise UsageError("--twirl-turns applies to a fork's acquisition from the bowl "
+                         f"(--utensil fork, no --load); got --utensil {utensil}"
+                         + (" with --load" if args.load is not None else ""))
+
+
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from articutool.sim.calibrate import run_calibration
 
@@ -167,6 +187,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--load", type=float, metavar="G", default=None,
                    help="instead of acquiring, place G grams on the leveled, tared utensil "
                         "(the thesis' Exp. 2b/2c protocol), then run the script's motion")
+    p.add_argument("--twirl-turns", type=float, metavar="N", default=None,
+                   help="a fork's acquisition: TWIRL_CW N turns in the food (0: a still fork; "
+                        "default: the cable budget less 0.1 turn)")
     p.add_argument("--video", metavar="FILE", default=None,
                    help="record the scene (.mp4 or .gif); never overwrites")
     p.add_argument("--snapshot", metavar="FILE", default=None,

@@ -52,7 +52,9 @@ class WorldLayout:
     arm_joints: list[str]
     wrist_joints: list[str]
     food_bodies: list[str] = field(default_factory=list)
-    food_strands: list[str] = field(default_factory=list)
+    food_strands: list[str] = field(default_factory=list)  # strand k: bodies/geoms "strandk/i"
+    strand_segments: int = 0
+    timestep: float = 0.0
     piece_mass: float = 0.0
     places: dict[str, str] = field(default_factory=dict)  # geom name → place
     utensil_geoms: list[str] = field(default_factory=list)
@@ -278,34 +280,49 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
 
 def _strands(food: Strands, count: int, inner: float, floor_z: float, cx: float, cy: float,
              rng: np.random.Generator, layout: WorldLayout) -> list[str]:
-    """Strands as 1-D flexcomp rods laid as smooth arcs in layers (a kinked start shape makes
-    rod elasticity ill-conditioned, simulation-notes.md)."""
+    """Strands as chains of ``food.segments`` capsule bodies joined by ball joints whose
+    springs give the rod's bending stiffness (k = E·I/ds), heaped in layers as spirals of
+    ``food.pile_radius`` round the container's centre. The rest shape is the laid shape
+    (cooked pasta relaxes to how it lies). Adjacent capsules do not collide (parent-child);
+    every other pair does, so a strand can lie on its own wrap."""
     out = []
-    r = food.strand_radius
-    n = food.segments + 1
+    r, n = food.strand_radius, food.segments
+    ds = food.strand_length / n
+    mass = food.piece_mass / n
+    k_bend = food.bend_stiffness
+    # Twist has the segment's tiny axial inertia against the same spring: a floor on the
+    # inertia (armature) keeps the explicit spring at ω·dt ≤ 0.5 (a numerical choice).
+    armature = k_bend * (2.0 * layout.timestep) ** 2
+    layout.strand_segments = n
     for k in range(count):
-        # An arc of the strand's length on a circle inside the container, rotated and lifted.
-        rad = inner * rng.uniform(0.45, 0.8)
-        span = food.strand_length / rad
+        rad0 = food.pile_radius * rng.uniform(0.5, 1.0)
+        off = rng.uniform(-0.3, 0.3, 2) * food.pile_radius
         a0 = rng.uniform(0, 2 * math.pi)
-        z = floor_z + r + (k // 3) * 2.2 * r + 0.002
-        ang = a0 + np.linspace(-span / 2, span / 2, n)
-        # Strands longer than one turn spiral inwards instead of overlapping themselves.
-        shrink = np.linspace(1.0, 0.55, n) if span > 2 * math.pi * 0.95 else np.ones(n)
-        pts = np.column_stack([cx + rad * shrink * np.cos(ang), cy + rad * shrink * np.sin(ang),
-                               np.full(n, z)])
+        z = floor_z + r + k * 2.2 * r + 0.002
+        # A spiral laid segment by segment: its radius of curvature shrinks to half.
+        p = np.array([cx + off[0] + rad0 * math.cos(a0), cy + off[1] + rad0 * math.sin(a0), z])
+        heading = a0 + math.pi / 2
         name = f"strand{k}"
         layout.food_strands.append(name)
-        out.append(
-            f'<flexcomp name="{name}" type="direct" dim="1" radius="{r}" '
-            f'mass="{food.piece_mass:.9g}" point="{_f(pts.reshape(-1))}" '
-            f'element="{_f(np.column_stack([np.arange(n - 1), np.arange(1, n)]).reshape(-1))}" '
-            f'rgba="0.95 0.85 0.45 1">'
-            f'<contact contype="{_FOOD}" conaffinity="{_ALL}" condim="4" '
-            f'friction="{_f(food.friction)}" solref="{_f(food.solref)}" selfcollide="none"/>'
-            f'<edge equality="true"/>'
-            f'<elasticity young="{food.young:.6g}" poisson="{food.poisson}" '
-            f'damping="{food.damping}"/></flexcomp>')
+        for i in range(n):
+            rad = rad0 * (1.0 - 0.5 * i / max(n - 1, 1))
+            turn = ds / rad if i else 0.0
+            heading += turn
+            if i == 0:
+                pose = _pose_attr(p, rpy_matrix((0.0, 0.0, heading)))
+                joint = "<freejoint/>"
+            else:
+                pose = _pose_attr((ds, 0.0, 0.0), rpy_matrix((0.0, 0.0, turn)))
+                joint = (f'<joint type="ball" stiffness="{k_bend:.6g}" '
+                         f'damping="{k_bend * food.bend_damping_s:.6g}" '
+                         f'armature="{armature:.6g}"/>')
+            out.append(
+                f'<body name="{name}/{i}" {pose}>{joint}'
+                f'<geom name="{name}/{i}" type="capsule" size="{r}" fromto="0 0 0 {ds} 0 0" '
+                f'mass="{mass:.9g}" contype="{_FOOD}" conaffinity="{_ALL}" condim="4" '
+                f'friction="{_f(food.friction)}" solref="{_f(food.solref)}" '
+                f'rgba="0.95 0.85 0.45 1"/>')
+        out.append("</body>" * n)
     return out
 
 
@@ -323,13 +340,16 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
     food_p = params.food(food) if food is not None else None
     rng = np.random.default_rng(seed)
     layout = WorldLayout(xml="", arm_joints=arm.joint_names, wrist_joints=list(w.joint_names))
-    discrete = isinstance(food_p, Strands)
-    integrator = "discrete" if discrete else "implicitfast"
+    layout.timestep = wp.timestep
+    # The no-slip solver stops a loaded wrap creeping on soft contacts (strands only: it
+    # costs time, simulation-notes.md).
+    noslip = food_p.noslip_iterations if isinstance(food_p, Strands) else 0
     x: list[str] = [
         f'<mujoco model="{arm.model}_articutool_feeding">',
         '<compiler angle="radian" autolimits="true"/>',
         f'<option timestep="{wp.timestep}" solver="{wp.solver}" iterations="{wp.iterations}" '
-        f'tolerance="{wp.tolerance}" cone="{wp.cone}" integrator="{integrator}" '
+        f'tolerance="{wp.tolerance}" cone="{wp.cone}" integrator="implicitfast" '
+        f'noslip_iterations="{noslip}" '
         f'sleep_tolerance="{wp.sleep_tolerance}">'
         f'<flag sleep="{"enable" if wp.sleep else "disable"}"/></option>',
         '<size memory="256M"/>',
@@ -353,6 +373,9 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
                     containers[0])
         x.append(f'<camera name="utensil" mode="targetbody" target="utensil" '
                  f'pos="{_f(np.asarray(home.xyz) + 1.5 * view)}"/>')
+        # A close-up of what the utensil holds once lifted out of the container.
+        x.append(f'<camera name="utensil_close" mode="targetbody" target="utensil" '
+                 f'pos="{_f(np.asarray(home.xyz) + 0.6 * view + [0.0, 0.0, 0.1])}"/>')
     for r in scene.regions:
         x.append(f'<site name="region/{r.name}" pos="{_f(r.xyz)}" size="{r.radius}" '
                  'rgba="1 0.3 0.3 0.25"/>')

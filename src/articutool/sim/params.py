@@ -120,21 +120,29 @@ class Liquid(_FoodBase):
 
 
 class Strands(_FoodBase):
-    """1-D elastic rods (e.g. noodles)."""
+    """Elastic strands (e.g. noodles): chains of capsule bodies with ball-joint bending springs,
+    heaped in the container."""
 
     kind: Literal["strands"]
     strand_radius: Positive
     strand_length: Positive
     segments: Annotated[int, Field(ge=2, le=200)]
     young: Positive
-    poisson: Annotated[float, Field(ge=0, lt=0.5)]
-    damping: NonNegative
+    bend_damping_s: Positive
     friction: tuple[Positive, NonNegative, NonNegative]
+    pile_radius: Positive
+    noslip_iterations: Annotated[int, Field(ge=0, le=1000)]
 
     @property
     def piece_mass(self) -> float:
         """kg per strand."""
         return self.density * math.pi * self.strand_radius**2 * self.strand_length
+
+    @property
+    def bend_stiffness(self) -> float:
+        """N·m/rad of each joint: the rod's E·I over the segment length (I = π r⁴ / 4)."""
+        inertia = math.pi * self.strand_radius**4 / 4.0
+        return self.young * inertia / (self.strand_length / self.segments)
 
 
 Food = Annotated[Granular | Liquid | Strands, Field(discriminator="kind")]

@@ -21,7 +21,7 @@ from articutool.sim.world import FeedingWorld
 __all__ = ["CAMERAS", "Recorder", "RenderError", "model_renderer", "render_frame", "save_png",
            "write_video"]
 
-CAMERAS = ("utensil", "overview", "bowl")
+CAMERAS = ("utensil", "utensil_close", "overview", "bowl")
 _HINT = ("offscreen rendering needs EGL: install the system packages libegl1 and "
          "libgl1-mesa-dri (Debian/Ubuntu; `make` does it), or set MUJOCO_GL to a working "
          "backend")

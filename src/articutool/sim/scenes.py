@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,11 +30,12 @@ from articutool.arm.model import ArmModel
 from articutool.arm.scene import Cylinder
 from articutool.planning.timing import time_parameterize
 from articutool.sim.world import FeedingWorld, FoodReport
+from articutool.spec import Spec
 from articutool.tool.api import Mode
 from articutool.trajectory import JointTrajectory
 
 __all__ = ["SCOOP_HEADING", "SCRIPTS", "ScriptError", "acquire", "cartesian_path", "first_ik",
-           "lift_trajectory", "run_script", "scoop", "skewer", "tip_target"]
+           "lift_trajectory", "max_twirl_turns", "run_script", "scoop", "skewer", "tip_target"]
 
 SCRIPTS = ("scoop", "carry", "tilt")
 _Z = np.array([0.0, 0.0, 1.0])
@@ -199,14 +200,26 @@ def base_tilt_motion(world: FeedingWorld, tilt_deg: float = 40.0) -> NDArray[np.
     raise ScriptError(f"turning the hand cannot tilt the utensil by {tilt_deg}°")
 
 
-def skewer(world: FeedingWorld, level: bool = True, twirl_turns: float = 2.0) -> None:
+def max_twirl_turns(spec: Spec) -> float:
+    """Turns a twirl may make from a roll near zero: the cable budget
+    (``spec.wrist.roll_turn_budget``) less 0.1 turn for the roll a leveling leaves."""
+    return spec.wrist.roll_turn_budget - 0.1
+
+
+def skewer(world: FeedingWorld, level: bool = True, twirl_turns: float | None = None,
+           tines_up: bool = True, on_phase: Callable[[str], None] | None = None) -> None:
     """The fork's acquisition (thesis §4.4, noodles): the fork, pointing 60° down, goes into
-    the food's container to 6 mm above its floor, TWIRL_CW turns it ``twirl_turns`` times
-    about its own axis at 3 rad/s (0: a still skewer), it rises 3.4 cm, the tool levels
-    (unless ``level`` is off), and the arm lifts 12 cm."""
+    the food's container, pressed through the pile to 2 mm above its floor (as one presses a
+    fork to the plate to twirl), TWIRL_CW turns it ``twirl_turns`` times about the tool's roll
+    axis at 3 rad/s (0: a still fork; default :func:`max_twirl_turns`), it rises 3.8 cm
+    turning its tines up (60° → 0° below the horizon; ``tines_up`` off: still 60° down), the
+    tool levels (unless ``level`` is off), and the arm lifts 12 cm. ``on_phase`` is called
+    after each phase with its name: "in", "twirled", "risen", "levelled", "lifted"."""
     box = world.scene.get(world.layout.container or "bowl")
     if not isinstance(box, Cylinder) or box.container_wall is None:
         raise ScriptError("skewer needs the food's container (an open bowl)")
+    turns = max_twirl_turns(world.spec) if twirl_turns is None else twirl_turns
+    phase = on_phase or (lambda name: None)
     model = ArmModel(world.spec, world.utensil, 8, world.scene)
     world.tool.set_mode(Mode.LEVELING)
     world.run(1.0)
@@ -214,24 +227,31 @@ def skewer(world: FeedingWorld, level: bool = True, twirl_turns: float = 2.0) ->
     world.tare_ft(0.2)
     c = np.array([box.xyz[0], box.xyz[1], box.xyz[2] - box.length / 2 + box.container_wall])
     a = math.radians(60.0)
-    pts = [(c + _Z * 0.12, a, 0.1), (c + _Z * 0.03, a, 0.05), (c + _Z * 0.006, a, 0.02)]
+    pts = [(c + _Z * 0.12, a, 0.1), (c + _Z * 0.03, a, 0.05), (c + _Z * 0.002, a, 0.02)]
     q0 = first_ik(model, np.concatenate([world.arm_q, _wrist(world)]), pts[0][0], a)
     world.move_arm(q0[:6])
     world.follow_arm(cartesian_path(model, q0, pts), settle_s=0.2)
-    if twirl_turns > 0:
-        ok, msg = world.tool.start_primitive("TWIRL_CW", [twirl_turns, 3.0])
+    phase("in")
+    if turns > 0:
+        ok, msg = world.tool.start_primitive("TWIRL_CW", [turns, 3.0])
         if not ok:
             raise ScriptError(f"the tool refused TWIRL_CW: {msg}")
         world.run_until(lambda: world.tool.mode != Mode.PRIMITIVE, 30.0)
+    phase("twirled")
+    # Tines up while rising, as one turns a fork up under a twirled bite: a wrap on tines
+    # still pointing down slides off their tips (measured: 0 g for seed 5000 at 60°).
     q = np.concatenate([world.arm_q, _wrist(world)])
-    world.follow_arm(cartesian_path(model, q, [(pts[-1][0], a, 0.02),
-                                                       (c + _Z * 0.04, a, 0.02)]),
-                     settle_s=0.2)
+    rise = ([(c + _Z * 0.012, math.radians(30.0), 0.02), (c + _Z * 0.04, 0.0, 0.02)]
+            if tines_up else [(c + _Z * 0.04, a, 0.02)])
+    world.follow_arm(cartesian_path(model, q, [(pts[-1][0], a, 0.02), *rise]), settle_s=0.2)
+    phase("risen")
     if level:
         world.tool.set_mode(Mode.LEVELING)
     world.run(1.0)
+    phase("levelled")
     _lift(world, model)  # the tool base goes straight up; the wrist keeps the fork level
     world.run(1.0)
+    phase("lifted")
 
 
 def _lift(world: FeedingWorld, model: ArmModel, height: float = 0.12,
@@ -277,28 +297,28 @@ def load(world: FeedingWorld, level: bool = True) -> None:
     world.place_load(settle_s=1.0)
 
 
-def acquire(world: FeedingWorld, level: bool = True) -> None:
+def acquire(world: FeedingWorld, level: bool = True, twirl_turns: float | None = None) -> None:
     """The utensil's acquisition: a placed load if the world holds one (``load_g``), else a
-    twirling skewer with a fork, a scoop with a spoon."""
+    twirling skewer with a fork (``twirl_turns``, see :func:`skewer`), a scoop with a spoon."""
     if world.layout.parked:
         load(world, level)
     elif world.spec.utensil(world.utensil).physics.kind == "fork":
-        skewer(world, level)
+        skewer(world, level, twirl_turns)
     else:
         scoop(world, level)
 
 
-def carry(world: FeedingWorld, level: bool = True) -> None:
+def carry(world: FeedingWorld, level: bool = True, twirl_turns: float | None = None) -> None:
     """Scoop, then turn the arm's last joint at its speed limit until a locked utensil would
     tilt 40°, and hold 1.5 s."""
-    acquire(world, level)
+    acquire(world, level, twirl_turns)
     world.move_arm(base_tilt_motion(world, 40.0), wait=True)
     world.run(1.5)
 
 
-def tilt(world: FeedingWorld, level: bool = True) -> None:
+def tilt(world: FeedingWorld, level: bool = True, twirl_turns: float | None = None) -> None:
     """Scoop, then the tool's TILT primitive: roll 45° at 0.5 rad/s, hold 1 s, return."""
-    acquire(world, level)
+    acquire(world, level, twirl_turns)
     world.tool.set_mode(Mode.DISABLED)
     ok, msg = world.tool.start_primitive("TILT", [math.radians(45.0), 0.5, 1.0])
     if not ok:
@@ -309,10 +329,12 @@ def tilt(world: FeedingWorld, level: bool = True) -> None:
     world.run(1.0)
 
 
-def run_script(world: FeedingWorld, script: str, level: bool = True) -> FoodReport:
-    """Run a named scene and return the food report (with the F/T-measured mass at rest)."""
+def run_script(world: FeedingWorld, script: str, level: bool = True,
+               twirl_turns: float | None = None) -> FoodReport:
+    """Run a named scene and return the food report (with the F/T-measured mass at rest);
+    ``twirl_turns``: the fork's twirl (see :func:`skewer`)."""
     fn = {"scoop": acquire, "carry": carry, "tilt": tilt}.get(script)
     if fn is None:
         raise ValueError(f"script must be one of {SCRIPTS}; got {script!r}")
-    fn(world, level)
+    fn(world, level, twirl_turns)
     return world.report(measure_ft=True)

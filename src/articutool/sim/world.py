@@ -419,15 +419,14 @@ class FeedingWorld:
             node[m.geom(b).id] = k
             item_body.append(m.body(b).id)
         n_bodies = len(lay.food_bodies)
-        flex_node = np.full(max(m.nflex, 1), _OTHER_NODE, dtype=np.int64)
-        self._strand_verts: list[NDArray[np.int64]] = []  # each strand's vertex bodies
-        for k, sname in enumerate(lay.food_strands):
-            f = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX, sname)
-            flex_node[f] = n_bodies + k
-            verts = m.flex_vertbodyid[m.flex_vertadr[f]:m.flex_vertadr[f] + m.flex_vertnum[f]]
-            self._strand_verts.append(np.array(verts, dtype=np.int64))
-            item_body.append(int(verts[0]))
-        self._geom_node, self._flex_node = node, flex_node
+        self._strand_verts: list[NDArray[np.int64]] = []  # each strand's capsule bodies
+        for k, sname in enumerate(lay.food_strands):  # a strand: one item, all its capsules
+            for i in range(lay.strand_segments):
+                node[m.geom(f"{sname}/{i}").id] = n_bodies + k
+            self._strand_verts.append(np.array(
+                [m.body(f"{sname}/{i}").id for i in range(lay.strand_segments)], dtype=np.int64))
+            item_body.append(m.body(f"{sname}/0").id)  # its root (free joint)
+        self._geom_node = node
         self._item_body = np.array(item_body, dtype=np.int64)
         self.n_items = len(item_body)
         self._active = np.full(self.n_items, not lay.parked, dtype=bool)
@@ -447,10 +446,7 @@ class FeedingWorld:
         if nc == 0 or self.n_items == 0:
             e = np.zeros((0, 2), dtype=np.int64)
             return e, np.zeros(0, dtype=np.int64), e
-        g = d.contact.geom[:nc]
-        fl = d.contact.flex[:nc]
-        nodes = np.where(fl >= 0, self._flex_node[np.maximum(fl, 0)],
-                         self._geom_node[np.maximum(g, 0)])
+        nodes = self._geom_node[d.contact.geom[:nc]]
         a, b = nodes[:, 0], nodes[:, 1]
         ii = (a >= 0) & (b >= 0) & (a != b)
         item_item = np.column_stack([a[ii], b[ii]])
@@ -536,17 +532,18 @@ class FeedingWorld:
         m, d = self.model, self.data
         n_bodies = len(self.layout.food_bodies)
         for k in items:
-            if k >= n_bodies:  # a strand: every vertex body moves out on its slide joints
-                f = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX,
-                                      self.layout.food_strands[k - n_bodies])
-                m.flex_contype[f] = m.flex_conaffinity[f] = 0
-                adr, num = m.flex_vertadr[f], m.flex_vertnum[f]
-                away = np.array([100.0 + k, 0.0, 10.0]) - d.xpos[self._item_body[k]]
-                for b in m.flex_vertbodyid[adr:adr + num]:
+            if k >= n_bodies:  # a strand: its root's free joint carries the whole chain out
+                name = self.layout.food_strands[k - n_bodies]
+                for i in range(self.layout.strand_segments):
+                    g = m.geom(f"{name}/{i}").id
+                    m.geom_contype[g] = m.geom_conaffinity[g] = 0
+                    b = m.geom_bodyid[g]
+                    m.body_contype[b] = m.body_conaffinity[b] = 0
                     m.body_gravcomp[b] = 1.0
-                    for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]):
-                        d.qpos[m.jnt_qposadr[j]] += float(m.jnt_axis[j] @ away)
-                        d.qvel[m.jnt_dofadr[j]] = 0.0
+                j = m.body_jntadr[self._item_body[k]]
+                qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
+                d.qpos[qa:qa + 3] = (100.0 + k, 0.0, 10.0)
+                d.qvel[va:va + 6] = 0.0
                 self._codes[k] = acc.EATEN
                 continue
             b = self._item_body[k]

@@ -26,7 +26,7 @@ key            shape / dtype    content
 ``q``          (T, 8) float64   arm joints 1..6, wrist pitch, roll: ground truth (rad)
 ``qpos``       (T, nq) float32  MuJoCo ``qpos`` (arm, wrist, food joints): replays the scene
 ``food_xyz``   (T, P, 3) f32    food points in the world frame (m): piece centres, or every
-                                strand's vertices, strand after strand
+                                strand's capsule origins, strand after strand
 ``food_class`` (T, I) int8      where each item is (``class_names`` code; −1 = not placed)
 ``tool_mode``  (T,) int8        the tool's mode (``modes``)
 ``tool_q``     (T, 2) float32   the tool's own wrist joint reading [pitch, roll] (rad)
@@ -69,15 +69,12 @@ class RecordingError(ValueError):
 
 
 def _food_point_ids(world: FeedingWorld) -> tuple[str, NDArray[np.int64], list[tuple[int, int]]]:
-    """Kind of food, body ids of pieces, (vertex address, count) of strands."""
+    """Kind of food, body ids of pieces, (first body id, count) of strands: a strand's
+    capsule bodies are consecutive (a nested chain), their origins its points."""
     m, lay = world.model, world.layout
     if lay.food_strands:
-        import mujoco
-
-        spans = []
-        for name in lay.food_strands:
-            f = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX, name)
-            spans.append((int(m.flex_vertadr[f]), int(m.flex_vertnum[f])))
+        spans = [(int(m.body(f"{name}/0").id), lay.strand_segments)
+                 for name in lay.food_strands]
         return "strands", np.zeros(0, dtype=np.int64), spans
     ids = np.array([m.body(b).id for b in lay.food_bodies], dtype=np.int64)
     return ("pieces" if ids.size else "none"), ids, []
@@ -123,7 +120,7 @@ class Recorder:
     def _food_xyz(self) -> NDArray[np.float32]:
         d = self.world.data
         if self._kind == "strands":
-            return np.concatenate([d.flexvert_xpos[a:a + n] for a, n in self._spans]
+            return np.concatenate([d.xpos[a:a + n] for a, n in self._spans]
                                   ).astype(np.float32)
         return d.xpos[self._bodies].astype(np.float32)
 

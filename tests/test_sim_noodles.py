@@ -1,0 +1,148 @@
+"""Noodles as capsule chains (issue 26): the model, its stability, the fork's twirl option."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+mujoco = pytest.importorskip("mujoco")
+
+from articutool.sim.params import PhysicsParams  # noqa: E402
+from articutool.sim.scenes import max_twirl_turns  # noqa: E402
+from articutool.sim.world import FeedingWorld  # noqa: E402
+from articutool.spec import load_spec  # noqa: E402
+
+_RESETS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+           mujoco.mjtWarning.mjWARN_BADQACC)
+
+
+def test_noodle_world_builds_as_jointed_chains_and_stays_stable() -> None:
+    food = PhysicsParams.load().food("noodles")
+    w = FeedingWorld("noodles", seed=5000)
+    m, d = w.model, w.data
+    n = len(w.layout.food_strands)
+    assert n == round(food.fill_g / 1000 / food.piece_mass)
+    assert m.nflex == 0 and m.opt.noslip_iterations == food.noslip_iterations
+    # Every strand is `segments` bodies: a free root and ball joints whose spring is E·I/ds.
+    balls = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_BALL]
+    assert len(balls) == n * (food.segments - 1)
+    ei = food.young * math.pi * food.strand_radius**4 / 4
+    ds = food.strand_length / food.segments
+    assert m.jnt_stiffness[balls] == pytest.approx(ei / ds)
+    w.run(1.0)  # the heap settles for 1 s more with the tool running
+    assert np.isfinite(d.qpos).all()
+    assert all(d.warning[int(k)].number == 0 for k in _RESETS)
+    g = w.masses_g()
+    assert g["container"] == pytest.approx(n * food.piece_mass * 1000)
+    # The heap stays a heap round the bowl's centre (nothing thrown out by stored energy).
+    bowl = w.scene.get("bowl")
+    xy = np.array([d.xpos[m.body(f"{s}/{i}").id][:2] for s in w.layout.food_strands
+                   for i in range(food.segments)])
+    assert np.max(np.linalg.norm(xy - np.asarray(bowl.xyz[:2]), axis=1)) < bowl.radius
+
+
+def test_a_strand_collides_with_itself_but_not_across_a_joint() -> None:
+    w = FeedingWorld("noodles", seed=5000, settle=False)
+    m = w.model
+    a, b, c = (m.geom(f"strand0/{i}").id for i in (0, 1, 5))
+    assert m.geom_contype[a] & m.geom_conaffinity[c]  # a wrap can rest on its own strand
+    assert m.body_parentid[m.geom_bodyid[b]] == m.geom_bodyid[a]  # neighbours: parent-child
+    assert not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_FILTERPARENT
+
+
+@pytest.mark.parametrize("args", [["--twirl-turns", "5"], ["--twirl-turns", "-1"],
+                                  ["--twirl-turns", "nan"], ["--twirl-turns", "two"],
+                                  ["--utensil", "spoon", "--twirl-turns", "1"]])
+def test_twirl_turns_bad_input_exits_2_naming_the_field(args: list[str]) -> None:
+    r = subprocess.run([sys.executable, "-m", "articutool", "sim", "--food", "noodles",
+                        "--script", "scoop", *args], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 2, r.stderr
+    assert "--twirl-turns" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_twirl_turns_range_is_the_cable_budget() -> None:
+    hi = max_twirl_turns(load_spec())
+    assert hi < load_spec().wrist.roll_turn_budget
+    r = subprocess.run([sys.executable, "-m", "articutool", "sim", "--food", "noodles",
+                        "--twirl-turns", f"{hi + 0.01}"], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 2 and f"[0, {hi:g}]" in r.stderr
+
+
+def test_a_noodle_recording_holds_every_capsule_where_the_world_has_it(tmp_path) -> None:
+    from articutool.viewer.recording import Recorder, Recording
+
+    w = FeedingWorld("noodles", seed=5000, settle=False)
+    rec = Recorder(w)
+    w.run(0.1)
+    rec.save(tmp_path / "n.npz")
+    r = Recording.load(tmp_path / "n.npz")
+    segs = PhysicsParams.load().food("noodles").segments
+    assert r.meta["food_kind"] == "strands"
+    assert r.meta["strand_vertices"] == [segs] * len(w.layout.food_strands)
+    last = r.food_xyz[-1].reshape(len(w.layout.food_strands), segs, 3)
+    # Strand 3's points are its capsules' origins, in order along the chain (the last frame
+    # is up to one recording period old: within 1 mm of now, far less than a segment).
+    ids = [w.model.body(f"strand3/{i}").id for i in range(segs)]
+    assert np.allclose(last[3], w.data.xpos[ids], atol=1e-3)
+    assert r.point_class(len(r) - 1).size == segs * len(w.layout.food_strands)
+
+
+@pytest.mark.slow
+def test_the_forks_acquisition_twirls_through_the_tool_runtime_and_lifts_strands() -> None:
+    from articutool.sim.accounting import UTENSIL
+    from articutool.sim.scenes import skewer
+
+    w = FeedingWorld("noodles", seed=5000)  # a study seed (benchmarks/noodle_twirl.py)
+    turns = max_twirl_turns(w.spec)
+    roll: list[float] = []
+    w.on_tick.append(lambda world: roll.append(float(world.wrist_q[1])))
+    skewer(w, level=True, twirl_turns=turns)
+    # The tool's own TWIRL_CW turned the roll joint (the script only asked), without a fault.
+    assert max(roll) >= 2 * math.pi * turns - 0.1
+    assert w.tool.fault == ""
+    assert all(w.data.warning[int(k)].number == 0 for k in _RESETS)
+    # Whole strands hang from the fork 12 cm above the bowl (measured: 8 strands, 8.4 g; a
+    # still fork lifts as much: the tines-up rise rakes them, README *Noodle twirling*).
+    assert int(np.sum(w.item_classes() == UTENSIL)) >= 3
+
+
+def _study_module():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "noodle_twirl.py"
+    spec = importlib.util.spec_from_file_location("noodle_twirl", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_the_study_never_counts_a_run_mujoco_reset(tmp_path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes MUJOCO_LOG.TXT on a warning
+    study = _study_module()
+    def run(seed: int, turns: float, g: float, reset: bool = False) -> dict:
+        return {"seed": seed, "twirl_turns": turns, "lifted_g": g, "ft_mass_g": g + 0.5,
+                "reset": reset, "realtime_factor": 0.3}
+
+    runs = ([run(s, 2.0, g) for s, g in ((0, 4.0), (1, 5.0), (2, 6.0))]
+            + [run(3, 2.0, 99.0, reset=True), run(3, 0.0, 0.0)]
+            + [run(s, 0.0, g) for s, g in ((0, 0.0), (1, 1.0), (2, 0.0))])
+    s = study.summarise(runs, 2.0)
+    assert (s["twirl"]["runs"], s["twirl"]["reset"], s["twirl"]["n"]) == (4, 1, 3)
+    assert s["twirl"]["mean_g"] == pytest.approx(5.0)  # the reset run's 99 g is not in it
+    assert s["twirl"]["ft_mean_g"] == pytest.approx(5.5)
+    assert s["mann_whitney_u"]["p_one_sided"] < 0.1  # all twirl runs above all still ones
+    assert s["paired_wilcoxon"]["pairs"] == 3  # seed 3's still run has no kept twirl pair
+    # A real reset is what the study detects: MuJoCo's counter after an unstable step.
+    m = mujoco.MjModel.from_xml_string(
+        '<mujoco><worldbody><body><freejoint/><geom size="0.1"/></body></worldbody></mujoco>')
+    d = mujoco.MjData(m)
+    d.qvel[0] = math.nan
+    mujoco.mj_step(m, d)
+    assert "mjWARN_BADQVEL" in study.warnings_of(d)
