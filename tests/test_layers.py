@@ -84,6 +84,7 @@ def imports_from(graph: dict[str, set[str]], src: str, dst: str) -> list[tuple[s
 GRAPH = import_graph()
 FIXED_CIRCLES = [
     {"articutool.spec", "articutool.tool.drivers.dynamixel"},
+    {"articutool.planning.api", "articutool.planning.ompl_planner"},
 ]
 FIXED_ARROWS = [
     ("articutool.spec", "articutool.tool"),
