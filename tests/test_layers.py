@@ -88,6 +88,7 @@ FIXED_CIRCLES = [
 ]
 FIXED_ARROWS = [
     ("articutool.spec", "articutool.tool"),
+    ("articutool.tool", "articutool.link"),
 ]
 
 
