@@ -89,6 +89,7 @@ FIXED_CIRCLES = [
 FIXED_ARROWS = [
     ("articutool.spec", "articutool.tool"),
     ("articutool.tool", "articutool.link"),
+    ("articutool.feeding", "articutool.experiments"),
 ]
 
 
