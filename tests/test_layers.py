@@ -1,7 +1,8 @@
 """The import graph of ``src/articutool`` (issue 23): the circles and upward arrows fixed so
 far stay fixed. Imports go down the README's layers: spec/data → tool, arm → link, verify,
 planning → sim → feeding → experiments, viewer, CLIs. Parsed with ``ast`` (lazy imports
-inside functions count too); what remains is listed in the README's architecture map."""
+inside functions count too). Still open (issue 23): the circle sim/world ⇄ sim/mj_drivers;
+sim/cli and feeding/cli → viewer/recording; every */cli.py → articutool.cli's helpers."""
 
 import ast
 import subprocess
