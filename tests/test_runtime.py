@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 from articutool import load_spec
+from articutool.onboard import background_services, format_status, main, run_tool
 from articutool.tool.api import Mode, ToolAPI
-from articutool.tool.cli import background_services, format_status, main, run_tool
 from articutool.tool.drivers.base import DriverError, HardwareError, ImuSample
 from articutool.tool.drivers.sim import (
     SimImuDriver,
@@ -813,7 +813,7 @@ def test_tool_command_rejects_a_bad_duration():
 
 
 def test_tool_command_exits_0_on_sigint():
-    code = "import sys; from articutool.tool.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = "import sys; from articutool.onboard import main; sys.exit(main(sys.argv[1:]))"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     # No link: the default endpoint may be in use (the tool then exits 2); Ctrl-C with the
     # link served, under load, is test_tool_cli.py::test_sigint_stops_the_tool_cleanly.

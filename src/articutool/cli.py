@@ -27,7 +27,7 @@ __all__ = ["main", "new_output_file", "output_dir"]
 
 _COMMAND_MODULES: tuple[str, ...] = (
     "articutool.verify.cli",
-    "articutool.tool.cli",
+    "articutool.onboard",
     "articutool.link.cli",
     "articutool.ros2.cli",
     "articutool.sim.demo",

@@ -24,6 +24,7 @@ from pydantic import (
 )
 
 from articutool.datafile import format_validation_error, read_document
+from articutool.dynamixel_units import bus_watchdog_units
 
 __all__ = [
     "ArmJointSpec",
@@ -319,9 +320,6 @@ class MotorSpec(_Strict):
 
     @model_validator(mode="after")
     def _watchdog_fits(self) -> MotorSpec:
-        # The register's unit and range live with the driver (one definition).
-        from articutool.tool.drivers.dynamixel import bus_watchdog_units
-
         try:
             bus_watchdog_units(self.bus_watchdog_s)
         except ValueError as err:

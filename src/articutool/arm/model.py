@@ -33,7 +33,8 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
-from articutool.arm.scene import Scene, rpy_matrix
+from articutool.arm.scene import Scene
+from articutool.rotations import rpy_matrix
 from articutool.spec import Spec
 
 __all__ = ["DOFS", "TOOL_BASE_FRAME", "UTENSIL_MOUNT_FRAME", "ArmModel", "tip_frame_name"]

@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from articutool.datafile import read_document
+from articutool.rotations import quaternion_to_matrix, rpy_matrix
 from articutool.spec import Finite, Positive, Vec3
 
 __all__ = [
@@ -53,26 +54,6 @@ __all__ = [
 
 class SceneError(ValueError):
     """A scene file is missing, malformed or holds an invalid object."""
-
-
-def rpy_matrix(rpy: NDArray[np.float64] | tuple[float, float, float]) -> NDArray[np.float64]:
-    """URDF fixed-axis roll-pitch-yaw to a rotation matrix: ``Rz(y) @ Ry(p) @ Rx(r)``."""
-    r, p, y = (float(a) for a in rpy)
-    cr, sr, cp, sp, cy, sy = (math.cos(r), math.sin(r), math.cos(p), math.sin(p),
-                              math.cos(y), math.sin(y))
-    return np.array([
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ])
-
-
-def _quat_matrix(w: float, x: float, y: float, z: float) -> NDArray[np.float64]:
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
 
 
 class _Object(BaseModel):
@@ -101,8 +82,7 @@ class _Object(BaseModel):
     def rotation(self) -> NDArray[np.float64]:
         """Orientation of the object frame in the arm base frame, (3, 3)."""
         if self.wxyz is not None:
-            q = np.asarray(self.wxyz) / np.linalg.norm(self.wxyz)
-            return _quat_matrix(*q)
+            return quaternion_to_matrix(self.wxyz)
         return rpy_matrix(self.rpy if self.rpy is not None else (0.0, 0.0, 0.0))
 
     @property

@@ -32,6 +32,7 @@ from articutool.bench.executors import Executor
 from articutool.bench.runner import read_log, run_logged
 from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import TrialSpec
+from articutool.thresholds import DEFAULT_OUT, exp1_means
 
 __all__ = ["DEFAULT_OUT", "RunError", "RunResult", "data_hash", "exp1_means", "log_path",
            "pin_run", "read_trials", "run_experiment", "run_trial", "source_version"]
@@ -57,21 +58,6 @@ def read_trials(out: str | Path, experiment: str) -> list[dict[str, Any]]:
     """Every logged trial of ``experiment`` under ``out`` (empty if none), by trial index."""
     recs = read_log(log_path(out, experiment), key=trial_key).records
     return sorted({trial_key(r): r for r in recs}.values(), key=lambda r: r["trial"])
-
-
-DEFAULT_OUT = Path("results/experiments")
-
-
-def exp1_means(out: Path = DEFAULT_OUT) -> dict[str, float]:
-    """Our Exp. 1 Articutool mean acquisition per food (g), from ``out/exp1/summary.json``
-    (empty if it has not run). The outcome thresholds of Exp. 2c, Exp. 3 and ``articutool
-    meal`` come from here, as the thesis took its thresholds from its own data."""
-    p = Path(out) / "exp1" / "summary.json"
-    if not p.exists():
-        return {}
-    acq = json.loads(p.read_text(encoding="utf-8")).get("acquired_g", {})
-    return {f: float(v["articutool"]["mean"]) for f, v in acq.items()
-            if v.get("articutool", {}).get("mean") is not None}
 
 
 def data_hash(experiment: str, cfg: ExperimentsConfig) -> str:

@@ -39,7 +39,7 @@ def _check(args: argparse.Namespace) -> Any:
         raise UsageError(f"--food: no {args.system} strategy for {args.food!r}; allowed: "
                          f"{', '.join(foods)}")
     if args.threshold is None:  # derived from our own data, as the thesis derived its own
-        from articutool.experiments.runner import DEFAULT_OUT, exp1_means
+        from articutool.thresholds import DEFAULT_OUT, exp1_means
 
         args.threshold = exp1_means().get(args.food)
         if args.threshold is None:

@@ -14,12 +14,10 @@ Refusals: ROS 2's SendGoal response carries no text, so a primitive the tool ref
 name, bad parameters, busy, leveling) is *accepted then aborted* at once: get_result returns
 ``success=false`` with the tool's message and status ABORTED.
 
-Goals are identified by their goal id, never by comparing primitive statuses: the server is
-the only caller of ``start_primitive`` on its ``ToolAPI``, so after it starts goal G every
-status the tool reports is G's, until the server starts the next goal. Before starting one it
-settles the current goal (a goal that ended between two ticks gets its result then), and while
-its goal still runs it refuses the new one itself, so no goal's final status is ever
-overwritten unseen.
+Goals are identified by their goal id (the goal table, ``link/goals.py``). Before starting
+one the server settles the current goal (a goal that ended between two ticks gets its result
+then), and while its goal still runs it refuses the new one itself, so no goal's final status
+is ever overwritten unseen.
 
 Who may command (issue 13): on a paired tool (``LinkConfig.requires_pairing``) every command,
 trajectory and client heartbeat must carry a paired PC's signature (``articutool.link.auth``);
@@ -31,15 +29,15 @@ A paired PC's refusals say why (issue 22): clocks out of sync, a replay, an expi
 certificate; "not a paired PC" only when it is not. Refused goals and cancels, whose ROS
 replies carry no text, are answered with an error naming the reason (the client reads it).
 
-One commander at a time: the first command from a client gives it the *command lease*, which
-its heartbeats (and commands) renew and which expires ``client_timeout`` seconds after it was
-last heard, or when it calls ``release``. Another client's commands are refused with a message
-naming the holder (``refused_lease``), except stops: DISABLED and cancel are accepted from
-any admitted client, without moving the lease. ``take_over`` gives the lease to the caller at
-once and is audited (a WARNING log line ``AUDIT …``, the ``lease_takeovers`` counter and,
-with ``LinkConfig.audit_log``, a JSON line per lease transition: granted, released, expired,
-take_over). On an unpaired
-link the names are the clients' own claims, so the lease orders honest clients only.
+One commander at a time (``link/lease.py``): the first command from a client gives it the
+*command lease*, which its heartbeats (and commands) renew and which expires
+``client_timeout`` seconds after it was last heard, or when it calls ``release``. Another
+client's commands are refused with a message naming the holder (``refused_lease``), except
+stops: DISABLED and cancel are accepted from any admitted client, without moving the lease.
+``take_over`` gives the lease to the caller at once and is audited (a WARNING log line
+``AUDIT …``, the ``lease_takeovers`` counter and, with ``LinkConfig.audit_log``, a JSON line
+per lease transition: granted, released, expired, take_over). On an unpaired link the names
+are the clients' own claims, so the lease orders honest clients only.
 
 The network cannot slow the loop, and no flood can hold back a stop (issue 22, S1): the
 transport drops payloads above a per-type size (``max_trajectory_bytes``,
@@ -70,18 +68,18 @@ their end either way; leveling always continues (it is the point of the decoupli
 
 from __future__ import annotations
 
-import json
 import logging
 import threading
 import time
 import uuid
 from collections import OrderedDict, deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from functools import partial
 
 from articutool.link import messages as m
 from articutool.link.config import LinkConfig
+from articutool.link.goals import Goal, GoalTable
+from articutool.link.lease import CommandLease
 from articutool.link.transport import (
     Endpoint,
     Handle,
@@ -98,21 +96,10 @@ __all__ = ["ToolServer", "serve_forever"]
 
 _log = logging.getLogger(__name__)
 _ZERO_ID = bytes(16)
-_KEEP_GOALS = 32  # finished goals remembered for late get_result calls
+_KEEP_GOALS = 32  # finished goals remembered for late get_result calls (GoalTable)
 _MAX_GATES = 1024  # per-sender rate gates kept (oldest forgotten: a fresh gate is full)
 _LOGGED = 10  # log lines per kind of dropped/refused/malformed message, then 1 in _EVERY
 _EVERY = 1000
-
-
-@dataclass
-class _Goal:
-    goal_id: bytes
-    name: str
-    accepted_at: float  # wall clock, for GoalInfo.stamp
-    status: int
-    cancel_requested: bool = False
-    result: m.PrimitiveResult | None = None
-    waiters: list[Responder] = field(default_factory=list)
 
 
 class ToolServer:
@@ -136,9 +123,8 @@ class ToolServer:
                                          "ticks": 0, "refused_unpaired": 0, "refused_lease": 0,
                                          "lease_takeovers": 0, "oversized": 0, "rate_limited": 0,
                                          "dropped_excess": 0, "commands": 0}
-        self.holder: str | None = None  # the command lease's holder
-        self._holder_seen = 0.0
-        self.audit: deque[str] = deque(maxlen=100)  # JSON lines, newest last
+        self.lease = CommandLease(self.cfg.client_timeout, self.cfg.tool_id,
+                                  self.cfg.audit_log)
         self._inbox: deque[Callable[[], None]] = deque()
         # Stops waiting for the loop, by what they do: (run, answers); see _submit_stop.
         self._stops: OrderedDict[object, tuple[Callable[[], object],
@@ -154,8 +140,7 @@ class ToolServer:
         self._io_wake = threading.Condition()
         self._io_thread: threading.Thread | None = None
         self._lock = threading.RLock()
-        self._goals: OrderedDict[bytes, _Goal] = OrderedDict()
-        self._active: _Goal | None = None
+        self.goals = GoalTable(_KEEP_GOALS)
         self._last_client_rx: float | None = None
         self._client_alive = False
         self._handles: list[Handle] = []
@@ -218,6 +203,16 @@ class ToolServer:
     def client_alive(self) -> bool:
         """Whether a client was heard from within ``client_timeout``."""
         return self._client_alive
+
+    @property
+    def holder(self) -> str | None:
+        """The command lease's holder (None: free)."""
+        return self.lease.holder
+
+    @property
+    def audit(self) -> deque[str]:
+        """The lease transitions, JSON lines, newest last (the last 100)."""
+        return self.lease.audit
 
     # ----------------------------------------------------------------- helpers --
     def _guarded(self, fn: Callable) -> Callable:
@@ -296,47 +291,14 @@ class ToolServer:
                           f"{self._sender_key(sender)} on {ep.name}")
 
     def _lease(self, who: str, stop: bool = False) -> str:
-        """'' if ``who`` may command now (taking a free or expired lease, renewing its own);
-        else the refusal naming the holder. Stops pass without touching the lease."""
+        """'' if ``who`` may command now, else the refusal naming the holder (counted);
+        see :meth:`CommandLease.acquire`."""
         now = time.monotonic()
         with self._lock:
-            self._expire_lease(now)
-            if self.holder is None and not stop:
-                self.holder = who
-                _log.info("command lease granted to %s", who)
-                self._audit("lease_granted", who, None)
-            if self.holder == who:
-                self._holder_seen = now
-                return ""
-            if stop:
-                return ""
-            self.counters["refused_lease"] += 1
-            return (f"refused: {self.holder} holds the command lease (heard "
-                    f"{now - self._holder_seen:.1f} s ago); it ends when {self.holder} releases "
-                    f"it or is silent for {self.cfg.client_timeout:g} s. Read-only access is "
-                    "open; stops (mode disabled, cancel) are always accepted; 'articutool "
-                    "client take-over' takes the lease (audited)")
-
-    def _expire_lease(self, now: float) -> None:
-        """End the lease of a holder silent for ``client_timeout`` (lock held)."""
-        if self.holder is not None and now - self._holder_seen > self.cfg.client_timeout:
-            _log.warning("command lease of %s expired (silent %.1f s)", self.holder,
-                         now - self._holder_seen)
-            self._audit("lease_expired", self.holder, None)
-            self.holder = None
-
-    def _audit(self, event: str, who: str | None, previous: str | None) -> None:
-        """Record a lease transition: in memory (last 100) and, with ``audit_log``, one JSON
-        line appended to that file (never raises: the audit must not stop a command)."""
-        rec = {"time": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "tool_id": self.cfg.tool_id,
-               "event": event, "client": who, "previous_holder": previous}
-        self.audit.append(json.dumps(rec))
-        if self.cfg.audit_log:
-            try:
-                with open(self.cfg.audit_log, "a", encoding="utf-8") as f:
-                    f.write(json.dumps(rec) + "\n")
-            except OSError as err:
-                _log.error("cannot append to the audit log %s: %s", self.cfg.audit_log, err)
+            refusal = self.lease.acquire(who, now, stop)
+            if refusal:
+                self.counters["refused_lease"] += 1
+            return refusal
 
     def _submit(self, work: Callable[[], None]) -> bool:
         """Queue a ToolAPI call for the loop; False (counted) when the inbox is full."""
@@ -524,13 +486,12 @@ class ToolServer:
         m.decode(data, ep.request_type)
         self._client_seen(who)
         with self._lock:
-            before = self.holder
-            self.holder, self._holder_seen = who, time.monotonic()
+            before = self.lease.take_over(who, time.monotonic())
             if before not in (None, who):
                 self.counters["lease_takeovers"] += 1
         _log.warning("AUDIT take-over: %s took the command lease from %s", who,
                      before or "nobody")
-        self._audit("take_over", who, before)
+        self.lease.record("take_over", who, before)
         respond(m.encode(m.trigger_response(True, f"{who} holds the command lease (was: "
                                                   f"{before or 'nobody'})"), ep.response_type))
         return None
@@ -543,12 +504,10 @@ class ToolServer:
         self._rate_limit(ep, sender)
         m.decode(data, ep.request_type)
         with self._lock:
-            mine = self.holder == who
-            if mine:
-                self.holder = None
+            mine = self.lease.release(who)
         if mine:
             _log.info("command lease released by %s", who)
-            self._audit("lease_released", who, None)
+            self.lease.record("lease_released", who, None)
         respond(m.encode(m.trigger_response(mine, "released" if mine else
                                             f"not held by {who} (holder: {self.holder})"),
                          ep.response_type))
@@ -569,9 +528,9 @@ class ToolServer:
         if refusal:  # accepted then aborted, so the client can read why (see the docstring)
             now = time.time()
             with self._lock:
-                if gid in self._goals:
+                if gid in self.goals:
                     return self._refuse(respond, ep, "")
-                self._remember(_Goal(gid, name, now, m.GoalStatus.ABORTED, result=(
+                self.goals.remember(Goal(gid, name, now, m.GoalStatus.ABORTED, result=(
                     m.PrimitiveResult(False, refusal, self._joints_now(),
                                       m.GoalStatus.ABORTED))))
             respond(m.encode(m.send_goal_response(True, now), ep.response_type))
@@ -583,35 +542,28 @@ class ToolServer:
             raise RefusalError("the tool's command inbox is full")
         return None
 
-    def _remember(self, goal: _Goal) -> None:
-        """Record ``goal`` (lock held), forgetting the oldest finished goals."""
-        self._goals[goal.goal_id] = goal
-        done = [k for k, g in self._goals.items() if g.result is not None]
-        for k in done[:max(0, len(self._goals) - _KEEP_GOALS)]:  # never a running goal
-            del self._goals[k]
-
     def _start_goal(self, gid: bytes, name: str, params: list[float],
                     respond: Responder) -> None:
         now = time.time()
         ep = self.names.send_goal
         with self._lock:
-            if gid in self._goals:  # a resent goal id is a protocol error: reject it
+            if gid in self.goals:  # a resent goal id is a protocol error: reject it
                 respond(m.encode(m.send_goal_response(False, now), ep.response_type))
                 return
             ended = self._settle()  # the running goal may have ended since the last tick
-            running = self._active
+            running = self.goals.active
             if running is not None:  # ours still runs: starting now could hide its result
                 ok, msg = False, (f"busy: primitive {running.name} is running (goal "
                                   f"{running.goal_id.hex()})")
             else:
                 ok, msg = self._ask(self.api.start_primitive, name, params)
-            goal = _Goal(gid, name, now, m.GoalStatus.EXECUTING if ok else m.GoalStatus.ABORTED)
+            goal = Goal(gid, name, now, m.GoalStatus.EXECUTING if ok else m.GoalStatus.ABORTED)
             if ok:
-                self._active = goal
+                self.goals.active = goal
             else:
                 goal.result = m.PrimitiveResult(False, msg, self._joints_now(),
                                                 m.GoalStatus.ABORTED)
-            self._remember(goal)
+            self.goals.remember(goal)
         self._answer(ended)
         respond(m.encode(m.send_goal_response(True, now), ep.response_type))
         self._publish_status()
@@ -622,7 +574,7 @@ class ToolServer:
         req = m.decode(data, ep.request_type)
         gid = m.uuid_bytes(req.goal_id)
         with self._lock:
-            goal = self._goals.get(gid)
+            goal = self.goals.get(gid)
             if goal is not None and goal.result is None:
                 goal.waiters.append(respond)  # long poll: answered when the goal ends
                 return
@@ -644,7 +596,7 @@ class ToolServer:
         def answer(result: object) -> None:
             respond(m.encode(m.cancel_response(*result), ep.response_type))  # type: ignore[misc]
         with self._lock:
-            goal = self._active if gid == _ZERO_ID else self._goals.get(gid)
+            goal = self.goals.active if gid == _ZERO_ID else self.goals.get(gid)
             if goal is None:
                 now: tuple[int, list] | None = (R.ERROR_NONE if gid == _ZERO_ID else
                                                 R.ERROR_UNKNOWN_GOAL_ID, [])
@@ -657,7 +609,7 @@ class ToolServer:
 
         def run() -> tuple[int, list]:
             with self._lock:
-                if goal.result is not None or self._active is not goal:
+                if goal.result is not None or self.goals.active is not goal:
                     out: tuple[int, list] = (R.ERROR_GOAL_TERMINATED, [])
                 elif self.api.cancel_primitive():
                     goal.cancel_requested = True
@@ -716,33 +668,13 @@ class ToolServer:
         m.decode(data, ep.type)
         self._client_seen(who)
         with self._lock:
-            if self.holder == who:
-                self._holder_seen = time.monotonic()
+            self.lease.renew(who, time.monotonic())
 
     # ---------------------------------------------------------------- the tick --
     def _settle(self) -> tuple[list[Responder], m.PrimitiveResult] | PrimitiveStatus | None:
-        """Read the tool's status for the active goal (lock held). The status is the active
-        goal's, since only this server starts primitives. If the goal ended, record its
-        result and return its waiters with it (answered outside the lock by
-        :meth:`_answer`); if it runs, return the status (for feedback); else None."""
-        goal = self._active
-        if goal is None:
-            return None
-        st = self.api.primitive_status()
-        if st is None:
-            return None
-        if not st.done:
-            return st
-        if st.success:
-            status = m.GoalStatus.SUCCEEDED
-        else:
-            status = m.GoalStatus.CANCELED if goal.cancel_requested else m.GoalStatus.ABORTED
-        final = tuple(st.final_joint_values) or tuple(st.current_joint_values)
-        result = m.PrimitiveResult(bool(st.success), st.message, final, status)
-        goal.result, goal.status = result, status
-        waiters, goal.waiters = goal.waiters, []
-        self._active = None
-        return waiters, result
+        """The active goal's progress (lock held): see :meth:`GoalTable.settle`; the waiters
+        of a goal that ended are answered outside the lock by :meth:`_answer`."""
+        return self.goals.settle(self.api.primitive_status)
 
     def _answer(self, ended: object) -> None:
         """Answer the get_result waiters of a goal :meth:`_settle` found ended."""
@@ -756,7 +688,7 @@ class ToolServer:
 
     def _progress(self) -> None:
         with self._lock:
-            goal = self._active
+            goal = self.goals.active
             ended = self._settle()
         if isinstance(ended, PrimitiveStatus) and goal is not None:
             self._pub("feedback", m.feedback_msg(goal.goal_id, ended), m.FEEDBACK_MESSAGE)
@@ -764,7 +696,7 @@ class ToolServer:
 
     def _check_client(self, now: float) -> None:
         with self._lock:
-            self._expire_lease(now)  # also when nobody commands: telemetry names no stale holder
+            self.lease.expire(now)  # also when nobody commands: telemetry names no stale holder
             last = self._last_client_rx
         alive = last is not None and now - last < self.cfg.client_timeout
         if self._client_alive and not alive:
@@ -772,7 +704,7 @@ class ToolServer:
             _log.warning("no client heard for %.1f s (policy: %s)", self.cfg.client_timeout,
                          self.cfg.link_loss_policy)
             with self._lock:
-                goal = self._active
+                goal = self.goals.active
                 if self.cfg.link_loss_policy == "cancel" and goal is not None \
                         and self.api.cancel_primitive():
                     goal.cancel_requested = True
@@ -781,7 +713,7 @@ class ToolServer:
 
     def _publish_status(self) -> None:
         with self._lock:
-            goals = [(g.goal_id, g.accepted_at, g.status) for g in self._goals.values()]
+            goals = self.goals.statuses()
         payload = m.encode(m.status_array(goals), m.GOAL_STATUS_ARRAY)
         self._off_loop(lambda: self.transport.publish(self.names.status, payload))
 

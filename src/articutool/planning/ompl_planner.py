@@ -55,7 +55,6 @@ from ompl import util as ou
 
 from articutool.arm.model import TOOL_BASE_FRAME, ArmModel, tip_frame_name
 from articutool.arm.scene import default_scene_path
-from articutool.planning.api import PHASES, PlanRequest, PlanResult
 from articutool.planning.constraints import (
     LooseConstraint,
     StrictConstraint,
@@ -63,6 +62,7 @@ from articutool.planning.constraints import (
     tip_tilt_deg,
 )
 from articutool.planning.timing import time_parameterize, wrist_rate_profile
+from articutool.planning.types import PHASES, PlanRequest, PlanResult
 from articutool.spec import Spec
 from articutool.tool.kinematics import rotation as wrist_rotation
 from articutool.trajectory import JointTrajectory

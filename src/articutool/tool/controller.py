@@ -64,6 +64,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from articutool.rotations import quaternion_to_matrix
 from articutool.spec import Spec
 from articutool.tool.kinematics import (
     TWO_PI,
@@ -72,33 +73,12 @@ from articutool.tool.kinematics import (
     up_vector,
 )
 
+# quaternion_to_matrix (articutool.rotations) is re-exported: the runtime imports it from here.
 __all__ = ["LevelingController", "quaternion_to_matrix"]
 
 _Z = np.array([0.0, 0.0, 1.0])
 _X = np.array([1.0, 0.0, 0.0])
 _TINY = 1e-12
-
-
-def quaternion_to_matrix(wxyz: ArrayLike) -> NDArray[np.float64]:
-    """Rotation matrix of a Hamilton quaternion ``(w, x, y, z)`` (normalised first).
-
-    With the filter's output (sensor in the gravity-aligned world, hardware-facts §4) this is
-    ``R_world←imu``.
-    """
-    q = np.asarray(wxyz, dtype=np.float64)
-    if q.shape != (4,) or not np.isfinite(q).all():
-        raise ValueError(f"quaternion must be 4 finite numbers (w, x, y, z); got {q!r}")
-    n = math.sqrt(float(q @ q))
-    if n < 1e-9:
-        raise ValueError("quaternion must be non-zero")
-    w, x, y, z = (q / n).tolist()
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def _check(

@@ -1,5 +1,8 @@
 """``articutool tool``: run the onboard tool loop in the foreground (issue 3, deliverable 6).
 
+The onboard program (thesis §3.3): it composes the tool runtime (``tool/``) with the link
+server (``link/``), so it sits above both layers and neither imports it (issue 23).
+
 ::
 
     articutool tool [--driver sim|hardware] [--spec FILE] [--duration S] [--level/--no-level]
@@ -366,7 +369,7 @@ def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: ZenohTransport
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``articutool tool`` on its own (``python -m articutool.tool.cli``)."""
+    """``articutool tool`` on its own (``python -m articutool.onboard``)."""
     from articutool.cli import UsageError
     from articutool.spec import SpecError
 

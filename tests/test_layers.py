@@ -1,0 +1,120 @@
+"""The import graph of ``src/articutool`` (issue 23): the circles and upward arrows fixed so
+far stay fixed. Imports go down the README's layers: spec/data → tool, arm → link, verify,
+planning → sim → feeding → experiments, viewer, CLIs. Parsed with ``ast`` (lazy imports
+inside functions count too). Still open (issue 23): the circle sim/world ⇄ sim/mj_drivers;
+sim/cli and feeding/cli → viewer/recording; every */cli.py → articutool.cli's helpers."""
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import articutool
+
+ROOT = Path(articutool.__file__).parent
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Module → the articutool modules it imports (anywhere in the file)."""
+    mods: dict[str, Path] = {}
+    for p in ROOT.rglob("*.py"):
+        parts = list(p.relative_to(ROOT.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        mods[".".join(parts)] = p
+    graph: dict[str, set[str]] = {}
+    for mod, path in mods.items():
+        pkg = mod if path.name == "__init__.py" else mod.rsplit(".", 1)[0]
+        out: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                out.update(a.name for a in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = pkg.split(".")[: len(pkg.split(".")) - node.level + 1]
+                    name = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    name = node.module or ""
+                for a in node.names:
+                    full = f"{name}.{a.name}"
+                    out.add(full if full in mods else name)
+        graph[mod] = {m for m in out if m in mods and m != mod}
+    return graph
+
+
+def circles(graph: dict[str, set[str]]) -> list[set[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found: list[set[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = set()
+            while True:
+                w = stack.pop()
+                comp.add(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                found.append(comp)
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    return found
+
+
+def imports_from(graph: dict[str, set[str]], src: str, dst: str) -> list[tuple[str, str]]:
+    """Arrows from modules under ``src`` to modules under ``dst`` (package prefixes)."""
+    def under(m: str, p: str) -> bool:
+        return m == p or m.startswith(p + ".")
+    return sorted((a, b) for a, bs in graph.items() if under(a, src)
+                  for b in bs if under(b, dst))
+
+
+GRAPH = import_graph()
+FIXED_CIRCLES = [
+    {"articutool.spec", "articutool.tool.drivers.dynamixel"},
+    {"articutool.planning.api", "articutool.planning.ompl_planner"},
+]
+FIXED_ARROWS = [
+    ("articutool.spec", "articutool.tool"),
+    ("articutool.tool", "articutool.link"),
+    ("articutool.feeding", "articutool.experiments"),
+]
+
+
+def test_the_graph_sees_imports() -> None:
+    # guards the parser: a known downward import is found
+    assert "articutool.spec" in GRAPH["articutool.tool.runtime"]
+
+
+def test_no_fixed_circle_returns() -> None:
+    for comp in circles(GRAPH):
+        for fixed in FIXED_CIRCLES:
+            assert len(comp & fixed) < 2, f"import circle again: {sorted(comp)}"
+
+
+def test_no_fixed_upward_arrow_returns() -> None:
+    for src, dst in FIXED_ARROWS:
+        assert imports_from(GRAPH, src, dst) == []
+
+
+def test_validating_the_spec_does_not_import_the_motor_sdk() -> None:
+    # the Bus Watchdog check needs the register's units, not dynamixel_sdk
+    script = ("import sys, articutool\n"
+              "articutool.load_spec()\n"
+              "print(sorted(m for m in sys.modules if m.startswith('dynamixel')))\n")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         timeout=120, check=True)
+    assert out.stdout.strip() == "[]"
