@@ -28,17 +28,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from articutool.tool.drivers.base import (
-    DriverError,
-    FTSample,
-    HardwareError,
-    ImuSample,
-    MotorDriver,
-    MotorMode,
-    MotorState,
-    validate_position_command,
-    validate_velocity_command,
-)
+from articutool.tool.drivers.base import FTSample, HardwareError, ImuSample
+from articutool.tool.drivers.motor_model import ModelMotorDriver, MotorModel, MotorPlant
 from articutool.tool.drivers.sim import (
     QueuedFTDriver,
     QueuedImuDriver,
@@ -54,31 +45,21 @@ __all__ = ["MjFTDriver", "MjImuDriver", "MjMotorDriver"]
 _QUEUE_LEN = 512
 
 
-class MjMotorDriver(MotorDriver):
-    """The pitch/roll motor pair as MuJoCo velocity servos (see module doc)."""
+class MjMotorDriver(ModelMotorDriver):
+    """The pitch/roll motor pair as MuJoCo velocity servos: the shared
+    :class:`~articutool.tool.drivers.motor_model.MotorModel` over the physics (see module
+    doc); the world applies :meth:`MotorModel.velocity_targets` to its servos."""
 
     def __init__(self, world: FeedingWorld, hard_stop_velocity: float = 0.5) -> None:
-        self.world = world
-        self._open = False
-        self._mode: MotorMode = "velocity"
-        self._torque = np.zeros(2, dtype=bool)
-        self._cmd_vel = np.zeros(2)
-        self._cmd_pos = np.zeros(2)
-        self._hw = [0, 0]
-        self._hard_stop = float(hard_stop_velocity)
         spec = world.spec
-        self._vmax = spec.wrist.velocity_limits
-        self._kp = spec.primitives.position_gain
-
-    # -- world side ------------------------------------------------------------------
-    def _velocity_targets(self) -> NDArray[np.float64]:
-        """The servo targets for the next physics step (0 with torque off)."""
-        if self._mode == "velocity":
-            target = self._cmd_vel
-        else:
-            target = np.clip(self._kp * (self._cmd_pos - self.world.wrist_q), -self._vmax,
-                             self._vmax)
-        return np.where(self._torque, target, 0.0)
+        model = MotorModel(spec.wrist.velocity_limits, spec.wrist.limits,
+                           spec.primitives.position_gain)
+        plant = MotorPlant(position=lambda: world.wrist_q, velocity=lambda: world.wrist_qd,
+                           input_voltage=lambda: spec.motors.supply_v,
+                           temperature=lambda: 35.0, stamp=lambda: world.time)
+        super().__init__(model, plant)
+        self.world = world
+        self._hard_stop = float(hard_stop_velocity)
 
     def _check_stops(self) -> None:
         """OVERLOAD when a joint reaches its stop faster than the hard-stop speed."""
@@ -86,97 +67,8 @@ class MjMotorDriver(MotorDriver):
         lo, hi = self.world.wrist_range[:, 0], self.world.wrist_range[:, 1]
         for i in range(2):
             at_stop = q[i] <= lo[i] + 1e-3 or q[i] >= hi[i] - 1e-3
-            if at_stop and abs(qd[i]) > self._hard_stop and self._torque[i]:
-                self._hw[i] |= int(HardwareError.OVERLOAD)
-                self._torque[i] = False
-
-    # -- MotorDriver -------------------------------------------------------------------
-    def _require_open(self) -> None:
-        if not self._open:
-            raise DriverError("simulated motors are not open")
-
-    @property
-    def mode(self) -> MotorMode:
-        """The current operating mode."""
-        return self._mode
-
-    def open(self) -> None:
-        """Torque off, velocity mode, zero goal."""
-        self._torque[:] = False
-        self._mode = "velocity"
-        self._cmd_vel = np.zeros(2)
-        self._open = True
-
-    def close(self) -> None:
-        """Stop and torque off."""
-        if self._open:
-            self.stop()
-            self._torque[:] = False
-            self._open = False
-
-    def enable_torque(self, on: bool) -> None:
-        """Torque on (no-motion goal first) or off; a motor in shutdown stays off."""
-        self._require_open()
-        self._cmd_vel = np.zeros(2)
-        self._cmd_pos = self.world.wrist_q
-        for i in range(2):
-            self._torque[i] = bool(on) and not self._hw[i]
-
-    def set_mode(self, mode: MotorMode) -> None:
-        """Stop, switch mode, keep torque as it was."""
-        if mode not in ("velocity", "position"):
-            raise ValueError(f"mode must be 'velocity' or 'position'; got {mode!r}")
-        self._require_open()
-        self._cmd_vel = np.zeros(2)
-        self._cmd_pos = self.world.wrist_q
-        self._mode = mode
-
-    def set_velocity(self, qd: ArrayLike) -> None:
-        """Command joint velocities; non-finite or over-limit input raises ``ValueError``."""
-        a = validate_velocity_command(qd, self._vmax)
-        self._require_open()
-        if self._mode != "velocity":
-            raise DriverError("set_velocity needs velocity mode (call set_mode('velocity'))")
-        self._cmd_vel = a.copy()
-
-    def set_position(self, q: ArrayLike) -> None:
-        """Command joint positions within ``spec.wrist`` limits (single-turn, as the motors)."""
-        a = validate_position_command(q, self.world.spec.wrist.limits)
-        self._require_open()
-        if self._mode != "position":
-            raise DriverError("set_position needs position mode (call set_mode('position'))")
-        self._cmd_pos = a.copy()
-
-    def read(self) -> MotorState:
-        """Present joint state from the physics (stamped with simulation time)."""
-        self._require_open()
-        return MotorState(
-            position=self.world.wrist_q,
-            velocity=self.world.wrist_qd,
-            hardware_error=(self._hw[0], self._hw[1]),
-            input_voltage=self.world.spec.motors.supply_v,
-            temperature=35.0,
-            stamp=self.world.time,
-        )
-
-    def stop(self) -> None:
-        """Zero velocity / hold position. Never raises."""
-        self._cmd_vel = np.zeros(2)
-        self._cmd_pos = self.world.wrist_q
-
-    def clear_errors(self) -> None:
-        """Reboot: clear hardware errors; torque comes back off."""
-        self._require_open()
-        for i in range(2):
-            if self._hw[i]:
-                self._hw[i] = 0
-                self._torque[i] = False
-                self._cmd_vel[i] = 0.0
-
-    def inject_hardware_error(self, joint: int, bits: int = HardwareError.OVERLOAD) -> None:
-        """Fault injection: raise error bits on one motor (its torque drops)."""
-        self._hw[joint] |= int(bits)
-        self._torque[joint] = False
+            if at_stop and abs(qd[i]) > self._hard_stop and self.model.torque[i]:
+                self.model.raise_error(i, HardwareError.OVERLOAD)
 
 
 class MjImuDriver(QueuedImuDriver):

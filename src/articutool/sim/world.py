@@ -381,7 +381,7 @@ class FeedingWorld:
         if self._hold_wrist:
             goal, on = np.zeros(2), np.ones(2, dtype=bool)
         else:
-            goal, on = self.motors._velocity_targets(), self.motors._torque
+            goal, on = self.motors.model.velocity_targets(self.wrist_q), self.motors.model.torque
         e = goal - d.qvel[self._wr_v]
         self._vel_int = np.where(on, self._vel_int + e * self.dt, 0.0)
         # Anti-windup: the integral never asks for more than the stall torque.
