@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from articutool import load_spec
 from articutool.sim.mj_drivers import MjMotorDriver
 from articutool.tool.drivers.base import HardwareError
-from articutool.tool.drivers.motor_model import SHUTDOWN_BITS, MotorModel
+from articutool.tool.drivers.motor_model import SHUTDOWN_BITS, MotorModel, MotorPlant
 from articutool.tool.drivers.sim import SimWrist
 
 SPEC = load_spec()
@@ -69,3 +69,40 @@ def test_a_shutdown_motor_holds_still_and_others_move(bits: list[E]) -> None:
     blocked = bool(model.hw[0] & SHUTDOWN_BITS)
     np.testing.assert_array_equal(model.velocity_targets((0.0, 0.0)),
                                   (0.0 if blocked else 0.5, 0.5))
+
+
+def mj_driver(q: tuple[float, float] = (0.0, 0.0),
+              qd: tuple[float, float] = (0.0, 0.0)) -> MjMotorDriver:
+    # A still plant: the driver under test reads the joint state from it (no MuJoCo needed)
+    plant = MotorPlant(position=lambda: np.array(q), velocity=lambda: np.array(qd),
+                       input_voltage=lambda: SPEC.motors.supply_v, temperature=lambda: 35.0,
+                       stamp=lambda: 0.0)
+    m = MjMotorDriver(SPEC, plant, [[-1.0, 1.0], [-3.0, 3.0]])
+    m.open()
+    m.enable_torque(True)
+    return m
+
+
+@given(BITS, st.integers(0, 1))
+def test_only_shutdown_bits_block_torque_on_the_mujoco_wrist(bits: list[E], joint: int) -> None:
+    # it used to block torque on any bit (INPUT_VOLTAGE, MOTOR_ENCODER too)
+    m = mj_driver()
+    for b in bits:
+        m.model.raise_error(joint, b)
+    shutdown = bool(m.read().hardware_error[joint] & SHUTDOWN_BITS)
+    m.enable_torque(True)
+    assert m.model.torque[joint] == (not shutdown)
+    m.clear_errors()
+    m.enable_torque(True)
+    assert m.torque_enabled
+
+
+def test_hitting_a_stop_fast_is_an_overload_on_the_mujoco_wrist() -> None:
+    m = mj_driver(q=(1.0, 0.0), qd=(0.6, 0.0))  # at the pitch stop, faster than 0.5 rad/s
+    m.check_stops()
+    assert m.read().hardware_error == (int(E.OVERLOAD), 0)
+    m.enable_torque(True)
+    assert list(m.model.torque) == [False, True]
+    slow = mj_driver(q=(1.0, 0.0), qd=(0.4, 0.0))
+    slow.check_stops()
+    assert slow.read().hardware_error == (0, 0)

@@ -16,18 +16,21 @@ drivers and their kinematic twins (``articutool.tool.drivers.sim``):
   the roll output and the utensil (the HEX21's place): it feels the utensil, the food on it
   and every contact; plus white noise. Taring is the shared ``FTDriver`` logic.
 
-The world (:class:`articutool.sim.world.FeedingWorld`) produces samples at the sensors' rates
-after its physics steps and applies the motor commands before them.
+The world (:class:`articutool.sim.world.FeedingWorld`) owns them: it hands the motor driver a
+:class:`~articutool.tool.drivers.motor_model.MotorPlant` (its joint state and clock), applies
+``motors.model.velocity_targets`` to its servos before each physics step, calls
+``motors.check_stops`` and pushes the sensors' samples (``push``) after it. The drivers
+never see the world.
 """
 
 from __future__ import annotations
 
 from collections import deque
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from articutool.spec import Spec
 from articutool.tool.drivers.base import FTSample, HardwareError, ImuSample
 from articutool.tool.drivers.motor_model import ModelMotorDriver, MotorModel, MotorPlant
 from articutool.tool.drivers.sim import (
@@ -36,9 +39,6 @@ from articutool.tool.drivers.sim import (
     SampleQueue,
     imu_noise_sigmas,
 )
-
-if TYPE_CHECKING:
-    from articutool.sim.world import FeedingWorld
 
 __all__ = ["MjFTDriver", "MjImuDriver", "MjMotorDriver"]
 
@@ -50,21 +50,19 @@ class MjMotorDriver(ModelMotorDriver):
     :class:`~articutool.tool.drivers.motor_model.MotorModel` over the physics (see module
     doc); the world applies :meth:`MotorModel.velocity_targets` to its servos."""
 
-    def __init__(self, world: FeedingWorld, hard_stop_velocity: float = 0.5) -> None:
-        spec = world.spec
+    def __init__(self, spec: Spec, plant: MotorPlant, joint_range: ArrayLike,
+                 hard_stop_velocity: float = 0.5) -> None:
         model = MotorModel(spec.wrist.velocity_limits, spec.wrist.limits,
                            spec.primitives.position_gain)
-        plant = MotorPlant(position=lambda: world.wrist_q, velocity=lambda: world.wrist_qd,
-                           input_voltage=lambda: spec.motors.supply_v,
-                           temperature=lambda: 35.0, stamp=lambda: world.time)
         super().__init__(model, plant)
-        self.world = world
+        self.joint_range = np.asarray(joint_range, dtype=np.float64).reshape(2, 2)
         self._hard_stop = float(hard_stop_velocity)
 
-    def _check_stops(self) -> None:
-        """OVERLOAD when a joint reaches its stop faster than the hard-stop speed."""
-        q, qd = self.world.wrist_q, self.world.wrist_qd
-        lo, hi = self.world.wrist_range[:, 0], self.world.wrist_range[:, 1]
+    def check_stops(self) -> None:
+        """OVERLOAD when a joint reaches its stop (``joint_range``, the MJCF's) faster than
+        the hard-stop speed."""
+        q, qd = self.plant.position(), self.plant.velocity()
+        lo, hi = self.joint_range[:, 0], self.joint_range[:, 1]
         for i in range(2):
             at_stop = q[i] <= lo[i] + 1e-3 or q[i] >= hi[i] - 1e-3
             if at_stop and abs(qd[i]) > self._hard_stop and self.model.torque[i]:
@@ -74,16 +72,16 @@ class MjMotorDriver(ModelMotorDriver):
 class MjImuDriver(QueuedImuDriver):
     """The IMU on F0: MuJoCo accelerometer + gyro, datasheet noise, constant gyro bias."""
 
-    def __init__(self, world: FeedingWorld, gyro_bias: ArrayLike, noise: bool,
+    def __init__(self, spec: Spec, gyro_bias: ArrayLike, noise: bool,
                  rng: np.random.Generator) -> None:
         super().__init__(SampleQueue("IMU", _QUEUE_LEN))
-        self.world = world
         self.gyro_bias = np.asarray(gyro_bias, dtype=np.float64).reshape(3)
-        self._sigma = imu_noise_sigmas(world.spec) if noise else (0.0, 0.0)
+        self._sigma = imu_noise_sigmas(spec) if noise else (0.0, 0.0)
         self._rng = rng
 
-    def _sample(self, accel: NDArray[np.float64], gyro: NDArray[np.float64],
-                stamp: float) -> None:
+    def push(self, accel: NDArray[np.float64], gyro: NDArray[np.float64],
+             stamp: float) -> None:
+        """One sample of MuJoCo's accelerometer and gyro (IMU frame), with noise and bias."""
         sa, sg = self._sigma
         if sa:
             accel = accel + self._rng.normal(0.0, sa, 3)
@@ -97,17 +95,16 @@ class MjFTDriver(QueuedFTDriver):
     """The F/T sensor between roll output and utensil; keeps the tared samples it returned
     (``history``) so the world can report the mass it measures."""
 
-    def __init__(self, world: FeedingWorld, noise: bool, rng: np.random.Generator) -> None:
-        spec = world.spec
+    def __init__(self, spec: Spec, noise: bool, rng: np.random.Generator) -> None:
         super().__init__(SampleQueue("F/T sensor", _QUEUE_LEN), spec.ft.tare_samples)
-        self.world = world
         self._sigma = (np.repeat([spec.ft.force_noise_n, spec.ft.torque_noise_nm], 3)
                        if noise else np.zeros(6))
         self._rng = rng
         self.history: deque[FTSample] = deque(maxlen=4 * int(spec.ft.rate_hz))
 
-    def _sample(self, force: NDArray[np.float64], torque: NDArray[np.float64],
-                stamp: float) -> None:
+    def push(self, force: NDArray[np.float64], torque: NDArray[np.float64],
+             stamp: float) -> None:
+        """One sample of MuJoCo's force and torque sensors (sensor frame), with noise."""
         w = np.concatenate([force, torque]) + self._rng.normal(0.0, 1.0, 6) * self._sigma
         self.samples.push(FTSample(force=w[:3], torque=w[3:], temperature=32.0, stamp=stamp))
 
