@@ -142,7 +142,7 @@ def _cmd_meal(args: argparse.Namespace) -> int:
             raise UsageError(f"--record: {err}") from None
         visitors.append(mcap_rec.tree_visitor)
     elif record is not None:
-        from articutool.viewer.recording import Recorder as DataRecorder
+        from articutool.sim.recording import Recorder as DataRecorder
 
         data_rec = DataRecorder(setup.world, extra={"meal": meta})
     progress = TreeProgress(setup.world, live=not args.json)

@@ -78,7 +78,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
 
             recorder = Recorder(world)
         if args.record is not None:
-            from articutool.viewer.recording import Recorder as DataRecorder
+            from articutool.sim.recording import Recorder as DataRecorder
 
             data_rec = DataRecorder(world, extra={
                 "script": args.script, "level": args.level, "load_g": args.load})
@@ -87,7 +87,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
         if recorder is not None:
             recorder.save(args.video)
         if data_rec is not None:
-            from articutool.viewer.recording import RecordingError
+            from articutool.sim.recording import RecordingError
 
             try:
                 data_rec.save(args.record)

@@ -81,7 +81,7 @@ def _plan_from_task(args: argparse.Namespace, spec: Any) -> tuple[Any, str, str]
 
 def _cmd_view(args: argparse.Namespace) -> int:
     from articutool.cli import UsageError, spec_from_args
-    from articutool.viewer.recording import Recording, RecordingError
+    from articutool.sim.recording import Recording, RecordingError
 
     sources = [x for x in (args.plan, args.plan_task, args.recording) if x is not None]
     if len(sources) > 1:
