@@ -78,7 +78,7 @@ def test_a_run_json_100000_deep_in_the_results_folder_is_refused(deep, tmp_path)
 
 
 def test_a_recording_whose_meta_is_100000_deep_is_refused(deep, tmp_path):
-    from articutool.viewer.recording import _ARRAYS
+    from articutool.sim.recording import _ARRAYS
 
     rec = tmp_path / "deep.npz"
     np.savez(rec, meta=np.array(deep["json"].read_text()), mjcf=np.array(""),

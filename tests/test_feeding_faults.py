@@ -140,7 +140,7 @@ def test_an_imu_that_freezes_while_leveling_faults_the_tool_and_stops_safely() -
     w = setup.world
 
     def freeze() -> None:
-        w.imu._sample = lambda *args: None  # the sensor stops delivering samples
+        w.imu.push = lambda *args: None  # the sensor stops delivering samples
 
     fault = FaultAt("Execute to Staging", 1.0, w.clock, freeze)
     r = _bite(setup, fault)
@@ -476,7 +476,7 @@ def test_an_ft_spike_during_transport_changes_nothing_the_bite_completes() -> No
     w = setup.world
     seen: list[float] = []
     w.on_tick.append(lambda w: seen.append(w.tool.state().extra.get("ft_fz", 0.0)))
-    sample = w.ft._sample
+    sample = w.ft.push
     window: list[float] = []
 
     def spiked(force: np.ndarray, torque: np.ndarray, stamp: float) -> None:
@@ -486,7 +486,7 @@ def test_an_ft_spike_during_transport_changes_nothing_the_bite_completes() -> No
             force = np.full(3, np.nan)
         sample(force, torque, stamp)
 
-    w.ft._sample = spiked  # type: ignore[method-assign]
+    w.ft.push = spiked  # type: ignore[method-assign]
     fault = FaultAt("Execute to Staging", 1.0, w.clock, lambda: window.append(w.time))
     r = _bite(setup, fault)
     assert fault.fired_at is not None

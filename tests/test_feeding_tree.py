@@ -7,7 +7,7 @@ import pytest
 from py_trees.common import Status
 
 from articutool.feeding.behaviours import JobResult, RunPrimitive, ToolModeScope
-from articutool.feeding.tree import BiteRecorder, transport_tree
+from articutool.feeding.tree import BiteRecorder, tick_until_done, transport_tree
 from articutool.tool.api import Mode, PrimitiveStatus, ToolState
 
 
@@ -401,3 +401,37 @@ def test_a_retreat_step_failing_in_its_first_tick_is_not_taken_for_the_cause() -
     assert tree.root.status == Status.FAILURE
     assert rec.record.failed_stage == "Plan to Staging: no plan to Staging: no path in budget"
     assert ("Plan lift 10 cm", "no path lift 10 cm: no IK") in rec.record.failures
+
+
+@pytest.mark.parametrize("ticks", [1, 2, 7])
+@pytest.mark.parametrize("end", [Status.SUCCESS, Status.FAILURE])
+def test_the_tick_driver_steps_the_world_only_between_ticks_of_a_running_tree(
+        ticks: int, end: Status) -> None:
+    # TickCounter runs for ``ticks`` ticks then ends: the world moves between ticks only
+    t = [0.0]
+    steps: list[float] = []
+
+    def step(dt: float) -> None:
+        steps.append(dt)
+        t[0] += dt
+
+    clock = lambda: t[0]  # noqa: E731
+    tree = py_trees.trees.BehaviourTree(py_trees.behaviours.TickCounter("c", ticks, end))
+    rec = BiteRecorder(clock)
+    tree.visitors.append(rec)
+    assert tick_until_done(tree, rec, step, clock, period_s=0.1, timeout_s=60.0) == end
+    assert steps == [0.1] * ticks
+
+
+def test_the_tick_driver_stops_a_tree_that_outlives_its_timeout() -> None:
+    t = [0.0]
+    clock = lambda: t[0]  # noqa: E731
+
+    def step(dt: float) -> None:
+        t[0] += dt
+
+    root = py_trees.behaviours.Running("forever")
+    tree = py_trees.trees.BehaviourTree(root)
+    rec = BiteRecorder(clock)
+    assert tick_until_done(tree, rec, step, clock, period_s=0.5, timeout_s=3.0) is None
+    assert t[0] == pytest.approx(3.0) and root.status == Status.INVALID

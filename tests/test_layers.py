@@ -1,8 +1,7 @@
 """The import graph of ``src/articutool`` (issue 23): the circles and upward arrows fixed so
 far stay fixed. Imports go down the README's layers: spec/data → tool, arm → link, verify,
 planning → sim → feeding → experiments, viewer, CLIs. Parsed with ``ast`` (lazy imports
-inside functions count too). Still open (issue 23): the circle sim/world ⇄ sim/mj_drivers;
-sim/cli and feeding/cli → viewer/recording; every */cli.py → articutool.cli's helpers."""
+inside functions count too)."""
 
 import ast
 import subprocess
@@ -86,11 +85,14 @@ GRAPH = import_graph()
 FIXED_CIRCLES = [
     {"articutool.spec", "articutool.tool.drivers.dynamixel"},
     {"articutool.planning.api", "articutool.planning.ompl_planner"},
+    {"articutool.sim.world", "articutool.sim.mj_drivers"},
 ]
 FIXED_ARROWS = [
     ("articutool.spec", "articutool.tool"),
     ("articutool.tool", "articutool.link"),
     ("articutool.feeding", "articutool.experiments"),
+    ("articutool.sim", "articutool.viewer"),
+    ("articutool.feeding", "articutool.viewer"),
 ]
 
 
@@ -118,3 +120,14 @@ def test_validating_the_spec_does_not_import_the_motor_sdk() -> None:
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                          timeout=120, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_the_mujoco_drivers_do_not_see_the_world() -> None:
+    # the world owns its drivers; they read its state through a MotorPlant
+    assert "articutool.sim.world" not in GRAPH["articutool.sim.mj_drivers"]
+
+
+def test_only_the_entry_point_imports_the_top_level_cli() -> None:
+    # the sub-CLIs share articutool.cli_support; articutool.cli gathers them at the top
+    users = sorted(m for m, deps in GRAPH.items() if "articutool.cli" in deps)
+    assert users == ["articutool.__main__"]

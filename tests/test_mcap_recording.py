@@ -346,8 +346,8 @@ def _joint_states(names: list[str], t: float, q: list[float]) -> Any:
 
 def test_view_replays_an_mcap_recordings_joint_states(tmp_path: Path) -> None:
     from articutool import load_spec
+    from articutool.sim.recording import RecordingError
     from articutool.viewer.mcap_replay import load_mcap_motion
-    from articutool.viewer.recording import RecordingError
 
     spec = load_spec()
     arm, wrist = list(spec.arm.joint_names), list(spec.wrist.joint_names)

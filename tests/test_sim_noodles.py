@@ -75,7 +75,7 @@ def test_twirl_turns_range_is_the_cable_budget() -> None:
 
 
 def test_a_noodle_recording_holds_every_capsule_where_the_world_has_it(tmp_path) -> None:
-    from articutool.viewer.recording import Recorder, Recording
+    from articutool.sim.recording import Recorder, Recording
 
     w = FeedingWorld("noodles", seed=5000, settle=False)
     rec = Recorder(w)

@@ -18,10 +18,10 @@ pytest.importorskip("viser")
 
 from articutool import load_spec
 from articutool.arm.model import ArmModel
+from articutool.sim.recording import Recorder, Recording, RecordingError
 from articutool.trajectory import JointTrajectory
 from articutool.verify import verify_trajectory
 from articutool.viewer.plan import plan_view
-from articutool.viewer.recording import Recorder, Recording, RecordingError
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 

@@ -66,7 +66,7 @@ _SWITCH_S = 0.001  # s, the interpreter's thread switch interval in the tool pro
 
 def add_commands(subparsers: argparse._SubParsersAction) -> None:
     """Register ``articutool tool``."""
-    from articutool.cli import add_spec_option
+    from articutool.cli_support import add_spec_option
 
     p = subparsers.add_parser(
         "tool", help="run the onboard tool loop (50 Hz) in the foreground",
@@ -262,7 +262,7 @@ def _close_failed(runtime: object) -> None:
 def _check_exposure(cfg: object, insecure: bool) -> None:
     """Refuse (exit 2) a tool that accepts unsigned commands and could be reached from the
     network, however its endpoints were configured (issue 22, S3)."""
-    from articutool.cli import UsageError
+    from articutool.cli_support import UsageError
     from articutool.link.zenoh_transport import exposure
 
     if cfg.requires_pairing or insecure:  # type: ignore[attr-defined]
@@ -278,7 +278,7 @@ def _check_exposure(cfg: object, insecure: bool) -> None:
 
 
 def _cmd_tool(args: argparse.Namespace) -> int:
-    from articutool.cli import UsageError, new_output_file, spec_from_args
+    from articutool.cli_support import UsageError, new_output_file, spec_from_args
 
     spec = spec_from_args(args)
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
@@ -327,7 +327,7 @@ def _cmd_tool(args: argparse.Namespace) -> int:
 
 
 def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: ZenohTransport | None) -> int:
-    from articutool.cli import UsageError
+    from articutool.cli_support import UsageError
     from articutool.tool.drivers import make_drivers
     from articutool.tool.runtime import ToolRuntime
 
@@ -370,7 +370,7 @@ def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: ZenohTransport
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``articutool tool`` on its own (``python -m articutool.onboard``)."""
-    from articutool.cli import UsageError
+    from articutool.cli_support import UsageError
     from articutool.spec import SpecError
 
     parser = argparse.ArgumentParser(prog="articutool")

@@ -23,7 +23,7 @@ __all__ = ["add_commands", "make_executor"]
 
 
 def _usage(msg: str) -> Exception:
-    from articutool.cli import UsageError
+    from articutool.cli_support import UsageError
 
     return UsageError(msg)
 
@@ -37,7 +37,7 @@ def _stderr_console() -> Any:
 # ------------------------------------------------------------------- tasks --
 def _cmd_tasks(args: argparse.Namespace) -> int:
     from articutool.bench.tasks import MAX_CANDIDATES
-    from articutool.cli import new_output_file, spec_from_args
+    from articutool.cli_support import new_output_file, spec_from_args
 
     if not 1 <= args.count <= MAX_CANDIDATES:
         raise _usage(f"--count must be in [1, {MAX_CANDIDATES}]; got {args.count}")
@@ -112,7 +112,7 @@ def _cmd_transport(args: argparse.Namespace) -> int:
         load_task_set,
         spec_hash,
     )
-    from articutool.cli import output_dir, spec_from_args
+    from articutool.cli_support import output_dir, spec_from_args
 
     # ---- validate everything before any work ----
     if args.workers < 1:
@@ -250,7 +250,7 @@ def _cmd_transport(args: argparse.Namespace) -> int:
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``bench tasks`` and ``bench transport``."""
     from articutool.bench.runner import DEFAULT_TOLERANCES_DEG
-    from articutool.cli import add_spec_option
+    from articutool.cli_support import add_spec_option
 
     bench = sub.add_parser("bench", help="Exp. 2a transport benchmark: tasks and runner")
     bsub = bench.add_subparsers(dest="bench_command", required=True, metavar="BENCH_COMMAND")

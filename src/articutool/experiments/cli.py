@@ -30,7 +30,7 @@ DEFAULT_OUT = "results/experiments"
 
 
 def _usage(msg: str) -> Exception:
-    from articutool.cli import UsageError
+    from articutool.cli_support import UsageError
 
     return UsageError(msg)
 
@@ -66,13 +66,13 @@ def _check_common(args: argparse.Namespace) -> Path:
     if out.exists() and not out.is_dir():
         raise _usage(f"--out {out} exists and is not a directory")
     if args.video is not None:
-        from articutool.cli import new_output_file
+        from articutool.cli_support import new_output_file
 
         if args.trial is None:
             raise _usage("--video needs --trial K (a video of one replayed trial)")
         new_output_file("--video", args.video, (".mp4", ".gif"))
     if args.record is not None:
-        from articutool.cli import new_output_file
+        from articutool.cli_support import new_output_file
 
         if args.trial is None:
             raise _usage("--record needs --trial K (a recording of one replayed trial)")
@@ -255,7 +255,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     th, th_src = _thresholds(args, out, cfg) if exp == "exp2c" else (None, "")
     if args.trial is not None:
         return _replay(args, exp, trials, out)
-    from articutool.cli import output_dir
+    from articutool.cli_support import output_dir
 
     d = output_dir("--out", out / exp, ("run.json", "trials.jsonl", "summary.json"))
     settings = {"experiment": exp, "seed": args.seed, "data_hash": data_hash(exp, cfg),

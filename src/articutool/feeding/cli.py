@@ -23,7 +23,7 @@ _TREE_SUFFIXES = (".dot", ".png", ".svg")
 
 def _check(args: argparse.Namespace) -> Any:
     """Validate the arguments (exit 2 naming the field) and return the strategy library."""
-    from articutool.cli import UsageError, spec_from_args
+    from articutool.cli_support import UsageError, spec_from_args
     from articutool.feeding.strategies import StrategyError, StrategyLibrary
 
     if not 1 <= args.bites <= 100:
@@ -101,7 +101,7 @@ def _print_bite(r: Any) -> None:
 
 
 def _cmd_meal(args: argparse.Namespace) -> int:
-    from articutool.cli import UsageError, new_output_file
+    from articutool.cli_support import UsageError, new_output_file
 
     lib = _check(args)
     if args.show_tree is not False:
@@ -142,7 +142,7 @@ def _cmd_meal(args: argparse.Namespace) -> int:
             raise UsageError(f"--record: {err}") from None
         visitors.append(mcap_rec.tree_visitor)
     elif record is not None:
-        from articutool.viewer.recording import Recorder as DataRecorder
+        from articutool.sim.recording import Recorder as DataRecorder
 
         data_rec = DataRecorder(setup.world, extra={"meal": meta})
     progress = TreeProgress(setup.world, live=not args.json)
@@ -174,7 +174,7 @@ def _cmd_meal(args: argparse.Namespace) -> int:
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``meal``."""
-    from articutool.cli import add_spec_option
+    from articutool.cli_support import add_spec_option
 
     p = sub.add_parser("meal", help="bites with the feeding behaviour tree in the physics "
                        "world (acquire, level, shed, transport, present, return)")

@@ -35,7 +35,7 @@ from articutool.feeding.insertion import acquisition_waypoints
 from articutool.feeding.outcomes import classify_bite
 from articutool.feeding.sim_arm import SimArm
 from articutool.feeding.strategies import Strategy, StrategyLibrary
-from articutool.feeding.tree import BiteRecorder, safe_stop_reason
+from articutool.feeding.tree import BiteRecorder, safe_stop_reason, tick_until_done
 from articutool.sim import accounting as acc
 from articutool.sim.scenes import SCOOP_HEADING
 from articutool.sim.world import FeedingWorld
@@ -237,21 +237,13 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
         n.bb.set(n.key, 0)
     t0, wall0, n_spills = w.time, time.perf_counter(), len(w.spills)
     before = w.masses_g()
-    status = Status.FAILURE
-    t_end = w.time + timeout_s  # simulated time, not counting the waits for plans
-    stopped: str | None = None
-    end_state = "timed_out"
-    while w.time - rec.planning_wait_s(w.time) < t_end:
-        tree.tick()
-        if root.status in (Status.SUCCESS, Status.FAILURE):
-            status = root.status
-            stopped = safe_stop_reason(root)
-            end_state = ("stopped" if stopped is not None else
-                         "completed" if status == Status.SUCCESS else "retreated")
-            break
-        w.run(0.1)
-    else:
-        root.stop(Status.INVALID)
+    # simulated time, not counting the waits for plans
+    ended = tick_until_done(tree, rec, w.run, w.clock, period_s=0.1, timeout_s=timeout_s)
+    status = Status.FAILURE if ended is None else ended
+    stopped = None if ended is None else safe_stop_reason(root)
+    end_state = ("timed_out" if ended is None else "stopped" if stopped is not None else
+                 "completed" if status == Status.SUCCESS else "retreated")
+    if ended is None:
         rec.record.failures.append((root.name, f"did not finish within {timeout_s:g} s"))
     if stopped is not None:
         rec.record.cause = ("Safe stop", stopped)

@@ -40,7 +40,7 @@ from articutool.feeding.behaviours import (
 from articutool.tool.api import Mode, ToolAPI
 
 __all__ = ["BiteRecorder", "ClockedTimeout", "guarded", "motion", "run_tree", "safe_stop_reason",
-           "transport_tree"]
+           "tick_until_done", "transport_tree"]
 
 
 class ClockedTimeout(py_trees.decorators.Timeout):
@@ -204,16 +204,34 @@ def run_tree(root: py_trees.behaviour.Behaviour, step: Callable[[float], None],
     rec = BiteRecorder(clock)
     tree.visitors += [rec, *visitors]
     tree.setup()
+    status = tick_until_done(tree, rec, step, clock, period_s=period_s, timeout_s=timeout_s)
+    if status is None:
+        rec.record.failures.append((root.name, f"did not finish within {timeout_s:g} s"))
+        return Status.FAILURE, rec.record
+    stopped = safe_stop_reason(tree.root)
+    if stopped is None:
+        return status, rec.record
+    rec.record.failures.append(("Safe stop", stopped))
+    return Status.FAILURE, rec.record
+
+
+def tick_until_done(tree: py_trees.trees.BehaviourTree, rec: BiteRecorder,
+                    step: Callable[[float], None], clock: Callable[[], float], *,
+                    period_s: float, timeout_s: float) -> Status | None:
+    """The one tick driver of the feeding trees (thesis §5.3): tick ``tree`` every
+    ``period_s`` of ``clock``, a post-tick handler advancing the world (``step(period_s)``)
+    while the root runs, until the root ends (its status is returned) or ``timeout_s`` passes,
+    not counting the waits for plans (:meth:`BiteRecorder.planning_wait_s`): then the tree is
+    stopped (its clean-up runs) and None returned. Not ``BehaviourTree.tick_tock``: that
+    sleeps wall time between ticks and swallows Ctrl-C; here time is the world's."""
+    def advance(t: py_trees.trees.BehaviourTree) -> None:
+        if t.root.status not in (Status.SUCCESS, Status.FAILURE):
+            step(period_s)
+
     t_end = clock() + timeout_s
     while clock() - rec.planning_wait_s(clock()) < t_end:
-        tree.tick()
+        tree.tick(post_tick_handler=advance)
         if tree.root.status in (Status.SUCCESS, Status.FAILURE):
-            stopped = safe_stop_reason(tree.root)
-            if stopped is None:
-                return tree.root.status, rec.record
-            rec.record.failures.append(("Safe stop", stopped))
-            return Status.FAILURE, rec.record
-        step(period_s)
+            return tree.root.status
     tree.root.stop(Status.INVALID)
-    rec.record.failures.append((root.name, f"did not finish within {timeout_s:g} s"))
-    return Status.FAILURE, rec.record
+    return None

@@ -95,7 +95,7 @@ def run_pair(args: argparse.Namespace) -> int:
 def add_commands(subparsers: Any) -> None:
     """Register ``client mode|primitive|state|take-over|release`` and ``pair``."""
     _add_pair(subparsers)
-    from articutool.cli import add_spec_option
+    from articutool.cli_support import add_spec_option
     from articutool.link.config import add_config_args
 
     p = subparsers.add_parser("client", help="command an Articutool over the link (PC side)")
@@ -137,7 +137,7 @@ def _usage(msg: str) -> int:
 
 def _check_offsets(args: argparse.Namespace) -> None:
     """``--pitch-offset``/``--roll-offset`` within the spec's wrist joint limits (degrees)."""
-    from articutool.cli import UsageError, spec_from_args
+    from articutool.cli_support import UsageError, spec_from_args
 
     limits = spec_from_args(args).wrist.limits
     for flag, v, (lo, hi) in (("--pitch-offset", args.pitch_offset, limits[0]),
@@ -150,7 +150,7 @@ def _check_offsets(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Handler of ``articutool client``."""
-    from articutool.cli import new_output_file
+    from articutool.cli_support import new_output_file
     from articutool.link.client import ArticutoolClient, LinkError, ToolConflictError
     from articutool.link.config import ConfigError, config_from_args
     from articutool.link.transport import LinkOpenError
@@ -241,7 +241,7 @@ def _recording_client(cfg: Any, path: Any) -> tuple[Any, Any]:
     """An ArticutoolClient whose Zenoh transport records into the new MCAP file ``path``."""
     import uuid
 
-    from articutool.cli import UsageError
+    from articutool.cli_support import UsageError
     from articutool.link.client import ArticutoolClient
     from articutool.link.recording import McapRecorder, RecordingError, RecordingTransport
     from articutool.link.zenoh_transport import ZenohTransport

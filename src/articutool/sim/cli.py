@@ -17,7 +17,7 @@ __all__ = ["add_commands"]
 
 
 def _world_args(args: argparse.Namespace) -> dict:
-    from articutool.cli import UsageError, spec_from_args
+    from articutool.cli_support import UsageError, spec_from_args
     from articutool.sim.params import PhysicsError, PhysicsParams
 
     try:
@@ -36,7 +36,7 @@ def _world_args(args: argparse.Namespace) -> dict:
 
 
 def _cmd_sim(args: argparse.Namespace) -> int:
-    from articutool.cli import UsageError
+    from articutool.cli_support import UsageError
     from articutool.sim.render import RenderError
     from articutool.sim.scenes import ScriptError, run_script
     from articutool.sim.world import FeedingWorld
@@ -78,7 +78,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
 
             recorder = Recorder(world)
         if args.record is not None:
-            from articutool.viewer.recording import Recorder as DataRecorder
+            from articutool.sim.recording import Recorder as DataRecorder
 
             data_rec = DataRecorder(world, extra={
                 "script": args.script, "level": args.level, "load_g": args.load})
@@ -87,7 +87,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
         if recorder is not None:
             recorder.save(args.video)
         if data_rec is not None:
-            from articutool.viewer.recording import RecordingError
+            from articutool.sim.recording import RecordingError
 
             try:
                 data_rec.save(args.record)
@@ -131,7 +131,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
 
 def _check_twirl(args: argparse.Namespace, kw: dict) -> None:
     """``--twirl-turns``: a fork's acquisition only, within the wrist's cable budget."""
-    from articutool.cli import UsageError
+    from articutool.cli_support import UsageError
     from articutool.sim.scenes import max_twirl_turns
 
     hi = max_twirl_turns(kw["spec"])
@@ -160,7 +160,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def _common(p: argparse.ArgumentParser) -> None:
-    from articutool.cli import add_spec_option
+    from articutool.cli_support import add_spec_option
 
     p.add_argument("--food", default="pecans", help="food of the physics parameters "
                    "(packaged: pecans, water, noodles; default: pecans)")

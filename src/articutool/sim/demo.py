@@ -154,7 +154,7 @@ def _plot_path(arg: str, default: bool) -> Path:
     created and removed) before any planning."""
     from matplotlib.figure import Figure
 
-    from articutool.cli import UsageError, new_output_file, output_dir
+    from articutool.cli_support import UsageError, new_output_file, output_dir
 
     p = Path(arg)
     pick_free = default or p.is_dir() or arg.endswith(("/", "\\"))
@@ -178,7 +178,7 @@ def _plot_path(arg: str, default: bool) -> Path:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from articutool.cli import UsageError, spec_from_args
+    from articutool.cli_support import UsageError, spec_from_args
 
     spec = spec_from_args(args)
     if args.utensil not in spec.utensils:
@@ -222,7 +222,7 @@ def _print(f: dict[str, Any]) -> None:
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``demo``."""
-    from articutool.cli import add_spec_option
+    from articutool.cli_support import add_spec_option
 
     p = sub.add_parser("demo", help="plan, verify and execute one transport in simulation")
     p.add_argument("--utensil", default="spoon", help="utensil (default: spoon)")

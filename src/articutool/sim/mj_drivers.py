@@ -16,29 +16,23 @@ drivers and their kinematic twins (``articutool.tool.drivers.sim``):
   the roll output and the utensil (the HEX21's place): it feels the utensil, the food on it
   and every contact; plus white noise. Taring is the shared ``FTDriver`` logic.
 
-The world (:class:`articutool.sim.world.FeedingWorld`) produces samples at the sensors' rates
-after its physics steps and applies the motor commands before them.
+The world (:class:`articutool.sim.world.FeedingWorld`) owns them: it hands the motor driver a
+:class:`~articutool.tool.drivers.motor_model.MotorPlant` (its joint state and clock), applies
+``motors.model.velocity_targets`` to its servos before each physics step, calls
+``motors.check_stops`` and pushes the sensors' samples (``push``) after it. The drivers
+never see the world.
 """
 
 from __future__ import annotations
 
 from collections import deque
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from articutool.tool.drivers.base import (
-    DriverError,
-    FTSample,
-    HardwareError,
-    ImuSample,
-    MotorDriver,
-    MotorMode,
-    MotorState,
-    validate_position_command,
-    validate_velocity_command,
-)
+from articutool.spec import Spec
+from articutool.tool.drivers.base import FTSample, HardwareError, ImuSample
+from articutool.tool.drivers.motor_model import ModelMotorDriver, MotorModel, MotorPlant
 from articutool.tool.drivers.sim import (
     QueuedFTDriver,
     QueuedImuDriver,
@@ -46,152 +40,48 @@ from articutool.tool.drivers.sim import (
     imu_noise_sigmas,
 )
 
-if TYPE_CHECKING:
-    from articutool.sim.world import FeedingWorld
-
 __all__ = ["MjFTDriver", "MjImuDriver", "MjMotorDriver"]
 
 _QUEUE_LEN = 512
 
 
-class MjMotorDriver(MotorDriver):
-    """The pitch/roll motor pair as MuJoCo velocity servos (see module doc)."""
+class MjMotorDriver(ModelMotorDriver):
+    """The pitch/roll motor pair as MuJoCo velocity servos: the shared
+    :class:`~articutool.tool.drivers.motor_model.MotorModel` over the physics (see module
+    doc); the world applies :meth:`MotorModel.velocity_targets` to its servos."""
 
-    def __init__(self, world: FeedingWorld, hard_stop_velocity: float = 0.5) -> None:
-        self.world = world
-        self._open = False
-        self._mode: MotorMode = "velocity"
-        self._torque = np.zeros(2, dtype=bool)
-        self._cmd_vel = np.zeros(2)
-        self._cmd_pos = np.zeros(2)
-        self._hw = [0, 0]
+    def __init__(self, spec: Spec, plant: MotorPlant, joint_range: ArrayLike,
+                 hard_stop_velocity: float = 0.5) -> None:
+        model = MotorModel(spec.wrist.velocity_limits, spec.wrist.limits,
+                           spec.primitives.position_gain)
+        super().__init__(model, plant)
+        self.joint_range = np.asarray(joint_range, dtype=np.float64).reshape(2, 2)
         self._hard_stop = float(hard_stop_velocity)
-        spec = world.spec
-        self._vmax = spec.wrist.velocity_limits
-        self._kp = spec.primitives.position_gain
 
-    # -- world side ------------------------------------------------------------------
-    def _velocity_targets(self) -> NDArray[np.float64]:
-        """The servo targets for the next physics step (0 with torque off)."""
-        if self._mode == "velocity":
-            target = self._cmd_vel
-        else:
-            target = np.clip(self._kp * (self._cmd_pos - self.world.wrist_q), -self._vmax,
-                             self._vmax)
-        return np.where(self._torque, target, 0.0)
-
-    def _check_stops(self) -> None:
-        """OVERLOAD when a joint reaches its stop faster than the hard-stop speed."""
-        q, qd = self.world.wrist_q, self.world.wrist_qd
-        lo, hi = self.world.wrist_range[:, 0], self.world.wrist_range[:, 1]
+    def check_stops(self) -> None:
+        """OVERLOAD when a joint reaches its stop (``joint_range``, the MJCF's) faster than
+        the hard-stop speed."""
+        q, qd = self.plant.position(), self.plant.velocity()
+        lo, hi = self.joint_range[:, 0], self.joint_range[:, 1]
         for i in range(2):
             at_stop = q[i] <= lo[i] + 1e-3 or q[i] >= hi[i] - 1e-3
-            if at_stop and abs(qd[i]) > self._hard_stop and self._torque[i]:
-                self._hw[i] |= int(HardwareError.OVERLOAD)
-                self._torque[i] = False
-
-    # -- MotorDriver -------------------------------------------------------------------
-    def _require_open(self) -> None:
-        if not self._open:
-            raise DriverError("simulated motors are not open")
-
-    @property
-    def mode(self) -> MotorMode:
-        """The current operating mode."""
-        return self._mode
-
-    def open(self) -> None:
-        """Torque off, velocity mode, zero goal."""
-        self._torque[:] = False
-        self._mode = "velocity"
-        self._cmd_vel = np.zeros(2)
-        self._open = True
-
-    def close(self) -> None:
-        """Stop and torque off."""
-        if self._open:
-            self.stop()
-            self._torque[:] = False
-            self._open = False
-
-    def enable_torque(self, on: bool) -> None:
-        """Torque on (no-motion goal first) or off; a motor in shutdown stays off."""
-        self._require_open()
-        self._cmd_vel = np.zeros(2)
-        self._cmd_pos = self.world.wrist_q
-        for i in range(2):
-            self._torque[i] = bool(on) and not self._hw[i]
-
-    def set_mode(self, mode: MotorMode) -> None:
-        """Stop, switch mode, keep torque as it was."""
-        if mode not in ("velocity", "position"):
-            raise ValueError(f"mode must be 'velocity' or 'position'; got {mode!r}")
-        self._require_open()
-        self._cmd_vel = np.zeros(2)
-        self._cmd_pos = self.world.wrist_q
-        self._mode = mode
-
-    def set_velocity(self, qd: ArrayLike) -> None:
-        """Command joint velocities; non-finite or over-limit input raises ``ValueError``."""
-        a = validate_velocity_command(qd, self._vmax)
-        self._require_open()
-        if self._mode != "velocity":
-            raise DriverError("set_velocity needs velocity mode (call set_mode('velocity'))")
-        self._cmd_vel = a.copy()
-
-    def set_position(self, q: ArrayLike) -> None:
-        """Command joint positions within ``spec.wrist`` limits (single-turn, as the motors)."""
-        a = validate_position_command(q, self.world.spec.wrist.limits)
-        self._require_open()
-        if self._mode != "position":
-            raise DriverError("set_position needs position mode (call set_mode('position'))")
-        self._cmd_pos = a.copy()
-
-    def read(self) -> MotorState:
-        """Present joint state from the physics (stamped with simulation time)."""
-        self._require_open()
-        return MotorState(
-            position=self.world.wrist_q,
-            velocity=self.world.wrist_qd,
-            hardware_error=(self._hw[0], self._hw[1]),
-            input_voltage=self.world.spec.motors.supply_v,
-            temperature=35.0,
-            stamp=self.world.time,
-        )
-
-    def stop(self) -> None:
-        """Zero velocity / hold position. Never raises."""
-        self._cmd_vel = np.zeros(2)
-        self._cmd_pos = self.world.wrist_q
-
-    def clear_errors(self) -> None:
-        """Reboot: clear hardware errors; torque comes back off."""
-        self._require_open()
-        for i in range(2):
-            if self._hw[i]:
-                self._hw[i] = 0
-                self._torque[i] = False
-                self._cmd_vel[i] = 0.0
-
-    def inject_hardware_error(self, joint: int, bits: int = HardwareError.OVERLOAD) -> None:
-        """Fault injection: raise error bits on one motor (its torque drops)."""
-        self._hw[joint] |= int(bits)
-        self._torque[joint] = False
+            if at_stop and abs(qd[i]) > self._hard_stop and self.model.torque[i]:
+                self.model.raise_error(i, HardwareError.OVERLOAD)
 
 
 class MjImuDriver(QueuedImuDriver):
     """The IMU on F0: MuJoCo accelerometer + gyro, datasheet noise, constant gyro bias."""
 
-    def __init__(self, world: FeedingWorld, gyro_bias: ArrayLike, noise: bool,
+    def __init__(self, spec: Spec, gyro_bias: ArrayLike, noise: bool,
                  rng: np.random.Generator) -> None:
         super().__init__(SampleQueue("IMU", _QUEUE_LEN))
-        self.world = world
         self.gyro_bias = np.asarray(gyro_bias, dtype=np.float64).reshape(3)
-        self._sigma = imu_noise_sigmas(world.spec) if noise else (0.0, 0.0)
+        self._sigma = imu_noise_sigmas(spec) if noise else (0.0, 0.0)
         self._rng = rng
 
-    def _sample(self, accel: NDArray[np.float64], gyro: NDArray[np.float64],
-                stamp: float) -> None:
+    def push(self, accel: NDArray[np.float64], gyro: NDArray[np.float64],
+             stamp: float) -> None:
+        """One sample of MuJoCo's accelerometer and gyro (IMU frame), with noise and bias."""
         sa, sg = self._sigma
         if sa:
             accel = accel + self._rng.normal(0.0, sa, 3)
@@ -205,17 +95,16 @@ class MjFTDriver(QueuedFTDriver):
     """The F/T sensor between roll output and utensil; keeps the tared samples it returned
     (``history``) so the world can report the mass it measures."""
 
-    def __init__(self, world: FeedingWorld, noise: bool, rng: np.random.Generator) -> None:
-        spec = world.spec
+    def __init__(self, spec: Spec, noise: bool, rng: np.random.Generator) -> None:
         super().__init__(SampleQueue("F/T sensor", _QUEUE_LEN), spec.ft.tare_samples)
-        self.world = world
         self._sigma = (np.repeat([spec.ft.force_noise_n, spec.ft.torque_noise_nm], 3)
                        if noise else np.zeros(6))
         self._rng = rng
         self.history: deque[FTSample] = deque(maxlen=4 * int(spec.ft.rate_hz))
 
-    def _sample(self, force: NDArray[np.float64], torque: NDArray[np.float64],
-                stamp: float) -> None:
+    def push(self, force: NDArray[np.float64], torque: NDArray[np.float64],
+             stamp: float) -> None:
+        """One sample of MuJoCo's force and torque sensors (sensor frame), with noise."""
         w = np.concatenate([force, torque]) + self._rng.normal(0.0, 1.0, 6) * self._sigma
         self.samples.push(FTSample(force=w[:3], torque=w[3:], temperature=32.0, stamp=stamp))
 

@@ -43,6 +43,7 @@ from articutool.sim.mjcf import (
 )
 from articutool.sim.params import Granular, PhysicsParams
 from articutool.spec import Spec, load_spec
+from articutool.tool.drivers.motor_model import MotorPlant
 from articutool.tool.runtime import ToolRuntime
 from articutool.trajectory import JointTrajectory
 
@@ -214,9 +215,12 @@ class FeedingWorld:
         # --- the tool and its drivers
         bias = (rng.uniform(-1.0, 1.0, 3) * math.radians(1.0) if gyro_bias is None
                 else np.asarray(gyro_bias, dtype=float))
-        self.motors = MjMotorDriver(self)
-        self.imu = MjImuDriver(self, bias, noise, rng)
-        self.ft = MjFTDriver(self, noise, rng)
+        plant = MotorPlant(position=lambda: self.wrist_q, velocity=lambda: self.wrist_qd,
+                           input_voltage=lambda: self.spec.motors.supply_v,
+                           temperature=lambda: 35.0, stamp=lambda: self.time)
+        self.motors = MjMotorDriver(self.spec, plant, self.wrist_range)
+        self.imu = MjImuDriver(self.spec, bias, noise, rng)
+        self.ft = MjFTDriver(self.spec, noise, rng)
         self.tool = ToolRuntime(self.spec, self.motors, self.imu, self.ft, clock=self.clock)
         # The servos (and the food, if any) settle with the wrist held; then the tool starts.
         self._hold_wrist = True
@@ -298,7 +302,7 @@ class FeedingWorld:
             self._emit_samples()
             if ticked:
                 self.tool.tick(self.time)
-                self.motors._check_stops()
+                self.motors.check_stops()
                 self._classify()
         self._cpu += time.thread_time() - c0
         self._sim_stepped += self.dt
@@ -381,7 +385,7 @@ class FeedingWorld:
         if self._hold_wrist:
             goal, on = np.zeros(2), np.ones(2, dtype=bool)
         else:
-            goal, on = self.motors._velocity_targets(), self.motors._torque
+            goal, on = self.motors.model.velocity_targets(self.wrist_q), self.motors.model.torque
         e = goal - d.qvel[self._wr_v]
         self._vel_int = np.where(on, self._vel_int + e * self.dt, 0.0)
         # Anti-windup: the integral never asks for more than the stall torque.
@@ -393,12 +397,12 @@ class FeedingWorld:
     def _emit_samples(self) -> None:
         d, t = self.data, self.time
         if t >= self._next_imu - 1e-9:
-            self.imu._sample(d.sensordata[self._s_acc:self._s_acc + 3].copy(),
-                             d.sensordata[self._s_gyro:self._s_gyro + 3].copy(), t)
+            self.imu.push(d.sensordata[self._s_acc:self._s_acc + 3].copy(),
+                          d.sensordata[self._s_gyro:self._s_gyro + 3].copy(), t)
             self._next_imu += self._imu_period
         if t >= self._next_ft - 1e-9:
-            self.ft._sample(d.sensordata[self._s_force:self._s_force + 3].copy(),
-                            d.sensordata[self._s_torque:self._s_torque + 3].copy(), t)
+            self.ft.push(d.sensordata[self._s_force:self._s_force + 3].copy(),
+                         d.sensordata[self._s_torque:self._s_torque + 3].copy(), t)
             self._next_ft += self._ft_period
 
     # ---------------------------------------------------------------- accounting --

@@ -12,7 +12,7 @@ __all__ = ["add_commands"]
 
 def _cmd_verify(args: argparse.Namespace) -> int:
     from articutool.arm.model import ArmModel
-    from articutool.cli import UsageError, spec_from_args
+    from articutool.cli_support import UsageError, spec_from_args
     from articutool.trajectory import JointTrajectory
     from articutool.verify import verify_trajectory
 
@@ -52,7 +52,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``verify``."""
-    from articutool.cli import add_spec_option
+    from articutool.cli_support import add_spec_option
 
     p = sub.add_parser(
         "verify",

@@ -28,9 +28,9 @@ import viser.uplot
 from numpy.typing import NDArray
 
 from articutool.sim.accounting import SpillEvent, spilled_by_place
+from articutool.sim.recording import Recording
 from articutool.viewer.geometry import GeomMesh, Poser, geom_meshes
 from articutool.viewer.plan import PlanView
-from articutool.viewer.recording import Recording
 
 __all__ = ["CLASS_COLORS", "ViewerApp", "ramp_colors"]
 

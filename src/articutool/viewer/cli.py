@@ -20,7 +20,7 @@ __all__ = ["add_commands"]
 
 
 def _check_address(host: str, port: int) -> None:
-    from articutool.cli import UsageError
+    from articutool.cli_support import UsageError
 
     if not 1 <= port <= 65535:
         raise UsageError(f"--port must be in [1, 65535]; got {port}")
@@ -42,7 +42,7 @@ def _check_address(host: str, port: int) -> None:
 def _plan_from_task(args: argparse.Namespace, spec: Any) -> tuple[Any, str, str]:
     """Plan benchmark task ``--plan-task`` with ``--system``; (trajectory, wrist, title)."""
     from articutool.bench.tasks import TaskFileError, check_task_limits, load_task_set
-    from articutool.cli import UsageError
+    from articutool.cli_support import UsageError
     from articutool.planning.api import PlanRequest, plan
 
     try:
@@ -80,8 +80,8 @@ def _plan_from_task(args: argparse.Namespace, spec: Any) -> tuple[Any, str, str]
 
 
 def _cmd_view(args: argparse.Namespace) -> int:
-    from articutool.cli import UsageError, spec_from_args
-    from articutool.viewer.recording import Recording, RecordingError
+    from articutool.cli_support import UsageError, spec_from_args
+    from articutool.sim.recording import Recording, RecordingError
 
     sources = [x for x in (args.plan, args.plan_task, args.recording) if x is not None]
     if len(sources) > 1:
@@ -224,7 +224,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``view``."""
-    from articutool.cli import add_spec_option
+    from articutool.cli_support import add_spec_option
 
     p = sub.add_parser("view", help="3-D web viewer of the scene, the robot's named "
                        "configurations, plans (--plan, --plan-task) and recorded runs "

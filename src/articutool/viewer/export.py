@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from articutool.viewer.recording import Recording, RecordingError
+from articutool.sim.recording import Recording, RecordingError
 
 MAX_FPS = 120.0  # frames/s of an exported video
 

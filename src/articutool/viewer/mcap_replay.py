@@ -17,9 +17,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from articutool.link import messages as m
+from articutool.sim.recording import RecordingError
 from articutool.spec import Spec
 from articutool.trajectory import JointTrajectory
-from articutool.viewer.recording import RecordingError
 
 __all__ = ["load_mcap_motion"]
 

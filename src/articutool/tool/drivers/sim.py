@@ -40,12 +40,9 @@ from articutool.tool.drivers.base import (
     HardwareError,
     ImuDriver,
     ImuSample,
-    MotorDriver,
-    MotorMode,
-    MotorState,
     validate_position_command,
-    validate_velocity_command,
 )
+from articutool.tool.drivers.motor_model import ModelMotorDriver, MotorModel, MotorPlant
 
 __all__ = [
     "BaseMotion",
@@ -62,8 +59,6 @@ __all__ = [
 ]
 
 BaseMotion = Callable[[float], Sequence[ArrayLike]]
-# Bits for which the default Shutdown register (52) makes an X-series motor drop torque.
-_SHUTDOWN_BITS = HardwareError.OVERHEATING | HardwareError.ELECTRICAL_SHOCK | HardwareError.OVERLOAD
 _MAX_SUBSTEP = 0.002  # s; resolution of limit contact and position-mode tracking
 _QUEUE_LEN = 256  # samples kept for a driver that is not being read
 _S = TypeVar("_S")
@@ -161,14 +156,10 @@ class SimWrist:
         self._t = 0.0
         self._q = q.copy()
         self._qd = np.zeros(2)
-        self._cmd_vel = np.zeros(2)
-        self._cmd_pos = q.copy()
-        self._mode: MotorMode = "velocity"
-        self._torque = np.zeros(2, dtype=bool)
-        self._hw = [0, 0]
+        self.motor = MotorModel(self.velocity_limits, w.limits, position_gain)
+        self.motor.cmd_pos = q.copy()
         self._tau = float(motor_lag)
         self._hard_stop = float(hard_stop_velocity)
-        self._kp = float(position_gain)
         self._motor_temp = float(motor_temperature)
         self._battery_v0 = spec.motors.supply_v
         self._battery_sag = 0.0
@@ -225,7 +216,7 @@ class SimWrist:
         with self._lock:
             self._q = validate_position_command(q, self.position_limits).copy()
             self._qd = np.zeros(2)
-            self._cmd_pos = self._q.copy()
+            self.motor.cmd_pos = self._q.copy()
 
     def base_state(self, t: float | None = None) -> tuple[NDArray, NDArray, NDArray]:
         """(R_world←F0, ω_world, a_world) of the base at time ``t`` (default now)."""
@@ -273,9 +264,7 @@ class SimWrist:
         if i not in (0, 1):
             raise ValueError(f"joint must be 0/1 or one of {JOINTS}; got {joint!r}")
         with self._lock:
-            self._hw[i] |= int(bits)
-            if int(bits) & _SHUTDOWN_BITS:
-                self._torque[i] = False
+            self.motor.raise_error(i, bits)
 
     def set_motor_temperature(self, celsius: float) -> None:
         """The motors' present temperature (°C), as read back (e.g. an overheated motor)."""
@@ -323,12 +312,7 @@ class SimWrist:
     def _integrate(self, h: float) -> None:
         if h <= 0:
             return
-        vmax = self.velocity_limits
-        if self._mode == "velocity":
-            target = self._cmd_vel.copy()
-        else:
-            target = self._kp * (self._cmd_pos - self._q)
-        target = np.where(self._torque, np.clip(target, -vmax, vmax), 0.0)
+        target = self.motor.velocity_targets(self._q)
         if self._tau > 0:
             a = math.exp(-h / self._tau)
             q_new = self._q + target * h + (self._qd - target) * self._tau * (1.0 - a)
@@ -341,8 +325,7 @@ class SimWrist:
             if not lo[i] <= q_new[i] <= hi[i]:
                 q_new[i] = min(max(q_new[i], lo[i]), hi[i])
                 if abs(qd_new[i]) > self._hard_stop or abs(self._qd[i]) > self._hard_stop:
-                    self._hw[i] |= int(HardwareError.OVERLOAD)
-                    self._torque[i] = False
+                    self.motor.raise_error(i, HardwareError.OVERLOAD)
                 qd_new[i] = 0.0
         self._q, self._qd = q_new, qd_new
 
@@ -376,111 +359,16 @@ class SimWrist:
         return SimFTDriver(self)
 
 
-class SimMotorDriver(MotorDriver):
-    """The twin of ``DynamixelDriver``: same checks, same state machine, simulated motors."""
+class SimMotorDriver(ModelMotorDriver):
+    """The twin of ``DynamixelDriver`` on a :class:`SimWrist`: the shared
+    :class:`~articutool.tool.drivers.motor_model.MotorModel` over the kinematic joints."""
 
     def __init__(self, sim: SimWrist) -> None:
+        plant = MotorPlant(position=lambda: sim.q, velocity=lambda: sim.qd,
+                           input_voltage=sim.input_voltage,
+                           temperature=lambda: sim._motor_temp, stamp=lambda: sim.time)
+        super().__init__(sim.motor, plant, sim._lock)
         self.sim = sim
-        self._open = False
-        self.last_error = ""
-
-    def _require_open(self) -> SimWrist:
-        if not self._open:
-            raise DriverError("simulated motors are not open")
-        return self.sim
-
-    @property
-    def mode(self) -> MotorMode:
-        """The current operating mode."""
-        return self.sim._mode
-
-    @property
-    def torque_enabled(self) -> bool:
-        """True when both motors hold torque."""
-        return bool(self.sim._torque.all())
-
-    def open(self) -> None:
-        """Torque off, velocity mode, zero goal."""
-        s = self.sim
-        with s._lock:
-            s._torque[:] = False
-            s._mode = "velocity"
-            s._cmd_vel = np.zeros(2)
-        self._open = True
-
-    def close(self) -> None:
-        """Stop and torque off."""
-        if self._open:
-            self.stop()
-            self.sim._torque[:] = False
-            self._open = False
-
-    def enable_torque(self, on: bool) -> None:
-        """Torque on (no-motion goal first) or off; a motor in shutdown stays off."""
-        s = self._require_open()
-        with s._lock:
-            s._cmd_vel = np.zeros(2)
-            s._cmd_pos = s._q.copy()
-            for i in range(2):
-                s._torque[i] = bool(on) and not (s._hw[i] & _SHUTDOWN_BITS)
-
-    def set_mode(self, mode: MotorMode) -> None:
-        """Stop, switch mode, keep torque as it was."""
-        if mode not in ("velocity", "position"):
-            raise ValueError(f"mode must be 'velocity' or 'position'; got {mode!r}")
-        s = self._require_open()
-        with s._lock:
-            s._cmd_vel = np.zeros(2)
-            s._cmd_pos = s._q.copy()
-            s._mode = mode
-
-    def set_velocity(self, qd: ArrayLike) -> None:
-        """Command joint velocities; non-finite or over-limit input raises ``ValueError``."""
-        a = validate_velocity_command(qd, self.sim.velocity_limits)
-        s = self._require_open()
-        if s._mode != "velocity":
-            raise DriverError("set_velocity needs velocity mode (call set_mode('velocity'))")
-        with s._lock:
-            s._cmd_vel = a.copy()
-
-    def set_position(self, q: ArrayLike) -> None:
-        """Command joint positions within ``spec.wrist`` limits (single-turn, as the motors)."""
-        a = validate_position_command(q, self.sim.spec.wrist.limits)
-        s = self._require_open()
-        if s._mode != "position":
-            raise DriverError("set_position needs position mode (call set_mode('position'))")
-        with s._lock:
-            s._cmd_pos = a.copy()
-
-    def read(self) -> MotorState:
-        """Present state of the simulated motors (stamped with simulation time)."""
-        s = self._require_open()
-        with s._lock:
-            return MotorState(
-                position=s._q.copy(),
-                velocity=s._qd.copy(),
-                hardware_error=(s._hw[0], s._hw[1]),
-                input_voltage=s.input_voltage(),
-                temperature=s._motor_temp,
-                stamp=s._t,
-            )
-
-    def stop(self) -> None:
-        """Zero velocity / hold position. Never raises."""
-        s = self.sim
-        with s._lock:
-            s._cmd_vel = np.zeros(2)
-            s._cmd_pos = s._q.copy()
-
-    def clear_errors(self) -> None:
-        """Reboot: clear hardware errors; torque comes back off."""
-        s = self._require_open()
-        with s._lock:
-            for i in range(2):
-                if s._hw[i]:
-                    s._hw[i] = 0
-                    s._torque[i] = False
-                    s._cmd_vel[i] = 0.0
 
 
 class SampleQueue(Generic[_S]):

@@ -3,7 +3,7 @@
 Attach a recorder to any :class:`~articutool.sim.world.FeedingWorld` run (a scripted scene, a
 bite, an experiment trial), then save it::
 
-    from articutool.viewer.recording import Recorder
+    from articutool.sim.recording import Recorder
     rec = Recorder(world)           # samples every tool tick (world.on_tick) at rate_hz
     ...                             # run the world: scripts, trees, primitives
     rec.save("run.npz")             # never overwrites: RecordingError if the file exists

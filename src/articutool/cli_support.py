@@ -1,0 +1,74 @@
+"""What every ``articutool`` command shares: the bad-input error, the ``--spec`` option and
+the checks of output files and folders (the developers' guide: bad input exits 2 naming the
+field; a user's file is never overwritten).
+
+A neutral module below all the sub-CLIs (``*/cli.py``, ``onboard.py``, ``sim/demo.py``) and
+the top-level :mod:`articutool.cli` that gathers them, so no layer imports the top one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from pathlib import Path
+
+from articutool.spec import Spec, load_spec
+
+__all__ = ["UsageError", "add_spec_option", "new_output_file", "output_dir", "spec_from_args"]
+
+
+class UsageError(Exception):
+    """Bad input from the user: printed as ``error: …`` with exit code 2."""
+
+
+def add_spec_option(p: argparse.ArgumentParser) -> None:
+    """The ``--spec FILE`` option every hardware-facing command takes."""
+    p.add_argument("--spec", metavar="FILE", default=None,
+                   help="hardware spec TOML (default: the packaged spec)")
+
+
+def new_output_file(opt: str, path: str | None, suffixes: tuple[str, ...]) -> Path | None:
+    """``path`` checked as a new output file for option ``opt`` (``None`` passes through):
+    one of ``suffixes``, not existing (nothing is overwritten), creatable (it is created and
+    removed again, so a folder that cannot be written, e.g. in ``/proc``, is found before any
+    work); ``UsageError`` naming the option otherwise."""
+    if path is None:
+        return None
+    p = Path(path)
+    if p.suffix.lower() not in suffixes:
+        raise UsageError(f"{opt} must end in {' or '.join(suffixes)}; got {p.name!r}")
+    if p.exists():
+        raise UsageError(f"{opt}: {p} exists; refusing to overwrite it (choose a new file)")
+    if not p.parent.is_dir():
+        raise UsageError(f"{opt}: folder {p.parent} does not exist")
+    try:
+        p.open("xb").close()
+    except OSError as err:
+        raise UsageError(f"{opt}: cannot create {p}: {err.strerror}") from None
+    p.unlink()
+    return p
+
+
+def output_dir(opt: str, path: str | Path, files: tuple[str, ...] = ()) -> Path:
+    """The results folder ``path`` of option ``opt``, created if needed and checked writable
+    (with an unnamed temporary file: nothing is left in it); each of ``files`` inside it
+    that exists must be a regular file. ``UsageError`` naming the option otherwise."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise UsageError(f"{opt} {p} exists and is not a directory")
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=p).close()
+    except OSError as err:
+        raise UsageError(f"{opt}: cannot write into the folder {p}: {err.strerror}") from None
+    for name in files:
+        f = p / name
+        if f.exists() and not f.is_file():
+            raise UsageError(f"{opt}: {f} must be a regular file (this run's {name}); it is "
+                             "a folder or a device: move it away or use another folder")
+    return p
+
+
+def spec_from_args(args: argparse.Namespace) -> Spec:
+    """Load the spec named by ``--spec`` (SpecError propagates as bad input)."""
+    return load_spec(args.spec)
