@@ -1,0 +1,158 @@
+"""Acquisition that uses the wrist (issue 25): one acquisition through the real feeding tree in
+the physics world (the meal path up to Resting: above, acquire, shed, resting), per food ×
+system × seed, and the parameter search that chose the strategies' sweep values.
+
+Seeds: the committed experiments use base seed 0 (seeds 0–999, ``experiments/design.py``);
+the search uses tuning seeds 7 000 000 + k, the measurement 8 000 000 + k — disjoint from
+both and from each other.
+
+``measure``: acquired mass (on the utensil after ``acquire``), mass at Resting, end state,
+the wrist's largest tracking error in a wrist-made path (from the tool's measured joints vs
+its reference), the arm's (ground truth vs its servo reference), real-time factor; summary
+per food × system (mean ± SD, 95 % CI) and Welch's p between the systems.
+
+``search``: the same candidates for both systems (sweep_to_deg × offset_m, applied to each
+system's own strategy), on the tuning seeds; the candidate with the highest mean acquired mass
+per food and system. The JSON is rewritten after every run, so an interrupted run keeps what
+finished.
+
+Run (one process, niced): ``PYTHONPATH=src nice python benchmarks/acquisition_study.py
+measure --foods water pecans --seeds 10 --out results/acquisition_study.json`` and
+``... search --foods water --seeds 1 --out results/strategy_search.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from articutool.experiments.stats import describe, welch
+from articutool.feeding.behaviours import Execute
+from articutool.feeding.meal import DEFAULT_SETTINGS, _tree, make_bite_world, run_bite
+from articutool.feeding.strategies import Strategy
+
+STAGES = ("above", "acquire", "shed", "resting")
+SYSTEMS = ("articutool", "baseline")
+TUNING_SEED0, MEASURE_SEED0 = 7_000_000, 8_000_000
+# The search's candidates, the same for both systems: where the turn in the food ends (the
+# handle must clear the bowl's rim behind) × where along the heading the sweep is centred.
+CANDIDATES = [{"sweep_to_deg": a, "offset_m": o} for a, o in itertools.product(
+    (15.0, 25.0), (0.01, 0.03))]
+
+
+def one(food: str, system: str, seed: int, insertion: dict[str, float] | None = None
+        ) -> dict[str, Any]:
+    """One acquisition through the tree up to Resting; its record."""
+    setup = make_bite_world(food, system, seed)
+    if insertion:
+        s: Strategy = setup.strategy
+        setup.strategy = s.model_copy(update={"insertion": s.insertion.model_copy(
+            update=insertion)})
+    root = _tree(setup, STAGES, DEFAULT_SETTINGS)
+    wall0 = time.perf_counter()
+    try:
+        r = run_bite(setup, stages=STAGES, root=root)
+    finally:
+        setup.arm.close()
+    wall = time.perf_counter() - wall0
+    werr = max((n.wrist_tracking_error for n in root.iterate() if isinstance(n, Execute)),
+               default=0.0)
+    w = setup.world
+    return {"food": food, "system": system, "seed": seed, "strategy": setup.strategy_name,
+            "insertion": setup.strategy.insertion.model_dump(),
+            "acquired_g": r.acquired_g,
+            "at_resting_g": r.masses_after.get("resting", {}).get("utensil", 0.0),
+            "end_state": r.end_state, "failed_stage": r.failed_stage,
+            "wrist_tracking_error_deg": math.degrees(werr),
+            "arm_tracking_error_deg": math.degrees(w.arm_tracking_error),
+            "sim_time_s": r.sim_time_s, "wall_time_s": wall,
+            "realtime_factor_physics": w.realtime_factor}
+
+
+def summarise(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    """Per food × system: describe() of acquired and at-Resting mass, tracking errors, RTF;
+    per food: Welch's test of acquired mass between the systems."""
+    out: dict[str, Any] = {}
+    for food in sorted({r["food"] for r in runs}):
+        per: dict[str, Any] = {}
+        for system in SYSTEMS:
+            rs = [r for r in runs if r["food"] == food and r["system"] == system]
+            if not rs:
+                continue
+            per[system] = {
+                "n": len(rs),
+                "acquired_g": describe([r["acquired_g"] for r in rs]).to_dict(),
+                "at_resting_g": describe([r["at_resting_g"] for r in rs]).to_dict(),
+                "completed": sum(r["end_state"] == "completed" for r in rs),
+                "wrist_tracking_error_deg_max": max(r["wrist_tracking_error_deg"] for r in rs),
+                "arm_tracking_error_deg_max": max(r["arm_tracking_error_deg"] for r in rs),
+                "realtime_factor_mean": sum(r["sim_time_s"] / r["wall_time_s"] for r in rs)
+                / len(rs)}
+        if len(per) == 2:
+            a = [r["acquired_g"] for r in runs if r["food"] == food
+                 and r["system"] == "articutool"]
+            b = [r["acquired_g"] for r in runs if r["food"] == food
+                 and r["system"] == "baseline"]
+            per["welch_acquired"] = welch(a, b).to_dict()
+        out[food] = per
+    return out
+
+
+def _write(path: Path, doc: dict[str, Any]) -> None:
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(doc, indent=1))
+    tmp.replace(path)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("mode", choices=("measure", "search"))
+    ap.add_argument("--foods", nargs="+", default=["water", "pecans"])
+    ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--out", type=Path, required=True)
+    args = ap.parse_args(argv)
+    if args.seeds < 1 or args.seeds > 1000:
+        print("--seeds must be in 1..1000", file=sys.stderr)
+        return 2
+    cmd = "PYTHONPATH=src nice python benchmarks/acquisition_study.py " + " ".join(
+        sys.argv[1:] if argv is None else argv)
+    doc: dict[str, Any] = {"command": cmd, "stages": list(STAGES), "runs": []}
+    if args.mode == "measure":
+        for food, k, system in itertools.product(args.foods, range(args.seeds), SYSTEMS):
+            doc["runs"].append(one(food, system, MEASURE_SEED0 + k))
+            doc["summary"] = summarise(doc["runs"])
+            _write(args.out, doc)
+    else:
+        doc["candidates"] = CANDIDATES
+        for food, system, (c, cand) in itertools.product(args.foods, SYSTEMS,
+                                                          enumerate(CANDIDATES)):
+            for k in range(args.seeds):
+                run = one(food, system, TUNING_SEED0 + k, cand)
+                run["candidate"] = c
+                doc["runs"].append(run)
+            best: dict[str, Any] = {}
+            for f, s in itertools.product(args.foods, SYSTEMS):
+                scores = {}
+                for i in range(len(CANDIDATES)):
+                    xs = [r["acquired_g"] for r in doc["runs"]
+                          if r["food"] == f and r["system"] == s and r["candidate"] == i]
+                    if xs:
+                        scores[i] = sum(xs) / len(xs)
+                if scores:
+                    i = max(sorted(scores), key=lambda j: scores[j])
+                    best[f"{f}/{s}"] = {"candidate": i, **CANDIDATES[i],
+                                        "mean_acquired_g": scores[i],
+                                        "scores": {str(j): v for j, v in scores.items()}}
+            doc["best"] = best
+            _write(args.out, doc)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
