@@ -104,6 +104,37 @@ def summarise(runs: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
+# The thesis' Fig. 6.1 (§6.1), for comparison only: mean acquired mass, g.
+THESIS = {"water": ("5.02 ± 1.62", "0.68 ± 0.18", "0.0 as printed"),
+          "pecans": ("1.83", "1.32", "0.0062")}
+
+
+def table(doc: dict[str, Any]) -> str:
+    """Markdown rows: food, system, n, acquired mean ± SD [95 % CI], at Resting, completed,
+    tracking errors, RTF, Welch p; the thesis' numbers beside them."""
+    rows = ["| food | system | n | acquired, g (mean ± SD) [95 % CI] | at Resting, g | "
+            "completed | wrist / arm tracking error, max ° | RTF | Welch p | thesis Fig. 6.1 |",
+            "|---|---|---|---|---|---|---|---|---|---|"]
+    for food, per in doc["summary"].items():
+        p = per.get("welch_acquired", {}).get("p")
+        for i, system in enumerate(SYSTEMS):
+            if system not in per:
+                continue
+            x = per[system]
+            a, r = x["acquired_g"], x["at_resting_g"]
+            sd = "–" if a["sd"] is None else f"{a['sd']:.2f}"
+            ci = ("" if a["ci_low"] is None else f" [{a['ci_low']:.2f}, {a['ci_high']:.2f}]")
+            th = THESIS.get(food, ("", "", ""))
+            rows.append(
+                f"| {food} | {system} | {x['n']} | {a['mean']:.2f} ± {sd}{ci} | "
+                f"{r['mean']:.2f} | {x['completed']}/{x['n']} | "
+                f"{x['wrist_tracking_error_deg_max']:.2f} / {x['arm_tracking_error_deg_max']:.2f}"
+                f" | {x['realtime_factor_mean']:.2f} | "
+                f"{'' if p is None or i else f'{p:.3g}'} | {th[i]}"
+                f"{f' (p {th[2]})' if i == 0 and th[2] else ''} |")
+    return "\n".join(rows)
+
+
 def _write(path: Path, doc: dict[str, Any]) -> None:
     tmp = path.with_suffix(".tmp")
     tmp.write_text(json.dumps(doc, indent=1))
@@ -112,7 +143,7 @@ def _write(path: Path, doc: dict[str, Any]) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("mode", choices=("measure", "search"))
+    ap.add_argument("mode", choices=("measure", "search", "table"))
     ap.add_argument("--foods", nargs="+", default=["water", "pecans"])
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--out", type=Path, required=True)
@@ -120,6 +151,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.seeds < 1 or args.seeds > 1000:
         print("--seeds must be in 1..1000", file=sys.stderr)
         return 2
+    if args.mode == "table":  # the README's table from a measure JSON
+        print(table(json.loads(args.out.read_text())))
+        return 0
     cmd = "PYTHONPATH=src nice python benchmarks/acquisition_study.py " + " ".join(
         sys.argv[1:] if argv is None else argv)
     doc: dict[str, Any] = {"command": cmd, "stages": list(STAGES), "runs": []}

@@ -334,8 +334,8 @@ def test_a_failed_acquisition_is_retried_up_to_the_strategy_s_limit() -> None:
     clock = Clock()
     arm, tool = FakeArm(clock, [], []), FakeTool(clock)
     arm.fail_paths.add("out of the food")
-    root = bite_tree(arm, tool, s, acquisition_waypoints(s, [0.45, -0.45, 0.0], [0, -1, 0], outline),
-                     clock, stages=("acquire", "resting"))
+    wps = acquisition_waypoints(s, [0.45, -0.45, 0.0], [0, -1, 0], outline)
+    root = bite_tree(arm, tool, s, wps, clock, stages=("acquire", "resting"))
     tree, _ = _run(root, clock, max_ticks=2000)
     assert tree.root.status == Status.FAILURE
     assert arm.executed.count("path into the food") == 3  # three tries, then the retreat

@@ -239,26 +239,22 @@ class Execute(_JobBehaviour):
         self.bb = _bb(self, ("trajectory", Access.READ))
         self.wrist_tracking_error = 0.0
         self._wrist: Any = None
-        self._refused = ""
 
     def start(self) -> Job:
         traj = self.bb.trajectory
-        self._wrist, self._refused = None, ""
+        self._wrist, self.wrist_tracking_error = None, 0.0
         if self.tool is not None and self.clock is not None:
             self._wrist = _wrist_part(traj, self.tool.state().joint_names)
         if self._wrist is not None:
             ok, msg = self.tool.follow_trajectory(self._wrist)  # type: ignore[union-attr]
-            if not ok:
-                self._refused = msg
+            if not ok:  # nothing moves: the arm does not start without the wrist
+                self._wrist = None
+                return _Ended(JobResult(False, f"the tool refused the wrist's part: {msg}"))
             self._t0 = self.clock()  # type: ignore[misc]
         return self.arm.start_execute(traj)
 
     def update(self) -> Status:
-        if self._refused:
-            self.arm.stop()
-            self.feedback_message = f"the tool refused the wrist's part: {self._refused}"
-            return Status.FAILURE
-        if self._wrist is not None:
+        if self._wrist is not None and not self.job.done():  # type: ignore[union-attr]
             q_ref, _ = self._wrist.sample(self.clock() - self._t0)  # type: ignore[misc]
             q = self.tool.state().position  # type: ignore[union-attr]
             err = max(abs(q[0] - q_ref[0]), abs(q[1] - q_ref[1]))
@@ -268,6 +264,22 @@ class Execute(_JobBehaviour):
             self.feedback_message += (f"; wrist tracking error ≤ "
                                       f"{math.degrees(self.wrist_tracking_error):.2f}°")
         return status
+
+
+class _Ended:
+    """A job that ended before it started (refused)."""
+
+    def __init__(self, result: JobResult) -> None:
+        self._result = result
+
+    def done(self) -> bool:
+        return True
+
+    def result(self) -> JobResult:
+        return self._result
+
+    def cancel(self) -> None:
+        pass
 
 
 def _wrist_part(traj: Any, names: tuple[str, str]) -> Any:
