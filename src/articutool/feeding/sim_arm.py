@@ -64,6 +64,9 @@ def _concatenate(parts: list[JointTrajectory]) -> JointTrajectory:
                            np.concatenate(vel))
 
 
+_PITCH_MARGIN = math.radians(5.0)
+
+
 def _pitch_down(model: ArmModel, q: np.ndarray) -> float:
     """How far the utensil points below the horizon at ``q`` (rad)."""
     return float(math.asin(-np.clip(model.tip_pose(q)[2, 2], -1.0, 1.0)))
@@ -75,7 +78,8 @@ def wrist_sweep(model: ArmModel, q: np.ndarray, p0: np.ndarray, a0: float, p1: n
     """8-joint trajectory of a tip segment p0 → p1 whose pitch change a0 → a1 the wrist's
     pitch makes while the arm translates (issue 25; thesis §4.3.1, "a 2-DOF local motion with
     the Articutool"): the wrist pitch is interpolated from ``q``'s to the one that gives
-    ``a1`` with the tool base as at ``q``, and the arm joints are solved by IK for every tip
+    ``a1`` with the tool base as at ``q`` (within its range: beyond it the arm makes the rest
+    of the turn), and the arm joints are solved by IK for every tip
     pose along the segment. Rest to rest, on a smoothstep in time no faster than ``speed`` on
     average and within the arm's and the wrist's velocity limits. Raises ``ScriptError``."""
     from articutool.arm.ik import IKSettings, solve_pose_ik
@@ -97,10 +101,10 @@ def wrist_sweep(model: ArmModel, q: np.ndarray, p0: np.ndarray, a0: float, p1: n
         d = (err(w1 + h) - e) / h
         if abs(d) > 1e-6:
             w1 -= e / d
+    # Beyond the wrist's range the arm makes the rest of the turn (IK below solves the tip's
+    # pitch whatever the wrist gives), 5° inside the limit the runtime enforces.
     lo, hi = spec.wrist.pitch_limits
-    if not lo <= w1 <= hi:
-        raise ScriptError(f"the wrist cannot turn the utensil to {math.degrees(a1):.0f}° "
-                          f"(pitch {w1:.2f} rad outside [{lo:.2f}, {hi:.2f}])")
+    w1 = min(max(w1, lo + _PITCH_MARGIN), hi - _PITCH_MARGIN)
     n = max(2, math.ceil(max(np.linalg.norm(p1 - p0) / step_m,
                              abs(a1 - a0) / math.radians(1.0))))
     settings = IKSettings(random_seeds=0)
