@@ -104,6 +104,44 @@ def summarise(runs: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
+def turn(food: str) -> dict[str, Any]:
+    """The shipped sweep's turn in the food, planned for both systems from the same start
+    (kinematics, no physics): its duration and each joint's travel (degrees)."""
+    import numpy as np
+
+    from articutool.arm.model import ArmModel
+    from articutool.arm.scene import Scene
+    from articutool.feeding.insertion import acquisition_waypoints, dish_outline
+    from articutool.feeding.meal import container_floor
+    from articutool.feeding.sim_arm import wrist_sweep
+    from articutool.feeding.strategies import StrategyLibrary
+    from articutool.sim.scenes import SCOOP_HEADING, cartesian_path, first_ik
+    from articutool.spec import load_spec
+
+    spec, scene = load_spec(), Scene.load()
+    lib = StrategyLibrary.load(spec)
+    s = next(v for v in lib.for_food(food, "articutool").values())
+    model = ArmModel(spec, s.utensil, 8, scene)
+    wps = acquisition_waypoints(s, container_floor(scene, "bowl"), SCOOP_HEADING,
+                                dish_outline(spec, s.utensil))["into"]
+    pts = [(np.array(w.position), w.pitch_down, w.speed) for w in wps]
+    i0 = next(k for k, w in enumerate(wps) if w.wrist) - 1
+    q0 = first_ik(model, np.r_[spec.arm.configuration("AbovePlate"), 0.0, 0.0],
+                  pts[i0][0], pts[i0][1])
+    arm = cartesian_path(model, q0, pts[i0:])
+    q, dur, travel = q0, 0.0, np.zeros(8)
+    for i in range(i0 + 1, len(pts)):
+        seg = wrist_sweep(model, q, *pts[i - 1][:2], *pts[i])
+        dur += seg.duration
+        travel += np.abs(np.diff(seg.positions, axis=0)).sum(axis=0)
+        q = seg.positions[-1].copy()
+    base = np.abs(np.diff(arm.positions, axis=0)).sum(axis=0)
+    return {"food": food, "baseline_turn_s": arm.duration, "articutool_turn_s": dur,
+            "baseline_arm_travel_deg": np.degrees(base).round(1).tolist(),
+            "articutool_arm_travel_deg": np.degrees(travel[:6]).round(1).tolist(),
+            "articutool_wrist_pitch_travel_deg": round(float(np.degrees(travel[6])), 1)}
+
+
 # The thesis' Fig. 6.1 (§6.1), for comparison only: mean acquired mass, g.
 THESIS = {"water": ("5.02 ± 1.62", "0.68 ± 0.18", "0.0 as printed"),
           "pecans": ("1.83", "1.32", "0.0062")}
@@ -143,7 +181,7 @@ def _write(path: Path, doc: dict[str, Any]) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("mode", choices=("measure", "search", "table"))
+    ap.add_argument("mode", choices=("measure", "search", "table", "turn"))
     ap.add_argument("--foods", nargs="+", default=["water", "pecans"])
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--out", type=Path, required=True)
@@ -151,6 +189,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.seeds < 1 or args.seeds > 1000:
         print("--seeds must be in 1..1000", file=sys.stderr)
         return 2
+    if args.mode == "turn":  # kinematics only: who makes the turn, how long it takes
+        for food in args.foods:
+            print(json.dumps(turn(food)))
+        return 0
     if args.mode == "table":  # the README's table from a measure JSON
         print(table(json.loads(args.out.read_text())))
         return 0
