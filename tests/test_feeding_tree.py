@@ -324,17 +324,18 @@ def test_preempting_the_whole_bite_at_any_tick_restores_the_tool_and_stops_every
 
 def test_a_failed_acquisition_is_retried_up_to_the_strategy_s_limit() -> None:
     from articutool.feeding.bite import bite_tree
-    from articutool.feeding.insertion import acquisition_waypoints
+    from articutool.feeding.insertion import acquisition_waypoints, dish_outline
     from articutool.feeding.strategies import StrategyLibrary
     from articutool.spec import load_spec
 
     s = StrategyLibrary.load(load_spec()).strategies["pecans_tilted_scoop"]
+    outline = dish_outline(load_spec(), s.utensil)
     s = s.model_copy(update={"attempts": s.attempts.model_copy(update={"acquire": 3})})
     clock = Clock()
     arm, tool = FakeArm(clock, [], []), FakeTool(clock)
     arm.fail_paths.add("out of the food")
-    root = bite_tree(arm, tool, s, acquisition_waypoints(s, [0.45, -0.45, 0.0], [0, -1, 0]),
-                     clock, stages=("acquire", "resting"))
+    wps = acquisition_waypoints(s, [0.45, -0.45, 0.0], [0, -1, 0], outline)
+    root = bite_tree(arm, tool, s, wps, clock, stages=("acquire", "resting"))
     tree, _ = _run(root, clock, max_ticks=2000)
     assert tree.root.status == Status.FAILURE
     assert arm.executed.count("path into the food") == 3  # three tries, then the retreat

@@ -52,6 +52,21 @@ def test_a_strategy_file_with_an_unknown_primitive_is_refused(
     assert "stages.post_acquisition" in err and "SHAKE" in err
 
 
+def test_a_sweep_that_does_not_move_is_refused_naming_the_field(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from articutool.feeding.strategies import default_strategies_path
+
+    text = default_strategies_path().read_text()
+    bad = tmp_path / "s.toml"
+    bad.write_text(text.replace('motion = "sweep", depth_m = 0.002, pitch_down_deg = 35.0, '
+                                'drag_m = 0.03', 'motion = "sweep", depth_m = 0.002, '
+                                'pitch_down_deg = 35.0, drag_m = 0.0'))
+    assert bad.read_text() != text
+    rc, _, err = _main(capsys, "--food", "water", "--strategies", str(bad))
+    assert rc == 2
+    assert "water_tilted_dip.insertion" in err and "drag_m" in err and "Traceback" not in err
+
+
 def test_show_tree_prints_every_stage_and_writes_dot_without_overwriting(
         tmp_path: Path) -> None:
     out = tmp_path / "tree.dot"

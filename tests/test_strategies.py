@@ -57,6 +57,20 @@ def test_bad_strategies_are_refused_naming_the_field(edit, field: str) -> None:
         StrategyLibrary.from_dict(_with(edit), SPEC)
 
 
+@pytest.mark.parametrize("edit,field", [
+    (dict(drag_m=0.0), "drag_m"), (dict(drag_m=0.2), "drag_m"), (dict(depth_m=0.05), "depth_m"),
+    (dict(level_height_m=0.02), "level_height_m"),
+    (dict(extract_pitch_down_deg=30.0), "extract_pitch_down_deg"),
+])
+def test_a_bad_sweep_is_refused_naming_the_insertion_and_the_field(edit: dict,
+                                                                   field: str) -> None:
+    # A sweep (issue 25) moves while it levels, stays near the floor and levels in the food.
+    data = _with(lambda s: s["insertion"].update(motion="sweep", **edit))
+    with pytest.raises(StrategyError, match=r"pecans_tilted_scoop\.insertion") as err:
+        StrategyLibrary.from_dict(data, SPEC)
+    assert field in str(err.value)
+
+
 def test_choice_is_weighted_and_deterministic_for_a_seed() -> None:
     data = copy.deepcopy(RAW)
     alt = copy.deepcopy(data["strategies"]["pecans_tilted_scoop"])

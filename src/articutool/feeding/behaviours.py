@@ -14,10 +14,12 @@ verification and execution), ``stop_requested`` (set by a caregiver or a UI), ``
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+import numpy as np
 import py_trees
 from py_trees.common import Access, Status
 
@@ -229,15 +231,72 @@ class Verify(py_trees.behaviour.Behaviour):
 
 
 class Execute(_JobBehaviour):
-    """Execute the trajectory on the blackboard."""
+    """Execute the trajectory on the blackboard. With ``tool`` and ``clock``, a trajectory
+    that also moves the wrist's joints (a wrist-made sweep, issue 25) sends them to the tool
+    (TRAJECTORY mode) as the arm starts, and keeps the wrist's largest tracking error
+    (``wrist_tracking_error``, rad, from the tool's measured joints)."""
 
-    def __init__(self, arm: ArmInterface, what: str = "motion") -> None:
+    def __init__(self, arm: ArmInterface, what: str = "motion", tool: ToolAPI | None = None,
+                 clock: Callable[[], float] | None = None) -> None:
         super().__init__(f"Execute {what}")
-        self.arm = arm
+        self.arm, self.tool, self.clock = arm, tool, clock
         self.bb = _bb(self, ("trajectory", Access.READ))
+        self.wrist_tracking_error = 0.0
+        self._wrist: Any = None
 
     def start(self) -> Job:
-        return self.arm.start_execute(self.bb.trajectory)
+        traj = self.bb.trajectory
+        self._wrist, self.wrist_tracking_error = None, 0.0
+        if self.tool is not None and self.clock is not None:
+            self._wrist = _wrist_part(traj, self.tool.state().joint_names)
+        if self._wrist is not None:
+            ok, msg = self.tool.follow_trajectory(self._wrist)  # type: ignore[union-attr]
+            if not ok:  # nothing moves: the arm does not start without the wrist
+                self._wrist = None
+                return _Ended(JobResult(False, f"the tool refused the wrist's part: {msg}"))
+            self._t0 = self.clock()  # type: ignore[misc]
+        return self.arm.start_execute(traj)
+
+    def update(self) -> Status:
+        if self._wrist is not None and not self.job.done():  # type: ignore[union-attr]
+            q_ref, _ = self._wrist.sample(self.clock() - self._t0)  # type: ignore[misc]
+            q = self.tool.state().position  # type: ignore[union-attr]
+            err = max(abs(q[0] - q_ref[0]), abs(q[1] - q_ref[1]))
+            self.wrist_tracking_error = max(self.wrist_tracking_error, float(err))
+        status = super().update()
+        if status != Status.RUNNING and self._wrist is not None:
+            self.feedback_message += (f"; wrist tracking error ≤ "
+                                      f"{math.degrees(self.wrist_tracking_error):.2f}°")
+        return status
+
+
+class _Ended:
+    """A job that ended before it started (refused)."""
+
+    def __init__(self, result: JobResult) -> None:
+        self._result = result
+
+    def done(self) -> bool:
+        return True
+
+    def result(self) -> JobResult:
+        return self._result
+
+    def cancel(self) -> None:
+        pass
+
+
+def _wrist_part(traj: Any, names: tuple[str, str]) -> Any:
+    """The wrist's joints of ``traj`` as a trajectory, if it has them and they move."""
+    from articutool.trajectory import JointTrajectory
+
+    if not isinstance(traj, JointTrajectory) or not all(n in traj.joint_names for n in names):
+        return None
+    idx = [traj.joint_names.index(n) for n in names]
+    pos = traj.positions[:, idx]
+    if float(np.ptp(pos[:, 0])) < 1e-6 and float(np.ptp(pos[:, 1])) < 1e-6:
+        return None
+    return JointTrajectory(tuple(names), traj.times, pos, traj.velocities[:, idx])
 
 
 class RunPrimitive(py_trees.behaviour.Behaviour):

@@ -68,10 +68,13 @@ class BiteSettings:
     stale_s: float = 0.5  # the guard's limit on the tool state's age
 
 
-def _path(arm: ArmInterface, what: str, waypoints: Sequence[TipWaypoint]
+def _path(arm: ArmInterface, what: str, waypoints: Sequence[TipWaypoint],
+          tool: ToolAPI | None = None, clock: Callable[[], float] | None = None
           ) -> py_trees.behaviour.Behaviour:
+    # With the tool: a path whose segments the wrist makes sends it the wrist's part.
     return py_trees.composites.Sequence(
-        what, memory=True, children=[PlanPath(arm, what, list(waypoints)), Execute(arm, what)])
+        what, memory=True, children=[PlanPath(arm, what, list(waypoints)),
+                                     Execute(arm, what, tool, clock)])
 
 
 def _primitive(tool: ToolAPI, stage: Stage, name: str, carry: Mode
@@ -100,9 +103,11 @@ def stage_tree(name: str, arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
             _path(arm, "to above the food", waypoints["above"])])
     if name == "acquire":
         steps = [_primitive(tool, st.pre_move_into, "pre-move-into", Mode.DISABLED),
-                 _path(arm, "into the food", waypoints["into"]),
+                 _path(arm, "into the food", waypoints["into"],
+                       *((tool, clock) if wrist else (None, None))),
                  _primitive(tool, st.post_move_into, "post-move-into", Mode.DISABLED),
-                 _path(arm, "out of the food", waypoints["out"])]
+                 _path(arm, "out of the food", waypoints["out"],
+                       *((tool, clock) if wrist else (None, None)))]
         if wrist:
             steps.append(Settle(tool, Mode.LEVELING, settings.level_s, clock))
         steps.append(seq(f"lift {settings.lift_m * 100:g} cm", memory=True, children=[

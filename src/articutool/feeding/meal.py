@@ -31,7 +31,7 @@ from py_trees.common import Status
 from articutool.arm.scene import Cylinder, Scene
 from articutool.feeding.behaviours import Attempts
 from articutool.feeding.bite import STAGES, BiteSettings, bite_tree
-from articutool.feeding.insertion import acquisition_waypoints
+from articutool.feeding.insertion import acquisition_waypoints, dish_outline
 from articutool.feeding.outcomes import classify_bite
 from articutool.feeding.sim_arm import SimArm
 from articutool.feeding.strategies import Strategy, StrategyLibrary
@@ -207,7 +207,7 @@ def _tree(setup: MealSetup, stages: Sequence[str], settings: BiteSettings,
     w = setup.world
     wps = acquisition_waypoints(setup.strategy,
                                 container_floor(w.scene, w.layout.container or "bowl"),
-                                SCOOP_HEADING)
+                                SCOOP_HEADING, dish_outline(w.spec, w.utensil))
     return bite_tree(setup.arm, tool or w.tool, setup.strategy, wps, w.clock, stages=stages,
                      settings=settings)
 

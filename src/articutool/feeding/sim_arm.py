@@ -32,12 +32,19 @@ from articutool.arm.model import ArmModel
 from articutool.feeding.behaviours import JobResult
 from articutool.feeding.insertion import TipWaypoint
 from articutool.planning.api import PlanRequest, TransportTask, plan
-from articutool.sim.scenes import ScriptError, cartesian_path, first_ik, lift_trajectory
+from articutool.sim.scenes import (
+    SCOOP_HEADING,
+    ScriptError,
+    cartesian_path,
+    first_ik,
+    lift_trajectory,
+    tip_target,
+)
 from articutool.sim.world import FeedingWorld, smooth_joint_motion
 from articutool.trajectory import JointTrajectory
 from articutool.verify import verify_trajectory
 
-__all__ = ["SimArm"]
+__all__ = ["SimArm", "wrist_sweep"]
 
 # Where a rigid utensil must wait level with food on it.
 _CARRY_GOALS = ("Resting", "Staging")
@@ -55,6 +62,84 @@ def _concatenate(parts: list[JointTrajectory]) -> JointTrajectory:
         vel.append(b.velocities[1:])
     return JointTrajectory(parts[0].joint_names, np.concatenate(times), np.concatenate(pos),
                            np.concatenate(vel))
+
+
+_PITCH_MARGIN = math.radians(5.0)
+
+
+def _pitch_down(model: ArmModel, q: np.ndarray) -> float:
+    """How far the utensil points below the horizon at ``q`` (rad)."""
+    return float(math.asin(-np.clip(model.tip_pose(q)[2, 2], -1.0, 1.0)))
+
+
+def wrist_sweep(model: ArmModel, q: np.ndarray, p0: np.ndarray, a0: float, p1: np.ndarray,
+                a1: float, speed: float, step_m: float = 0.002, dt: float = 0.02
+                ) -> JointTrajectory:
+    """8-joint trajectory of a tip segment p0 → p1 whose pitch change a0 → a1 the wrist's
+    pitch makes while the arm translates (issue 25; thesis §4.3.1, "a 2-DOF local motion with
+    the Articutool"): the wrist pitch is interpolated from ``q``'s to the one that gives
+    ``a1`` with the tool base as at ``q`` (within its range: beyond it the arm makes the rest
+    of the turn), and the arm joints are solved by IK for every tip
+    pose along the segment. Rest to rest, on a smoothstep in time no faster than ``speed`` on
+    average and within the arm's and the wrist's velocity limits. Raises ``ScriptError``."""
+    from articutool.arm.ik import IKSettings, solve_pose_ik
+
+    spec = model.spec
+    # The wrist pitch that turns the utensil by a1 − a0 with the arm still (sign from the
+    # kinematics, refined by two secant steps).
+    w0 = float(q[6])
+    cands = [w0 + (a1 - a0), w0 - (a1 - a0)]
+
+    def err(w: float) -> float:
+        qq = q.copy()
+        qq[6] = w
+        return _pitch_down(model, qq) - a1
+
+    w1 = min(cands, key=lambda w: abs(err(w)))
+    for _ in range(2):
+        e, h = err(w1), 1e-4
+        d = (err(w1 + h) - e) / h
+        if abs(d) > 1e-6:
+            w1 -= e / d
+    # Beyond the wrist's range the arm makes the rest of the turn (IK below solves the tip's
+    # pitch whatever the wrist gives), 5° inside the limit the runtime enforces.
+    lo, hi = spec.wrist.pitch_limits
+    w1 = min(max(w1, lo + _PITCH_MARGIN), hi - _PITCH_MARGIN)
+    n = max(2, math.ceil(max(np.linalg.norm(p1 - p0) / step_m,
+                             abs(a1 - a0) / math.radians(1.0))))
+    settings = IKSettings(random_seeds=0)
+    qs = [q.copy()]
+    for k in range(1, n + 1):
+        s = k / n
+        q_try = qs[-1].copy()
+        q_try[6] = w0 + s * (w1 - w0)
+        target = tip_target(p0 + s * (p1 - p0), SCOOP_HEADING, a0 + s * (a1 - a0))
+        sol = solve_pose_ik(model, "tip", target, q_try, settings, free=6)
+        if sol is None:
+            raise ScriptError(f"no arm IK solution for the tip at {np.round(target[:3, 3], 3)}"
+                              " m with the wrist levelling")
+        qs.append(sol)
+    Q = np.array(qs)
+    vmax = np.concatenate([spec.arm.max_velocity, spec.wrist.max_velocity])
+    dq_ds = np.max(np.abs(np.diff(Q, axis=0)) * n, axis=0)  # per unit of path parameter
+    # Smoothstep s(τ) = 3τ² − 2τ³ peaks at 1.5/T.
+    T = max(float(np.linalg.norm(p1 - p0)) / speed, 1.5 * float(np.max(dq_ds / vmax)), 4 * dt)
+    T = math.ceil(T / dt) * dt
+    tau = np.linspace(0.0, 1.0, round(T / dt) + 1)
+    sv = 3 * tau**2 - 2 * tau**3
+    grid = np.linspace(0.0, 1.0, n + 1)
+    pos = np.column_stack([np.interp(sv, grid, Q[:, j]) for j in range(Q.shape[1])])
+    vel = np.gradient(pos, tau * T, axis=0)
+    vel[0] = vel[-1] = 0.0
+    return JointTrajectory(tuple(model.joint_names), tau * T, pos, vel)
+
+
+def _with_wrist(traj: JointTrajectory, model: ArmModel, wrist: np.ndarray) -> JointTrajectory:
+    """An arm trajectory as an 8-joint one, the wrist held at ``wrist``."""
+    n = len(traj.times)
+    return JointTrajectory(tuple(model.joint_names), traj.times,
+                           np.column_stack([traj.positions, np.tile(wrist, (n, 1))]),
+                           np.column_stack([traj.velocities, np.zeros((n, 2))]))
 
 
 def _timed(work: Callable[[], JobResult]) -> Callable[[], JobResult]:
@@ -221,8 +306,26 @@ class SimArm:
                         return JobResult(False, f"the pose {name} is in collision")
                     parts = [smooth_joint_motion(q_now[:6], q0[:6], spec.arm.max_velocity,
                                                  joints)]
-                if len(pts) > 1:
-                    parts.append(cartesian_path(self.model, q0, pts))
+                if self.rigid or not any(w.wrist for w in waypoints):
+                    if len(pts) > 1:
+                        parts.append(cartesian_path(self.model, q0, pts))
+                else:  # the Articutool: the wrist makes the marked segments' pitch change
+                    parts = [_with_wrist(p, self.model, q0[6:]) for p in parts]
+                    q, k = q0, 1
+                    while k < len(pts):
+                        j = k
+                        while j < len(pts) and waypoints[j].wrist == waypoints[k].wrist:
+                            j += 1
+                        if waypoints[k].wrist:
+                            for i in range(k, j):
+                                seg = wrist_sweep(self.model, q, *pts[i - 1][:2], *pts[i])
+                                parts.append(seg)
+                                q = seg.positions[-1].copy()
+                        else:
+                            seg6 = cartesian_path(self.model, q, pts[k - 1:j])
+                            parts.append(_with_wrist(seg6, self.model, q[6:]))
+                            q = np.concatenate([seg6.positions[-1], q[6:]])
+                        k = j
             except ScriptError as err:
                 return JobResult(False, str(err))
             traj = _concatenate(parts)

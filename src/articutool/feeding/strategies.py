@@ -80,7 +80,9 @@ class Approach(_Strict):
 class Insertion(_Strict):
     """How the utensil goes into the food."""
 
-    motion: Literal["scoop", "skewer", "dip"]
+    # sweep: dip tilted, level in the food while moving drag_m (issue 25; depth_m is then
+    # the dish's lowest point above the floor)
+    motion: Literal["scoop", "skewer", "dip", "sweep"]
     depth_m: NonNegative
     pitch_down_deg: Annotated[float, Field(ge=0, le=90)]
     drag_m: NonNegative = 0.0
@@ -93,6 +95,30 @@ class Insertion(_Strict):
     # Pitch at which the arm takes the utensil out (0: the arm levels it; otherwise the
     # wrist levels it after, a tool-only motion, thesis §4.3.1).
     extract_pitch_down_deg: Annotated[float, Field(ge=0, le=90)] = 0.0
+    # A sweep's pitch at the end of its turn in the food (0: level). A level utensil low in a
+    # bowl rests its handle on the rim behind it: the turn ends where the handle clears it,
+    # and the utensil levels as it rises.
+    sweep_to_deg: Annotated[float, Field(ge=0, le=90)] = 0.0
+
+    @model_validator(mode="after")
+    def _sweep_fields(self) -> Insertion:
+        if self.motion == "sweep":
+            if self.drag_m <= 0 or self.drag_m > 0.08:
+                raise ValueError("a sweep moves along the heading while it levels: drag_m "
+                                 f"must be in (0, 0.08] m; got {self.drag_m}")
+            if self.depth_m > 0.03:
+                raise ValueError("a sweep's depth_m is the dish's lowest point above the "
+                                 f"floor: it must be in [0, 0.03] m; got {self.depth_m}")
+            if self.level_height_m is not None or self.extract_pitch_down_deg != 0:
+                raise ValueError("a sweep levels in the food: level_height_m and "
+                                 "extract_pitch_down_deg do not apply")
+            if self.sweep_to_deg >= self.pitch_down_deg:
+                raise ValueError("a sweep turns towards level: sweep_to_deg must be below "
+                                 f"pitch_down_deg ({self.pitch_down_deg}); got "
+                                 f"{self.sweep_to_deg}")
+        elif self.sweep_to_deg != 0:
+            raise ValueError(f"sweep_to_deg applies to a sweep only, not a {self.motion}")
+        return self
 
 
 class Stages(_Strict):
