@@ -14,6 +14,13 @@ Primitives (parameters in order; angles in rad unless ``_deg``):
   vibrate_amplitude_deg, vibrate_duration_s): pitch up, wait, vibrate roll, pitch (and roll)
   back to the start.
 - ``HOMING`` (speed_rad_s): both joints to zero.
+- ``VIBRATE_ROLL_UNTIL_STABLE`` (frequency_hz, amplitude_rad, max_duration_s, window_s,
+  stable_g): VIBRATE_ROLL that ends when two consecutive windows (whole vibration periods)
+  weigh the load, by the F/T sensor, within stable_g; at most max_duration_s (closed loop,
+  thesis §7.1.2's future work).
+- ``TILT_UNTIL_LOAD`` (step_rad, max_roll_rad, velocity_rad_s, target_load_g, window_s):
+  weigh level; while above target_load_g, TILT to the next step (step, 2·step, … max_roll),
+  roll back, weigh again for window_s (closed loop; at most max_roll/step tilts).
 
 Conventions. CW is +roll: clockwise seen from the wrist looking along the utensil (+z of F0,
 right-hand rule), the way a screw turns going in. TILT's target is relative to the roll at the
@@ -67,9 +74,11 @@ __all__ = [
     "Primitive",
     "PrimitiveError",
     "Tilt",
+    "TiltUntilLoad",
     "TwirlCCW",
     "TwirlCW",
     "VibrateRoll",
+    "VibrateRollUntilStable",
     "get_primitive",
     "make_primitive",
     "primitive_names",
@@ -176,6 +185,10 @@ class Primitive:
 
     name: ClassVar[str] = ""
     parameter_names: ClassVar[tuple[str, ...]] = ()
+    #: Reads the F/T sensor (:meth:`sense`): refused by a runtime without one.
+    needs_ft: ClassVar[bool] = False
+    #: This tick's fresh tared force (N, sensor frame), or None (see :meth:`sense`).
+    force: NDArray[np.float64] | None = None
 
     def __init__(self, params: Sequence[float], spec: Spec, q_start: ArrayLike) -> None:
         values = self._parse(params)
@@ -302,6 +315,12 @@ class Primitive:
         return Move(label, start, target, np.broadcast_to(speed, (2,)), self.gain)
 
     # -- running ---------------------------------------------------------------
+    def sense(self, force: ArrayLike | None) -> None:
+        """This tick's fresh tared F/T force (N), or None when no new valid sample came;
+        call before :meth:`step`. Only closed-loop primitives (``needs_ft``) use it."""
+        f = None if force is None else np.asarray(force, dtype=np.float64)
+        self.force = f if f is not None and f.shape == (3,) and np.isfinite(f).all() else None
+
     def step(self, q_measured: ArrayLike, dt: float) -> NDArray[np.float64]:
         """One tick: the joint velocity command (rad/s) for the measured joints ``q``.
 
@@ -337,7 +356,7 @@ class Primitive:
                 break
             self._index += 1
             self._t_phase = 0.0
-            if self._index == len(self.phases):
+            if self._index == len(self.phases) or getattr(ph, "stop_all", False):
                 self._finish(True, self._success_message())
                 return np.zeros(2)
         i = self._index
@@ -645,3 +664,157 @@ class Homing(Primitive):
             why="both joints' speed limit, spec.wrist.max_velocity",
         )
         return [self.move("homing", self.q_start, np.zeros(2), speed)]
+
+
+# ------------------------------------------------------- closed-loop (F/T) shedding --
+# Thesis §7.1.2 names "closed-loop, sensor-driven primitives" as future work. These read the
+# wrist's F/T sensor through :meth:`Primitive.sense` (the runtime passes each tick's fresh
+# tared force, or None) and weigh the load as |mean tared force| / g over whole windows.
+# The tare is taken with the utensil empty and level, so a weight is only compared at the
+# start orientation (VIBRATE: windows of whole vibration periods about it; TILT: weighed
+# after returning to it); a tick without a fresh sample adds nothing. Both are bounded.
+class _Weighing:
+    """Tared force samples over one window → the load in grams (None: no sample)."""
+
+    def __init__(self, gravity: float) -> None:
+        self.g = gravity
+        self.samples: list[NDArray[np.float64]] = []
+
+    def add(self, force: NDArray[np.float64] | None) -> None:
+        if force is not None:
+            self.samples.append(force)
+
+    def grams(self) -> float | None:
+        if not self.samples:
+            return None
+        m = float(np.linalg.norm(np.mean(self.samples, axis=0))) / self.g * 1000.0
+        self.samples = []
+        return m
+
+
+class VibrateUntilStable(Vibrate):
+    """Vibrate like :class:`Vibrate`, ending early once two consecutive windows weigh
+    within ``stable_g`` of each other (the load stopped changing)."""
+
+    def __init__(self, label, target, speed, frequency, amplitude, duration, window, stable_g,
+                 gravity):
+        super().__init__(label, target, speed, frequency, amplitude, duration)
+        self.window, self.stable_g = float(window), float(stable_g)
+        self.scale = _Weighing(gravity)
+        self.weights: list[float] = []
+        self._next = self.window
+        self.settled = False
+
+    def step(self, prim, t, q, dt):
+        self.scale.add(prim.force)
+        if t >= self._next - 1e-9:
+            self._next += self.window
+            m = self.scale.grams()
+            if m is not None:
+                self.weights.append(m)
+            if len(self.weights) >= 2 and abs(self.weights[-1] - self.weights[-2]) <= self.stable_g:
+                self.settled = True
+                return np.zeros(2), 1.0, True
+        return super().step(prim, t, q, dt)
+
+
+class Weigh(Hold):
+    """Hold still for ``duration`` s and weigh; ``stop_all`` when the load ≤ ``target_g``."""
+
+    def __init__(self, label, target, speed, duration, target_g, gravity):
+        super().__init__(label, target, speed, duration)
+        self.target_g = float(target_g)
+        self.scale = _Weighing(gravity)
+        self.grams: float | None = None
+        self.stop_all = self.finished = False
+
+    def step(self, prim, t, q, dt):
+        self.scale.add(prim.force)
+        cmd, frac, finished = super().step(prim, t, q, dt)
+        if finished:
+            self.finished = True
+            self.grams = self.scale.grams()
+            self.stop_all = self.grams is not None and self.grams <= self.target_g
+        return cmd, frac, finished
+
+
+def _window_check(prim: Primitive, pname: str, window: float, f: float | None) -> float:
+    lo = 1.0 / f if f else 2.0 / prim.spec.ft.rate_hz
+    why = "at least one vibration period" if f else "at least two F/T samples"
+    prim._require(pname, window, lo, prim.spec.primitives.max_hold_s, unit="s",
+                  why=f"{why}, at most spec.primitives.max_hold_s")
+    if f:  # whole periods: the roll's effect on the reading averages out
+        return max(1, round(window * f)) / f
+    return window
+
+
+@register_primitive
+class VibrateRollUntilStable(Primitive):
+    """VIBRATE_ROLL that stops when the F/T-weighed load stops changing (at most
+    ``max_duration_s``), then returns to the start roll. Thesis §4.4 + §7.1.2."""
+
+    name = "VIBRATE_ROLL_UNTIL_STABLE"
+    parameter_names = ("frequency_hz", "amplitude_rad", "max_duration_s", "window_s",
+                       "stable_g")
+    needs_ft = True
+
+    def _plan(self, f: float, a: float, duration: float, window: float,
+              stable: float) -> list[Phase]:
+        _vibration_checks(self, "frequency_hz", "amplitude_rad", f, a, "rad", 1.0)
+        self._max_duration("max_duration_s", duration, "max_vibrate_s")
+        window = _window_check(self, "window_s", window, f)
+        self._require("stable_g", stable, 0.0, math.inf, lo_open=True, unit="g")
+        peak = a * TWO_PI * f
+        q0 = self.q_start
+        self.vib = VibrateUntilStable("vibrate", q0, [peak, peak], f, a, duration, window,
+                                      stable, self.spec.imu.gravity)
+        return [self.vib, self.move("return", q0 + [0.0, a], q0, peak)]
+
+    def _success_message(self) -> str:
+        w = self.vib.weights
+        how = "load stable" if self.vib.settled else "time bound, load still changing"
+        last = f", {w[-1]:.2f} g" if w else ", no F/T samples"
+        return f"{self.name} complete: {how} after {len(w)} windows{last}"
+
+
+@register_primitive
+class TiltUntilLoad(Primitive):
+    """TILT in growing steps (``step_rad``, ``2·step_rad``, … up to ``max_roll_rad``), each
+    tilt rolled back and the load weighed level for ``window_s``; stops as soon as the load
+    is at most ``target_load_g``. Thesis §4.4 + §7.1.2."""
+
+    name = "TILT_UNTIL_LOAD"
+    parameter_names = ("step_rad", "max_roll_rad", "velocity_rad_s", "target_load_g",
+                       "window_s")
+    needs_ft = True
+
+    def _plan(self, step: float, max_roll: float, velocity: float, target_g: float,
+              window: float) -> list[Phase]:
+        lo, hi = self.spec.wrist.roll_limits
+        self._require("max_roll_rad", max_roll, lo, hi, unit="rad",
+                      why="relative to the start roll, spec.wrist.roll_limits")
+        self._require("step_rad", step, 0.0, max(abs(max_roll), 1e-9), lo_open=True,
+                      unit="rad", why="one tilt step, at most |max_roll_rad|")
+        self._speed("velocity_rad_s", velocity, 1)
+        self._require("target_load_g", target_g, 0.0, math.inf, unit="g")
+        window = _window_check(self, "window_s", window, None)
+        q0 = self.q_start
+        self._roll_in_budget("max_roll_rad", float(q0[1] + max_roll))
+        g, sign = self.spec.imu.gravity, math.copysign(1.0, max_roll)
+        n = max(1, math.ceil(abs(max_roll) / step - 1e-9))
+        self.weighs: list[Weigh] = [Weigh("weigh", q0, [velocity] * 2, window, target_g, g)]
+        phases: list[Phase] = [self.weighs[0]]
+        for k in range(1, n + 1):
+            tilted = q0 + [0.0, sign * min(k * step, abs(max_roll))]
+            self.weighs.append(Weigh("weigh", q0, [velocity] * 2, window, target_g, g))
+            phases += [self.move(f"tilt {k}", q0, tilted, velocity),
+                       self.move("return", tilted, q0, velocity), self.weighs[-1]]
+        return phases
+
+    def _success_message(self) -> str:
+        done = [w.grams for w in self.weighs if w.grams is not None]
+        tilts = sum(1 for w in self.weighs[1:] if w.finished)
+        how = "load at target" if any(w.stop_all for w in self.weighs) else \
+            "bound reached, load above target"
+        last = f", {done[-1]:.2f} g" if done else ", no F/T samples"
+        return f"{self.name} complete: {how} after {tilts} tilts{last}"

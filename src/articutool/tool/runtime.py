@@ -242,6 +242,7 @@ class ToolRuntime:
         self._imu_resets = 0
         self._gyro_corrected = np.zeros(3)
         self._ft_last: tuple[float, ...] | None = None
+        self._ft_fresh: NDArray[np.float64] | None = None  # this tick's force, for primitives
         self._ft_errors = 0
         self._tilt = math.nan
         # modes
@@ -406,6 +407,8 @@ class ToolRuntime:
                                       self._motor_state.position.copy())
             except (PrimitiveError, ValueError, TypeError) as err:
                 return False, str(err)
+            if prim.needs_ft and self.ft is None:
+                return False, f"refused: {prim.name} reads the F/T sensor and this tool has none"
             self._enter(Mode.PRIMITIVE)
             self._primitive = prim
             self._primitive_status = prim.status()
@@ -674,6 +677,7 @@ class ToolRuntime:
         self._imu_fresh = bool(self.filter.initialized and age <= self._stale_after * (1 + 1e-9))
 
     def _read_ft(self) -> None:
+        self._ft_fresh = None
         if self.ft is None:
             return
         try:
@@ -682,6 +686,7 @@ class ToolRuntime:
             self._ft_errors += 1
             return
         if s is not None:
+            self._ft_fresh = np.asarray(s.force, dtype=np.float64)
             self._ft_last = (*np.asarray(s.force).tolist(), *np.asarray(s.torque).tolist())
 
     def _tool_tilt(self, q: NDArray[np.float64]) -> float:
@@ -709,6 +714,7 @@ class ToolRuntime:
     def _primitive_command(self, q: NDArray[np.float64], dt: float) -> NDArray[np.float64] | None:
         prim = self._primitive
         assert prim is not None
+        prim.sense(self._ft_fresh)
         cmd = prim.step(q, dt)
         self._primitive_status = prim.status()
         if prim.done:
