@@ -27,6 +27,8 @@ from numpy.typing import NDArray
 from articutool.arm.model import TOOL_BASE_FRAME, tip_frame_name
 from articutool.arm.scene import Box, Capsule, Cylinder, Halfspace, Scene, Sphere, rpy_matrix
 from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
+from articutool.sim.pieces import Capsule as PieceCapsules
+from articutool.sim.pieces import capsule_mass, draw_piece, piece_extent
 from articutool.spec import Spec, UtensilSpec
 
 __all__ = ["FT_SITE", "IMU_SITE", "WorldLayout", "build_mjcf", "spoon_dish", "tip_site_name"]
@@ -237,10 +239,16 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
         layout.parked = True
     if isinstance(food, Strands):
         return _strands(food, count, inner, floor_z, cx, cy, rng, layout)
+    pieces: list[list[PieceCapsules]] = []
     if isinstance(food, Granular):
-        cell = 2 * (food.piece_radius + food.piece_half_length) * 1.05
-        size = (f'type="capsule" size="{food.piece_radius} {food.piece_half_length}" '
-                f'friction="{_f(food.friction)}" condim="6"')
+        # Pieces drawn until their mass reaches the fill (sizes vary: the count follows).
+        target, total = (food.fill_g if load_g is None else load_g) / 1000.0, 0.0
+        while total < target - 1e-12 and len(pieces) < 5000:
+            pieces.append(draw_piece(food, rng))
+            total += capsule_mass(pieces[-1], food.density)
+        count = len(pieces)
+        cell = piece_extent(food) * 1.05
+        size = f'type="capsule" friction="{_f(food.friction)}" condim="6"'
         rgba = "0.55 0.33 0.15 1"
     else:
         cell = 2 * food.particle_radius * 1.02
@@ -270,9 +278,17 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
         name = f"food{k}"
         layout.food_bodies.append(name)
         grav = ' gravcomp="1"' if load_g is not None else ""
+        if pieces:  # capsules weighed by density; the first geom carries the body's name
+            geoms = "".join(
+                f'<geom name="{name}{"" if i == 0 else f"_{i}"}" {size} size="{r:.9g}" '
+                f'fromto="{_f(np.r_[a, b])}" density="{food.density:.9g}" '
+                f'solref="{_f(food.solref)}" {fcls} rgba="{rgba}"/>'
+                for i, (a, b, r) in enumerate(pieces[k]))
+        else:
+            geoms = (f'<geom name="{name}" {size} mass="{mass:.9g}" '
+                     f'solref="{_f(food.solref)}" {fcls} rgba="{rgba}"/>')
         out.append(f'<body name="{name}" pos="{_f(np.array([cx + x, cy + y, z]) + jitter)}" '
-                   f'quat="{_f(q)}"{grav}><freejoint/><geom name="{name}" {size} mass="{mass:.9g}" '
-                   f'solref="{_f(food.solref)}" {fcls} rgba="{rgba}"/></body>')
+                   f'quat="{_f(q)}"{grav}><freejoint/>{geoms}</body>')
     return out
 
 
