@@ -95,3 +95,25 @@ def test_exp2c_closed_loop_settings_refuse_bad_parameters_naming_them(tmp_path):
     p.write_text(bad)
     with pytest.raises(ExperimentsConfigError, match=r"closed_loop\.water.*window_s"):
         ExperimentsConfig.load(p)
+
+
+def test_exp2c_summary_tests_each_primitive_against_control_and_closed_against_open():
+    from articutool.experiments.analysis import summarize
+
+    cfg = ExperimentsConfig.load()
+
+    def rec(cond, delivered, spilled):
+        return {"experiment": "exp2c", "food": "pecans", "condition": cond, "error": None,
+                "seed": 0,
+                "completed": True, "delivered_g": delivered, "held_g": 8.0, "shed_g": 0.0,
+                "spilled_g": spilled, "spilled_by_place": {"table": spilled, "critical": 0.0}}
+
+    recs = ([rec("control", 6.0, 0.5) for _ in range(10)]
+            + [rec("primitive", 6.0, 0.5 if k < 5 else 0.0) for k in range(10)]
+            + [rec("closed_loop", 6.0, 0.0) for _ in range(10)])
+    f = summarize("exp2c", recs, cfg, thresholds_g={"pecans": 1.0})["foods"]["pecans"]
+    assert f["closed_loop"]["counts"]["meaningful_success"] == 10
+    assert f["fisher_meaningful"]["table"] == [[5, 5], [0, 10]]
+    assert f["fisher_meaningful_closed_loop"]["table"] == [[10, 0], [0, 10]]
+    assert f["fisher_meaningful_closed_vs_open"]["table"] == [[10, 0], [5, 5]]
+    assert f["fisher_meaningful_closed_loop"]["p"] < f["fisher_meaningful"]["p"]
