@@ -28,7 +28,7 @@ from articutool.arm.model import TOOL_BASE_FRAME, tip_frame_name
 from articutool.arm.scene import Box, Capsule, Cylinder, Halfspace, Scene, Sphere, rpy_matrix
 from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
 from articutool.sim.pieces import Capsule as PieceCapsules
-from articutool.sim.pieces import capsule_mass, draw_piece, piece_extent
+from articutool.sim.pieces import bound_radius, capsule_mass, draw_piece
 from articutool.spec import Spec, UtensilSpec
 
 __all__ = ["FT_SITE", "IMU_SITE", "WorldLayout", "build_mjcf", "spoon_dish", "tip_site_name"]
@@ -247,7 +247,7 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
             pieces.append(draw_piece(food, rng))
             total += capsule_mass(pieces[-1], food.density)
         count = len(pieces)
-        cell = piece_extent(food) * 1.05
+        cell = 2.0 * bound_radius(food) * 1.25  # jitter ±0.1 cell never closes the gap
         size = f'type="capsule" friction="{_f(food.friction)}" condim="6"'
         rgba = "0.55 0.33 0.15 1"
     else:

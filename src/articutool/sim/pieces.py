@@ -21,7 +21,7 @@ import numpy as np
 
 from articutool.sim.params import Granular
 
-__all__ = ["Capsule", "capsule_mass", "draw_piece", "piece_extent"]
+__all__ = ["Capsule", "bound_radius", "capsule_mass", "draw_piece", "piece_extent"]
 
 Capsule = tuple[tuple[float, float, float], tuple[float, float, float], float]
 
@@ -53,3 +53,11 @@ def piece_extent(food: Granular) -> float:
     """The largest size a piece can have (m): the lattice cell that keeps pieces apart."""
     w = food.half_width_m[1] * max(food.half_length_ratio, 1.0)
     return max(w, 2.0 * food.piece_screen_m[1])
+
+
+def bound_radius(food: Granular) -> float:
+    """Radius (m) of a sphere about the piece's origin that holds any piece in any
+    orientation: lattice points twice this apart never start two pieces overlapping."""
+    w = food.half_width_m[1]
+    half = math.hypot(max(food.half_length_ratio * w / 2.0 - w / 4.0, 0.0), w / 4.0) + w / 4.0
+    return max(half, 1.25 * food.piece_screen_m[1])
