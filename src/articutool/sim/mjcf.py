@@ -248,6 +248,9 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
             total += capsule_mass(pieces[-1], food.density)
         count = len(pieces)
         cell = 2.0 * bound_radius(food) * 1.25  # jitter ±0.1 cell never closes the gap
+        # Pieces are flat (capsules in one plane) and start lying flat, turned about the
+        # vertical only: a layer is 1.5 thicknesses high, so the column stays low.
+        cell_z = 1.5 * max(food.half_width_m[1], food.piece_screen_m[1]) / 2.0
         size = f'type="capsule" friction="{_f(food.friction)}" condim="6"'
         rgba = "0.55 0.33 0.15 1"
     else:
@@ -255,9 +258,11 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
         size = f'type="sphere" size="{food.particle_radius}" condim="1"'
         rgba = "0.3 0.5 0.95 0.8"
     # Lattice inside the inner radius, layer by layer, with a small seeded jitter.
+    if not pieces:
+        cell_z = cell
     pts = []
     n_side = int(2 * inner / cell)
-    z = floor_z + cell / 2
+    z = floor_z + cell_z / 2
     while len(pts) < count:
         for i in range(n_side):
             for j in range(n_side):
@@ -265,16 +270,19 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
                 y = -inner + cell / 2 + j * cell
                 if math.hypot(x, y) < inner - cell / 2:
                     pts.append((x, y, z))
-        z += cell
+        z += cell_z
     pts = pts[:count]
     layout.piece_size = cell
     for k, (x, y, z) in enumerate(pts):
         jitter = rng.uniform(-0.1, 0.1, 3) * cell
-        jitter[2] = abs(jitter[2])
+        jitter[2] = abs(jitter[2]) * cell_z / cell
         if load_g is not None:  # parked: a row far from everything
             x, y, z, cx, cy, jitter = 50.0 + k * cell, 50.0, 1.0, 0.0, 0.0, np.zeros(3)
         q = rng.normal(size=4)
         q /= np.linalg.norm(q)
+        if pieces:  # lying flat: the same draw, as a turn about the vertical
+            yaw = math.atan2(q[1], q[0])
+            q = np.array([math.cos(yaw), 0.0, 0.0, math.sin(yaw)])
         name = f"food{k}"
         layout.food_bodies.append(name)
         grav = ' gravcomp="1"' if load_g is not None else ""
