@@ -239,3 +239,16 @@ def test_health_warns_while_leveling_is_stalled(extra, fault, level, text) -> No
     assert (st.level, st.message) == (level, text)
     state = m.state_from_msgs(m.joint_state_msg(_state(), 1.0), None, back, None, 2.0)
     assert state.extra == pytest.approx(extra)
+
+
+def test_a_wrist_part_sliced_from_a_longer_path_encodes() -> None:
+    # The feeding tree sends the wrist's part of a longer path, whose rows can be strided
+    # (a transposed joint-major array); the CDR serialiser needs contiguous rows (it
+    # crashed `meal --record` on a sweep).
+    times = np.array([0.0, 0.5, 1.0])
+    q8 = np.arange(24, dtype=np.float64).reshape(8, 3).T / 10  # rows strided
+    wrist = JointTrajectory(("pitch", "roll"), times, q8[:, 6:], np.zeros((8, 3)).T[:, 6:])
+    assert not wrist.positions[0].flags["C_CONTIGUOUS"]
+    data = m.encode(m.trajectory_msg(wrist), m.JOINT_TRAJECTORY)
+    back = m.trajectory_from_msg(m.decode(data, m.JOINT_TRAJECTORY))
+    assert np.allclose(back.positions, q8[:, 6:8])

@@ -537,8 +537,10 @@ def trajectory_msg(traj: JointTrajectory, t: float = 0.0) -> Any:
         sec = math.floor(ti)
         nsec = min(round((ti - sec) * 1e9), 999_999_999)
         pts.append(msg("trajectory_msgs/msg/JointTrajectoryPoint",
-                       positions=np.asarray(q, dtype=np.float64),
-                       velocities=np.asarray(v, dtype=np.float64),
+                       # contiguous: the CDR serialiser views the buffer (a wrist part sliced
+                       # out of a longer path is strided)
+                       positions=np.ascontiguousarray(q, dtype=np.float64),
+                       velocities=np.ascontiguousarray(v, dtype=np.float64),
                        accelerations=np.zeros(0), effort=np.zeros(0),
                        time_from_start=msg("builtin_interfaces/msg/Duration", sec=int(sec),
                                            nanosec=nsec)))
