@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -10,7 +11,7 @@ from numpy.typing import NDArray
 
 from articutool.arm.model import TOOL_BASE_FRAME, ArmModel, tip_frame_name
 
-__all__ = ["IKSettings", "solve_pose_ik"]
+__all__ = ["IKSettings", "solve_level_ik", "solve_pose_ik"]
 
 
 @dataclass(frozen=True)
@@ -67,4 +68,28 @@ def solve_pose_ik(
             dq *= settings.max_step_rad / step
         q = q.copy()
         q[:n] = np.clip(q[:n] + dq, lo[:n], hi[:n])
+    return None
+
+
+def solve_level_ik(
+    model: ArmModel,
+    tip_at: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    heading0: float,
+    seeds: Sequence[NDArray[np.float64]],
+    step_deg: float = 15.0,
+) -> NDArray[np.float64] | None:
+    """The first collision-free configuration whose utensil is level (its axis horizontal)
+    with the tip at ``tip_at(z)`` for the utensil axis ``z``: headings from ``heading0``
+    outwards in ``step_deg`` steps, each tried from every seed (deterministic). None if no
+    heading and seed gives one."""
+    y = np.array([0.0, 0.0, 1.0])
+    for dh in sorted(np.radians(np.arange(-180.0, 180.0, step_deg)), key=abs):
+        z = np.array([np.cos(heading0 + dh), np.sin(heading0 + dh), 0.0])
+        target = np.eye(4)
+        target[:3, :3] = np.column_stack([np.cross(y, z), y, z])
+        target[:3, 3] = tip_at(z)
+        for q0 in seeds:
+            q = solve_pose_ik(model, "tip", target, q0, IKSettings(), free=6)
+            if q is not None and not model.in_collision(q):
+                return q
     return None

@@ -175,7 +175,7 @@ def shed_configuration(spec: Spec, scene: Scene, utensil: str, container: str = 
     steps, IK from the spec's named configurations, and the first collision-free solution
     is taken (deterministic). Raises ``ValueError`` naming the container when none exists.
     """
-    from articutool.arm.ik import IKSettings, solve_pose_ik
+    from articutool.arm.ik import solve_level_ik
     from articutool.arm.model import ArmModel
     from articutool.sim.mjcf import spoon_dish
 
@@ -188,17 +188,10 @@ def shed_configuration(spec: Spec, scene: Scene, utensil: str, container: str = 
     centre = container_floor(scene, container) + np.array([0.0, 0.0, height_m])
     model = ArmModel(spec, utensil, 8, scene)
     h0 = math.atan2(centre[1], centre[0])
-    y = np.array([0.0, 0.0, 1.0])
     seeds = [np.r_[spec.arm.configuration(n), 0.0, 0.0] for n in spec.arm.configurations]
-    for dh in sorted(np.radians(np.arange(-180.0, 180.0, 15.0)), key=abs):
-        z = np.array([math.cos(h0 + dh), math.sin(h0 + dh), 0.0])  # along the utensil
-        target = np.eye(4)
-        target[:3, :3] = np.column_stack([np.cross(y, z), y, z])
-        target[:3, 3] = centre + back * z
-        for q0 in seeds:
-            q = solve_pose_ik(model, "tip", target, q0, IKSettings(), free=6)
-            if q is not None and not model.in_collision(q):
-                return q[:6]
+    q = solve_level_ik(model, lambda z: centre + back * z, h0, seeds)
+    if q is not None:
+        return q[:6]
     raise ValueError(f"container: no collision-free level utensil pose over {container!r}")
 
 

@@ -228,7 +228,7 @@ class SimArm:
 
         At the spec's Resting with the Articutool's long tool, only headings near +x and −y
         give a level rigid utensil (measured by IK from 33 starts)."""
-        from articutool.arm.ik import IKSettings, solve_pose_ik
+        from articutool.arm.ik import solve_level_ik
 
         spec, wq = self.world.spec, self.world.wrist_q
         named = (spec.arm.configuration(goal) if goal in spec.arm.configurations else None)
@@ -243,15 +243,9 @@ class SimArm:
         h0 = float(np.arctan2(T[1, 2], T[0, 2]))
         seeds = [q_goal] + [np.concatenate([spec.arm.configuration(n), wq])
                             for n in spec.arm.configurations]
-        y = np.array([0.0, 0.0, 1.0])
-        for dh in sorted(np.radians(np.arange(-180.0, 180.0, 15.0)), key=abs):
-            z = np.array([np.cos(h0 + dh), np.sin(h0 + dh), 0.0])
-            target = T.copy()
-            target[:3, :3] = np.column_stack([np.cross(y, z), y, z])
-            for q0 in seeds:
-                q = solve_pose_ik(self.model, "tip", target, q0, IKSettings(), free=6)
-                if q is not None and not self.model.in_collision(q):
-                    return q[:6]
+        q = solve_level_ik(self.model, lambda z: T[:3, 3], h0, seeds)
+        if q is not None:
+            return q[:6]
         raise ValueError(f"goal: no collision-free level configuration at {goal!r} for the "
                          "locked wrist")
 
