@@ -306,6 +306,7 @@ def test_sigterm_stops_an_idle_node(graph: Graph) -> None:
     (["--ros-tool-id", "9lives"], "--ros-tool-id"),
     (["--connect", "tcp/nowhere"], "connect"),
     (["--wait", "-1"], "--wait"),
+    (["--wait", "1e300"], "--wait"),  # bounded like the client's (issue 22): it hung
 ])
 def test_bad_input_exits_2_naming_the_field(args: list[str], field: str) -> None:
     p = _articutool("ros2", *args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)

@@ -18,7 +18,7 @@ __all__ = ["add_commands", "run"]
 
 def add_commands(subparsers: Any) -> None:
     """Register ``articutool ros2``."""
-    from articutool.link.cli import _seconds
+    from articutool.link.cli import _wait_seconds
     from articutool.link.config import add_config_args
 
     p = subparsers.add_parser(
@@ -35,7 +35,7 @@ def add_commands(subparsers: Any) -> None:
     p.add_argument("--ros-tool-id", default=None, metavar="NAME",
                    help="the <id> in the ROS 2 names (default: the tool id; must be letters, "
                         "digits and underscores)")
-    p.add_argument("--wait", type=_seconds, default=10.0, metavar="S",
+    p.add_argument("--wait", type=_wait_seconds, default=10.0, metavar="S",
                    help="seconds to wait for the tool to be heard (default 10)")
     p.set_defaults(func=run)
 
