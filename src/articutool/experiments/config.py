@@ -32,6 +32,7 @@ class Settings(_Strict):
     tree_timeout_s: Positive
     settle_s: Positive
     arm_tolerance_deg: Annotated[float, Field(gt=0, lt=90)]
+    alpha: Annotated[float, Field(gt=0, lt=1)] = 0.05
 
 
 class Exp1(_Strict):

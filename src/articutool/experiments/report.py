@@ -19,6 +19,7 @@ from typing import Any
 from articutool.experiments.analysis import EXP2C_CLASSES, summarize
 from articutool.experiments.figures import mass_bars, outcome_bars
 from articutool.experiments.stats import FisherResult, fisher
+from articutool.experiments.verdicts import code_versions, verdicts
 from articutool.feeding.outcomes import OUTCOMES
 
 __all__ = ["HONESTY", "differences", "figure", "section", "thesis_exp3_no_spill", "write_report"]
@@ -364,6 +365,32 @@ def section(exp: str, summary: Mapping[str, Any], cfg: Any, figure_name: str | N
     return md
 
 
+def hypotheses_section(summaries: Mapping[str, Mapping[str, Any]], cfg: Any) -> str:
+    """The per-hypothesis table (:func:`articutool.experiments.verdicts.verdicts`) and which
+    code every trial ran (``run.sources`` of each experiment)."""
+    alpha = cfg.settings.alpha
+    rows = [[v.hypothesis, v.figure, v.claim, v.thesis, v.ours, v.test, f"**{v.verdict}**"]
+            for v in verdicts(summaries, cfg.thesis, alpha)]
+    md = ("## What the simulation shows, per hypothesis\n\n"
+          f"A claim is *reproduced* when our difference has the thesis' sign and our test gives "
+          f"p < {alpha:g}, *contradicted* when it is significant the other way, *not reproduced* "
+          "when our test does not separate the conditions, and *cannot test* when our "
+          "measurement cannot carry the claim (no food moved in either condition, or not run). "
+          "The thesis' numbers are printed beside ours, never used to decide. Why ours differ "
+          "is in each experiment's section below.\n\n"
+          + _table(["H", "figure", "claim", "thesis", "ours", "test", "verdict"], rows) + "\n")
+    versions = code_versions(summaries)
+    every = {v for vs in versions.values() for v in vs}
+    n = sum(sum(vs.values()) for vs in versions.values())
+    if len(every) == 1:
+        md += f"\n**Code.** All {n} trials ran on one code version: {next(iter(every))}.\n"
+    elif every:
+        md += ("\n**Code.** The trials ran on more than one code version: " + "; ".join(
+            f"{exp}: " + ", ".join(f"{k} ({c})" for k, c in vs.items())
+            for exp, vs in versions.items()) + ".\n")
+    return md
+
+
 # ------------------------------------------------------------------------- report --
 def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | None,
                  thresholds_source: str, threshold_g: float | None,
@@ -389,6 +416,8 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
              "## Honesty rules\n", HONESTY]
     missing = []
     machines = {}
+    summaries: dict[str, Mapping[str, Any]] = {}
+    at_verdicts = len(parts)
     for exp in ORDER:
         recs = read_trials(out, exp)
         spath = out / exp / "summary.json"
@@ -409,9 +438,11 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
         npath = out / exp / "notes.md"
         notes = npath.read_text(encoding="utf-8") if npath.exists() else ""
         parts.append(section(exp, summary, cfg, rel, notes))
+        summaries[exp] = summary
         m = old.get("run", {}).get("machine")
         if m:
             machines[exp] = (m, old["run"].get("date"))
+    parts.insert(at_verdicts, hypotheses_section(summaries, cfg))
     if missing:
         parts.append("## Not run yet\n\n" + ", ".join(missing) + " (no trials or no "
                      "summary under this directory).\n")

@@ -1,0 +1,68 @@
+"""The report's per-hypothesis verdicts (issue 29): decided from our measurement's direction and
+test, never from the thesis' numbers."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from hypothesis import given
+from hypothesis import strategies as st
+
+from articutool.experiments.config import ExperimentsConfig
+from articutool.experiments.stats import describe, welch
+from articutool.experiments.verdicts import verdicts
+
+CFG = ExperimentsConfig.load()
+ALPHA = CFG.settings.alpha
+
+
+def _exp1(a: list[float], b: list[float]) -> dict:
+    w = welch(a, b)
+    return {"acquired_g": {"pecans": {"articutool": describe(a).to_dict(),
+                                      "baseline": describe(b).to_dict(),
+                                      "welch": w.to_dict()}}}
+
+
+def _one(summaries: dict, exp: str = "exp1") -> str:
+    rows = [v for v in verdicts(summaries, CFG.thesis, ALPHA) if v.figure == "Fig. 6.1"]
+    assert len(rows) == 1
+    return rows[0].verdict
+
+
+def test_clear_difference_in_the_thesis_direction_is_reproduced_and_reversed_is_contradicted():
+    more, less = [3.0, 3.2, 2.9, 3.1, 3.0], [1.0, 1.1, 0.9, 1.0, 1.2]
+    assert _one({"exp1": _exp1(more, less)}) == "reproduced"
+    assert _one({"exp1": _exp1(less, more)}) == "contradicted"
+
+
+def test_no_food_in_either_system_cannot_test_the_claim():
+    assert _one({"exp1": _exp1([0.0] * 5, [0.0] * 5)}) == "cannot test"
+
+
+def test_overlapping_samples_are_not_reproduced():
+    assert _one({"exp1": _exp1([1.0, 2.0, 3.0, 1.5], [1.2, 2.2, 2.8, 1.4])}) == "not reproduced"
+
+
+def test_a_missing_experiment_is_listed_as_not_run():
+    rows = verdicts({}, CFG.thesis, ALPHA)
+    assert {v.hypothesis for v in rows} == {"H1", "H2", "H3"}
+    assert all(v.verdict == "cannot test" and v.ours == "not run" for v in rows)
+
+
+def test_the_thesis_numbers_never_decide():
+    s = {"exp1": _exp1([3.0, 3.2, 2.9, 3.1], [1.0, 1.1, 0.9, 1.0])}
+    flipped = {k: dict(v) for k, v in CFG.thesis.items()}
+    flipped["exp1"] = {"pecans": {"articutool": [0.1, 0.0], "baseline": [99.0, 1.0], "p": "1"}}
+    a = [dataclasses.replace(v, thesis="") for v in verdicts(s, CFG.thesis, ALPHA)]
+    b = [dataclasses.replace(v, thesis="") for v in verdicts(s, flipped, ALPHA)]
+    assert a == b
+
+
+samples = st.lists(st.floats(0.0, 20.0, allow_nan=False), min_size=3, max_size=12)
+
+
+@given(samples, samples)
+def test_swapping_the_systems_swaps_reproduced_and_contradicted(a, b):
+    one, other = _one({"exp1": _exp1(a, b)}), _one({"exp1": _exp1(b, a)})
+    swap = {"reproduced": "contradicted", "contradicted": "reproduced"}
+    assert other == swap.get(one, one)
