@@ -19,7 +19,8 @@ import numpy as np
 from articutool.experiments.stats import describe, fisher, proportion_ci, welch
 from articutool.feeding.outcomes import OUTCOMES, classify_bite
 
-__all__ = ["EXP2C_CLASSES", "classify_exp2c", "staging_attempts", "summarize"]
+__all__ = ["EXP2C_CLASSES", "classify_exp2c", "representative_trials", "staging_attempts",
+           "summarize"]
 
 EXP2C_CLASSES = ("meaningful_success", "trivial_success", "transport_failure", "failed")
 
@@ -232,3 +233,29 @@ def summarize(experiment: str, records: Sequence[dict[str, Any]], cfg: Any, *,
 def mean_or_none(values: Sequence[float]) -> float | None:
     """Mean of a non-empty sequence, else None."""
     return float(np.mean(values)) if len(values) else None
+
+
+def representative_trials(records: Sequence[dict[str, Any]]) -> dict[str, dict[str, int]]:
+    """Per condition (food + system or Exp. 2c condition), the trial numbers of a *typical*
+    trial (its food mass — acquired, delivered or held — nearest the condition's median) and
+    the *worst* (most spilled, then least food), for the report's replays (issue 29). Ties go
+    to the lowest trial number, so the choice does not depend on the log's order."""
+    groups: dict[str, list[dict[str, Any]]] = {}
+    for r in _ok(records):
+        key = " ".join(str(r[k]) for k in ("food", "system", "condition") if k in r)
+        groups.setdefault(key, []).append(r)
+
+    def food_g(r: Mapping[str, Any]) -> float:
+        for k in ("acquired_g", "delivered_g", "capacity_g", "held_g"):
+            if r.get(k) is not None:
+                return float(r[k])
+        return 0.0
+
+    out = {}
+    for key, rs in sorted(groups.items()):
+        med = float(np.median([food_g(r) for r in rs]))
+        typical = min(rs, key=lambda r: (abs(food_g(r) - med), int(r["trial"])))
+        worst = min(rs, key=lambda r: (-float(r.get("spilled_g") or 0.0), food_g(r),
+                                       int(r["trial"])))
+        out[key] = {"typical": int(typical["trial"]), "worst": int(worst["trial"])}
+    return out

@@ -16,7 +16,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from articutool.experiments.analysis import EXP2C_CLASSES, summarize
+from articutool.experiments.analysis import EXP2C_CLASSES, representative_trials, summarize
 from articutool.experiments.figures import mass_bars, outcome_bars
 from articutool.experiments.stats import FisherResult, fisher
 from articutool.experiments.verdicts import code_versions, verdicts
@@ -391,6 +391,32 @@ def hypotheses_section(summaries: Mapping[str, Mapping[str, Any]], cfg: Any) -> 
     return md
 
 
+def replays(exp: str, records: Sequence[dict[str, Any]], summary: Mapping[str, Any],
+            out: Path) -> str:
+    """Per condition, a typical and the worst trial (:func:`representative_trials`) with the
+    command that replays it with a video; a video already at that path is linked."""
+    run = summary.get("run", {})
+    n, seed = run.get("trials_per_condition"), run.get("base_seed", 0)
+    rows = []
+    for cond, picks in representative_trials(records).items():
+        cells = [cond]
+        for kind in ("typical", "worst"):
+            k = picks[kind]
+            video = out / exp / "videos" / f"trial-{k}.mp4"
+            cell = f"trial {k}" + (f" ([video]({exp}/videos/{video.name}))"
+                                   if video.exists() else "")
+            cells.append(cell)
+        rows.append(cells)
+    if not rows:
+        return ""
+    cmd = (f"articutool experiment {exp} --out {out}" + (f" --trials {n}" if n else "")
+           + (f" --seed {seed}" if seed else "") + f" --trial K --video {out}/{exp}/videos/"
+           "trial-K.mp4")
+    return ("\n**Replays** (typical: food mass nearest the condition's median; worst: most "
+            "spilled, then least food):\n\n" + _table(["condition", "typical", "worst"], rows)
+            + f"\n\n```sh\n{cmd}\n```\n")
+
+
 # ------------------------------------------------------------------------- report --
 def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | None,
                  thresholds_source: str, threshold_g: float | None,
@@ -437,7 +463,7 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
         rel = f"{exp}/{fig.name}" if fig else None
         npath = out / exp / "notes.md"
         notes = npath.read_text(encoding="utf-8") if npath.exists() else ""
-        parts.append(section(exp, summary, cfg, rel, notes))
+        parts.append(section(exp, summary, cfg, rel, notes) + replays(exp, recs, summary, out))
         summaries[exp] = summary
         m = old.get("run", {}).get("machine")
         if m:
