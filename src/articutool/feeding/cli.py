@@ -60,12 +60,12 @@ def _show_tree(args: argparse.Namespace, lib: Any, out: Path | None) -> int:
     from articutool.feeding.insertion import acquisition_waypoints, dish_outline
     from articutool.feeding.meal import container_floor
     from articutool.sim.params import PhysicsParams
-    from articutool.sim.scenes import SCOOP_HEADING
     from articutool.spec import load_spec
 
     name, strat = lib.choose(args.food, args.system, np.random.default_rng(args.seed))
     container = PhysicsParams.load().food(args.food).container
-    wps = acquisition_waypoints(strat, container_floor(Scene.load(), container), SCOOP_HEADING,
+    scene = Scene.load()
+    wps = acquisition_waypoints(strat, container_floor(scene, container), scene.scoop_direction,
                                 dish_outline(load_spec(), strat.utensil))
     # The tree's shape needs no arm or tool; nothing is ticked.
     root = bite_tree(None, None, strat, wps, lambda: 0.0)  # type: ignore[arg-type]

@@ -37,7 +37,6 @@ from articutool.feeding.sim_arm import SimArm
 from articutool.feeding.strategies import Strategy, StrategyLibrary
 from articutool.feeding.tree import BiteRecorder, safe_stop_reason, tick_until_done
 from articutool.sim import accounting as acc
-from articutool.sim.scenes import SCOOP_HEADING
 from articutool.sim.world import FeedingWorld
 from articutool.spec import Spec, load_spec
 from articutool.tool.api import Mode, ToolAPI
@@ -200,7 +199,7 @@ def _tree(setup: MealSetup, stages: Sequence[str], settings: BiteSettings,
     w = setup.world
     wps = acquisition_waypoints(setup.strategy,
                                 container_floor(w.scene, w.layout.container or "bowl"),
-                                SCOOP_HEADING, dish_outline(w.spec, w.utensil))
+                                w.scene.scoop_direction, dish_outline(w.spec, w.utensil))
     return bite_tree(setup.arm, tool or w.tool, setup.strategy, wps, w.clock, stages=stages,
                      settings=settings)
 
