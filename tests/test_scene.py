@@ -112,19 +112,13 @@ def test_bad_scenes_name_the_object_and_field(data, expected):
         assert text in str(err.value)
 
 
-@pytest.mark.parametrize("heading", [[1.0, 1.0, 0.0], [0.0, -1.0, 0.5], [0.0, 0.0, 0.0]])
-def test_a_scoop_heading_that_is_not_a_horizontal_unit_vector_is_refused(heading):
-    with pytest.raises(SceneError, match="scoop_heading"):
-        Scene.from_dict({"scoop_heading": heading})
+def test_the_scoop_heading_is_one_constant_of_the_arm_scene_the_scripts_use():
+    # issue 23: one source (arm/scene.py) for the sim scripts and the feeding tree
+    from articutool.arm.scene import SCOOP_HEADING
+    from articutool.sim import scenes
 
-
-def test_the_scoop_heading_is_the_scene_files_and_the_scripted_scenes_read_it():
-    # issue 23: one source, data/scene.toml, for the sim scripts and the feeding tree
-    from articutool.sim.scenes import SCOOP_HEADING
-
-    assert np.array_equal(SCOOP_HEADING, Scene.load().scoop_direction)
-    with pytest.raises(SceneError, match="scoop_heading"):
-        Scene().scoop_direction  # noqa: B018  (a scene that gives none says so)
+    assert scenes.SCOOP_HEADING is SCOOP_HEADING
+    assert SCOOP_HEADING[2] == 0.0 and np.linalg.norm(SCOOP_HEADING) == pytest.approx(1.0)
 
 
 def test_bad_files_are_reported(tmp_path):

@@ -36,6 +36,7 @@ from articutool.rotations import quaternion_to_matrix, rpy_matrix
 from articutool.spec import Finite, Positive, Vec3
 
 __all__ = [
+    "SCOOP_HEADING",
     "Box",
     "Capsule",
     "Cylinder",
@@ -50,6 +51,15 @@ __all__ = [
     "default_scene_path",
     "rpy_matrix",
 ]
+
+# The direction the utensil's tip points while scooping, in the arm base frame of the default
+# scene: −y (towards the table's front edge, away from the user), so the wrist stays on the
+# arm's side of the bowl. Pointing away from the arm, a level utensil at the bowl is out of the
+# Jaco's reach (Pinocchio IK from 23 starts found none). The scripted scenes (sim/scenes.py)
+# and the feeding tree both read it here. Not in scene.toml: the experiments' data hash covers
+# that file, and adding a field would refuse to resume every recorded run.
+SCOOP_HEADING = np.array([0.0, -1.0, 0.0])
+SCOOP_HEADING.flags.writeable = False
 
 
 class SceneError(ValueError):
@@ -244,24 +254,6 @@ class Scene(BaseModel):
     objects: list[SceneObject] = Field(default_factory=list)
     regions: list[Region] = Field(default_factory=list)
     staging_set: StagingSet | None = None
-    # The direction the utensil's tip points while scooping (horizontal, unit); see scene.toml.
-    scoop_heading: Vec3 | None = None
-
-    @model_validator(mode="after")
-    def _heading(self) -> Scene:
-        h = self.scoop_heading
-        if h is not None and not (abs(h[2]) < 1e-9 and abs(math.hypot(h[0], h[1]) - 1.0) < 1e-6):
-            raise ValueError("scoop_heading must be a horizontal unit vector [x, y, 0]; "
-                             f"got {list(h)}")
-        return self
-
-    @property
-    def scoop_direction(self) -> NDArray[np.float64]:
-        """:attr:`scoop_heading` as an array; SceneError when the scene gives none."""
-        if self.scoop_heading is None:
-            raise SceneError("scoop_heading: this scene gives none (a horizontal unit vector, "
-                             "e.g. [0.0, -1.0, 0.0]); scooping needs it")
-        return np.array(self.scoop_heading, dtype=np.float64)
 
     @model_validator(mode="after")
     def _unique(self) -> Scene:

@@ -55,7 +55,7 @@ def _show_tree(args: argparse.Namespace, lib: Any, out: Path | None) -> int:
     import numpy as np
     import py_trees
 
-    from articutool.arm.scene import Scene
+    from articutool.arm.scene import SCOOP_HEADING, Scene
     from articutool.feeding.bite import bite_tree
     from articutool.feeding.insertion import acquisition_waypoints, dish_outline
     from articutool.feeding.meal import container_floor
@@ -64,8 +64,7 @@ def _show_tree(args: argparse.Namespace, lib: Any, out: Path | None) -> int:
 
     name, strat = lib.choose(args.food, args.system, np.random.default_rng(args.seed))
     container = PhysicsParams.load().food(args.food).container
-    scene = Scene.load()
-    wps = acquisition_waypoints(strat, container_floor(scene, container), scene.scoop_direction,
+    wps = acquisition_waypoints(strat, container_floor(Scene.load(), container), SCOOP_HEADING,
                                 dish_outline(load_spec(), strat.utensil))
     # The tree's shape needs no arm or tool; nothing is ticked.
     root = bite_tree(None, None, strat, wps, lambda: 0.0)  # type: ignore[arg-type]

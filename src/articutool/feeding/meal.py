@@ -28,7 +28,7 @@ import py_trees
 from numpy.typing import NDArray
 from py_trees.common import Status
 
-from articutool.arm.scene import Cylinder, Scene
+from articutool.arm.scene import SCOOP_HEADING, Cylinder, Scene
 from articutool.feeding.behaviours import Attempts
 from articutool.feeding.bite import STAGES, BiteSettings, bite_tree
 from articutool.feeding.insertion import acquisition_waypoints, dish_outline
@@ -199,7 +199,7 @@ def _tree(setup: MealSetup, stages: Sequence[str], settings: BiteSettings,
     w = setup.world
     wps = acquisition_waypoints(setup.strategy,
                                 container_floor(w.scene, w.layout.container or "bowl"),
-                                w.scene.scoop_direction, dish_outline(w.spec, w.utensil))
+                                SCOOP_HEADING, dish_outline(w.spec, w.utensil))
     return bite_tree(setup.arm, tool or w.tool, setup.strategy, wps, w.clock, stages=stages,
                      settings=settings)
 

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from articutool.arm.model import ArmModel
+from articutool.arm.scene import SCOOP_HEADING
 from articutool.feeding.behaviours import JobResult
 from articutool.feeding.insertion import TipWaypoint
 from articutool.planning.api import PlanRequest, TransportTask, plan
@@ -107,13 +108,12 @@ def wrist_sweep(model: ArmModel, q: np.ndarray, p0: np.ndarray, a0: float, p1: n
     n = max(2, math.ceil(max(np.linalg.norm(p1 - p0) / step_m,
                              abs(a1 - a0) / math.radians(1.0))))
     settings = IKSettings(random_seeds=0)
-    heading = model.scene.scoop_direction
     qs = [q.copy()]
     for k in range(1, n + 1):
         s = k / n
         q_try = qs[-1].copy()
         q_try[6] = w0 + s * (w1 - w0)
-        target = tip_target(p0 + s * (p1 - p0), heading, a0 + s * (a1 - a0))
+        target = tip_target(p0 + s * (p1 - p0), SCOOP_HEADING, a0 + s * (a1 - a0))
         sol = solve_pose_ik(model, "tip", target, q_try, settings, free=6)
         if sol is None:
             raise ScriptError(f"no arm IK solution for the tip at {np.round(target[:3, 3], 3)}"

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from articutool.arm.ik import IKSettings, solve_pose_ik
 from articutool.arm.model import ArmModel
-from articutool.arm.scene import Cylinder, Scene
+from articutool.arm.scene import SCOOP_HEADING, Cylinder
 from articutool.planning.timing import time_parameterize
 from articutool.sim.world import FeedingWorld, FoodReport
 from articutool.spec import Spec
@@ -39,9 +39,6 @@ __all__ = ["SCOOP_HEADING", "SCRIPTS", "ScriptError", "acquire", "cartesian_path
 
 SCRIPTS = ("scoop", "carry", "tilt")
 _Z = np.array([0.0, 0.0, 1.0])
-# The packaged scene's scoop heading (data/scene.toml says why it is −y); feeding reads the
-# same field of its world's scene.
-SCOOP_HEADING = Scene.load().scoop_direction
 
 
 class ScriptError(RuntimeError):
