@@ -17,9 +17,8 @@ import argparse
 
 import numpy as np
 
-from articutool.arm.ik import IKSettings, solve_pose_ik
+from articutool.arm.ik import IKSettings, solve_pose_ik, staging_configuration
 from articutool.arm.model import ArmModel
-from articutool.sim.demo import staging_configuration
 from articutool.spec import load_spec
 
 OFFSETS = {

@@ -7,7 +7,12 @@ import pytest
 from py_trees.common import Status
 
 from articutool.feeding.behaviours import JobResult, RunPrimitive, ToolModeScope
-from articutool.feeding.tree import BiteRecorder, tick_until_done, transport_tree
+from articutool.feeding.tree import (
+    BiteRecorder,
+    safe_stop_reason,
+    tick_until_done,
+    transport_tree,
+)
 from articutool.tool.api import Mode, PrimitiveStatus, ToolState
 
 
@@ -209,6 +214,32 @@ def test_tool_fault_mid_transport_stops_safely() -> None:
     assert tree.root.status == Status.SUCCESS  # the guard's branch: stopped safely
     assert arm.stopped >= 1 and arm.jobs[-1].cancelled
     assert tool.mode == Mode.DISABLED
+
+
+def test_the_guard_is_py_trees_eternal_guard_failing_while_safe_and_naming_the_stop() -> None:
+    # issue 23: the root guard is py_trees' EternalGuard ("Unsafe?" around "Safe stop"):
+    # checked before the task every tick, FAILURE while safe, SUCCESS with the reason after.
+    clock = Clock()
+    arm, tool = FakeArm(clock, [True], [True], motion_s=5.0), FakeTool(clock)
+    root = transport_tree(arm, tool, "Staging", "decoupled", attempts=3, budget_s=1.0,
+                          clock=clock)
+    guard = root.children[0]
+    assert isinstance(guard, py_trees.decorators.EternalGuard)
+    assert (guard.name, guard.decorated.name) == ("Unsafe?", "Safe stop")
+    seen: list[tuple[Status, Status]] = []
+
+    def fault(k, tree):
+        if k:
+            seen.append((guard.status, root.children[1].status))
+        if k == 10:
+            tool.fault = "motor hardware error: roll: OVERLOAD"
+
+    tree, rec = _run(root, clock, every=fault)
+    assert seen and all(g == Status.FAILURE and t == Status.RUNNING for g, t in seen)
+    assert guard.status == Status.SUCCESS and "OVERLOAD" in guard.feedback_message
+    assert safe_stop_reason(tree.root) == guard.feedback_message
+    assert root.children[1].status == Status.INVALID  # the task was preempted
+    assert not any(name == "Unsafe?" for name, _ in rec.record.failures)
 
 
 @pytest.mark.parametrize("k", range(0, 16))

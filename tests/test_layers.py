@@ -131,3 +131,13 @@ def test_only_the_entry_point_imports_the_top_level_cli() -> None:
     # the sub-CLIs share articutool.cli_support; articutool.cli gathers them at the top
     users = sorted(m for m, deps in GRAPH.items() if "articutool.cli" in deps)
     assert users == ["articutool.__main__"]
+
+
+def test_feeding_takes_the_staging_goal_and_the_scoop_heading_from_the_arm_layer() -> None:
+    # issue 23: not from the demo or the scripted scenes (sim/demo.py, sim/scenes.py)
+    assert imports_from(GRAPH, "articutool.feeding", "articutool.sim.demo") == []
+    assert ("articutool.arm.ik" in GRAPH["articutool.feeding.sim_arm"]
+            and "articutool.arm.ik" in GRAPH["articutool.sim.demo"])
+    for mod in ("articutool.feeding.meal", "articutool.feeding.cli"):
+        assert "articutool.sim.scenes" not in GRAPH[mod]
+        assert "articutool.arm.scene" in GRAPH[mod]

@@ -125,10 +125,11 @@ def _run_on_a_terminal(*args: str, timeout_s: float = 600.0) -> tuple[int, str]:
 
 
 def test_a_meal_on_a_terminal_shows_the_live_tree_verbatim() -> None:
-    # The live tree is py_trees' text, whose "[o]" (a selector) and "[-]" look like rich
-    # markup; it must reach the terminal as written, and the bite's record after it.
+    # The live tree is py_trees' text, whose "[o]" (a selector) looks like rich markup; it
+    # must reach the terminal as written, and the bite's record after it. The root guard is
+    # py_trees' EternalGuard, a decorator ("-^-").
     rc, out = _run_on_a_terminal("--food", "pecans")
     assert rc == 0, out[-2000:]
-    assert "[o] bite" in out and "[-] guard" in out
+    assert "[o] bite" in out and "-^- Unsafe?" in out
     assert "move to AbovePlate" in out
     assert "bite 1: " in out and "planning attempts: " in out

@@ -112,6 +112,15 @@ def test_bad_scenes_name_the_object_and_field(data, expected):
         assert text in str(err.value)
 
 
+def test_the_scoop_heading_is_one_constant_of_the_arm_scene_the_scripts_use():
+    # issue 23: one source (arm/scene.py) for the sim scripts and the feeding tree
+    from articutool.arm.scene import SCOOP_HEADING
+    from articutool.sim import scenes
+
+    assert scenes.SCOOP_HEADING is SCOOP_HEADING
+    assert SCOOP_HEADING[2] == 0.0 and np.linalg.norm(SCOOP_HEADING) == pytest.approx(1.0)
+
+
 def test_bad_files_are_reported(tmp_path):
     with pytest.raises(SceneError, match="cannot read scene"):
         Scene.load(tmp_path / "missing.toml")

@@ -10,8 +10,9 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from articutool.arm.model import TOOL_BASE_FRAME, ArmModel, tip_frame_name
+from articutool.spec import Spec
 
-__all__ = ["IKSettings", "solve_level_ik", "solve_pose_ik"]
+__all__ = ["IKSettings", "solve_level_ik", "solve_pose_ik", "staging_configuration"]
 
 
 @dataclass(frozen=True)
@@ -93,3 +94,37 @@ def solve_level_ik(
             if q is not None and not model.in_collision(q):
                 return q
     return None
+
+
+def staging_configuration(spec: Spec, model: ArmModel, seed: int = 0
+                          ) -> tuple[NDArray[np.float64], float]:
+    """Arm configuration for the spec's Staging pose (end-effector IK), collision-free.
+
+    The reference system's Staging pose was taught for a shorter tool; with the Articutool's
+    geometry it puts the utensil into the head of the default scene. The end effector is
+    therefore backed off along its approach axis (1 cm steps, up to 20 cm) until the whole
+    tool is clear. Returns the configuration and the back-off distance (m).
+    """
+    pose = spec.arm.poses["Staging"]
+    R = pin.Quaternion(*pose.orientation_wxyz).normalized().toRotationMatrix()
+    rng = np.random.default_rng(seed)
+    seeds = [spec.arm.configuration(n) for n in ("Home", "Resting", "AbovePlate")]
+    seeds += list(rng.uniform(spec.arm.lower, spec.arm.upper, size=(24, 6)))
+    settings = IKSettings(max_iterations=500)
+    for back in np.arange(0.0, 0.2001, 0.01):
+        target = np.eye(4)
+        target[:3, :3] = R
+        target[:3, 3] = np.asarray(pose.position) - back * R[:, 2]
+        best = None
+        for q0 in seeds:
+            q = solve_pose_ik(model, "ee", target, np.r_[q0, np.zeros(model.nq - 6)],
+                              settings, free=6)
+            if q is None or model.in_collision(q):
+                continue
+            # Prefer the solution closest to Resting: a short, natural transport.
+            d = np.linalg.norm(q[:6] - spec.arm.configuration("Resting"))
+            if best is None or d < best[0]:
+                best = (d, q[:6])
+        if best is not None:
+            return np.asarray(best[1]), float(back)
+    raise RuntimeError("no collision-free IK solution near the Staging pose")

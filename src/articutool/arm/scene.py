@@ -36,6 +36,7 @@ from articutool.rotations import quaternion_to_matrix, rpy_matrix
 from articutool.spec import Finite, Positive, Vec3
 
 __all__ = [
+    "SCOOP_HEADING",
     "Box",
     "Capsule",
     "Cylinder",
@@ -50,6 +51,15 @@ __all__ = [
     "default_scene_path",
     "rpy_matrix",
 ]
+
+# The direction the utensil's tip points while scooping, in the arm base frame of the default
+# scene: −y (towards the table's front edge, away from the user), so the wrist stays on the
+# arm's side of the bowl. Pointing away from the arm, a level utensil at the bowl is out of the
+# Jaco's reach (Pinocchio IK from 23 starts found none). The scripted scenes (sim/scenes.py)
+# and the feeding tree both read it here. Not in scene.toml: the experiments' data hash covers
+# that file, and adding a field would refuse to resume every recorded run.
+SCOOP_HEADING = np.array([0.0, -1.0, 0.0])
+SCOOP_HEADING.flags.writeable = False
 
 
 class SceneError(ValueError):

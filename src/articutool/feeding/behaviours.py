@@ -36,9 +36,9 @@ __all__ = [
     "PlanPath",
     "RunPrimitive",
     "SafeStop",
+    "SafetyGuard",
     "Settle",
     "ToolModeScope",
-    "Unsafe",
     "Verify",
 ]
 
@@ -303,7 +303,7 @@ class RunPrimitive(py_trees.behaviour.Behaviour):
     """Run a tool primitive (``NONE`` succeeds at once); cancelled when preempted. A
     primitive aborted by a mode change the tree did not make (a DISABLED from another
     client) is a stop, not a failure to retry or retreat from: it stays RUNNING for the
-    guard (:class:`Unsafe`) to stop the bite in the next tick."""
+    guard (:class:`SafetyGuard`) to stop the bite in the next tick."""
 
     def __init__(self, tool: ToolAPI, primitive: str, params: list[float], stage: str) -> None:
         super().__init__(f"{stage}: {primitive}")
@@ -409,23 +409,26 @@ class Attempts(py_trees.decorators.Retry):
         return status
 
 
-class Unsafe(py_trees.behaviour.Behaviour):
-    """SUCCESS when the bite must stop: a tool fault, tool state older than ``stale_s``, a
-    stop request on the blackboard, or a stop from elsewhere (another paired PC, the tool's
-    own console; issue 22): the tool DISABLED while the tree has it LEVELING — seen in two
-    ticks running, since over a link a snapshot taken just before the tree's own LEVELING
-    was carried out can arrive after it — or the tree's primitive aborted by a mode change.
-    A condition: its FAILURE ("safe") is no failure of the bite."""
+class SafetyGuard(py_trees.decorators.EternalGuard):
+    """The root safety guard: py_trees' EternalGuard, named ``Unsafe?``, around
+    :class:`SafeStop`. Every tick, before the bite's steps, its condition asks whether the bite
+    must stop: a tool fault, tool state older than ``stale_s``, a stop request on the
+    blackboard, or a stop from elsewhere (another paired PC, the tool's own console; issue 22):
+    the tool DISABLED while the tree has it LEVELING — seen in two ticks running, since over a
+    link a snapshot taken just before the tree's own LEVELING was carried out can arrive after
+    it — or the tree's primitive aborted by a mode change. Then Safe stop runs and the guard
+    SUCCEEDS with the reason as its feedback; otherwise it FAILS ("safe"), no failure of the
+    bite, and the root selector goes on to the bite."""
 
-    is_condition = True
-
-    def __init__(self, tool: ToolAPI, clock: Callable[[], float], stale_s: float) -> None:
-        super().__init__("Unsafe?")
+    def __init__(self, arm: ArmInterface, tool: ToolAPI, clock: Callable[[], float],
+                 stale_s: float) -> None:
+        super().__init__("Unsafe?", SafeStop(arm, tool), condition=self._unsafe)
         self.tool, self.clock, self.stale_s = tool, clock, stale_s
         self.bb = _bb(self, ("stop_requested", Access.READ), ("tool_mode", Access.READ))
-        self._disabled_ticks = 0  # consecutive ticks (a condition is initialised each tick)
+        self._disabled_ticks = 0  # consecutive ticks the tool was DISABLED while LEVELING
+        self._reason = ""
 
-    def update(self) -> Status:
+    def _unsafe(self) -> bool:
         st = self.tool.state()
         stop = self.bb.exists("stop_requested") and bool(self.bb.stop_requested)
         expected = self.bb.tool_mode if self.bb.exists("tool_mode") else None
@@ -433,19 +436,24 @@ class Unsafe(py_trees.behaviour.Behaviour):
             expected == Mode.LEVELING and st.mode == Mode.DISABLED) else 0
         ps = self.tool.primitive_status() if expected == Mode.PRIMITIVE else None
         if st.fault:
-            self.feedback_message = f"tool fault: {st.fault}"
+            self._reason = f"tool fault: {st.fault}"
         elif self.clock() - st.stamp > self.stale_s:
-            self.feedback_message = (f"tool state is {self.clock() - st.stamp:.2f} s old "
-                                     f"(limit {self.stale_s:g} s)")
+            self._reason = (f"tool state is {self.clock() - st.stamp:.2f} s old "
+                            f"(limit {self.stale_s:g} s)")
         elif stop:
-            self.feedback_message = "stop requested"
+            self._reason = "stop requested"
         elif self._disabled_ticks >= 2:
-            self.feedback_message = "the tool was DISABLED by another client while leveling"
+            self._reason = "the tool was DISABLED by another client while leveling"
         elif ps is not None and ps.done and ps.message.startswith(ABORTED_BY_MODE_CHANGE):
-            self.feedback_message = f"{ps.name} {ps.message} by another client"
+            self._reason = f"{ps.name} {ps.message} by another client"
         else:
-            return Status.FAILURE
-        return Status.SUCCESS
+            return False
+        return True
+
+    def update(self) -> Status:
+        """The safe stop's status, with the reason the bite was stopped as feedback."""
+        self.feedback_message = self._reason
+        return super().update()
 
 
 class SafeStop(py_trees.behaviour.Behaviour):

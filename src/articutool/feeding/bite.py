@@ -18,7 +18,7 @@ Stages, in order (:data:`STAGES`; a bite may run any ordered subset, e.g. Exp. 1
 Shape::
 
     Selector "bite"                      (no memory: the guard is checked every tick)
-      Sequence "guard"                   Unsafe? -> Safe stop (arm stopped, tool DISABLED)
+      EternalGuard "Unsafe?"             -> Safe stop (arm stopped, tool DISABLED)
       Selector "bite or retreat"         (memory)
         ToolModeScope <carry mode> (then DISABLED)
           Sequence "bite steps"          one subtree per stage

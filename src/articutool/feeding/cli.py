@@ -55,12 +55,11 @@ def _show_tree(args: argparse.Namespace, lib: Any, out: Path | None) -> int:
     import numpy as np
     import py_trees
 
-    from articutool.arm.scene import Scene
+    from articutool.arm.scene import SCOOP_HEADING, Scene
     from articutool.feeding.bite import bite_tree
     from articutool.feeding.insertion import acquisition_waypoints, dish_outline
     from articutool.feeding.meal import container_floor
     from articutool.sim.params import PhysicsParams
-    from articutool.sim.scenes import SCOOP_HEADING
     from articutool.spec import load_spec
 
     name, strat = lib.choose(args.food, args.system, np.random.default_rng(args.seed))

@@ -28,7 +28,7 @@ import py_trees
 from numpy.typing import NDArray
 from py_trees.common import Status
 
-from articutool.arm.scene import Cylinder, Scene
+from articutool.arm.scene import SCOOP_HEADING, Cylinder, Scene
 from articutool.feeding.behaviours import Attempts
 from articutool.feeding.bite import STAGES, BiteSettings, bite_tree
 from articutool.feeding.insertion import acquisition_waypoints, dish_outline
@@ -37,7 +37,6 @@ from articutool.feeding.sim_arm import SimArm
 from articutool.feeding.strategies import Strategy, StrategyLibrary
 from articutool.feeding.tree import BiteRecorder, safe_stop_reason, tick_until_done
 from articutool.sim import accounting as acc
-from articutool.sim.scenes import SCOOP_HEADING
 from articutool.sim.world import FeedingWorld
 from articutool.spec import Spec, load_spec
 from articutool.tool.api import Mode, ToolAPI

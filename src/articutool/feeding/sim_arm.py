@@ -29,11 +29,11 @@ from typing import Any
 import numpy as np
 
 from articutool.arm.model import ArmModel
+from articutool.arm.scene import SCOOP_HEADING
 from articutool.feeding.behaviours import JobResult
 from articutool.feeding.insertion import TipWaypoint
 from articutool.planning.api import PlanRequest, TransportTask, plan
 from articutool.sim.scenes import (
-    SCOOP_HEADING,
     ScriptError,
     cartesian_path,
     first_ik,
@@ -212,7 +212,7 @@ class SimArm:
             elif goal in spec.arm.configurations:
                 self._goals[goal] = spec.arm.configuration(goal)
             elif goal == "Staging":
-                from articutool.sim.demo import staging_configuration
+                from articutool.arm.ik import staging_configuration
 
                 self._goals[goal] = staging_configuration(spec, self.model, self.seed)[0]
             else:

@@ -9,7 +9,7 @@ in a worker thread, so a sim-time timeout would fail plans on a slower machine (
 Shape of :func:`transport_tree`::
 
     Selector "bite" (no memory: the guard is checked every tick)
-      Sequence "guard"          Unsafe? -> Safe stop
+      EternalGuard "Unsafe?"    -> Safe stop (py_trees' EternalGuard: checked every tick)
       ToolModeScope LEVELING (then DISABLED)
         Sequence "transport"
           Attempts "up to N attempts"    (planning_attempts_<goal> on the blackboard)
@@ -33,8 +33,8 @@ from articutool.feeding.behaviours import (
     Plan,
     PlanPath,
     SafeStop,
+    SafetyGuard,
     ToolModeScope,
-    Unsafe,
     Verify,
 )
 from articutool.tool.api import Mode, ToolAPI
@@ -83,8 +83,7 @@ def guarded(child: py_trees.behaviour.Behaviour, arm: ArmInterface, tool: ToolAP
             clock: Callable[[], float], stale_s: float = 0.5) -> py_trees.behaviour.Behaviour:
     """``child`` under the root safety guard: every tick, a tool fault, stale tool state or a
     stop request preempts it and stops the arm with the tool DISABLED."""
-    guard = py_trees.composites.Sequence(
-        "guard", memory=False, children=[Unsafe(tool, clock, stale_s), SafeStop(arm, tool)])
+    guard = SafetyGuard(arm, tool, clock, stale_s)
     return py_trees.composites.Selector("bite", memory=False, children=[guard, child])
 
 
@@ -95,8 +94,8 @@ def safe_stop_reason(root: py_trees.behaviour.Behaviour) -> str | None:
     callers report it as stopped, never as completed."""
     for node in root.iterate():
         if isinstance(node, SafeStop) and node.status == Status.SUCCESS:
-            cond = next((c for c in node.parent.children if isinstance(c, Unsafe)), None)
-            return cond.feedback_message if cond is not None else "safe stop"
+            guard = node.parent
+            return guard.feedback_message if isinstance(guard, SafetyGuard) else "safe stop"
     return None
 
 
@@ -175,8 +174,7 @@ class BiteRecorder(py_trees.visitors.VisitorBase):
         # tick (an instant IK failure) must not be mistaken for it.
         if self.record.cause is None and self.record.failures and _in_retreat(behaviour):
             self.record.cause = self.record.failures[-1]
-        if (behaviour.status == Status.FAILURE and not behaviour.children
-                and not getattr(behaviour, "is_condition", False)):
+        if behaviour.status == Status.FAILURE and not behaviour.children:
             self.record.failures.append((behaviour.name, behaviour.feedback_message))
 
 

@@ -64,6 +64,11 @@ short, bounded motions inside the wrist's limits that the tool supervises locall
 twirl or scoop halfway leaves food half-acquired and is no safer than finishing it, and the
 PC (which moves the arm) is exactly the party that is gone. Trajectories are finite and run to
 their end either way; leveling always continues (it is the point of the decoupling).
+
+Where it lives: this module is the lifecycle and the publishing loop; the command handlers are
+``link/handlers.py`` (a mixin of :class:`ToolServer`), and it composes ``link/admission.py``
+(pairing check, per-sender rates, the throttled log), ``link/inbox.py`` (the command inbox,
+the stops, the ``link-io`` thread), ``link/lease.py`` and ``link/goals.py``.
 """
 
 from __future__ import annotations
@@ -72,38 +77,28 @@ import logging
 import threading
 import time
 import uuid
-from collections import OrderedDict, deque
+from collections import deque
 from collections.abc import Callable
-from functools import partial
 
 from articutool.link import messages as m
+from articutool.link.admission import Admission
 from articutool.link.config import LinkConfig
-from articutool.link.goals import Goal, GoalTable
+from articutool.link.goals import GoalTable
+from articutool.link.handlers import CommandHandlers
+from articutool.link.inbox import CommandInbox
 from articutool.link.lease import CommandLease
-from articutool.link.transport import (
-    Endpoint,
-    Handle,
-    Names,
-    RateGate,
-    RefusalError,
-    Responder,
-    Sender,
-    Transport,
-)
-from articutool.tool.api import Mode, PrimitiveStatus, ToolAPI
+from articutool.link.transport import Handle, Names, RefusalError, Transport
+from articutool.tool.api import PrimitiveStatus, ToolAPI
 
 __all__ = ["ToolServer", "serve_forever"]
 
 _log = logging.getLogger(__name__)
-_ZERO_ID = bytes(16)
 _KEEP_GOALS = 32  # finished goals remembered for late get_result calls (GoalTable)
-_MAX_GATES = 1024  # per-sender rate gates kept (oldest forgotten: a fresh gate is full)
-_LOGGED = 10  # log lines per kind of dropped/refused/malformed message, then 1 in _EVERY
-_EVERY = 1000
 
 
-class ToolServer:
-    """Serve ``api`` on ``transport``; :meth:`start` spawns the publishing thread."""
+class ToolServer(CommandHandlers):
+    """Serve ``api`` on ``transport``; :meth:`start` spawns the publishing thread. The
+    handlers are :class:`~articutool.link.handlers.CommandHandlers`."""
 
     def __init__(self, api: ToolAPI, transport: Transport, config: LinkConfig | None = None,
                  rate_hz: float | None = None) -> None:
@@ -125,26 +120,17 @@ class ToolServer:
                                          "dropped_excess": 0, "commands": 0}
         self.lease = CommandLease(self.cfg.client_timeout, self.cfg.tool_id,
                                   self.cfg.audit_log)
-        self._inbox: deque[Callable[[], None]] = deque()
-        # Stops waiting for the loop, by what they do: (run, answers); see _submit_stop.
-        self._stops: OrderedDict[object, tuple[Callable[[], object],
-                                                list[Callable[[object], None]]]] = OrderedDict()
-        self._gates: OrderedDict[tuple[str, str], RateGate] = OrderedDict()
-        self._loop_drains = False
-        self._worker: threading.Thread | None = None
-        self._wake = threading.Condition()
-        # Network I/O never runs on the thread that executes commands (the tool's loop): a
-        # reply or publish may block on a congested or dead peer. It goes to link-io.
-        self._exec_ident: int | None = None
-        self._io: deque[Callable[[], None]] = deque()
-        self._io_wake = threading.Condition()
-        self._io_thread: threading.Thread | None = None
         self._lock = threading.RLock()
+        self._stop = threading.Event()
+        self.admission = Admission(self.cfg, self.counters, self._lock)
+        self.inbox = CommandInbox(self.cfg.inbox_size, self.counters, self._lock, self._stop)
+        # the inbox's containers under the server's older names (tests look into them)
+        self._inbox, self._stops = self.inbox.commands, self.inbox.stops
+        self._loop_drains = False
         self.goals = GoalTable(_KEEP_GOALS)
         self._last_client_rx: float | None = None
         self._client_alive = False
         self._handles: list[Handle] = []
-        self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._next_beat = 0.0
 
@@ -157,7 +143,7 @@ class ToolServer:
                     (n.clear_fault, self._on_clear_fault), (n.send_goal, self._on_send_goal),
                     (n.get_result, self._on_get_result), (n.cancel_goal, self._on_cancel),
                     (n.take_over, self._on_take_over), (n.release, self._on_release))
-        self._handles = [t.serve(ep, self._guarded(self._replies_off_loop(fn)),
+        self._handles = [t.serve(ep, self._guarded(self.inbox.replies_off_loop(fn)),
                                  with_sender=True, max_bytes=small)
                          for ep, fn in services]
         self._handles += [
@@ -168,14 +154,12 @@ class ToolServer:
         ]
         hook = getattr(self.api, "set_link_work", None)
         self._stop.clear()
-        self._io_thread = threading.Thread(target=self._run_io, name="link-io", daemon=True)
-        self._io_thread.start()
+        self.inbox.start_io()
         if callable(hook):  # the tool's loop drains the inbox, one command per tick
             hook(self.work_once)
             self._loop_drains = True
         else:
-            self._worker = threading.Thread(target=self._drain, name="link-worker", daemon=True)
-            self._worker.start()
+            self.inbox.start_worker()
         self._thread = threading.Thread(target=self._run, name="link-server", daemon=True)
         self._thread.start()
 
@@ -185,14 +169,7 @@ class ToolServer:
             self.api.set_link_work(None)  # type: ignore[attr-defined]
             self._loop_drains = False
         self._stop.set()
-        with self._wake:
-            self._wake.notify_all()
-        if self._worker is not None:
-            self._worker.join(timeout=5)
-            self._worker = None
-        if self._io_thread is not None:
-            self._io_thread.join(timeout=5)
-            self._io_thread = None
+        self.inbox.join()
         if self._thread is not None:
             self._thread.join(timeout=5)
         for h in self._handles:
@@ -230,462 +207,21 @@ class ToolServer:
                 _log.exception("link handler failed")
         return wrapped
 
-    def _client_seen(self, who: str) -> None:
-        """``who`` was heard. While a client holds the lease only it counts for the link-loss
-        policy: observers chatting on must not hide that the commanding PC went silent."""
-        with self._lock:
-            if self.holder is None or self.holder == who:
-                self._last_client_rx = time.monotonic()
-
     def _note(self, key: str, fmt: str, *args: object) -> None:
-        """Count one dropped, refused or malformed message under ``key`` and log it: the
-        first few of each kind, then one in _EVERY with the count (a flood must not flood
-        the log: issue 22)."""
-        with self._lock:
-            self.counters[key] += 1
-            n = self.counters[key]
-        if n <= _LOGGED or n % _EVERY == 0:
-            _log.warning(fmt + "; %d %s so far", *args, n, key)
+        self.admission.note(key, fmt, *args)
 
     def _on_drop(self, name: str, reason: str) -> None:
         self._note("oversized", "dropped a message on %s (%s)", name, reason)
 
-    def _admit(self, sender: Sender, what: str) -> tuple[str | None, str]:
-        """(the client's identity, '') if it may command, else (None, the refusal naming
-        the real reason: a paired PC whose clock is off is told so); counted, logged."""
-        if self.cfg.requires_pairing and not (sender.verified and sender.role == "pc"):
-            why = sender.refused or (f"{sender.identity!r} is not a PC" if sender.verified
-                                     else "not a paired PC: not signed")
-            self._note("refused_unpaired", "refused %s (%s)", what, why)
-            return None, f"refused: {why}"
-        return sender.identity or "anonymous", ""
-
-    def _sender_key(self, sender: Sender) -> str:
-        """Whose rate limit a message counts against: the verified identity; on a paired
-        tool every unverified sender shares one (a claimed name proves nothing)."""
-        if sender.verified or not self.cfg.requires_pairing:
-            return sender.identity or "anonymous"
-        return "(unverified)"
-
-    def _within_rate(self, ep: Endpoint, sender: Sender) -> bool:
-        """Take one of the sender's ``max_rate_hz`` tokens on ``ep``; False (counted) if it
-        has none left. One sender's flood never uses another's."""
-        k = (ep.name, self._sender_key(sender))
-        with self._lock:
-            gate = self._gates.get(k)
-            if gate is None:
-                gate = self._gates[k] = RateGate(self.cfg.max_rate_hz)
-                if len(self._gates) > _MAX_GATES:
-                    self._gates.popitem(last=False)
-            else:
-                self._gates.move_to_end(k)
-        if gate.allow():
-            return True
-        self._note("rate_limited", "dropped a message on %s (rate, from %s)", ep.name, k[1])
-        return False
-
-    def _rate_limit(self, ep: Endpoint, sender: Sender) -> None:
-        """Raise RefusalError (an immediate error reply) when the sender is over its rate."""
-        if not self._within_rate(ep, sender):
-            raise RefusalError(f"rate limited: more than {self.cfg.max_rate_hz:g} requests/s from "
-                          f"{self._sender_key(sender)} on {ep.name}")
-
-    def _lease(self, who: str, stop: bool = False) -> str:
-        """'' if ``who`` may command now, else the refusal naming the holder (counted);
-        see :meth:`CommandLease.acquire`."""
-        now = time.monotonic()
-        with self._lock:
-            refusal = self.lease.acquire(who, now, stop)
-            if refusal:
-                self.counters["refused_lease"] += 1
-            return refusal
-
-    def _submit(self, work: Callable[[], None]) -> bool:
-        """Queue a ToolAPI call for the loop; False (counted) when the inbox is full."""
-        with self._lock:
-            if len(self._inbox) >= self.cfg.inbox_size:
-                self.counters["dropped_excess"] += 1
-                return False
-            self._inbox.append(work)
-        with self._wake:
-            self._wake.notify()
-        return True
-
-    def _submit_stop(self, key: object, run: Callable[[], object],
-                     answer: Callable[[object], None]) -> None:
-        """Queue a stop for the loop, never refused: a stop equal to one waiting (same
-        ``key``) joins it, the loop runs it once and every caller gets ``answer(result)``.
-        Stops are idempotent, so this is the same as running each; and however many
-        arrive, the stops waiting stay as few as their kinds."""
-        with self._lock:
-            waiting = self._stops.get(key)
-            if waiting is None:
-                self._stops[key] = (run, [answer])
-            else:
-                waiting[1].append(answer)
-        with self._wake:
-            self._wake.notify()
-
-    def _drain(self) -> None:
-        """Worker thread (APIs without a loop): run queued commands one at a time."""
-        while not self._stop.is_set():
-            with self._lock:
-                pending = bool(self._stops or self._inbox)
-            if not pending:
-                with self._wake:
-                    self._wake.wait(0.05)
-                continue
-            self.work_once()
-
-    def work_once(self) -> None:
-        """Run at most one queued ToolAPI call (stops first). Called once per loop tick; never
-        raises."""
-        with self._lock:
-            if self._stops:
-                _, (run, answers) = self._stops.popitem(last=False)
-                work: Callable[[], None] | None = partial(self._run_stop, run, answers)
-            else:
-                work = self._inbox.popleft() if self._inbox else None
-        if work is None:
-            return
-        self._exec_ident = threading.get_ident()
-        try:
-            work()
-            with self._lock:
-                self.counters["commands"] += 1
-        except Exception:
-            with self._lock:
-                self.counters["handler_errors"] += 1
-            _log.exception("link command failed")
-
-    @staticmethod
-    def _run_stop(run: Callable[[], object], answers: list[Callable[[object], None]]) -> None:
-        result = run()
-        for answer in answers:
-            answer(result)
-
-    def _off_loop(self, io: Callable[[], None]) -> None:
-        """Run network I/O now, unless on the command-executing thread: then on link-io."""
-        if threading.get_ident() != self._exec_ident:
-            io()
-            return
-        with self._io_wake:
-            self._io.append(io)
-            self._io_wake.notify()
-
-    def _replies_off_loop(self, fn: Callable[..., None]) -> Callable[..., None]:
-        """A service handler whose ``respond`` never sends from the command thread."""
-        def handler(data: bytes, respond: Responder, sender: Sender) -> None:
-            fn(data, lambda reply: self._off_loop(lambda: respond(reply)), sender)
-        return handler
-
-    def _run_io(self) -> None:
-        while True:
-            with self._io_wake:
-                while not self._io and not self._stop.is_set():
-                    self._io_wake.wait(0.1)
-                if not self._io:
-                    return
-                io = self._io.popleft()
-            try:
-                io()
-            except Exception:
-                with self._lock:
-                    self.counters["handler_errors"] += 1
-                _log.exception("link reply/publish failed")
-
-    def _refuse(self, respond: Responder, ep: Endpoint, msg: str) -> None:
-        """Answer a refused service call with success=false and ``msg``."""
-        t = ep.response_type
-        if ep.type == m.SET_ORIENTATION_CONTROL:
-            respond(m.encode(m.soc_response(False, msg), t))
-        elif ep.type == m.TRIGGER:
-            respond(m.encode(m.trigger_response(False, msg), t))
-        elif ep.type == m.SEND_GOAL:  # ROS 2's SendGoal reply has no text: not accepted
-            respond(m.encode(m.send_goal_response(False, time.time()), t))
-        elif ep.type == m.CANCEL_GOAL:
-            R = m.typestore().types[t]
-            respond(m.encode(m.cancel_response(R.ERROR_REJECTED, []), t))
-
     def _pub(self, ep_name: str, message: object, typename: str) -> None:
         self.transport.publish(getattr(self.names, ep_name), m.encode(message, typename))
 
-    def _ask(self, fn: Callable[..., tuple[bool, str]], *args: object) -> tuple[bool, str]:
-        """Call a ToolAPI command; an exception becomes a refusal the client can read."""
-        try:
-            ok, msg = fn(*args)
-            return bool(ok), str(msg)
-        except Exception as err:
-            with self._lock:
-                self.counters["handler_errors"] += 1
-            _log.exception("ToolAPI call failed")
-            return False, f"tool error: {type(err).__name__}: {err}"
-
-    def _joints_now(self) -> tuple[float, ...]:
-        try:
-            return tuple(self.api.state().position)
-        except Exception:
-            return ()
-
-    # ---------------------------------------------------------------- handlers --
-    def _on_set_mode(self, data: bytes, respond: Responder, sender: Sender) -> None:
-        ep = self.names.set_orientation_control
-        who, refusal = self._admit(sender, "set_orientation_control")
-        if who is None:
-            return self._refuse(respond, ep, refusal)
-        req = m.decode(data, ep.request_type)
-        stop = req.control_mode == Mode.DISABLED
-        if not stop:
-            self._rate_limit(ep, sender)
-        self._client_seen(who)
-        refusal = self._lease(who, stop=stop)
-        if refusal:
-            return self._refuse(respond, ep, refusal)
-        if req.control_mode not in (Mode.DISABLED, Mode.LEVELING):
-            return self._refuse(respond, ep, (
-                f"control_mode must be {Mode.DISABLED.value} (DISABLED) or "
-                f"{Mode.LEVELING.value} (LEVELING); got {req.control_mode}"))
-        pitch, roll = float(req.pitch_offset), float(req.roll_offset)
-
-        def run() -> tuple[bool, str]:
-            return self._ask(self.api.set_mode, Mode(req.control_mode), pitch, roll)
-
-        def answer(result: object) -> None:
-            respond(m.encode(m.soc_response(*result), ep.response_type))  # type: ignore[misc]
-        if stop:  # every DISABLED is the same stop: waiting ones are run once
-            return self._submit_stop("disable", run, answer)
-        if not self._submit(lambda: answer(run())):
-            self._refuse(respond, ep, "refused: the tool's command inbox is full")
-        return None
-
-    def _on_clear_fault(self, data: bytes, respond: Responder, sender: Sender) -> None:
-        ep = self.names.clear_fault
-        who, refusal = self._admit(sender, "clear_fault")
-        if who is None:
-            return self._refuse(respond, ep, refusal)
-        self._rate_limit(ep, sender)
-        m.decode(data, ep.request_type)
-        self._client_seen(who)
-        refusal = self._lease(who)
-        if refusal:
-            return self._refuse(respond, ep, refusal)
-
-        def work() -> None:
-            ok, msg = self._ask(self.api.clear_fault)
-            respond(m.encode(m.trigger_response(ok, msg), ep.response_type))
-        if not self._submit(work):
-            self._refuse(respond, ep, "refused: the tool's command inbox is full")
-        return None
-
-    def _on_take_over(self, data: bytes, respond: Responder, sender: Sender) -> None:
-        ep = self.names.take_over
-        who, refusal = self._admit(sender, "take_over")
-        if who is None:
-            return self._refuse(respond, ep, refusal)
-        self._rate_limit(ep, sender)
-        m.decode(data, ep.request_type)
-        self._client_seen(who)
-        with self._lock:
-            before = self.lease.take_over(who, time.monotonic())
-            if before not in (None, who):
-                self.counters["lease_takeovers"] += 1
-        _log.warning("AUDIT take-over: %s took the command lease from %s", who,
-                     before or "nobody")
-        self.lease.record("take_over", who, before)
-        respond(m.encode(m.trigger_response(True, f"{who} holds the command lease (was: "
-                                                  f"{before or 'nobody'})"), ep.response_type))
-        return None
-
-    def _on_release(self, data: bytes, respond: Responder, sender: Sender) -> None:
-        ep = self.names.release
-        who, refusal = self._admit(sender, "release")
-        if who is None:
-            return self._refuse(respond, ep, refusal)
-        self._rate_limit(ep, sender)
-        m.decode(data, ep.request_type)
-        with self._lock:
-            mine = self.lease.release(who)
-        if mine:
-            _log.info("command lease released by %s", who)
-            self.lease.record("lease_released", who, None)
-        respond(m.encode(m.trigger_response(mine, "released" if mine else
-                                            f"not held by {who} (holder: {self.holder})"),
-                         ep.response_type))
-        return None
-
-    def _on_send_goal(self, data: bytes, respond: Responder, sender: Sender) -> None:
-        ep = self.names.send_goal
-        who, refusal = self._admit(sender, "send_goal")
-        if who is None:  # SendGoal's reply has no text: an error reply names the reason
-            raise RefusalError(refusal)
-        self._rate_limit(ep, sender)
-        req = m.decode(data, ep.request_type)
-        self._client_seen(who)
-        refusal = self._lease(who)
-        gid = m.uuid_bytes(req.goal_id)
-        name = str(req.goal.primitive_name)
-        params = [float(x) for x in req.goal.parameters]
-        if refusal:  # accepted then aborted, so the client can read why (see the docstring)
-            now = time.time()
-            with self._lock:
-                if gid in self.goals:
-                    return self._refuse(respond, ep, "")
-                self.goals.remember(Goal(gid, name, now, m.GoalStatus.ABORTED, result=(
-                    m.PrimitiveResult(False, refusal, self._joints_now(),
-                                      m.GoalStatus.ABORTED))))
-            respond(m.encode(m.send_goal_response(True, now), ep.response_type))
-            return None
-
-        def work() -> None:
-            self._start_goal(gid, name, params, respond)
-        if not self._submit(work):
-            raise RefusalError("the tool's command inbox is full")
-        return None
-
-    def _start_goal(self, gid: bytes, name: str, params: list[float],
-                    respond: Responder) -> None:
-        now = time.time()
-        ep = self.names.send_goal
-        with self._lock:
-            if gid in self.goals:  # a resent goal id is a protocol error: reject it
-                respond(m.encode(m.send_goal_response(False, now), ep.response_type))
-                return
-            ended = self._settle()  # the running goal may have ended since the last tick
-            running = self.goals.active
-            if running is not None:  # ours still runs: starting now could hide its result
-                ok, msg = False, (f"busy: primitive {running.name} is running (goal "
-                                  f"{running.goal_id.hex()})")
-            else:
-                ok, msg = self._ask(self.api.start_primitive, name, params)
-            goal = Goal(gid, name, now, m.GoalStatus.EXECUTING if ok else m.GoalStatus.ABORTED)
-            if ok:
-                self.goals.active = goal
-            else:
-                goal.result = m.PrimitiveResult(False, msg, self._joints_now(),
-                                                m.GoalStatus.ABORTED)
-            self.goals.remember(goal)
-        self._answer(ended)
-        respond(m.encode(m.send_goal_response(True, now), ep.response_type))
-        self._publish_status()
-
-    def _on_get_result(self, data: bytes, respond: Responder, sender: Sender) -> None:
-        ep = self.names.get_result  # read-only: open to all, within each sender's rate
-        self._rate_limit(ep, sender)
-        req = m.decode(data, ep.request_type)
-        gid = m.uuid_bytes(req.goal_id)
-        with self._lock:
-            goal = self.goals.get(gid)
-            if goal is not None and goal.result is None:
-                goal.waiters.append(respond)  # long poll: answered when the goal ends
-                return
-            result = goal.result if goal is not None else m.PrimitiveResult(
-                False, "unknown goal id", (), m.GoalStatus.UNKNOWN)
-        respond(m.encode(m.result_msg(result), ep.response_type))
-
-    def _on_cancel(self, data: bytes, respond: Responder, sender: Sender) -> None:
-        ep = self.names.cancel_goal
-        who, refusal = self._admit(sender, "cancel_goal")
-        if who is None:  # CancelGoal's reply has no text: an error reply names the reason
-            raise RefusalError(refusal)
-        req = m.decode(data, ep.request_type)  # a stop: no rate limit, never refused for room
-        self._client_seen(who)
-        self._lease(who, stop=True)  # a stop: accepted from any admitted client
-        gid = m.uuid_bytes(req.goal_info.goal_id)
-        R = m.typestore().types[ep.response_type]
-
-        def answer(result: object) -> None:
-            respond(m.encode(m.cancel_response(*result), ep.response_type))  # type: ignore[misc]
-        with self._lock:
-            goal = self.goals.active if gid == _ZERO_ID else self.goals.get(gid)
-            if goal is None:
-                now: tuple[int, list] | None = (R.ERROR_NONE if gid == _ZERO_ID else
-                                                R.ERROR_UNKNOWN_GOAL_ID, [])
-            elif goal.result is not None:
-                now = (R.ERROR_GOAL_TERMINATED, [])
-            else:
-                now = None
-        if now is not None:  # nothing to stop: answered here, without the loop
-            return answer(now)
-
-        def run() -> tuple[int, list]:
-            with self._lock:
-                if goal.result is not None or self.goals.active is not goal:
-                    out: tuple[int, list] = (R.ERROR_GOAL_TERMINATED, [])
-                elif self.api.cancel_primitive():
-                    goal.cancel_requested = True
-                    goal.status = m.GoalStatus.CANCELING
-                    out = (R.ERROR_NONE, [(goal.goal_id, goal.accepted_at)])
-                else:  # finished in between: the next tick reports its result
-                    out = (R.ERROR_GOAL_TERMINATED, [])
-            self._publish_status()
-            return out
-        self._submit_stop(("cancel", goal.goal_id), run, answer)
-        return None
-
-    def _on_trajectory(self, data: bytes, sender: Sender) -> None:
-        ep = self.names.joint_trajectory
-        who, _ = self._admit(sender, "a trajectory")
-        if who is None or not self._within_rate(ep, sender):
-            return
-        message = m.decode(data, ep.type)  # in the link thread
-        traj = m.trajectory_from_msg(message)
-        pre = getattr(self.api, "prevalidate_trajectory", None)
-        if callable(pre):  # the length-dependent checks here, not in the loop's tick
-            try:
-                traj = pre(traj)
-            except (ValueError, TypeError) as err:  # TrajectoryError is a ValueError
-                with self._lock:
-                    self.counters["rejected_trajectories"] += 1
-                _log.warning("trajectory from %s refused: %s", who, err)
-                return
-        self._client_seen(who)
-        refusal = self._lease(who)
-        if refusal:
-            with self._lock:
-                self.counters["rejected_trajectories"] += 1
-            _log.warning("trajectory from %s %s", who, refusal)
-            return
-        # As ROS trajectory controllers: time 0 is header.stamp (wall clock, so the PC's and
-        # the tool's clocks must agree), or arrival when the stamp is zero.
-        stamp = m.stamp_to_time(message.header.stamp)
-
-        def work() -> None:
-            delay = stamp - time.time() if stamp > 0 else 0.0
-            ok, msg = self._ask(self.api.follow_trajectory, traj, delay)
-            if not ok:
-                with self._lock:
-                    self.counters["rejected_trajectories"] += 1
-                _log.warning("trajectory refused: %s", msg)
-        if not self._submit(work):
-            with self._lock:
-                self.counters["rejected_trajectories"] += 1
-
-    def _on_client_heartbeat(self, data: bytes, sender: Sender) -> None:
-        ep = self.names.client_heartbeat
-        who, _ = self._admit(sender, "a client heartbeat")
-        if who is None or not self._within_rate(ep, sender):  # a forged heartbeat keeps
-            return  # neither a lease nor the link alive
-        m.decode(data, ep.type)
-        self._client_seen(who)
-        with self._lock:
-            self.lease.renew(who, time.monotonic())
+    def work_once(self) -> None:
+        """Run at most one queued ToolAPI call (stops first): :meth:`CommandInbox.work_once`.
+        Called once per loop tick; never raises."""
+        self.inbox.work_once()
 
     # ---------------------------------------------------------------- the tick --
-    def _settle(self) -> tuple[list[Responder], m.PrimitiveResult] | PrimitiveStatus | None:
-        """The active goal's progress (lock held): see :meth:`GoalTable.settle`; the waiters
-        of a goal that ended are answered outside the lock by :meth:`_answer`."""
-        return self.goals.settle(self.api.primitive_status)
-
-    def _answer(self, ended: object) -> None:
-        """Answer the get_result waiters of a goal :meth:`_settle` found ended."""
-        if not isinstance(ended, tuple):
-            return
-        waiters, result = ended
-        payload = m.encode(m.result_msg(result), self.names.get_result.response_type)
-        for respond in waiters:
-            respond(payload)
-        self._publish_status()
-
     def _progress(self) -> None:
         with self._lock:
             goal = self.goals.active
@@ -710,12 +246,6 @@ class ToolServer:
                     goal.cancel_requested = True
                     goal.status = m.GoalStatus.CANCELING
         self._client_alive = alive
-
-    def _publish_status(self) -> None:
-        with self._lock:
-            goals = self.goals.statuses()
-        payload = m.encode(m.status_array(goals), m.GOAL_STATUS_ARRAY)
-        self._off_loop(lambda: self.transport.publish(self.names.status, payload))
 
     def tick(self) -> None:
         """One publishing step (the thread calls it at the loop rate; tests may call it)."""

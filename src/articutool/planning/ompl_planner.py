@@ -32,6 +32,12 @@ Every accepted trajectory is checked again after time parameterisation, sampled 
 as a rejection and triggers a re-plan. Planning uses a band 10 % tighter than the requested
 tolerance so the time-parameterised spline stays inside the requested one.
 
+Where it lives: this module is the OMPL part (settings, the model cache, the problem with its
+validity checker and constraint, the attempt loop); the kinematic and path queries it
+evaluates are ``planning/queries.py``. What remains is one unit on purpose: the OMPL objects
+of an attempt are built together after the seed is set (see Determinism), and the problem's
+checks, the attempt loop and the re-plan on a rejection share them.
+
 Determinism: OMPL's global seed is reset (``ompl.util.RNG.setSeed``) before every attempt
 and all OMPL objects are built afterwards, so a (request, seed) pair replays the same plan
 (unless the wall-clock timeout cuts a search at a different point).
@@ -39,7 +45,6 @@ and all OMPL objects are built afterwards, so a (request, seed) pair replays the
 
 from __future__ import annotations
 
-import itertools
 import math
 import threading
 import time
@@ -47,7 +52,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
 from numpy.typing import NDArray
 from ompl import base as ob
 from ompl import geometric as og
@@ -61,6 +65,13 @@ from articutool.planning.constraints import (
     tip_axis_tilt_deg,
     tip_tilt_deg,
 )
+from articutool.planning.queries import (
+    ArmQueries,
+    dense_times,
+    densify,
+    level_configuration,
+    path_length,
+)
 from articutool.planning.timing import time_parameterize, wrist_rate_profile
 from articutool.planning.types import PHASES, PlanRequest, PlanResult
 from articutool.spec import Spec
@@ -71,7 +82,7 @@ from articutool.verify.verifier import verify_trajectory
 __all__ = ["METHODS", "PlannerSettings", "level_configuration", "plan_transport"]
 
 METHODS = ("projection", "rejection")
-_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+_dense_times = dense_times  # its name here before the queries moved out (tests import it)
 _TWO_PI = 2.0 * math.pi
 
 ou.setLogLevel(ou.LOG_NONE)  # OMPL's console chatter (reseeding notices) is not ours to show
@@ -135,6 +146,27 @@ class _Phases(dict):
         self._t = now
 
 
+class _DeadzoneConstraint(ob.Constraint):
+    """OMPL constraint ``f(q) = deadzone(tip tilt)`` (2 rows) with the analytic Jacobian."""
+
+    def __init__(self, kin: ArmQueries, strict: StrictConstraint) -> None:
+        super().__init__(kin.n, 2)
+        self.kin, self.strict = kin, strict
+        self._b = strict.bound
+
+    # Scalar forms of StrictConstraint.deadzone / deadzone_jacobian: OMPL calls these tens
+    # of thousands of times per query, so NumPy call overhead dominates otherwise.
+    def function(self, x, out) -> None:
+        w0, _, w2 = self.kin.rotation(np.asarray(x, dtype=np.float64))[2].tolist()
+        b = self._b
+        out[0] = math.copysign(max(abs(w2) - b, 0.0), w2)
+        out[1] = math.copysign(max(abs(w0) - b, 0.0), w0)
+
+    def jacobian(self, x, out) -> None:
+        R, Jw = self.kin.rotation_and_jacobian(np.asarray(x, dtype=np.float64))
+        out[:, :] = self.strict.deadzone_jacobian(R, Jw)
+
+
 _models = threading.local()  # per thread: a model's data buffers are written by every query
 
 
@@ -162,87 +194,6 @@ def _arm_model(spec: Spec, utensil: str, dof: int, cached: bool) -> ArmModel:
     return model
 
 
-class _Kin:
-    """Per-request kinematics on one ``ArmModel``: validity, tilt, projection Jacobians."""
-
-    def __init__(self, model: ArmModel, frame: str, broadphase: bool = True) -> None:
-        self.arm = model
-        self.m, self.d = model.model, model.data
-        self.gm, self.gd = model.geometry_model, model.geometry_data
-        if not model.model.existFrame(frame):
-            raise ValueError(f"unknown frame {frame!r}")
-        self.fid = model.model.getFrameId(frame)
-        self.n = model.nq
-        self.lo, self.hi = model.lower, model.upper
-        self.bp = model.broadphase if broadphase else None
-
-    def rotation(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
-        pin.forwardKinematics(self.m, self.d, q)
-        return pin.updateFramePlacement(self.m, self.d, self.fid).rotation
-
-    def rotation_and_jacobian(
-        self, q: NDArray[np.float64]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        pin.computeJointJacobians(self.m, self.d, q)
-        R = pin.updateFramePlacement(self.m, self.d, self.fid).rotation
-        J = pin.getFrameJacobian(self.m, self.d, self.fid, _LWA)
-        return R, J[3:]
-
-    def collides(self, q: NDArray[np.float64]) -> bool:
-        if self.bp is not None:
-            return bool(pin.computeCollisions(self.m, self.d, self.bp, q, True))
-        return bool(pin.computeCollisions(self.m, self.d, self.gm, self.gd, q, True))
-
-    def in_bounds(self, q: NDArray[np.float64]) -> bool:
-        return bool(np.all(q >= self.lo - 1e-9) and np.all(q <= self.hi + 1e-9))
-
-
-class _DeadzoneConstraint(ob.Constraint):
-    """OMPL constraint ``f(q) = deadzone(tip tilt)`` (2 rows) with the analytic Jacobian."""
-
-    def __init__(self, kin: _Kin, strict: StrictConstraint) -> None:
-        super().__init__(kin.n, 2)
-        self.kin, self.strict = kin, strict
-        self._b = strict.bound
-
-    # Scalar forms of StrictConstraint.deadzone / deadzone_jacobian: OMPL calls these tens
-    # of thousands of times per query, so NumPy call overhead dominates otherwise.
-    def function(self, x, out) -> None:
-        w0, _, w2 = self.kin.rotation(np.asarray(x, dtype=np.float64))[2].tolist()
-        b = self._b
-        out[0] = math.copysign(max(abs(w2) - b, 0.0), w2)
-        out[1] = math.copysign(max(abs(w0) - b, 0.0), w0)
-
-    def jacobian(self, x, out) -> None:
-        R, Jw = self.kin.rotation_and_jacobian(np.asarray(x, dtype=np.float64))
-        out[:, :] = self.strict.deadzone_jacobian(R, Jw)
-
-
-def level_configuration(
-    model: ArmModel, q0: NDArray[np.float64], *, iterations: int = 50, tol: float = 1e-10
-) -> NDArray[np.float64] | None:
-    """Project ``q0`` (nq,) to a configuration with the tip exactly level (Gauss–Newton).
-
-    Drives ``w_x = w_z = 0`` (see :mod:`~articutool.planning.constraints`) with minimum-norm
-    steps. Returns ``None`` if it does not converge, ends upside down or leaves the joint
-    limits. Does not check collisions. Useful for making level test/benchmark tasks.
-    """
-    kin = _Kin(model, tip_frame_name(model.utensil))
-    exact = StrictConstraint(1e-9)
-    q = np.asarray(q0, dtype=np.float64).copy()
-    for _ in range(iterations):
-        R, Jw = kin.rotation_and_jacobian(q)
-        w = R[2]
-        e = np.array([w[2], w[0]])
-        if e @ e < tol and w[1] > 0:
-            return q if kin.in_bounds(q) else None
-        J = exact.deadzone_jacobian(R, Jw) if np.abs(e).max() > 1e-9 else None
-        if J is None:
-            break
-        q = q - np.linalg.lstsq(J, e, rcond=None)[0]
-    return None
-
-
 @dataclass
 class _Problem:
     """Everything one request needs: model, checkers, start/goal, final checks."""
@@ -265,10 +216,11 @@ class _Problem:
         self.goal = np.array(list(task.goal) + wrist_g, dtype=np.float64)
         pl = spec.planning
         bp = self.settings.broadphase
-        self.executed: _Kin | None = None  # decoupled: the 8-DOF model the tool executes
+        self.executed: ArmQueries | None = None  # decoupled: the 8-DOF model the tool executes
         if req.system == "decoupled":
-            self.kin = _Kin(self.model, TOOL_BASE_FRAME, bp)
-            self.executed = _Kin(_arm_model(spec, req.utensil, 8, cached), TOOL_BASE_FRAME, bp)
+            self.kin = ArmQueries(self.model, TOOL_BASE_FRAME, bp)
+            self.executed = ArmQueries(_arm_model(spec, req.utensil, 8, cached),
+                                       TOOL_BASE_FRAME, bp)
             self.loose = LooseConstraint.from_start(
                 self.kin.rotation(self.start), task.start_wrist,
                 math.radians(pl.loose_pitch_deg), math.radians(pl.loose_roll_deg),
@@ -277,7 +229,7 @@ class _Problem:
             self.band = None
             self._q_executed = np.zeros(8)
         else:
-            self.kin = _Kin(self.model, tip_frame_name(req.utensil), bp)
+            self.kin = ArmQueries(self.model, tip_frame_name(req.utensil), bp)
             tol = math.radians(req.tolerance_deg if req.tolerance_deg is not None
                                else pl.strict_tolerance_deg)
             self.strict = StrictConstraint(tol)
@@ -419,7 +371,7 @@ class _Problem:
         if st.try_direct and not projected and si.checkMotion(a, b):
             # The straight motion is valid: nothing to search or simplify.
             phases.lap("search")
-            return _densify(np.stack([self.start, self.goal]), st.resolution), ""
+            return densify(np.stack([self.start, self.goal]), st.resolution), ""
         t_start = time.perf_counter()
         if self.req.planner == "rrtstar":
             # RRT* refines until the budget ends or it has refined for as long as it took to
@@ -456,7 +408,7 @@ class _Problem:
         states = path.getStates()
         q = np.array([[s[i] for i in range(n)] for s in states])
         del keep
-        out = _densify(q, st.resolution)
+        out = densify(q, st.resolution)
         phases.lap("simplify")
         return out, ""
 
@@ -475,7 +427,7 @@ class _Problem:
         ``wrist`` (decoupled): the verifier's synchronised leveling trajectory; collisions
         are then checked on the 8-DOF model with the wrist where it will be.
         """
-        t = _dense_times(traj, self.settings.check_step)
+        t = dense_times(traj, self.settings.check_step)
         q, _ = traj.sample(t)
         lo, hi = self.kin.lo, self.kin.hi
         out = np.flatnonzero(((q < lo - 1e-9) | (q > hi + 1e-9)).any(axis=1))
@@ -515,31 +467,6 @@ class _Problem:
             return np.divide(1.0, ratio, out=np.full(ratio.shape, np.inf), where=ratio > 1e-12)
 
         return sdot_max
-
-
-def _densify(q: NDArray[np.float64], step: float) -> NDArray[np.float64]:
-    """Insert linear samples so that consecutive rows differ by at most ``step`` (max-norm)."""
-    out = [q[:1]]
-    for a, b in itertools.pairwise(q):
-        k = max(int(np.ceil(np.abs(b - a).max() / step)), 1)
-        f = np.arange(1, k + 1)[:, None] / k
-        out.append(a + f * (b - a))
-    return np.concatenate(out)
-
-
-def _dense_times(traj: JointTrajectory, step: float) -> NDArray[np.float64]:
-    """Sample times with joint steps ≲ ``step``: each interval split by its velocity bound."""
-    t = traj.times
-    dt = np.diff(t)
-    vpeak = np.maximum(np.abs(traj.velocities[:-1]), np.abs(traj.velocities[1:])).max(axis=1)
-    dpos = np.abs(np.diff(traj.positions, axis=0)).max(axis=1)
-    k = np.maximum(np.ceil(np.maximum(dpos, 1.5 * vpeak * dt) / step), 1).astype(int)
-    parts = [t[i] + dt[i] * np.arange(k[i]) / k[i] for i in range(dt.size)]
-    return np.concatenate(parts + [t[-1:]])
-
-
-def _path_length(q: NDArray[np.float64]) -> float:
-    return float(np.linalg.norm(np.diff(q, axis=0), axis=1).sum())
 
 
 def _seed(seed: int, attempt: int) -> int:
@@ -598,14 +525,14 @@ def plan_transport(
         if traj is None:
             last = "time parameterisation failed"
             continue
-        length = _path_length(waypoints)
+        length = path_length(waypoints)
         if req.system != "decoupled":
             problem = prob.check_trajectory(traj)
             phases.lap("recheck")
             if problem is not None:
                 last = f"trajectory check failed: {problem}"
                 continue
-            q, _ = traj.sample(_dense_times(traj, prob.settings.check_step))
+            q, _ = traj.sample(dense_times(traj, prob.settings.check_step))
             tilt = float(tip_tilt_deg(prob.tip_rotations(q)).max())
             phases.lap("recheck")
             return PlanResult(req.system, req.task.task_id, True, time.perf_counter() - t0,

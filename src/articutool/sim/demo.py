@@ -21,46 +21,9 @@ import numpy as np
 
 from articutool.spec import Spec
 
-__all__ = ["add_commands", "run_demo", "staging_configuration"]
+__all__ = ["add_commands", "run_demo"]
 
 _DEFAULT_PLOT = Path("results/demo_transport.png")
-
-
-def staging_configuration(spec: Spec, model: Any, seed: int = 0) -> tuple[np.ndarray, float]:
-    """Arm configuration for the spec's Staging pose (end-effector IK), collision-free.
-
-    The reference system's Staging pose was taught for a shorter tool; with the Articutool's
-    geometry it puts the utensil into the head of the default scene. The end effector is
-    therefore backed off along its approach axis (1 cm steps, up to 20 cm) until the whole
-    tool is clear. Returns the configuration and the back-off distance (m).
-    """
-    import pinocchio as pin
-
-    from articutool.arm.ik import IKSettings, solve_pose_ik
-
-    pose = spec.arm.poses["Staging"]
-    R = pin.Quaternion(*pose.orientation_wxyz).normalized().toRotationMatrix()
-    rng = np.random.default_rng(seed)
-    seeds = [spec.arm.configuration(n) for n in ("Home", "Resting", "AbovePlate")]
-    seeds += list(rng.uniform(spec.arm.lower, spec.arm.upper, size=(24, 6)))
-    settings = IKSettings(max_iterations=500)
-    for back in np.arange(0.0, 0.2001, 0.01):
-        target = np.eye(4)
-        target[:3, :3] = R
-        target[:3, 3] = np.asarray(pose.position) - back * R[:, 2]
-        best = None
-        for q0 in seeds:
-            q = solve_pose_ik(model, "ee", target, np.r_[q0, np.zeros(model.nq - 6)],
-                              settings, free=6)
-            if q is None or model.in_collision(q):
-                continue
-            # Prefer the solution closest to Resting: a short, natural transport.
-            d = np.linalg.norm(q[:6] - spec.arm.configuration("Resting"))
-            if best is None or d < best[0]:
-                best = (d, q[:6])
-        if best is not None:
-            return np.asarray(best[1]), float(back)
-    raise RuntimeError("no collision-free IK solution near the Staging pose")
 
 
 def run_demo(
@@ -74,6 +37,7 @@ def run_demo(
     """Run the demo; returns the figures (see module docstring)."""
     import articutool.planning.ompl_planner  # noqa: F401  (import OMPL/toppra before timing)
     from articutool.arm import ArmModel
+    from articutool.arm.ik import staging_configuration
     from articutool.planning.api import PlanRequest, TransportTask, plan
     from articutool.sim.transport import simulate_transport
     from articutool.verify import verify_trajectory

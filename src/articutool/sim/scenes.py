@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from articutool.arm.ik import IKSettings, solve_pose_ik
 from articutool.arm.model import ArmModel
-from articutool.arm.scene import Cylinder
+from articutool.arm.scene import SCOOP_HEADING, Cylinder
 from articutool.planning.timing import time_parameterize
 from articutool.sim.world import FeedingWorld, FoodReport
 from articutool.spec import Spec
@@ -39,10 +39,6 @@ __all__ = ["SCOOP_HEADING", "SCRIPTS", "ScriptError", "acquire", "cartesian_path
 
 SCRIPTS = ("scoop", "carry", "tilt")
 _Z = np.array([0.0, 0.0, 1.0])
-# Scoops move along −y (towards the table's front edge, away from the user): the wrist then
-# stays on the arm's side of the bowl. Pointing away from the arm, a level utensil at the
-# bowl is out of the Jaco's reach (Pinocchio IK from 23 starts found none).
-SCOOP_HEADING = np.array([0.0, -1.0, 0.0])
 
 
 class ScriptError(RuntimeError):

@@ -76,16 +76,23 @@ peak — an upper bound — in PRIMITIVE/TRAJECTORY), integrated since start:
 ``battery_used_wh`` and ``battery_remaining_pct`` (assumes the bank held
 ``battery_start_pct`` at start; the 12 V supply is regulated, so the voltage alone says little
 about the charge) and ``battery_runtime_h`` at the present mode's power.
+
+Composition: this module is the state machine, the loop and the fault handling; the parts it
+composes are their own modules: ``modes.py`` (mode requests, LEVELING), ``envelope.py`` (the
+safety envelope and limit recovery), ``following.py`` (TRAJECTORY: validation and following),
+``sensing.py`` (IMU → filter, freshness, F/T) and ``telemetry.py`` (loop statistics, energy,
+the state snapshot). Their names are re-exported here. What stays here (about 580 lines of
+code under this page of documentation) is one unit on purpose: the ToolAPI calls, the tick and
+the fault transitions read and write the same mode and fault state under one lock, and split
+apart each would have to reach into the others' state.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-import numbers
 import threading
 import time
-import weakref
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -95,62 +102,20 @@ from numpy.typing import NDArray
 from articutool.spec import Spec
 from articutool.tool.api import ABORTED_BY_MODE_CHANGE, Mode, PrimitiveStatus, ToolState
 from articutool.tool.controller import LevelingController, quaternion_to_matrix
-from articutool.tool.drivers.base import FTDriver, ImuDriver, ImuSample, MotorDriver, MotorState
+from articutool.tool.drivers.base import FTDriver, ImuDriver, MotorDriver, MotorState
+from articutool.tool.envelope import SafetyEnvelope
 from articutool.tool.filter import ComplementaryFilter
+from articutool.tool.following import TrajectoryFollower
 from articutool.tool.kinematics import tilt_from_vertical, up_vector
+from articutool.tool.modes import Leveling, check_offsets, requested_mode
 from articutool.tool.primitives import Primitive, PrimitiveError, make_primitive
+from articutool.tool.sensing import STALE_IMU_PERIODS, Sensing
+from articutool.tool.telemetry import EnergyMeter, LoopStats, build_state
 from articutool.trajectory import JointTrajectory, TrajectoryError
 
 __all__ = ["STALE_IMU_PERIODS", "LoopStats", "ToolRuntime"]
 
 log = logging.getLogger(__name__)
-
-STALE_IMU_PERIODS = 2.0  # issue 3: IMU data older than two loop periods is stale
-_TWO_PI = 2.0 * math.pi
-
-
-class LoopStats:
-    """Loop timing: period mean and standard deviation (jitter, Welford), max, overruns, and
-    the compute time of a tick (mean, max)."""
-
-    def __init__(self) -> None:
-        self.reset()
-
-    def reset(self) -> None:
-        """Forget all samples."""
-        self.count = 0
-        self.mean = math.nan
-        self._m2 = 0.0
-        self.max = math.nan
-        self.overruns = 0
-        self.ticks = 0
-        self.compute_mean = math.nan
-        self.compute_max = math.nan
-
-    def add_period(self, p: float) -> None:
-        """Record one measured period (s)."""
-        self.count += 1
-        if self.count == 1:
-            self.mean, self._m2, self.max = p, 0.0, p
-            return
-        d = p - self.mean
-        self.mean += d / self.count
-        self._m2 += d * (p - self.mean)
-        self.max = max(self.max, p)
-
-    def add_compute(self, c: float) -> None:
-        """Record the compute time (s) of one tick."""
-        self.ticks += 1
-        if self.ticks == 1:
-            self.compute_mean = self.compute_max = c
-            return
-        self.compute_mean += (c - self.compute_mean) / self.ticks
-        self.compute_max = max(self.compute_max, c)
-
-    @property
-    def jitter(self) -> float:
-        """Standard deviation of the period (s); NaN with fewer than two periods."""
-        return math.sqrt(self._m2 / (self.count - 1)) if self.count > 1 else math.nan
 
 
 class ToolRuntime:
@@ -182,8 +147,7 @@ class ToolRuntime:
         rate_feedforward: bool = True,
         battery_start_pct: float = 100.0,
     ) -> None:
-        if not (math.isfinite(battery_start_pct) and 0.0 <= battery_start_pct <= 100.0):
-            raise ValueError(f"battery_start_pct must be in [0, 100]; got {battery_start_pct}")
+        self._energy = EnergyMeter(spec, battery_start_pct)  # validates battery_start_pct
         self.spec = spec
         self.motors = motors
         self.imu = imu
@@ -194,32 +158,16 @@ class ToolRuntime:
         self.joint_names: tuple[str, str] = (w.joint_names[0], w.joint_names[1])
         self._vmax = w.velocity_limits
         self._limits = w.limits
-        turns = w.roll_turn_budget * _TWO_PI
-        tol = self._vmax * self.period  # one tick of travel at the commandable speed
-        self._envelope = np.array(
-            [[w.pitch_limits[0] - tol[0], w.pitch_limits[1] + tol[0]],
-             [-turns - tol[1], turns + tol[1]]]
-        )
-        self._stale_after = STALE_IMU_PERIODS * self.period
-        self._imu_dt_max = 4.0 / spec.imu.rate_hz  # longer gaps re-initialise the filter
-        self._track_gain = spec.primitives.position_gain
-        self._rate_ff = bool(rate_feedforward)
-        self._battery_start_wh = spec.power.battery_wh * battery_start_pct / 100.0
-        self._mode_power = {
-            Mode.DISABLED: spec.power.idle_w,
-            Mode.LEVELING: spec.power.leveling_w,
-            Mode.PRIMITIVE: spec.power.peak_w,
-            Mode.TRAJECTORY: spec.power.peak_w,
-        }
 
         self.filter = ComplementaryFilter.from_spec(spec.filter)
         self.controller = LevelingController.from_spec(spec, R_base_imu=R_base_imu)
         self.stats = LoopStats()
+        self._envelope = SafetyEnvelope(spec)
+        self._sensing = Sensing(spec, imu, ft, self.filter)
+        self._leveling = Leveling(spec, self.controller, rate_feedforward)
+        self._follower = TrajectoryFollower(spec)
         self._lock = threading.RLock()
         self._link_work: Callable[[], None] | None = None
-        # Trajectories prevalidate_trajectory returned, by id while they live (the dataclass
-        # holds arrays, so it cannot be hashed into a WeakSet).
-        self._prechecked: dict[int, weakref.ref[JointTrajectory]] = {}
         self._opened = False
         self._wall_timing = False
 
@@ -231,35 +179,14 @@ class ToolRuntime:
         self._stop_failures = 0
         self._in_stop_fault = False
         self._reboot_requested = False
-        self._limit_recovery = np.zeros(2, dtype=bool)
-        # sensing
         self._motor_state: MotorState | None = None
         self._motor_read_ok = False
-        self._last_imu: ImuSample | None = None
-        self._last_imu_stamp = math.nan
-        self._imu_fresh = False
-        self._imu_bad = 0
-        self._imu_resets = 0
-        self._gyro_corrected = np.zeros(3)
-        self._ft_last: tuple[float, ...] | None = None
-        self._ft_fresh: NDArray[np.float64] | None = None  # this tick's force, for primitives
-        self._ft_errors = 0
         self._tilt = math.nan
-        # modes
-        self._offsets_deg = (0.0, 0.0)
-        # While leveling is stalled: the nearest reachable level configuration (NaN: none).
-        self._stall_target: tuple[float, float] | None = None
         self._primitive: Primitive | None = None
         self._primitive_status: PrimitiveStatus | None = None
-        self._traj: JointTrajectory | None = None
-        self._traj_t0: float | None = None
-        self._traj_hold = np.zeros(2)
-        self._traj_progress = math.nan
-        self._traj_error = math.nan
         # loop bookkeeping
         self._last_now: float | None = None
         self._command = np.zeros(2)
-        self._energy_wh = 0.0
         self._snapshot: ToolState | None = None
 
     # ----------------------------------------------------------------- lifecycle --
@@ -279,7 +206,7 @@ class ToolRuntime:
         """Stop the motors, torque off, close every driver (best effort, never raises)."""
         with self._lock:
             self._abort_primitive("aborted: runtime shutting down")
-            self._traj = None
+            self._follower.drop()
             self._mode = Mode.DISABLED
             self._stop_motors()
             for what, fn in (
@@ -310,21 +237,13 @@ class ToolRuntime:
         Refused, with no change, for other modes, bad offsets, a persisting fault (except
         DISABLED) or, for LEVELING, no fresh IMU data or joint state.
         """
-        try:
-            mode = Mode(int(mode))
-        except (TypeError, ValueError):
-            return False, (f"mode must be {int(Mode.DISABLED)} (DISABLED) or "
-                           f"{int(Mode.LEVELING)} (LEVELING); got {mode!r}")
-        if mode is Mode.PRIMITIVE:
-            return False, "mode PRIMITIVE is entered with start_primitive, not set_mode"
-        if mode is Mode.TRAJECTORY:
-            return False, "mode TRAJECTORY is entered with follow_trajectory, not set_mode"
         offsets = (0.0, 0.0)
-        if mode is Mode.LEVELING:
-            try:
-                offsets = self._check_offsets(pitch_offset_deg, roll_offset_deg)
-            except ValueError as err:
-                return False, str(err)
+        try:
+            mode = requested_mode(mode)
+            if mode is Mode.LEVELING:
+                offsets = check_offsets(pitch_offset_deg, roll_offset_deg, self._limits)
+        except ValueError as err:
+            return False, str(err)
         with self._lock:
             note = ""
             if self._fault:
@@ -341,20 +260,15 @@ class ToolRuntime:
             if mode is Mode.LEVELING:
                 if self._motor_state is None:
                     return False, "refused: no joint state yet (the loop has not run)"
-                if not self._imu_fresh or not self.filter.initialized:
+                if not self._sensing.imu_fresh or not self.filter.initialized:
                     return False, ("refused: no fresh IMU data (older than "
                                    f"{STALE_IMU_PERIODS:g} loop periods); cannot level")
                 q = np.asarray(self._motor_state.position, dtype=np.float64)
                 R = self.controller.tool_base_orientation(
                     quaternion_to_matrix(self.filter.orientation))
-                previous = self.controller.offsets
-                self.controller.set_offsets(math.radians(offsets[0]), math.radians(offsets[1]))
-                refusal = self._leveling_out_of_budget(R, q)
+                refusal = self._leveling.engage(R, q, offsets)
                 if refusal:
-                    self.controller.set_offsets(*previous)
                     return False, refusal
-                self.controller.engage(R, q)
-                self._offsets_deg = offsets
                 self._enter(Mode.LEVELING)
                 return True, (f"LEVELING with offsets pitch {offsets[0]:g}°, "
                               f"roll {offsets[1]:g}°{note}")
@@ -456,15 +370,12 @@ class ToolRuntime:
             if not math.isfinite(delay):
                 return False, f"trajectory refused: start_delay must be finite; got {start_delay!r}"
             try:
-                traj = self._validated_trajectory(trajectory, self._motor_state.position)
+                traj = self._follower.validated(trajectory, self._motor_state.position)
             except (TrajectoryError, ValueError, TypeError) as err:
                 return False, f"trajectory refused: {err}"
             self._enter(Mode.TRAJECTORY)
-            self._traj = traj
             # Without a delay, time 0 is the first TRAJECTORY tick; with one, it is absolute.
-            self._traj_t0 = float(self.clock()) + delay if delay > 0.0 else None
-            self._traj_hold = traj.positions[0].copy()  # where the wrist is (see validation)
-            self._traj_progress = 0.0
+            self._follower.start(traj, float(self.clock()) + delay if delay > 0.0 else None)
             when = f"in {delay:.3f} s" if delay > 0.0 else "now"
             return True, (f"following {len(traj)} points over {traj.duration:.3f} s starting "
                           f"{when}, then holding the last point")
@@ -601,23 +512,23 @@ class ToolRuntime:
             return
 
         # 2. IMU → filter (every sample since the last tick, in order)
-        self._read_imu(now)
+        sensing = self._sensing
+        sensing.read_imu(now)
         # 3. F/T (telemetry only: a failing F/T sensor never stops the tool)
-        self._read_ft()
-        self._energy_wh += self._mode_power[self._mode] * dt / 3600.0
+        sensing.read_ft()
+        self._energy.add(self._mode, dt)
         self._tilt = self._tool_tilt(q)
 
         # 4. safety
         if ms.has_hardware_error:
             self._set_fault("hardware", f"motor hardware error: {ms.describe_errors()}")
             return
-        outside = self._outside_envelope(q)
-        if outside and not all(self._limit_recovery[j] for j in outside):
-            self._set_fault("limit", self._limit_message(q, outside))
+        outside, violation = self._envelope.check(q)
+        if violation:
+            self._set_fault("limit", violation)
             return
-        self._limit_recovery[[j for j in (0, 1) if j not in outside]] = False
-        if self._mode is Mode.LEVELING and not self._imu_fresh:
-            self._set_fault("imu_stale", self._stale_message(now))
+        if self._mode is Mode.LEVELING and not sensing.imu_fresh:
+            self._set_fault("imu_stale", sensing.stale_message(now))
             return
 
         # 5. the mode's command
@@ -625,13 +536,15 @@ class ToolRuntime:
             self._stop_motors()
             return
         if self._mode is Mode.LEVELING:
-            cmd = self._leveling_command(q, dt)
+            R = self.controller.tool_base_orientation(
+                quaternion_to_matrix(self.filter.orientation))
+            cmd = self._leveling.command(R, q, sensing.gyro_corrected, dt)
         elif self._mode is Mode.PRIMITIVE:
             cmd = self._primitive_command(q, dt)
             if cmd is None:  # finished: back to DISABLED
                 return
         else:
-            cmd = self._trajectory_command(q, now)
+            cmd = self._follower.command(q, now)
 
         # 6. last checks, then write
         cmd = np.asarray(cmd, dtype=np.float64)
@@ -640,54 +553,14 @@ class ToolRuntime:
                             f"non-finite joint command {cmd!r} in mode {self._mode.name}")
             return
         cmd = np.clip(cmd, -self._vmax, self._vmax)
-        for j in outside:  # recovering: only moves back towards the envelope are allowed
-            lo, hi = self._envelope[j]
-            if (q[j] > hi and cmd[j] > 0.0) or (q[j] < lo and cmd[j] < 0.0):
-                self._set_fault("limit", self._limit_message(q, [j]) + " and the "
-                                f"{self._mode.name} command drives it further out")
+        if outside:  # recovering: only moves back towards the envelope are allowed
+            violation = self._envelope.drives_further_out(q, cmd, outside)
+            if violation:
+                self._set_fault("limit", f"{violation} and the {self._mode.name} command "
+                                "drives it further out")
                 return
         self.motors.set_velocity(cmd)
         self._command = cmd
-
-    def _read_imu(self, now: float) -> None:
-        try:
-            samples = self.imu.read_all()
-        except Exception as exc:  # staleness (and its fault while leveling) follows
-            self._imu_bad += 1
-            log.debug("IMU read failed: %s", exc)
-            samples = []
-        # The IMU samples on its own timer at spec.imu.rate_hz; the stamps are reception
-        # times (a batch read at once shares one), so the filter integrates the nominal
-        # period and only a real gap in the stream re-initialises it.
-        dt_imu = 1.0 / self.spec.imu.rate_hz
-        for s in samples:
-            stamp = float(s.stamp)
-            if self.filter.initialized and stamp - self._last_imu_stamp > self._imu_dt_max:
-                self._imu_resets += 1
-                self.filter.reset()
-            try:
-                self.filter.update(s.accel, s.gyro, dt_imu)
-            except ValueError:
-                self._imu_bad += 1
-                continue
-            self._last_imu = s
-            self._last_imu_stamp = stamp
-            self._gyro_corrected = np.asarray(s.gyro, dtype=np.float64) - self.filter.bias
-        age = now - self._last_imu_stamp
-        self._imu_fresh = bool(self.filter.initialized and age <= self._stale_after * (1 + 1e-9))
-
-    def _read_ft(self) -> None:
-        self._ft_fresh = None
-        if self.ft is None:
-            return
-        try:
-            s = self.ft.read()
-        except Exception:
-            self._ft_errors += 1
-            return
-        if s is not None:
-            self._ft_fresh = np.asarray(s.force, dtype=np.float64)
-            self._ft_last = (*np.asarray(s.force).tolist(), *np.asarray(s.torque).tolist())
 
     def _tool_tilt(self, q: NDArray[np.float64]) -> float:
         if not self.filter.initialized:
@@ -695,26 +568,10 @@ class ToolRuntime:
         R = self.controller.tool_base_orientation(quaternion_to_matrix(self.filter.orientation))
         return float(tilt_from_vertical(R @ up_vector(q)))
 
-    def _leveling_command(self, q: NDArray[np.float64], dt: float) -> NDArray[np.float64]:
-        R = self.controller.tool_base_orientation(quaternion_to_matrix(self.filter.orientation))
-        rate = self.controller.tool_base_rate(self._gyro_corrected) if self._rate_ff else None
-        cmd = self.controller.update(R, q, dt, base_rate=rate)
-        if not self.controller.stalled:
-            self._stall_target = None
-            return cmd
-        new = self._stall_target is None
-        target = self.controller.nearest_level(R, q)  # where level could be reached now
-        self._stall_target = ((math.nan, math.nan) if target is None
-                              else (float(target[0]), float(target[1])))
-        if new:
-            log.warning("leveling stalled at %.1f° of tilt (nearest level configuration: %s)",
-                        math.degrees(self.controller.error_angle), self._stall_target)
-        return cmd
-
     def _primitive_command(self, q: NDArray[np.float64], dt: float) -> NDArray[np.float64] | None:
         prim = self._primitive
         assert prim is not None
-        prim.sense(self._ft_fresh)
+        prim.sense(self._sensing.ft_fresh)
         cmd = prim.step(q, dt)
         self._primitive_status = prim.status()
         if prim.done:
@@ -723,25 +580,6 @@ class ToolRuntime:
             return None
         return cmd
 
-    def _trajectory_command(self, q: NDArray[np.float64], now: float) -> NDArray[np.float64]:
-        traj = self._traj
-        assert traj is not None
-        if self._traj_t0 is None:
-            self._traj_t0 = now
-        t = now - self._traj_t0
-        if t < 0.0:  # not started yet (start_delay): hold where the wrist was
-            pos, vel = self._traj_hold, np.zeros(2)
-        else:
-            pos, vel = traj.sample(t)
-        if t >= traj.duration:
-            vel = np.zeros(2)  # hold the last point
-        self._traj_progress = (100.0 * min(1.0, max(t, 0.0) / traj.duration)
-                               if traj.duration > 0 else 100.0)
-        err = pos - q
-        self._traj_error = float(np.abs(err).max())
-        return vel + self._track_gain * err
-
-    # -- trajectory validation --
     def prevalidate_trajectory(self, trajectory: JointTrajectory) -> JointTrajectory:
         """The checks of :meth:`follow_trajectory` that do not depend on the wrist's state
         (joint names, waypoint limits, the interpolated spline's limits), without the lock.
@@ -752,91 +590,7 @@ class ToolRuntime:
         to validate in full). Raises TrajectoryError (or TypeError) with the reason; returns
         the trajectory in the wrist's joint order, marked as checked by this runtime.
         """
-        traj = self._checked_shape_and_limits(trajectory)
-        key = id(traj)
-        self._prechecked[key] = weakref.ref(traj, lambda _r: self._prechecked.pop(key, None))
-        return traj
-
-    def _check_limits(self, t: NDArray, pos: NDArray, vel: NDArray, what: str) -> None:
-        names, lim, vmax = list(self.joint_names), self._limits, self._vmax
-        for j, name in enumerate(names):
-            lo, hi = lim[j]
-            bad = np.flatnonzero((pos[:, j] < lo - 1e-9) | (pos[:, j] > hi + 1e-9))
-            if bad.size:
-                k = int(bad[0])
-                raise TrajectoryError(
-                    f"{what} at t = {t[k]:.3f} s: {name} = {pos[k, j]:.4f} rad is outside "
-                    f"[{lo:.4f}, {hi:.4f}] rad (spec.wrist limits)")
-            bad = np.flatnonzero(np.abs(vel[:, j]) > vmax[j] * (1 + 1e-9))
-            if bad.size:
-                k = int(bad[0])
-                raise TrajectoryError(
-                    f"{what} at t = {t[k]:.3f} s: {name} velocity {vel[k, j]:.4f} rad/s is "
-                    f"outside [{-vmax[j]:g}, {vmax[j]:g}] rad/s (spec.wrist.max_velocity)")
-
-    def _check_spline(self, traj: JointTrajectory, t0: float, t1: float) -> None:
-        """The spline between waypoints can overshoot; check it densely on [t0, t1] (4
-        samples per tick, and every waypoint in the span)."""
-        n = max(2, math.ceil((t1 - t0) / (self.period / 4)) + 1)
-        inside = traj.times[(traj.times >= t0) & (traj.times <= t1)]
-        ts = np.unique(np.concatenate([np.linspace(t0, t1, n), inside]))
-        pos, vel = traj.sample(ts)
-        self._check_limits(ts, pos, vel, "interpolated trajectory")
-
-    def _checked_shape_and_limits(self, trajectory: JointTrajectory) -> JointTrajectory:
-        if not isinstance(trajectory, JointTrajectory):
-            raise TypeError(f"expected a JointTrajectory; got {type(trajectory).__name__}")
-        names = list(self.joint_names)
-        if sorted(trajectory.joint_names) != sorted(names):
-            raise TrajectoryError(f"joint_names must be the wrist's {names}; "
-                                  f"got {list(trajectory.joint_names)}")
-        traj = trajectory.reordered(names)
-        self._check_limits(traj.times, traj.positions, traj.velocities, "waypoint")
-        self._check_spline(traj, float(traj.times[0]), float(traj.times[-1]))
-        return traj
-
-    def _validated_trajectory(
-        self, trajectory: JointTrajectory, q_now: NDArray[np.float64]
-    ) -> JointTrajectory:
-        ref = self._prechecked.get(id(trajectory))
-        if ref is not None and ref() is trajectory:  # names, limits checked in the link thread
-            traj = trajectory
-        else:
-            traj = self._checked_shape_and_limits(trajectory)
-        names, vmax = list(self.joint_names), self._vmax
-        if traj.times[0] > 0.0:
-            # Start from where the wrist is: the spline moves it to the first point in time.
-            # Hermite segments are local, so only the new first segment needs checking.
-            traj = JointTrajectory(
-                traj.joint_names, np.concatenate([[0.0], traj.times]),
-                np.vstack([q_now, traj.positions]), np.vstack([np.zeros(2), traj.velocities]))
-            self._check_spline(traj, 0.0, float(traj.times[1]))
-        else:
-            gap = np.abs(traj.positions[0] - q_now)
-            reach = vmax * self.period
-            j = int(np.argmax(gap / reach))
-            if gap[j] > reach[j]:
-                raise TrajectoryError(
-                    f"the first point (t = 0) is {gap[j]:.4f} rad from the present {names[j]} "
-                    f"({q_now[j]:.4f} rad), more than one tick's travel ({reach[j]:.4f} rad); "
-                    "give the first point a time_from_start > 0 to move there")
-        return traj
-
-    def _leveling_out_of_budget(self, R: NDArray[np.float64], q: NDArray[np.float64]) -> str:
-        """Why leveling cannot start from ``q`` under the base orientation ``R``, or "".
-
-        The up vector repeats every roll turn, so the nearest level configuration is at most
-        half a turn of roll away; leveling is refused only when that one lies beyond the
-        cable's net-turn budget (the roll would be pinned against the budget, tilted).
-        """
-        target = self.controller.nearest_level(R, q)
-        b = self.spec.wrist.roll_turn_budget
-        tol = self.controller.deadband  # pinned that close to the budget is level enough
-        if target is None or abs(target[1]) <= b * _TWO_PI + tol:
-            return ""
-        return (f"refused: leveling from roll {q[1] / _TWO_PI:+.2f} turns needs roll "
-                f"{target[1] / _TWO_PI:+.2f} turns, beyond the cable budget of ±{b:g} turns "
-                "(spec.wrist.roll_turn_budget); unwind first (HOMING or TWIRL)")
+        return self._follower.prevalidate(trajectory)
 
     # -- modes and faults --
     def _enter(self, mode: Mode) -> None:
@@ -845,8 +599,7 @@ class ToolRuntime:
         if self._primitive is not None and mode is not Mode.PRIMITIVE:
             self._abort_primitive(f"{ABORTED_BY_MODE_CHANGE}{mode.name}")
         if mode is not Mode.TRAJECTORY:
-            self._traj = None
-            self._traj_t0 = None
+            self._follower.drop()
         if mode is Mode.DISABLED:
             self._stop_motors()
         if mode is Mode.LEVELING and self._mode is not Mode.LEVELING:
@@ -894,16 +647,14 @@ class ToolRuntime:
         except Exception:  # a broken primitive must not keep the motors running
             log.exception("aborting the primitive failed")
             self._primitive = None
-        self._traj = None
-        self._traj_t0 = None
+        self._follower.drop()
         self._mode = Mode.DISABLED
         self._stop_motors()
 
     def _clear_fault(self) -> None:
         if self._fault_kind == "limit" and self._motor_state is not None:
             q = np.asarray(self._motor_state.position, dtype=np.float64)
-            for j in self._outside_envelope(q):
-                self._limit_recovery[j] = True
+            self._envelope.arm_recovery(q)
         self._fault = ""
         self._fault_kind = ""
 
@@ -915,107 +666,17 @@ class ToolRuntime:
             return "the motors do not answer"
         if kind == "hardware" and ms is not None and ms.has_hardware_error:
             return f"motor hardware error: {ms.describe_errors()}"
-        if kind == "imu_stale" and not self._imu_fresh:
+        if kind == "imu_stale" and not self._sensing.imu_fresh:
             return "IMU data still stale"
         if kind == "motor_stop" and not self._stop_ok:
             return "the motors do not confirm a stop"
         return ""
 
-    def _outside_envelope(self, q: NDArray[np.float64]) -> list[int]:
-        env = self._envelope
-        return [j for j in (0, 1) if not env[j, 0] <= q[j] <= env[j, 1]]
-
-    def _limit_message(self, q: NDArray[np.float64], joints: list[int]) -> str:
-        parts = []
-        for j in joints:
-            lo, hi = self._envelope[j]
-            parts.append(f"{self.joint_names[j]} = {q[j]:.4f} rad outside the safety envelope "
-                         f"[{lo:.4f}, {hi:.4f}] rad")
-        return "joint limit violation: " + "; ".join(parts)
-
-    def _stale_message(self, now: float) -> str:
-        age = now - self._last_imu_stamp
-        age_txt = (f"last sample {age * 1e3:.0f} ms ago" if math.isfinite(age)
-                   else "no sample yet")
-        return (f"IMU data stale while leveling ({age_txt}; limit "
-                f"{self._stale_after * 1e3:.0f} ms = {STALE_IMU_PERIODS:g} loop periods)")
-
-    def _check_offsets(self, pitch_deg: float, roll_deg: float) -> tuple[float, float]:
-        out = []
-        for name, v, (lo, hi) in (("pitch_offset_deg", pitch_deg, self._limits[0]),
-                                  ("roll_offset_deg", roll_deg, self._limits[1])):
-            lo_d, hi_d = math.degrees(lo), math.degrees(hi)
-            ok = isinstance(v, numbers.Real) and not isinstance(v, bool)
-            x = float(v) if ok else math.nan
-            if not (math.isfinite(x) and lo_d <= x <= hi_d):
-                raise ValueError(f"{name} must be a number in [{lo_d:g}, {hi_d:g}] degrees "
-                                 f"(spec.wrist limits); got {v!r}")
-            out.append(x)
-        return out[0], out[1]
-
     # -- telemetry --
     def _make_state(self, now: float) -> ToolState:
-        ms = self._motor_state
-        pos = (math.nan, math.nan) if ms is None else tuple(float(x) for x in ms.position)
-        vel = (math.nan, math.nan) if ms is None else tuple(float(x) for x in ms.velocity)
-        s = self._last_imu
-        acc = (math.nan,) * 3 if s is None else tuple(float(x) for x in s.accel)
-        gyr = (math.nan,) * 3 if s is None else tuple(float(x) for x in self._gyro_corrected)
-        quat = tuple(float(x) for x in self.filter.orientation)
-        volts = math.nan if ms is None else float(ms.input_voltage)
-        used = self._energy_wh
-        left = max(0.0, self._battery_start_wh - used)
-        extra: dict[str, float] = {
-            "tilt_deg": math.degrees(self._tilt),
-            "imu_age_s": now - self._last_imu_stamp,
-            "imu_stale": 0.0 if self._imu_fresh else 1.0,
-            "imu_bad": float(self._imu_bad),
-            "imu_filter_resets": float(self._imu_resets),
-            "steady_state": 1.0 if self.filter.steady_state else 0.0,
-            "command_pitch": float(self._command[0]),
-            "command_roll": float(self._command[1]),
-            "singularity": abs(math.cos(pos[1])) if ms is not None else math.nan,
-            "loop_period_max": self.stats.max,
-            "tick_compute_mean_s": self.stats.compute_mean,
-            "tick_compute_max_s": self.stats.compute_max,
-            "faults_total": float(self._faults_total),
-            "motor_stop_failures": float(self._stop_failures),
-            "battery_used_wh": used,
-            "battery_remaining_pct": 100.0 * left / self.spec.power.battery_wh,
-            "battery_runtime_h": left / self._mode_power[self._mode],
-            "power_w_est": self._mode_power[self._mode],
-            "pitch_offset_deg": self._offsets_deg[0],
-            "roll_offset_deg": self._offsets_deg[1],
-        }
-        if ms is not None:
-            extra["motor_temperature"] = float(ms.temperature)
-        if self._mode is Mode.LEVELING:
-            stall = self._stall_target
-            extra["leveling_stalled"] = 0.0 if stall is None else 1.0
-            if stall is not None:
-                extra["leveling_target_pitch"], extra["leveling_target_roll"] = stall
-        if self._mode is Mode.TRAJECTORY:
-            extra["trajectory_progress_pct"] = self._traj_progress
-            extra["trajectory_error"] = self._traj_error
-        if self._ft_last is not None:
-            for k, v in zip(("ft_fx", "ft_fy", "ft_fz", "ft_tx", "ft_ty", "ft_tz"),
-                            self._ft_last, strict=True):
-                extra[k] = v
-        if self._ft_errors:
-            extra["ft_errors"] = float(self._ft_errors)
-        return ToolState(
-            stamp=now,
-            mode=self._mode,
-            joint_names=self.joint_names,
-            position=(pos[0], pos[1]),
-            velocity=(vel[0], vel[1]),
-            orientation_wxyz=(quat[0], quat[1], quat[2], quat[3]),
-            angular_velocity=(gyr[0], gyr[1], gyr[2]),
-            linear_acceleration=(acc[0], acc[1], acc[2]),
-            fault=self._fault,
-            battery_voltage=volts,
-            loop_period_mean=self.stats.mean,
-            loop_jitter=self.stats.jitter,
-            loop_overruns=self.stats.overruns,
-            extra=extra,
-        )
+        return build_state(
+            now, mode=self._mode, fault=self._fault, joint_names=self.joint_names,
+            motor_state=self._motor_state, sensing=self._sensing, filt=self.filter,
+            tilt=self._tilt, command=self._command, stats=self.stats,
+            faults_total=self._faults_total, stop_failures=self._stop_failures,
+            energy=self._energy, leveling=self._leveling, follower=self._follower)

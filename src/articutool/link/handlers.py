@@ -1,0 +1,361 @@
+"""The link's command handlers: one per service and topic the tool serves (thesis §3.2.2,
+§4.5; issues 13 and 22).
+
+Each handler admits the sender (``link/admission.py``: pairing, per-sender rate), decodes and
+validates the request, checks the command lease (``link/lease.py``), then queues the ToolAPI
+call in the command inbox (``link/inbox.py``) for the tool's loop; stops (DISABLED, a cancel)
+pass the rate limit and the lease and are never refused for room. The action's goals live in
+the goal table (``link/goals.py``); a refused primitive is accepted then aborted, so the
+client can read why (ROS 2's SendGoal reply has no text).
+
+:class:`CommandHandlers` is a mixin of ``ToolServer`` (``link/server.py``): the handlers read
+and write the server's state under its lock, declared below; the server owns that state,
+the endpoints and the publishing loop.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+
+from articutool.link import messages as m
+from articutool.link.admission import Admission
+from articutool.link.goals import Goal, GoalTable
+from articutool.link.inbox import CommandInbox
+from articutool.link.lease import CommandLease
+from articutool.link.transport import Endpoint, Names, RefusalError, Responder, Sender, Transport
+from articutool.tool.api import Mode, PrimitiveStatus, ToolAPI
+
+__all__ = ["CommandHandlers"]
+
+_log = logging.getLogger("articutool.link.server")  # the server's log, as before the split
+_ZERO_ID = bytes(16)
+
+
+class CommandHandlers:
+    """The service and topic handlers of ``ToolServer`` and the goal results they answer."""
+
+    # The server's state the handlers use (set by ToolServer.__init__).
+    api: ToolAPI
+    transport: Transport
+    names: Names
+    counters: dict[str, int]
+    lease: CommandLease
+    goals: GoalTable
+    admission: Admission
+    inbox: CommandInbox
+    _lock: threading.RLock
+    _last_client_rx: float | None
+
+    def _client_seen(self, who: str) -> None:
+        """``who`` was heard. While a client holds the lease only it counts for the link-loss
+        policy: observers chatting on must not hide that the commanding PC went silent."""
+        with self._lock:
+            if self.lease.holder is None or self.lease.holder == who:
+                self._last_client_rx = time.monotonic()
+
+    def _lease(self, who: str, stop: bool = False) -> str:
+        """'' if ``who`` may command now, else the refusal naming the holder (counted);
+        see :meth:`CommandLease.acquire`."""
+        now = time.monotonic()
+        with self._lock:
+            refusal = self.lease.acquire(who, now, stop)
+            if refusal:
+                self.counters["refused_lease"] += 1
+            return refusal
+
+    def _refuse(self, respond: Responder, ep: Endpoint, msg: str) -> None:
+        """Answer a refused service call with success=false and ``msg``."""
+        t = ep.response_type
+        if ep.type == m.SET_ORIENTATION_CONTROL:
+            respond(m.encode(m.soc_response(False, msg), t))
+        elif ep.type == m.TRIGGER:
+            respond(m.encode(m.trigger_response(False, msg), t))
+        elif ep.type == m.SEND_GOAL:  # ROS 2's SendGoal reply has no text: not accepted
+            respond(m.encode(m.send_goal_response(False, time.time()), t))
+        elif ep.type == m.CANCEL_GOAL:
+            R = m.typestore().types[t]
+            respond(m.encode(m.cancel_response(R.ERROR_REJECTED, []), t))
+
+    def _ask(self, fn: Callable[..., tuple[bool, str]], *args: object) -> tuple[bool, str]:
+        """Call a ToolAPI command; an exception becomes a refusal the client can read."""
+        try:
+            ok, msg = fn(*args)
+            return bool(ok), str(msg)
+        except Exception as err:
+            with self._lock:
+                self.counters["handler_errors"] += 1
+            _log.exception("ToolAPI call failed")
+            return False, f"tool error: {type(err).__name__}: {err}"
+
+    def _joints_now(self) -> tuple[float, ...]:
+        try:
+            return tuple(self.api.state().position)
+        except Exception:
+            return ()
+
+    # ---------------------------------------------------------------- handlers --
+    def _on_set_mode(self, data: bytes, respond: Responder, sender: Sender) -> None:
+        ep = self.names.set_orientation_control
+        who, refusal = self.admission.admit(sender, "set_orientation_control")
+        if who is None:
+            return self._refuse(respond, ep, refusal)
+        req = m.decode(data, ep.request_type)
+        stop = req.control_mode == Mode.DISABLED
+        if not stop:
+            self.admission.rate_limit(ep, sender)
+        self._client_seen(who)
+        refusal = self._lease(who, stop=stop)
+        if refusal:
+            return self._refuse(respond, ep, refusal)
+        if req.control_mode not in (Mode.DISABLED, Mode.LEVELING):
+            return self._refuse(respond, ep, (
+                f"control_mode must be {Mode.DISABLED.value} (DISABLED) or "
+                f"{Mode.LEVELING.value} (LEVELING); got {req.control_mode}"))
+        pitch, roll = float(req.pitch_offset), float(req.roll_offset)
+
+        def run() -> tuple[bool, str]:
+            return self._ask(self.api.set_mode, Mode(req.control_mode), pitch, roll)
+
+        def answer(result: object) -> None:
+            respond(m.encode(m.soc_response(*result), ep.response_type))  # type: ignore[misc]
+        if stop:  # every DISABLED is the same stop: waiting ones are run once
+            return self.inbox.submit_stop("disable", run, answer)
+        if not self.inbox.submit(lambda: answer(run())):
+            self._refuse(respond, ep, "refused: the tool's command inbox is full")
+        return None
+
+    def _on_clear_fault(self, data: bytes, respond: Responder, sender: Sender) -> None:
+        ep = self.names.clear_fault
+        who, refusal = self.admission.admit(sender, "clear_fault")
+        if who is None:
+            return self._refuse(respond, ep, refusal)
+        self.admission.rate_limit(ep, sender)
+        m.decode(data, ep.request_type)
+        self._client_seen(who)
+        refusal = self._lease(who)
+        if refusal:
+            return self._refuse(respond, ep, refusal)
+
+        def work() -> None:
+            ok, msg = self._ask(self.api.clear_fault)
+            respond(m.encode(m.trigger_response(ok, msg), ep.response_type))
+        if not self.inbox.submit(work):
+            self._refuse(respond, ep, "refused: the tool's command inbox is full")
+        return None
+
+    def _on_take_over(self, data: bytes, respond: Responder, sender: Sender) -> None:
+        ep = self.names.take_over
+        who, refusal = self.admission.admit(sender, "take_over")
+        if who is None:
+            return self._refuse(respond, ep, refusal)
+        self.admission.rate_limit(ep, sender)
+        m.decode(data, ep.request_type)
+        self._client_seen(who)
+        with self._lock:
+            before = self.lease.take_over(who, time.monotonic())
+            if before not in (None, who):
+                self.counters["lease_takeovers"] += 1
+        _log.warning("AUDIT take-over: %s took the command lease from %s", who,
+                     before or "nobody")
+        self.lease.record("take_over", who, before)
+        respond(m.encode(m.trigger_response(True, f"{who} holds the command lease (was: "
+                                                  f"{before or 'nobody'})"), ep.response_type))
+        return None
+
+    def _on_release(self, data: bytes, respond: Responder, sender: Sender) -> None:
+        ep = self.names.release
+        who, refusal = self.admission.admit(sender, "release")
+        if who is None:
+            return self._refuse(respond, ep, refusal)
+        self.admission.rate_limit(ep, sender)
+        m.decode(data, ep.request_type)
+        with self._lock:
+            mine = self.lease.release(who)
+        if mine:
+            _log.info("command lease released by %s", who)
+            self.lease.record("lease_released", who, None)
+        respond(m.encode(m.trigger_response(mine, "released" if mine else
+                                            f"not held by {who} (holder: {self.lease.holder})"),
+                         ep.response_type))
+        return None
+
+    def _on_send_goal(self, data: bytes, respond: Responder, sender: Sender) -> None:
+        ep = self.names.send_goal
+        who, refusal = self.admission.admit(sender, "send_goal")
+        if who is None:  # SendGoal's reply has no text: an error reply names the reason
+            raise RefusalError(refusal)
+        self.admission.rate_limit(ep, sender)
+        req = m.decode(data, ep.request_type)
+        self._client_seen(who)
+        refusal = self._lease(who)
+        gid = m.uuid_bytes(req.goal_id)
+        name = str(req.goal.primitive_name)
+        params = [float(x) for x in req.goal.parameters]
+        if refusal:  # accepted then aborted, so the client can read why (see the docstring)
+            now = time.time()
+            with self._lock:
+                if gid in self.goals:
+                    return self._refuse(respond, ep, "")
+                self.goals.remember(Goal(gid, name, now, m.GoalStatus.ABORTED, result=(
+                    m.PrimitiveResult(False, refusal, self._joints_now(),
+                                      m.GoalStatus.ABORTED))))
+            respond(m.encode(m.send_goal_response(True, now), ep.response_type))
+            return None
+
+        def work() -> None:
+            self._start_goal(gid, name, params, respond)
+        if not self.inbox.submit(work):
+            raise RefusalError("the tool's command inbox is full")
+        return None
+
+    def _start_goal(self, gid: bytes, name: str, params: list[float],
+                    respond: Responder) -> None:
+        now = time.time()
+        ep = self.names.send_goal
+        with self._lock:
+            if gid in self.goals:  # a resent goal id is a protocol error: reject it
+                respond(m.encode(m.send_goal_response(False, now), ep.response_type))
+                return
+            ended = self._settle()  # the running goal may have ended since the last tick
+            running = self.goals.active
+            if running is not None:  # ours still runs: starting now could hide its result
+                ok, msg = False, (f"busy: primitive {running.name} is running (goal "
+                                  f"{running.goal_id.hex()})")
+            else:
+                ok, msg = self._ask(self.api.start_primitive, name, params)
+            goal = Goal(gid, name, now, m.GoalStatus.EXECUTING if ok else m.GoalStatus.ABORTED)
+            if ok:
+                self.goals.active = goal
+            else:
+                goal.result = m.PrimitiveResult(False, msg, self._joints_now(),
+                                                m.GoalStatus.ABORTED)
+            self.goals.remember(goal)
+        self._answer(ended)
+        respond(m.encode(m.send_goal_response(True, now), ep.response_type))
+        self._publish_status()
+
+    def _on_get_result(self, data: bytes, respond: Responder, sender: Sender) -> None:
+        ep = self.names.get_result  # read-only: open to all, within each sender's rate
+        self.admission.rate_limit(ep, sender)
+        req = m.decode(data, ep.request_type)
+        gid = m.uuid_bytes(req.goal_id)
+        with self._lock:
+            goal = self.goals.get(gid)
+            if goal is not None and goal.result is None:
+                goal.waiters.append(respond)  # long poll: answered when the goal ends
+                return
+            result = goal.result if goal is not None else m.PrimitiveResult(
+                False, "unknown goal id", (), m.GoalStatus.UNKNOWN)
+        respond(m.encode(m.result_msg(result), ep.response_type))
+
+    def _on_cancel(self, data: bytes, respond: Responder, sender: Sender) -> None:
+        ep = self.names.cancel_goal
+        who, refusal = self.admission.admit(sender, "cancel_goal")
+        if who is None:  # CancelGoal's reply has no text: an error reply names the reason
+            raise RefusalError(refusal)
+        req = m.decode(data, ep.request_type)  # a stop: no rate limit, never refused for room
+        self._client_seen(who)
+        self._lease(who, stop=True)  # a stop: accepted from any admitted client
+        gid = m.uuid_bytes(req.goal_info.goal_id)
+        R = m.typestore().types[ep.response_type]
+
+        def answer(result: object) -> None:
+            respond(m.encode(m.cancel_response(*result), ep.response_type))  # type: ignore[misc]
+        with self._lock:
+            goal = self.goals.active if gid == _ZERO_ID else self.goals.get(gid)
+            if goal is None:
+                now: tuple[int, list] | None = (R.ERROR_NONE if gid == _ZERO_ID else
+                                                R.ERROR_UNKNOWN_GOAL_ID, [])
+            elif goal.result is not None:
+                now = (R.ERROR_GOAL_TERMINATED, [])
+            else:
+                now = None
+        if now is not None:  # nothing to stop: answered here, without the loop
+            return answer(now)
+
+        def run() -> tuple[int, list]:
+            with self._lock:
+                if goal.result is not None or self.goals.active is not goal:
+                    out: tuple[int, list] = (R.ERROR_GOAL_TERMINATED, [])
+                elif self.api.cancel_primitive():
+                    goal.cancel_requested = True
+                    goal.status = m.GoalStatus.CANCELING
+                    out = (R.ERROR_NONE, [(goal.goal_id, goal.accepted_at)])
+                else:  # finished in between: the next tick reports its result
+                    out = (R.ERROR_GOAL_TERMINATED, [])
+            self._publish_status()
+            return out
+        self.inbox.submit_stop(("cancel", goal.goal_id), run, answer)
+        return None
+
+    def _on_trajectory(self, data: bytes, sender: Sender) -> None:
+        ep = self.names.joint_trajectory
+        who, _ = self.admission.admit(sender, "a trajectory")
+        if who is None or not self.admission.within_rate(ep, sender):
+            return
+        message = m.decode(data, ep.type)  # in the link thread
+        traj = m.trajectory_from_msg(message)
+        pre = getattr(self.api, "prevalidate_trajectory", None)
+        if callable(pre):  # the length-dependent checks here, not in the loop's tick
+            try:
+                traj = pre(traj)
+            except (ValueError, TypeError) as err:  # TrajectoryError is a ValueError
+                with self._lock:
+                    self.counters["rejected_trajectories"] += 1
+                _log.warning("trajectory from %s refused: %s", who, err)
+                return
+        self._client_seen(who)
+        refusal = self._lease(who)
+        if refusal:
+            with self._lock:
+                self.counters["rejected_trajectories"] += 1
+            _log.warning("trajectory from %s %s", who, refusal)
+            return
+        # As ROS trajectory controllers: time 0 is header.stamp (wall clock, so the PC's and
+        # the tool's clocks must agree), or arrival when the stamp is zero.
+        stamp = m.stamp_to_time(message.header.stamp)
+
+        def work() -> None:
+            delay = stamp - time.time() if stamp > 0 else 0.0
+            ok, msg = self._ask(self.api.follow_trajectory, traj, delay)
+            if not ok:
+                with self._lock:
+                    self.counters["rejected_trajectories"] += 1
+                _log.warning("trajectory refused: %s", msg)
+        if not self.inbox.submit(work):
+            with self._lock:
+                self.counters["rejected_trajectories"] += 1
+
+    def _on_client_heartbeat(self, data: bytes, sender: Sender) -> None:
+        ep = self.names.client_heartbeat
+        who, _ = self.admission.admit(sender, "a client heartbeat")
+        if who is None or not self.admission.within_rate(ep, sender):  # a forged heartbeat keeps
+            return  # neither a lease nor the link alive
+        m.decode(data, ep.type)
+        self._client_seen(who)
+        with self._lock:
+            self.lease.renew(who, time.monotonic())
+
+    def _settle(self) -> tuple[list[Responder], m.PrimitiveResult] | PrimitiveStatus | None:
+        """The active goal's progress (lock held): see :meth:`GoalTable.settle`; the waiters
+        of a goal that ended are answered outside the lock by :meth:`_answer`."""
+        return self.goals.settle(self.api.primitive_status)
+
+    def _answer(self, ended: object) -> None:
+        """Answer the get_result waiters of a goal :meth:`_settle` found ended."""
+        if not isinstance(ended, tuple):
+            return
+        waiters, result = ended
+        payload = m.encode(m.result_msg(result), self.names.get_result.response_type)
+        for respond in waiters:
+            respond(payload)
+        self._publish_status()
+
+    def _publish_status(self) -> None:
+        with self._lock:
+            goals = self.goals.statuses()
+        payload = m.encode(m.status_array(goals), m.GOAL_STATUS_ARRAY)
+        self.inbox.off_loop(lambda: self.transport.publish(self.names.status, payload))

@@ -1,0 +1,171 @@
+"""The link's command inbox: decoded, validated ToolAPI calls waiting for the tool's loop, and
+the I/O that must never run on the loop's thread (issue 22, S1; thesis §3.2.2, §4.5).
+
+The network cannot slow the loop, and no flood can hold back a stop. Commands wait in a
+bounded inbox (``inbox_size``; a full inbox refuses the command, ``dropped_excess``). Stops
+(DISABLED, a cancel) are never refused for room: a stop identical to one already waiting
+joins it and gets the same answer, so the stops waiting (served first) stay as few as their
+kinds. The tool's loop runs at most one queued call per tick (:meth:`CommandInbox.work_once`,
+via ``ToolRuntime.set_link_work``); an API without a loop of its own (a test double) gets a
+worker thread instead. Replies and publishes that follow a command are sent from a
+``link-io`` thread, never from the thread that ran the command: a send can block on a
+congested or dead peer.
+
+:class:`CommandInbox` shares the server's counters, lock and stop event; ``ToolServer``
+(``link/server.py``) composes it.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections import OrderedDict, deque
+from collections.abc import Callable
+from functools import partial
+
+from articutool.link.transport import Responder, Sender
+
+__all__ = ["CommandInbox"]
+
+_log = logging.getLogger("articutool.link.server")  # the server's log, as before the split
+
+
+class CommandInbox:
+    """The queued commands and stops, the worker and ``link-io`` threads."""
+
+    def __init__(self, size: int, counters: dict[str, int], lock: threading.RLock,
+                 stop: threading.Event) -> None:
+        self.size = size
+        self.counters = counters
+        self._lock = lock
+        self._stop = stop
+        self.commands: deque[Callable[[], None]] = deque()
+        # Stops waiting for the loop, by what they do: (run, answers); see submit_stop.
+        self.stops: OrderedDict[object, tuple[Callable[[], object],
+                                              list[Callable[[object], None]]]] = OrderedDict()
+        self._worker: threading.Thread | None = None
+        self._wake = threading.Condition()
+        # Network I/O never runs on the thread that executes commands (the tool's loop): a
+        # reply or publish may block on a congested or dead peer. It goes to link-io.
+        self._exec_ident: int | None = None
+        self._io: deque[Callable[[], None]] = deque()
+        self._io_wake = threading.Condition()
+        self._io_thread: threading.Thread | None = None
+
+    # -- threads --
+    def start_io(self) -> None:
+        """Start the ``link-io`` thread."""
+        self._io_thread = threading.Thread(target=self._run_io, name="link-io", daemon=True)
+        self._io_thread.start()
+
+    def start_worker(self) -> None:
+        """Start a worker thread that drains the inbox (for an API without a loop)."""
+        self._worker = threading.Thread(target=self._drain, name="link-worker", daemon=True)
+        self._worker.start()
+
+    def join(self) -> None:
+        """Once the stop event is set: wake and join the threads (5 s each at most)."""
+        with self._wake:
+            self._wake.notify_all()
+        if self._worker is not None:
+            self._worker.join(timeout=5)
+            self._worker = None
+        if self._io_thread is not None:
+            self._io_thread.join(timeout=5)
+            self._io_thread = None
+
+    # -- queueing --
+    def submit(self, work: Callable[[], None]) -> bool:
+        """Queue a ToolAPI call for the loop; False (counted) when the inbox is full."""
+        with self._lock:
+            if len(self.commands) >= self.size:
+                self.counters["dropped_excess"] += 1
+                return False
+            self.commands.append(work)
+        with self._wake:
+            self._wake.notify()
+        return True
+
+    def submit_stop(self, key: object, run: Callable[[], object],
+                    answer: Callable[[object], None]) -> None:
+        """Queue a stop for the loop, never refused: a stop equal to one waiting (same
+        ``key``) joins it, the loop runs it once and every caller gets ``answer(result)``.
+        Stops are idempotent, so this is the same as running each; and however many
+        arrive, the stops waiting stay as few as their kinds."""
+        with self._lock:
+            waiting = self.stops.get(key)
+            if waiting is None:
+                self.stops[key] = (run, [answer])
+            else:
+                waiting[1].append(answer)
+        with self._wake:
+            self._wake.notify()
+
+    def _drain(self) -> None:
+        """Worker thread (APIs without a loop): run queued commands one at a time."""
+        while not self._stop.is_set():
+            with self._lock:
+                pending = bool(self.stops or self.commands)
+            if not pending:
+                with self._wake:
+                    self._wake.wait(0.05)
+                continue
+            self.work_once()
+
+    def work_once(self) -> None:
+        """Run at most one queued ToolAPI call (stops first). Called once per loop tick; never
+        raises."""
+        with self._lock:
+            if self.stops:
+                _, (run, answers) = self.stops.popitem(last=False)
+                work: Callable[[], None] | None = partial(self._run_stop, run, answers)
+            else:
+                work = self.commands.popleft() if self.commands else None
+        if work is None:
+            return
+        self._exec_ident = threading.get_ident()
+        try:
+            work()
+            with self._lock:
+                self.counters["commands"] += 1
+        except Exception:
+            with self._lock:
+                self.counters["handler_errors"] += 1
+            _log.exception("link command failed")
+
+    @staticmethod
+    def _run_stop(run: Callable[[], object], answers: list[Callable[[object], None]]) -> None:
+        result = run()
+        for answer in answers:
+            answer(result)
+
+    # -- I/O off the loop --
+    def off_loop(self, io: Callable[[], None]) -> None:
+        """Run network I/O now, unless on the command-executing thread: then on link-io."""
+        if threading.get_ident() != self._exec_ident:
+            io()
+            return
+        with self._io_wake:
+            self._io.append(io)
+            self._io_wake.notify()
+
+    def replies_off_loop(self, fn: Callable[..., None]) -> Callable[..., None]:
+        """A service handler whose ``respond`` never sends from the command thread."""
+        def handler(data: bytes, respond: Responder, sender: Sender) -> None:
+            fn(data, lambda reply: self.off_loop(lambda: respond(reply)), sender)
+        return handler
+
+    def _run_io(self) -> None:
+        while True:
+            with self._io_wake:
+                while not self._io and not self._stop.is_set():
+                    self._io_wake.wait(0.1)
+                if not self._io:
+                    return
+                io = self._io.popleft()
+            try:
+                io()
+            except Exception:
+                with self._lock:
+                    self.counters["handler_errors"] += 1
+                _log.exception("link reply/publish failed")
