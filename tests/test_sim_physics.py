@@ -145,7 +145,7 @@ def test_food_that_enters_the_mouth_is_eaten() -> None:
     qa = w.model.jnt_qposadr[j]
     w.data.qpos[qa:qa + 3] = mouth.xyz
     w.run(0.1)
-    assert w.masses_g()["eaten"] == pytest.approx(w.layout.piece_mass * 1000.0)
+    assert w.masses_g()["eaten"] == pytest.approx(w.item_masses_g()[k])
     assert w.report().eaten_g > 0
 
 
@@ -225,7 +225,7 @@ def test_a_piece_that_lands_on_the_table_or_the_user_is_one_spill(xyz, place, wh
     _drop(w, 0, xyz)
     w.run(2.0)
     assert [(s.item, s.place, s.where) for s in w.spills] == [(0, place, where)]
-    assert acc.spilled_by_place(w.spills)[place] == pytest.approx(w.layout.piece_mass * 1e3)
+    assert acc.spilled_by_place(w.spills)[place] == pytest.approx(w.item_masses_g()[0])
     # Dated when it landed (a 5 cm fall takes 0.1 s), not when the dwell time ran out.
     assert w.spills[0].t - t0 < 0.15
 
