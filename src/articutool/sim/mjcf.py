@@ -28,7 +28,7 @@ from articutool.arm.model import TOOL_BASE_FRAME, tip_frame_name
 from articutool.arm.scene import Box, Capsule, Cylinder, Halfspace, Scene, Sphere, rpy_matrix
 from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
 from articutool.sim.pieces import Capsule as PieceCapsules
-from articutool.sim.pieces import bound_radius, capsule_mass, draw_piece
+from articutool.sim.pieces import capsule_mass, draw_piece, footprint, pack_layer
 from articutool.spec import Spec, UtensilSpec
 
 __all__ = ["FT_SITE", "IMU_SITE", "WorldLayout", "build_mjcf", "spoon_dish", "tip_site_name"]
@@ -249,35 +249,44 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
             pieces.append(draw_piece(food, rng))
             total += capsule_mass(pieces[-1], food.density)
         count = len(pieces)
-        cell = 2.0 * bound_radius(food) * 1.25  # jitter ±0.1 cell never closes the gap
         # Pieces are flat (capsules in one plane) and start lying flat, turned about the
-        # vertical only: a layer is 1.5 thicknesses high, so the column stays low.
+        # vertical only, packed layer by layer without overlapping (a bowl filled a piece at
+        # a time); a layer is 1.5 thicknesses high. A lattice cell that holds the largest
+        # piece held 5 a layer: a 0.45 m column whose fall threw pieces out of the bowl.
         cell_z = 1.5 * max(food.half_width_m[1], food.piece_screen_m[1]) / 2.0
+        radii = [footprint(c) for c in pieces]
+        cell = 2.0 * max(radii)
+        pts = []
+        z = floor_z + cell_z / 2
+        while len(pts) < count:
+            layer = pack_layer(radii[len(pts):], inner, rng)
+            if not layer:
+                raise ValueError(f"food {food.container}: a piece does not fit in the bowl")
+            pts += [(x, y, z) for x, y in layer]
+            z += cell_z
         size = f'type="capsule" friction="{_f(food.friction)}" condim="6"'
         rgba = "0.55 0.33 0.15 1"
     else:
         cell = 2 * food.particle_radius * 1.02
         size = f'type="sphere" size="{food.particle_radius}" condim="1"'
         rgba = "0.3 0.5 0.95 0.8"
-    # Lattice inside the inner radius, layer by layer, with a small seeded jitter.
-    if not pieces:
-        cell_z = cell
-    pts = []
-    n_side = int(2 * inner / cell)
-    z = floor_z + cell_z / 2
-    while len(pts) < count:
-        for i in range(n_side):
-            for j in range(n_side):
-                x = -inner + cell / 2 + i * cell
-                y = -inner + cell / 2 + j * cell
-                if math.hypot(x, y) < inner - cell / 2:
-                    pts.append((x, y, z))
-        z += cell_z
-    pts = pts[:count]
+        # Lattice inside the inner radius, layer by layer, with a small seeded jitter.
+        pts = []
+        n_side = int(2 * inner / cell)
+        z = floor_z + cell / 2
+        while len(pts) < count:
+            for i in range(n_side):
+                for j in range(n_side):
+                    x = -inner + cell / 2 + i * cell
+                    y = -inner + cell / 2 + j * cell
+                    if math.hypot(x, y) < inner - cell / 2:
+                        pts.append((x, y, z))
+            z += cell
+        pts = pts[:count]
     layout.piece_size = cell
     for k, (x, y, z) in enumerate(pts):
-        jitter = rng.uniform(-0.1, 0.1, 3) * cell
-        jitter[2] = abs(jitter[2]) * cell_z / cell
+        jitter = np.zeros(3) if pieces else rng.uniform(-0.1, 0.1, 3) * cell
+        jitter[2] = abs(jitter[2])
         if load_g is not None:  # parked: a row far from everything
             x, y, z, cx, cy, jitter = 50.0 + k * cell, 50.0, 1.0, 0.0, 0.0, np.zeros(3)
         q = rng.normal(size=4)

@@ -21,13 +21,15 @@ import numpy as np
 
 from articutool.sim.params import Granular
 
-__all__ = ["Capsule", "bound_radius", "capsule_mass", "draw_piece", "piece_extent"]
+__all__ = ["Capsule", "capsule_mass", "draw_piece", "footprint", "pack_layer", "piece_extent"]
 
 Capsule = tuple[tuple[float, float, float], tuple[float, float, float], float]
 
 
 def draw_piece(food: Granular, rng: np.random.Generator) -> list[Capsule]:
-    """One piece's capsules (centred near the origin), drawn from ``rng``."""
+    """One piece's capsules, drawn from ``rng``, in the x-y plane (a piece is flat) and
+    centred on the smallest circle about the origin's axis that holds them
+    (:func:`footprint`)."""
     if rng.uniform() < food.half_fraction:
         w = float(rng.uniform(*food.half_width_m))
         r, half = w / 4.0, max(food.half_length_ratio * w / 2.0 - w / 4.0, 0.0)
@@ -36,8 +38,39 @@ def draw_piece(food: Granular, rng: np.random.Generator) -> list[Capsule]:
     r = s / 4.0
     a, b = (float(x) for x in rng.uniform(s / 2.0, s, 2))
     angle = math.radians(float(rng.uniform(60.0, 180.0)))
-    tip_b = (b * math.cos(angle), b * math.sin(angle), 0.0)
-    return [((0.0, 0.0, 0.0), (a, 0.0, 0.0), r), ((0.0, 0.0, 0.0), tip_b, r)]
+    # The three points' bounding box centre: a bent piece's joint is not its middle.
+    pts = np.array([[0.0, 0.0], [a, 0.0], [b * math.cos(angle), b * math.sin(angle)]])
+    c = (pts.min(axis=0) + pts.max(axis=0)) / 2.0
+    o, pa, pb = ((float(x), float(y), 0.0) for x, y in pts - c)
+    return [(o, pa, r), (o, pb, r)]
+
+
+def footprint(caps: list[Capsule]) -> float:
+    """Radius (m) of the circle about the piece's z axis that holds it seen from above."""
+    return max(math.hypot(p[0], p[1]) + r for p0, p1, r in caps for p in (p0, p1))
+
+
+def pack_layer(radii: list[float], inner: float, rng: np.random.Generator,
+               tries: int = 200) -> list[tuple[float, float]]:
+    """Centres (x, y) for the first pieces of ``radii`` that fit, lying flat, in a disc of
+    radius ``inner`` without their footprints overlapping (random sequential addition:
+    each piece takes the first of ``tries`` random spots that is free; the layer is full
+    at the first piece that finds none). A bowl filled layer by layer so, a piece at a
+    time, starts as a loose pile a few layers deep instead of a tall column."""
+    placed: list[tuple[float, float, float]] = []
+    for r in radii:
+        if r >= inner:
+            break
+        for _ in range(tries):
+            rho = (inner - r) * math.sqrt(float(rng.uniform()))
+            phi = float(rng.uniform(0.0, 2.0 * math.pi))
+            x, y = rho * math.cos(phi), rho * math.sin(phi)
+            if all(math.hypot(x - px, y - py) >= r + pr for px, py, pr in placed):
+                placed.append((x, y, r))
+                break
+        else:
+            break
+    return [(x, y) for x, y, _ in placed]
 
 
 def capsule_mass(caps: list[Capsule], density: float) -> float:
@@ -50,14 +83,8 @@ def capsule_mass(caps: list[Capsule], density: float) -> float:
 
 
 def piece_extent(food: Granular) -> float:
-    """The largest size a piece can have (m): the lattice cell that keeps pieces apart."""
-    w = food.half_width_m[1] * max(food.half_length_ratio, 1.0)
-    return max(w, 2.0 * food.piece_screen_m[1])
-
-
-def bound_radius(food: Granular) -> float:
-    """Radius (m) of a sphere about the piece's origin that holds any piece in any
-    orientation: lattice points twice this apart never start two pieces overlapping."""
-    w = food.half_width_m[1]
-    half = math.hypot(max(food.half_length_ratio * w / 2.0 - w / 4.0, 0.0), w / 4.0) + w / 4.0
-    return max(half, 1.25 * food.piece_screen_m[1])
+    """The largest size a piece can have seen from above (m): twice the largest
+    :func:`footprint` (a half: its length; a fragment bent straight: two arms and their
+    rounded ends about its middle, 2.5 screen sizes)."""
+    return max(food.half_width_m[1] * max(food.half_length_ratio, 1.0),
+               2.5 * food.piece_screen_m[1])
