@@ -21,7 +21,10 @@ def _run(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def test_sim_scoop_json_reports_where_the_food_is(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["sim", "--food", "pecans", "--script", "scoop", "--json"]) == 0
+    # The rigid scripted scoop takes 0-2 pecan pieces: seeds 0-4 took 0, 0.92, 0.97, 1.72 and
+    # 0 g (the thesis' rigid baseline: 1.32 ± 0.48 g). The report's accounting and the F/T's
+    # weighing need a load on the spoon: seed 3's scoop takes two pieces.
+    assert main(["sim", "--food", "pecans", "--script", "scoop", "--json", "--seed", "3"]) == 0
     out = json.loads(capsys.readouterr().out)
     for key in ("on_utensil_g", "in_bowl_g", "table_g", "critical_g", "spills",
                 "realtime_factor"):
