@@ -83,8 +83,13 @@ def test_sim_video_renders_headless(tmp_path: Path) -> None:
 
 
 def test_sim_calibrate_measures_the_pecan_model(capsys: pytest.CaptureFixture[str]) -> None:
+    from articutool.sim.params import PhysicsParams
+
     assert main(["sim-calibrate", "--food", "pecans", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
+    # The halves-and-pieces model's mean piece, as drawn from physics.toml's sizes.
+    pecans = PhysicsParams.load().food("pecans")
+    assert out["piece_mass_g"] == pytest.approx(pecans.piece_mass * 1000.0, abs=1e-3)
     assert 5.0 < out["angle_of_repose_deg"] < 60.0
     assert out["level_capacity_g"] > 0
 
