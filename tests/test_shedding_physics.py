@@ -144,3 +144,33 @@ def test_exp2c_summary_tests_each_primitive_against_control_and_closed_against_o
     assert f["fisher_meaningful_closed_loop"]["table"] == [[10, 0], [0, 10]]
     assert f["fisher_meaningful_closed_vs_open"]["table"] == [[10, 0], [5, 5]]
     assert f["fisher_meaningful_closed_loop"]["p"] < f["fisher_meaningful"]["p"]
+
+
+# Words that say where a value comes from (physics.toml's own rule: a physical property with
+# its source, a measurement with its command, or a numerical choice with its reason).
+_SOURCED = ("articutool ", "approx", "numerical choice", "usda", "viscosity", "thesis",
+            "measured", "as sold")
+
+
+@pytest.mark.parametrize("food", ["pecans", "water"])
+def test_every_value_of_the_new_food_models_says_where_it_comes_from(food):
+    from articutool.sim.params import default_physics_path
+
+    lines = default_physics_path().read_text(encoding="utf-8").splitlines()
+    start = lines.index(f"[foods.{food}]") + 1
+    end = next(i for i in range(start, len(lines)) if lines[i].startswith("["))
+    block: list[str] = []  # the comment lines above the current run of keys
+    fresh = True
+    for line in lines[start:end]:
+        if line.startswith("#"):
+            block = block + [line] if fresh else [line]
+            fresh = True
+            continue
+        if "=" not in line:
+            continue
+        fresh = False
+        key, value = (x.strip() for x in line.split("=", 1))
+        if value.startswith('"'):
+            continue  # names (kind, container, utensil), not values
+        said = " ".join(block + [line.partition("#")[2]]).lower()
+        assert any(w in said for w in _SOURCED), f"[foods.{food}] {key} has no source"
