@@ -179,16 +179,17 @@ def test_the_shedding_pose_is_over_the_scenes_bowl_wherever_the_bowl_is(tmp_path
 
 
 def test_exp2c_sheds_over_the_bowl_what_falls_is_shed_not_spilled() -> None:
-    # TILT (the water strategy's shedding primitive) at the shedding pose, seed 1: particles
-    # leave the spoon; they land in the bowl and count as shed. At Resting (over the plate)
-    # the same primitive poured onto the plate, the table and the floor (the committed run).
+    # Water's closed-loop TILT_UNTIL_LOAD (the shipped open-loop TILT, 0.2 rad, sheds
+    # nothing) at the shedding pose, seed 1: particles leave the spoon; they land in the bowl
+    # and count as shed. At Resting (over the plate) a TILT poured onto the plate, the table
+    # and the floor (an earlier committed run).
     trials = make_trials("exp2c", conditions("exp2c", CFG, load_g={"pecans": 8.48,
                                                                    "water": 15.5}), 2, 0)
     spec = next(t for t in trials if t.cond["food"] == "water"
-                and t.cond["condition"] == "primitive" and t.seed == 1)
+                and t.cond["condition"] == "closed_loop" and t.seed == 1)
     r = run_trial(spec)
     assert r["error"] is None, r.get("traceback")
-    assert r["primitive"] == "TILT" and r["primitive_ok"] and r["completed"]
+    assert r["primitive"] == "TILT_UNTIL_LOAD" and r["primitive_ok"] and r["completed"]
     moved = r["primitive_moved_g"]
     assert moved["container"] > 0  # food left the spoon and landed in the bowl
     assert moved["table"] == 0 and moved["critical"] == 0

@@ -22,6 +22,7 @@ def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> Non
     w.run(1.0)
     w.tare_ft(0.3)
     held = w.place_load(1.0)
+    g0 = w.masses_g()  # a piece the loader drops beside the spoon is not the transport's
     arm = SimArm(w)
     tilts = []
     w.on_tick.append(lambda world: tilts.append(world.tilt_deg()))
@@ -35,7 +36,8 @@ def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> Non
     assert status == Status.SUCCESS, rec.failed_stage
     assert py_trees.blackboard.Blackboard.get("/bite/planning_attempts_Staging") == 1
     assert rec.motion_time_s > 1.0
-    assert g["table"] == 0 and g["critical"] == 0  # nothing spilled on the way
+    # Nothing spilled on the way (seed 0's loader dropped a 0.46 g piece on the table first).
+    assert g["table"] == g0["table"] and g["critical"] == g0["critical"]
     assert g["utensil"] + g["eaten"] == pytest.approx(held)  # delivered: on it or eaten
     assert max(tilts) < 10.0  # the wrist leveled it all the way (IMU in physics)
     assert w.tool.mode == Mode.DISABLED and w.tool.fault == ""  # scope restored

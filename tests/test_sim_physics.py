@@ -67,7 +67,7 @@ def test_level_spoon_keeps_its_pecans_for_10_s_and_the_ft_sensor_weighs_them() -
 
 def test_tilting_the_spoon_past_the_angle_of_repose_spills() -> None:
     w = _leveled("pecans", 4.0, level=False)
-    g0 = w.masses_g()
+    g0, t0 = w.masses_g(), w.time
     ok, msg = w.tool.start_primitive("TILT", [math.radians(75.0), 1.0, 1.0])
     assert ok, msg
     w.run_until(lambda: w.tool.mode != Mode.PRIMITIVE, 15.0)
@@ -76,12 +76,14 @@ def test_tilting_the_spoon_past_the_angle_of_repose_spills() -> None:
     left = g0["utensil"] - g["utensil"]
     assert left > 0.5
     # Every gram that left the spoon is on record: back in a container (the plate below
-    # Resting), or a spill event at the place where it lies.
-    spilled = acc.spilled_by_place(w.spills)
+    # Resting), or a spill event at the place where it lies. (A piece the loader dropped
+    # beside the spoon is a spill before the tilt: seed 0 drops a 0.46 g piece.)
+    spilled = acc.spilled_by_place([e for e in w.spills if e.t >= t0])
     assert g["container"] - g0["container"] + sum(spilled.values()) == pytest.approx(left)
     for k in np.flatnonzero((w._codes == acc.TABLE) | (w._codes == acc.CRITICAL)):
         assert acc.CLASS_NAMES[w._codes[k]] in [e.place for e in w.spills if e.item == k]
-    assert g["table"] + g["critical"] == pytest.approx(sum(spilled.values()))
+    assert (g["table"] + g["critical"] - g0["table"] - g0["critical"]
+            == pytest.approx(sum(spilled.values())))
 
 
 def test_water_pours_from_a_tilted_soup_spoon() -> None:
@@ -93,7 +95,10 @@ def test_water_pours_from_a_tilted_soup_spoon() -> None:
     assert w.masses_g()["utensil"] < 0.5 * before
 
 
-@pytest.mark.parametrize("food,load", [("water", 8.0), ("pecans", 7.0)])
+# Pecans: our measured capacity, a heap above the rim (articutool experiment capacity:
+# 11.4 g). 7 g (the thesis' capacity) is a layer in the dish for our pieces: seed 0 held 5.8 g
+# through a locked 40° tilt without losing a piece (the downhill wall is then 5° from level).
+@pytest.mark.parametrize("food,load", [("water", 8.0), ("pecans", 11.4)])
 def test_a_40_degree_base_tilt_spills_from_a_locked_wrist_not_from_a_leveling_one(
         food: str, load: float) -> None:
     spilled = {}
@@ -145,7 +150,7 @@ def test_food_that_enters_the_mouth_is_eaten() -> None:
     qa = w.model.jnt_qposadr[j]
     w.data.qpos[qa:qa + 3] = mouth.xyz
     w.run(0.1)
-    assert w.masses_g()["eaten"] == pytest.approx(w.layout.piece_mass * 1000.0)
+    assert w.masses_g()["eaten"] == pytest.approx(w.item_masses_g()[k])
     assert w.report().eaten_g > 0
 
 
@@ -225,7 +230,7 @@ def test_a_piece_that_lands_on_the_table_or_the_user_is_one_spill(xyz, place, wh
     _drop(w, 0, xyz)
     w.run(2.0)
     assert [(s.item, s.place, s.where) for s in w.spills] == [(0, place, where)]
-    assert acc.spilled_by_place(w.spills)[place] == pytest.approx(w.layout.piece_mass * 1e3)
+    assert acc.spilled_by_place(w.spills)[place] == pytest.approx(w.item_masses_g()[0])
     # Dated when it landed (a 5 cm fall takes 0.1 s), not when the dwell time ran out.
     assert w.spills[0].t - t0 < 0.15
 

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from articutool.experiments.design import EXP2C_CONDITIONS
 from articutool.experiments.stats import describe, fisher, proportion_ci, welch
 from articutool.feeding.outcomes import OUTCOMES, classify_bite
 
@@ -133,14 +134,15 @@ def summarize_exp2b(records: Sequence[dict[str, Any]], cfg: Any) -> dict[str, An
 def summarize_exp2c(records: Sequence[dict[str, Any]], cfg: Any,
                     thresholds_g: Mapping[str, float] | None) -> dict[str, Any]:
     """Outcome classes per food and condition at ``thresholds_g`` (per food); Fisher's exact
-    test of meaningful success, primitive against control. Without thresholds only the
-    spill/no-spill split is given."""
+    test of meaningful success, each primitive condition against control and closed loop
+    against open loop (``fisher_meaningful``, ``…_closed_loop``, ``…_closed_vs_open``).
+    Without thresholds only the spill/no-spill split is given."""
     ok = _ok(records)
     out: dict[str, Any] = {"thresholds_g": dict(thresholds_g) if thresholds_g else None,
                            "foods": {}}
     for f in cfg.exp2c.foods:
         entry: dict[str, Any] = {}
-        for c in ("control", "primitive"):
+        for c in EXP2C_CONDITIONS:
             rs = _where(ok, food=f, condition=c)
             e: dict[str, Any] = {
                 "spill": _rate(sum(1 for r in rs if r["spilled_g"] > 1e-9), len(rs)),
@@ -151,15 +153,19 @@ def summarize_exp2c(records: Sequence[dict[str, Any]], cfg: Any,
                 e.update(_counts([classify_exp2c(r, thresholds_g[f]) for r in rs],
                                  EXP2C_CLASSES))
             entry[c] = e
-        if thresholds_g and f in thresholds_g:
-            t, c = entry["primitive"], entry["control"]
-            entry["fisher_meaningful"] = fisher(
-                t["counts"]["meaningful_success"], t["n"],
-                c["counts"]["meaningful_success"], c["n"]).to_dict()
-        t_rs, c_rs = (_where(ok, food=f, condition=k) for k in ("primitive", "control"))
-        entry["fisher_no_spill"] = fisher(
-            sum(1 for r in t_rs if r["spilled_g"] <= 1e-9), len(t_rs),
-            sum(1 for r in c_rs if r["spilled_g"] <= 1e-9), len(c_rs)).to_dict()
+        # Each primitive condition against control, and closed loop against open loop.
+        for suffix, (a, b) in {"": ("primitive", "control"),
+                               "_closed_loop": ("closed_loop", "control"),
+                               "_closed_vs_open": ("closed_loop", "primitive")}.items():
+            ta, tb = entry[a], entry[b]
+            if thresholds_g and f in thresholds_g:
+                entry["fisher_meaningful" + suffix] = fisher(
+                    ta["counts"]["meaningful_success"], ta["n"],
+                    tb["counts"]["meaningful_success"], tb["n"]).to_dict()
+            a_rs, b_rs = (_where(ok, food=f, condition=k) for k in (a, b))
+            entry["fisher_no_spill" + suffix] = fisher(
+                sum(1 for r in a_rs if r["spilled_g"] <= 1e-9), len(a_rs),
+                sum(1 for r in b_rs if r["spilled_g"] <= 1e-9), len(b_rs)).to_dict()
         out["foods"][f] = entry
     return out
 

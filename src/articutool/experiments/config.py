@@ -7,7 +7,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from articutool.datafile import format_validation_error, read_document
 from articutool.spec import Positive
@@ -51,11 +51,30 @@ class Exp2b(_Strict):
     load_g: dict[str, Positive]
 
 
+class ShedPrimitive(_Strict):
+    """A shedding primitive and its parameters (checked against the tool's registry)."""
+
+    primitive: Annotated[str, Field(min_length=1)]
+    params: list[float]
+
+    @model_validator(mode="after")
+    def _known(self) -> ShedPrimitive:
+        import numpy as np
+
+        from articutool.spec import load_spec
+        from articutool.tool.primitives import make_primitive
+
+        make_primitive(self.primitive, self.params, load_spec(), np.zeros(2))  # names the field
+        return self
+
+
 class Exp2c(_Strict):
-    """Exp. 2c (§5.2.3): the strategy whose post-acquisition primitive is the test."""
+    """Exp. 2c (§5.2.3): the strategy whose post-acquisition primitive is the open-loop test,
+    and the closed-loop (F/T) primitive of the third condition (thesis §7.1.2)."""
 
     foods: Names
     strategy: dict[str, str]
+    closed_loop: dict[str, ShedPrimitive]
 
 
 class Capacity(_Strict):

@@ -13,10 +13,13 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["EXPERIMENTS", "MAX_TRIALS", "TrialSpec", "conditions", "make_trials", "trial_seed"]
+__all__ = ["EXP2C_CONDITIONS", "EXPERIMENTS", "MAX_TRIALS", "TrialSpec", "conditions",
+           "make_trials", "trial_seed"]
 
 EXPERIMENTS = ("capacity", "exp1", "exp2b", "exp2c", "exp3")
 MAX_TRIALS = 1000  # per condition (the seed stride)
+# Exp. 2c: no primitive, the strategy's open-loop primitive, the closed-loop (F/T) one.
+EXP2C_CONDITIONS = ("control", "primitive", "closed_loop")
 
 
 @dataclass(frozen=True)
@@ -59,7 +62,7 @@ def conditions(experiment: str, cfg: Any, *, goals: Sequence[str] = (),
         if load_g is None:
             raise ValueError("exp2c needs the load per food (the capacity)")
         return [{"food": f, "condition": c, "load_g": round(float(load_g[f]), 2)}
-                for f in cfg.exp2c.foods for c in ("control", "primitive")]
+                for f in cfg.exp2c.foods for c in EXP2C_CONDITIONS]
     if experiment == "exp3":
         return [{"food": cfg.exp3.food, "system": s} for s in cfg.exp3.systems]
     raise ValueError(f"experiment must be one of {EXPERIMENTS}; got {experiment!r}")

@@ -191,7 +191,9 @@ def _plan_attempts(food: str, system: str) -> int:
 def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
                 hook: Hook = None, visitors: Visitors = ()) -> dict[str, Any]:
     """Exp. 2c: ``cond['load_g']`` placed at the shedding pose over the bowl, the shedding
-    primitive there (test) or not (control), transport to Staging with the Articutool."""
+    primitive there (``primitive``: the strategy's open-loop one; ``closed_loop``: the
+    F/T-driven one of ``[exp2c.closed_loop]``) or not (``control``), then transport to
+    Staging with the Articutool."""
     from articutool.arm.scene import Scene
     from articutool.feeding.meal import shed_configuration
     from articutool.feeding.strategies import StrategyLibrary
@@ -216,13 +218,14 @@ def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
         w.tare_ft(0.3)
         held = w.place_load(settle_s=cfg.settings.settle_s)
         loaded, n_loaded = w.masses_g(), len(w.spills)
-        if arm_cond == "primitive":
+        if arm_cond in ("primitive", "closed_loop"):
+            shed = cfg.exp2c.closed_loop[food] if arm_cond == "closed_loop" else stage
             w.tool.set_mode(Mode.DISABLED)  # primitives are refused while leveling
-            ok, msg = w.tool.start_primitive(stage.primitive, list(stage.params))
+            ok, msg = w.tool.start_primitive(shed.primitive, list(shed.params))
             done = ok and w.run_until(lambda: w.tool.mode != Mode.PRIMITIVE, 60.0)
             st = w.tool.primitive_status()
             w.run(cfg.settings.settle_s)
-            prim = {"primitive": stage.primitive, "primitive_params": list(stage.params),
+            prim = {"primitive": shed.primitive, "primitive_params": list(shed.params),
                     "primitive_ok": bool(done and st is not None and st.success),
                     "primitive_message": msg if not ok else (st.message if st else "")}
         before = w.masses_g()

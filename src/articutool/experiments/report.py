@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from articutool.experiments.analysis import EXP2C_CLASSES, representative_trials, summarize
+from articutool.experiments.design import EXP2C_CONDITIONS
 from articutool.experiments.figures import mass_bars, outcome_bars
 from articutool.experiments.stats import FisherResult, fisher
 from articutool.experiments.verdicts import code_versions, verdicts
@@ -111,9 +112,9 @@ def figure(exp: str, records: Sequence[dict[str, Any]], summary: Mapping[str, An
                          "Exp. 1: acquisition (cf. thesis Fig. 6.1)", directory / "exp1.png")
     if exp == "exp2c" and summary.get("thresholds_g"):
         groups = {f"{f}\n{c}": summary["foods"][f][c]["counts"]
-                  for f in cfg.exp2c.foods for c in ("control", "primitive")
-                  if "counts" in summary["foods"][f][c]}
-        return outcome_bars(groups, EXP2C_CLASSES, "Exp. 2c: shedding primitive vs control "
+                  for f in cfg.exp2c.foods for c in EXP2C_CONDITIONS
+                  if c in summary["foods"][f] and "counts" in summary["foods"][f][c]}
+        return outcome_bars(groups, EXP2C_CLASSES, "Exp. 2c: shedding primitives vs control "
                             "(cf. thesis Fig. 6.4)", directory / "exp2c.png")
     if exp == "exp3":
         groups = {s: v["counts"] for s, v in summary["systems"].items()}
@@ -225,7 +226,9 @@ def _sec_exp2c(s: Mapping[str, Any], cfg: Any) -> str:
     rows = []
     for f in cfg.exp2c.foods:
         e = s["foods"][f]
-        for c in ("control", "primitive"):
+        for c in EXP2C_CONDITIONS:
+            if c not in e:  # a summary written before the closed-loop condition
+                continue
             d = e[c]
             t = th.get(f"{f}_{c}", {})
             pct = d.get("percent", {})
@@ -234,14 +237,20 @@ def _sec_exp2c(s: Mapping[str, Any], cfg: Any) -> str:
             rows.append([f, c, d["spill"]["n"], _msd(d["held_g"]), _msd(d["shed_g"]),
                          _msd(d["delivered_g"]), *cls,
                          ", ".join(f"{k.replace('_', ' ')} {v:g} %" for k, v in t.items()),
-                         _p(e.get("fisher_meaningful", {}).get("p")) if c == "primitive"
-                         else ""])
+                         "" if c == "control" else
+                         _p(e.get("fisher_meaningful" + ("" if c == "primitive" else
+                                                         "_closed_loop"), {}).get("p"))])
     out += _table(["food", "condition", "n", "held (g)", "shed into container (g)",
                    "delivered (g)", "meaningful", "trivial", "transport failure",
-                   "tree failed", "thesis", "Fisher p (meaningful)"], rows)
+                   "tree failed", "thesis", "Fisher p (meaningful, vs control)"], rows)
     out += ("\n\nSpill frequency alone (Fisher, no-spill trials, primitive vs control): "
             + ", ".join(f"{f} p = {_p(s['foods'][f]['fisher_no_spill'].get('p'))}"
                         for f in cfg.exp2c.foods) + ".")
+    closed = [f for f in cfg.exp2c.foods if "fisher_no_spill_closed_vs_open" in s["foods"][f]]
+    if closed:
+        cvo = {f: s["foods"][f].get("fisher_meaningful_closed_vs_open", {}) for f in closed}
+        out += (" Closed loop vs open loop (meaningful success): "
+                + ", ".join(f"{f} p = {_p(cvo[f].get('p'))}" for f in closed) + ".")
     return out
 
 
@@ -314,7 +323,7 @@ def differences(exp: str, s: Mapping[str, Any], cfg: Any) -> list[str]:
                 out.append(f"{f}: Welch p {_p(p)} vs the thesis' {t['p']}")
     elif exp == "exp2c" and s.get("thresholds_g"):
         for f in cfg.exp2c.foods:
-            for c in ("control", "primitive"):
+            for c in ("control", "primitive"):  # the thesis has no closed-loop condition
                 d, t = s["foods"][f][c], th["exp2c"].get(f"{f}_{c}", {})
                 for k, v in t.items():
                     ours = d.get("percent", {}).get(k)

@@ -22,6 +22,7 @@ import numpy as np
 
 from articutool.arm.scene import Cylinder, Scene
 from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
+from articutool.sim.pieces import draw_piece, piece_extent
 from articutool.sim.world import FeedingWorld
 from articutool.spec import Spec
 from articutool.tool.api import Mode
@@ -33,21 +34,22 @@ def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = 80,
                         seed: int = 0) -> float:
     """Lifted-cylinder angle of repose of ``n`` pieces on a flat surface (degrees)."""
     rng = np.random.default_rng(seed)
-    r, h = food.piece_radius, food.piece_half_length
-    cell = 2.1 * (r + h)
+    cell = piece_extent(food) * 1.05
     per_layer = [(x, y) for x in (-1, 0, 1) for y in (-1, 0, 1)]
     bodies = []
     for k in range(n):
         x, y = per_layer[k % len(per_layer)]
-        z = r + 0.001 + (k // len(per_layer)) * cell
+        z = cell / 2 + (k // len(per_layer)) * cell
         q = rng.normal(size=4)
         q /= np.linalg.norm(q)
+        geoms = "".join(
+            f'<geom type="capsule" size="{r}" fromto="{" ".join(map(str, (*a, *b)))}" '
+            f'density="{food.density}" friction="{food.friction[0]} {food.friction[1]} '
+            f'{food.friction[2]}" condim="6" solref="{food.solref[0]} {food.solref[1]}"/>'
+            for a, b, r in draw_piece(food, rng))
         bodies.append(
             f'<body pos="{x * cell + rng.uniform(-1e-3, 1e-3)} {y * cell} {z}" '
-            f'quat="{q[0]} {q[1]} {q[2]} {q[3]}"><freejoint/><geom type="capsule" '
-            f'size="{r} {h}" mass="{food.piece_mass}" friction="{food.friction[0]} '
-            f'{food.friction[1]} {food.friction[2]}" condim="6" solref="{food.solref[0]} '
-            f'{food.solref[1]}"/></body>')
+            f'quat="{q[0]} {q[1]} {q[2]} {q[3]}"><freejoint/>{geoms}</body>')
     w = params.world
     xml = (f'<mujoco><option timestep="{w.timestep}" solver="{w.solver}" '
            f'iterations="{w.iterations}" tolerance="{w.tolerance}" cone="{w.cone}"/>'
@@ -59,8 +61,8 @@ def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = 80,
         mujoco.mj_step(m, d)
     p = d.xpos[1:]
     centre = np.median(p[:, :2], axis=0)
-    radius = float(np.quantile(np.linalg.norm(p[:, :2] - centre, axis=1), 0.9)) + r
-    height = float(p[:, 2].max()) + r
+    radius = float(np.quantile(np.linalg.norm(p[:, :2] - centre, axis=1), 0.9))
+    height = float(p[:, 2].max())
     return math.degrees(math.atan2(height, radius))
 
 
@@ -77,7 +79,7 @@ def level_capacity_g(food_name: str, spec: Spec, params: PhysicsParams, utensil:
     world.tool.set_mode(Mode.LEVELING)
     world.run(1.0)
     world.place_load(settle_s=1.0)
-    return world.masses_g()["utensil"], world.n_items * world.layout.piece_mass * 1000.0
+    return world.masses_g()["utensil"], world.report().total_g
 
 
 def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,

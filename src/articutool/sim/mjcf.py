@@ -27,6 +27,8 @@ from numpy.typing import NDArray
 from articutool.arm.model import TOOL_BASE_FRAME, tip_frame_name
 from articutool.arm.scene import Box, Capsule, Cylinder, Halfspace, Scene, Sphere, rpy_matrix
 from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
+from articutool.sim.pieces import Capsule as PieceCapsules
+from articutool.sim.pieces import capsule_mass, draw_piece, footprint, pack_layer
 from articutool.spec import Spec, UtensilSpec
 
 __all__ = ["FT_SITE", "IMU_SITE", "WorldLayout", "build_mjcf", "spoon_dish", "tip_site_name"]
@@ -36,6 +38,7 @@ FT_SITE = "ft"
 _STATIC, _FOOD, _UTENSIL, _ROBOT = 1, 2, 4, 8
 _ALL = _STATIC | _FOOD | _UTENSIL | _ROBOT
 _WALL_BOXES = 24
+_WALL_DEPTH = 3.0
 _DISH_WALLS = 16
 
 
@@ -121,13 +124,18 @@ def _static_geoms(scene: Scene, friction: float, layout: WorldLayout) -> list[st
             names = [f"scene/{o.name}/floor"]
             n = _WALL_BOXES
             half_w = o.radius * math.tan(math.pi / n) * 1.1
+            # Collision walls reach outward to _WALL_DEPTH × the wall (the inner face stays):
+            # soft contacts let a pecan piece (capsules of 2.4-4 mm radius) squeezed by the
+            # spoon into the floor-wall corner sink 4 mm into the 4 mm wall and come out on
+            # the table (measured: meal --food pecans seed 0, a 0.50 g "table spill").
+            tc = t * _WALL_DEPTH
             for k in range(n):
                 a = 2 * math.pi * k / n
-                c = (o.radius - t / 2) * np.array([math.cos(a), math.sin(a), 0.0])
+                c = (o.radius - t + tc / 2) * np.array([math.cos(a), math.sin(a), 0.0])
                 Rk = rpy_matrix((0.0, 0.0, a))
                 nm = f"scene/{o.name}/wall{k}"
                 names.append(nm)
-                body.append(f'<geom name="{nm}" type="box" size="{t / 2} {half_w} '
+                body.append(f'<geom name="{nm}" type="box" size="{tc / 2} {half_w} '
                             f'{o.length / 2}" {_pose_attr(c, Rk)} {cls} rgba="{rgba}"/>')
             body.append("</body>")
             out.extend(body)
@@ -239,42 +247,73 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
         layout.parked = True
     if isinstance(food, Strands):
         return _strands(food, count, inner, floor_z, cx, cy, rng, layout)
+    pieces: list[list[PieceCapsules]] = []
     if isinstance(food, Granular):
-        cell = 2 * (food.piece_radius + food.piece_half_length) * 1.05
-        size = (f'type="capsule" size="{food.piece_radius} {food.piece_half_length}" '
-                f'friction="{_f(food.friction)}" condim="6"')
+        # Pieces drawn until their mass reaches the fill (sizes vary: the count follows).
+        target, total = (food.fill_g if load_g is None else load_g) / 1000.0, 0.0
+        while total < target - 1e-12 and len(pieces) < 5000:
+            pieces.append(draw_piece(food, rng))
+            total += capsule_mass(pieces[-1], food.density)
+        count = len(pieces)
+        # Pieces are flat (capsules in one plane) and start lying flat, turned about the
+        # vertical only, packed layer by layer without overlapping (a bowl filled a piece at
+        # a time); a layer is 1.5 thicknesses high. A lattice cell that holds the largest
+        # piece held 5 a layer: a 0.45 m column whose fall threw pieces out of the bowl.
+        cell_z = 1.5 * max(food.half_width_m[1], food.piece_screen_m[1]) / 2.0
+        radii = [footprint(c) for c in pieces]
+        cell = 2.0 * max(radii)
+        pts = []
+        z = floor_z + cell_z / 2
+        while len(pts) < count:
+            layer = pack_layer(radii[len(pts):], inner, rng)
+            if not layer:
+                raise ValueError(f"food {food.container}: a piece does not fit in the bowl")
+            pts += [(x, y, z) for x, y in layer]
+            z += cell_z
+        size = f'type="capsule" friction="{_f(food.friction)}" condim="6"'
         rgba = "0.55 0.33 0.15 1"
     else:
         cell = 2 * food.particle_radius * 1.02
         size = f'type="sphere" size="{food.particle_radius}" condim="1"'
         rgba = "0.3 0.5 0.95 0.8"
-    # Lattice inside the inner radius, layer by layer, with a small seeded jitter.
-    pts = []
-    n_side = int(2 * inner / cell)
-    z = floor_z + cell / 2
-    while len(pts) < count:
-        for i in range(n_side):
-            for j in range(n_side):
-                x = -inner + cell / 2 + i * cell
-                y = -inner + cell / 2 + j * cell
-                if math.hypot(x, y) < inner - cell / 2:
-                    pts.append((x, y, z))
-        z += cell
-    pts = pts[:count]
+        # Lattice inside the inner radius, layer by layer, with a small seeded jitter.
+        pts = []
+        n_side = int(2 * inner / cell)
+        z = floor_z + cell / 2
+        while len(pts) < count:
+            for i in range(n_side):
+                for j in range(n_side):
+                    x = -inner + cell / 2 + i * cell
+                    y = -inner + cell / 2 + j * cell
+                    if math.hypot(x, y) < inner - cell / 2:
+                        pts.append((x, y, z))
+            z += cell
+        pts = pts[:count]
     layout.piece_size = cell
     for k, (x, y, z) in enumerate(pts):
-        jitter = rng.uniform(-0.1, 0.1, 3) * cell
+        jitter = np.zeros(3) if pieces else rng.uniform(-0.1, 0.1, 3) * cell
         jitter[2] = abs(jitter[2])
         if load_g is not None:  # parked: a row far from everything
             x, y, z, cx, cy, jitter = 50.0 + k * cell, 50.0, 1.0, 0.0, 0.0, np.zeros(3)
         q = rng.normal(size=4)
         q /= np.linalg.norm(q)
+        if pieces:  # lying flat: the same draw, as a turn about the vertical
+            yaw = math.atan2(q[1], q[0])
+            q = np.array([math.cos(yaw), 0.0, 0.0, math.sin(yaw)])
         name = f"food{k}"
         layout.food_bodies.append(name)
         grav = ' gravcomp="1"' if load_g is not None else ""
+        if pieces:  # capsules weighed by density; the first geom carries the body's name
+            geoms = "".join(
+                f'<geom name="{name}{"" if i == 0 else f"_{i}"}" {size} size="{r:.9g}" '
+                f'fromto="{_f(np.r_[a, b])}" density="{food.density:.9g}" '
+                f'solref="{_f(food.solref)}" {fcls} rgba="{rgba}"/>'
+                for i, (a, b, r) in enumerate(pieces[k]))
+        else:
+            geoms = (f'<geom name="{name}" {size} mass="{mass:.9g}" '
+                     f'solref="{_f(food.solref)}" {fcls} rgba="{rgba}"/>')
         out.append(f'<body name="{name}" pos="{_f(np.array([cx + x, cy + y, z]) + jitter)}" '
-                   f'quat="{_f(q)}"{grav}><freejoint/><geom name="{name}" {size} mass="{mass:.9g}" '
-                   f'solref="{_f(food.solref)}" {fcls} rgba="{rgba}"/></body>')
+                   f'quat="{_f(q)}"{grav}><freejoint/>{geoms}</body>')
     return out
 
 

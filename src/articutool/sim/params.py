@@ -13,6 +13,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from articutool.datafile import format_validation_error, read_document
@@ -91,18 +92,32 @@ class _FoodBase(_Strict):
 
 
 class Granular(_FoodBase):
-    """Rigid capsule pieces (e.g. pecans)."""
+    """Rigid irregular pieces (e.g. pecans): halves and broken pieces, compounds of capsules
+    drawn by :func:`articutool.sim.pieces.draw_piece`."""
 
     kind: Literal["granular"]
-    piece_radius: Positive
-    piece_half_length: NonNegative
+    half_fraction: Annotated[float, Field(ge=0, le=1)]
+    half_width_m: tuple[Positive, Positive]
+    half_length_ratio: Annotated[float, Field(ge=1, le=5)]
+    piece_screen_m: tuple[Positive, Positive]
     friction: tuple[Positive, NonNegative, NonNegative]
+
+    @model_validator(mode="after")
+    def _ranges(self) -> Granular:
+        for name in ("half_width_m", "piece_screen_m"):
+            lo, hi = getattr(self, name)
+            if lo > hi:
+                raise ValueError(f"{name}: [min, max] with min <= max; got [{lo}, {hi}]")
+        return self
 
     @property
     def piece_mass(self) -> float:
-        """kg per piece (capsule volume × density)."""
-        r, h = self.piece_radius, self.piece_half_length
-        return self.density * (math.pi * r * r * 2 * h + 4.0 / 3.0 * math.pi * r**3)
+        """kg: the mean piece mass (4000 pieces drawn with a fixed seed)."""
+        from articutool.sim.pieces import capsule_mass, draw_piece
+
+        rng = np.random.default_rng(0)
+        return float(np.mean([capsule_mass(draw_piece(self, rng), self.density)
+                              for _ in range(4000)]))
 
 
 class Liquid(_FoodBase):

@@ -149,12 +149,14 @@ def scoop(world: FeedingWorld, level: bool = True) -> None:
     rad = math.radians
     # Steep entry and drag (the handle clears the rim), then turn level while rising; every
     # pose is collision-free for the arm and wrist in the planning model (the utensil may
-    # touch the bowl).
+    # touch the bowl). The lip drags 3-4 mm above the floor, under the lowest layer: at
+    # 10-12 mm it met flat pecan pieces (5-8 mm thick) edge-on mid-layer and pushed them —
+    # the pieces it touched sat on its rim or under its dish, never in it (measured, seed 0).
     pts = [
         (back + _Z * 0.12, rad(60), 0.15),
         (back + _Z * 0.04, rad(60), 0.06),
-        (c - h * 0.1 * inner + _Z * 0.010, rad(60), 0.03),
-        (c + h * 0.3 * inner + _Z * 0.012, rad(50), 0.03),
+        (c - h * 0.1 * inner + _Z * 0.003, rad(60), 0.03),
+        (c + h * 0.3 * inner + _Z * 0.004, rad(50), 0.03),
         (c + h * 0.4 * inner + _Z * 0.05, rad(30), 0.03),
         (c + h * 0.4 * inner + _Z * 0.075, rad(0), 0.03),
         (c + h * 0.4 * inner + _Z * 0.16, rad(0), 0.06),

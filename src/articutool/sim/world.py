@@ -42,6 +42,7 @@ from articutool.sim.mjcf import (
     tip_site_name,
 )
 from articutool.sim.params import Granular, PhysicsParams
+from articutool.sim.pieces import piece_extent
 from articutool.spec import Spec, load_spec
 from articutool.tool.drivers.motor_model import MotorPlant
 from articutool.tool.runtime import ToolRuntime
@@ -420,8 +421,9 @@ class FeedingWorld:
             node[m.geom(gname).id] = _UTENSIL_NODE
         item_body = []
         for k, b in enumerate(lay.food_bodies):
-            node[m.geom(b).id] = k
-            item_body.append(m.body(b).id)
+            bid = m.body(b).id
+            node[m.body_geomadr[bid]:m.body_geomadr[bid] + m.body_geomnum[bid]] = k
+            item_body.append(bid)
         n_bodies = len(lay.food_bodies)
         self._strand_verts: list[NDArray[np.int64]] = []  # each strand's capsule bodies
         for k, sname in enumerate(lay.food_strands):  # a strand: one item, all its capsules
@@ -433,6 +435,9 @@ class FeedingWorld:
         self._geom_node = node
         self._item_body = np.array(item_body, dtype=np.int64)
         self.n_items = len(item_body)
+        # Grams per item: a body's own mass (pieces vary in size), a strand's from the model.
+        self._item_g = np.array([m.body_mass[b] * 1000.0 for b in item_body[:n_bodies]]
+                                + [lay.piece_mass * 1000.0] * len(lay.food_strands))
         self._active = np.full(self.n_items, not lay.parked, dtype=bool)
         if lay.parked:  # parked pieces never sleep, so placing them needs no wake-up
             for b in item_body:
@@ -478,11 +483,10 @@ class FeedingWorld:
         # An event each time an item has stayed on a spill place worse than any it reached
         # before for the dwell time (a drop that lands on the table and rolls onto the floor
         # is two events; the spilled mass counts it once, at the floor: acc.spilled_by_place).
-        mass_g = self.layout.piece_mass * 1000.0
         for k, code, w, t0 in self._spill.update(self.time, self.spec.wrist.period, codes,
                                                   where, self._active):
             self.spills.append(acc.SpillEvent(
-                t=round(t0, 4), mass_g=mass_g, place=acc.CLASS_NAMES[code],
+                t=round(t0, 4), mass_g=float(self._item_g[k]), place=acc.CLASS_NAMES[code],
                 where=self._surface_names[w] if w >= 0 else "", item=k))
         self._codes, self._where = codes, where
 
@@ -530,7 +534,7 @@ class FeedingWorld:
         presents the bite and this stands for the user taking it.)"""
         on = np.flatnonzero(self._active & (self._codes == acc.UTENSIL))
         self._remove_eaten(on)
-        return float(len(on) * self.layout.piece_mass * 1000.0)
+        return float(self._item_g[on].sum())
 
     def _remove_eaten(self, items: NDArray[np.int64]) -> None:
         m, d = self.model, self.data
@@ -551,7 +555,7 @@ class FeedingWorld:
                 self._codes[k] = acc.EATEN
                 continue
             b = self._item_body[k]
-            g = m.geom(self.layout.food_bodies[k]).id
+            g = slice(m.body_geomadr[b], m.body_geomadr[b] + m.body_geomnum[b])
             m.geom_contype[g] = m.geom_conaffinity[g] = 0
             m.body_contype[b] = m.body_conaffinity[b] = 0
             m.body_gravcomp[b] = 1.0
@@ -600,7 +604,7 @@ class FeedingWorld:
             zc, depth = u.tip_z - ph.tine_length / 2, 0.0
         if isinstance(fp, Granular):
             rng = np.random.default_rng(self.seed + 7)
-            lift = depth + 2.5 * fp.piece_radius
+            lift = depth + 0.6 * piece_extent(fp)
             for k in range(self.n_items):
                 dy, dz = rng.uniform(-0.004, 0.004, 2)
                 self._unpark(k, body, (u.tip_x + lift, dy, zc + dz))
@@ -653,7 +657,7 @@ class FeedingWorld:
         v = np.zeros(6)
         mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, body, v, 0)
         bid = int(self._item_body[k])
-        g = m.geom(self.layout.food_bodies[k]).id
+        g = slice(m.body_geomadr[bid], m.body_geomadr[bid] + m.body_geomnum[bid])
         # The broad phase filters on the body's OR of its geoms' bits, kept in the model.
         m.geom_contype[g] = m.body_contype[bid] = self.layout.food_contype
         m.geom_conaffinity[g] = m.body_conaffinity[bid] = self.layout.food_conaffinity
@@ -679,6 +683,10 @@ class FeedingWorld:
         # The sensor reads the reaction on the utensil: extra weight pulls along −down.
         return float(-f @ down / self.spec.imu.gravity * 1000.0)
 
+    def item_masses_g(self) -> NDArray[np.float64]:
+        """Grams of each food item (pieces vary in size; particles and strands do not)."""
+        return self._item_g.copy()
+
     def item_classes(self) -> NDArray[np.int64]:
         """Where each food item is now: its code in ``accounting.CLASS_NAMES`` (utensil,
         container, table, …), or −1 for a piece of a load not yet placed."""
@@ -686,9 +694,9 @@ class FeedingWorld:
 
     def masses_g(self) -> dict[str, float]:
         """Mass (g) per class: utensil, container, table, critical, airborne, eaten."""
-        counts = np.bincount(self._codes[self._active], minlength=len(acc.CLASS_NAMES))
-        mass = self.layout.piece_mass * 1000.0
-        return {name: float(counts[i] * mass) for i, name in enumerate(acc.CLASS_NAMES)}
+        g = np.bincount(self._codes[self._active], weights=self._item_g[self._active],
+                        minlength=len(acc.CLASS_NAMES))
+        return {name: float(g[i]) for i, name in enumerate(acc.CLASS_NAMES)}
 
     def report(self, measure_ft: bool = False) -> FoodReport:
         """The food report now (``measure_ft``: include the F/T-measured mass, when the
@@ -698,7 +706,7 @@ class FeedingWorld:
             t=round(self.time, 4), food=self.food, utensil=self.utensil,
             on_utensil_g=g["utensil"], in_bowl_g=g["container"], table_g=g["table"],
             critical_g=g["critical"], airborne_g=g["airborne"], eaten_g=g["eaten"],
-            total_g=int(self._active.sum()) * self.layout.piece_mass * 1000.0,
+            total_g=float(self._item_g[self._active].sum()),
             spills=list(self.spills),
             ft_mass_g=self.ft_mass_g() if measure_ft and self.ft_comparable() else None,
             realtime_factor=self.realtime_factor,
