@@ -84,3 +84,9 @@ def test_replay_picks_do_not_depend_on_the_logs_order(order):
     # (trials 2 and 5 spilled 0.5 g) and, of those, kept the least food.
     assert picks["water articutool"] == {"typical": 1, "worst": 5}
     assert picks["water baseline"] == {"typical": 6, "worst": 6}
+
+
+def test_exp2c_without_thresholds_says_so_rather_than_not_run():
+    s = {"exp2c": {"thresholds_g": None, "foods": {}}}
+    row = next(v for v in verdicts(s, CFG.thesis, ALPHA) if v.figure == "Fig. 6.4")
+    assert row.verdict == "cannot test" and "thresholds" in row.ours

@@ -193,8 +193,9 @@ def verdicts(summaries: Mapping[str, Mapping[str, Any]], thesis: Mapping[str, An
     for exp, h, fig, rule in rules:
         s = summaries.get(exp)
         rows = rule(s, thesis.get(exp, {}), alpha) if s else []
-        out += rows or [Verdict(h, fig, f"{exp}'s claims", "", "not run", "",
-                                "cannot test")]
+        why = ("not run" if not s else "run, but no comparison could be formed (Exp. 2c "
+               "needs outcome thresholds: Exp. 1's means or --thresholds-g)")
+        out += rows or [Verdict(h, fig, f"{exp}'s claims", "", why, "", "cannot test")]
     return out
 
 
