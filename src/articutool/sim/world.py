@@ -326,41 +326,111 @@ class FeedingWorld:
     # ------------------------------------------------------------------ stepping --
     def step(self, tick: bool = True) -> None:
         """One physics step; the tool ticks every loop period (``tick=False``: tool off)."""
-        m, d = self.model, self.data
-        c0 = time.thread_time()
-        self._arm_control()
-        self._wrist_control()
-        mujoco.mj_step(m, d)
-        self._step_count += 1
-        ticked = tick and self._step_count % self._steps_per_tick == 0
-        if tick:
-            self._emit_samples()
-            if ticked:
-                self.tool.tick(self.time)
-                self.motors.check_stops()
-                self._classify()
-        self._cpu += time.thread_time() - c0
-        self._sim_stepped += self.dt
-        if ticked:
-            for fn in self.on_tick:
-                fn(self)
+        self._advance(1, tick)
 
     def run(self, seconds: float, tick: bool = True) -> None:
         """Advance the world by ``seconds``."""
         if not (math.isfinite(seconds) and seconds >= 0):
             raise ValueError(f"seconds must be a finite number >= 0; got {seconds}")
-        for _ in range(round(seconds / self.dt)):
-            self.step(tick)
+        self._steps(round(seconds / self.dt), tick)
 
     def run_until(self, done: Callable[[], bool], timeout: float) -> bool:
         """Step until ``done()`` (checked every loop period) or ``timeout`` s; True if done."""
         t_end = self.time + timeout
         while self.time < t_end - 1e-12:
-            for _ in range(self._steps_per_tick):
-                self.step()
+            self._steps(self._steps_per_tick, True)
             if done():
                 return True
         return False
+
+    def _steps(self, n: int, tick: bool) -> None:
+        """``n`` physics steps, in batches that end where the tool ticks."""
+        while n > 0:
+            k = min(n, self._steps_per_tick - self._step_count % self._steps_per_tick)
+            self._advance(k, tick)
+            n -= k
+
+    def _advance(self, n: int, tick: bool) -> None:
+        """``n`` physics steps of which only the last may end on a tool tick: per step the
+        arm servos' references, the wrist motors' velocity loop, ``mj_step`` and the sensor
+        samples due; then the tick. The same operations in the same order as one step at a
+        time (bit-identical), with the per-step Python cut to what depends on the step: the
+        arm's references for the batch are sampled at once, at the times the physics will
+        reach (MuJoCo adds ``dt`` to ``time`` each step, so does ``np.add.accumulate``)."""
+        m, d, dt = self.model, self.data, self.dt
+        c0 = time.thread_time()
+        refs, refv = self._arm_references(n)
+        seen = np.empty((n, 6))
+        ctrl, qpos, qvel, sens = d.ctrl, d.qpos, d.qvel, d.sensordata
+        act_pos, act_vel, arm_q = self._act_pos, self._act_vel, self._arm_q
+        (w0, w1), (v0, v1) = self._act_wr, self._wr_v
+        kv, ki, tq = self._kv, self._ki, self._tq
+        lim = tq / ki  # anti-windup: the integral never asks for more than the stall torque
+        vi0, vi1 = float(self._vel_int[0]), float(self._vel_int[1])
+        hold = self._hold_wrist
+        model = self.motors.model
+        # Velocity mode: the goal does not depend on the angles, so it holds for the batch.
+        fixed = None if hold or model.mode != "velocity" else model.velocity_targets(self.wrist_q)
+        on0, on1 = (True, True) if hold else (bool(model.torque[0]), bool(model.torque[1]))
+        s_acc, s_gyro, s_f, s_t = self._s_acc, self._s_gyro, self._s_force, self._s_torque
+        for k in range(n):
+            ctrl[act_pos] = refs[k]
+            ctrl[act_vel] = refv[k]
+            seen[k] = qpos[arm_q]
+            # The XC430 velocity loop (PI) → joint torque, limited to the stall torque.
+            if hold:
+                g0 = g1 = 0.0
+            else:
+                goal = fixed if fixed is not None else model.velocity_targets(self.wrist_q)
+                g0, g1 = float(goal[0]), float(goal[1])
+            e0, e1 = g0 - float(qvel[v0]), g1 - float(qvel[v1])
+            vi0 = min(max(vi0 + e0 * dt, -lim), lim) if on0 else 0.0
+            vi1 = min(max(vi1 + e1 * dt, -lim), lim) if on1 else 0.0
+            ctrl[w0] = min(max(kv * e0 + ki * vi0, -tq), tq) if on0 else 0.0
+            ctrl[w1] = min(max(kv * e1 + ki * vi1, -tq), tq) if on1 else 0.0
+            mujoco.mj_step(m, d)
+            if tick:
+                t = d.time
+                if t >= self._next_imu - 1e-9:
+                    self.imu.push(sens[s_acc:s_acc + 3].copy(), sens[s_gyro:s_gyro + 3].copy(),
+                                  t)
+                    self._next_imu += self._imu_period
+                if t >= self._next_ft - 1e-9:
+                    self.ft.push(sens[s_f:s_f + 3].copy(), sens[s_t:s_t + 3].copy(), t)
+                    self._next_ft += self._ft_period
+        self._vel_int = np.array([vi0, vi1])
+        err = float(np.max(np.abs(seen - refs)))
+        self.arm_tracking_error = max(self.arm_tracking_error, err)
+        self._step_count += n
+        ticked = tick and self._step_count % self._steps_per_tick == 0
+        if ticked:
+            self.tool.tick(self.time)
+            self.motors.check_stops()
+            self._classify()
+        self._cpu += time.thread_time() - c0
+        self._sim_stepped += n * dt
+        if ticked:
+            for fn in self.on_tick:
+                fn(self)
+
+    def _arm_references(self, n: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The arm servos' position and velocity references for the next ``n`` steps (n, 6):
+        the trajectory being followed sampled at each step's time, held at its end (at rest)
+        once it is over; else the held reference."""
+        traj = self._arm_traj
+        if traj is None:
+            return (np.broadcast_to(self._arm_ref, (n, 6)),
+                    np.broadcast_to(self._arm_ref_v, (n, 6)))
+        times = np.full(n, self.dt)
+        times[0] = self.data.time
+        t = np.add.accumulate(times) - self._arm_t0
+        refs, refv = traj.sample(t)
+        over = t >= traj.duration
+        refv[over] = 0.0
+        if over.any():
+            self._arm_traj = None
+        self._arm_ref, self._arm_ref_v = refs[-1].copy(), refv[-1].copy()
+        return refs, refv
 
     def follow_arm(self, traj: JointTrajectory, wait: bool = True, settle_s: float = 0.2) -> None:
         """Start the arm on ``traj`` (its six arm joints, any order; extra wrist joints are
@@ -400,47 +470,6 @@ class FeedingWorld:
         """True while an arm trajectory is being followed."""
         return self._arm_traj is not None
 
-    def _arm_control(self) -> None:
-        d = self.data
-        if self._arm_traj is not None:
-            t = self.time - self._arm_t0
-            q, v = self._arm_traj.sample(t)
-            self._arm_ref, self._arm_ref_v = q, v
-            if t >= self._arm_traj.duration:
-                self._arm_traj = None
-                self._arm_ref_v = np.zeros(6)
-        d.ctrl[self._act_pos] = self._arm_ref
-        d.ctrl[self._act_vel] = self._arm_ref_v
-        err = float(np.max(np.abs(d.qpos[self._arm_q] - self._arm_ref)))
-        self.arm_tracking_error = max(self.arm_tracking_error, err)
-
-    def _wrist_control(self) -> None:
-        """The XC430 velocity loop (PI) → joint torque, limited to the stall torque."""
-        d = self.data
-        if self._hold_wrist:
-            goal, on = np.zeros(2), np.ones(2, dtype=bool)
-        else:
-            goal, on = self.motors.model.velocity_targets(self.wrist_q), self.motors.model.torque
-        e = goal - d.qvel[self._wr_v]
-        self._vel_int = np.where(on, self._vel_int + e * self.dt, 0.0)
-        # Anti-windup: the integral never asks for more than the stall torque.
-        lim = self._tq / self._ki
-        self._vel_int = np.clip(self._vel_int, -lim, lim)
-        tau = np.clip(self._kv * e + self._ki * self._vel_int, -self._tq, self._tq)
-        d.ctrl[self._act_wr] = np.where(on, tau, 0.0)
-
-    def _emit_samples(self) -> None:
-        d, t = self.data, self.time
-        if t >= self._next_imu - 1e-9:
-            self.imu.push(d.sensordata[self._s_acc:self._s_acc + 3].copy(),
-                          d.sensordata[self._s_gyro:self._s_gyro + 3].copy(), t)
-            self._next_imu += self._imu_period
-        if t >= self._next_ft - 1e-9:
-            self.ft.push(d.sensordata[self._s_force:self._s_force + 3].copy(),
-                         d.sensordata[self._s_torque:self._s_torque + 3].copy(), t)
-            self._next_ft += self._ft_period
-
-    # ---------------------------------------------------------------- accounting --
     # ---------------------------------------------------------------- food --
     @property
     def n_items(self) -> int:
