@@ -15,6 +15,10 @@ on one core, same seed:
    against C: read its shares against run 1's CPU totals.
 
     .venv/bin/python benchmarks/profile_sim.py --out results/sim_profile.json
+    PYTHONPATH=src .venv/bin/python benchmarks/profile_sim.py --python-cost --out -
+
+``--python-cost``: the world's own Python per step with the physics stubbed out (below); run
+it on two source trees to compare them.
 """
 
 from __future__ import annotations
@@ -104,13 +108,49 @@ def profile(food: str, seed: int, top: int) -> dict:
     return res
 
 
+def python_cost(food: str, seed: int, seconds: float = 5.0) -> dict:
+    """The world's own Python per physics step with the physics stubbed out (``mj_step``
+    only advances the clock): arm references, the wrist's velocity loop, sensor samples, the
+    tool's tick and the food ledger, while the arm follows a trajectory and the tool levels."""
+    from articutool.sim.world import FeedingWorld
+    from articutool.tool.api import Mode
+
+    w = FeedingWorld(food, seed=seed)
+    w.tool.set_mode(Mode.LEVELING)
+    q = w.arm_q.copy()
+    q[0] += 0.3
+    w.move_arm(q, duration=4 * seconds, wait=False)
+    step = mujoco.mj_step
+    mujoco.mj_step = lambda m, d, nstep=1: setattr(d, "time", d.time + nstep * m.opt.timestep)
+    try:
+        c = time.thread_time()
+        w.run(seconds)
+        cpu = time.thread_time() - c
+    finally:
+        mujoco.mj_step = step
+    n = round(seconds / w.dt)
+    return {"food": food, "steps": n, "python_per_step_us": round(1e6 * cpu / n, 1)}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--foods", default="pecans,water,noodles")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--top", type=int, default=25)
     ap.add_argument("--out", default="results/sim_profile.json")
+    ap.add_argument("--python-cost", action="store_true",
+                    help="only the world's Python per step, physics stubbed (see python_cost)")
     args = ap.parse_args(argv)
+    if args.python_cost:
+        import articutool
+
+        rows = [python_cost(f, args.seed) for f in args.foods.split(",")]
+        doc = {"code": str(Path(articutool.__file__).parent), "loadavg": os.getloadavg(),
+               "runs": rows}
+        print(json.dumps(doc))
+        if args.out != "-":
+            Path(args.out).write_text(json.dumps(doc, indent=2) + "\n")
+        return 0
     out = {"machine": {"python": sys.version.split()[0], "platform": platform.platform(),
                        "cpus": os.cpu_count(), "mujoco": mujoco.__version__,
                        "loadavg_start": os.getloadavg()},
