@@ -108,7 +108,8 @@ def main(argv: list[str] | None = None) -> int:
                     help=argparse.SUPPRESS)
     ap.add_argument("--foods", default="pecans,water,noodles", help="comma-separated foods")
     ap.add_argument("--seeds", type=int, default=5)
-    ap.add_argument("--variants", default="shipped,no_sleep,step_1ms")
+    ap.add_argument("--variants", default="shipped",
+                    help="comma-separated: shipped, no_sleep, step_1ms, step_4ms")
     ap.add_argument("--code", action="append", default=[], metavar="NAME=SRC",
                     help="a source tree to run (default: this checkout's src)")
     ap.add_argument("--out", default="results/sim_benchmark.json")
