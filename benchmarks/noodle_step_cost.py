@@ -25,8 +25,8 @@ from pathlib import Path
 
 import mujoco
 
-_TIMERS = ("STEP", "POS_COLLISION", "COL_BROAD", "COL_NARROW", "POS_MAKE", "CONSTRAINT",
-           "ADVANCE", "POS_KINEMATICS", "POS_INERTIA", "VELOCITY")
+_TIMERS = ("STEP", "POS_COLLISION", "COL_BROAD", "COL_NARROW", "POS_MAKE", "POS_PROJECT",
+           "CONSTRAINT", "ADVANCE", "POS_KINEMATICS", "POS_INERTIA", "VELOCITY")
 
 
 class _StopError(Exception):
