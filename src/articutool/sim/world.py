@@ -7,7 +7,10 @@
 each physics step applies the arm servos' references and the wrist motors' torques, steps,
 then emits IMU and F/T samples at their rates; every loop period the runtime ticks on the
 simulation clock. Commands reach the tool through ``world.tool``, the same ``ToolAPI`` the
-link serves.
+link serves. For speed (issue 24) the steps between two ticks run as one batch with the
+per-step Python cut to what depends on the step, and a settled pile is restored rather than
+settled again; both are bit-identical to stepping one at a time and settling afresh
+(``tests/test_sim_speed.py``; where the time goes: docs/simulation.md, *Speed*).
 
 The arm follows a :class:`~articutool.trajectory.JointTrajectory` with joint servos (PD with
 velocity feed-forward, torque-limited by the spec's efforts), so contacts see the real
