@@ -3,8 +3,8 @@
 For each seed the water world is built (settled, tool idle, arm at Resting, the spoon far
 from the bowl) and run ``--seconds``; every second: the awake dofs (MuJoCo sleeping), the
 particles' largest and median linear speed and their largest angular speed, and how many spin
-faster than the sleep tolerance allows (``sleep_tolerance`` / the dof's length, MuJoCo's test
-for a rotational dof). A frictionless particle (condim 1) takes no torque from its contacts,
+faster than ``sleep_tolerance`` / the dof's length (their surface moving faster than the
+tolerance). A frictionless particle (condim 1) takes no torque from its contacts,
 so its spin never decays and keeps its island — the whole pool — awake; a measurement, the
 water model is unchanged.
 
