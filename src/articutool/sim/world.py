@@ -12,6 +12,9 @@ per-step Python cut to what depends on the step, and a settled pile is restored 
 settled again; both are bit-identical to stepping one at a time and settling afresh
 (``tests/test_sim_speed.py``; where the time goes: docs/simulation.md, *Speed*).
 
+(~590 lines: one stepping loop — arm servos, the wrist's velocity loop, sensors, the tool's
+tick — and the arm-motion API around it; the food ledger and load placement live apart.)
+
 The arm follows a :class:`~articutool.trajectory.JointTrajectory` with joint servos (PD with
 velocity feed-forward, torque-limited by the spec's efforts), so contacts see the real
 velocity of the utensil — never a teleported body. The tracking error is recorded.
