@@ -1,16 +1,29 @@
-"""Physics-world benchmark: real-time factor per food, and whether the speed settings change
-outcomes.
+"""Physics-world benchmark: real-time factor of the scripted acquisition per food, and whether
+a speed setting changes outcomes.
 
-For each food and each solver setting, runs the scripted acquisition (``acquire``: settle,
-level, tare, a Cartesian scoop through the pile or the fork's skewer, lift, level; ~19-25 s
-simulated) on one core for several seeds, and records the real-time factor (simulated s ÷
-CPU s of the simulation thread) and an outcome: the mass acquired (pecans, noodles) or, for
-water (which the scripted scoop does not acquire), the mass kept by a locked soup spoon
-loaded with 8 g through the 40° carry tilt. The settings compared are the shipped one (2 ms,
-sleeping on), sleeping off, a 1 ms and a 4 ms step: a setting is acceptable when its outcome
-distribution matches the 1 ms reference's (same mean within the seeds' spread).
+Each run is one child process (one core): the scripted acquisition (``articutool sim --food
+F --script scoop``: settle, level, tare, a Cartesian scoop through the pile or the fork's
+skewer, lift, level; ~19-25 s simulated) for one seed, reporting
+
+- ``realtime_factor``: simulated s ÷ CPU s of the simulation thread inside the world's
+  stepping (``FeedingWorld.realtime_factor``, the figure the targets are about);
+- ``realtime_factor_end_to_end``: simulated s ÷ CPU s of the whole run (building the world,
+  settling, IK and timing of the scripted motions included);
+- the machine's 1-minute load average when it started (the machine is shared: CPU time of
+  one thread still varies with the load, through caches and memory bandwidth);
+- an outcome: the mass acquired (pecans, noodles) or, for water (which the scripted scoop
+  does not acquire), the mass kept by a locked soup spoon loaded with 8 g through the 40°
+  carry tilt.
+
+``--code NAME=SRC`` (repeatable) runs the same seeds on several copies of the source
+(``git archive <rev> src | tar -x -C /tmp/old``), interleaved seed by seed so that the
+machine's load falls on both alike: before/after side by side in one run. ``--variants``
+compares solver settings (the shipped one; sleeping off; a 1 ms and a 4 ms step): a setting is
+acceptable when its outcome distribution matches the 1 ms reference's.
 
     .venv/bin/python benchmarks/bench_sim.py --seeds 5 --out results/sim_benchmark.json
+    .venv/bin/python benchmarks/bench_sim.py --seeds 5 --variants shipped \\
+        --code before=/tmp/old/src --code after=src --out results/sim_speed_before_after.json
 """
 
 from __future__ import annotations
@@ -20,80 +33,107 @@ import json
 import os
 import platform
 import statistics
+import subprocess
 import sys
 import time
 from pathlib import Path
 
-os.environ.setdefault("MUJOCO_GL", "egl")
 
-from articutool.sim.params import PhysicsParams
-from articutool.sim.scenes import acquire, base_tilt_motion
-from articutool.sim.world import FeedingWorld
-from articutool.tool.api import Mode
+def _variant_params(name: str):
+    from articutool.sim.params import PhysicsParams
 
-
-def _water_carry(seed: int, params: PhysicsParams) -> tuple[float, FeedingWorld]:
-    w = FeedingWorld("water", seed=seed, params=params, load_g=8.0)
-    w.tool.set_mode(Mode.LEVELING)
-    w.run(1.0)
-    w.tool.set_mode(Mode.DISABLED)
-    w.place_load(settle_s=1.0)
-    w.move_arm(base_tilt_motion(w, 40.0))
-    w.run(1.5)
-    return w.masses_g()["utensil"], w
+    base = PhysicsParams.load()
+    world = {"shipped": {}, "no_sleep": {"sleep": False}, "step_1ms": {"timestep": 0.001},
+             "step_4ms": {"timestep": 0.004}}[name]
+    return base.model_copy(update={"world": base.world.model_copy(update=world)})
 
 
-def _variant(params: PhysicsParams, **world: object) -> PhysicsParams:
-    return params.model_copy(update={"world": params.world.model_copy(update=world)})
+def one(food: str, seed: int, variant: str) -> dict:
+    """One run in this process (see module doc)."""
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    from articutool.sim.scenes import acquire, base_tilt_motion
+    from articutool.sim.world import FeedingWorld
+    from articutool.tool.api import Mode
+
+    params = _variant_params(variant)
+    load = os.getloadavg()[0]
+    c0, t0 = time.thread_time(), time.perf_counter()
+    w = FeedingWorld(food, seed=seed, params=params)
+    acquire(w, level=True)
+    cpu, wall = time.thread_time() - c0, time.perf_counter() - t0
+    outcome = w.masses_g()["utensil"]
+    row = {"seed": seed, "realtime_factor": round(w.realtime_factor, 3),
+           "realtime_factor_end_to_end": round(w.time / cpu, 3),
+           "simulated_s": round(w.time, 2), "cpu_s": round(cpu, 2), "wall_s": round(wall, 2),
+           "loadavg_1min_start": round(load, 2)}
+    if food == "water":
+        w = FeedingWorld("water", seed=seed, params=params, load_g=8.0)
+        w.tool.set_mode(Mode.LEVELING)
+        w.run(1.0)
+        w.tool.set_mode(Mode.DISABLED)
+        w.place_load(settle_s=1.0)
+        w.move_arm(base_tilt_motion(w, 40.0))
+        w.run(1.5)
+        outcome = w.masses_g()["utensil"]
+    row["outcome_g"] = round(outcome, 3)
+    return row
+
+
+def _child(src: str, food: str, seed: int, variant: str) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(Path(src).resolve()), MUJOCO_GL="egl")
+    out = subprocess.run([sys.executable, __file__, "--one", food, str(seed), variant],
+                         env=env, capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _summary(rows: list[dict], food: str) -> dict:
+    acq = [r["outcome_g"] for r in rows]
+    rtf = [r["realtime_factor"] for r in rows]
+    e2e = [r["realtime_factor_end_to_end"] for r in rows]
+    return {"realtime_factor_median": round(statistics.median(rtf), 3),
+            "realtime_factor_min": round(min(rtf), 3),
+            "realtime_factor_end_to_end_median": round(statistics.median(e2e), 3),
+            "loadavg_1min_median": round(statistics.median(r["loadavg_1min_start"]
+                                                           for r in rows), 2),
+            "outcome": "mass kept through a locked 40° carry (8 g placed)"
+            if food == "water" else "mass acquired",
+            "outcome_g_mean": round(statistics.mean(acq), 3),
+            "outcome_g_sd": round(statistics.stdev(acq), 3) if len(acq) > 1 else 0.0,
+            "runs": rows}
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--foods", default="pecans,water", help="comma-separated foods")
+    ap.add_argument("--one", nargs=3, metavar=("FOOD", "SEED", "VARIANT"),
+                    help=argparse.SUPPRESS)
+    ap.add_argument("--foods", default="pecans,water,noodles", help="comma-separated foods")
     ap.add_argument("--seeds", type=int, default=5)
-    ap.add_argument("--variants", default="shipped,no_sleep,step_1ms")
+    ap.add_argument("--variants", default="shipped",
+                    help="comma-separated: shipped, no_sleep, step_1ms, step_4ms")
+    ap.add_argument("--code", action="append", default=[], metavar="NAME=SRC",
+                    help="a source tree to run (default: this checkout's src)")
     ap.add_argument("--out", default="results/sim_benchmark.json")
     args = ap.parse_args(argv)
-    base = PhysicsParams.load()
-    variants = {
-        "shipped": base,
-        "no_sleep": _variant(base, sleep=False),
-        "step_1ms": _variant(base, timestep=0.001),
-        "step_4ms": _variant(base, timestep=0.004),
-    }
+    if args.one:
+        food, seed, variant = args.one
+        print(json.dumps(one(food, int(seed), variant)))
+        return 0
+    codes = dict(c.split("=", 1) for c in args.code) or {
+        "this": str(Path(__file__).resolve().parents[1] / "src")}
     out: dict = {"machine": {"python": sys.version.split()[0], "platform": platform.platform(),
-                             "cpus": os.cpu_count()},
-                 "script": "scoop", "results": {}}
+                             "cpus": os.cpu_count(), "loadavg_start": os.getloadavg()},
+                 "script": "scoop", "code": codes, "results": {}}
     for food in args.foods.split(","):
-        for name in args.variants.split(","):
-            params = variants[name]
-            rows = []
+        for variant in args.variants.split(","):
+            rows: dict[str, list[dict]] = {name: [] for name in codes}
             for seed in range(args.seeds):
-                t0 = time.perf_counter()
-                w = FeedingWorld(food, seed=seed, params=params)
-                acquire(w, level=True)
-                outcome = w.masses_g()["utensil"]
-                rtf, sim_s = w.realtime_factor, w.time
-                if food == "water":
-                    outcome, _ = _water_carry(seed, params)
-                rows.append({"seed": seed, "outcome_g": round(outcome, 3),
-                             "realtime_factor": round(rtf, 3),
-                             "simulated_s": round(sim_s, 2),
-                             "wall_s": round(time.perf_counter() - t0, 2)})
-                print(food, name, rows[-1], flush=True)
-            acq = [r["outcome_g"] for r in rows]
-            rtf = [r["realtime_factor"] for r in rows]
-            out["results"].setdefault(food, {})[name] = {
-                "timestep": params.world.timestep, "sleep": params.world.sleep,
-                "solver": params.world.solver,
-                "realtime_factor_median": round(statistics.median(rtf), 3),
-                "realtime_factor_min": round(min(rtf), 3),
-                "outcome": "mass kept through a locked 40° carry (8 g placed)"
-                if food == "water" else "mass acquired",
-                "outcome_g_mean": round(statistics.mean(acq), 3),
-                "outcome_g_sd": round(statistics.stdev(acq), 3) if len(acq) > 1 else 0.0,
-                "runs": rows,
-            }
+                for name, src in codes.items():  # interleaved: the load falls on each alike
+                    rows[name].append(_child(src, food, seed, variant))
+                    print(food, variant, name, rows[name][-1], flush=True)
+            for name, rs in rows.items():
+                res = out["results"].setdefault(food, {}).setdefault(variant, {})
+                res[name] = _summary(rs, food)
+    out["machine"]["loadavg_end"] = os.getloadavg()
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
     print(f"wrote {args.out}")

@@ -80,8 +80,8 @@ def test_tilting_the_spoon_past_the_angle_of_repose_spills() -> None:
     # beside the spoon is a spill before the tilt: seed 0 drops a 0.46 g piece.)
     spilled = acc.spilled_by_place([e for e in w.spills if e.t >= t0])
     assert g["container"] - g0["container"] + sum(spilled.values()) == pytest.approx(left)
-    for k in np.flatnonzero((w._codes == acc.TABLE) | (w._codes == acc.CRITICAL)):
-        assert acc.CLASS_NAMES[w._codes[k]] in [e.place for e in w.spills if e.item == k]
+    for k in np.flatnonzero((w.ledger.codes == acc.TABLE) | (w.ledger.codes == acc.CRITICAL)):
+        assert acc.CLASS_NAMES[w.ledger.codes[k]] in [e.place for e in w.spills if e.item == k]
     assert (g["table"] + g["critical"] - g0["table"] - g0["critical"]
             == pytest.approx(sum(spilled.values())))
 
@@ -119,12 +119,12 @@ def test_the_arm_carries_a_resting_piece_with_the_utensil() -> None:
     # A kinematically teleported tray leaves a resting piece behind (no velocity, no
     # friction); servoed joints carry it: the piece moves with the spoon.
     w = _leveled("pecans", 1.0)
-    k = int(np.flatnonzero(w._codes == acc.UTENSIL)[0])
-    p0, tip0 = w.data.xpos[w._item_body[k]].copy(), w.tip_pose()[:3, 3].copy()
+    k = int(np.flatnonzero(w.ledger.codes == acc.UTENSIL)[0])
+    p0, tip0 = w.data.xpos[w.ledger.item_body[k]].copy(), w.tip_pose()[:3, 3].copy()
     q = w.arm_q.copy()
     q[0] += 0.4  # swing the whole arm about its base
     w.move_arm(q)
-    dp = w.data.xpos[w._item_body[k]] - p0
+    dp = w.data.xpos[w.ledger.item_body[k]] - p0
     dtip = w.tip_pose()[:3, 3] - tip0
     assert np.linalg.norm(dtip) > 0.1
     assert np.linalg.norm(dp - dtip) < 0.02
@@ -145,7 +145,7 @@ def test_food_that_enters_the_mouth_is_eaten() -> None:
     w.place_load(settle_s=0.2)
     mouth = w.scene.region("mouth")
     k = 0
-    bid = w._item_body[k]
+    bid = w.ledger.item_body[k]
     j = w.model.body_jntadr[bid]
     qa = w.model.jnt_qposadr[j]
     w.data.qpos[qa:qa + 3] = mouth.xyz
@@ -197,9 +197,9 @@ def test_every_gram_that_stays_off_the_utensil_has_a_spill_event_at_its_worst_pl
     w = _leveled("water", 8.0, level=False)
     w.move_arm(base_tilt_motion(w, 40.0))
     w.run(3.0)
-    codes = w._codes.copy()
+    codes = w.ledger.codes.copy()
     w.run(w.params.world.spill_dwell_s)  # what arrived just now has stayed its dwell time
-    stayed = (codes == w._codes) & ((codes == acc.TABLE) | (codes == acc.CRITICAL))
+    stayed = (codes == w.ledger.codes) & ((codes == acc.TABLE) | (codes == acc.CRITICAL))
     worst: dict[int, str] = {}
     for e in w.spills:
         worst[e.item] = e.place  # events come in order of increasing severity per item
@@ -217,7 +217,7 @@ def test_every_gram_that_stays_off_the_utensil_has_a_spill_event_at_its_worst_pl
 
 def _drop(w: FeedingWorld, k: int, xyz: tuple[float, float, float]) -> None:
     """Put parked piece ``k`` at rest at ``xyz`` (world frame) and let it fall."""
-    w._unpark(k, 0, xyz)  # body 0: the world frame, at rest
+    w.ledger.unpark(k, 0, xyz)  # body 0: the world frame, at rest
 
 
 @pytest.mark.parametrize("xyz,place,where", [
@@ -238,9 +238,9 @@ def test_a_piece_that_lands_on_the_table_or_the_user_is_one_spill(xyz, place, wh
 def test_a_one_tick_contact_flicker_with_the_table_is_no_spill() -> None:
     w = _leveled("pecans", 1.0)
     assert w.masses_g()["utensil"] > 0
-    k = int(np.flatnonzero(w._codes == acc.UTENSIL)[0])
-    table = w._surface_names.index("table")
-    real = w._contacts
+    k = int(np.flatnonzero(w.ledger.codes == acc.UTENSIL)[0])
+    table = w.ledger.surface_names.index("table")
+    real = w.ledger.contacts
     ticks = [0]
 
     def flicker():  # on one accounting step, the piece also touches the table
@@ -250,11 +250,11 @@ def test_a_one_tick_contact_flicker_with_the_table_is_no_spill() -> None:
             isf = np.concatenate([isf, np.array([[k, table]])])
         return ii, iu, isf
 
-    w._contacts = flicker
+    w.ledger.contacts = flicker
     w.run(1.0)
     assert ticks[0] > 3
     assert w.spills == []
-    assert w._codes[k] == acc.UTENSIL
+    assert w.ledger.codes[k] == acc.UTENSIL
 
 
 def _move_strand(w: FeedingWorld, s: int, centre: np.ndarray) -> None:
@@ -262,7 +262,7 @@ def _move_strand(w: FeedingWorld, s: int, centre: np.ndarray) -> None:
     capsules is at ``centre``: its root's free joint carries the chain in its laid (rest)
     coil, which the chain's bending springs keep."""
     m, d = w.model, w.data
-    bodies = w._strand_verts[s]
+    bodies = w.ledger.strand_bodies[s]
     j = m.body_jntadr[bodies[0]]
     qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
     d.qpos[qa:qa + 3] += np.asarray(centre) - d.xpos[bodies].mean(axis=0)
@@ -282,7 +282,7 @@ def test_a_noodle_strand_on_the_fork_is_eaten_once_and_never_counted_again() -> 
     w.run(1.0)
     k = len(w.layout.food_bodies)  # strand 0's item index
     strand_g = w.layout.piece_mass * 1000.0
-    assert w._codes[k] == acc.UTENSIL
+    assert w.ledger.codes[k] == acc.UTENSIL
     assert w.masses_g()["utensil"] == pytest.approx(strand_g)
     # The user takes the bite: the strand is eaten, once.
     assert w.eat_from_utensil() == pytest.approx(strand_g)
@@ -294,5 +294,5 @@ def test_a_noodle_strand_on_the_fork_is_eaten_once_and_never_counted_again() -> 
     mouth = np.asarray(w.scene.region("mouth").xyz)
     _move_strand(w, 1, mouth)
     w.run(0.1)
-    assert w._codes[k + 1] == acc.EATEN
+    assert w.ledger.codes[k + 1] == acc.EATEN
     assert w.masses_g()["eaten"] == pytest.approx(2 * strand_g)

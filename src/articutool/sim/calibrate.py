@@ -102,7 +102,7 @@ def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
         assert isinstance(box, Cylinder) and box.container_wall is not None
         inner = box.radius - box.container_wall
         floor = box.xyz[2] - box.length / 2 + box.container_wall
-        z = np.array([world.data.xpos[b][2] for b in world._item_body])
+        z = np.array([world.data.xpos[b][2] for b in world.ledger.item_body])
         top = float(np.quantile(z, 0.95)) + food.particle_radius
         vol_ml = math.pi * inner**2 * (top - floor) * 1e6
         out["bulk_density_g_per_ml"] = round(world.masses_g()["container"] / vol_ml, 3)

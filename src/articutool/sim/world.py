@@ -7,19 +7,28 @@
 each physics step applies the arm servos' references and the wrist motors' torques, steps,
 then emits IMU and F/T samples at their rates; every loop period the runtime ticks on the
 simulation clock. Commands reach the tool through ``world.tool``, the same ``ToolAPI`` the
-link serves.
+link serves. For speed (issue 24) the steps between two ticks run as one batch with the
+per-step Python cut to what depends on the step, and a settled pile is restored rather than
+settled again; both are bit-identical to stepping one at a time and settling afresh
+(``tests/test_sim_speed.py``; where the time goes: docs/simulation.md, *Speed*).
+
+(~590 lines: one stepping loop — arm servos, the wrist's velocity loop, sensors, the tool's
+tick — and the arm-motion API around it; the food ledger and load placement live apart.)
 
 The arm follows a :class:`~articutool.trajectory.JointTrajectory` with joint servos (PD with
 velocity feed-forward, torque-limited by the spec's efforts), so contacts see the real
 velocity of the utensil — never a teleported body. The tracking error is recorded.
 
-Food accounting (:mod:`articutool.sim.accounting`) runs every loop period: the mass on the
-utensil, in its container, on the table, on critical places, in the air, eaten; every spill
-with its time, mass and place. Food entering the scene's ``mouth`` region is eaten (removed).
+The food ledger (:class:`~articutool.sim.ledger.FoodLedger`, rules in
+:mod:`articutool.sim.accounting`) runs every loop period: the mass on the utensil, in its
+container, on the table, on critical places, in the air, eaten; every spill with its time,
+mass and place. Food entering the scene's ``mouth`` region is eaten (removed). Placing a load
+by hand: :mod:`articutool.sim.loading`.
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
 import time
 from collections.abc import Callable
@@ -30,15 +39,16 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from articutool.arm.scene import Box, Cylinder, Scene, Sphere
+from articutool.arm.scene import Scene
 from articutool.sim import accounting as acc
+from articutool.sim.ledger import FoodLedger
+from articutool.sim.loading import drop_points, pour_lattice
 from articutool.sim.mj_drivers import MjFTDriver, MjImuDriver, MjMotorDriver
 from articutool.sim.mjcf import (
     FT_SITE,
     IMU_SITE,
     WorldLayout,
     build_mjcf,
-    spoon_dish,
     tip_site_name,
 )
 from articutool.sim.params import Granular, PhysicsParams
@@ -50,7 +60,11 @@ from articutool.trajectory import JointTrajectory
 
 __all__ = ["FeedingWorld", "FoodReport", "smooth_joint_motion"]
 
-_UTENSIL_NODE, _OTHER_NODE, _SURFACE0 = -1, -2, -10
+# Settled piles by (model, start state): restored instead of settled again (_settle). A few:
+# an experiment's conditions share a repeat's seed (common random numbers, experiments.design).
+_SETTLED: dict[str, tuple[mujoco.MjData, NDArray[np.float64], float, int]] = {}
+_SETTLED_KEEP = 4
+
 _ZUP = np.array([0.0, 0.0, 1.0])
 
 
@@ -173,7 +187,8 @@ class FeedingWorld:
         self._kv, self._ki = wm.kv, wm.ki
         self._tq = self.spec.motors.stall_torque_nm
         self._vel_int = np.zeros(2)
-        self._build_accounting()
+        self.ledger = FoodLedger(m, d, self.layout, self.scene, self.params.world.spill_dwell_s,
+                                 self.spec.wrist.period)
 
         # --- timing
         self.dt = float(m.opt.timestep)
@@ -225,7 +240,7 @@ class FeedingWorld:
         self.tool = ToolRuntime(self.spec, self.motors, self.imu, self.ft, clock=self.clock)
         # The servos (and the food, if any) settle with the wrist held; then the tool starts.
         self._hold_wrist = True
-        self.run(self.params.world.settle_s if settle and food is not None else 0.2, tick=False)
+        self._settle(self.params.world.settle_s if settle and food is not None else 0.2)
         self._hold_wrist = False
         self._next_imu = self.time
         self._next_ft = self.time
@@ -233,6 +248,32 @@ class FeedingWorld:
         self.run(0.2)
         self.tare_ft()
         self._classify()
+
+    def _settle(self, seconds: float) -> None:
+        """Run ``seconds`` with the tool off, or restore the state that run left last time:
+        the same model and start state settle to the same state, so a settled pile is kept
+        (in this process) and copied in — every byte of ``mjData`` (sleep state, contacts and
+        the solver's warm start included) and the world's own servo state — bit-identical to
+        settling it again (``tests/test_sim_speed.py``)."""
+        m, d = self.model, self.data
+        h = hashlib.sha256(self.layout.xml.encode())
+        for a in (d.qpos, d.qvel, m.tree_sleep_policy,
+                  np.array([seconds, self._kv, self._ki, self._tq])):
+            h.update(np.ascontiguousarray(a).tobytes())
+        key = h.hexdigest()
+        hit = _SETTLED.pop(key, None)
+        if hit is None:
+            self.run(seconds, tick=False)
+            snap = mujoco.MjData(m)
+            mujoco.mj_copyData(snap, m, d)
+            hit = (snap, self._vel_int.copy(), self.arm_tracking_error, self._step_count)
+        else:
+            snap, vel_int, err, n = hit
+            mujoco.mj_copyData(d, m, snap)
+            self._vel_int, self.arm_tracking_error, self._step_count = vel_int.copy(), err, n
+        _SETTLED[key] = hit  # most recent last
+        while len(_SETTLED) > _SETTLED_KEEP:
+            _SETTLED.pop(next(iter(_SETTLED)))
 
     # ----------------------------------------------------------------- accessors --
     @property
@@ -292,41 +333,111 @@ class FeedingWorld:
     # ------------------------------------------------------------------ stepping --
     def step(self, tick: bool = True) -> None:
         """One physics step; the tool ticks every loop period (``tick=False``: tool off)."""
-        m, d = self.model, self.data
-        c0 = time.thread_time()
-        self._arm_control()
-        self._wrist_control()
-        mujoco.mj_step(m, d)
-        self._step_count += 1
-        ticked = tick and self._step_count % self._steps_per_tick == 0
-        if tick:
-            self._emit_samples()
-            if ticked:
-                self.tool.tick(self.time)
-                self.motors.check_stops()
-                self._classify()
-        self._cpu += time.thread_time() - c0
-        self._sim_stepped += self.dt
-        if ticked:
-            for fn in self.on_tick:
-                fn(self)
+        self._advance(1, tick)
 
     def run(self, seconds: float, tick: bool = True) -> None:
         """Advance the world by ``seconds``."""
         if not (math.isfinite(seconds) and seconds >= 0):
             raise ValueError(f"seconds must be a finite number >= 0; got {seconds}")
-        for _ in range(round(seconds / self.dt)):
-            self.step(tick)
+        self._steps(round(seconds / self.dt), tick)
 
     def run_until(self, done: Callable[[], bool], timeout: float) -> bool:
         """Step until ``done()`` (checked every loop period) or ``timeout`` s; True if done."""
         t_end = self.time + timeout
         while self.time < t_end - 1e-12:
-            for _ in range(self._steps_per_tick):
-                self.step()
+            self._steps(self._steps_per_tick, True)
             if done():
                 return True
         return False
+
+    def _steps(self, n: int, tick: bool) -> None:
+        """``n`` physics steps, in batches that end where the tool ticks."""
+        while n > 0:
+            k = min(n, self._steps_per_tick - self._step_count % self._steps_per_tick)
+            self._advance(k, tick)
+            n -= k
+
+    def _advance(self, n: int, tick: bool) -> None:
+        """``n`` physics steps of which only the last may end on a tool tick: per step the
+        arm servos' references, the wrist motors' velocity loop, ``mj_step`` and the sensor
+        samples due; then the tick. The same operations in the same order as one step at a
+        time (bit-identical), with the per-step Python cut to what depends on the step: the
+        arm's references for the batch are sampled at once, at the times the physics will
+        reach (MuJoCo adds ``dt`` to ``time`` each step, so does ``np.add.accumulate``)."""
+        m, d, dt = self.model, self.data, self.dt
+        c0 = time.thread_time()
+        refs, refv = self._arm_references(n)
+        seen = np.empty((n, 6))
+        ctrl, qpos, qvel, sens = d.ctrl, d.qpos, d.qvel, d.sensordata
+        act_pos, act_vel, arm_q = self._act_pos, self._act_vel, self._arm_q
+        (w0, w1), (v0, v1) = self._act_wr, self._wr_v
+        kv, ki, tq = self._kv, self._ki, self._tq
+        lim = tq / ki  # anti-windup: the integral never asks for more than the stall torque
+        vi0, vi1 = float(self._vel_int[0]), float(self._vel_int[1])
+        hold = self._hold_wrist
+        model = self.motors.model
+        # Velocity mode: the goal does not depend on the angles, so it holds for the batch.
+        fixed = None if hold or model.mode != "velocity" else model.velocity_targets(self.wrist_q)
+        on0, on1 = (True, True) if hold else (bool(model.torque[0]), bool(model.torque[1]))
+        s_acc, s_gyro, s_f, s_t = self._s_acc, self._s_gyro, self._s_force, self._s_torque
+        for k in range(n):
+            ctrl[act_pos] = refs[k]
+            ctrl[act_vel] = refv[k]
+            seen[k] = qpos[arm_q]
+            # The XC430 velocity loop (PI) → joint torque, limited to the stall torque.
+            if hold:
+                g0 = g1 = 0.0
+            else:
+                goal = fixed if fixed is not None else model.velocity_targets(self.wrist_q)
+                g0, g1 = float(goal[0]), float(goal[1])
+            e0, e1 = g0 - float(qvel[v0]), g1 - float(qvel[v1])
+            vi0 = min(max(vi0 + e0 * dt, -lim), lim) if on0 else 0.0
+            vi1 = min(max(vi1 + e1 * dt, -lim), lim) if on1 else 0.0
+            ctrl[w0] = min(max(kv * e0 + ki * vi0, -tq), tq) if on0 else 0.0
+            ctrl[w1] = min(max(kv * e1 + ki * vi1, -tq), tq) if on1 else 0.0
+            mujoco.mj_step(m, d)
+            if tick:
+                t = d.time
+                if t >= self._next_imu - 1e-9:
+                    self.imu.push(sens[s_acc:s_acc + 3].copy(), sens[s_gyro:s_gyro + 3].copy(),
+                                  t)
+                    self._next_imu += self._imu_period
+                if t >= self._next_ft - 1e-9:
+                    self.ft.push(sens[s_f:s_f + 3].copy(), sens[s_t:s_t + 3].copy(), t)
+                    self._next_ft += self._ft_period
+        self._vel_int = np.array([vi0, vi1])
+        err = float(np.max(np.abs(seen - refs)))
+        self.arm_tracking_error = max(self.arm_tracking_error, err)
+        self._step_count += n
+        ticked = tick and self._step_count % self._steps_per_tick == 0
+        if ticked:
+            self.tool.tick(self.time)
+            self.motors.check_stops()
+            self._classify()
+        self._cpu += time.thread_time() - c0
+        self._sim_stepped += n * dt
+        if ticked:
+            for fn in self.on_tick:
+                fn(self)
+
+    def _arm_references(self, n: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The arm servos' position and velocity references for the next ``n`` steps (n, 6):
+        the trajectory being followed sampled at each step's time, held at its end (at rest)
+        once it is over; else the held reference."""
+        traj = self._arm_traj
+        if traj is None:
+            return (np.broadcast_to(self._arm_ref, (n, 6)),
+                    np.broadcast_to(self._arm_ref_v, (n, 6)))
+        times = np.full(n, self.dt)
+        times[0] = self.data.time
+        t = np.add.accumulate(times) - self._arm_t0
+        refs, refv = traj.sample(t)
+        over = t >= traj.duration
+        refv[over] = 0.0
+        if over.any():
+            self._arm_traj = None
+        self._arm_ref, self._arm_ref_v = refs[-1].copy(), refv[-1].copy()
+        return refs, refv
 
     def follow_arm(self, traj: JointTrajectory, wait: bool = True, settle_s: float = 0.2) -> None:
         """Start the arm on ``traj`` (its six arm joints, any order; extra wrist joints are
@@ -366,204 +477,26 @@ class FeedingWorld:
         """True while an arm trajectory is being followed."""
         return self._arm_traj is not None
 
-    def _arm_control(self) -> None:
-        d = self.data
-        if self._arm_traj is not None:
-            t = self.time - self._arm_t0
-            q, v = self._arm_traj.sample(t)
-            self._arm_ref, self._arm_ref_v = q, v
-            if t >= self._arm_traj.duration:
-                self._arm_traj = None
-                self._arm_ref_v = np.zeros(6)
-        d.ctrl[self._act_pos] = self._arm_ref
-        d.ctrl[self._act_vel] = self._arm_ref_v
-        err = float(np.max(np.abs(d.qpos[self._arm_q] - self._arm_ref)))
-        self.arm_tracking_error = max(self.arm_tracking_error, err)
+    # ---------------------------------------------------------------- food --
+    @property
+    def n_items(self) -> int:
+        """Number of food items (pieces, particles, strands)."""
+        return self.ledger.n_items
 
-    def _wrist_control(self) -> None:
-        """The XC430 velocity loop (PI) → joint torque, limited to the stall torque."""
-        d = self.data
-        if self._hold_wrist:
-            goal, on = np.zeros(2), np.ones(2, dtype=bool)
-        else:
-            goal, on = self.motors.model.velocity_targets(self.wrist_q), self.motors.model.torque
-        e = goal - d.qvel[self._wr_v]
-        self._vel_int = np.where(on, self._vel_int + e * self.dt, 0.0)
-        # Anti-windup: the integral never asks for more than the stall torque.
-        lim = self._tq / self._ki
-        self._vel_int = np.clip(self._vel_int, -lim, lim)
-        tau = np.clip(self._kv * e + self._ki * self._vel_int, -self._tq, self._tq)
-        d.ctrl[self._act_wr] = np.where(on, tau, 0.0)
-
-    def _emit_samples(self) -> None:
-        d, t = self.data, self.time
-        if t >= self._next_imu - 1e-9:
-            self.imu.push(d.sensordata[self._s_acc:self._s_acc + 3].copy(),
-                          d.sensordata[self._s_gyro:self._s_gyro + 3].copy(), t)
-            self._next_imu += self._imu_period
-        if t >= self._next_ft - 1e-9:
-            self.ft.push(d.sensordata[self._s_force:self._s_force + 3].copy(),
-                         d.sensordata[self._s_torque:self._s_torque + 3].copy(), t)
-            self._next_ft += self._ft_period
-
-    # ---------------------------------------------------------------- accounting --
-    def _build_accounting(self) -> None:
-        m, lay = self.model, self.layout
-        self._surface_names: list[str] = []
-        codes = []
-        node = np.full(m.ngeom, _OTHER_NODE, dtype=np.int64)
-        for gname, place in lay.places.items():
-            node[m.geom(gname).id] = _SURFACE0 - len(self._surface_names)
-            self._surface_names.append(gname.split("/")[1])
-            codes.append(acc.PLACE_CODES[place])
-        self._surface_codes = np.array(codes, dtype=np.int64)
-        for gname in lay.utensil_geoms:
-            node[m.geom(gname).id] = _UTENSIL_NODE
-        item_body = []
-        for k, b in enumerate(lay.food_bodies):
-            bid = m.body(b).id
-            node[m.body_geomadr[bid]:m.body_geomadr[bid] + m.body_geomnum[bid]] = k
-            item_body.append(bid)
-        n_bodies = len(lay.food_bodies)
-        self._strand_verts: list[NDArray[np.int64]] = []  # each strand's capsule bodies
-        for k, sname in enumerate(lay.food_strands):  # a strand: one item, all its capsules
-            for i in range(lay.strand_segments):
-                node[m.geom(f"{sname}/{i}").id] = n_bodies + k
-            self._strand_verts.append(np.array(
-                [m.body(f"{sname}/{i}").id for i in range(lay.strand_segments)], dtype=np.int64))
-            item_body.append(m.body(f"{sname}/0").id)  # its root (free joint)
-        self._geom_node = node
-        self._item_body = np.array(item_body, dtype=np.int64)
-        self.n_items = len(item_body)
-        # Grams per item: a body's own mass (pieces vary in size), a strand's from the model.
-        self._item_g = np.array([m.body_mass[b] * 1000.0 for b in item_body[:n_bodies]]
-                                + [lay.piece_mass * 1000.0] * len(lay.food_strands))
-        self._active = np.full(self.n_items, not lay.parked, dtype=bool)
-        if lay.parked:  # parked pieces never sleep, so placing them needs no wake-up
-            for b in item_body:
-                m.tree_sleep_policy[m.body_treeid[b]] = int(mujoco.mjtSleepPolicy.mjSLEEP_NEVER)
-        self._codes = np.full(self.n_items, acc.AIRBORNE, dtype=np.int64)
-        self._where = np.full(self.n_items, -1, dtype=np.int64)
-        self._spill = acc.SpillTracker(self.n_items, self.params.world.spill_dwell_s)
-        self.spills: list[acc.SpillEvent] = []
-        self._mouth = next(((np.asarray(r.xyz), r.radius) for r in self.scene.regions
-                            if r.name == "mouth"), None)
-
-    def _contacts(self) -> tuple[NDArray, NDArray, NDArray]:
-        d = self.data
-        nc = d.ncon
-        if nc == 0 or self.n_items == 0:
-            e = np.zeros((0, 2), dtype=np.int64)
-            return e, np.zeros(0, dtype=np.int64), e
-        nodes = self._geom_node[d.contact.geom[:nc]]
-        a, b = nodes[:, 0], nodes[:, 1]
-        ii = (a >= 0) & (b >= 0) & (a != b)
-        item_item = np.column_stack([a[ii], b[ii]])
-        iu = np.concatenate([a[(a >= 0) & (b == _UTENSIL_NODE)],
-                             b[(b >= 0) & (a == _UTENSIL_NODE)]])
-        sa, sb = (a >= 0) & (b <= _SURFACE0), (b >= 0) & (a <= _SURFACE0)
-        item_surface = np.concatenate([np.column_stack([a[sa], _SURFACE0 - b[sa]]),
-                                       np.column_stack([b[sb], _SURFACE0 - a[sb]])])
-        return item_item, iu, item_surface
+    @property
+    def spills(self) -> list[acc.SpillEvent]:
+        """Every spill event so far (:mod:`articutool.sim.accounting`)."""
+        return self.ledger.spills
 
     def _classify(self) -> None:
-        if self.n_items == 0:
-            return
-        self._eat()
-        ii, iu, isf = self._contacts()
-        asleep = self.data.body_awake[self._item_body] == 0
-        # A sleeping item has no contacts to classify it by, but it is at rest on something
-        # static: the robot never sleeps and wakes what it touches. One that was last seen on
-        # the utensil or in the air gets the place below it.
-        prev, prev_where = self._codes.copy(), self._where.copy()
-        for k in np.flatnonzero(asleep & ((prev == acc.UTENSIL) | (prev == acc.AIRBORNE))):
-            prev[k], prev_where[k] = self._place_below(self.data.xpos[self._item_body[k]])
-        codes, where = acc.classify_items(self.n_items, ii, iu, isf, self._surface_codes,
-                                          prev, prev_where, asleep)
-        # An event each time an item has stayed on a spill place worse than any it reached
-        # before for the dwell time (a drop that lands on the table and rolls onto the floor
-        # is two events; the spilled mass counts it once, at the floor: acc.spilled_by_place).
-        for k, code, w, t0 in self._spill.update(self.time, self.spec.wrist.period, codes,
-                                                  where, self._active):
-            self.spills.append(acc.SpillEvent(
-                t=round(t0, 4), mass_g=float(self._item_g[k]), place=acc.CLASS_NAMES[code],
-                where=self._surface_names[w] if w >= 0 else "", item=k))
-        self._codes, self._where = codes, where
-
-    def _place_below(self, p: NDArray[np.float64]) -> tuple[int, int]:
-        """(class, surface index) of the least severe place whose object holds point ``p``
-        (its footprint, up to 5 cm above it); the floor (critical) if none."""
-        best = (acc.CRITICAL, -1)
-        for i, name in enumerate(self._surface_names):
-            o = self.scene.get(name)
-            local = o.rotation.T @ (p - np.asarray(o.xyz))
-            if isinstance(o, Cylinder):
-                inside = (math.hypot(local[0], local[1]) <= o.radius
-                          and -o.length / 2 <= local[2] <= o.length / 2 + 0.05)
-            elif isinstance(o, Box):
-                h = np.asarray(o.size) / 2
-                inside = bool(np.all(np.abs(local[:2]) <= h[:2])
-                              and -h[2] <= local[2] <= h[2] + 0.05)
-            elif isinstance(o, Sphere):
-                inside = float(np.linalg.norm(local)) <= o.radius + 0.05
-            else:
-                inside = local[2] <= 0.05
-            code = int(self._surface_codes[i])
-            if inside and code < best[0]:
-                best = (code, i)
-        return best
-
-    def _eat(self) -> None:
-        """Food that enters the mouth region is eaten: moved out of the world, frozen. A
-        strand is eaten when any of its vertices enters it."""
-        if self._mouth is None or self.n_items == 0:
-            return
-        c, r = self._mouth
-        d = self.data
-        n = len(self.layout.food_bodies)
-        inside = np.zeros(self.n_items, dtype=bool)
-        inside[:n] = np.linalg.norm(d.xpos[self._item_body[:n]] - c, axis=1) < r
-        for k, verts in enumerate(self._strand_verts):
-            inside[n + k] = bool(np.any(np.linalg.norm(d.xpos[verts] - c, axis=1) < r))
-        self._remove_eaten(np.flatnonzero(inside & self._active & (self._codes != acc.EATEN)))
+        self.ledger.classify(self.time)
 
     def eat_from_utensil(self) -> float:
         """The user takes the bite: what is on the utensil now — pieces, particles and
         noodle strands alike — is eaten (moved out of the world, never counted again).
         Returns the grams eaten. (The simulated user does not bite or chew; the feeding tree
         presents the bite and this stands for the user taking it.)"""
-        on = np.flatnonzero(self._active & (self._codes == acc.UTENSIL))
-        self._remove_eaten(on)
-        return float(self._item_g[on].sum())
-
-    def _remove_eaten(self, items: NDArray[np.int64]) -> None:
-        m, d = self.model, self.data
-        n_bodies = len(self.layout.food_bodies)
-        for k in items:
-            if k >= n_bodies:  # a strand: its root's free joint carries the whole chain out
-                name = self.layout.food_strands[k - n_bodies]
-                for i in range(self.layout.strand_segments):
-                    g = m.geom(f"{name}/{i}").id
-                    m.geom_contype[g] = m.geom_conaffinity[g] = 0
-                    b = m.geom_bodyid[g]
-                    m.body_contype[b] = m.body_conaffinity[b] = 0
-                    m.body_gravcomp[b] = 1.0
-                j = m.body_jntadr[self._item_body[k]]
-                qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
-                d.qpos[qa:qa + 3] = (100.0 + k, 0.0, 10.0)
-                d.qvel[va:va + 6] = 0.0
-                self._codes[k] = acc.EATEN
-                continue
-            b = self._item_body[k]
-            g = slice(m.body_geomadr[b], m.body_geomadr[b] + m.body_geomnum[b])
-            m.geom_contype[g] = m.geom_conaffinity[g] = 0
-            m.body_contype[b] = m.body_conaffinity[b] = 0
-            m.body_gravcomp[b] = 1.0
-            j = m.body_jntadr[b]
-            qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
-            d.qpos[qa:qa + 3] = (100.0 + k, 0.0, 10.0)
-            d.qvel[va:va + 6] = 0.0
-            self._codes[k] = acc.EATEN
+        return self.ledger.eat_from_utensil()
 
     def tare_ft(self, settle_s: float = 0.0) -> None:
         """Tare the F/T sensor as a user would: after ``settle_s`` at rest, average its next
@@ -591,85 +524,35 @@ class FeedingWorld:
         Particles are laid on a lattice filling the dish from its floor up (a liquid poured
         in), so a load the spoon can hold stays.
         """
-        if not self.layout.parked or self._active.any():
+        if not self.layout.parked or self.ledger.active.any():
             raise RuntimeError("place_load needs a world built with load_g, not yet placed")
         u = self.spec.utensil(self.utensil)
-        ph = u.physics
         body = self.model.body("utensil").id
         fp = self.params.food(self.food or "")
-        if ph.kind == "spoon":
-            zc, *_, depth = spoon_dish(u)
-        else:
-            assert ph.tine_length is not None
-            zc, depth = u.tip_z - ph.tine_length / 2, 0.0
         if isinstance(fp, Granular):
-            rng = np.random.default_rng(self.seed + 7)
-            lift = depth + 0.6 * piece_extent(fp)
-            for k in range(self.n_items):
-                dy, dz = rng.uniform(-0.004, 0.004, 2)
-                self._unpark(k, body, (u.tip_x + lift, dy, zc + dz))
+            for k, p in enumerate(drop_points(u, piece_extent(fp), self.n_items, self.seed)):
+                self.ledger.unpark(k, body, p)
                 self.run(0.2)
         else:
-            pts = self._pour_lattice()
+            pts = pour_lattice(u, self.layout.piece_size)
             if len(pts) < self.n_items:
                 raise ValueError(f"load_g: {self.n_items} particles do not fit on the "
                                  f"{self.utensil} (at most {len(pts)}, "
                                  f"{self.max_load_g():.1f} g); place less")
             for k in range(self.n_items):
-                self._unpark(k, body, pts[k])
+                self.ledger.unpark(k, body, pts[k])
             mujoco.mj_forward(self.model, self.data)
         self.run(settle_s)
         return self.masses_g()["utensil"]
-
-    def _pour_lattice(self) -> list[tuple[float, float, float]]:
-        """Particle centres (utensil frame) filling the dish from its floor up, then heaped
-        above its rim until the heap closes: every place a poured liquid can be put."""
-        u = self.spec.utensil(self.utensil)
-        if u.physics.kind != "spoon":
-            return []
-        zc, a, b, a0, b0, depth = spoon_dish(u)
-        cell = self.layout.piece_size
-        pts: list[tuple[float, float, float]] = []
-        for layer in range(41):
-            h = cell / 2 + layer * cell  # centre height above the floor
-            # The dish widens with height (45° walls); above the rim the heap narrows.
-            grow = min(h / depth, 1.0) - max(h - depth, 0.0) / depth if depth else 0.0
-            al, bl = a0 + (a - a0) * grow - cell / 2, b0 + (b - b0) * grow - cell / 2
-            if al < 0 and bl < 0 and layer > 0:
-                break
-            ni, nj = int(max(al, 0.0) / cell), int(max(bl, 0.0) / cell)
-            pts += [(u.tip_x + h, j * cell, zc + i * cell)
-                    for i in range(-ni, ni + 1) for j in range(-nj, nj + 1)]
-        return pts
 
     def max_load_g(self) -> float:
         """The most a liquid load :meth:`place_load` can pour onto this utensil (g); infinite
         for pieces (they are dropped one by one, what does not stay falls)."""
         if isinstance(self.params.food(self.food or ""), Granular):
             return math.inf
-        return len(self._pour_lattice()) * self.layout.piece_mass * 1000.0
+        u = self.spec.utensil(self.utensil)
+        return len(pour_lattice(u, self.layout.piece_size)) * self.layout.piece_mass * 1000.0
 
-    def _unpark(self, k: int, body: int, local: tuple[float, float, float]) -> None:
-        """Give parked piece ``k`` its collisions and weight, at ``local`` in ``body``'s frame
-        with ``body``'s velocity and orientation."""
-        m, d = self.model, self.data
-        R, p = d.xmat[body].reshape(3, 3), d.xpos[body]
-        v = np.zeros(6)
-        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, body, v, 0)
-        bid = int(self._item_body[k])
-        g = slice(m.body_geomadr[bid], m.body_geomadr[bid] + m.body_geomnum[bid])
-        # The broad phase filters on the body's OR of its geoms' bits, kept in the model.
-        m.geom_contype[g] = m.body_contype[bid] = self.layout.food_contype
-        m.geom_conaffinity[g] = m.body_conaffinity[bid] = self.layout.food_conaffinity
-        m.body_gravcomp[bid] = 0.0
-        m.tree_sleep_policy[m.body_treeid[bid]] = int(mujoco.mjtSleepPolicy.mjSLEEP_AUTO_ALLOWED)
-        j = m.body_jntadr[bid]
-        qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
-        d.qpos[qa:qa + 3] = p + R @ np.asarray(local)
-        d.qpos[qa + 3:qa + 7] = d.xquat[body]  # lying along the utensil
-        d.qvel[va:va + 3] = v[3:]
-        d.qvel[va + 3:va + 6] = 0.0
-        self._active[k] = True
     def ft_mass_g(self, window_s: float = 1.0) -> float:
         """Mass on the utensil (g) as the F/T sensor measures it: the mean tared force over
         the last ``window_s`` projected on gravity in the sensor frame (meaningful at rest)."""
@@ -685,18 +568,16 @@ class FeedingWorld:
 
     def item_masses_g(self) -> NDArray[np.float64]:
         """Grams of each food item (pieces vary in size; particles and strands do not)."""
-        return self._item_g.copy()
+        return self.ledger.item_g.copy()
 
     def item_classes(self) -> NDArray[np.int64]:
         """Where each food item is now: its code in ``accounting.CLASS_NAMES`` (utensil,
         container, table, …), or −1 for a piece of a load not yet placed."""
-        return np.where(self._active, self._codes, -1)
+        return self.ledger.item_classes()
 
     def masses_g(self) -> dict[str, float]:
         """Mass (g) per class: utensil, container, table, critical, airborne, eaten."""
-        g = np.bincount(self._codes[self._active], weights=self._item_g[self._active],
-                        minlength=len(acc.CLASS_NAMES))
-        return {name: float(g[i]) for i, name in enumerate(acc.CLASS_NAMES)}
+        return self.ledger.masses_g()
 
     def report(self, measure_ft: bool = False) -> FoodReport:
         """The food report now (``measure_ft``: include the F/T-measured mass, when the
@@ -706,7 +587,7 @@ class FeedingWorld:
             t=round(self.time, 4), food=self.food, utensil=self.utensil,
             on_utensil_g=g["utensil"], in_bowl_g=g["container"], table_g=g["table"],
             critical_g=g["critical"], airborne_g=g["airborne"], eaten_g=g["eaten"],
-            total_g=float(self._item_g[self._active].sum()),
+            total_g=float(self.ledger.item_g[self.ledger.active].sum()),
             spills=list(self.spills),
             ft_mass_g=self.ft_mass_g() if measure_ft and self.ft_comparable() else None,
             realtime_factor=self.realtime_factor,

@@ -1,0 +1,232 @@
+"""The food ledger of the feeding world: where every food item is, its spills, eating.
+
+:class:`FoodLedger` reads the MuJoCo world's contacts once per tool tick and keeps each
+item's class (utensil, container, table, critical, airborne, eaten — the pure rules are in
+:mod:`articutool.sim.accounting`), the spill events (thesis §5's outcome classes), and
+removes what is eaten: food entering the scene's ``mouth`` region, or on the utensil when the
+user takes the bite. It owns the accounting state; :class:`~articutool.sim.world.FeedingWorld`
+steps the physics and calls :meth:`FoodLedger.classify` every loop period.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from articutool.arm.scene import Box, Cylinder, Scene, Sphere
+from articutool.sim import accounting as acc
+from articutool.sim.mjcf import WorldLayout
+
+__all__ = ["FoodLedger"]
+
+_UTENSIL_NODE, _OTHER_NODE, _SURFACE0 = -1, -2, -10
+
+
+class FoodLedger:
+    """Where each food item of a world is, its spills and what was eaten (see module doc).
+
+    Args:
+        model, data: the world's MuJoCo model and data (the ledger reads contacts and body
+            positions, and moves eaten food out of the world).
+        layout: the world's layout (food bodies, strands, places, utensil geoms).
+        scene: the scene (places' shapes, the mouth region).
+        spill_dwell_s: ``world.spill_dwell_s`` of ``physics.toml``.
+        period: the accounting step (s): the tool's loop period.
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, layout: WorldLayout,
+                 scene: Scene, spill_dwell_s: float, period: float) -> None:
+        self.model, self.data, self.layout, self.scene = model, data, layout, scene
+        self.period = period
+        m, lay = model, layout
+        self.surface_names: list[str] = []
+        codes = []
+        node = np.full(m.ngeom, _OTHER_NODE, dtype=np.int64)
+        for gname, place in lay.places.items():
+            node[m.geom(gname).id] = _SURFACE0 - len(self.surface_names)
+            self.surface_names.append(gname.split("/")[1])
+            codes.append(acc.PLACE_CODES[place])
+        self.surface_codes = np.array(codes, dtype=np.int64)
+        for gname in lay.utensil_geoms:
+            node[m.geom(gname).id] = _UTENSIL_NODE
+        item_body = []
+        for k, b in enumerate(lay.food_bodies):
+            bid = m.body(b).id  # a piece may be a compound of several geoms
+            node[m.body_geomadr[bid]:m.body_geomadr[bid] + m.body_geomnum[bid]] = k
+            item_body.append(bid)
+        n_bodies = len(lay.food_bodies)
+        self.strand_bodies: list[NDArray[np.int64]] = []  # each strand's capsule bodies
+        for k, sname in enumerate(lay.food_strands):  # a strand: one item, all its capsules
+            for i in range(lay.strand_segments):
+                node[m.geom(f"{sname}/{i}").id] = n_bodies + k
+            self.strand_bodies.append(np.array(
+                [m.body(f"{sname}/{i}").id for i in range(lay.strand_segments)], dtype=np.int64))
+            item_body.append(m.body(f"{sname}/0").id)  # its root (free joint)
+        self._geom_node = node
+        self.item_body = np.array(item_body, dtype=np.int64)
+        self.n_items = len(item_body)
+        # Grams per item: a body's own mass (pieces vary in size), a strand's from the model.
+        self.item_g = np.array([m.body_mass[b] * 1000.0 for b in item_body[:n_bodies]]
+                               + [lay.piece_mass * 1000.0] * len(lay.food_strands))
+        self.active = np.full(self.n_items, not lay.parked, dtype=bool)
+        if lay.parked:  # parked pieces never sleep, so placing them needs no wake-up
+            for b in item_body:
+                m.tree_sleep_policy[m.body_treeid[b]] = int(mujoco.mjtSleepPolicy.mjSLEEP_NEVER)
+        self.codes = np.full(self.n_items, acc.AIRBORNE, dtype=np.int64)
+        self.where = np.full(self.n_items, -1, dtype=np.int64)
+        self._spill = acc.SpillTracker(self.n_items, spill_dwell_s)
+        self.spills: list[acc.SpillEvent] = []
+        self._mouth = next(((np.asarray(r.xyz), r.radius) for r in scene.regions
+                            if r.name == "mouth"), None)
+
+    def contacts(self) -> tuple[NDArray, NDArray, NDArray]:
+        """The food's contacts now: (item-item pairs, items on the utensil, [item, surface])."""
+        d = self.data
+        nc = d.ncon
+        if nc == 0 or self.n_items == 0:
+            e = np.zeros((0, 2), dtype=np.int64)
+            return e, np.zeros(0, dtype=np.int64), e
+        nodes = self._geom_node[d.contact.geom[:nc]]
+        a, b = nodes[:, 0], nodes[:, 1]
+        ii = (a >= 0) & (b >= 0) & (a != b)
+        item_item = np.column_stack([a[ii], b[ii]])
+        iu = np.concatenate([a[(a >= 0) & (b == _UTENSIL_NODE)],
+                             b[(b >= 0) & (a == _UTENSIL_NODE)]])
+        sa, sb = (a >= 0) & (b <= _SURFACE0), (b >= 0) & (a <= _SURFACE0)
+        item_surface = np.concatenate([np.column_stack([a[sa], _SURFACE0 - b[sa]]),
+                                       np.column_stack([b[sb], _SURFACE0 - a[sb]])])
+        return item_item, iu, item_surface
+
+    def classify(self, t: float) -> None:
+        """One accounting step at simulation time ``t``: eat what is in the mouth, classify
+        every item from the contacts, record the spills that reached their dwell time."""
+        if self.n_items == 0:
+            return
+        self._eat()
+        ii, iu, isf = self.contacts()
+        asleep = self.data.body_awake[self.item_body] == 0
+        # A sleeping item has no contacts to classify it by, but it is at rest on something
+        # static: the robot never sleeps and wakes what it touches. One that was last seen on
+        # the utensil or in the air gets the place below it.
+        prev, prev_where = self.codes.copy(), self.where.copy()
+        for k in np.flatnonzero(asleep & ((prev == acc.UTENSIL) | (prev == acc.AIRBORNE))):
+            prev[k], prev_where[k] = self._place_below(self.data.xpos[self.item_body[k]])
+        codes, where = acc.classify_items(self.n_items, ii, iu, isf, self.surface_codes,
+                                          prev, prev_where, asleep)
+        # An event each time an item has stayed on a spill place worse than any it reached
+        # before for the dwell time (a drop that lands on the table and rolls onto the floor
+        # is two events; the spilled mass counts it once, at the floor: acc.spilled_by_place).
+        for k, code, w, t0 in self._spill.update(t, self.period, codes, where, self.active):
+            self.spills.append(acc.SpillEvent(
+                t=round(t0, 4), mass_g=float(self.item_g[k]), place=acc.CLASS_NAMES[code],
+                where=self.surface_names[w] if w >= 0 else "", item=k))
+        self.codes, self.where = codes, where
+
+    def _place_below(self, p: NDArray[np.float64]) -> tuple[int, int]:
+        """(class, surface index) of the least severe place whose object holds point ``p``
+        (its footprint, up to 5 cm above it); the floor (critical) if none."""
+        best = (acc.CRITICAL, -1)
+        for i, name in enumerate(self.surface_names):
+            o = self.scene.get(name)
+            local = o.rotation.T @ (p - np.asarray(o.xyz))
+            if isinstance(o, Cylinder):
+                inside = (math.hypot(local[0], local[1]) <= o.radius
+                          and -o.length / 2 <= local[2] <= o.length / 2 + 0.05)
+            elif isinstance(o, Box):
+                h = np.asarray(o.size) / 2
+                inside = bool(np.all(np.abs(local[:2]) <= h[:2])
+                              and -h[2] <= local[2] <= h[2] + 0.05)
+            elif isinstance(o, Sphere):
+                inside = float(np.linalg.norm(local)) <= o.radius + 0.05
+            else:
+                inside = local[2] <= 0.05
+            code = int(self.surface_codes[i])
+            if inside and code < best[0]:
+                best = (code, i)
+        return best
+
+    def _eat(self) -> None:
+        """Food that enters the mouth region is eaten: moved out of the world, frozen. A
+        strand is eaten when any of its vertices enters it."""
+        if self._mouth is None or self.n_items == 0:
+            return
+        c, r = self._mouth
+        d = self.data
+        n = len(self.layout.food_bodies)
+        inside = np.zeros(self.n_items, dtype=bool)
+        inside[:n] = np.linalg.norm(d.xpos[self.item_body[:n]] - c, axis=1) < r
+        for k, verts in enumerate(self.strand_bodies):
+            inside[n + k] = bool(np.any(np.linalg.norm(d.xpos[verts] - c, axis=1) < r))
+        self._remove_eaten(np.flatnonzero(inside & self.active & (self.codes != acc.EATEN)))
+
+    def eat_from_utensil(self) -> float:
+        """The user takes the bite: what is on the utensil now is eaten (see
+        :meth:`FeedingWorld.eat_from_utensil`). Returns the grams eaten."""
+        on = np.flatnonzero(self.active & (self.codes == acc.UTENSIL))
+        self._remove_eaten(on)
+        return float(self.item_g[on].sum())
+
+    def _remove_eaten(self, items: NDArray[np.int64]) -> None:
+        m, d = self.model, self.data
+        n_bodies = len(self.layout.food_bodies)
+        for k in items:
+            if k >= n_bodies:  # a strand: its root's free joint carries the whole chain out
+                name = self.layout.food_strands[k - n_bodies]
+                for i in range(self.layout.strand_segments):
+                    g = m.geom(f"{name}/{i}").id
+                    m.geom_contype[g] = m.geom_conaffinity[g] = 0
+                    b = m.geom_bodyid[g]
+                    m.body_contype[b] = m.body_conaffinity[b] = 0
+                    m.body_gravcomp[b] = 1.0
+                j = m.body_jntadr[self.item_body[k]]
+                qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
+                d.qpos[qa:qa + 3] = (100.0 + k, 0.0, 10.0)
+                d.qvel[va:va + 6] = 0.0
+                self.codes[k] = acc.EATEN
+                continue
+            b = self.item_body[k]
+            g = slice(m.body_geomadr[b], m.body_geomadr[b] + m.body_geomnum[b])
+            m.geom_contype[g] = m.geom_conaffinity[g] = 0
+            m.body_contype[b] = m.body_conaffinity[b] = 0
+            m.body_gravcomp[b] = 1.0
+            j = m.body_jntadr[b]
+            qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
+            d.qpos[qa:qa + 3] = (100.0 + k, 0.0, 10.0)
+            d.qvel[va:va + 6] = 0.0
+            self.codes[k] = acc.EATEN
+
+    def unpark(self, k: int, body: int, local: tuple[float, float, float]) -> None:
+        """Give parked piece ``k`` its collisions and weight, at ``local`` in ``body``'s frame
+        with ``body``'s velocity and orientation (placing a load, thesis Exp. 2b/2c)."""
+        m, d = self.model, self.data
+        R, p = d.xmat[body].reshape(3, 3), d.xpos[body]
+        v = np.zeros(6)
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, body, v, 0)
+        bid = int(self.item_body[k])
+        g = slice(m.body_geomadr[bid], m.body_geomadr[bid] + m.body_geomnum[bid])
+        # The broad phase filters on the body's OR of its geoms' bits, kept in the model.
+        m.geom_contype[g] = m.body_contype[bid] = self.layout.food_contype
+        m.geom_conaffinity[g] = m.body_conaffinity[bid] = self.layout.food_conaffinity
+        m.body_gravcomp[bid] = 0.0
+        m.tree_sleep_policy[m.body_treeid[bid]] = int(mujoco.mjtSleepPolicy.mjSLEEP_AUTO_ALLOWED)
+        j = m.body_jntadr[bid]
+        qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
+        d.qpos[qa:qa + 3] = p + R @ np.asarray(local)
+        d.qpos[qa + 3:qa + 7] = d.xquat[body]  # lying along the utensil
+        d.qvel[va:va + 3] = v[3:]
+        d.qvel[va + 3:va + 6] = 0.0
+        self.active[k] = True
+
+    def item_classes(self) -> NDArray[np.int64]:
+        """Where each food item is now: its code in ``accounting.CLASS_NAMES`` (utensil,
+        container, table, …), or −1 for a piece of a load not yet placed."""
+        return np.where(self.active, self.codes, -1)
+
+    def masses_g(self) -> dict[str, float]:
+        """Mass (g) per class: utensil, container, table, critical, airborne, eaten."""
+        g = np.bincount(self.codes[self.active], weights=self.item_g[self.active],
+                        minlength=len(acc.CLASS_NAMES))
+        return {name: float(g[i]) for i, name in enumerate(acc.CLASS_NAMES)}
