@@ -20,6 +20,7 @@ import json
 import math
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +30,7 @@ from scipy import stats
 
 from articutool.experiments.design import trial_seed
 from articutool.sim.accounting import UTENSIL
+from articutool.sim.params import PhysicsParams
 from articutool.sim.scenes import max_twirl_turns, skewer
 from articutool.sim.world import FeedingWorld
 from articutool.spec import load_spec
@@ -45,17 +47,26 @@ def warnings_of(data: mujoco.MjData) -> dict[str, int]:
             if int(w) < len(data.warning) and data.warning[int(w)].number > 0}
 
 
-def one_run(seed: int, turns: float) -> dict[str, Any]:
-    """One acquisition; what the fork holds after the lift, and whether MuJoCo reset."""
+def one_run(seed: int, turns: float, params: PhysicsParams | None = None,
+            prepare: Callable[[FeedingWorld], None] | None = None,
+            **skewer_kw: Any) -> dict[str, Any]:
+    """One acquisition; what the fork holds after the lift, and whether MuJoCo reset.
+    ``params``, ``prepare`` (called on the settled world) and ``skewer_kw``: a variant's
+    physics, a change to the built world and the fork motion (benchmarks/noodle_levers.py)."""
     t0 = time.perf_counter()
-    w = FeedingWorld("noodles", seed=seed)
-    skewer(w, level=True, twirl_turns=turns)
+    w = FeedingWorld("noodles", seed=seed, params=params)
+    if prepare is not None:
+        prepare(w)
+    touching: dict[str, int] = {}
+    skewer(w, level=True, twirl_turns=turns, on_phase=lambda name: touching.__setitem__(
+        name, int(np.sum(w.item_classes() == UTENSIL))), **skewer_kw)
     warn = warnings_of(w.data)
     classes = w.item_classes()
     return {"seed": seed, "twirl_turns": turns,
             "lifted_g": round(w.masses_g()["utensil"], 3),
             "strands_lifted": int(np.sum(classes == UTENSIL)),
             "ft_mass_g": round(w.ft_mass_g(), 3) if w.ft_comparable() else None,
+            "strands_touching": touching,
             "reset": any(k in warn for k in _RESET_WARNINGS), "warnings": warn,
             "sim_s": round(w.time, 3), "realtime_factor": round(w.realtime_factor, 4),
             "wall_s": round(time.perf_counter() - t0, 1)}
