@@ -150,9 +150,10 @@ def _runs_with_still(doc: dict[str, Any], out_dir: Path) -> list[dict[str, Any]]
 
 
 def table(out_dir: Path) -> str:
-    """The docs' table: one row per variant found in ``out_dir``."""
-    rows = ["| variant | twirl: g per seed (strands on the fork: in / twirled / lifted) "
-            "| still: g per seed (in / lifted) | twirl − still, mean (g) | resets "
+    """The docs' table: one row per variant found in ``out_dir``, seeds in ascending order."""
+    rows = ["| variant | twirl: g lifted per seed (strands on the fork: in / twirled / "
+            "lifted) | still: g per seed (in / lifted) | twirl − still, mean (g) "
+            "| resets twirl / still (warnings) "
             "| real-time factor twirl / still |", "|---|---|---|---|---|---|"]
     for name in LEVERS:
         path = out_dir / f"{name}.json"
@@ -175,11 +176,14 @@ def table(out_dir: Path) -> str:
                 if not r["reset"] and r["seed"] in still]
         d = f"{np.mean(diff):+.2f} ({sum(x > 0 for x in diff)} of {len(diff)} seeds more)" \
             if diff else "–"
+        warned = sorted({k.removeprefix("mjWARN_") for r in runs for k in r["warnings"]})
+        rtf = " / ".join(f"{s[c]['rtf_mean']:.2f}×" if s[c]["runs"] else "–"
+                         for c in ("twirl", "still"))
         rows.append(
             f"| {name}: {doc['what']} | {cell(by['twirl'], ('in', 'twirled', 'lifted'))} "
             f"| {cell(by['still'], ('in', 'lifted'))}{' (baseline)' if doc['still_from'] else ''}"
-            f" | {d} | {s['twirl']['reset']} / {s['still']['reset']} "
-            f"| {s['twirl']['rtf_mean']:.2f}× / {s['still']['rtf_mean']:.2f}× |")
+            f" | {d} | {s['twirl']['reset']} / {s['still']['reset']}"
+            f"{' (' + ', '.join(warned) + ')' if warned else ''} | {rtf} |")
     return "\n".join(rows)
 
 

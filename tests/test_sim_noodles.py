@@ -205,3 +205,34 @@ def test_a_twirl_before_insertion_frees_roll_budget_for_the_twirl_inside() -> No
     assert max(roll) == pytest.approx(2 * math.pi * hi, abs=0.1)
     assert max(roll) - min(roll) > 2 * math.pi * w.spec.wrist.roll_turn_budget
     assert w.tool.fault == ""
+
+
+def test_the_lever_table_shows_every_run_and_never_counts_a_reset_one(tmp_path,
+                                                                     monkeypatch) -> None:
+    import importlib
+    import json
+    from pathlib import Path
+
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    levers = importlib.import_module("noodle_levers")
+
+    def run(seed: int, turns: float, g: float, reset: bool = False) -> dict:
+        return {"seed": seed, "twirl_turns": turns, "lifted_g": g, "ft_mass_g": g,
+                "strands_touching": {"in": 7, "twirled": 2, "lifted": round(g)},
+                "reset": reset, "warnings": {"mjWARN_BADQACC": 1} if reset else {},
+                "realtime_factor": 0.25}
+
+    base = {"what": "shipped", "still_from": None, "twirl_turns": 2.9,
+            "runs": [run(5100, 2.9, 4.0), run(5100, 0.0, 8.0),
+                     run(5101, 2.9, 99.0, reset=True), run(5101, 0.0, 1.0)]}
+    more = {"what": "more turns", "still_from": "baseline", "twirl_turns": 4.9,
+            "runs": [run(5100, 4.9, 9.0), run(5101, 4.9, 3.0)]}
+    (tmp_path / "baseline.json").write_text(json.dumps(base))
+    (tmp_path / "more_turns.json").write_text(json.dumps(more))
+    rows = {r.split(":")[0].strip("| "): r for r in levers.table(tmp_path).splitlines()[2:]}
+    assert set(rows) == {"baseline", "more_turns"}
+    # The reset run is listed and flagged, but no difference is taken from it.
+    assert "99.0 (reset)" in rows["baseline"] and "-4.00 (0 of 1 seeds more)" in rows["baseline"]
+    assert "| 1 / 0 (BADQACC) |" in rows["baseline"]
+    # A motion-only lever is compared with the baseline's still fork on the same seeds.
+    assert "+1.50 (2 of 2 seeds more)" in rows["more_turns"] and "(baseline)" in rows["more_turns"]
