@@ -116,18 +116,20 @@ def run_lever(name: str, seed: int, out_dir: Path) -> dict[str, Any]:
     """Twirl and still on one tuning seed (skipping runs already in the file)."""
     lever = LEVERS[name]
     path = out_dir / f"{name}.json"
-    doc = json.loads(path.read_text()) if path.exists() else {"runs": []}
-    runs = doc["runs"]
+
+    def runs() -> list[dict[str, Any]]:  # as on disk now: another process may add seeds
+        return json.loads(path.read_text())["runs"] if path.exists() else []
+
     turns = lever.turns if lever.turns is not None else max_twirl_turns(load_spec())
     params = lever.params()
     for t in (turns, 0.0) if lever.still_from is None else (turns,):
-        if any(r["seed"] == seed and r["twirl_turns"] == t for r in runs):
+        if any(r["seed"] == seed and r["twirl_turns"] == t for r in runs()):
             continue
-        runs.append(one_run(seed, t, params=params, prepare=lever.prepare,
-                            **(lever.skewer if t else {})))
-        print(name, json.dumps(runs[-1]), flush=True)
-        _write(path, name, lever, runs, turns)
-    return _write(path, name, lever, runs, turns)
+        run = one_run(seed, t, params=params, prepare=lever.prepare,
+                      **(lever.skewer if t else {}))
+        print(name, json.dumps(run), flush=True)
+        _write(path, name, lever, [*runs(), run], turns)
+    return _write(path, name, lever, runs(), turns)
 
 
 def _write(path: Path, name: str, lever: Lever, runs: list[dict[str, Any]],
@@ -191,6 +193,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--lever", nargs="+", choices=sorted(LEVERS), default=[])
     ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--only-seed", type=int, default=None,
+                    help="run the levers on this tuning seed only")
     ap.add_argument("--out", default="results/noodle_levers")
     ap.add_argument("--table", action="store_true", help="print the docs' table; run nothing")
     args = ap.parse_args(argv)
@@ -198,7 +202,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.table:
         print(table(out))
         return 0
-    for seed in seeds(args.seeds):  # every lever on a seed before the next seed
+    todo = seeds(args.seeds) if args.only_seed is None else [args.only_seed]
+    for seed in todo:  # every lever on a seed before the next seed
         for name in args.lever:
             run_lever(name, seed, out)
     print(table(out))
