@@ -29,7 +29,7 @@ from articutool.sim.params import PhysicsParams
 from articutool.sim.scenes import max_twirl_turns
 from articutool.sim.world import FeedingWorld
 from articutool.spec import load_spec
-from noodle_twirl import one_run, summarise
+from noodle_twirl import one_run
 
 TUNING_SEED0 = 5100  # 5100 + r: never a confirmation seed (5000-5009, noodle_twirl.py)
 # Capillary adhesion of a starch film: F ≈ 2γℓ (a meniscus on both sides of a line contact),
@@ -152,40 +152,44 @@ def _runs_with_still(doc: dict[str, Any], out_dir: Path) -> list[dict[str, Any]]
 
 
 def table(out_dir: Path) -> str:
-    """The docs' table: one row per variant found in ``out_dir``, seeds in ascending order."""
-    rows = ["| variant | twirl: g lifted per seed (strands on the fork: in / twirled / "
-            "lifted) | still: g per seed (in / lifted) | twirl − still, mean (g) "
-            "| resets twirl / still (warnings) "
-            "| real-time factor twirl / still |", "|---|---|---|---|---|---|"]
+    """The docs' table from the JSON in ``out_dir``: a row per variant and tuning seed (twirl
+    and still on the same pile), then the variant's mean difference over its paired seeds."""
+    rows = ["| variant | seed | twirl: g lifted (strands on the fork: in / twirled / lifted) "
+            "| still: g lifted (in / lifted) | twirl − still (g) | MuJoCo resets (warnings) "
+            "| real-time factor twirl / still |", "|---|---|---|---|---|---|---|"]
+
+    def g(r: dict[str, Any] | None, phases: tuple[str, ...]) -> str:
+        if r is None:
+            return "not run"
+        n = " / ".join(str(r.get("strands_touching", {}).get(p, "?")) for p in phases)
+        return f"{r['lifted_g']:.2f}{' (reset: not counted)' if r['reset'] else ''} ({n})"
+
     for name in LEVERS:
         path = out_dir / f"{name}.json"
         if not path.exists():
             continue
         doc = json.loads(path.read_text())
         runs = _runs_with_still(doc, out_dir)
-        by = {c: sorted((r for r in runs if (r["twirl_turns"] > 0) == (c == "twirl")),
-                        key=lambda r: r["seed"]) for c in ("twirl", "still")}
-
-        def cell(rs: list[dict[str, Any]], phases: tuple[str, ...]) -> str:
-            return ", ".join(
-                f"{r['lifted_g']:.1f}{' (reset)' if r['reset'] else ''} ("
-                + " / ".join(str(r.get("strands_touching", {}).get(p, "?")) for p in phases)
-                + ")" for r in rs)
-
-        s = summarise(runs, doc["twirl_turns"])
-        still = {r["seed"]: r["lifted_g"] for r in by["still"] if not r["reset"]}
-        diff = [r["lifted_g"] - still[r["seed"]] for r in by["twirl"]
-                if not r["reset"] and r["seed"] in still]
-        d = f"{np.mean(diff):+.2f} ({sum(x > 0 for x in diff)} of {len(diff)} seeds more)" \
-            if diff else "–"
-        warned = sorted({k.removeprefix("mjWARN_") for r in runs for k in r["warnings"]})
-        rtf = " / ".join(f"{s[c]['rtf_mean']:.2f}×" if s[c]["runs"] else "–"
-                         for c in ("twirl", "still"))
-        rows.append(
-            f"| {name}: {doc['what']} | {cell(by['twirl'], ('in', 'twirled', 'lifted'))} "
-            f"| {cell(by['still'], ('in', 'lifted'))}{' (baseline)' if doc['still_from'] else ''}"
-            f" | {d} | {s['twirl']['reset']} / {s['still']['reset']}"
-            f"{' (' + ', '.join(warned) + ')' if warned else ''} | {rtf} |")
+        diffs = []
+        for k, seed in enumerate(sorted({r["seed"] for r in doc["runs"]})):
+            tw = next((r for r in runs if r["seed"] == seed and r["twirl_turns"] > 0), None)
+            st = next((r for r in runs if r["seed"] == seed and r["twirl_turns"] == 0), None)
+            ok = tw is not None and st is not None and not (tw["reset"] or st["reset"])
+            if ok:
+                diffs.append(tw["lifted_g"] - st["lifted_g"])
+            pair = [r for r in (tw, st) if r is not None]
+            warned = sorted({w.removeprefix("mjWARN_") for r in pair for w in r["warnings"]})
+            rtf = " / ".join(f"{r['realtime_factor']:.2f}×" if r else "–" for r in (tw, st))
+            rows.append(
+                f"| {name + ': ' + doc['what'] if k == 0 else ''} | {seed} "
+                f"| {g(tw, ('in', 'twirled', 'lifted'))} "
+                f"| {g(st, ('in', 'lifted'))}{' (baseline)' if doc['still_from'] else ''} "
+                f"| {f'{diffs[-1]:+.2f}' if ok else '–'} "
+                f"| {sum(r['reset'] for r in pair)}"
+                f"{' (' + ', '.join(warned) + ')' if warned else ''} | {rtf} |")
+        if len(diffs) > 1:
+            rows.append(f"| | mean | | | {np.mean(diffs):+.2f} ({sum(d > 0 for d in diffs)} of "
+                        f"{len(diffs)} seeds more) | | |")
     return "\n".join(rows)
 
 

@@ -229,10 +229,12 @@ def test_the_lever_table_shows_every_run_and_never_counts_a_reset_one(tmp_path,
             "runs": [run(5100, 4.9, 9.0), run(5101, 4.9, 3.0)]}
     (tmp_path / "baseline.json").write_text(json.dumps(base))
     (tmp_path / "more_turns.json").write_text(json.dumps(more))
-    rows = {r.split(":")[0].strip("| "): r for r in levers.table(tmp_path).splitlines()[2:]}
-    assert set(rows) == {"baseline", "more_turns"}
+    rows = levers.table(tmp_path).splitlines()[2:]
+    # One row per variant and seed, twirl and still side by side, a mean where two pairs count.
+    assert [r.split("|")[2].strip() for r in rows] == ["5100", "5101", "5100", "5101", "mean"]
+    assert rows[0].startswith("| baseline: shipped | 5100 | 4.00 (7 / 2 / 4) | 8.00 (7 / 8) ")
     # The reset run is listed and flagged, but no difference is taken from it.
-    assert "99.0 (reset)" in rows["baseline"] and "-4.00 (0 of 1 seeds more)" in rows["baseline"]
-    assert "| 1 / 0 (BADQACC) |" in rows["baseline"]
+    assert "99.00 (reset: not counted)" in rows[1] and "| – | 1 (BADQACC) |" in rows[1]
     # A motion-only lever is compared with the baseline's still fork on the same seeds.
-    assert "+1.50 (2 of 2 seeds more)" in rows["more_turns"] and "(baseline)" in rows["more_turns"]
+    assert "| 1.00 (7 / 1) (baseline) | +2.00 |" in rows[3]
+    assert "| +1.50 (2 of 2 seeds more) |" in rows[4]
