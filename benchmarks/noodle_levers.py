@@ -10,6 +10,7 @@ every listed variant runs on a seed before any runs on the next.
 
     nice .venv/bin/python benchmarks/noodle_levers.py --lever baseline cohesion
     .venv/bin/python benchmarks/noodle_levers.py --table     # the docs' table from the JSON
+    nice .venv/bin/python benchmarks/noodle_levers.py --confirm cohesion --seeds 10
 """
 
 from __future__ import annotations
@@ -25,11 +26,12 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from articutool.experiments.design import trial_seed
 from articutool.sim.params import PhysicsParams
 from articutool.sim.scenes import max_twirl_turns
 from articutool.sim.world import FeedingWorld
 from articutool.spec import load_spec
-from noodle_twirl import one_run
+from noodle_twirl import STUDY_BASE_SEED, one_run, summarise, write_study
 
 TUNING_SEED0 = 5100  # 5100 + r: never a confirmation seed (5000-5009, noodle_twirl.py)
 # Capillary adhesion of a starch film: F ≈ 2γℓ (a meniscus on both sides of a line contact),
@@ -132,6 +134,28 @@ def run_lever(name: str, seed: int, out_dir: Path) -> dict[str, Any]:
     return _write(path, name, lever, runs(), turns)
 
 
+def confirm(name: str, n_seeds: int, out_dir: Path) -> dict[str, Any]:
+    """A lever's confirmation study on noodle_twirl.py's seeds (5000 + r, never tuning seeds):
+    twirl and still interleaved, resumable, the same summary and one-sided tests."""
+    lever = LEVERS[name]
+    path = out_dir / f"confirm_{name}.json"
+    turns = lever.turns if lever.turns is not None else max_twirl_turns(load_spec())
+    params = lever.params()
+    runs = json.loads(path.read_text())["runs"] if path.exists() else []
+    for r in range(n_seeds):
+        seed = trial_seed(STUDY_BASE_SEED, r)
+        for t in (turns, 0.0):
+            if not any(x["seed"] == seed and x["twirl_turns"] == t for x in runs):
+                runs.append(one_run(seed, t, params=params, prepare=lever.prepare,
+                                    **(lever.skewer if t else {})))
+                print(name, json.dumps(runs[-1]), flush=True)
+                write_study(path, runs, turns, ["--confirm", name, "--seeds", str(n_seeds)],
+                            "benchmarks/noodle_levers.py")
+    write_study(path, runs, turns, ["--confirm", name, "--seeds", str(n_seeds)],
+                "benchmarks/noodle_levers.py")
+    return summarise(runs, turns)
+
+
 def _write(path: Path, name: str, lever: Lever, runs: list[dict[str, Any]],
            turns: float) -> dict[str, Any]:
     doc = {"issue": 26, "lever": name, "what": lever.what, "source": lever.source,
@@ -201,10 +225,16 @@ def main(argv: list[str] | None = None) -> int:
                     help="run the levers on this tuning seed only")
     ap.add_argument("--out", default="results/noodle_levers")
     ap.add_argument("--table", action="store_true", help="print the docs' table; run nothing")
+    ap.add_argument("--confirm", choices=sorted(LEVERS), default=None,
+                    help="run this lever's confirmation study on seeds 5000 + r (--seeds of "
+                         "them) into --out/confirm_<lever>.json")
     args = ap.parse_args(argv)
     out = Path(args.out)
     if args.table:
         print(table(out))
+        return 0
+    if args.confirm:
+        print(json.dumps(confirm(args.confirm, args.seeds, out), indent=2))
         return 0
     todo = seeds(args.seeds) if args.only_seed is None else [args.only_seed]
     for seed in todo:  # every lever on a seed before the next seed

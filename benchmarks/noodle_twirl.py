@@ -143,9 +143,10 @@ def table(summary: dict[str, Any]) -> str:
             f"F/T mass — {ps(summary.get('ft_mass', {}))}.")
 
 
-def _write(path: Path, runs: list[dict[str, Any]], turns: float,
-           argv: list[str] | None) -> None:
-    out = {"issue": 26, "command": "benchmarks/noodle_twirl.py " + " ".join(
+def write_study(path: Path, runs: list[dict[str, Any]], turns: float,
+                argv: list[str] | None, script: str = "benchmarks/noodle_twirl.py") -> None:
+    """The study's JSON: the command, MuJoCo's version, the summary and every run."""
+    out = {"issue": 26, "command": f"{script} " + " ".join(
                sys.argv[1:] if argv is None else argv),
            "mujoco": mujoco.__version__, "summary": summarise(runs, turns), "runs": runs}
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -183,8 +184,8 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             runs.append(one_run(seed, t))
             print(json.dumps(runs[-1]), flush=True)
-            _write(out_path, runs, turns, argv)
-    _write(out_path, runs, turns, argv)  # with --resume: the summary by this code
+            write_study(out_path, runs, turns, argv)
+    write_study(out_path, runs, turns, argv)  # with --resume: the summary by this code
     print(json.dumps(summarise(runs, turns), indent=2))
     return 0
 
