@@ -20,6 +20,7 @@ import json
 import math
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +30,7 @@ from scipy import stats
 
 from articutool.experiments.design import trial_seed
 from articutool.sim.accounting import UTENSIL
+from articutool.sim.params import PhysicsParams
 from articutool.sim.scenes import max_twirl_turns, skewer
 from articutool.sim.world import FeedingWorld
 from articutool.spec import load_spec
@@ -45,17 +47,26 @@ def warnings_of(data: mujoco.MjData) -> dict[str, int]:
             if int(w) < len(data.warning) and data.warning[int(w)].number > 0}
 
 
-def one_run(seed: int, turns: float) -> dict[str, Any]:
-    """One acquisition; what the fork holds after the lift, and whether MuJoCo reset."""
+def one_run(seed: int, turns: float, params: PhysicsParams | None = None,
+            prepare: Callable[[FeedingWorld], None] | None = None,
+            **skewer_kw: Any) -> dict[str, Any]:
+    """One acquisition; what the fork holds after the lift, and whether MuJoCo reset.
+    ``params``, ``prepare`` (called on the settled world) and ``skewer_kw``: a variant's
+    physics, a change to the built world and the fork motion (benchmarks/noodle_levers.py)."""
     t0 = time.perf_counter()
-    w = FeedingWorld("noodles", seed=seed)
-    skewer(w, level=True, twirl_turns=turns)
+    w = FeedingWorld("noodles", seed=seed, params=params)
+    if prepare is not None:
+        prepare(w)
+    touching: dict[str, int] = {}
+    skewer(w, level=True, twirl_turns=turns, on_phase=lambda name: touching.__setitem__(
+        name, int(np.sum(w.item_classes() == UTENSIL))), **skewer_kw)
     warn = warnings_of(w.data)
     classes = w.item_classes()
     return {"seed": seed, "twirl_turns": turns,
             "lifted_g": round(w.masses_g()["utensil"], 3),
             "strands_lifted": int(np.sum(classes == UTENSIL)),
             "ft_mass_g": round(w.ft_mass_g(), 3) if w.ft_comparable() else None,
+            "strands_touching": touching,
             "reset": any(k in warn for k in _RESET_WARNINGS), "warnings": warn,
             "sim_s": round(w.time, 3), "realtime_factor": round(w.realtime_factor, 4),
             "wall_s": round(time.perf_counter() - t0, 1)}
@@ -132,9 +143,10 @@ def table(summary: dict[str, Any]) -> str:
             f"F/T mass — {ps(summary.get('ft_mass', {}))}.")
 
 
-def _write(path: Path, runs: list[dict[str, Any]], turns: float,
-           argv: list[str] | None) -> None:
-    out = {"issue": 26, "command": "benchmarks/noodle_twirl.py " + " ".join(
+def write_study(path: Path, runs: list[dict[str, Any]], turns: float,
+                argv: list[str] | None, script: str = "benchmarks/noodle_twirl.py") -> None:
+    """The study's JSON: the command, MuJoCo's version, the summary and every run."""
+    out = {"issue": 26, "command": f"{script} " + " ".join(
                sys.argv[1:] if argv is None else argv),
            "mujoco": mujoco.__version__, "summary": summarise(runs, turns), "runs": runs}
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -172,8 +184,8 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             runs.append(one_run(seed, t))
             print(json.dumps(runs[-1]), flush=True)
-            _write(out_path, runs, turns, argv)
-    _write(out_path, runs, turns, argv)  # with --resume: the summary by this code
+            write_study(out_path, runs, turns, argv)
+    write_study(out_path, runs, turns, argv)  # with --resume: the summary by this code
     print(json.dumps(summarise(runs, turns), indent=2))
     return 0
 

@@ -146,3 +146,95 @@ def test_the_study_never_counts_a_run_mujoco_reset(tmp_path, monkeypatch) -> Non
     d.qvel[0] = math.nan
     mujoco.mj_step(m, d)
     assert "mjWARN_BADQVEL" in study.warnings_of(d)
+
+
+def _noodle_params(**food: float) -> PhysicsParams:
+    d = PhysicsParams.load().model_dump()
+    d["foods"]["noodles"].update(food)
+    return PhysicsParams.from_dict(d)
+
+
+def test_starch_adhesion_without_a_gap_is_refused_naming_the_field() -> None:
+    from articutool.sim.params import PhysicsError
+
+    # MuJoCo's contact adhesion acts only across a gap: without one it would silently do nothing.
+    with pytest.raises(PhysicsError, match="adhesion_gap"):
+        _noodle_params(fork_adhesion=1e-3)
+    with pytest.raises(PhysicsError, match="adhesion_gap"):
+        _noodle_params(cohesion=1e-3, adhesion_gap=0.0)
+
+
+def test_fork_adhesion_and_cohesion_are_the_forces_of_their_contacts() -> None:
+    p = _noodle_params(fork_adhesion=1.5e-3, cohesion=1.0e-3, adhesion_gap=4e-4)
+    w = FeedingWorld("noodles", seed=5100, params=p, settle=False)
+    m = w.model
+    tine, s0, s1 = (m.geom(n).id for n in ("utensil/tine0", "strand0/3", "strand1/7"))
+    # MuJoCo sums the two geoms' adhesion per contact (equal priorities).
+    assert m.geom_priority[tine] == m.geom_priority[s0]
+    assert m.geom_adhesion[tine] + m.geom_adhesion[s0] == pytest.approx(1.5e-3)
+    assert m.geom_adhesion[s0] + m.geom_adhesion[s1] == pytest.approx(1.0e-3)
+    assert min(m.geom_gap[[tine, s0, s1]]) == pytest.approx(4e-4)
+    # The settled nest's crossings pull: an adhesive passive force acts on the strands,
+    # where the shipped (friction-only) nest has none.
+    w.run(0.3, tick=False)
+    assert np.abs(w.data.qfrc_adhesion).max() > 0
+    plain = FeedingWorld("noodles", seed=5100, settle=False)
+    plain.run(0.3, tick=False)
+    assert np.abs(plain.data.qfrc_adhesion).max() == 0
+
+
+def test_a_twirl_before_insertion_frees_roll_budget_for_the_twirl_inside() -> None:
+    from articutool.sim.scenes import skewer
+
+    class TwirledError(Exception):
+        pass
+
+    def stop(name: str) -> None:
+        if name == "twirled":
+            raise TwirledError
+
+    w = FeedingWorld(None, "fork", seed=1)  # the bowl without food: the fork's motion only
+    roll: list[float] = []
+    w.on_tick.append(lambda world: roll.append(float(world.wrist_q[1])))
+    hi = max_twirl_turns(w.spec)
+    with pytest.raises(TwirledError):
+        skewer(w, twirl_turns=hi + 2.0, prewind_turns=2.0, on_phase=stop)
+    # The tool's own TWIRL_CCW turned 2 turns back first, then TWIRL_CW 4.9 turns forward:
+    # more than the cable budget allows from zero, never past it.
+    assert min(roll) == pytest.approx(-2 * 2 * math.pi, abs=0.1)
+    assert max(roll) == pytest.approx(2 * math.pi * hi, abs=0.1)
+    assert max(roll) - min(roll) > 2 * math.pi * w.spec.wrist.roll_turn_budget
+    assert w.tool.fault == ""
+
+
+def test_the_lever_table_shows_every_run_and_never_counts_a_reset_one(tmp_path,
+                                                                     monkeypatch) -> None:
+    import importlib
+    import json
+    from pathlib import Path
+
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    levers = importlib.import_module("noodle_levers")
+
+    def run(seed: int, turns: float, g: float, reset: bool = False) -> dict:
+        return {"seed": seed, "twirl_turns": turns, "lifted_g": g, "ft_mass_g": g,
+                "strands_touching": {"in": 7, "twirled": 2, "lifted": round(g)},
+                "reset": reset, "warnings": {"mjWARN_BADQACC": 1} if reset else {},
+                "realtime_factor": 0.25}
+
+    base = {"what": "shipped", "still_from": None, "twirl_turns": 2.9,
+            "runs": [run(5100, 2.9, 4.0), run(5100, 0.0, 8.0),
+                     run(5101, 2.9, 99.0, reset=True), run(5101, 0.0, 1.0)]}
+    more = {"what": "more turns", "still_from": "baseline", "twirl_turns": 4.9,
+            "runs": [run(5100, 4.9, 9.0), run(5101, 4.9, 3.0)]}
+    (tmp_path / "baseline.json").write_text(json.dumps(base))
+    (tmp_path / "more_turns.json").write_text(json.dumps(more))
+    rows = levers.table(tmp_path).splitlines()[2:]
+    # One row per variant and seed, twirl and still side by side, a mean where two pairs count.
+    assert [r.split("|")[2].strip() for r in rows] == ["5100", "5101", "5100", "5101", "mean"]
+    assert rows[0].startswith("| baseline: shipped | 5100 | 4.00 (7 / 2 / 4) | 8.00 (7 / 8) ")
+    # The reset run is listed and flagged, but no difference is taken from it.
+    assert "99.00 (reset: not counted)" in rows[1] and "| – | 1 (BADQACC) |" in rows[1]
+    # A motion-only lever is compared with the baseline's still fork on the same seeds.
+    assert "| 1.00 (7 / 1) (baseline) | +2.00 |" in rows[3]
+    assert "| +1.50 (2 of 2 seeds more) |" in rows[4]

@@ -156,14 +156,20 @@ def spoon_dish(u: UtensilSpec) -> tuple[float, float, float, float, float, float
     return u.tip_z - a, a, b, max(a - depth, 0.25 * a), max(b - depth, 0.25 * b), depth
 
 
-def _utensil_geoms(spec: Spec, utensil: str, layout: WorldLayout) -> list[str]:
+def _utensil_geoms(spec: Spec, utensil: str, layout: WorldLayout,
+                   food: Granular | Liquid | Strands | None = None) -> list[str]:
     """Geoms of the utensil in the utensil body (origin at the utensil mount, roll-link axes:
-    x = up vector at zero angles, z = out along the roll axis)."""
+    x = up vector at zero angles, z = out along the roll axis). With strands, the utensil
+    carries the fork-strand adhesion (MuJoCo sums the two geoms' values per contact)."""
     u = spec.utensil(utensil)
     ph = u.physics
     th = ph.thickness
+    sticky = ""
+    if isinstance(food, Strands) and food.adhesion_gap > 0:
+        sticky = f' adhesion="{max(food.fork_adhesion - food.cohesion / 2, 0.0):.6g}" ' \
+                 f'gap="{food.adhesion_gap:.6g}"'
     cls = (f'contype="{_UTENSIL}" conaffinity="{_STATIC}" friction="0.5 0.005 0.0001" '
-           'rgba="0.75 0.75 0.78 1"')
+           f'rgba="0.75 0.75 0.78 1"{sticky}')
     out: list[str] = []
 
     def geom(name: str, body: str) -> None:
@@ -333,6 +339,9 @@ def _strands(food: Strands, count: int, inner: float, floor_z: float, cx: float,
     # inertia (armature) keeps the explicit spring at ω·dt ≤ 0.5 (a numerical choice).
     armature = k_bend * (2.0 * layout.timestep) ** 2
     layout.strand_segments = n
+    # Cohesion: each strand geom carries half, so a strand-strand contact pulls with all of it.
+    sticky = (f' adhesion="{food.cohesion / 2:.6g}" gap="{food.adhesion_gap:.6g}"'
+              if food.cohesion > 0 else "")
     for k in range(count):
         rad0 = food.pile_radius * rng.uniform(0.5, 1.0)
         off = rng.uniform(-0.3, 0.3, 2) * food.pile_radius
@@ -360,7 +369,7 @@ def _strands(food: Strands, count: int, inner: float, floor_z: float, cx: float,
                 f'<geom name="{name}/{i}" type="capsule" size="{r}" fromto="0 0 0 {ds} 0 0" '
                 f'mass="{mass:.9g}" contype="{_FOOD}" conaffinity="{_ALL}" condim="4" '
                 f'friction="{_f(food.friction)}" solref="{_f(food.solref)}" '
-                f'rgba="0.95 0.85 0.45 1"/>')
+                f'rgba="0.95 0.85 0.45 1"{sticky}/>')
         out.append("</body>" * n)
     return out
 
@@ -463,7 +472,7 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
     x.append(f'<inertial pos="0 0 {u.tip_z / 2}" mass="{u.physics.mass_kg}" '
              f'diaginertia="{_f(np.array([1, 1, 0.02]) * u.physics.mass_kg * u.tip_z**2 / 12)}"/>')
     x.append(f'<site name="{FT_SITE}" size="0.004" rgba="1 0 0 1"/>')
-    x += _utensil_geoms(spec, utensil, layout)
+    x += _utensil_geoms(spec, utensil, layout, food_p)
     tip_R = rpy_matrix((0.0, 0.0, -math.pi / 2))
     for name, us in spec.utensils.items():
         x.append(f'<site name="{tip_site_name(name)}" '

@@ -147,6 +147,18 @@ class Strands(_FoodBase):
     friction: tuple[Positive, NonNegative, NonNegative]
     pile_radius: Positive
     noslip_iterations: Annotated[int, Field(ge=0, le=1000)]
+    # Starch-film adhesion (N per contact; MuJoCo ``geom/adhesion``, which acts only across a
+    # ``gap``): fork-strand, and strand-strand cohesion. 0 = friction only (issue 26's levers).
+    fork_adhesion: NonNegative = 0.0
+    cohesion: NonNegative = 0.0
+    adhesion_gap: Annotated[float, Field(ge=0, le=0.002)] = 0.0
+
+    @model_validator(mode="after")
+    def _adhesion_needs_a_gap(self) -> Strands:
+        if (self.fork_adhesion or self.cohesion) and not self.adhesion_gap:
+            raise ValueError("adhesion_gap must be > 0 when fork_adhesion or cohesion is set "
+                             "(MuJoCo's contact adhesion acts only across the gap)")
+        return self
 
     @property
     def piece_mass(self) -> float:

@@ -205,14 +205,17 @@ def max_twirl_turns(spec: Spec) -> float:
 
 
 def skewer(world: FeedingWorld, level: bool = True, twirl_turns: float | None = None,
-           tines_up: bool = True, on_phase: Callable[[str], None] | None = None) -> None:
+           tines_up: bool = True, on_phase: Callable[[str], None] | None = None,
+           prewind_turns: float = 0.0) -> None:
     """The fork's acquisition (thesis §4.4, noodles): the fork, pointing 60° down, goes into
     the food's container, pressed through the pile to 2 mm above its floor (as one presses a
     fork to the plate to twirl), TWIRL_CW turns it ``twirl_turns`` times about the tool's roll
     axis at 3 rad/s (0: a still fork; default :func:`max_twirl_turns`), it rises 3.8 cm
     turning its tines up (60° → 0° below the horizon; ``tines_up`` off: still 60° down), the
     tool levels (unless ``level`` is off), and the arm lifts 12 cm. ``on_phase`` is called
-    after each phase with its name: "in", "twirled", "risen", "levelled", "lifted"."""
+    after each phase with its name: "in", "twirled", "risen", "levelled", "lifted".
+    ``prewind_turns``: TWIRL_CCW that many turns in the air first (the thesis' twirl before
+    insertion), which frees as much roll budget for the twirl inside the food."""
     box = world.scene.get(world.layout.container or "bowl")
     if not isinstance(box, Cylinder) or box.container_wall is None:
         raise ScriptError("skewer needs the food's container (an open bowl)")
@@ -223,6 +226,11 @@ def skewer(world: FeedingWorld, level: bool = True, twirl_turns: float | None = 
     world.run(1.0)
     world.tool.set_mode(Mode.DISABLED)
     world.tare_ft(0.2)
+    if prewind_turns > 0:
+        ok, msg = world.tool.start_primitive("TWIRL_CCW", [prewind_turns, 3.0])
+        if not ok:
+            raise ScriptError(f"the tool refused TWIRL_CCW: {msg}")
+        world.run_until(lambda: world.tool.mode != Mode.PRIMITIVE, 30.0)
     c = np.array([box.xyz[0], box.xyz[1], box.xyz[2] - box.length / 2 + box.container_wall])
     a = math.radians(60.0)
     pts = [(c + _Z * 0.12, a, 0.1), (c + _Z * 0.03, a, 0.05), (c + _Z * 0.002, a, 0.02)]
