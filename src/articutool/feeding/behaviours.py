@@ -69,6 +69,12 @@ class Job(Protocol):
     def cancel(self) -> None:
         """Stop it (idempotent); a cancelled motion leaves the arm stopped."""
 
+    # Optional: ``wait_off_clock() -> None`` on a job computed off the tree's clock (a plan in
+    # a worker thread beside a simulated world): the tick driver blocks on it instead of
+    # advancing the world, so the simulated time a plan costs does not depend on the machine
+    # (:meth:`articutool.feeding.tree.BiteRecorder.wait_for_plans`). A job without it (a real
+    # robot's, on wall time) is polled while the clock runs.
+
 
 class ArmInterface(Protocol):
     """What the tree needs of the arm (the physics world's arm now; a driver later)."""

@@ -68,7 +68,7 @@ class BiteResult:
     planning_attempts_by_goal: dict[str, int]
     acquisition_attempts: int  # 0 if the bite had no acquire stage
     planning_wall_s: float  # the planners' own wall time (the attempts' budget is on it)
-    planning_wait_sim_s: float  # simulated time that passed while planning (machine-dependent)
+    planning_wait_sim_s: float  # simulated time that passed while planning (a tick per plan)
     motion_time_s: float
     sim_time_s: float
     wall_time_s: float

@@ -24,6 +24,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import wait as _wait
 from typing import Any
 
 import numpy as np
@@ -160,6 +161,11 @@ class _FutureJob:
 
     def done(self) -> bool:
         return self.fut.done()
+
+    def wait_off_clock(self, poll_s: float = 0.005) -> None:
+        """Block until the worker thread finished (polled, so Ctrl-C still interrupts)."""
+        while not self.fut.done():
+            _wait([self.fut], timeout=poll_s)
 
     def result(self) -> JobResult:
         if self.fut.cancelled():

@@ -3,8 +3,10 @@ bounded attempts, the tool's mode scoped, a safety guard at the root, and a visi
 records the bite's telemetry.
 
 Each attempt's budget is the planner's own (``budget_s`` of wall time inside ``plan()``, as
-OMPL counts it), never the simulated clock: the world keeps stepping while a plan is computed
-in a worker thread, so a sim-time timeout would fail plans on a slower machine (issue 21).
+OMPL counts it), never the simulated clock (issue 21). While a plan is computed in its worker
+thread the world waits for it (:meth:`BiteRecorder.wait_for_plans`): a plan costs exactly one
+tick period of simulated time, so a trial's outcome does not depend on the machine's speed
+(a faster or a loaded machine gives the same record for the same seed).
 
 Shape of :func:`transport_tree`::
 
@@ -115,7 +117,7 @@ class BiteRecord:
 
     # The planners' own wall time (inside the planning jobs): what a real robot's user waits.
     planning_wall_s: float = 0.0
-    # Simulated time that passed while plans were computed (depends on the machine's speed).
+    # Simulated time that passed while plans were computed (one tick period per plan).
     planning_wait_sim_s: float = 0.0
     motion_time_s: float = 0.0  # on the tree's clock
     # Every leaf failure in order (behaviour, reason).
@@ -153,6 +155,18 @@ class BiteRecorder(py_trees.visitors.VisitorBase):
         world steps further while the same plan is computed."""
         running = [(t0, b) for t0, b in self._planning.values() if b.status == Status.RUNNING]
         return self.record.planning_wait_sim_s + sum(now - t0 for t0, _ in running)
+
+    def wait_for_plans(self) -> None:
+        """Block (wall time) until every plan the last tick left running in a worker thread
+        (a job with ``wait_off_clock``, as :class:`~articutool.feeding.sim_arm.SimArm`'s) has
+        its result.
+        The arm holds still while it plans, and the world waits with it: how much simulated
+        time passes during a plan must not depend on how fast this machine plans, or a trial
+        could not be reproduced from its seed. Bounded by each plan's own wall budget."""
+        for _, b in list(self._planning.values()):
+            wait = getattr(getattr(b, "job", None), "wait_off_clock", None)
+            if b.status == Status.RUNNING and wait is not None:
+                wait()
 
     def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
         if isinstance(behaviour, Plan | PlanPath | Execute):
@@ -224,6 +238,7 @@ def tick_until_done(tree: py_trees.trees.BehaviourTree, rec: BiteRecorder,
     sleeps wall time between ticks and swallows Ctrl-C; here time is the world's."""
     def advance(t: py_trees.trees.BehaviourTree) -> None:
         if t.root.status not in (Status.SUCCESS, Status.FAILURE):
+            rec.wait_for_plans()  # a plan costs one tick period of simulated time
             step(period_s)
 
     t_end = clock() + timeout_s
