@@ -17,8 +17,9 @@ per food and system. The JSON is rewritten after every run, so an interrupted ru
 finished.
 
 Run (one process, niced): ``PYTHONPATH=src nice python benchmarks/acquisition_study.py
-measure --foods water pecans --seeds 10 --out results/acquisition_study.json`` and
-``... search --foods water --seeds 1 --out results/strategy_search.json``.
+measure --foods water --seeds 10 --out results/acquisition_study_water.json`` (pecans:
+``--foods pecans --out results/acquisition_study_pecans.json``) and ``... search --foods water
+--seeds 3 --out results/strategy_search.json`` (pecans: ``results/strategy_search_pecans.json``).
 """
 
 from __future__ import annotations
