@@ -16,10 +16,19 @@ piece counted twice: a few % of its volume).
 from __future__ import annotations
 
 import math
+from typing import Protocol
 
 import numpy as np
 
-from articutool.sim.params import Granular
+
+class Granular(Protocol):
+    """What drawing a piece reads of the food (``articutool.sim.params.Granular``, which
+    imports this module for its mean piece mass: so only its shape is named here)."""
+
+    half_fraction: float
+    half_width_m: tuple[float, float]
+    half_length_ratio: float
+    piece_screen_m: tuple[float, float]
 
 __all__ = ["Capsule", "capsule_mass", "draw_piece", "footprint", "pack_layer", "piece_extent"]
 
