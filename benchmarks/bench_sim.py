@@ -31,12 +31,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import statistics
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+from bench_io import machine, write_json
 
 
 def _variant_params(name: str):
@@ -120,8 +121,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     codes = dict(c.split("=", 1) for c in args.code) or {
         "this": str(Path(__file__).resolve().parents[1] / "src")}
-    out: dict = {"machine": {"python": sys.version.split()[0], "platform": platform.platform(),
-                             "cpus": os.cpu_count(), "loadavg_start": os.getloadavg()},
+    out: dict = {"machine": machine(),
                  "script": "scoop", "code": codes, "results": {}}
     for food in args.foods.split(","):
         for variant in args.variants.split(","):
@@ -134,9 +134,7 @@ def main(argv: list[str] | None = None) -> int:
                 res = out["results"].setdefault(food, {}).setdefault(variant, {})
                 res[name] = _summary(rs, food)
     out["machine"]["loadavg_end"] = os.getloadavg()
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    write_json(args.out, out)
     return 0
 
 

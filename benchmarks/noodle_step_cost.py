@@ -17,13 +17,13 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import os
 import sys
 import time
-from pathlib import Path
 
 import mujoco
+
+from bench_io import write_json
 
 _TIMERS = ("STEP", "POS_COLLISION", "COL_BROAD", "COL_NARROW", "POS_MAKE", "POS_PROJECT",
            "CONSTRAINT", "ADVANCE", "POS_KINEMATICS", "POS_INERTIA", "VELOCITY")
@@ -90,9 +90,7 @@ def main(argv: list[str] | None = None) -> int:
         print(name, rows[name], flush=True)
     out = {"seed": args.seed, "steps": args.steps, "state": "fork pressed in, 0.5 s of twirl",
            "loadavg": os.getloadavg(), "mujoco": mujoco.__version__, "settings": rows}
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    write_json(args.out, out)
     return 0
 
 

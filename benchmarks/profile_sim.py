@@ -27,13 +27,14 @@ import argparse
 import cProfile
 import json
 import os
-import platform
 import pstats
 import sys
 import time
 from pathlib import Path
 
 import mujoco
+
+from bench_io import machine, write_json
 
 _TIMERS = ("STEP", "FORWARD", "POSITION", "POS_KINEMATICS", "POS_INERTIA", "POS_COLLISION",
            "COL_BROAD", "COL_NARROW", "POS_MAKE", "POS_PROJECT", "VELOCITY", "ACTUATION",
@@ -151,18 +152,14 @@ def main(argv: list[str] | None = None) -> int:
         if args.out != "-":
             Path(args.out).write_text(json.dumps(doc, indent=2) + "\n")
         return 0
-    out = {"machine": {"python": sys.version.split()[0], "platform": platform.platform(),
-                       "cpus": os.cpu_count(), "mujoco": mujoco.__version__,
-                       "loadavg_start": os.getloadavg()},
+    out = {"machine": machine(),
            "script": "scoop", "seed": args.seed, "foods": {}}
     for food in args.foods.split(","):
         out["foods"][food] = profile(food, args.seed, args.top)
         f = out["foods"][food]
         print(food, {k: v for k, v in f.items() if not isinstance(v, dict | list)}, flush=True)
     out["machine"]["loadavg_end"] = os.getloadavg()
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    write_json(args.out, out)
     return 0
 
 

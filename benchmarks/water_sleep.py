@@ -14,11 +14,11 @@ water model is unchanged.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from pathlib import Path
 
 import numpy as np
+
+from bench_io import write_json
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -49,9 +49,7 @@ def main(argv: list[str] | None = None) -> int:
                          "spinning_over_tolerance": int((ang > spin_limit).sum())})
         out["seeds"][seed] = rows
         print(seed, rows[-1], flush=True)
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    write_json(args.out, out)
     return 0
 
 
