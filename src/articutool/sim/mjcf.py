@@ -38,7 +38,6 @@ FT_SITE = "ft"
 _STATIC, _FOOD, _UTENSIL, _ROBOT = 1, 2, 4, 8
 _ALL = _STATIC | _FOOD | _UTENSIL | _ROBOT
 _WALL_BOXES = 24
-_WALL_DEPTH = 3.0
 _DISH_WALLS = 16
 
 
@@ -91,7 +90,8 @@ def _frame(z_dir: NDArray[np.float64], hint: NDArray[np.float64]) -> NDArray[np.
     return np.column_stack([x, np.cross(z, x), z])
 
 
-def _static_geoms(scene: Scene, friction: float, layout: WorldLayout) -> list[str]:
+def _static_geoms(scene: Scene, friction: float, wall_factor: float,
+                  layout: WorldLayout) -> list[str]:
     out = []
     for o in scene.objects:
         cls = f'contype="{_STATIC}" conaffinity="0" friction="{friction} 0.005 0.0001"'
@@ -124,11 +124,9 @@ def _static_geoms(scene: Scene, friction: float, layout: WorldLayout) -> list[st
             names = [f"scene/{o.name}/floor"]
             n = _WALL_BOXES
             half_w = o.radius * math.tan(math.pi / n) * 1.1
-            # Collision walls reach outward to _WALL_DEPTH × the wall (the inner face stays):
-            # soft contacts let a pecan piece (capsules of 2.4-4 mm radius) squeezed by the
-            # spoon into the floor-wall corner sink 4 mm into the 4 mm wall and come out on
-            # the table (measured: meal --food pecans seed 0, a 0.50 g "table spill").
-            tc = t * _WALL_DEPTH
+            # Collision walls reach outward to wall_factor × the wall, the inner face kept
+            # (physics.toml [world] collision_wall_factor says why).
+            tc = t * wall_factor
             for k in range(n):
                 a = 2 * math.pi * k / n
                 c = (o.radius - t + tc / 2) * np.array([math.cos(a), math.sin(a), 0.0])
@@ -407,7 +405,7 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
 
         '<camera name="overview" pos="1.6 -0.9 1.1" xyaxes="0.5 0.87 0 -0.4 0.23 0.89"/>',
     ]
-    x += _static_geoms(scene, wp.surface_friction, layout)
+    x += _static_geoms(scene, wp.surface_friction, wp.collision_wall_factor, layout)
     # Cameras placed from the scene: a close view of each container, and one that follows
     # the utensil from beside the food's container (the first container if there is none).
     containers = [o for o in scene.objects

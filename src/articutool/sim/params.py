@@ -54,6 +54,7 @@ class WorldParams(_Strict):
     settle_s: NonNegative
     surface_friction: Positive
     spill_dwell_s: NonNegative
+    collision_wall_factor: Annotated[float, Field(ge=1, le=10)]
 
 
 class ArmServoParams(_Strict):
