@@ -173,26 +173,14 @@ class FoodLedger:
         m, d = self.model, self.data
         n_bodies = len(self.layout.food_bodies)
         for k in items:
-            if k >= n_bodies:  # a strand: its root's free joint carries the whole chain out
-                name = self.layout.food_strands[k - n_bodies]
-                for i in range(self.layout.strand_segments):
-                    g = m.geom(f"{name}/{i}").id
-                    m.geom_contype[g] = m.geom_conaffinity[g] = 0
-                    b = m.geom_bodyid[g]
-                    m.body_contype[b] = m.body_conaffinity[b] = 0
-                    m.body_gravcomp[b] = 1.0
-                j = m.body_jntadr[self.item_body[k]]
-                qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
-                d.qpos[qa:qa + 3] = (100.0 + k, 0.0, 10.0)
-                d.qvel[va:va + 6] = 0.0
-                self.codes[k] = acc.EATEN
-                continue
-            b = self.item_body[k]
-            g = slice(m.body_geomadr[b], m.body_geomadr[b] + m.body_geomnum[b])
-            m.geom_contype[g] = m.geom_conaffinity[g] = 0
-            m.body_contype[b] = m.body_conaffinity[b] = 0
-            m.body_gravcomp[b] = 1.0
-            j = m.body_jntadr[b]
+            # A piece is one body; a strand all its capsules, carried by its root's free joint.
+            bodies = self.strand_bodies[k - n_bodies] if k >= n_bodies else [self.item_body[k]]
+            for b in bodies:
+                g = slice(m.body_geomadr[b], m.body_geomadr[b] + m.body_geomnum[b])
+                m.geom_contype[g] = m.geom_conaffinity[g] = 0
+                m.body_contype[b] = m.body_conaffinity[b] = 0
+                m.body_gravcomp[b] = 1.0
+            j = m.body_jntadr[self.item_body[k]]
             qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
             d.qpos[qa:qa + 3] = (100.0 + k, 0.0, 10.0)
             d.qvel[va:va + 6] = 0.0
