@@ -178,7 +178,9 @@ def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) ->
         if args.video:
             from articutool.sim.render import Recorder
 
-            rec_holder["r"] = Recorder(world, fps=15.0, camera="overview")
+            # The whole path, and beside it what the utensil holds (it follows the utensil).
+            rec_holder["r"] = Recorder(world, fps=15.0, camera=("overview", "follow"),
+                                       width=480, height=360)
         if args.record:
             from articutool.sim.mcap_record import WorldMcapRecorder
 

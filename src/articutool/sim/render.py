@@ -7,6 +7,7 @@ backend). EGL needs the system's libEGL and a Mesa driver (Debian: ``libegl1``,
 
 from __future__ import annotations
 
+import copy
 import os
 from pathlib import Path
 
@@ -19,9 +20,14 @@ from numpy.typing import NDArray
 from articutool.sim.world import FeedingWorld
 
 __all__ = ["CAMERAS", "Recorder", "RenderError", "model_renderer", "render_frame", "save_png",
-           "write_video"]
+           "scene_camera", "write_video"]
 
-CAMERAS = ("utensil", "utensil_close", "overview", "bowl")
+CAMERAS = ("utensil", "utensil_close", "overview", "bowl", "follow")
+# "follow": a free camera aimed at the utensil at a fixed distance and direction in the
+# world (from the overview's side, looking down), so the dish's tilt and what it holds stay
+# in view wherever the arm carries it. A viewpoint, not a dimension of the scene.
+NEAR_M = 0.01  # the near clipping plane: 1 cm, closer than any camera comes to the utensil
+FOLLOW_VIEW = {"distance": 0.25, "azimuth": 155.0, "elevation": -30.0}
 _HINT = ("offscreen rendering needs EGL: install the system packages libegl1 and "
          "libgl1-mesa-dri (Debian/Ubuntu; `make` does it), or set MUJOCO_GL to a working "
          "backend")
@@ -33,9 +39,16 @@ class RenderError(RuntimeError):
 
 def model_renderer(model: mujoco.MjModel, width: int = 640,
                    height: int = 480) -> mujoco.Renderer:
-    """An offscreen renderer for ``model`` (:class:`RenderError` when EGL/GL is missing)."""
+    """An offscreen renderer for ``model`` (:class:`RenderError` when EGL/GL is missing).
+
+    It renders a copy of the model whose near clipping plane is :data:`NEAR_M` away: MuJoCo
+    places it at ``znear × extent``, and the extent of a world with parked food (bodies
+    waiting far off the table) is ~50 m, which put the plane 0.5 m from the camera and
+    clipped every close view."""
+    vis = copy.deepcopy(model)
+    vis.vis.map.znear = NEAR_M / max(vis.stat.extent, 1e-9)
     try:
-        return mujoco.Renderer(model, height, width)
+        return mujoco.Renderer(vis, height, width)
     except Exception as err:  # EGL/GL missing: MuJoCo raises various types
         raise RenderError(f"{_HINT} ({type(err).__name__}: {err})") from None
 
@@ -44,13 +57,30 @@ def _renderer(world: FeedingWorld, width: int, height: int) -> mujoco.Renderer:
     return model_renderer(world.model, width, height)
 
 
-def render_frame(world: FeedingWorld, camera: str = "utensil", width: int = 640,
-                 height: int = 480, renderer: mujoco.Renderer | None = None) -> NDArray[np.uint8]:
-    """One RGB frame (height, width, 3) of the world from a named camera."""
+def scene_camera(model: mujoco.MjModel, data: mujoco.MjData,
+                 camera: str) -> str | mujoco.MjvCamera:
+    """What ``Renderer.update_scene`` needs for the camera named ``camera``: a model camera's
+    name, or for ``follow`` a free :class:`mujoco.MjvCamera` looking at the utensil body's
+    centre of mass in ``data`` from :data:`FOLLOW_VIEW` (placed anew for every frame)."""
     if camera not in CAMERAS:
         raise ValueError(f"camera must be one of {CAMERAS}; got {camera!r}")
+    if camera != "follow":
+        return camera
+    cam = mujoco.MjvCamera()
+    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+    cam.lookat[:] = data.subtree_com[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY,
+                                                       "utensil")]
+    cam.distance, cam.azimuth, cam.elevation = (FOLLOW_VIEW[k] for k in
+                                                ("distance", "azimuth", "elevation"))
+    return cam
+
+
+def render_frame(world: FeedingWorld, camera: str = "utensil", width: int = 640,
+                 height: int = 480, renderer: mujoco.Renderer | None = None) -> NDArray[np.uint8]:
+    """One RGB frame (height, width, 3) of the world from a named camera (:data:`CAMERAS`)."""
+    cam = scene_camera(world.model, world.data, camera)
     r = renderer or _renderer(world, width, height)
-    r.update_scene(world.data, camera=camera)
+    r.update_scene(world.data, camera=cam)
     return r.render().copy()
 
 
@@ -93,13 +123,18 @@ def save_png(world: FeedingWorld, path: str | Path, camera: str = "utensil") -> 
 class Recorder:
     """Records frames at ``fps`` of simulation time while the world runs (``world.on_tick``),
     then writes them with :meth:`save` (``.mp4`` via the ffmpeg bundled with imageio-ffmpeg,
-    ``.gif`` via Pillow)."""
+    ``.gif`` via Pillow). ``camera`` is one camera or several, side by side in each frame
+    (e.g. ``("overview", "follow")``: the whole path, and what the utensil holds)."""
 
-    def __init__(self, world: FeedingWorld, fps: float = 20.0, camera: str = "utensil",
-                 width: int = 640, height: int = 480) -> None:
-        if camera not in CAMERAS:
-            raise ValueError(f"camera must be one of {CAMERAS}; got {camera!r}")
-        self.world, self.fps, self.camera = world, float(fps), camera
+    def __init__(self, world: FeedingWorld, fps: float = 20.0,
+                 camera: str | tuple[str, ...] = "utensil", width: int = 640,
+                 height: int = 480) -> None:
+        cams = (camera,) if isinstance(camera, str) else tuple(camera)
+        if not cams:
+            raise ValueError(f"camera must name at least one of {CAMERAS}")
+        for c in cams:
+            scene_camera(world.model, world.data, c)  # a clear error before the run
+        self.world, self.fps, self.cameras = world, float(fps), cams
         self._r = _renderer(world, width, height)
         self.frames: list[NDArray[np.uint8]] = []
         self._next = world.time
@@ -107,7 +142,8 @@ class Recorder:
 
     def _grab(self, world: FeedingWorld) -> None:
         if world.time >= self._next - 1e-9:
-            self.frames.append(render_frame(world, self.camera, renderer=self._r))
+            self.frames.append(np.hstack([render_frame(world, c, renderer=self._r)
+                                          for c in self.cameras]))
             self._next += 1.0 / self.fps
 
     def save(self, path: str | Path) -> Path:

@@ -30,7 +30,7 @@ def export_video(rec: Recording, path: str | Path, camera: str = "overview",
     """
     import mujoco
 
-    from articutool.sim.render import CAMERAS, model_renderer, write_video
+    from articutool.sim.render import CAMERAS, model_renderer, scene_camera, write_video
 
     p = Path(path)
     if p.suffix.lower() not in (".mp4", ".gif"):
@@ -57,7 +57,7 @@ def export_video(rec: Recording, path: str | Path, camera: str = "overview",
     for t in times:
         data.qpos[:] = rec.qpos[rec.frame_at(float(t))]
         mujoco.mj_forward(model, data)
-        renderer.update_scene(data, camera=camera)
+        renderer.update_scene(data, camera=scene_camera(model, data, camera))
         frames.append(renderer.render().copy())
     renderer.close()
     return write_video(frames, p, fps)

@@ -1,0 +1,68 @@
+"""Offscreen rendering: close views of a loaded world, and side-by-side videos (issue 29's
+replays show what the utensil holds)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+# render first: it chooses MuJoCo's headless GL backend before anything imports mujoco.
+from articutool.sim.render import Recorder, model_renderer, scene_camera
+from articutool.sim.world import FeedingWorld
+
+
+@pytest.fixture(scope="module")
+def loaded() -> FeedingWorld:
+    # 2.5 g of pecans placed on the utensil: the pile's other pieces wait parked far off
+    # the table, which makes MuJoCo's model extent ~50 m.
+    return FeedingWorld("pecans", seed=0, load_g=2.5)
+
+
+def _utensil_geoms(model: Any) -> set[int]:
+    import mujoco
+
+    root = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "utensil")
+    bodies = {b for b in range(model.nbody)
+              if b == root or _has_ancestor(model, b, root)}
+    return {g for g in range(model.ngeom) if int(model.geom_bodyid[g]) in bodies}
+
+
+def _has_ancestor(model: Any, body: int, root: int) -> bool:
+    while body:
+        body = int(model.body_parentid[body])
+        if body == root:
+            return True
+    return False
+
+
+@pytest.mark.parametrize("camera", ["follow", "utensil_close"])
+def test_a_close_view_of_a_loaded_world_shows_the_utensil(loaded, camera) -> None:
+    import mujoco
+
+    # Before the fix the near clipping plane sat at znear × extent ≈ 0.5 m and clipped
+    # every close view of a world with parked food: the utensil never appeared.
+    assert loaded.model.stat.extent > 10.0  # the condition this test is about
+    r = model_renderer(loaded.model, 160, 120)
+    r.enable_segmentation_rendering()
+    r.update_scene(loaded.data, camera=scene_camera(loaded.model, loaded.data, camera))
+    seg = r.render()
+    r.close()
+    geoms = seg[..., 0][seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM)]
+    seen = set(np.unique(geoms).tolist())
+    assert seen & _utensil_geoms(loaded.model)
+
+
+def test_a_recorder_with_two_cameras_puts_them_side_by_side(loaded) -> None:
+    rec = Recorder(loaded, fps=50.0, camera=("overview", "follow"), width=96, height=64)
+    loaded.run(0.1)
+    loaded.on_tick.remove(rec._grab)
+    assert rec.frames and all(f.shape == (64, 192, 3) for f in rec.frames)
+    left, right = rec.frames[-1][:, :96], rec.frames[-1][:, 96:]
+    assert not np.array_equal(left, right)
+
+
+def test_an_unknown_camera_is_refused_before_the_run(loaded) -> None:
+    with pytest.raises(ValueError, match="camera must be one of"):
+        Recorder(loaded, camera=("overview", "ceiling"))
