@@ -23,10 +23,20 @@ import time
 from pathlib import Path
 from typing import Any
 
-__all__ = ["add_commands"]
+__all__ = ["BOOKKEEPING_FIELDS", "TIMING_FIELDS", "add_commands", "trials_for"]
 
 RUN_EXPERIMENTS = ("capacity", "exp1", "exp2b", "exp2c", "exp3")
 DEFAULT_OUT = "results/experiments"
+# A trial record's fields that a rerun of its seed need not reproduce (the replay check,
+# benchmarks/experiment_scaling.py). Plans run in a thread while the world steps, so when a
+# plan is ready in simulated time depends on the machine's speed: these may differ slightly
+# between runs of one seed (``planning_time_s``: records written before issue 21).
+TIMING_FIELDS = frozenset({"planning_time_s", "planning_wall_s", "planning_wait_sim_s",
+                           "motion_time_s", "sim_time_s", "max_tilt_deg",
+                           "transport_max_tilt_deg"})
+# Never compared: the run's own bookkeeping (the code version is named separately).
+BOOKKEEPING_FIELDS = frozenset({"wall_time_s", "pid", "realtime_factor", "bite_wall_time_s",
+                                "traceback", "source"})
 
 
 def _usage(msg: str) -> Exception:
@@ -133,8 +143,11 @@ def _exp2c_loads(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[st
     return loads, src
 
 
-def _trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
-                ) -> tuple[list[Any], dict[str, Any]]:
+def trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
+               ) -> tuple[list[Any], dict[str, Any]]:
+    """The trials ``experiment EXP`` runs (``args.trials``, ``args.seed``; for exp2c
+    ``args.load_g`` or the capacity summary under ``out``) and the run's conditions with what
+    they came from."""
     from articutool.experiments.design import conditions, make_trials
 
     goals: list[str] = []
@@ -200,22 +213,14 @@ def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) ->
         return 1
     if args.video:
         rec_holder["r"].save(args.video)
-    # Plans run in a thread while the world steps, so when a plan is ready in simulated time
-    # depends on the machine's speed: these may differ slightly between runs of one seed
-    # (``planning_time_s``: records written before issue 21).
-    timing = {"planning_time_s", "planning_wall_s", "planning_wait_sim_s", "motion_time_s",
-              "sim_time_s", "max_tilt_deg", "transport_max_tilt_deg"}
-    # Never compared: the run's own bookkeeping (the code version is named separately).
-    bookkeeping = {"wall_time_s", "pid", "realtime_factor", "bite_wall_time_s", "traceback",
-                   "source"}
     if logged is None:
         verdict = "no logged record to compare with"
     else:
-        ignored = timing | bookkeeping
+        ignored = TIMING_FIELDS | BOOKKEEPING_FIELDS
         diff = sorted(k for k in rec if k not in ignored and logged.get(k) != rec[k])
         verdict = "reproduces the logged record" if not diff else (
             f"differs from the logged record in {diff}")
-        moved = [f"{k} {logged.get(k)} → {rec[k]}" for k in sorted(timing & rec.keys())
+        moved = [f"{k} {logged.get(k)} → {rec[k]}" for k in sorted(TIMING_FIELDS & rec.keys())
                  if logged.get(k) != rec[k]]
         if moved:
             verdict += f" (timing-dependent: {'; '.join(moved)})"
@@ -251,7 +256,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         cfg = ExperimentsConfig.load()
     except ExperimentsConfigError as err:
         raise _usage(str(err)) from None
-    trials, extra = _trials_for(exp, args, out, cfg)
+    trials, extra = trials_for(exp, args, out, cfg)
     # Checked before any trial runs; the trials themselves do not depend on it.
     threshold = _exp3_threshold(args, out, cfg) if exp == "exp3" else None
     th, th_src = _thresholds(args, out, cfg) if exp == "exp2c" else (None, "")
