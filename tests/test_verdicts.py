@@ -90,3 +90,19 @@ def test_exp2c_without_thresholds_says_so_rather_than_not_run():
     s = {"exp2c": {"thresholds_g": None, "foods": {}}}
     row = next(v for v in verdicts(s, CFG.thesis, ALPHA) if v.figure == "Fig. 6.4")
     assert row.verdict == "cannot test" and "thresholds" in row.ours
+
+
+def test_the_thesis_exp3_counts_are_read_out_of_its_own_trials_not_out_of_20():
+    from articutool.experiments.verdicts import thesis_trials
+
+    th = {"articutool": {"meaningful_success": 6, "trivial_success": 1, "table_spill": 2,
+                         "user_spill": 1, "planning_attempts": 1.2},
+          "baseline": {"meaningful_success": 1, "trivial_success": 3, "table_spill": 4,
+                       "user_spill": 2, "planning_attempts": 2.0}}
+    assert thesis_trials(th["articutool"]) == 10
+    side = {"n": 4, "counts": {"meaningful_success": 2}, "no_spill": {"k": 4},
+            "delivered_g": {"mean": 1.0, "sd": 0.0, "n": 4}, "planning_attempts": {"mean": None}}
+    s = {"exp3": {"systems": {"articutool": side, "baseline": side}}}
+    rows = [v for v in verdicts(s, {**CFG.thesis, "exp3": th}, ALPHA) if v.figure == "Fig. 6.5"]
+    assert rows[0].thesis == "6/10 vs 1/10"
+    assert rows[1].thesis == "7/10 vs 4/10 without spill"

@@ -20,7 +20,7 @@ from articutool.experiments.analysis import EXP2C_CLASSES, representative_trials
 from articutool.experiments.design import EXP2C_CONDITIONS
 from articutool.experiments.figures import mass_bars, outcome_bars
 from articutool.experiments.stats import FisherResult, fisher
-from articutool.experiments.verdicts import code_versions, verdicts
+from articutool.experiments.verdicts import code_versions, thesis_trials, verdicts
 from articutool.feeding.outcomes import OUTCOMES
 
 __all__ = ["HONESTY", "differences", "figure", "section", "thesis_exp3_no_spill", "write_report"]
@@ -343,9 +343,9 @@ def differences(exp: str, s: Mapping[str, Any], cfg: Any) -> list[str]:
             t = th["exp3"].get(sys_, {})
             if d["n"]:
                 ms = 100.0 * d["counts"]["meaningful_success"] / d["n"]
-                out.append(f"{sys_}: meaningful success {ms:.0f} % vs the thesis' "
-                           f"{5 * t.get('meaningful_success', 0):.0f} % "
-                           f"({ms - 5 * t.get('meaningful_success', 0):+.0f} points)")
+                tms = 100.0 * t.get("meaningful_success", 0) / max(thesis_trials(t), 1)
+                out.append(f"{sys_}: meaningful success {ms:.0f} % vs the thesis' {tms:.0f} % "
+                           f"({ms - tms:+.0f} points)")
             a = d["planning_attempts"].get("mean")
             if a is not None and "planning_attempts" in t:
                 out.append(f"{sys_}: {a:.2f} planning attempts to Staging vs the thesis' "

@@ -22,7 +22,9 @@ from typing import Any
 
 from scipy import stats as _st
 
-__all__ = ["Verdict", "code_versions", "verdicts"]
+from articutool.feeding.outcomes import OUTCOMES
+
+__all__ = ["Verdict", "code_versions", "thesis_trials", "verdicts"]
 
 
 @dataclass(frozen=True)
@@ -70,6 +72,11 @@ def _welch_from(a: Mapping[str, Any], b: Mapping[str, Any]) -> float | None:
         return None
     return float(_st.ttest_ind_from_stats(a["mean"], a["sd"], a["n"], b["mean"], b["sd"],
                                           b["n"], equal_var=False).pvalue)
+
+
+def thesis_trials(t: Mapping[str, Any]) -> int:
+    """The thesis' Exp. 3 trials of one system: the sum of its outcome counts (§6.3)."""
+    return sum(int(t.get(k, 0)) for k in OUTCOMES[:4])
 
 
 def _exp1(s: Mapping[str, Any], th: Mapping[str, Any], alpha: float) -> list[Verdict]:
@@ -154,7 +161,8 @@ def _exp3(s: Mapping[str, Any], th: Mapping[str, Any], alpha: float) -> list[Ver
     no_food = not a["delivered_g"].get("mean") and not b["delivered_g"].get("mean")
     out.append(Verdict(
         "H3", "Fig. 6.5", "noodles end to end: the Articutool has more meaningful successes",
-        f"{ta.get('meaningful_success')}/20 vs {tb.get('meaningful_success')}/20",
+        f"{ta.get('meaningful_success')}/{thesis_trials(ta)} vs "
+        f"{tb.get('meaningful_success')}/{thesis_trials(tb)}",
         f"{ms_a}/{a['n']} vs {ms_b}/{b['n']}; delivered {_msd(a['delivered_g'])} vs "
         f"{_msd(b['delivered_g'])}", f"Fisher two-sided p {_fmt_p(p)}",
         _decide(ms_a / a["n"] - ms_b / b["n"], p, alpha, no_food)))
@@ -162,8 +170,9 @@ def _exp3(s: Mapping[str, Any], th: Mapping[str, Any], alpha: float) -> list[Ver
     p = s.get("fisher_no_spill", {}).get("p")
     out.append(Verdict(
         "H3", "Fig. 6.5", "noodles end to end: the Articutool spills in fewer bites",
-        f"{20 - ta.get('table_spill', 0) - ta.get('user_spill', 0)}/20 vs "
-        f"{20 - tb.get('table_spill', 0) - tb.get('user_spill', 0)}/20 without spill",
+        f"{ta.get('meaningful_success', 0) + ta.get('trivial_success', 0)}/{thesis_trials(ta)}"
+        f" vs {tb.get('meaningful_success', 0) + tb.get('trivial_success', 0)}/"
+        f"{thesis_trials(tb)} without spill",
         f"{ns_a}/{a['n']} vs {ns_b}/{b['n']} without spill", f"Fisher two-sided p {_fmt_p(p)}",
         _decide(ns_a / a["n"] - ns_b / b["n"], p, alpha, no_food)))
     pa, pb = a["planning_attempts"], b["planning_attempts"]
