@@ -8,7 +8,6 @@ from typing import Any
 import numpy as np
 import pytest
 
-# render first: it chooses MuJoCo's headless GL backend before anything imports mujoco.
 from articutool.sim.render import Recorder, model_renderer, scene_camera
 from articutool.sim.world import FeedingWorld
 
@@ -66,3 +65,28 @@ def test_a_recorder_with_two_cameras_puts_them_side_by_side(loaded) -> None:
 def test_an_unknown_camera_is_refused_before_the_run(loaded) -> None:
     with pytest.raises(ValueError, match="camera must be one of"):
         Recorder(loaded, camera=("overview", "ceiling"))
+
+
+def test_rendering_works_whichever_articutool_module_imports_mujoco_first(tmp_path) -> None:
+    # CI aborted: an earlier test imported MuJoCo through another module (the viewer, the
+    # world) before sim.render could choose EGL, so MuJoCo bound GLFW, which has no display.
+    import os
+    import subprocess
+    import sys
+
+    script = (
+        "import articutool.viewer.geometry\n"
+        "import mujoco\n"
+        "from articutool.sim.render import model_renderer\n"
+        "m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom size=\".1\"/>"
+        "</worldbody></mujoco>')\n"
+        "r = model_renderer(m, 32, 24)\n"
+        "r.update_scene(mujoco.MjData(m))\n"
+        "print(r.render().shape)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "DISPLAY",
+                                                           "PYOPENGL_PLATFORM")}
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
+                         text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() == "(24, 32, 3)"

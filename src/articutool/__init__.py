@@ -5,6 +5,12 @@ Top-level names are the ones most users need; subsystems live in subpackages:
 (plan-then-verify), ``planning``, ``link``, ``sim``, ``feeding``, ``bench``.
 """
 
+import os
+
+# MuJoCo fixes its GL backend the first time anything imports it; choose headless EGL here,
+# before any articutool module can import mujoco, unless the caller chose a backend.
+os.environ.setdefault("MUJOCO_GL", "egl")
+
 from articutool.spec import Spec, SpecError, load_spec
 from articutool.tool.kinematics import (
     jacobian,

@@ -1,17 +1,15 @@
 """Offscreen pictures of the physics world: PNG snapshots and videos (MP4 or GIF).
 
-MuJoCo renders headless through EGL (``MUJOCO_GL=egl``, set here unless the caller chose a
-backend). EGL needs the system's libEGL and a Mesa driver (Debian: ``libegl1``,
-``libgl1-mesa-dri``; ``make`` installs them); without them :class:`RenderError` says so.
+MuJoCo renders headless through EGL (``MUJOCO_GL=egl``, set by the ``articutool`` package
+before any of its modules imports MuJoCo, unless the caller chose a backend). EGL needs the
+system's libEGL and a Mesa driver (Debian: ``libegl1``, ``libgl1-mesa-dri``; ``make``
+installs them); without them :class:`RenderError` says so.
 """
 
 from __future__ import annotations
 
 import copy
-import os
 from pathlib import Path
-
-os.environ.setdefault("MUJOCO_GL", "egl")
 
 import mujoco
 import numpy as np
