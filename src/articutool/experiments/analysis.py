@@ -5,7 +5,8 @@ hierarchy); Exp. 2c reads it the thesis' way (§5.2.3): meaningful success, triv
 transport failure (any spill, table or user), and a trial the tree could not finish
 (``failed``). Thresholds are applied here, at analysis time, so a trial never has to be rerun
 when Exp. 1's means (Exp. 2c's thresholds) change. Trials whose protocol raised (``error``)
-are counted and left out of every statistic.
+are counted and left out of every statistic; among them, the runs MuJoCo reset after a
+numerical instability (``PhysicsResetError``) are counted apart.
 """
 
 from __future__ import annotations
@@ -37,6 +38,9 @@ def _where(records: Iterable[dict[str, Any]], **kv: Any) -> list[dict[str, Any]]
 def _wall(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
     w = [float(r["wall_time_s"]) for r in records if r.get("wall_time_s") is not None]
     return {"trials": len(records), "errors": sum(1 for r in records if r.get("error")),
+            # of the errors, the trials MuJoCo reset after an instability (never counted)
+            "physics_resets": sum(1 for r in records
+                                  if str(r.get("error") or "").startswith("PhysicsResetError")),
             "wall_time_per_trial_s": describe(w).to_dict() if w else None,
             "wall_time_total_s": round(sum(w), 1),
             # The code each trial ran (trials logged before it was recorded: "not recorded").

@@ -247,8 +247,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     exp = args.experiment
     out = _check_common(args)
-    if args.video:
-        import articutool.sim.render  # noqa: F401  (chooses the EGL backend before MuJoCo loads)
     if getattr(args, "threshold_g", None) is not None and not (
             math.isfinite(args.threshold_g) and args.threshold_g >= 0):
         raise _usage(f"--threshold-g must be a finite mass >= 0 g; got {args.threshold_g}")

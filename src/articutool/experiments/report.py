@@ -128,8 +128,11 @@ def figure(exp: str, records: Sequence[dict[str, Any]], summary: Mapping[str, An
 def _run_line(s: Mapping[str, Any]) -> str:
     r = s.get("run", {})
     w = r.get("wall_time_per_trial_s") or {}
+    resets = r.get("physics_resets", 0)
     parts = [f"{r.get('trials', 0)} trials ({r.get('trials_per_condition', '?')} per "
-             f"condition; {r.get('errors', 0)} errors)"]
+             f"condition; {r.get('errors', 0)} errors"
+             + (f", of them {resets} runs that MuJoCo reset after a numerical instability, "
+                "not counted" if resets else "") + ")"]
     if w.get("mean") is not None:
         parts.append(f"wall time per trial {w['mean']:.1f} ± {_f(w.get('sd'), 1)} s, "
                      f"sum {r.get('wall_time_total_s')} s")

@@ -109,8 +109,6 @@ def _cmd_meal(args: argparse.Namespace) -> int:
         return _show_tree(args, lib, new_output_file("--show-tree", args.show_tree, _TREE_SUFFIXES))
     video = new_output_file("--video", args.video, (".mp4", ".gif"))
     record = new_output_file("--record", args.record, (".npz", ".mcap"))
-    if video is not None:
-        import articutool.sim.render  # noqa: F401  (selects EGL before MuJoCo loads)
     from articutool.feeding.meal import make_bite_world, run_meal
     from articutool.feeding.progress import TreeProgress
 
@@ -146,12 +144,17 @@ def _cmd_meal(args: argparse.Namespace) -> int:
         from articutool.sim.recording import Recorder as DataRecorder
 
         data_rec = DataRecorder(setup.world, extra={"meal": meta})
+    from articutool.sim.world import PhysicsResetError
+
     progress = TreeProgress(setup.world, live=not args.json)
     try:
         bites = run_meal(args.food, args.system, bites=args.bites, seed=args.seed,
                          threshold_g=args.threshold, setup=setup,
                          visitors=[progress, *visitors],
                          on_bite=None if args.json else _print_bite)
+    except PhysicsResetError as err:
+        print(f"error: {err}; the meal stopped", file=sys.stderr)
+        return 1
     finally:
         progress.stop()
         if mcap_rec is not None:  # also on Ctrl-C: the file is then complete

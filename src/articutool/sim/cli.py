@@ -39,7 +39,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     from articutool.cli_support import UsageError
     from articutool.sim.render import RenderError
     from articutool.sim.scenes import ScriptError, run_script
-    from articutool.sim.world import FeedingWorld
+    from articutool.sim.world import FeedingWorld, PhysicsResetError
 
     for opt, path in (("--video", args.video), ("--snapshot", args.snapshot)):
         if path is not None:
@@ -97,7 +97,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
             from articutool.sim.render import save_png
 
             save_png(world, args.snapshot)
-    except (RenderError, ScriptError) as err:
+    except (RenderError, ScriptError, PhysicsResetError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 1
     out = report.to_dict()

@@ -58,7 +58,18 @@ from articutool.tool.drivers.motor_model import MotorPlant
 from articutool.tool.runtime import ToolRuntime
 from articutool.trajectory import JointTrajectory
 
-__all__ = ["FeedingWorld", "FoodReport", "smooth_joint_motion"]
+__all__ = ["FeedingWorld", "FoodReport", "PhysicsResetError", "smooth_joint_motion"]
+
+# MuJoCo's warnings on which mj_step resets mjData to the model's defaults (its "simulation is
+# unstable" reset: NaN, Inf or huge qpos/qvel/qacc). Everything after is not the run's physics.
+_RESET_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+                   mujoco.mjtWarning.mjWARN_BADQACC)
+
+
+class PhysicsResetError(RuntimeError):
+    """MuJoCo reset the simulation after a numerical instability: the arm, the wrist and the
+    food jumped back to the model's defaults, so the run's outcome is meaningless and it stops
+    here (issue 26: such a run is detected and never counted)."""
 
 # Settled piles by (model, start state): restored instead of settled again (_settle). A few:
 # an experiment's conditions share a repeat's seed (common random numbers, experiments.design).
@@ -200,6 +211,7 @@ class FeedingWorld:
         self._imu_period = 1.0 / self.spec.imu.rate_hz
         self._ft_period = 1.0 / self.spec.ft.rate_hz
         self._step_count = 0
+        self._resets = 0  # MuJoCo's reset warnings seen so far (see PhysicsResetError)
         # Called after every tool tick with the world (recorders, loggers); not timed.
         self.on_tick: list[Callable[[FeedingWorld], None]] = []
         self._cpu = 0.0
@@ -366,6 +378,7 @@ class FeedingWorld:
         reach (MuJoCo adds ``dt`` to ``time`` each step, so does ``np.add.accumulate``)."""
         m, d, dt = self.model, self.data, self.dt
         c0 = time.thread_time()
+        t_start = float(d.time)
         refs, refv = self._arm_references(n)
         seen = np.empty((n, 6))
         ctrl, qpos, qvel, sens = d.ctrl, d.qpos, d.qvel, d.sensordata
@@ -405,6 +418,8 @@ class FeedingWorld:
                 if t >= self._next_ft - 1e-9:
                     self.ft.push(sens[s_f:s_f + 3].copy(), sens[s_t:s_t + 3].copy(), t)
                     self._next_ft += self._ft_period
+        if sum(d.warning[w].number for w in _RESET_WARNINGS) != self._resets:
+            self._raise_reset(t_start, n)
         self._vel_int = np.array([vi0, vi1])
         err = float(np.max(np.abs(seen - refs)))
         self.arm_tracking_error = max(self.arm_tracking_error, err)
@@ -419,6 +434,23 @@ class FeedingWorld:
         if ticked:
             for fn in self.on_tick:
                 fn(self)
+
+    def _raise_reset(self, t_start: float, n: int) -> None:
+        """Raise :class:`PhysicsResetError` naming the warning, the time and the body whose degree
+        of freedom went bad (MuJoCo's ``warning.lastinfo``)."""
+        m, d = self.model, self.data
+        self._resets = sum(d.warning[w].number for w in _RESET_WARNINGS)
+        what = []
+        for w in _RESET_WARNINGS:
+            if d.warning[w].number:
+                dof = int(d.warning[w].lastinfo)
+                body = (mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.dof_bodyid[dof]))
+                        if w != mujoco.mjtWarning.mjWARN_BADQPOS and 0 <= dof < m.nv else None)
+                what.append(f"{w.name} ×{d.warning[w].number} at "
+                            + (f"DOF {dof} (body {body!r})" if body else f"index {dof}"))
+        raise PhysicsResetError(f"MuJoCo reset the simulation after an instability between "
+                           f"t = {t_start:.3f} and {t_start + n * self.dt:.3f} s: "
+                           + "; ".join(what))
 
     def _arm_references(self, n: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The arm servos' position and velocity references for the next ``n`` steps (n, 6):
