@@ -72,7 +72,7 @@ def one_run(seed: int, turns: float, params: PhysicsParams | None = None,
             "wall_s": round(time.perf_counter() - t0, 1)}
 
 
-def _tests(a: list[float], b: list[float]) -> dict[str, Any]:
+def one_sided_tests(a: list[float], b: list[float]) -> dict[str, Any]:
     """One-sided a > b: Mann–Whitney U, and Welch's t where the samples vary."""
     out: dict[str, Any] = {}
     if len(a) > 1 and len(b) > 1:
@@ -81,6 +81,19 @@ def _tests(a: list[float], b: list[float]) -> dict[str, Any]:
         if np.std(a) + np.std(b) > 0:
             t = stats.ttest_ind(a, b, equal_var=False, alternative="greater")
             out["welch_t"] = {"t": float(t.statistic), "p_one_sided": float(t.pvalue)}
+    return out
+
+
+def twirl_vs_still(twirl: dict[int, float], still: dict[int, float]) -> dict[str, Any]:
+    """Grams by seed in each condition: :func:`one_sided_tests` (twirl > still) and, as the
+    conditions share seeds (the same pile), the paired Wilcoxon test over the seeds in both."""
+    out = one_sided_tests(list(twirl.values()), list(still.values()))
+    diff = [g - still[k] for k, g in twirl.items() if k in still]
+    if sum(d != 0 for d in diff) > 1:
+        w = stats.wilcoxon(diff, alternative="greater")
+        out["paired_wilcoxon"] = {"pairs": len(diff), "twirl_more": sum(d > 0 for d in diff),
+                                  "still_more": sum(d < 0 for d in diff),
+                                  "p_one_sided": float(w.pvalue)}
     return out
 
 
@@ -108,18 +121,11 @@ def summarise(runs: list[dict[str, Any]], turns: float) -> dict[str, Any]:
                      "n": len(g), "mean_g": m, "sd_g": sd, "lifted_any": sum(x > 0 for x in g),
                      "ft_n": len(ft), "ft_mean_g": fm, "ft_sd_g": fsd,
                      "rtf_mean": float(np.mean(rtf)) if rtf else math.nan}
-    out.update(_tests([r["lifted_g"] for r in kept["twirl"]],
-                      [r["lifted_g"] for r in kept["still"]]))
-    # The conditions share seeds (the same pile): the paired test, over seeds kept in both.
-    still = {r["seed"]: r["lifted_g"] for r in kept["still"]}
-    diff = [r["lifted_g"] - still[r["seed"]] for r in kept["twirl"] if r["seed"] in still]
-    if sum(d != 0 for d in diff) > 1:
-        w = stats.wilcoxon(diff, alternative="greater")
-        out["paired_wilcoxon"] = {"pairs": len(diff), "twirl_more": sum(d > 0 for d in diff),
-                                  "still_more": sum(d < 0 for d in diff),
-                                  "p_one_sided": float(w.pvalue)}
-    ft_tests = _tests([r["ft_mass_g"] for r in kept["twirl"] if r.get("ft_mass_g") is not None],
-                      [r["ft_mass_g"] for r in kept["still"] if r.get("ft_mass_g") is not None])
+    out.update(twirl_vs_still({r["seed"]: r["lifted_g"] for r in kept["twirl"]},
+                              {r["seed"]: r["lifted_g"] for r in kept["still"]}))
+    ft_tests = one_sided_tests(
+        [r["ft_mass_g"] for r in kept["twirl"] if r.get("ft_mass_g") is not None],
+        [r["ft_mass_g"] for r in kept["still"] if r.get("ft_mass_g") is not None])
     if ft_tests:
         out["ft_mass"] = ft_tests
     return out

@@ -26,17 +26,16 @@ import argparse
 import json
 import sys
 import tempfile
-import time
 import tomllib
 from pathlib import Path
 from typing import Any
 
 from articutool.experiments.config import ExperimentsConfig
+from articutool.experiments.protocols import exp1_trial
 from articutool.experiments.stats import describe, welch
-from articutool.feeding.bite import BiteSettings
-from articutool.feeding.meal import make_bite_world, run_bite
 from articutool.feeding.strategies import default_strategies_path
 from bench_io import machine
+from noodle_twirl import twirl_vs_still
 
 MEASURE_SEED0 = 8_000_000
 DEFAULT_JSON = Path("results/noodle_twirl_ablation.json")
@@ -69,29 +68,16 @@ def no_twirl_library(dest: Path) -> Path:
 
 def one(condition: str, seed: int, strategies: Path | None, cfg: ExperimentsConfig
         ) -> dict[str, Any]:
-    """One Exp. 1 trial (``experiments.protocols.exp1_trial``'s steps) for ``condition``."""
-    system = CONDITIONS[condition][0]
-    setup = make_bite_world("noodles", system, seed, strategies=strategies)
-    wall0 = time.perf_counter()
-    try:
-        r = run_bite(setup, stages=("above", "acquire", "resting"),
-                     timeout_s=cfg.exp1.timeout_s,
-                     settings=BiteSettings(budget_s=cfg.settings.plan_budget_s))
-    finally:
-        setup.arm.close()
-    w = setup.world
-    w.run(cfg.settings.settle_s)
-    return {"condition": condition, "seed": seed, "strategy": setup.strategy_name,
-            "stages": setup.strategy.stages.model_dump(),
-            "acquired_g": r.acquired_g, "mass_g": w.masses_g()["utensil"],
-            "end_state": r.end_state, "sim_time_s": r.sim_time_s,
-            "wall_time_s": time.perf_counter() - wall0,
-            "realtime_factor": w.realtime_factor}
+    """One Exp. 1 trial (:func:`~articutool.experiments.protocols.exp1_trial`) for
+    ``condition``, with ``strategies`` as its action library (None: the shipped one)."""
+    cond = {"food": "noodles", "system": CONDITIONS[condition][0], "strategies": strategies}
+    return {"condition": condition, "seed": seed, **exp1_trial(cond, seed, cfg)}
 
 
 def summarise(runs: list[dict[str, Any]]) -> dict[str, Any]:
     """Per condition: describe() of the mass at Resting and after ``acquire``; Welch's
-    two-sided test of the mass at Resting between each pair of conditions."""
+    two-sided test of the mass at Resting between each pair of conditions; and issue 26's
+    question, twirl > no twirl, one-sided (Welch and Mann–Whitney) and seed by seed."""
     by = {c: [r for r in runs if r["condition"] == c] for c in CONDITIONS}
     out: dict[str, Any] = {c: {"n": len(rs),
                                "mass_g": describe([r["mass_g"] for r in rs]).to_dict(),
@@ -102,6 +88,9 @@ def summarise(runs: list[dict[str, Any]]) -> dict[str, Any]:
     out["welch_mass"] = {f"{a} vs {b}": welch([r["mass_g"] for r in by[a]],
                                               [r["mass_g"] for r in by[b]]).to_dict()
                          for i, a in enumerate(names) for b in names[i + 1:]}
+    out["twirl_vs_no_twirl"] = twirl_vs_still(
+        {r["seed"]: r["mass_g"] for r in by["articutool"]},
+        {r["seed"]: r["mass_g"] for r in by["articutool_no_twirl"]})
     return out
 
 
@@ -118,6 +107,14 @@ def table(doc: dict[str, Any]) -> str:
     rows.append("")
     rows += [f"Welch (two-sided), {k}: p {v['p']:.3g}" if v.get("p") is not None
              else f"Welch, {k}: {v.get('note')}" for k, v in s["welch_mass"].items()]
+    t = s["twirl_vs_no_twirl"]
+    tests = [f"{name} p {t[key]['p_one_sided']:.3g}" for key, name in
+             (("welch_t", "Welch"), ("mann_whitney_u", "Mann–Whitney"),
+              ("paired_wilcoxon", "paired Wilcoxon")) if key in t]
+    if "paired_wilcoxon" in t:
+        pw = t["paired_wilcoxon"]
+        tests.append(f"more on {pw['twirl_more']} paired seeds, less on {pw['still_more']}")
+    rows.append("twirl > no twirl (one-sided): " + "; ".join(tests))
     return "\n".join(rows)
 
 

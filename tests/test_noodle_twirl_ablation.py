@@ -52,6 +52,9 @@ def test_summary_compares_every_pair_of_conditions(ablation) -> None:
     assert set(s["welch_mass"]) == {"articutool vs articutool_no_twirl",
                                     "articutool vs baseline",
                                     "articutool_no_twirl vs baseline"}
+    paired = s["twirl_vs_no_twirl"]["paired_wilcoxon"]  # same seeds: 2-0, 1-1, 3-0
+    assert (paired["pairs"], paired["twirl_more"], paired["still_more"]) == (3, 2, 0)
+    assert "welch_t" in s["twirl_vs_no_twirl"] and "mann_whitney_u" in s["twirl_vs_no_twirl"]
     assert "| articutool | 3 | 2.00 ± 1.00 |" in ablation.table({"summary": s})
 
 

@@ -259,11 +259,13 @@ def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
           stages: tuple[str, ...], timeout_s: float, visitors: Visitors) -> dict[str, Any]:
     """One bite through the feeding tree (:func:`articutool.feeding.meal.run_bite`): the
     world, arm and strategy from :func:`~articutool.feeding.meal.make_bite_world` (the
-    strategy drawn from the action library with the seed), the given stages."""
+    strategy drawn from the action library with the seed; ``cond["strategies"]``, when
+    given, is another action-library file), the given stages."""
     from articutool.feeding.bite import BiteSettings
     from articutool.feeding.meal import make_bite_world, run_bite
 
-    setup = make_bite_world(cond["food"], cond["system"], seed)
+    setup = make_bite_world(cond["food"], cond["system"], seed,
+                            strategies=cond.get("strategies"))
     if hook:
         hook(setup.world)
     try:
