@@ -285,3 +285,142 @@ def test_a_wildcard_or_malformed_namespace_is_refused(ns, tmp_path):
 def test_namespaces_in_use_still_load():
     for ns in ("/", "/articutool", "/lab_2/articutool"):
         assert LinkConfig(namespace=ns).namespace == ns
+
+
+# ------------------------------------------------- a run's own result files --
+RESULTS = Path(__file__).parents[1] / "results" / "experiments"
+NAN_EXP1 = '{"acquired_g": {"noodles": {"articutool": {"mean": NaN}}, "pecans": {"articutool": ' \
+           '{"mean": NaN}}, "water": {"articutool": {"mean": NaN}}}}'
+
+
+def _plant(path: Path, kind: str) -> None:
+    """A file that is not as articutool writes it, at ``path`` (its folder created)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if kind == "garbage":
+        path.write_text("this is not { json")
+    elif kind == "shape":
+        path.write_text('{"acquired_g": [1, 2], "foods": {"pecans": {"capacity_g": "heavy"}}}')
+    elif kind == "deep":
+        path.write_text("[" * DEPTH + "]" * DEPTH)
+    elif kind == "binary":
+        path.write_bytes(bytes(range(256)) * 8)
+    elif kind == "folder":
+        path.mkdir()
+    elif kind == "fifo":
+        os.mkfifo(path)  # nobody writes: a read would wait forever
+    elif kind == "nan":
+        path.write_text(NAN_EXP1.replace('"articutool": {"mean": NaN}', '"articutool": '
+                                         '{"mean": NaN}, "capacity_g": {"mean": NaN}')
+                        .replace('"acquired_g"', '"foods": {"pecans": {"capacity_g": {"mean": '
+                                 'NaN}}, "water": {"capacity_g": {"mean": NaN}}}, "acquired_g"'))
+    elif kind == "dangling":
+        path.symlink_to(path.parent / "nowhere.json")
+    else:
+        raise AssertionError(kind)
+
+
+# What each command reads: meal, exp3 and the report read Exp. 1's summary (their
+# thresholds), exp2c reads the capacity summary (its load).
+_READERS = {
+    "meal": (("meal", "--food", "pecans", "--bites", "1"), "exp1"),
+    "report": (("experiment", "report", "--out", "{out}"), "exp1"),
+    "exp3": (("experiment", "exp3", "--trials", "1", "--workers", "1", "--out", "{out}"),
+             "exp1"),
+    "exp2c": (("experiment", "exp2c", "--trials", "1", "--workers", "1", "--out", "{out}"),
+              "capacity"),
+}
+
+
+@pytest.mark.parametrize("command,kind", [
+    *(("report", k) for k in ("garbage", "shape", "deep", "binary", "folder", "fifo", "nan",
+                               "dangling")),
+    *((c, k) for c in ("meal", "exp3", "exp2c") for k in ("fifo", "nan")),
+])
+def test_a_result_summary_not_as_written_is_refused_naming_it(command, kind, tmp_path):
+    args, exp = _READERS[command]
+    out = tmp_path / "results" / "experiments"  # `meal` reads it relative to its folder
+    summary = out / exp / "summary.json"
+    _plant(summary, kind)
+    r = _cli(*(a.format(out=out) for a in args), cwd=tmp_path, timeout=60)
+    _refused(r, "summary.json")
+    assert not (out / exp / "trials.jsonl").exists() and not (out / exp / "run.json").exists()
+    assert not (out / "report.md").exists()
+
+
+def test_an_unreadable_old_summary_is_refused_before_resuming(tmp_path):
+    _plant(tmp_path / "capacity" / "summary.json", "garbage")
+    r = _cli("experiment", "capacity", "--trials", "1", "--workers", "1", "--out",
+             str(tmp_path))
+    _refused(r, str(tmp_path / "capacity" / "summary.json"), "not valid JSON")
+    assert sorted(p.name for p in (tmp_path / "capacity").iterdir()) == ["summary.json"]
+
+
+@pytest.mark.parametrize("name", ["trials.jsonl", "summary.json", "run.json"])
+def test_an_experiments_own_file_as_a_link_is_refused_and_the_target_kept(name, tmp_path):
+    mine = tmp_path / "mine.txt"
+    mine.write_text("my notes, no newline at the end")  # would be cut as a "torn tail"
+    (tmp_path / "out" / "capacity").mkdir(parents=True)
+    (tmp_path / "out" / "capacity" / name).symlink_to(mine)
+    r = _cli("experiment", "capacity", "--trials", "1", "--workers", "1", "--out",
+             str(tmp_path / "out"))
+    _refused(r, "--out", name, "symbolic link")
+    assert mine.read_text() == "my notes, no newline at the end"
+
+
+def test_an_experiments_own_folder_as_a_link_is_refused(tmp_path):
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "capacity").symlink_to(tmp_path / "elsewhere")
+    _refused(_cli("experiment", "capacity", "--trials", "1", "--workers", "1", "--out",
+                  str(tmp_path / "out")), "--out", "capacity", "symbolic link")
+    assert list((tmp_path / "elsewhere").iterdir()) == []
+
+
+@pytest.mark.parametrize("name", ["results.jsonl", "results.csv", "cactus.png", "run.json"])
+def test_a_benchmarks_own_file_as_a_link_is_refused_and_the_target_kept(name, tmp_path):
+    mine = tmp_path / "mine.txt"
+    mine.write_text('{"a torn": "tail"')
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / name).symlink_to(mine)
+    r = _cli("bench", "transport", "--out", str(out), "--workers", "1", "--limit", "1",
+             "--timeout", "1", "--systems", "decoupled")
+    _refused(r, "--out", name, "symbolic link")
+    assert mine.read_text() == '{"a torn": "tail"'
+    assert not (out / "results.jsonl").exists() or name == "results.jsonl"
+
+
+@pytest.fixture(scope="module")
+def exp1_results(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A copy of the committed Exp. 1 results (log and summary): a report can be written."""
+    out = tmp_path_factory.mktemp("results")
+    (out / "exp1").mkdir()
+    for name in ("trials.jsonl", "summary.json"):
+        (out / "exp1" / name).write_bytes((RESULTS / "exp1" / name).read_bytes())
+    return out
+
+
+@pytest.mark.parametrize("name", ["exp1/exp1.png", "report.md", "report.html"])
+def test_the_report_writes_no_figure_or_page_through_a_link(name, exp1_results, tmp_path):
+    mine = tmp_path / "mine.png"
+    mine.write_bytes(b"my own picture")
+    link = exp1_results / name
+    link.unlink(missing_ok=True)
+    link.symlink_to(mine)
+    try:
+        _refused(_cli("experiment", "report", "--out", str(exp1_results)), name.split("/")[-1],
+                 "symbolic link")
+    finally:
+        link.unlink()
+    assert mine.read_bytes() == b"my own picture"
+
+
+def test_a_fifo_as_the_reports_notes_or_old_report_does_not_hang(exp1_results):
+    for name in ("exp1/notes.md", "report.md"):
+        (exp1_results / name).unlink(missing_ok=True)
+        os.mkfifo(exp1_results / name)
+        try:
+            _refused(_cli("experiment", "report", "--out", str(exp1_results), timeout=60),
+                     name.split("/")[-1])
+        finally:
+            (exp1_results / name).unlink()

@@ -149,7 +149,9 @@ def _cmd_transport(args: argparse.Namespace) -> int:
         systems = tuple(dict.fromkeys(t.system for t in trials))
         config = RunConfig(ts.sha256, float(args.timeout), args.planner, ts.utensil,
                            spec_hash(spec))
-        output_dir("--out", out, ("run.json", "results.jsonl", "tolerance_sweep.jsonl"))
+        output_dir("--out", out, ("run.json", "results.jsonl", "tolerance_sweep.jsonl",
+                                  "results.csv", "cactus.png", "tolerance_sweep.csv",
+                                  "tolerance_sweep.png", "tolerance_sweep_trials.csv"))
         config.check_or_write(out / "run.json")
     except RunConfigError as err:
         raise _usage(str(err)) from None

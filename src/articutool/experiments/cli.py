@@ -27,6 +27,9 @@ __all__ = ["BOOKKEEPING_FIELDS", "TIMING_FIELDS", "add_commands", "trials_for"]
 
 RUN_EXPERIMENTS = ("capacity", "exp1", "exp2b", "exp2c", "exp3")
 DEFAULT_OUT = "results/experiments"
+# The most food a load or a threshold may name (g): more than any utensil of the spec holds
+# (a soup spoon's capacity is ~15 g), as ``sim --load`` and ``meal --threshold`` bound it.
+MAX_LOAD_G = 100.0
 # A trial record's fields that a rerun of its seed need not reproduce (the replay check,
 # benchmarks/experiment_scaling.py). Plans run in a thread while the world steps, so when a
 # plan is ready in simulated time depends on the machine's speed: these may differ slightly
@@ -45,8 +48,8 @@ def _usage(msg: str) -> Exception:
     return UsageError(msg)
 
 
-def _parse_food_grams(text: str, field: str) -> dict[str, float]:
-    """``"pecans=7,water=20"`` → ``{"pecans": 7.0, "water": 20.0}`` (grams > 0, finite)."""
+def _parse_food_grams(text: str, field: str, most: float) -> dict[str, float]:
+    """``"pecans=7,water=20"`` → ``{"pecans": 7.0, "water": 20.0}`` (grams in [0, most])."""
     out: dict[str, float] = {}
     for part in text.split(","):
         if not part.strip():
@@ -56,9 +59,9 @@ def _parse_food_grams(text: str, field: str) -> dict[str, float]:
             g = float(val)
         except ValueError:
             g = math.nan
-        if not sep or not food.strip() or not math.isfinite(g) or g < 0:
-            raise _usage(f"{field} must be FOOD=GRAMS[,FOOD=GRAMS] with grams >= 0; "
-                         f"got {part.strip()!r}")
+        if not sep or not food.strip() or not 0 <= g <= most:  # also refuses NaN
+            raise _usage(f"{field} must be FOOD=GRAMS[,FOOD=GRAMS] with grams in "
+                         f"[0, {most:g}]; got {part.strip()!r}")
         out[food.strip()] = g
     return out
 
@@ -97,7 +100,7 @@ def _thresholds(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str
     from articutool.experiments.runner import exp1_means
 
     if getattr(args, "thresholds_g", None):
-        th = _parse_food_grams(args.thresholds_g, "--thresholds-g")
+        th = _parse_food_grams(args.thresholds_g, "--thresholds-g", MAX_LOAD_G)
         other = sorted(set(th) - set(cfg.exp2c.foods))
         if other or not th:
             raise _usage(f"--thresholds-g must give grams for foods of Exp. 2c "
@@ -108,6 +111,12 @@ def _thresholds(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str
     if th:
         return th, f"our Exp. 1 Articutool means ({out / 'exp1' / 'summary.json'})"
     return None, "none: run exp1 first or pass --thresholds-g"
+
+
+def _check_threshold_g(args: argparse.Namespace) -> None:
+    v = getattr(args, "threshold_g", None)
+    if v is not None and not 0 <= v <= MAX_LOAD_G:  # also refuses NaN
+        raise _usage(f"--threshold-g must be a mass in [0, {MAX_LOAD_G:g}] g; got {v}")
 
 
 def _exp3_threshold(args: argparse.Namespace, out: Path, cfg: Any) -> float:
@@ -125,21 +134,25 @@ def _exp3_threshold(args: argparse.Namespace, out: Path, cfg: Any) -> float:
 
 
 def _exp2c_loads(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str, float], str]:
+    from articutool.thresholds import capacity_means
+
     if args.load_g:
-        loads = _parse_food_grams(args.load_g, "--load-g")
+        loads = _parse_food_grams(args.load_g, "--load-g", MAX_LOAD_G)
         src = "--load-g"
     else:
+        loads = capacity_means(out)
         p = out / "capacity" / "summary.json"
-        if not p.exists():
+        if loads is None:
             raise _usage(f"exp2c needs the capacity load: run `articutool experiment capacity "
                          f"--out {out}` first, or pass --load-g pecans=G,water=G")
-        s = json.loads(p.read_text(encoding="utf-8"))
-        loads = {f: v["capacity_g"]["mean"] for f, v in s["foods"].items()
-                 if v["capacity_g"].get("mean")}
         src = f"our capacity means ({p})"
     missing = [f for f in cfg.exp2c.foods if f not in loads or loads[f] <= 0]
     if missing:
         raise _usage(f"--load-g: no load > 0 g for {missing}")
+    too_big = {f: g for f, g in loads.items() if g > MAX_LOAD_G}
+    if too_big:
+        raise _usage(f"--load-g: a load must be at most {MAX_LOAD_G:g} g (more than any "
+                     f"utensil holds); got {too_big} from {src}")
     return loads, src
 
 
@@ -247,9 +260,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     exp = args.experiment
     out = _check_common(args)
-    if getattr(args, "threshold_g", None) is not None and not (
-            math.isfinite(args.threshold_g) and args.threshold_g >= 0):
-        raise _usage(f"--threshold-g must be a finite mass >= 0 g; got {args.threshold_g}")
+    _check_threshold_g(args)
     try:
         cfg = ExperimentsConfig.load()
     except ExperimentsConfigError as err:
@@ -262,7 +273,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return _replay(args, exp, trials, out)
     from articutool.cli_support import output_dir
 
-    d = output_dir("--out", out / exp, ("run.json", "trials.jsonl", "summary.json"))
+    d = output_dir("--out", out, ("run.json", "trials.jsonl", "summary.json", "notes.md",
+                                  f"{exp}.png"), own=exp)
+    old_summary = report.read_summary(d / "summary.json")  # unreadable: refused before a trial
     settings = {"experiment": exp, "seed": args.seed, "data_hash": data_hash(exp, cfg),
                 "conditions": extra["conditions"]}
     try:
@@ -288,17 +301,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
         command="articutool " + " ".join(shlex.quote(a) for a in sys.argv[1:])
         if sys.argv[1:2] == ["experiment"] else f"articutool experiment {exp}",
         data_hash=settings["data_hash"])
-    old_path = d / "summary.json"
-    if summary_run.ran == 0 and old_path.exists():  # nothing ran: keep when and how it did
-        old_run = json.loads(old_path.read_text(encoding="utf-8")).get("run", {})
+    if summary_run.ran == 0 and old_summary is not None:  # nothing ran: keep when and how
         for k in ("experiment_wall_time_s", "executor", "machine", "date", "command"):
-            if k in old_run:
-                summary["run"][k] = old_run[k]
+            if k in old_summary["run"]:
+                summary["run"][k] = old_summary["run"][k]
     summary.update({k: v for k, v in extra.items() if k != "conditions"})
     if exp == "exp2c":
         summary["thresholds_source"] = th_src
-    (d / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n",
-                                    encoding="utf-8")
+    from articutool.runfiles import replace_own
+
+    replace_own(d / "summary.json", json.dumps(summary, indent=1, allow_nan=False) + "\n")
     figure = report.figure(exp, records, summary, cfg, d)
     md = report.section(exp, summary, cfg, figure.name if figure else None)
     if args.json:
@@ -353,9 +365,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if not out.is_dir():
         raise _usage(f"--out {out} is not a directory of experiment results")
-    if args.threshold_g is not None and not (math.isfinite(args.threshold_g)
-                                             and args.threshold_g >= 0):
-        raise _usage(f"--threshold-g must be a finite mass >= 0 g; got {args.threshold_g}")
+    _check_threshold_g(args)
     cfg = ExperimentsConfig.load()
     th, src = _thresholds(args, out, cfg)
     threshold = (_exp3_threshold(args, out, cfg) if (out / "exp3" / "trials.jsonl").exists()

@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import datetime as _dt
 import hashlib
-import json
 import os
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
+
+from pydantic import BaseModel, ConfigDict, Field
 
 from articutool.experiments.analysis import EXP2C_CLASSES, representative_trials, summarize
 from articutool.experiments.design import EXP2C_CONDITIONS
@@ -22,8 +23,10 @@ from articutool.experiments.figures import mass_bars, outcome_bars
 from articutool.experiments.stats import FisherResult, fisher
 from articutool.experiments.verdicts import code_versions, thesis_trials, verdicts
 from articutool.feeding.outcomes import OUTCOMES
+from articutool.thresholds import Grams
 
-__all__ = ["HONESTY", "differences", "figure", "section", "thesis_exp3_no_spill", "write_report"]
+__all__ = ["HONESTY", "differences", "figure", "read_summary", "section", "thesis_exp3_no_spill",
+           "write_report"]
 
 ORDER = ("exp1", "exp2b", "capacity", "exp2c", "exp3")
 TITLES = {
@@ -92,6 +95,42 @@ def _table(head: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
     return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------- summaries --
+class _Open(BaseModel):
+    model_config = ConfigDict(extra="allow", frozen=True)
+
+
+class _Run(_Open):
+    machine: dict[str, Any] | None = None
+    date: str | None = None
+    command: str | None = None
+    executor: str | None = None
+    experiment_wall_time_s: Annotated[float, Field(strict=True, allow_inf_nan=False,
+                                                   ge=0)] | None = None
+
+
+class _SummaryFile(_Open):
+    run: _Run = Field(default_factory=_Run)
+    load_g: dict[str, Grams] | None = None
+    load_source: str | None = None
+    goals: list[str] | None = None
+
+
+def read_summary(path: Path) -> dict[str, Any] | None:
+    """An experiment's ``summary.json`` as this package writes it (``None`` if absent), for
+    what a rerun and the report take from it (the run's machine, date, command, loads,
+    goals): a file that is not as written (garbage, another shape, NaN, a link, a FIFO, a
+    folder) raises :class:`~articutool.datafile.ResultsError` naming it and the field."""
+    from articutool.runfiles import read_own_json
+
+    s = read_own_json(path, "experiment summary", _SummaryFile)
+    if s is None:
+        return None
+    out = s.model_dump(exclude_unset=True)
+    out["run"] = s.run.model_dump(exclude_unset=True)
+    return out
 
 
 # ------------------------------------------------------------------------ figures --
@@ -439,7 +478,9 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
     where our numbers differ, written by whoever examined the run (trials, videos).
     A report there that is not as this command wrote it (edited) is kept beside it first
     (:func:`_write_generated`), and ``on_kept(report, copy)`` is told."""
+    from articutool.datafile import ResultsError, read_text
     from articutool.experiments.runner import read_trials
+    from articutool.runfiles import own_folder
 
     parts = ["# The thesis' physical experiments in simulation\n",
              f"Generated {_dt.datetime.now(_dt.UTC).isoformat(timespec='seconds')} by "
@@ -458,26 +499,26 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
     at_verdicts = len(parts)
     for exp in ORDER:
         recs = read_trials(out, exp)
-        spath = out / exp / "summary.json"
-        if not recs or not spath.exists():
+        old = read_summary(out / exp / "summary.json")
+        if not recs or old is None:
             missing.append(exp)
             continue
-        old = json.loads(spath.read_text(encoding="utf-8"))
         summary = summarize(exp, recs, cfg, thresholds_g=thresholds_g, threshold_g=threshold_g)
-        summary["run"].update({k: v for k, v in old.get("run", {}).items()
+        summary["run"].update({k: v for k, v in old["run"].items()
                                if k not in summary["run"]})
         for k in ("load_g", "load_source", "goals"):
             if k in old:
                 summary[k] = old[k]
         if exp == "exp2c":
             summary["thresholds_source"] = thresholds_source
-        fig = figure(exp, recs, summary, cfg, out / exp)
+        fig = figure(exp, recs, summary, cfg, own_folder(out, exp))
         rel = f"{exp}/{fig.name}" if fig else None
         npath = out / exp / "notes.md"
-        notes = npath.read_text(encoding="utf-8") if npath.exists() else ""
+        notes = (read_text(npath, "notes", ResultsError) if npath.exists()
+                 or npath.is_symlink() else "")
         parts.append(section(exp, summary, cfg, rel, notes) + replays(exp, recs, summary, out))
         summaries[exp] = summary
-        m = old.get("run", {}).get("machine")
+        m = old["run"].get("machine")
         if m:
             machines[exp] = (m, old["run"].get("date"))
     parts.insert(at_verdicts, hypotheses_section(summaries, cfg))
@@ -521,25 +562,24 @@ def _ours(text: str) -> bool:
 
 def _write_generated(path: Path, text: str, on_kept: Callable[[Path, Path], None] | None
                      ) -> None:
-    """Write ``text`` and its mark to ``path``. A file there that is not, unchanged, one this
-    command wrote (a user edited it, or an older version wrote it) is first kept as
-    ``<name>.edited-<UTC time>`` (never overwritten) and ``on_kept(path, kept)`` is told."""
-    if path.exists():
-        try:
-            old = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError):
-            old = ""
-        if not _ours(old):
-            stamp = _dt.datetime.now(_dt.UTC).strftime("%Y%m%dT%H%M%SZ")
-            kept = path.with_name(f"{path.name}.edited-{stamp}")
-            n = 1
-            while kept.exists():
-                n += 1
-                kept = path.with_name(f"{path.name}.edited-{stamp}-{n}")
-            os.link(path, kept)  # fails rather than replace anything
-            path.unlink()  # the new report is a new file; the kept name holds the old one
-            if on_kept is not None:
-                on_kept(path, kept)
+    """Write ``text`` and its mark to ``path`` (:func:`articutool.runfiles.replace_own`:
+    never through a link). A file there that is not, unchanged, one this command wrote (a
+    user edited it, or an older version wrote it) is first kept as ``<name>.edited-<UTC
+    time>`` (never overwritten) and ``on_kept(path, kept)`` is told; a link, FIFO or folder
+    there is refused (:class:`~articutool.datafile.ResultsError`)."""
+    from articutool.runfiles import read_own_bytes, replace_own
+
+    old = read_own_bytes(path, "report")
+    if old is not None and not _ours(old.decode("utf-8", errors="replace")):
+        stamp = _dt.datetime.now(_dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+        kept = path.with_name(f"{path.name}.edited-{stamp}")
+        n = 1
+        while kept.exists() or kept.is_symlink():
+            n += 1
+            kept = path.with_name(f"{path.name}.edited-{stamp}-{n}")
+        os.link(path, kept, follow_symlinks=False)  # fails rather than replace anything
+        if on_kept is not None:
+            on_kept(path, kept)
     text = text if text.endswith("\n") else text + "\n"
     digest = hashlib.sha256(text.encode("utf-8")).hexdigest()
-    path.write_text(f"{text}{_MARK}{digest} -->\n", encoding="utf-8")
+    replace_own(path, f"{text}{_MARK}{digest} -->\n")
