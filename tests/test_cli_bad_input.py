@@ -424,3 +424,113 @@ def test_a_fifo_as_the_reports_notes_or_old_report_does_not_hang(exp1_results):
                      name.split("/")[-1])
         finally:
             (exp1_results / name).unlink()
+
+
+# ------------------------------------------------------------------ numbers --
+@pytest.mark.parametrize("step", ["1e-300", "1e-6"])
+def test_a_step_too_small_to_check_is_refused_not_reported_feasible(step):
+    r = _cli("verify", str(EXAMPLE), "--max-step-deg", step)
+    _refused(r, "max_step_deg", "samples")
+    assert "FEASIBLE" not in r.stdout
+
+
+@pytest.mark.parametrize("command", [
+    ("bench", "transport", "--out", "{tmp}/o", "--limit", "1"),
+    ("experiment", "capacity", "--trials", "1", "--out", "{tmp}/o"),
+])
+@pytest.mark.parametrize("workers", ["100000000000000000000", "1e20", "0", "2.5"])
+def test_workers_must_be_a_count_in_range(command, workers, tmp_path):
+    r = _cli(*(a.format(tmp=tmp_path) for a in command), "--workers", workers, timeout=60)
+    _refused(r, "--workers", "[1, 1024]")
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("loads", ["pecans=1e308,water=15", "pecans=7,water=inf",
+                                   "pecans=nan,water=15", "pecans=101,water=15"])
+def test_an_exp2c_load_beyond_any_utensil_is_refused(loads, tmp_path):
+    _refused(_cli("experiment", "exp2c", "--trials", "1", "--workers", "1", "--out",
+                  str(tmp_path), "--load-g", loads, timeout=60), "--load-g", "[0, 100]")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("setting,words", [
+    ("extra = 5", ("extra must be a table",)),
+    ('extra = {"a//b" = 1}', ("extra", "zenoh config path")),
+    ('extra = {"transport/unicast/max_links" = nan}', ("extra", "finite")),
+    ("reconnect_period = 1e308", ("reconnect_period", "(0, 60]")),
+    ("heartbeat_period = 1e9", ("heartbeat_period", "(0, 10]")),
+    ("call_timeout = inf", ("call_timeout", "(0, 3600]")),
+    ('multicast_scouting = "yes"', ("multicast_scouting", "true or false")),
+    ("publish_rate_hz = true", ("publish_rate_hz", "(0, 1000]")),
+])
+def test_link_config_values_out_of_range_are_refused_naming_the_field(setting, words,
+                                                                       tmp_path):
+    cfg = tmp_path / "link.toml"
+    cfg.write_text(setting + "\n")
+    _refused(_cli("client", "--link-config", str(cfg), "--wait", "1", "state", timeout=60),
+             str(cfg), *words)
+
+
+@pytest.mark.parametrize("var,value", [
+    ("ROS_DOMAIN_ID", "abc"), ("ROS_DOMAIN_ID", "233"), ("ROS_DOMAIN_ID", "-1"),
+    ("RMW_IMPLEMENTATION", "rmw_nothing_cpp"),
+])
+def test_a_bad_ros2_environment_is_refused_naming_the_variable(var, value):
+    env = {"PATH": "/usr/bin:/bin", "PYTHONPATH": str(SRC), "HOME": os.environ.get("HOME", "/tmp"),
+           "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", var: value}
+    r = subprocess.run([sys.executable, "-m", "articutool", "ros2", "--wait", "1"],
+                       capture_output=True, text=True, timeout=60, env=env)
+    _refused(r, var, repr(value))
+
+
+def test_the_installed_middleware_is_accepted():
+    from articutool.ros2.environment import check_ros_environment, installed_rmw_implementations
+
+    for rmw in installed_rmw_implementations():
+        check_ros_environment({"RMW_IMPLEMENTATION": rmw, "ROS_DOMAIN_ID": "232"})
+    check_ros_environment({"RMW_IMPLEMENTATION": "", "ROS_DOMAIN_ID": ""})  # rcl's defaults
+
+
+@pytest.mark.parametrize("args", [
+    ("vibrate_roll", *[str(k) for k in range(1100)]),  # 1 100 float32 parameters
+    ("x" * 5000,),  # a name longer than any request the tool reads
+])
+def test_an_oversized_primitive_request_is_refused_before_sending(args):
+    import time
+
+    t0 = time.monotonic()
+    r = _cli("client", "--wait", "30", "primitive", *args, timeout=60)
+    _refused(r, "max_request_bytes = 4096", "bytes")
+    assert time.monotonic() - t0 < 25  # refused, not waited for a tool or a reply
+
+
+def test_run_primitive_refuses_an_oversized_request_without_sending_it():
+    from articutool.link.client import ArticutoolClient
+    from articutool.link.memory_transport import MemoryBus, MemoryTransport
+
+    class Spy(MemoryTransport):
+        calls = 0
+
+        def call(self, ep, payload, timeout):  # type: ignore[no-untyped-def]
+            Spy.calls += 1
+            return super().call(ep, payload, timeout)
+
+    bus = MemoryBus()
+    client = ArticutoolClient(LinkConfig(), Spy(bus))
+    try:
+        with pytest.raises(ValueError, match="max_request_bytes"):
+            client.run_primitive("vibrate_roll", [1.0] * 1100)
+        assert Spy.calls == 0
+    finally:
+        client.close()
+        bus.close()
+
+
+def test_meal_show_tree_needs_no_threshold_and_help_promises_no_yaml(tmp_path):
+    r = _cli("meal", "--show-tree", cwd=tmp_path)  # no results/experiments here
+    assert r.returncode == 0, r.stderr
+    assert "bite tree for noodles" in r.stdout
+    assert "YAML" not in _cli("meal", "--help").stdout
+    (tmp_path / "s.yaml").write_text("strategies: {}\n")
+    _refused(_cli("meal", "--strategies", str(tmp_path / "s.yaml"), "--show-tree"),
+             "--strategies", "s.yaml", "YAML is not read")

@@ -10,15 +10,32 @@ from __future__ import annotations
 
 import argparse
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 from articutool.spec import Spec, load_spec
 
-__all__ = ["UsageError", "add_spec_option", "new_output_file", "output_dir", "spec_from_args"]
+__all__ = ["UsageError", "add_spec_option", "int_in", "new_output_file", "output_dir",
+           "spec_from_args"]
 
 
 class UsageError(Exception):
     """Bad input from the user: printed as ``error: …`` with exit code 2."""
+
+
+def int_in(lo: int, hi: int) -> Callable[[str], int]:
+    """An argparse ``type``: an integer in ``[lo, hi]``, else argparse's exit 2 with
+    ``argument --opt: must be an integer in [lo, hi]; got '…'`` (also for ``1e20`` or ``2.5``,
+    which ``int`` alone refuses without saying the range)."""
+    def integer(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            v = None
+        if v is None or not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"must be an integer in [{lo}, {hi}]; got {text!r}")
+        return v
+    return integer
 
 
 def add_spec_option(p: argparse.ArgumentParser) -> None:
@@ -29,14 +46,20 @@ def add_spec_option(p: argparse.ArgumentParser) -> None:
 
 def new_output_file(opt: str, path: str | None, suffixes: tuple[str, ...]) -> Path | None:
     """``path`` checked as a new output file for option ``opt`` (``None`` passes through):
-    one of ``suffixes``, not existing (nothing is overwritten), creatable (it is created and
-    removed again, so a folder that cannot be written, e.g. in ``/proc``, is found before any
-    work); ``UsageError`` naming the option otherwise."""
+    one of ``suffixes``, not existing and not a link, even a dangling one (nothing is
+    overwritten or written through), creatable (it is created and removed again, so a folder
+    that cannot be written, e.g. in ``/proc``, is found before any work); ``UsageError``
+    naming the option otherwise. The file is then written by an exclusive create or
+    :func:`articutool.runfiles.publish_new`, which never replace anything either."""
     if path is None:
         return None
     p = Path(path)
     if p.suffix.lower() not in suffixes:
         raise UsageError(f"{opt} must end in {' or '.join(suffixes)}; got {p.name!r}")
+    if p.is_symlink():
+        dangling = "" if p.exists() else " to nothing"
+        raise UsageError(f"{opt}: {p} is a symbolic link{dangling}; refusing to write through "
+                         "it (choose a new file)")
     if p.exists():
         raise UsageError(f"{opt}: {p} exists; refusing to overwrite it (choose a new file)")
     if not p.parent.is_dir():

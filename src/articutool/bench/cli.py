@@ -115,8 +115,6 @@ def _cmd_transport(args: argparse.Namespace) -> int:
     from articutool.cli_support import output_dir, spec_from_args
 
     # ---- validate everything before any work ----
-    if args.workers < 1:
-        raise _usage(f"--workers must be >= 1; got {args.workers}")
     if not math.isfinite(args.timeout) or args.timeout <= 0:
         raise _usage(f"--timeout must be a finite number of seconds > 0; got {args.timeout}")
     if args.limit is not None and args.limit < 1:
@@ -251,8 +249,9 @@ def _cmd_transport(args: argparse.Namespace) -> int:
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``bench tasks`` and ``bench transport``."""
+    from articutool.bench.executors import MAX_WORKERS
     from articutool.bench.runner import DEFAULT_TOLERANCES_DEG
-    from articutool.cli_support import add_spec_option
+    from articutool.cli_support import add_spec_option, int_in
 
     bench = sub.add_parser("bench", help="Exp. 2a transport benchmark: tasks and runner")
     bsub = bench.add_subparsers(dest="bench_command", required=True, metavar="BENCH_COMMAND")
@@ -272,8 +271,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    help="comma-separated systems (default: all three)")
     p.add_argument("--timeout", type=float, default=30.0,
                    help="planning timeout per trial, s (default 30; the thesis used 1000)")
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
-                   help="local worker processes (default: CPU count)")
+    p.add_argument("--workers", type=int_in(1, MAX_WORKERS), default=os.cpu_count() or 1,
+                   help=f"local worker processes in [1, {MAX_WORKERS}] (default: CPU count)")
     p.add_argument("--out", metavar="DIR", default="bench-results",
                    help="results directory; rerun with the same DIR to resume")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")

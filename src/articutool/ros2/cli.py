@@ -8,6 +8,7 @@ installed, 2 bad input (link config, endpoints, a tool id that is not a ROS 2 na
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
@@ -51,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
     from articutool.link.config import ConfigError, config_from_args
     from articutool.link.transport import LinkOpenError
     from articutool.ros2.build_interfaces import skip_reason
+    from articutool.ros2.environment import check_ros_environment
     from articutool.ros2.node import check_ros_token
 
     try:
@@ -59,6 +61,10 @@ def run(args: argparse.Namespace) -> int:
                                  "--ros-tool-id" if args.ros_tool_id else
                                  "--tool-id (or pass --ros-tool-id)")
     except (ConfigError, ValueError) as err:
+        return _err(str(err), 2)
+    try:  # before rcl reads them: it would raise deep in rclpy.init, or exit(102)
+        check_ros_environment(os.environ)
+    except ValueError as err:
         return _err(str(err), 2)
     try:
         import articutool_interfaces.srv  # noqa: F401

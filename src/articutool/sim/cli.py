@@ -11,7 +11,6 @@ import argparse
 import json
 import math
 import sys
-from pathlib import Path
 
 __all__ = ["add_commands"]
 
@@ -36,31 +35,14 @@ def _world_args(args: argparse.Namespace) -> dict:
 
 
 def _cmd_sim(args: argparse.Namespace) -> int:
-    from articutool.cli_support import UsageError
+    from articutool.cli_support import UsageError, new_output_file
     from articutool.sim.render import RenderError
     from articutool.sim.scenes import ScriptError, run_script
     from articutool.sim.world import FeedingWorld, PhysicsResetError
 
-    for opt, path in (("--video", args.video), ("--snapshot", args.snapshot)):
-        if path is not None:
-            p = Path(path)
-            if p.exists():
-                raise UsageError(f"{opt}: {p} exists; choose a new file (nothing is "
-                                 "overwritten)")
-            if not p.parent.is_dir():
-                raise UsageError(f"{opt}: folder {p.parent} does not exist")
-    if args.video is not None and Path(args.video).suffix.lower() not in (".mp4", ".gif"):
-        raise UsageError("--video: the file must end in .mp4 or .gif")
-    if args.snapshot is not None and Path(args.snapshot).suffix.lower() != ".png":
-        raise UsageError("--snapshot: the file must end in .png")
-    if args.record is not None:
-        p = Path(args.record)
-        if p.suffix.lower() != ".npz":
-            raise UsageError("--record: the file must end in .npz")
-        if p.exists():
-            raise UsageError(f"--record: {p} exists; choose a new file (nothing is overwritten)")
-        if not p.parent.is_dir():
-            raise UsageError(f"--record: folder {p.parent} does not exist")
+    new_output_file("--video", args.video, (".mp4", ".gif"))
+    new_output_file("--snapshot", args.snapshot, (".png",))
+    new_output_file("--record", args.record, (".npz",))
     kw = _world_args(args)
     if args.load is not None and not (math.isfinite(args.load) and 0 < args.load <= 100):
         raise UsageError(f"--load must be a mass in (0, 100] g; got {args.load}")

@@ -5,26 +5,20 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from pathlib import Path
 
 __all__ = ["add_commands"]
 
 
 def _cmd_verify(args: argparse.Namespace) -> int:
     from articutool.arm.model import ArmModel
-    from articutool.cli_support import UsageError, spec_from_args
+    from articutool.cli_support import UsageError, new_output_file, spec_from_args
     from articutool.trajectory import JointTrajectory
     from articutool.verify import verify_trajectory
 
     spec = spec_from_args(args)
     if args.utensil not in spec.utensils:
         raise UsageError(f"--utensil must be one of {sorted(spec.utensils)}; got {args.utensil!r}")
-    if args.wrist_out is not None:
-        out = Path(args.wrist_out)
-        if out.exists():
-            raise UsageError(f"--wrist-out {out} exists; refusing to overwrite it")
-        if not out.parent.is_dir():
-            raise UsageError(f"--wrist-out {out}: directory {out.parent} does not exist")
+    new_output_file("--wrist-out", args.wrist_out, (".json",))
     traj = JointTrajectory.load(args.trajectory)
     model = ArmModel(spec, utensil=args.utensil)
     rep = verify_trajectory(traj, model, spec, max_step_deg=args.max_step_deg)
