@@ -10,32 +10,16 @@ from __future__ import annotations
 
 import argparse
 import tempfile
-from collections.abc import Callable
 from pathlib import Path
 
 from articutool.spec import Spec, load_spec
 
-__all__ = ["UsageError", "add_spec_option", "int_in", "new_output_file", "output_dir",
+__all__ = ["UsageError", "add_spec_option", "new_output_file", "output_dir",
            "spec_from_args"]
 
 
 class UsageError(Exception):
     """Bad input from the user: printed as ``error: …`` with exit code 2."""
-
-
-def int_in(lo: int, hi: int) -> Callable[[str], int]:
-    """An argparse ``type``: an integer in ``[lo, hi]``, else argparse's exit 2 with
-    ``argument --opt: must be an integer in [lo, hi]; got '…'`` (also for ``1e20`` or ``2.5``,
-    which ``int`` alone refuses without saying the range)."""
-    def integer(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            v = None
-        if v is None or not lo <= v <= hi:
-            raise argparse.ArgumentTypeError(f"must be an integer in [{lo}, {hi}]; got {text!r}")
-        return v
-    return integer
 
 
 def add_spec_option(p: argparse.ArgumentParser) -> None:

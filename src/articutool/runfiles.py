@@ -51,6 +51,8 @@ def own_folder(root: str | Path, *parts: str, opt: str = "--out") -> Path:
     a link; each of ``parts`` is this run's own subfolder, created if absent and refused if it
     is a link or not a folder."""
     p = Path(root)
+    if p.is_symlink() and not p.exists():
+        raise ResultsError(f"{opt}: {p} is a symbolic link to nothing; name a folder")
     try:
         p.mkdir(parents=True, exist_ok=True)
     except OSError as err:

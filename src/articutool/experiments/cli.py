@@ -71,6 +71,9 @@ def _check_common(args: argparse.Namespace) -> Path:
 
     if not 1 <= args.trials <= MAX_TRIALS:
         raise _usage(f"--trials must be in [1, {MAX_TRIALS}] per condition; got {args.trials}")
+    from articutool.bench.cli import check_workers
+
+    check_workers(args.workers)
     if args.seed < 0:
         raise _usage(f"--seed must be >= 0; got {args.seed}")
     out = Path(args.out)
@@ -381,7 +384,6 @@ def _cmd_report(args: argparse.Namespace) -> int:
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``experiment …``."""
     from articutool.bench.executors import MAX_WORKERS
-    from articutool.cli_support import int_in
 
     p0 = sub.add_parser("experiment", help="the thesis' physical experiments in simulation")
     esub = p0.add_subparsers(dest="experiment", required=True, metavar="EXPERIMENT")
@@ -394,7 +396,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         p = esub.add_parser(name, help=helps[name])
         p.add_argument("--trials", type=int, default=20,
                        help="trials per condition (default 20, as the thesis)")
-        p.add_argument("--workers", type=int_in(1, MAX_WORKERS), default=os.cpu_count() or 1,
+        p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                        help=f"local worker processes in [1, {MAX_WORKERS}] (default: CPU "
                             "count)")
         p.add_argument("--scheduler", metavar="ADDRESS", default=None,
