@@ -35,7 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from articutool.food.dish import Dish
 from articutool.food.hydrostatics import Hydrostatics
-from articutool.food.slosh import SloshPrediction
+from articutool.food.slosh import SloshPrediction, uniform_grid
 
 __all__ = ["PileModel", "heap_integral"]
 
@@ -107,20 +107,9 @@ class PileModel:
         """What the pile keeps along a motion (apparent gravity ``g_app`` (N, 3) in the dish
         frame at ``times``), on the same uniform grid as the slosh model; the surface is the
         apparent one (no slosh)."""
-        t_in = np.asarray(times, dtype=float)
-        g_in = np.asarray(g_app, dtype=float)
-        if t_in.ndim != 1 or g_in.shape != (t_in.size, 3) or t_in.size == 0:
-            raise ValueError(f"times (N,) and g_app (N, 3), N ≥ 1; got {t_in.shape}, "
-                             f"{g_in.shape}")
-        if not (np.all(np.isfinite(t_in)) and np.all(np.isfinite(g_in))):
-            raise ValueError("times and g_app must be finite")
-        if np.any(np.diff(t_in) <= 0):
-            raise ValueError("times must be strictly increasing")
-        n = math.ceil((t_in[-1] - t_in[0] + self.tail_s) / self.dt - 1e-9) + 1
-        t = t_in[0] + self.dt * np.arange(n)
-        g = np.column_stack([np.interp(t, t_in, g_in[:, j]) for j in range(3)])
-        tilt = np.arctan2(np.hypot(g[:, 1], g[:, 2]), -g[:, 0])
-        direction = np.arctan2(g[:, 1], g[:, 2])
+        t, g = uniform_grid(times, g_app, self.dt, self.tail_s)
+        tilt = np.arctan2(np.hypot(g[1], g[2]), -g[0])
+        direction = np.arctan2(g[1], g[2])
         cap = self.capacity_at(tilt, direction)
         retained = np.minimum(self.volume, np.minimum.accumulate(cap))
         # the onset in the tilt's direction, |φ| folded into [0, π/2] by the dish's symmetry

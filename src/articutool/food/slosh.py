@@ -69,6 +69,7 @@ __all__ = [
     "SloshPrediction",
     "apparent_gravity",
     "rectangular_tank_mode",
+    "uniform_grid",
 ]
 
 STANDARD_GRAVITY = 9.80665  # m/s²
@@ -153,6 +154,24 @@ def apparent_gravity(times: ArrayLike, positions: ArrayLike, rotations: ArrayLik
                                                                            dtype=float)
     world = np.array([0.0, 0.0, -g]) - a
     return np.einsum("kji,kj->ki", R, world)
+
+
+def uniform_grid(times: ArrayLike, g_app: ArrayLike, dt: float, tail_s: float
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``g_app`` (N, 3) at ``times`` (N,) checked and interpolated linearly onto a grid ``dt``
+    apart from the first time to ``tail_s`` after the last (the last sample held): the grid
+    (M,) and the three components (3, M)."""
+    t_in = np.asarray(times, dtype=float)
+    g_in = np.asarray(g_app, dtype=float)
+    if t_in.ndim != 1 or g_in.shape != (t_in.size, 3) or t_in.size == 0:
+        raise ValueError(f"times (N,) and g_app (N, 3), N ≥ 1; got {t_in.shape}, {g_in.shape}")
+    if not (np.all(np.isfinite(t_in)) and np.all(np.isfinite(g_in))):
+        raise ValueError("times and g_app must be finite")
+    if np.any(np.diff(t_in) <= 0):
+        raise ValueError("times must be strictly increasing")
+    n = math.ceil((t_in[-1] - t_in[0] + tail_s) / dt - 1e-9) + 1
+    t = t_in[0] + dt * np.arange(n)
+    return t, np.stack([np.interp(t, t_in, g_in[:, j]) for j in range(3)])
 
 
 @dataclass(frozen=True)
@@ -274,20 +293,8 @@ class SloshModel:
         """The surface and the spill along a motion given by its apparent gravity ``g_app``
         (N, 3) in the dish frame at ``times`` (N,), s; the liquid starts at rest in
         equilibrium with the first sample and the last is held ``tail_s`` longer."""
-        t_in = np.asarray(times, dtype=float)
-        g_in = np.asarray(g_app, dtype=float)
-        if t_in.ndim != 1 or g_in.shape != (t_in.size, 3) or t_in.size == 0:
-            raise ValueError(f"times (N,) and g_app (N, 3), N ≥ 1; got {t_in.shape}, "
-                             f"{g_in.shape}")
-        if not (np.all(np.isfinite(t_in)) and np.all(np.isfinite(g_in))):
-            raise ValueError("times and g_app must be finite")
-        if np.any(np.diff(t_in) <= 0):
-            raise ValueError("times must be strictly increasing")
-        n = math.ceil((t_in[-1] - t_in[0] + self.tail_s) / self.dt - 1e-9) + 1
-        t = t_in[0] + self.dt * np.arange(n)
-        gx = np.interp(t, t_in, g_in[:, 0])
-        gy = np.interp(t, t_in, g_in[:, 1])
-        gz = np.interp(t, t_in, g_in[:, 2])
+        t, (gx, gy, gz) = uniform_grid(times, g_app, self.dt, self.tail_s)
+        n = t.size
         gn = np.hypot(gx, np.hypot(gy, gz))
         # A floor under the liquid needs apparent gravity into the dish; without one the
         # slopes are taken as if nearly vertical (everything runs out).
