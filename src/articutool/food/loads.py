@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 from articutool.food.dish import Dish
@@ -105,10 +106,12 @@ def food_load(name: str, grams: float, food: Any) -> FoodLoad:
                     "(a liquid or granular food is)")
 
 
+@lru_cache(maxsize=64)
 def load_model(dish: Dish | None, load: FoodLoad, utensil: str = "the utensil", *,
                dt: float = 0.004, tail_s: float = 1.0) -> SloshModel | PileModel:
     """The model predicting ``load``'s spill in ``dish`` (``None``: a fork, refused);
-    :class:`LoadError` when the load does not fit (names the range in grams)."""
+    :class:`LoadError` when the load does not fit (names the range in grams). Models are
+    immutable once built and cached (a plan's retimings ask for the same one again)."""
     if dish is None:
         raise LoadError(f"--utensil {utensil} has no dish: a load's spill is modelled on a "
                         "spoon")
