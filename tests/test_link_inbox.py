@@ -269,7 +269,7 @@ def test_a_flood_of_malformed_payloads_logs_a_few_lines_and_counts_them_all(capl
     raw = MemoryTransport(bus, "pc-1")
     ep = Names(tool_id=CFG.tool_id).client_heartbeat
     try:
-        with caplog.at_level(logging.WARNING, logger="articutool.link.server"):
+        with caplog.at_level(logging.WARNING, logger="articutool.link"):
             for i in range(3000):
                 raw.publish(ep, b"\x00\x01\x00\x00" + i.to_bytes(2, "little"))
             assert wait_until(lambda: server.counters["decode_errors"] == 3000, 10.0)

@@ -23,7 +23,7 @@ from articutool.link.transport import Endpoint, RateGate, RefusalError, Sender
 
 __all__ = ["Admission"]
 
-_log = logging.getLogger("articutool.link.server")  # the server's log, as before the split
+_log = logging.getLogger(__name__)
 _MAX_GATES = 1024  # per-sender rate gates kept (oldest forgotten: a fresh gate is full)
 _LOGGED = 10  # log lines per kind of dropped/refused/malformed message, then 1 in _EVERY
 _EVERY = 1000

@@ -30,7 +30,7 @@ from articutool.tool.api import Mode, PrimitiveStatus, ToolAPI
 
 __all__ = ["CommandHandlers"]
 
-_log = logging.getLogger("articutool.link.server")  # the server's log, as before the split
+_log = logging.getLogger(__name__)
 _ZERO_ID = bytes(16)
 
 

@@ -27,7 +27,7 @@ from articutool.link.transport import Responder, Sender
 
 __all__ = ["CommandInbox"]
 
-_log = logging.getLogger("articutool.link.server")  # the server's log, as before the split
+_log = logging.getLogger(__name__)
 
 
 class CommandInbox:

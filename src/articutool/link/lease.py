@@ -19,7 +19,7 @@ from collections import deque
 
 __all__ = ["CommandLease"]
 
-_log = logging.getLogger("articutool.link.server")  # the server's log, as before the split
+_log = logging.getLogger(__name__)
 
 
 class CommandLease:

@@ -26,7 +26,7 @@ from articutool.tool.controller import LevelingController
 
 __all__ = ["Leveling", "check_offsets", "requested_mode"]
 
-log = logging.getLogger("articutool.tool.runtime")  # the runtime's log, as before the split
+log = logging.getLogger(__name__)
 
 _TWO_PI = 2.0 * math.pi
 

@@ -24,7 +24,7 @@ from articutool.tool.filter import ComplementaryFilter
 
 __all__ = ["STALE_IMU_PERIODS", "Sensing"]
 
-log = logging.getLogger("articutool.tool.runtime")  # the runtime's log, as before the split
+log = logging.getLogger(__name__)
 
 STALE_IMU_PERIODS = 2.0  # issue 3: IMU data older than two loop periods is stale
 
