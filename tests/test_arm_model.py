@@ -11,8 +11,9 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.spatial.transform import Rotation
 
-from articutool import load_spec
-from articutool.arm import ArmModel, Scene
+from articutool.arm.model import ArmModel
+from articutool.arm.scene import Scene
+from articutool.spec import load_spec
 from articutool.tool import kinematics as kin
 
 SPEC = load_spec()

@@ -27,8 +27,8 @@ from articutool.bench.runner import (
     run_trial,
     run_trials,
 )
-from articutool.bench.tasks import load_task_set, save_task_set
-from articutool.planning.api import SYSTEMS, PlanRequest, PlanResult, TransportTask
+from articutool.bench.taskfile import load_task_set, save_task_set
+from articutool.planning.types import SYSTEMS, PlanRequest, PlanResult, TransportTask
 
 # ------------------------------------------------------------- stand-ins --
 

@@ -11,18 +11,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import articutool.cli as cli
-from articutool import load_spec
 from articutool.arm.ik import IKSettings, solve_pose_ik
 from articutool.arm.model import ArmModel
 from articutool.arm.scene import Scene
-from articutool.bench.tasks import (
-    FILE_VERSION,
-    TaskFileError,
-    generate_tasks,
-    load_task_set,
-    save_task_set,
-    tip_tilt_deg,
-)
+from articutool.bench.taskfile import FILE_VERSION, TaskFileError, load_task_set, save_task_set
+from articutool.bench.tasks import generate_tasks, tip_tilt_deg
+from articutool.spec import load_spec
 from articutool.tool.kinematics import nearest_leveling_solution
 
 LEVEL_TOL_DEG = 0.1  # IK converges to 1e-3 rad ≈ 0.057°

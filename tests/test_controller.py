@@ -10,8 +10,9 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from articutool import load_spec
-from articutool.tool.controller import LevelingController, quaternion_to_matrix
+from articutool.rotations import quaternion_to_matrix
+from articutool.spec import load_spec
+from articutool.tool.controller import LevelingController
 from articutool.tool.kinematics import (
     jacobian,
     joint_rates_for_rotation,

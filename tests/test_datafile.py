@@ -9,9 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from articutool import SpecError, load_spec
-from articutool.bench.tasks import TaskFileError, load_task_set
-from articutool.spec import default_spec_path
+from articutool.bench.taskfile import TaskFileError, load_task_set
+from articutool.spec import SpecError, default_spec_path, load_spec
 
 EXE = Path(sys.executable).with_name("articutool")
 LATIN1 = "version = 1\n# café, crème brûlée\n".encode("latin-1")  # not UTF-8

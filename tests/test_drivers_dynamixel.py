@@ -21,8 +21,18 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from articutool import load_spec
-from articutool.spec import SpecError, default_spec_path, parse_spec
+from articutool.dynamixel_units import (
+    bus_watchdog_units,
+    rad_s_to_velocity_units,
+    rad_to_ticks,
+    ticks_to_rad,
+    to_signed32,
+    to_unsigned32,
+    turns_lost_in_reboot,
+    velocity_limit_units,
+    velocity_units_to_rad_s,
+)
+from articutool.spec import SpecError, default_spec_path, load_spec, parse_spec
 from articutool.tool.api import Mode
 from articutool.tool.drivers.base import DriverError, HardwareError
 from articutool.tool.drivers.dynamixel import (
@@ -40,15 +50,6 @@ from articutool.tool.drivers.dynamixel import (
     ADDR_TORQUE_ENABLE,
     ADDR_VELOCITY_LIMIT,
     DynamixelDriver,
-    bus_watchdog_units,
-    rad_s_to_velocity_units,
-    rad_to_ticks,
-    ticks_to_rad,
-    to_signed32,
-    to_unsigned32,
-    turns_lost_in_reboot,
-    velocity_limit_units,
-    velocity_units_to_rad_s,
 )
 from articutool.tool.drivers.sim import SimWrist
 from articutool.tool.runtime import ToolRuntime

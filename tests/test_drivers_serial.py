@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from articutool import load_spec
+from articutool.spec import load_spec
 from articutool.tool.drivers.base import DriverError
 from articutool.tool.drivers.ft import (
     FRAME_LEN,

@@ -11,11 +11,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from articutool import load_spec
 from articutool.arm.model import ArmModel
-from articutool.bench.tasks import load_task_set
-from articutool.planning.api import PlanRequest, PlanResult, plan
+from articutool.bench.taskfile import load_task_set
+from articutool.planning.api import plan
 from articutool.planning.ompl_planner import _dense_times
+from articutool.planning.types import PlanRequest, PlanResult
+from articutool.spec import load_spec
 
 SPEC = load_spec()
 TASKS = {t.task_id: t for t in load_task_set().tasks}

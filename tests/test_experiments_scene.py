@@ -10,7 +10,8 @@ import pytest
 from articutool.arm.model import ArmModel
 from articutool.arm.scene import Scene, SceneError
 from articutool.experiments.config import ExperimentsConfig
-from articutool.planning.api import PlanRequest, TransportTask, plan
+from articutool.planning.api import plan
+from articutool.planning.types import PlanRequest, TransportTask
 from articutool.spec import load_spec
 
 SPEC = load_spec()

@@ -6,7 +6,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from articutool import load_spec
+from articutool.spec import load_spec
 from articutool.tool.kinematics import (
     jacobian,
     jacobian_pinv,

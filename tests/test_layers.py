@@ -119,8 +119,8 @@ def test_no_fixed_upward_arrow_returns() -> None:
 
 def test_validating_the_spec_does_not_import_the_motor_sdk() -> None:
     # the Bus Watchdog check needs the register's units, not dynamixel_sdk
-    script = ("import sys, articutool\n"
-              "articutool.load_spec()\n"
+    script = ("import sys\nfrom articutool.spec import load_spec\n"
+              "load_spec()\n"
               "print(sorted(m for m in sys.modules if m.startswith('dynamixel')))\n")
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                          timeout=120, check=True)

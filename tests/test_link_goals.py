@@ -14,13 +14,14 @@ from collections.abc import Iterator
 
 import pytest
 
-from articutool import load_spec
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.client import ArticutoolClient
 from articutool.link.config import LinkConfig
 from articutool.link.memory_transport import MemoryBus, MemoryTransport
 from articutool.link.server import ToolServer
 from articutool.link.transport import Names
+from articutool.spec import load_spec
 from articutool.tool.api import PrimitiveStatus
 from articutool.tool.drivers.base import HardwareError
 from link_fake_tool import FakeTool, wait_until
@@ -32,14 +33,14 @@ NAMES = Names(CFG.namespace)
 
 def send_goal(tr: MemoryTransport, gid: bytes, name: str, params: list[float]) -> bool:
     ep = NAMES.send_goal
-    reply = tr.call(ep, m.encode(m.send_goal_request(gid, name, params), ep.request_type), 2.0)
-    return bool(m.decode(reply, ep.response_type).accepted)
+    reply = tr.call(ep, cdr.encode(m.send_goal_request(gid, name, params), ep.request_type), 2.0)
+    return bool(cdr.decode(reply, ep.response_type).accepted)
 
 
 def get_result(tr: MemoryTransport, gid: bytes, timeout: float) -> m.PrimitiveResult:
     ep = NAMES.get_result
-    req = m.encode(m.msg(ep.request_type, goal_id=m.goal_uuid(gid)), ep.request_type)
-    return m.result_from_msg(m.decode(tr.call(ep, req, timeout), ep.response_type))
+    req = cdr.encode(cdr.msg(ep.request_type, goal_id=m.goal_uuid(gid)), ep.request_type)
+    return m.result_from_msg(cdr.decode(tr.call(ep, req, timeout), ep.response_type))
 
 
 def test_a_goal_finishing_between_ticks_gets_its_result_when_the_next_goal_starts() -> None:

@@ -16,6 +16,7 @@ from pathlib import Path
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.client import ArticutoolClient, LinkError
 from articutool.link.config import LinkConfig
@@ -95,7 +96,7 @@ def test_oversized_payloads_are_dropped_unread_and_counted() -> None:
     n = Names(tool_id=cfg.tool_id)
     try:
         raw.publish(n.joint_trajectory, b"\x00\x01\x00\x00" + bytes(5000))
-        req = m.encode(m.soc_request(Mode.LEVELING, 0.0, 0.0), n.set_orientation_control
+        req = cdr.encode(m.soc_request(Mode.LEVELING, 0.0, 0.0), n.set_orientation_control
                        .request_type)
         padded = req + bytes(300)
         try:
@@ -157,7 +158,7 @@ def test_a_flood_is_dropped_and_counted_and_a_stop_still_gets_through() -> None:
         asked = False
         while time.monotonic() < end:
             for _ in range(20):
-                p = m.encode(m.send_goal_request(uuid.uuid4().bytes, "TWIRL", [0.1]),
+                p = cdr.encode(m.send_goal_request(uuid.uuid4().bytes, "TWIRL", [0.1]),
                              names.send_goal.request_type)
                 flood._session.get(key, handler=lambda _r: None, payload=p, timeout=1.0)
             flood.publish(names.joint_trajectory, big)
@@ -311,7 +312,7 @@ def _play(server: ToolServer, tool: LoopTool, ops: list[tuple[str, str]]) -> Non
     def send(i: int, handler, ep, request, who: str) -> None:  # type: ignore[no-untyped-def]
         answers[i] = []
         try:
-            handler(m.encode(request, ep.request_type), answers[i].append,
+            handler(cdr.encode(request, ep.request_type), answers[i].append,
                     Sender(who, True, "pc"))
         except RefusalError as why:  # an error reply (rate, inbox full)
             answers[i].append(f"error: {why}")
@@ -346,4 +347,4 @@ def _play(server: ToolServer, tool: LoopTool, ops: list[tuple[str, str]]) -> Non
         reply = answers[i][0]
         assert isinstance(reply, bytes), reply  # a reply, not an error
         if ops[i][0] == "disable":
-            assert m.decode(reply, n.set_orientation_control.response_type).success
+            assert cdr.decode(reply, n.set_orientation_control.response_type).success

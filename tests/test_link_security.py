@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pytest
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.client import ArticutoolClient, ToolConflictError
 from articutool.link.config import LinkConfig, load_config
@@ -151,7 +152,7 @@ def test_one_commander_lease_take_over_and_forged_heartbeats(
         ep = Names(tool_id="wrist-1").client_heartbeat
         end = time.monotonic() + 1.5
         while time.monotonic() < end:  # longer than the tool's client_timeout (0.6 s)
-            forger.publish(ep, m.encode(m.heartbeat_msg(time.time(), "pc-1"), ep.type))
+            forger.publish(ep, cdr.encode(m.heartbeat_msg(time.time(), "pc-1"), ep.type))
             time.sleep(0.05)
         ok, msg = two.set_mode("leveling")  # the lease expired: the forgery kept nothing
         assert ok, msg

@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 import zenoh
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.auth import Signer
 from articutool.link.client import ArticutoolClient, LinkError
@@ -198,7 +199,7 @@ def _send(port: int, ep_name_key: str, payload: bytes, attachment: bytes,
             for reply in session.get(ep_name_key, payload=payload, attachment=attachment,
                                      timeout=2.0):
                 if reply.ok is not None:
-                    return m.decode(reply.ok.payload.to_bytes(), reply_type), ""
+                    return cdr.decode(reply.ok.payload.to_bytes(), reply_type), ""
                 return None, reply.err.payload.to_string()
             time.sleep(0.1)  # not connected yet
     raise AssertionError("no reply from the tool")
@@ -211,7 +212,7 @@ def test_a_replay_with_a_re_encoded_certificate_is_refused_and_nothing_moves(
     t, p, q = tool
     soc = Names(tool_id="wrist-1").set_orientation_control
     key = key_expr(0, soc)
-    payload = m.encode(m.soc_request(Mode.LEVELING, 0.0, 0.0), soc.request_type)
+    payload = cdr.encode(m.soc_request(Mode.LEVELING, 0.0, 0.0), soc.request_type)
     att = _capture(paired, soc.name, payload)
     reply, err = _send(q, key, payload, att, soc.response_type)
     assert reply is not None and reply.success, err  # the original: accepted once
@@ -237,12 +238,12 @@ def test_a_paired_pcs_refusals_name_the_real_reason(paired: Path,
     signer = Signer(paired / "pc-1" / "cert.pem", paired / "pc-1" / "key.pem")
     names = Names(tool_id="wrist-1")
     soc = names.set_orientation_control
-    payload = m.encode(m.soc_request(Mode.LEVELING, 0.0, 0.0), soc.request_type)
+    payload = cdr.encode(m.soc_request(Mode.LEVELING, 0.0, 0.0), soc.request_type)
     real = time.time_ns
     try:  # pc-1's clock 90 s behind the tool's
         time.time_ns = lambda: real() - 90 * 10**9  # type: ignore[assignment]
         late = signer.attachment(soc.name, payload)
-        goal = m.encode(m.send_goal_request(os.urandom(16), "TWIRL", [0.1]),
+        goal = cdr.encode(m.send_goal_request(os.urandom(16), "TWIRL", [0.1]),
                         names.send_goal.request_type)
         late_goal = signer.attachment(names.send_goal.name, goal)
     finally:

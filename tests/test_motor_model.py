@@ -11,8 +11,8 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from articutool import load_spec
 from articutool.sim.mj_drivers import MjMotorDriver
+from articutool.spec import load_spec
 from articutool.tool.drivers.base import HardwareError
 from articutool.tool.drivers.motor_model import SHUTDOWN_BITS, MotorModel, MotorPlant
 from articutool.tool.drivers.sim import SimWrist

@@ -8,7 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from articutool.bench.tasks import default_tasks_path
+from articutool.bench.taskfile import default_tasks_path
 
 EXE = Path(sys.executable).with_name("articutool")
 EXAMPLE = Path(__file__).parents[1] / "examples" / "transport_feasible.json"

@@ -10,12 +10,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from articutool import load_spec
+from articutool.spec import load_spec
 from articutool.tool.api import PrimitiveStatus
 from articutool.tool.kinematics import rotation, up_vector, wrap_angle
+from articutool.tool.primitive_base import Primitive, PrimitiveError
 from articutool.tool.primitives import (
-    Primitive,
-    PrimitiveError,
     make_primitive,
     primitive_names,
     register_primitive,
@@ -266,7 +265,7 @@ class _PushRoll(Primitive):
     parameter_names = ("speed_rad_s", "duration_s")
 
     def _plan(self, speed, duration):
-        from articutool.tool.primitives import Phase
+        from articutool.tool.phases import Phase
 
         class Push(Phase):
             def step(self, prim, t, q, dt):

@@ -20,8 +20,8 @@ import time
 import numpy as np
 import pytest
 
-from articutool import load_spec
 from articutool.onboard import background_services, format_status, main, run_tool
+from articutool.spec import load_spec
 from articutool.tool.api import Mode, ToolAPI
 from articutool.tool.drivers.base import DriverError, HardwareError, ImuSample
 from articutool.tool.drivers.sim import (
@@ -32,7 +32,7 @@ from articutool.tool.drivers.sim import (
 )
 from articutool.tool.runtime import ToolRuntime
 from articutool.trajectory import JointTrajectory
-from articutool.verify import verify_trajectory
+from articutool.verify.verifier import verify_trajectory
 
 SPEC = load_spec()
 DT = SPEC.wrist.period

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from articutool import load_spec
-from articutool.arm import ArmModel, Scene, SceneError, default_scene_path
+from articutool.arm.model import ArmModel
+from articutool.arm.scene import Scene, SceneError, default_scene_path
+from articutool.spec import load_spec
 
 SPEC = load_spec()
 

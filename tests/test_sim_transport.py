@@ -5,10 +5,9 @@ from pathlib import Path
 
 import pytest
 
-from articutool import load_spec
-from articutool.arm import ArmModel
+from articutool.arm.model import ArmModel
 from articutool.sim.transport import simulate_transport
-from articutool.spec import default_spec_path, parse_spec
+from articutool.spec import default_spec_path, load_spec, parse_spec
 from articutool.trajectory import JointTrajectory
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from articutool import load_spec
+from articutool.spec import load_spec
 from articutool.tool.drivers import make_drivers
 from articutool.tool.drivers.base import DriverError, HardwareError
 from articutool.tool.drivers.sim import (

@@ -18,9 +18,9 @@ from pathlib import Path
 
 import pytest
 
-from articutool import load_spec
 from articutool.link.client import ArticutoolClient
 from articutool.link.config import LinkConfig
+from articutool.spec import load_spec
 from articutool.tool.api import Mode
 
 HERE = Path(__file__).parent

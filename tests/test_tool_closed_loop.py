@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from articutool import load_spec
+from articutool.spec import load_spec
 from articutool.tool.api import Mode
 from articutool.tool.drivers.sim import SimWrist, axis_angle_rotation
 from articutool.tool.kinematics import up_vector

@@ -8,10 +8,10 @@ import sys
 
 import numpy as np
 
-from articutool import load_spec
 from articutool.arm.model import ArmModel
+from articutool.spec import load_spec
 from articutool.trajectory import JointTrajectory
-from articutool.verify import verify_trajectory
+from articutool.verify.verifier import verify_trajectory
 
 SPEC = load_spec()
 MODEL = ArmModel(SPEC, dof=6)

@@ -16,11 +16,11 @@ import pytest
 pytest.importorskip("mujoco")
 pytest.importorskip("viser")
 
-from articutool import load_spec
 from articutool.arm.model import ArmModel
 from articutool.sim.recording import Recorder, Recording, RecordingError
+from articutool.spec import load_spec
 from articutool.trajectory import JointTrajectory
-from articutool.verify import verify_trajectory
+from articutool.verify.verifier import verify_trajectory
 from articutool.viewer.plan import plan_view
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"

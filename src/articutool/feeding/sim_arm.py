@@ -33,7 +33,8 @@ from articutool.arm.model import ArmModel
 from articutool.arm.scene import SCOOP_HEADING
 from articutool.feeding.behaviours import JobResult
 from articutool.feeding.insertion import TipWaypoint
-from articutool.planning.api import PlanRequest, TransportTask, plan
+from articutool.planning.api import plan
+from articutool.planning.types import PlanRequest, TransportTask
 from articutool.sim.scenes import (
     ScriptError,
     cartesian_path,
@@ -43,7 +44,7 @@ from articutool.sim.scenes import (
 )
 from articutool.sim.world import FeedingWorld, smooth_joint_motion
 from articutool.trajectory import JointTrajectory
-from articutool.verify import verify_trajectory
+from articutool.verify.verifier import verify_trajectory
 
 __all__ = ["SimArm", "wrist_sweep"]
 

@@ -23,7 +23,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from articutool.datafile import format_validation_error, read_document
 from articutool.spec import NonNegative, Positive, Spec
-from articutool.tool.primitives import PrimitiveError, make_primitive, primitive_names
+from articutool.tool.primitive_base import PrimitiveError
+from articutool.tool.primitives import make_primitive, primitive_names
 
 __all__ = [
     "NONE",

@@ -18,8 +18,9 @@ import logging
 import threading
 from collections import OrderedDict
 
+from articutool.link.auth import Sender
 from articutool.link.config import LinkConfig
-from articutool.link.transport import Endpoint, RateGate, RefusalError, Sender
+from articutool.link.transport import Endpoint, RateGate, RefusalError
 
 __all__ = ["Admission"]
 

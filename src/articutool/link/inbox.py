@@ -23,7 +23,8 @@ from collections import OrderedDict, deque
 from collections.abc import Callable
 from functools import partial
 
-from articutool.link.transport import Responder, Sender
+from articutool.link.auth import Sender
+from articutool.link.transport import Responder
 
 __all__ = ["CommandInbox"]
 

@@ -31,55 +31,19 @@ from articutool.link.cdr import (
     GET_RESULT,
     GOAL_STATUS_ARRAY,
     HEADER,
-    IDL_DIR,
     IMU,
     JOINT_STATE,
     JOINT_TRAJECTORY,
-    PKG,
     SEND_GOAL,
     SET_ORIENTATION_CONTROL,
     TRIGGER,
     LinkDecodeError,
-    dds_type_name,
-    decode,
-    encode,
     msg,
-    type_hash,
-    typestore,
 )
 from articutool.tool.api import Mode, PrimitiveStatus, ToolState
 from articutool.trajectory import JointTrajectory, TrajectoryError
 
-__all__ = [
-    "ACTION",
-    "BATTERY_STATE",
-    "CANCEL_GOAL",
-    "DIAGNOSTIC_ARRAY",
-    "FEEDBACK_MESSAGE",
-    "GET_RESULT",
-    "GOAL_STATUS_ARRAY",
-    "HEADER",
-    "IDL_DIR",
-    "IMU",
-    "JOINT_STATE",
-    "JOINT_TRAJECTORY",
-    "PKG",
-    "SEND_GOAL",
-    "SET_ORIENTATION_CONTROL",
-    "TRIGGER",
-    "GoalStatus",
-    "LinkDecodeError",
-    "PrimitiveResult",
-    "dds_type_name",
-    "decode",
-    "encode",
-    "goal_uuid",
-    "msg",
-    "stamp_to_time",
-    "time_to_stamp",
-    "type_hash",
-    "typestore",
-]
+__all__ = ["GoalStatus", "PrimitiveResult", "goal_uuid", "stamp_to_time", "time_to_stamp"]
 
 
 class GoalStatus:

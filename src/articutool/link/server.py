@@ -80,6 +80,7 @@ import uuid
 from collections import deque
 from collections.abc import Callable
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.admission import Admission
 from articutool.link.config import LinkConfig
@@ -199,7 +200,7 @@ class ToolServer(CommandHandlers):
                 fn(*args)
             except RefusalError:  # the transport answers it with the reason
                 raise
-            except m.LinkDecodeError as err:
+            except cdr.LinkDecodeError as err:
                 self._note("decode_errors", "dropped a malformed payload (%s)", err)
             except Exception:
                 with self._lock:
@@ -214,7 +215,7 @@ class ToolServer(CommandHandlers):
         self._note("oversized", "dropped a message on %s (%s)", name, reason)
 
     def _pub(self, ep_name: str, message: object, typename: str) -> None:
-        self.transport.publish(getattr(self.names, ep_name), m.encode(message, typename))
+        self.transport.publish(getattr(self.names, ep_name), cdr.encode(message, typename))
 
     def work_once(self) -> None:
         """Run at most one queued ToolAPI call (stops first): :meth:`CommandInbox.work_once`.
@@ -227,7 +228,7 @@ class ToolServer(CommandHandlers):
             goal = self.goals.active
             ended = self._settle()
         if isinstance(ended, PrimitiveStatus) and goal is not None:
-            self._pub("feedback", m.feedback_msg(goal.goal_id, ended), m.FEEDBACK_MESSAGE)
+            self._pub("feedback", m.feedback_msg(goal.goal_id, ended), cdr.FEEDBACK_MESSAGE)
         self._answer(ended)
 
     def _check_client(self, now: float) -> None:
@@ -257,15 +258,15 @@ class ToolServer(CommandHandlers):
         with self._lock:
             counters = dict(self.counters)
             holder = self.holder or ""
-        self._pub("joint_states", m.joint_state_msg(state, wall), m.JOINT_STATE)
-        self._pub("imu", m.imu_msg(state, wall), m.IMU)
+        self._pub("joint_states", m.joint_state_msg(state, wall), cdr.JOINT_STATE)
+        self._pub("imu", m.imu_msg(state, wall), cdr.IMU)
         self._pub("health", m.health_msg(state, wall, counters, tool_id=self.cfg.tool_id,
-                                         lease_holder=holder), m.DIAGNOSTIC_ARRAY)
-        self._pub("battery", m.battery_msg(state, wall, self.cfg.tool_id), m.BATTERY_STATE)
+                                         lease_holder=holder), cdr.DIAGNOSTIC_ARRAY)
+        self._pub("battery", m.battery_msg(state, wall, self.cfg.tool_id), cdr.BATTERY_STATE)
         if now >= self._next_beat:
             self._next_beat = now + self.cfg.heartbeat_period
             self._pub("heartbeat", m.heartbeat_msg(wall, f"{self.cfg.tool_id}/{self.instance}"),
-                      m.HEADER)
+                      cdr.HEADER)
             self._publish_status()
 
     def _run(self) -> None:

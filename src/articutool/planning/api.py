@@ -16,25 +16,14 @@ from __future__ import annotations
 import math
 
 from articutool.planning.types import (
-    PHASES,
     PLANNERS,
     SYSTEMS,
     PlanRequest,
     PlanResult,
-    TransportTask,
 )
 from articutool.spec import Spec
 
-__all__ = [
-    "PHASES",
-    "PLANNERS",
-    "SYSTEMS",
-    "PlanRequest",
-    "PlanResult",
-    "TransportTask",
-    "plan",
-    "validate_request",
-]
+__all__ = ["plan", "validate_request"]
 
 
 def validate_request(request: PlanRequest) -> None:

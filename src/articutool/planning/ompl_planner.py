@@ -69,7 +69,6 @@ from articutool.planning.queries import (
     ArmQueries,
     dense_times,
     densify,
-    level_configuration,
     path_length,
 )
 from articutool.planning.timing import time_parameterize, wrist_rate_profile
@@ -79,7 +78,7 @@ from articutool.tool.kinematics import rotation as wrist_rotation
 from articutool.trajectory import JointTrajectory
 from articutool.verify.verifier import verify_trajectory
 
-__all__ = ["METHODS", "PlannerSettings", "level_configuration", "plan_transport"]
+__all__ = ["METHODS", "PlannerSettings", "plan_transport"]
 
 METHODS = ("projection", "rejection")
 _dense_times = dense_times  # its name here before the queries moved out (tests import it)

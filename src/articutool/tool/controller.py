@@ -64,7 +64,6 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from articutool.rotations import quaternion_to_matrix
 from articutool.spec import Spec
 from articutool.tool.kinematics import (
     TWO_PI,
@@ -74,7 +73,7 @@ from articutool.tool.kinematics import (
 )
 
 # quaternion_to_matrix (articutool.rotations) is re-exported: the runtime imports it from here.
-__all__ = ["LevelingController", "quaternion_to_matrix"]
+__all__ = ["LevelingController"]
 
 _Z = np.array([0.0, 0.0, 1.0])
 _X = np.array([1.0, 0.0, 0.0])

@@ -81,9 +81,6 @@ from articutool.tool.primitive_base import Primitive, PrimitiveError
 __all__ = [
     "Homing",
     "NoodleShed",
-    "Phase",
-    "Primitive",
-    "PrimitiveError",
     "Tilt",
     "TiltUntilLoad",
     "TwirlCCW",

@@ -99,21 +99,23 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
+from articutool.rotations import quaternion_to_matrix
 from articutool.spec import Spec
 from articutool.tool.api import ABORTED_BY_MODE_CHANGE, Mode, PrimitiveStatus, ToolState
-from articutool.tool.controller import LevelingController, quaternion_to_matrix
+from articutool.tool.controller import LevelingController
 from articutool.tool.drivers.base import FTDriver, ImuDriver, MotorDriver, MotorState
 from articutool.tool.envelope import SafetyEnvelope
 from articutool.tool.filter import ComplementaryFilter
 from articutool.tool.following import TrajectoryFollower
 from articutool.tool.kinematics import tilt_from_vertical, up_vector
 from articutool.tool.modes import Leveling, check_offsets, requested_mode
-from articutool.tool.primitives import Primitive, PrimitiveError, make_primitive
+from articutool.tool.primitive_base import Primitive, PrimitiveError
+from articutool.tool.primitives import make_primitive
 from articutool.tool.sensing import STALE_IMU_PERIODS, Sensing
 from articutool.tool.telemetry import EnergyMeter, LoopStats, build_state
 from articutool.trajectory import JointTrajectory, TrajectoryError
 
-__all__ = ["STALE_IMU_PERIODS", "LoopStats", "ToolRuntime"]
+__all__ = ["ToolRuntime"]
 
 log = logging.getLogger(__name__)
 

@@ -54,7 +54,6 @@ from articutool.dynamixel_units import (
     to_unsigned32,
     turns_lost_in_reboot,
     velocity_limit_units,
-    velocity_unit_rad_s,
     velocity_units_to_rad_s,
 )
 from articutool.spec import Spec
@@ -85,17 +84,6 @@ __all__ = [
     "OPERATING_MODE_POSITION",
     "OPERATING_MODE_VELOCITY",
     "DynamixelDriver",
-    "bus_watchdog_units",
-    "position_limit_ticks",
-    "rad_s_to_velocity_units",
-    "rad_to_ticks",
-    "ticks_to_rad",
-    "to_signed32",
-    "to_unsigned32",
-    "turns_lost_in_reboot",
-    "velocity_limit_units",
-    "velocity_unit_rad_s",
-    "velocity_units_to_rad_s",
 ]
 
 # --- X-series control table (protocol 2.0), address: size in bytes ------------------------
