@@ -1,4 +1,4 @@
-"""Floods a tool's command endpoints from its own process (issue 22, S1), as an attacker
+"""Floods a tool's command endpoints from its own process, as an attacker
 who reaches the tool's port would::
 
     python tests/link_flooder.py --connect ENDPOINT --mode MODE [--rate HZ] [--seconds S]
@@ -16,8 +16,8 @@ batches every 10 ms, round robin over the endpoints named):
   is then mutual TLS as that PC's): a paired PC flooding, which must not use another's share;
 - ``replay``: one captured signed request (``--capture``: JSON with key, payload and
   attachment, hex) sent again and again;
-- ``cancels``: cancel_goal for all goals and for random goal ids (an unpaired tool's stop
-  queue was filled this way).
+- ``cancels``: cancel_goal for all goals and for random goal ids (fills an unpaired tool's
+  stop queue unless equal stops join).
 
 Prints ``SENT <n> <seconds>`` on exit (stdin closed, or after ``--seconds``).
 """

@@ -1,4 +1,4 @@
-"""Issue 22, bad input and data safety: nonsense given to any command exits 2 with a message
+"""Bad input and data safety: nonsense given to any command exits 2 with a message
 naming the field and its allowed range, never a traceback, a hang or a lost file.
 
 Every case runs the real command in a subprocess on this tree's sources.

@@ -1,5 +1,5 @@
 """Data files given on the command line (--spec, --tasks, scenes): unreadable or malformed
-input exits 2 with a message naming the file, never a traceback (issue 8 item 13)."""
+input exits 2 with a message naming the file, never a traceback."""
 
 from __future__ import annotations
 

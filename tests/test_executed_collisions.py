@@ -1,8 +1,8 @@
-"""Decoupled transports are collision-checked as executed: arm + leveling wrist (issue 8.1).
+"""Decoupled transports are collision-checked as executed: arm + leveling wrist.
 
-The planner used to check collisions with the wrist locked at zero while the tool executes
-with the leveling wrist swinging the utensil by up to ~90°; on the packaged task set 5 of 87
-plans then hit the user's head or torso, or the arm base, with the spoon (tasks 44, 49, 53,
+The leveling wrist swings the utensil by up to ~90° during a transport, so a check with the
+wrist locked at zero misses collisions: on the packaged task set such a check passes 5 of 87
+plans that hit the user's head or torso, or the arm base, with the spoon (tasks 44, 49, 53,
 55 and 89 with seed 0).
 """
 

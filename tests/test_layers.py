@@ -1,5 +1,5 @@
-"""The import graph of ``src/articutool`` (issue 23): the circles and upward arrows fixed so
-far stay fixed. Imports go down the README's layers: spec/data → tool, arm → link, verify,
+"""The import graph of ``src/articutool``: no import circles and no upward arrows. Imports go
+down the README's layers: spec/data → tool, arm → link, verify,
 planning → sim → feeding → experiments, viewer, CLIs. Parsed with ``ast`` (lazy imports
 inside functions count too)."""
 
@@ -139,7 +139,7 @@ def test_only_the_entry_point_imports_the_top_level_cli() -> None:
 
 
 def test_feeding_takes_the_staging_goal_and_the_scoop_heading_from_the_arm_layer() -> None:
-    # issue 23: not from the demo or the scripted scenes (sim/demo.py, sim/scenes.py)
+    # not from the demo or the scripted scenes (sim/demo.py, sim/scenes.py)
     assert imports_from(GRAPH, "articutool.feeding", "articutool.sim.demo") == []
     assert ("articutool.arm.ik" in GRAPH["articutool.feeding.sim_arm"]
             and "articutool.arm.ik" in GRAPH["articutool.sim.demo"])

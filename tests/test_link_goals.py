@@ -1,4 +1,4 @@
-"""Every goal gets its own result (issue 8, items 5 and 9): the ToolServer identifies goals by
+"""Every goal gets its own result: the ToolServer identifies goals by
 the goal id it started, never by comparing primitive statuses.
 
 Over the in-process transport, against the fake tool and against the real ``ToolRuntime`` on
@@ -55,7 +55,7 @@ def test_a_goal_finishing_between_ticks_gets_its_result_when_the_next_goal_start
         assert send_goal(tr, a, "TWIRL", [0.25])
         assert wait_until(lambda: tool.primitive_status().done, 10.0)  # A ended, no tick saw it
         assert send_goal(tr, b, "TWIRL", [0.25])
-        res_a = get_result(tr, a, 2.0)  # before the fix: never answered (LinkTimeoutError)
+        res_a = get_result(tr, a, 2.0)  # answered, not lost
         assert res_a.success and res_a.status == m.GoalStatus.SUCCEEDED
         assert wait_until(lambda: tool.primitive_status().done, 10.0)
         server.tick()
@@ -162,7 +162,7 @@ def test_real_runtime_back_to_back_goals_from_two_clients(real: _RealTool) -> No
 
 
 def test_a_hardware_fault_is_cleared_over_the_link_only_explicitly(real: _RealTool) -> None:
-    # Issue 8.7: a refused LEVELING request must not reboot the motors; clear_fault does,
+    # A refused LEVELING request must not reboot the motors; clear_fault does,
     # and only once the overheated motor has cooled below spec.motors.reboot_below_c.
     client = ArticutoolClient(CFG, MemoryTransport(real.bus))
     try:

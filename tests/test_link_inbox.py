@@ -1,4 +1,4 @@
-"""The network cannot slow the loop (issue 13, item 4): bounded inbox, one command per tick,
+"""The network cannot slow the loop: bounded inbox, one command per tick,
 size and rate limits, and a flood against a real tool process."""
 
 from __future__ import annotations
@@ -193,7 +193,7 @@ def test_a_flood_is_dropped_and_counted_and_a_stop_still_gets_through() -> None:
 
 def test_link_loss_is_the_lease_holders_silence_not_any_clients() -> None:
     """Policy 'cancel': the commanding PC goes silent while an observer chats on; the
-    running primitive is cancelled (before the fix the observer's heartbeats hid it)."""
+    running primitive is cancelled (the observer's heartbeats do not hide it)."""
     bus = MemoryBus()
     tool = FakeTool()
     cfg = CFG.replace(link_loss_policy="cancel", client_timeout=0.5)
@@ -260,7 +260,7 @@ def test_prevalidated_trajectories_leave_the_loop_only_the_start_to_check() -> N
 
 
 def test_a_flood_of_malformed_payloads_logs_a_few_lines_and_counts_them_all(caplog) -> None:  # type: ignore[no-untyped-def]
-    """Issue 22: one WARNING per malformed payload was ~1 800 lines/s under a flood."""
+    """One WARNING per malformed payload would be ~1 800 lines/s under a flood."""
     import logging
 
     bus = MemoryBus()
@@ -289,7 +289,7 @@ _OPS = ("disable", "level", "cancel_all", "cancel_other", "goal", "tick")
 @given(st.lists(st.tuples(st.sampled_from(_OPS), st.sampled_from(("pc-1", "pc-2"))),
                 max_size=60))
 def test_stops_are_never_refused_and_go_first_whatever_the_order(ops) -> None:  # type: ignore[no-untyped-def]
-    """Issue 22, S1, as a property over every interleaving of requests and loop ticks: no
+    """As a property over every interleaving of requests and loop ticks: no
     stop is refused, at most one DISABLED and one cancel wait, a tick with a stop waiting runs
     a stop, and every request is answered exactly once (equal stops joined, not dropped)."""
     tool = LoopTool()

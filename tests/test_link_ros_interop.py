@@ -1,4 +1,4 @@
-"""Interoperability with real ROS 2: rclpy and the message packages from PyPI (issue 13, item 7).
+"""Interoperability with real ROS 2: rclpy and the message packages from PyPI.
 
 Every standard message type the link sends or receives is serialised by our encoder and
 deserialised by ROS 2 (``rclpy.serialization``, rmw_fastrtps_cpp typesupport), and the other

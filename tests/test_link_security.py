@@ -1,4 +1,4 @@
-"""Only the paired PC moves the utensil (issue 13, items 1-3 and 5): two real processes.
+"""Only the paired PC moves the utensil: two real processes.
 
 The fake tool (``link_fake_tool.py``) runs in its own process, paired by ``articutool pair``
 and listening on mutual TLS and, in one test, also on a plain loopback port (what a local

@@ -1,7 +1,7 @@
-"""Stops that always get through, replays that never do (issue 22, S1, S2 and refusal
-reasons): the tool (``link_fake_tool.py``) and the flooders (``link_flooder.py``) each run
-in their own process; the PCs run in pytest. ``CALLS`` (printed by the tool on exit) is what
-reached the tool's API. How long stops take under the worst flood is measured, not asserted:
+"""Stops that always get through, replays that never do, refusals that say why: the tool
+(``link_fake_tool.py``) and the flooders (``link_flooder.py``) each run in their own process;
+the PCs run in pytest. ``CALLS`` (printed by the tool on exit) is what reached the tool's API.
+How long stops take under the worst flood is measured, not asserted:
 ``benchmarks/bench_link_stops.py``."""
 
 from __future__ import annotations
@@ -76,8 +76,8 @@ def _stop(client: ArticutoolClient) -> tuple[bool, str]:
 
 def test_floods_of_unsigned_and_forged_commands_never_hold_back_a_paired_pcs_stops(
         paired: Path, tool: tuple[Tool, int, int]) -> None:
-    """Before the fix 38 of 40 of these stops failed 'rate limited' (the gate was per
-    endpoint, shared with the flood, and ran before the signature check)."""
+    """A rate gate per endpoint, shared with the flood and run before the signature check,
+    fails 38 of 40 of these stops 'rate limited': the gate is per verified sender."""
     t, p, q = tool
     pc = _pc(paired, "pc-1", p)
     floods = []
@@ -117,8 +117,8 @@ def test_floods_of_unsigned_and_forged_commands_never_hold_back_a_paired_pcs_sto
 
 
 def test_a_flood_of_cancels_never_fills_an_unpaired_tools_stops() -> None:
-    """Unpaired (loopback) tool, a flood of cancels: before the fix real stops got 'inbox is
-    full' (the cancels filled the stop queue); now equal stops join one another."""
+    """Unpaired (loopback) tool, a flood of cancels: equal stops join one another, so the
+    cancels cannot fill the stop queue and real stops never get 'inbox is full'."""
     q = free_port()
     t = Tool("--listen", f"tcp/127.0.0.1:{q}", "--tool-id", "wrist-1", "--tick-hz", "50")
     cfg = LinkConfig(connect=(f"tcp/127.0.0.1:{q}",), listen=(), tool_id="wrist-1", **FAST)
@@ -207,8 +207,8 @@ def _send(port: int, ep_name_key: str, payload: bytes, attachment: bytes,
 
 def test_a_replay_with_a_re_encoded_certificate_is_refused_and_nothing_moves(
         paired: Path, tool: tuple[Tool, int, int]) -> None:
-    """Before the fix the one-time cache keyed on the certificate's last 64 bytes: the
-    malleated copy of a captured LEVELING was accepted again and the tool moved."""
+    """The one-time cache keys on the signer's public key, not on the certificate's bytes:
+    a malleated copy of a captured LEVELING is a replay, and the tool does not move."""
     t, p, q = tool
     soc = Names(tool_id="wrist-1").set_orientation_control
     key = key_expr(0, soc)

@@ -1,4 +1,4 @@
-"""MCAP recordings (issue 28, item 4): ROS 2 CDR messages with embedded ``ros2msg`` schemas,
+"""MCAP recordings: ROS 2 CDR messages with embedded ``ros2msg`` schemas,
 read back with the standard readers (``mcap``'s reader and the ``mcap_ros2`` decoder).
 
 The tool and the client are real processes (``articutool tool --record``, ``articutool client

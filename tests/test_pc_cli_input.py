@@ -78,8 +78,8 @@ def test_info_prints_the_wrist_joint_order():
 
 
 def test_bad_input_exits_2_also_when_run_as_a_module():
-    # `python -m articutool.cli` used to run a second copy of the CLI module whose
-    # UsageError the handlers did not catch: exit 3 with a traceback.
+    # `python -m articutool.cli` must not run a second copy of the CLI module, whose
+    # UsageError the handlers would not catch (exit 3 with a traceback).
     for module in ("articutool.cli", "articutool"):
         proc = subprocess.run([sys.executable, "-m", module, "demo", "--seed", "-1"],
                               capture_output=True, text=True, timeout=120)

@@ -1,4 +1,4 @@
-"""Transport planners (issue 5): constraints math, OMPL planners, toppra timing, API errors."""
+"""Transport planners: constraints math, OMPL planners, toppra timing, API errors."""
 
 from __future__ import annotations
 

@@ -426,7 +426,7 @@ def test_any_accepted_request_runs_safely_to_completion(name, raw, q0):
     assert (np.abs(r.qs[:, 1]) <= max(BUDGET, abs(q0[1])) + 0.05).all()
 
 
-# ------------------------------------------------------- bounded primitives (issue 8) --
+# -------------------------------------------------------------- bounded primitives --
 P = SPEC.primitives
 
 

@@ -1,4 +1,4 @@
-"""RemoteTool: the link client as the ToolAPI the feeding tree drives (issue 22). Against the
+"""RemoteTool: the link client as the ToolAPI the feeding tree drives. Against the
 real runtime (``ToolRuntime`` on ``SimWrist`` in real time) behind a ``ToolServer`` on the
 memory transport, and over a link that carries nothing: the link's failures become refusals,
 never exceptions, and every goal is answered."""

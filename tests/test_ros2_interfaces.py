@@ -1,5 +1,5 @@
-"""The built ``articutool_interfaces`` ROS 2 package and the link's messages are one definition
-(issue 28, item 1): ROS 2 decodes the link's bytes of our own types and the other way round,
+"""The built ``articutool_interfaces`` ROS 2 package and the link's messages are one definition:
+ROS 2 decodes the link's bytes of our own types and the other way round,
 and the link's RIHS01 type hashes equal those rosidl wrote into the installed package.
 The include-path fix of the wheels' CMake exports is checked on copies of the real files.
 

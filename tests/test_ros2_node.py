@@ -1,4 +1,4 @@
-"""``articutool ros2`` on a real ROS 2 graph (issue 28): three processes.
+"""``articutool ros2`` on a real ROS 2 graph: three processes.
 
 The real tool (``articutool tool`` on the simulated drivers, paired, loopback TLS), the node
 (``articutool ros2``, forwarding over the paired link), and this test process as a plain
@@ -306,7 +306,7 @@ def test_sigterm_stops_an_idle_node(graph: Graph) -> None:
     (["--ros-tool-id", "9lives"], "--ros-tool-id"),
     (["--connect", "tcp/nowhere"], "connect"),
     (["--wait", "-1"], "--wait"),
-    (["--wait", "1e300"], "--wait"),  # bounded like the client's (issue 22): it hung
+    (["--wait", "1e300"], "--wait"),  # bounded like the client's: a huge wait would hang
 ])
 def test_bad_input_exits_2_naming_the_field(args: list[str], field: str) -> None:
     p = _articutool("ros2", *args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
@@ -363,8 +363,8 @@ class _ResultBeforeCancelReply:
 
 def test_a_cancel_whose_result_arrives_before_its_reply_still_cancels() -> None:
     """The node, in process, with a client whose tool result beats the cancel's reply: the
-    ROS 2 cancel is accepted and the goal ends CANCELED (before the fix: the goal ended
-    ABORTED and the cancel answered goals_canceling=[])."""
+    ROS 2 cancel is accepted and the goal ends CANCELED (not ABORTED with the cancel answering
+    goals_canceling=[])."""
     from rclpy.executors import MultiThreadedExecutor
 
     from articutool.ros2.node import ArticutoolRos2Node

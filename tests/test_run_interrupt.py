@@ -1,4 +1,4 @@
-"""Issue 22: a run interrupted by SIGINT or SIGTERM sent to its main process alone (as
+"""A run interrupted by SIGINT or SIGTERM sent to its main process alone (as
 ``kill -INT`` and ``timeout -s INT`` do) stops although trials are still running, keeps every
 finished trial in its log, and leaves no process behind. Real processes, real signals.
 

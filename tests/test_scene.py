@@ -114,7 +114,7 @@ def test_bad_scenes_name_the_object_and_field(data, expected):
 
 
 def test_the_scoop_heading_is_one_constant_of_the_arm_scene_the_scripts_use():
-    # issue 23: one source (arm/scene.py) for the sim scripts and the feeding tree
+    # one source (arm/scene.py) for the sim scripts and the feeding tree
     from articutool.arm.scene import SCOOP_HEADING
     from articutool.sim import scenes
 

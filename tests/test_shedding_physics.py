@@ -1,4 +1,4 @@
-"""Food that spills as real food does (issue 27): irregular pecan pieces of varying size, a
+"""Food that spills as real food does: irregular pecan pieces of varying size, a
 heaped (unstable) load that a locked carry spills, the closed-loop primitives as data."""
 
 from __future__ import annotations

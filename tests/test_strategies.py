@@ -64,7 +64,7 @@ def test_bad_strategies_are_refused_naming_the_field(edit, field: str) -> None:
 ])
 def test_a_bad_sweep_is_refused_naming_the_insertion_and_the_field(edit: dict,
                                                                    field: str) -> None:
-    # A sweep (issue 25) moves while it levels, stays near the floor and levels in the food.
+    # A sweep moves while it levels, stays near the floor and levels in the food.
     data = _with(lambda s: s["insertion"].update(motion="sweep", **edit))
     with pytest.raises(StrategyError, match=r"pecans_tilted_scoop\.insertion") as err:
         StrategyLibrary.from_dict(data, SPEC)

@@ -1,4 +1,4 @@
-"""The verifier checks the arm along the spline, not only at waypoints (issue 8.8)."""
+"""The verifier checks the arm along the spline, not only at waypoints."""
 
 from __future__ import annotations
 

@@ -24,8 +24,7 @@ the three systems: the 6 arm joints, and for the 8-DOF start/goal the leveling w
 at that arm configuration. Generation is deterministic given the seed; the file records the
 seed, the generator version and hashes of the spec and scene it was made with.
 
-The task file itself (its format, loading, checks and saving) is ``bench/taskfile.py``; its
-names are re-exported here.
+The task file itself (its format, loading, checks and saving) is ``bench/taskfile.py``.
 """
 
 from __future__ import annotations

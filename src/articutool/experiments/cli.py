@@ -30,7 +30,7 @@ DEFAULT_OUT = "results/experiments"
 # A trial record's fields that a rerun of its seed need not reproduce (the replay check,
 # benchmarks/experiment_scaling.py). Plans run in a thread while the world steps, so when a
 # plan is ready in simulated time depends on the machine's speed: these may differ slightly
-# between runs of one seed (``planning_time_s``: records written before issue 21).
+# between runs of one seed (``planning_time_s`` in older records).
 TIMING_FIELDS = frozenset({"planning_time_s", "planning_wall_s", "planning_wait_sim_s",
                            "motion_time_s", "sim_time_s", "max_tilt_deg",
                            "transport_max_tilt_deg"})

@@ -1,4 +1,4 @@
-"""``articutool meal``: bites with the feeding tree in the physics world (issue 10).
+"""``articutool meal``: bites with the feeding tree in the physics world.
 
 Prints the tree's progress live (the running behaviour, planning attempts, simulated time)
 and one record per bite; ``--json`` prints the records; ``--show-tree`` prints the tree and

@@ -81,7 +81,7 @@ class Approach(_Strict):
 class Insertion(_Strict):
     """How the utensil goes into the food."""
 
-    # sweep: dip tilted, level in the food while moving drag_m (issue 25; depth_m is then
+    # sweep: dip tilted, level in the food while moving drag_m (depth_m is then
     # the dish's lowest point above the floor)
     motion: Literal["scoop", "skewer", "dip", "sweep"]
     depth_m: NonNegative

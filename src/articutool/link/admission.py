@@ -1,4 +1,4 @@
-"""Who may reach the tool's commands, and how often (issues 13 and 22; thesis §3.2.2, §4.5).
+"""Who may reach the tool's commands, and how often (thesis §3.2.2, §4.5).
 
 On a paired tool (``LinkConfig.requires_pairing``) a command must come from a verified paired
 PC; the refusal names the real reason (clock out of sync, replay, expired certificate; "not a
@@ -43,7 +43,7 @@ class Admission:
     def note(self, key: str, fmt: str, *args: object) -> None:
         """Count one dropped, refused or malformed message under ``key`` and log it: the
         first few of each kind, then one in _EVERY with the count (a flood must not flood
-        the log: issue 22)."""
+        the log)."""
         with self._lock:
             self.counters[key] += 1
             n = self.counters[key]

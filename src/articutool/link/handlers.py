@@ -1,5 +1,5 @@
 """The link's command handlers: one per service and topic the tool serves (thesis §3.2.2,
-§4.5; issues 13 and 22).
+§4.5).
 
 Each handler admits the sender (``link/admission.py``: pairing, per-sender rate), decodes and
 validates the request, checks the command lease (``link/lease.py``), then queues the ToolAPI

@@ -1,5 +1,5 @@
 """The link's command inbox: decoded, validated ToolAPI calls waiting for the tool's loop, and
-the I/O that must never run on the loop's thread (issue 22, S1; thesis §3.2.2, §4.5).
+the I/O that must never run on the loop's thread (thesis §3.2.2, §4.5).
 
 The network cannot slow the loop, and no flood can hold back a stop. Commands wait in a
 bounded inbox (``inbox_size``; a full inbox refuses the command, ``dropped_excess``). Stops

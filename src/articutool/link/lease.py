@@ -1,4 +1,4 @@
-"""The command lease: one commander at a time (issue 13; thesis §3.2.2, §4.5).
+"""The command lease: one commander at a time (thesis §3.2.2, §4.5).
 
 The first command from a client gives it the lease, which its heartbeats and commands renew
 and which expires ``client_timeout`` seconds after it was last heard, or when it releases it.

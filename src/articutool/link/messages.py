@@ -8,8 +8,8 @@ orientation), ``diagnostic_msgs/DiagnosticArray`` (loop health, fault, mode, lin
 ``sensor_msgs/BatteryState`` (motor input voltage) and ``std_msgs/Header`` as a heartbeat.
 
 Payloads are serialised with ``rosbags`` as ROS 2 CDR (:mod:`articutool.link.cdr`: the type
-names, the interfaces parsed from the ROS 2 package beside it, ``encode``/``decode``; its names
-are re-exported here). Every decoder raises :class:`LinkDecodeError` on malformed input (never
+names, the interfaces parsed from the ROS 2 package beside it, ``encode``/``decode``).
+Every decoder raises :class:`LinkDecodeError` on malformed input (never
 another exception type), so a receiver can count and drop bad payloads. This module is pure.
 """
 

@@ -19,13 +19,13 @@ one the server settles the current goal (a goal that ended between two ticks get
 then), and while its goal still runs it refuses the new one itself, so no goal's final status
 is ever overwritten unseen.
 
-Who may command (issue 13): on a paired tool (``LinkConfig.requires_pairing``) every command,
+Who may command: on a paired tool (``LinkConfig.requires_pairing``) every command,
 trajectory and client heartbeat must carry a paired PC's signature (``articutool.link.auth``);
 anything else is refused (services answer ``success=false`` with the reason, topics are
 dropped) and counted (``refused_unpaired``). Telemetry is open to any session that reached the
 tool (on a paired tool, over mutual TLS, only paired devices reach it).
 
-A paired PC's refusals say why (issue 22): clocks out of sync, a replay, an expired
+A paired PC's refusals say why: clocks out of sync, a replay, an expired
 certificate; "not a paired PC" only when it is not. Refused goals and cancels, whose ROS
 replies carry no text, are answered with an error naming the reason (the client reads it).
 
@@ -39,7 +39,7 @@ stops: DISABLED and cancel are accepted from any admitted client, without moving
 per lease transition: granted, released, expired, take_over). On an unpaired link the names
 are the clients' own claims, so the lease orders honest clients only.
 
-The network cannot slow the loop, and no flood can hold back a stop (issue 22, S1): the
+The network cannot slow the loop, and no flood can hold back a stop: the
 transport drops payloads above a per-type size (``max_trajectory_bytes``,
 ``max_request_bytes``) before copying them (``oversized``) and verifies the sender; this
 server then refuses what is not admitted, limits each *sender* to ``max_rate_hz`` per

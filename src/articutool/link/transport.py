@@ -271,8 +271,9 @@ class Transport(ABC):
     Every message sent carries its sender (``articutool.link.auth``: a signature on a paired
     transport, a bare name otherwise). With ``with_sender=True`` a callback also receives the
     :class:`Sender` (verified before the callback runs, so the receiver can limit each
-    sender's rate on its own: issue 22, S1). With ``max_bytes`` a larger payload is dropped
-    before it is copied or decoded; ``on_drop(endpoint name, reason)`` (if set) is told.
+    sender's rate on its own, and no flood holds back a stop). With ``max_bytes`` a larger
+    payload is dropped before it is copied or decoded; ``on_drop(endpoint name, reason)`` (if
+    set) is told.
     """
 
     on_drop: Callable[[str, str], None] | None = None

@@ -55,7 +55,7 @@ A new primitive is one class: subclass :class:`Primitive`, set ``name`` and
 
 Where it lives: this module is the registry and the library; the base class is
 ``primitive_base.py`` and the phases (moves, holds, vibrations, the F/T-weighing ones) are
-``phases.py``. The names are re-exported here.
+``phases.py``.
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ Modes (``Mode``):
   at rest short of level, :attr:`LevelingController.stalled`) is no fault: the tool keeps
   leveling, and ``extra`` reports ``leveling_stalled`` = 1 with the tilt and the nearest
   reachable level configuration (``leveling_target_pitch``/``_roll``, rad; NaN when none is
-  reachable), so the PC sees it (issue 21).
+  reachable), so the PC sees it.
 - ``PRIMITIVE``: a primitive from :func:`~articutool.tool.primitives.make_primitive`; when it
   finishes the runtime returns to ``DISABLED`` and keeps its result.
 - ``TRAJECTORY``: follows a wrist :class:`~articutool.trajectory.JointTrajectory` (e.g. the
@@ -81,8 +81,7 @@ Composition: this module is the state machine, the loop and the fault handling; 
 composes are their own modules: ``modes.py`` (mode requests, LEVELING), ``envelope.py`` (the
 safety envelope and limit recovery), ``following.py`` (TRAJECTORY: validation and following),
 ``sensing.py`` (IMU → filter, freshness, F/T) and ``telemetry.py`` (loop statistics, energy,
-the state snapshot). Their names are re-exported here. What stays here (about 580 lines of
-code under this page of documentation) is one unit on purpose: the ToolAPI calls, the tick and
+the state snapshot). What stays here is one unit on purpose: the ToolAPI calls, the tick and
 the fault transitions read and write the same mode and fault state under one lock, and split
 apart each would have to reach into the others' state.
 """

@@ -22,7 +22,7 @@ Safety choices:
 - The multi-turn count survives a reboot (``clear_errors``): a rebooted X-series motor reports
   its position within one turn again, so the driver keeps the lost whole turns as an offset.
 
-One file on purpose (about 520 lines): it is one class implementing ``MotorDriver`` over
+One file on purpose: it is one class implementing ``MotorDriver`` over
 ``dynamixel_sdk``, and its register I/O and the safety sequences above (open, stop with its
 read-back, the watchdog's arming and clearing, the reboot with the turn offset) share the
 port, the registers' cached state and the error handling. The SDK-free register units are
