@@ -13,10 +13,10 @@ from scipy.spatial.transform import Rotation
 
 from articutool.arm.model import ArmModel
 from articutool.arm.scene import Scene
-from articutool.spec import load_spec
 from articutool.tool import kinematics as kin
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 TWO_PI = 2 * np.pi
 
 

@@ -11,7 +11,6 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from articutool.rotations import quaternion_to_matrix
-from articutool.spec import load_spec
 from articutool.tool.controller import LevelingController
 from articutool.tool.kinematics import (
     jacobian,
@@ -19,8 +18,9 @@ from articutool.tool.kinematics import (
     nearest_leveling_solution,
     up_vector,
 )
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 C = SPEC.controller
 LIMITS = SPEC.wrist.limits
 VMAX = SPEC.wrist.velocity_limits

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import socket
 import subprocess
 import sys
 import threading
@@ -25,7 +24,8 @@ from articutool.link.server import ToolServer
 from articutool.link.transport import Names, RateGate, key_expr
 from articutool.link.zenoh_transport import ZenohTransport
 from articutool.tool.api import Mode
-from link_fake_tool import FakeTool, wait_until
+from conftest import free_port, wait_until
+from link_fake_tool import FakeTool
 
 HERE = Path(__file__).parent
 CFG = LinkConfig(tool_timeout=0.5, client_timeout=1.0, heartbeat_period=0.05,
@@ -129,17 +129,11 @@ def test_rate_gate_passes_the_rate_and_drops_the_rest() -> None:
     assert 95 <= got <= 106
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def test_a_flood_is_dropped_and_counted_and_a_stop_still_gets_through() -> None:
     """Two processes: 2 s of ~2000 goals/s and 4 MB trajectories at the fake tool, while
     a client's DISABLED is answered. (Loop timing under a flood is measured, not asserted:
     benchmarks/bench_link_flood.py.)"""
-    port = _free_port()
+    port = free_port()
     env = dict(os.environ, PYTHONPATH=str(HERE.parent / "src"))
     proc = subprocess.Popen([sys.executable, str(HERE / "link_fake_tool.py"), "--listen",
                              f"tcp/127.0.0.1:{port}"], stdin=subprocess.PIPE,

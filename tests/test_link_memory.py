@@ -19,7 +19,8 @@ from articutool.link.memory_transport import MemoryBus, MemoryTransport
 from articutool.link.server import ToolServer
 from articutool.tool.api import Mode
 from articutool.trajectory import JointTrajectory
-from link_fake_tool import FakeTool, wait_until
+from conftest import wait_until
+from link_fake_tool import FakeTool
 
 CFG = LinkConfig(tool_timeout=0.3, client_timeout=0.3, heartbeat_period=0.05, call_timeout=1.0,
                  publish_rate_hz=50)
@@ -165,10 +166,10 @@ def test_link_loss_policy_for_a_running_primitive(policy: str) -> None:
         assert wait_until(lambda: r.tool.mode == Mode.PRIMITIVE)
         r.client_tr.connected = False  # the PC vanishes
         assert wait_until(lambda: r.server.counters["link_losses"] == 1, 3.0)
-        time.sleep(0.1)
         if policy == "cancel":
-            assert "cancel" in r.tool.calls and r.tool.mode == Mode.DISABLED
+            assert wait_until(lambda: "cancel" in r.tool.calls and r.tool.mode == Mode.DISABLED)
         else:
+            time.sleep(0.1)  # a window in which nothing may happen
             assert "cancel" not in r.tool.calls and r.tool.mode == Mode.PRIMITIVE
     finally:
         r.client_tr.connected = True

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import os
-import socket
 import subprocess
 import sys
 import time
@@ -26,16 +25,10 @@ from articutool.link.config import LinkConfig, load_config
 from articutool.link.pairing import pair
 from articutool.link.transport import Names
 from articutool.link.zenoh_transport import ZenohTransport
-from link_fake_tool import wait_until
+from conftest import free_port, wait_until
 
 HERE = Path(__file__).parent
 FAST = {"tool_timeout": 0.5, "heartbeat_period": 0.05, "call_timeout": 2.0}
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 class Tool:

@@ -25,8 +25,8 @@ from articutool.link.config import LinkConfig, load_config
 from articutool.link.pairing import pair
 from articutool.link.transport import Names, key_expr
 from articutool.tool.api import Mode
-from link_fake_tool import wait_until
-from test_link_security import FAST, Tool, free_port
+from conftest import free_port, wait_until
+from test_link_security import FAST, Tool
 
 
 class Flooder(Tool):
@@ -41,6 +41,12 @@ class Flooder(Tool):
         """Stop flooding; how many requests it sent."""
         return int(next((ln.split()[1] for ln in self.output().splitlines()
                          if ln.startswith("SENT")), "0"))
+
+
+def _counter(client: ArticutoolClient, name: str) -> float:
+    """A link counter from the tool's telemetry (0 before any telemetry arrived)."""
+    s = client.latest_state()
+    return float(s.extra.get(f"link_{name}", 0)) if s is not None else 0.0
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +93,7 @@ def test_floods_of_unsigned_and_forged_commands_never_hold_back_a_paired_pcs_sto
         floods = [Flooder("--connect", plain, "--mode", "unsigned", "--rate", "3000"),
                   Flooder("--connect", plain, "--mode", "forged", "--rate", "1000",
                           "--cert", str(paired / "pc-1" / "cert.pem"))]
-        time.sleep(0.5)
+        assert wait_until(lambda: _counter(pc, "refused_unpaired") > 0, 10.0)  # flood arrived
         stops = [_stop(pc) for _ in range(40)]
         refused = [s for s in stops if not s[0]]
         assert not refused, f"{len(refused)} of 40 stops refused: {refused[:3]}"
@@ -128,7 +134,7 @@ def test_a_flood_of_cancels_never_fills_an_unpaired_tools_stops() -> None:
         assert client.wait_for_tool(15.0)
         flood = Flooder("--connect", f"tcp/127.0.0.1:{q}", "--mode", "cancels", "--rate",
                         "3000")
-        time.sleep(0.5)
+        time.sleep(0.5)  # the flood runs before the stops (the tool counts no joined cancel)
         stops = [_stop(client) for _ in range(20)]
         assert all(ok for ok, _ in stops), [s for s in stops if not s[0]][:3]
     finally:
@@ -225,7 +231,8 @@ def test_a_replay_with_a_re_encoded_certificate_is_refused_and_nothing_moves(
             reply, err = _send(q, key, payload, again, soc.response_type)
             assert reply is not None and not reply.success
             assert "replayed" in reply.message and "not a paired PC" not in reply.message
-        time.sleep(0.2)
+        seen = pc2.latest_state().stamp  # type: ignore[union-attr]
+        assert wait_until(lambda: pc2.latest_state().stamp >= seen + 0.2)  # newer telemetry
         assert pc2.latest_state().mode.name == "DISABLED"  # type: ignore[union-attr]
     assert t.calls() == ["set_mode LEVELING", "set_mode DISABLED"]
 

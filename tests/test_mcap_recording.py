@@ -10,11 +10,9 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
-import time
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -32,6 +30,7 @@ from articutool.link import messages as m
 from articutool.link.recording import McapRecorder, RecordingError, schema_name
 from articutool.tool.api import Mode, PrimitiveStatus, ToolState
 from articutool.trajectory import JointTrajectory
+from conftest import free_port, wait_until
 
 SRC = Path(__file__).resolve().parent.parent / "src"
 ENV = dict(os.environ, PYTHONPATH=str(SRC))
@@ -52,12 +51,6 @@ def _read(path: Path) -> list[tuple[str, str, Any]]:
     with path.open("rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         return [(ch.topic, sch.name, dec) for sch, ch, _, dec in reader.iter_decoded_messages()]
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 T = 1_700_000_000.5
@@ -145,17 +138,13 @@ def _tool(tmp_path: Path, port: int, *extra: str) -> subprocess.Popen[str]:
 
 
 def _wait_for(path: Path, size: int, timeout: float) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if path.exists() and path.stat().st_size >= size:
-            return
-        time.sleep(0.1)
-    raise AssertionError(f"{path} did not reach {size} bytes")
+    assert wait_until(lambda: path.exists() and path.stat().st_size >= size, timeout, 0.1), \
+        f"{path} did not reach {size} bytes"
 
 
 def test_a_killed_tools_recording_is_readable_to_its_last_chunk(tmp_path: Path) -> None:
     path = tmp_path / "killed.mcap"
-    tool = _tool(tmp_path, _free_port(), "--record", str(path))
+    tool = _tool(tmp_path, free_port(), "--record", str(path))
     try:
         _wait_for(path, 60_000, 60)  # a few complete chunks (each about a second)
     finally:
@@ -179,9 +168,8 @@ def test_a_killed_tools_recording_is_readable_to_its_last_chunk(tmp_path: Path) 
 
 def test_ctrl_c_closes_the_tools_recording(tmp_path: Path) -> None:
     path = tmp_path / "tool.mcap"
-    tool = _tool(tmp_path, _free_port(), "--record", str(path))
-    _wait_for(path, 1, 60)
-    time.sleep(2.0)
+    tool = _tool(tmp_path, free_port(), "--record", str(path))
+    _wait_for(path, 60_000, 60)  # a few complete chunks (each about a second)
     tool.send_signal(signal.SIGINT)
     _, err = tool.communicate(timeout=30)
     assert tool.returncode == 0, err
@@ -195,7 +183,7 @@ def test_ctrl_c_closes_the_tools_recording(tmp_path: Path) -> None:
 
 
 def test_the_clients_recording_holds_its_goal(tmp_path: Path) -> None:
-    port = _free_port()
+    port = free_port()
     tool = _tool(tmp_path, port)
     path = tmp_path / "client.mcap"
     try:
@@ -382,7 +370,7 @@ def test_view_replays_an_mcap_recordings_joint_states(tmp_path: Path) -> None:
     with pytest.raises(RecordingError, match="not a readable MCAP"):
         load_mcap_motion(junk, spec)
     view = [sys.executable, "-m", "articutool", "view", "--recording"]
-    p = subprocess.run([*view, str(path), "--duration", "1", "--port", str(_free_port())],
+    p = subprocess.run([*view, str(path), "--duration", "1", "--port", str(free_port())],
                        env=ENV, capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
     assert "8-joint trajectory" in p.stdout and "viewer: http://" in p.stdout

@@ -12,12 +12,12 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from articutool.sim.mj_drivers import MjMotorDriver
-from articutool.spec import load_spec
 from articutool.tool.drivers.base import HardwareError
 from articutool.tool.drivers.motor_model import SHUTDOWN_BITS, MotorModel, MotorPlant
 from articutool.tool.drivers.sim import SimWrist
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 E = HardwareError
 BITS = st.sampled_from(list(E)).flatmap(
     lambda b: st.lists(st.sampled_from(list(E)), max_size=3).map(lambda r: [b, *r]))

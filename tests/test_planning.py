@@ -25,11 +25,11 @@ from articutool.planning.queries import level_configuration
 from articutool.planning.timing import time_parameterize
 from articutool.planning.types import PHASES, PlanRequest, TransportTask
 from articutool.sim.transport import simulate_transport
-from articutool.spec import load_spec
 from articutool.tool.kinematics import rotation as wrist_rotation
 from articutool.verify.verifier import verify_trajectory
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 angles = st.floats(-math.pi, math.pi, allow_nan=False)
 
 

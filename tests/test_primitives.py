@@ -10,7 +10,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from articutool.spec import load_spec
 from articutool.tool.api import PrimitiveStatus
 from articutool.tool.kinematics import rotation, up_vector, wrap_angle
 from articutool.tool.primitive_base import Primitive, PrimitiveError
@@ -20,8 +19,9 @@ from articutool.tool.primitives import (
     register_primitive,
     unregister_primitive,
 )
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 DT = SPEC.wrist.period
 VMAX = SPEC.wrist.velocity_limits
 TOL = SPEC.primitives.position_tolerance

@@ -21,7 +21,6 @@ import numpy as np
 import pytest
 
 from articutool.onboard import background_services, format_status, main, run_tool
-from articutool.spec import load_spec
 from articutool.tool.api import Mode, ToolAPI
 from articutool.tool.drivers.base import DriverError, HardwareError, ImuSample
 from articutool.tool.drivers.sim import (
@@ -33,8 +32,9 @@ from articutool.tool.drivers.sim import (
 from articutool.tool.runtime import ToolRuntime
 from articutool.trajectory import JointTrajectory
 from articutool.verify.verifier import verify_trajectory
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 DT = SPEC.wrist.period
 PITCH, ROLL = SPEC.wrist.joint_names
 R0 = axis_angle_rotation([0.0, 1.0, 0.0], -math.pi / 2)  # F0 +x (up at q = 0) along world z

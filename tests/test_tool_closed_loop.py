@@ -16,13 +16,13 @@ import math
 import numpy as np
 import pytest
 
-from articutool.spec import load_spec
 from articutool.tool.api import Mode
 from articutool.tool.drivers.sim import SimWrist, axis_angle_rotation
 from articutool.tool.kinematics import up_vector
 from articutool.tool.runtime import ToolRuntime
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 DT = SPEC.wrist.period
 JACO_MAX_RATE = float(SPEC.arm.max_velocity.max())  # 0.84 rad/s (joints 4-6)
 # F0 "neutral": the wrist's up vector at q = 0 (F0 +x) along world +z, utensil horizontal.
