@@ -13,7 +13,6 @@ import py_trees
 import pytest
 from py_trees.common import Status
 
-from articutool import load_spec
 from articutool.arm.scene import Scene
 from articutool.feeding.behaviours import JobResult
 from articutool.feeding.sim_arm import FoodDecision, SimArm
@@ -23,12 +22,13 @@ from articutool.planning.timing import time_parameterize
 from articutool.sim.params import PhysicsParams
 from articutool.tool.api import Mode
 from articutool.trajectory import JointTrajectory
-from articutool.verify import verify_trajectory
 from articutool.verify.food import food_check
+from articutool.verify.verifier import verify_trajectory
+from conftest import packaged_spec
 from test_feeding_tree import Clock, FakeArm, FakeJob, FakeTool
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-SPEC = load_spec()
+SPEC = packaged_spec()
 PHYS = PhysicsParams.load()
 PATH = JointTrajectory.load(EXAMPLES / "transport_feasible.json")
 FAST = time_parameterize(PATH.positions, PATH.joint_names, SPEC.arm.max_velocity,

@@ -17,10 +17,10 @@ from articutool.food.slosh import (
     apparent_gravity,
     rectangular_tank_mode,
 )
-from articutool.spec import load_spec
+from conftest import packaged_spec
 
 G = STANDARD_GRAVITY
-DISH = spoon_dish(load_spec().utensil("soup_spoon"))
+DISH = spoon_dish(packaged_spec().utensil("soup_spoon"))
 MODEL = SloshModel(DISH, 8e-6)
 
 

@@ -3,25 +3,23 @@ carried by the leveling, locked or slosh-free wrist, and the ``verify --load`` C
 
 import json
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from articutool import load_spec
 from articutool.arm.model import ArmModel
 from articutool.food.loads import LoadError, food_load, parse_load
 from articutool.planning.timing import time_parameterize
 from articutool.sim.params import PhysicsParams
 from articutool.tool.following import TrajectoryFollower
 from articutool.trajectory import JointTrajectory
-from articutool.verify import verify_trajectory
 from articutool.verify.food import dish_poses, food_check, slosh_free_wrist, spill_model
+from articutool.verify.verifier import verify_trajectory
+from conftest import assert_refused, packaged_spec, run_cli
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-SPEC = load_spec()
+SPEC = packaged_spec()
 MODEL = ArmModel(SPEC, "soup_spoon")
 PHYS = PhysicsParams.load()
 WATER = food_load("water", 8.0, PHYS.food("water"))
@@ -141,14 +139,9 @@ def test_loads_that_cannot_be_modelled() -> None:
         spill_model(SPEC, "fork", WATER)
 
 
-def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "articutool", "verify", *args],
-                          capture_output=True, text=True, timeout=300)
-
-
 def test_the_cli_reports_every_figure_and_refuses_bad_loads(tmp_path: Path) -> None:
     traj = str(EXAMPLES / "transport_feasible.json")
-    out = _cli(traj, "--utensil", "soup_spoon", "--load", "water:8", "--json")
+    out = run_cli("verify", traj, "--utensil", "soup_spoon", "--load", "water:8", "--json")
     assert out.returncode == 0, out.stderr
     food = json.loads(out.stdout)["food"]
     assert food["spill_free"] and food["spilled_g"] == 0.0
@@ -156,13 +149,12 @@ def test_the_cli_reports_every_figure_and_refuses_bad_loads(tmp_path: Path) -> N
     for load, field in (("soup:3", "--load food"), ("water:-2", "--load grams"),
                         ("water:nan", "--load"), ("water:20", "--load grams"),
                         ("noodles:2", "--load food")):
-        bad = _cli(traj, "--utensil", "soup_spoon", "--load", load)
-        assert bad.returncode == 2, (load, bad.stdout, bad.stderr)
-        assert field in bad.stderr and "Traceback" not in bad.stderr
-    nodish = _cli(traj, "--utensil", "fork", "--load", "water:2")
-    assert nodish.returncode == 2 and "--utensil" in nodish.stderr
+        assert_refused(run_cli("verify", traj, "--utensil", "soup_spoon", "--load", load),
+                       field)
+    assert_refused(run_cli("verify", traj, "--utensil", "fork", "--load", "water:2"),
+                   "--utensil", "no dish")
     wout = tmp_path / "both.json"
-    sf = _cli(traj, "--utensil", "soup_spoon", "--load", "water:8", "--slosh-free",
-              "--wrist-out", str(wout))
+    sf = run_cli("verify", traj, "--utensil", "soup_spoon", "--load", "water:8", "--slosh-free",
+                 "--wrist-out", str(wout))
     assert sf.returncode == 0, sf.stderr
     assert len(JointTrajectory.load(wout).joint_names) == 8
