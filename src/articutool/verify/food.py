@@ -48,6 +48,7 @@ SPILL_G = 0.001  # g: below the capacity table's resolution a prediction counts 
 # The food check's grid: 8 ms resolves the 2–4 Hz slosh modes (ω·dt ≤ 0.2, exact
 # first-order-hold discretisation) and the arm's accelerations, at half the cost of 4 ms.
 CHECK_DT_S = 0.008
+_CONVERGED_RAD = math.radians(0.5)  # the slosh-free wrist's last two passes agree within this
 
 
 class PoseModel(Protocol):
@@ -218,7 +219,9 @@ def slosh_free_wrist(arm: JointTrajectory, model: PoseModel, spec: Spec, utensil
     motion ``arm`` (at rest at both ends), smoothed by the first ``σ`` of ``sigmas`` whose
     trajectory the tool's validation accepts; ``height``: the load's centroid above the dish
     floor (its acceleration is the one that counts). The centroid's acceleration depends on
-    the wrist too, so wrist and acceleration are solved ``iterations`` times in turn."""
+    the wrist too, so after the plain leveling, wrist and acceleration are solved
+    ``iterations`` more times in turn; a σ whose last two passes differ by more than 0.5° is
+    not used (the wrist's own turning feeding back on its target)."""
     from articutool.tool.following import TrajectoryFollower
     from articutool.verify.leveling import candidate_curves, follow
 
@@ -236,14 +239,14 @@ def slosh_free_wrist(arm: JointTrajectory, model: PoseModel, spec: Spec, utensil
         q = padded.sample(t)[0]
         R0, p0 = model.tool_base_poses(q)
         target = np.tile([0.0, 0.0, 1.0], (n, 1))
-        qw = None
-        fail = None
-        for _ in range(iterations):
+        qw, prev, fail, why = None, None, None, ""
+        for _ in range(iterations + 1):
             u = np.einsum("kji,kj->ki", R0, target)
             curves = candidate_curves(u, lim)
             inside = (curves >= lim[:, 0] - 1e-12) & (curves <= lim[:, 1] + 1e-12)
+            prev = qw
             qw, _, fail, why = follow(curves, inside.all(axis=-1),
-                                       np.asarray(q_wrist_start, dtype=float), t, vmax)
+                                      np.asarray(q_wrist_start, dtype=float), t, vmax)
             if fail is not None:
                 break
             _, pc = dish_poses(spec, utensil, R0, p0, qw, height)
@@ -254,6 +257,13 @@ def slosh_free_wrist(arm: JointTrajectory, model: PoseModel, spec: Spec, utensil
         if fail is not None or qw is None:
             reasons.append(f"σ {sigma:g} s: no wrist solution followable at t = "
                            f"{t[fail if fail is not None else 0]:.3f} s ({why})")
+            continue
+        # The wrist's own turning accelerates the load; too short a σ lets that feed back
+        # on the target without settling: such a σ is not used.
+        change = float(np.abs(qw - prev).max()) if prev is not None else 0.0
+        if change > _CONVERGED_RAD:
+            reasons.append(f"σ {sigma:g} s: the wrist and the load's acceleration did not "
+                           f"settle ({math.degrees(change):.2f}° between the last two passes)")
             continue
         qdw = np.gradient(qw, t, axis=0)
         qdw[0] = qdw[-1] = 0.0
