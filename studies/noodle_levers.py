@@ -36,7 +36,8 @@ from noodle_twirl import STUDY_BASE_SEED, one_run, summarise, write_study
 TUNING_SEED0 = 5100  # 5100 + r: never a confirmation seed (5000-5009, noodle_twirl.py)
 # Capillary adhesion of a starch film: F ≈ 2γℓ (a meniscus on both sides of a line contact),
 # γ ≈ 0.05 N/m (surface tension of a starch-laden water film, below water's 0.072 N/m) along
-# one 15.6 mm segment: 1.56e-3 N, the upper bound per contact (simulation-notes.md).
+# one 15.6 mm segment: 1.56e-3 N, the cited upper bound per contact
+# (docs/notes/2026-11-22-simulation-prototypes.md).
 _GAMMA = 0.05
 _SEGMENT = 0.25 / 16
 ADHESION_BOUND_N = 2 * _GAMMA * _SEGMENT
