@@ -19,6 +19,7 @@ import uuid
 from collections.abc import Callable
 from typing import Any
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.config import LinkConfig
 from articutool.link.transport import (
@@ -80,7 +81,7 @@ def check_primitive_request(cfg: LinkConfig, name: str, params: list[float]) -> 
     ``max_request_bytes``: checked before connecting (``client primitive``); ValueError
     otherwise. :meth:`ArticutoolClient.run_primitive` checks every request again."""
     ep = Names(cfg.namespace, cfg.tool_id).send_goal
-    payload = m.encode(m.send_goal_request(bytes(16), name, [float(p) for p in params]),
+    payload = cdr.encode(m.send_goal_request(bytes(16), name, [float(p) for p in params]),
                        ep.request_type)
     _check_size(f"primitive {name!r} with {len(params)} parameter(s)", len(payload),
                 cfg.max_request_bytes, "max_request_bytes")
@@ -129,8 +130,8 @@ class ArticutoolClient:
     # ---------------------------------------------------------------- plumbing --
     def _decode(self, data: bytes, typename: str) -> Any | None:
         try:
-            return m.decode(data, typename)
-        except m.LinkDecodeError as err:
+            return cdr.decode(data, typename)
+        except cdr.LinkDecodeError as err:
             with self._lock:
                 self.counters["decode_errors"] += 1
             _log.warning("dropped malformed payload: %s", err)
@@ -208,7 +209,7 @@ class ArticutoolClient:
         ep = self.names.client_heartbeat
         while not self._stop.is_set():
             try:
-                self.transport.publish(ep, m.encode(m.heartbeat_msg(time.time(), self.sender),
+                self.transport.publish(ep, cdr.encode(m.heartbeat_msg(time.time(), self.sender),
                                                     ep.type))
             except Exception:
                 _log.exception("heartbeat publish failed")
@@ -224,7 +225,7 @@ class ArticutoolClient:
         if ep not in (self.names.get_result, self.names.release):
             self._commanded = True  # may hold the lease: release it on close
         t = self.cfg.call_timeout if timeout is None else timeout
-        payload = m.encode(request, ep.request_type)
+        payload = cdr.encode(request, ep.request_type)
         _check_size(ep.name, len(payload), self.cfg.max_request_bytes, "max_request_bytes")
         try:
             reply = self.transport.call(ep, payload, t)
@@ -296,7 +297,7 @@ class ArticutoolClient:
             return None
         try:
             return m.state_from_msgs(js, *parts, stamp=stamp)
-        except m.LinkDecodeError:
+        except cdr.LinkDecodeError:
             with self._lock:
                 self.counters["decode_errors"] += 1
             return None
@@ -375,7 +376,7 @@ class ArticutoolClient:
     def _await_result(self, gid: bytes, timeout: float | None) -> m.PrimitiveResult:
         ep = self.names.get_result
         deadline = None if timeout is None else time.monotonic() + timeout
-        req = m.encode(m.msg(ep.request_type, goal_id=m.goal_uuid(gid)), ep.request_type)
+        req = cdr.encode(cdr.msg(ep.request_type, goal_id=m.goal_uuid(gid)), ep.request_type)
         while True:
             left = None if deadline is None else deadline - time.monotonic()
             if left is not None and left <= 0:
@@ -451,7 +452,7 @@ class ArticutoolClient:
         if start_at is not None and not (math.isfinite(start_at) and start_at > 0):
             raise ValueError(f"start_at must be a wall-clock time > 0; got {start_at!r}")
         stamp = 0.0 if start_at is None else float(start_at)
-        payload = m.encode(m.trajectory_msg(trajectory, stamp), ep.type)
+        payload = cdr.encode(m.trajectory_msg(trajectory, stamp), ep.type)
         _check_size(ep.name, len(payload), self.cfg.max_trajectory_bytes,
                     "max_trajectory_bytes")
         self.transport.publish(ep, payload)

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from articutool.link import messages as m
+from articutool.link import cdr
 from articutool.sim.recording import RecordingError
 from articutool.spec import Spec
 from articutool.trajectory import JointTrajectory
@@ -63,8 +63,8 @@ def load_mcap_motion(path: str | Path, spec: Spec, notes: list[str] | None = Non
     for msg in sorted(rec.messages, key=lambda x: x.log_time_ns):
         arm = msg.topic == _ARM_TOPIC
         try:
-            js = m.decode(msg.data, m.JOINT_STATE)
-        except m.LinkDecodeError:
+            js = cdr.decode(msg.data, cdr.JOINT_STATE)
+        except cdr.LinkDecodeError:
             continue
         names = tuple(str(n) for n in js.name)
         want = arm_names if arm else wrist_names
