@@ -461,7 +461,7 @@ def test_a_bad_ros2_environment_is_refused_naming_the_variable(var, value):
 
 
 def test_the_installed_middleware_is_accepted():
-    from articutool.ros2.environment import check_ros_environment, installed_rmw_implementations
+    from articutool.link.config import check_ros_environment, installed_rmw_implementations
 
     for rmw in installed_rmw_implementations():
         check_ros_environment({"RMW_IMPLEMENTATION": rmw, "ROS_DOMAIN_ID": "232"})

@@ -425,7 +425,7 @@ def test_recorded_messages_decode_to_what_was_written(names: list[str], data: An
 def _wrist_recording(path: Path, n: int = 300, close: bool = True) -> bytes:
     """A recording of ``n`` wrist joint states in 2 KiB chunks; its bytes on disk (with
     ``close=False``: as a recorder killed now leaves them, every completed chunk flushed)."""
-    from articutool import load_spec
+    from articutool.spec import load_spec
 
     wrist = list(load_spec().wrist.joint_names)
     rec = McapRecorder(path, chunk_bytes=2048)

@@ -34,7 +34,7 @@ def new_output_file(opt: str, path: str | None, suffixes: tuple[str, ...]) -> Pa
     overwritten or written through), creatable (it is created and removed again, so a folder
     that cannot be written, e.g. in ``/proc``, is found before any work); ``UsageError``
     naming the option otherwise. The file is then written by an exclusive create or
-    :func:`articutool.runfiles.publish_new`, which never replace anything either."""
+    :func:`articutool.datafile.publish_new`, which never replace anything either."""
     if path is None:
         return None
     p = Path(path)
@@ -62,10 +62,9 @@ def output_dir(opt: str, path: str | Path, files: tuple[str, ...] = (),
     subfolder ``path/own``), created if needed and checked writable (with an unnamed
     temporary file: nothing is left in it). The folder the user named may be a link they
     made; ``own`` must be a real folder, and each of ``files`` inside that exists must be a
-    regular file, not a link, FIFO or folder (:mod:`articutool.runfiles`: a run writes its own
+    regular file, not a link, FIFO or folder (:mod:`articutool.datafile`: a run writes its own
     files only). ``UsageError`` naming the option otherwise."""
-    from articutool.datafile import ResultsError
-    from articutool.runfiles import check_own, own_folder
+    from articutool.datafile import ResultsError, check_own, own_folder
 
     p = Path(path)
     if p.exists() and not p.is_dir():

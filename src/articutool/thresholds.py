@@ -3,7 +3,7 @@ Exp. 3 thresholds from its own Exp. 1 means; we take ours from ours, never borro
 
 A neutral module below ``feeding`` (``articutool meal``) and ``experiments`` (Exp. 2c, Exp. 3),
 which both read it; it only reads the summary Exp. 1 wrote, through the validated reader of a
-run's own files (:func:`articutool.runfiles.read_own_json`): a summary that is not as
+run's own files (:func:`articutool.datafile.read_own_json`): a summary that is not as
 articutool writes it (garbage, another shape, a NaN mean, a link, a FIFO) is refused with
 :class:`~articutool.datafile.ResultsError` naming the file and the field, never used.
 """
@@ -46,7 +46,7 @@ def exp1_means(out: Path = DEFAULT_OUT) -> dict[str, float]:
     """Our Exp. 1 Articutool mean acquisition per food (g), from ``out/exp1/summary.json``
     (empty if it has not run). The outcome thresholds of Exp. 2c, Exp. 3 and ``articutool
     meal`` come from here, as the thesis took its thresholds from its own data."""
-    from articutool.runfiles import read_own_json
+    from articutool.datafile import read_own_json
 
     s = read_own_json(Path(out) / "exp1" / "summary.json", "Exp. 1 summary", _Exp1Summary)
     if s is None:
@@ -67,7 +67,7 @@ def capacity_means(out: Path = DEFAULT_OUT) -> dict[str, float] | None:
     """Our capacity experiment's mean load per food (g) from ``out/capacity/summary.json``
     (``None`` if it has not run; foods without a mean are left out): Exp. 2c's default
     load, read and checked like :func:`exp1_means`."""
-    from articutool.runfiles import read_own_json
+    from articutool.datafile import read_own_json
 
     s = read_own_json(Path(out) / "capacity" / "summary.json", "capacity summary",
                       _CapacitySummary)

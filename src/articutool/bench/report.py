@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from articutool.runfiles import replace_own, save_figure
+from articutool.datafile import replace_own, save_figure
 
 __all__ = [
     "CSV_FIELDS",

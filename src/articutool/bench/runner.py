@@ -190,10 +190,10 @@ def read_log(path: str | Path,
     """Read a results log; a missing file is an empty log. ``key`` gives a record's trial
     identity (a line it cannot key is corrupt, as is one holding NaN or Infinity, which the
     runner never writes); other JSON-lines logs (the experiments) pass their own. The log is
-    a run's own file (:func:`articutool.runfiles.read_own_bytes`): a link, FIFO or folder in
+    a run's own file (:func:`articutool.datafile.read_own_bytes`): a link, FIFO or folder in
     its place raises :class:`~articutool.datafile.ResultsError` — its last line is never cut
     from a file the run did not write."""
-    from articutool.runfiles import read_own_bytes
+    from articutool.datafile import read_own_bytes
 
     p = Path(path)
     state = LogState(key=key)
@@ -249,8 +249,7 @@ class RunConfig:
 
     def check_or_write(self, path: Path) -> None:
         """Write ``path`` on a fresh run; on a resume refuse differing settings."""
-        from articutool.datafile import ResultsError
-        from articutool.runfiles import read_own_json, replace_own
+        from articutool.datafile import ResultsError, read_own_json, replace_own
 
         try:
             old = read_own_json(path, "the run's settings")
@@ -325,7 +324,7 @@ def run_logged(
     within ``POLL_S``: every trial finished by then is logged, the running ones are abandoned
     with their worker processes, and the summary says ``interrupted``.
     """
-    from articutool.runfiles import append_own
+    from articutool.datafile import append_own
 
     log_path = Path(log_path)
     state = read_log(log_path, key=key)

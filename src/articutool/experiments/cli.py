@@ -309,7 +309,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     summary.update({k: v for k, v in extra.items() if k != "conditions"})
     if exp == "exp2c":
         summary["thresholds_source"] = th_src
-    from articutool.runfiles import replace_own
+    from articutool.datafile import replace_own
 
     replace_own(d / "summary.json", json.dumps(summary, indent=1, allow_nan=False) + "\n")
     figure = report.figure(exp, records, summary, cfg, d)

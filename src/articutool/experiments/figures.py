@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from articutool.runfiles import save_figure
+from articutool.datafile import save_figure
 
 __all__ = ["mass_bars", "outcome_bars"]
 

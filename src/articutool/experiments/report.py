@@ -123,7 +123,7 @@ def read_summary(path: Path) -> dict[str, Any] | None:
     what a rerun and the report take from it (the run's machine, date, command, loads,
     goals): a file that is not as written (garbage, another shape, NaN, a link, a FIFO, a
     folder) raises :class:`~articutool.datafile.ResultsError` naming it and the field."""
-    from articutool.runfiles import read_own_json
+    from articutool.datafile import read_own_json
 
     s = read_own_json(path, "experiment summary", _SummaryFile)
     if s is None:
@@ -478,9 +478,8 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
     where our numbers differ, written by whoever examined the run (trials, videos).
     A report there that is not as this command wrote it (edited) is kept beside it first
     (:func:`_write_generated`), and ``on_kept(report, copy)`` is told."""
-    from articutool.datafile import ResultsError, read_text
+    from articutool.datafile import ResultsError, own_folder, read_text
     from articutool.experiments.runner import read_trials
-    from articutool.runfiles import own_folder
 
     parts = ["# The thesis' physical experiments in simulation\n",
              f"Generated {_dt.datetime.now(_dt.UTC).isoformat(timespec='seconds')} by "
@@ -562,12 +561,12 @@ def _ours(text: str) -> bool:
 
 def _write_generated(path: Path, text: str, on_kept: Callable[[Path, Path], None] | None
                      ) -> None:
-    """Write ``text`` and its mark to ``path`` (:func:`articutool.runfiles.replace_own`:
+    """Write ``text`` and its mark to ``path`` (:func:`articutool.datafile.replace_own`:
     never through a link). A file there that is not, unchanged, one this command wrote (a
     user edited it, or an older version wrote it) is first kept as ``<name>.edited-<UTC
     time>`` (never overwritten) and ``on_kept(path, kept)`` is told; a link, FIFO or folder
     there is refused (:class:`~articutool.datafile.ResultsError`)."""
-    from articutool.runfiles import read_own_bytes, replace_own
+    from articutool.datafile import read_own_bytes, replace_own
 
     old = read_own_bytes(path, "report")
     if old is not None and not _ours(old.decode("utf-8", errors="replace")):

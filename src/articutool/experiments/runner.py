@@ -109,8 +109,7 @@ def source_version() -> str:
 
 def pin_run(path: Path, settings: dict[str, Any]) -> None:
     """Write ``run.json`` on a fresh run; on a resume refuse different settings."""
-    from articutool.datafile import ResultsError
-    from articutool.runfiles import read_own_json, replace_own
+    from articutool.datafile import ResultsError, read_own_json, replace_own
 
     try:
         old = read_own_json(path, "the run's settings")

@@ -29,15 +29,20 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import os
 import re
+import sys
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-__all__ = ["DEFAULT_ENDPOINT", "ConfigError", "LinkConfig", "add_config_args",
-           "check_endpoint", "config_from_args", "load_config"]
+__all__ = ["DEFAULT_ENDPOINT", "MAX_DOMAIN_ID", "ConfigError", "LinkConfig", "add_config_args",
+           "check_endpoint", "check_ros_environment", "config_from_args",
+           "installed_rmw_implementations", "load_config"]
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+MAX_DOMAIN_ID = 232  # the largest ROS domain id DDS can map to UDP ports
 
 
 class ConfigError(ValueError):
@@ -186,8 +191,9 @@ class LinkConfig:
                 check_endpoint(e, f"{name}[{i}]")
             object.__setattr__(self, name, tuple(v))
         if isinstance(self.domain_id, bool) or not isinstance(self.domain_id, int) \
-                or not 0 <= self.domain_id <= 232:
-            raise ConfigError(f"domain_id must be an integer in [0, 232]; got {self.domain_id!r}")
+                or not 0 <= self.domain_id <= MAX_DOMAIN_ID:
+            raise ConfigError(f"domain_id must be an integer in [0, {MAX_DOMAIN_ID}]; got "
+                              f"{self.domain_id!r}")
         for name in ("multicast_scouting", "type_hash_in_keys"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"{name} must be true or false; got {getattr(self, name)!r}")
@@ -335,3 +341,45 @@ def config_from_args(args: argparse.Namespace) -> LinkConfig:
     if getattr(args, "tool_id", None) is not None:
         changes["tool_id"] = args.tool_id
     return cfg.replace(**changes) if changes else cfg
+
+
+# ------------------------------------------------------ the ROS 2 environment --
+# rcl refuses a bad ``ROS_DOMAIN_ID`` with an exception from deep inside ``rclpy.init`` and an
+# unknown ``RMW_IMPLEMENTATION`` by ending the whole process (exit code 102, no message the
+# user can act on); ``articutool ros2`` checks both first. Unset or empty, each takes rcl's
+# default.
+def installed_rmw_implementations(prefixes: Iterable[str | Path] | None = None
+                                  ) -> tuple[str, ...]:
+    """The RMW implementations the ament index lists under ``prefixes`` (default: the
+    ``AMENT_PREFIX_PATH`` entries and ``sys.prefix``), sorted; ``rmw_implementation`` (the
+    loader, not a middleware) is left out."""
+    if prefixes is None:
+        prefixes = [*filter(None, os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)),
+                    sys.prefix]
+    found: set[str] = set()
+    for prefix in prefixes:
+        index = Path(prefix) / "share" / "ament_index" / "resource_index" / "rmw_typesupport"
+        try:
+            found.update(p.name for p in index.iterdir())
+        except OSError:
+            continue
+    found.discard("rmw_implementation")
+    return tuple(sorted(found))
+
+
+def check_ros_environment(env: Mapping[str, str],
+                          rmw_installed: Iterable[str] | None = None) -> None:
+    """Raise ``ValueError`` naming the variable when ``ROS_DOMAIN_ID`` or
+    ``RMW_IMPLEMENTATION`` in ``env`` would make rcl fail or end the process."""
+    domain = env.get("ROS_DOMAIN_ID", "")
+    if domain and not (domain.isascii() and domain.isdigit()
+                       and int(domain) <= MAX_DOMAIN_ID):
+        raise ValueError(f"ROS_DOMAIN_ID must be an integer in [0, {MAX_DOMAIN_ID}] (or unset "
+                         f"for 0); got {domain!r}")
+    rmw = env.get("RMW_IMPLEMENTATION", "")
+    if rmw:
+        known = tuple(rmw_installed) if rmw_installed is not None else \
+            installed_rmw_implementations()
+        if rmw not in known:
+            raise ValueError(f"RMW_IMPLEMENTATION must name an installed middleware "
+                             f"({', '.join(known) or 'none found'}) or be unset; got {rmw!r}")

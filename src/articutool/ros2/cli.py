@@ -49,10 +49,9 @@ def _err(msg: str, code: int) -> int:
 def run(args: argparse.Namespace) -> int:
     """Handler of ``articutool ros2``."""
     from articutool.link.client import ArticutoolClient, ToolConflictError
-    from articutool.link.config import ConfigError, config_from_args
+    from articutool.link.config import ConfigError, check_ros_environment, config_from_args
     from articutool.link.transport import LinkOpenError
     from articutool.ros2.build_interfaces import skip_reason
-    from articutool.ros2.environment import check_ros_environment
     from articutool.ros2.node import check_ros_token
 
     try:

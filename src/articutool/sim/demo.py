@@ -106,7 +106,7 @@ def _plot(sim: Any, path: Path) -> None:
     ax2.set_ylabel("wrist joints (deg)")
     ax2.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
-    from articutool.runfiles import publish_new
+    from articutool.datafile import publish_new
 
     path.parent.mkdir(parents=True, exist_ok=True)
     try:  # a new file: nothing replaced or written through a link

@@ -86,7 +86,7 @@ def render_frame(world: FeedingWorld, camera: str = "utensil", width: int = 640,
 def write_video(frames: list[NDArray[np.uint8]], path: str | Path, fps: float) -> Path:
     """Write RGB frames as a new video file (format by suffix: ``.mp4`` via the ffmpeg
     bundled with imageio-ffmpeg, ``.gif`` via Pillow); returns the path. Nothing at ``path``
-    is replaced or written through (:func:`articutool.runfiles.publish_new`)."""
+    is replaced or written through (:func:`articutool.datafile.publish_new`)."""
     p = Path(path)
     if not frames:
         raise RenderError("no frames were recorded")
@@ -112,8 +112,7 @@ def write_video(frames: list[NDArray[np.uint8]], path: str | Path, fps: float) -
 
 
 def _publish(p: Path, write: Callable[[Path], None], what: str) -> Path:
-    from articutool.datafile import ResultsError
-    from articutool.runfiles import publish_new
+    from articutool.datafile import ResultsError, publish_new
 
     try:
         return publish_new(p, write)
