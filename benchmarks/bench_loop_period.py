@@ -171,7 +171,7 @@ def run_level(k: int, a: argparse.Namespace, folder: Path) -> dict[str, Any]:
             f.kill()
         watcher.close()
         if tool.poll() is None:
-            tool.send_signal(signal.SIGINT)
+            tool.send_signal(signal.SIGTERM)  # SIGINT is ignored in a background job
         try:
             tool.wait(timeout=30)
         except subprocess.TimeoutExpired:

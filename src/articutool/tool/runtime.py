@@ -352,7 +352,8 @@ class ToolRuntime:
         or negative starts at the next tick.
 
         Refused, with no motion, when a fault is set, before the first tick, or when the
-        trajectory is invalid: other joint names, a position outside ``spec.wrist`` limits or
+        trajectory is invalid: other joint names, a last point or a start more than
+        ``spec.primitives.max_duration_s`` away, a position outside ``spec.wrist`` limits or
         a velocity above ``spec.wrist.max_velocity`` (waypoints and the interpolated spline),
         or a first point at t = 0 farther than one tick's travel from the present joints
         (give it a later ``time_from_start`` and the runtime moves there smoothly).
@@ -369,6 +370,11 @@ class ToolRuntime:
                 delay = math.nan
             if not math.isfinite(delay):
                 return False, f"trajectory refused: start_delay must be finite; got {start_delay!r}"
+            if delay > self._follower.max_duration:
+                return False, (f"trajectory refused: it starts {delay:g} s from now, more than "
+                               f"{self._follower.max_duration:g} s "
+                               "(spec.primitives.max_duration_s): are the PC's and the tool's "
+                               "clocks synchronised?")
             try:
                 traj = self._follower.validated(trajectory, self._motor_state.position)
             except (TrajectoryError, ValueError, TypeError) as err:
