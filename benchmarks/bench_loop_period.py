@@ -20,7 +20,10 @@ the other sessions on a shared machine, wall time is), whether the loop ran at r
 priority, and what the flooders achieved. Writes JSON::
 
     .venv/bin/python benchmarks/bench_loop_period.py --out results/loop_period.json
-    .venv/bin/python benchmarks/bench_loop_period.py --short   # one 1x level for 8 s
+    .venv/bin/python benchmarks/bench_loop_period.py --short   # one 2x level for 10 s
+
+``--without-cap-sys-nice`` runs the tool as a process without ``CAP_SYS_NICE`` would run
+(``setpriv --bounding-set -sys_nice``; Linux): what an unprivileged user gets on a Pi.
 """
 
 from __future__ import annotations
@@ -110,7 +113,8 @@ def run_level(k: int, a: argparse.Namespace, folder: Path) -> dict[str, Any]:
     """One fresh tool, ``a.settle`` s quiet, then ``k`` flooders for ``a.seconds`` s."""
     tls, plain = free_port(), free_port()
     log = folder / f"tool-{k}x.log"
-    cmd = [sys.executable, "-m", "articutool", "tool", "--level", "--link-config",
+    prefix = ["setpriv", "--bounding-set", "-sys_nice"] if a.without_cap_sys_nice else []
+    cmd = [*prefix, sys.executable, "-m", "articutool", "tool", "--level", "--link-config",
            str(folder / "wrist-1" / "link.toml"), "--listen", f"tls/127.0.0.1:{tls}",
            "--listen", f"tcp/127.0.0.1:{plain}",
            "--duration", str(a.settle + a.seconds + 120)]
@@ -193,11 +197,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seconds", type=float, default=600.0, help="flood length per level (s)")
     p.add_argument("--settle", type=float, default=3.0, help="quiet seconds before a flood")
     p.add_argument("--no-hog", action="store_true", help="without the CPU hog")
-    p.add_argument("--short", action="store_true", help="one 1x level for 8 s (for a test)")
+    p.add_argument("--without-cap-sys-nice", action="store_true",
+                   help="run the tool without CAP_SYS_NICE (setpriv), as an unprivileged "
+                        "user on a Pi: no real-time priority, no negative nice")
+    p.add_argument("--short", action="store_true", help="one 2x level for 10 s (for a test)")
     p.add_argument("--out", default=None, help="write the JSON here too")
     a = p.parse_args(argv)
     if a.short:
-        a.levels, a.seconds = [1], 8.0
+        a.levels, a.seconds = [2], 10.0
     cpus = sorted(os.sched_getaffinity(0))
     folder = Path(tempfile.mkdtemp(prefix="articutool-loop-"))
     pair(folder, "wrist-1", ["pc-1"])
@@ -214,6 +221,7 @@ def main(argv: list[str] | None = None) -> int:
         "machine": platform.machine(), "cpus": os.cpu_count(),
         "python": platform.python_version(), "rate_per_flooder": a.rate,
         "flood_seconds": a.seconds, "hog_cpu": None if hog is None else cpus[-1],
+        "tool_without_cap_sys_nice": a.without_cap_sys_nice,
         "load_avg_at_start": list(os.getloadavg()), "levels": []}
     try:
         for k in a.levels:

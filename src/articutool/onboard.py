@@ -29,8 +29,10 @@ endpoints declared, in the main thread before the loop starts, and closed after 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import math
+import os
 import signal
 import sys
 import threading
@@ -44,7 +46,7 @@ from articutool.spec import Spec
 from articutool.tool.api import Mode, ToolAPI, ToolState
 
 if TYPE_CHECKING:
-    from articutool.link.zenoh_transport import ZenohTransport
+    from articutool.onboard_link import LinkProcess
 
 __all__ = [
     "Service",
@@ -53,6 +55,7 @@ __all__ = [
     "format_status",
     "gentle_base_motion",
     "main",
+    "realtime_priority",
     "run_tool",
 ]
 
@@ -61,7 +64,10 @@ Service = Callable[[ToolAPI, threading.Event], None]
 _STATUS_HZ = 5.0  # status line refresh
 _SIM_STEP = 0.002  # s, real-time stepping of the simulated world
 _LEVEL_WAIT = 5.0  # s to wait for fresh IMU data before giving up on --level
-_SWITCH_S = 0.001  # s, the interpreter's thread switch interval in the tool process
+_SWITCH_S = 0.001  # s, the interpreter's thread switch interval in the loop's process
+_RT_PRIORITY = 50  # SCHED_FIFO priority of the loop's process (ros2_control's default)
+_LOOP_NICE = -10  # the loop's nice value when real-time priority is refused
+_LINK_NICE = 10  # the link process's nice value then
 
 
 def add_commands(subparsers: argparse._SubParsersAction) -> None:
@@ -181,9 +187,9 @@ def run_tool(
     rt = runtime
     if not opened:
         rt.open()  # type: ignore[attr-defined]
-    threads = [threading.Thread(target=fn, args=(rt, stop), name=f"tool-{name}", daemon=True)
-               for name, fn in services]
-    loop = rt.run  # type: ignore[attr-defined]
+    threads = [threading.Thread(target=_same_priority(fn), args=(rt, stop),
+                                name=f"tool-{name}", daemon=True) for name, fn in services]
+    loop = _same_priority(rt.run)  # type: ignore[attr-defined]
     threads.append(threading.Thread(target=loop, args=(stop,), name="tool-loop", daemon=True))
     previous = _install_sigterm(stop)
     t_start = time.monotonic()
@@ -236,6 +242,23 @@ def run_tool(
     return 0 if stopped else 1
 
 
+def _same_priority(fn: Callable[..., None]) -> Callable[..., None]:
+    """``fn`` run at the calling thread's scheduling policy and priority (a real-time policy
+    set with ``SCHED_RESET_ON_FORK`` is not inherited by new threads: every thread that
+    holds the interpreter lock in the loop's process must have it, or the scheduler could
+    stop that thread while the loop waits for the lock)."""
+    try:
+        policy, param = os.sched_getscheduler(0), os.sched_getparam(0)
+    except (AttributeError, OSError):
+        return fn
+
+    def run(*args: object) -> None:
+        with contextlib.suppress(OSError):
+            os.sched_setscheduler(0, policy, param)
+        fn(*args)
+    return run
+
+
 def _install_sigterm(stop: threading.Event) -> object:
     if threading.current_thread() is not threading.main_thread():
         return None
@@ -277,6 +300,29 @@ def _check_exposure(cfg: object, insecure: bool) -> None:
             "tls/), use loopback only, or pass --insecure-listen")
 
 
+def realtime_priority() -> tuple[bool, str]:
+    """Give the calling thread, and the threads it starts, real-time priority
+    (``SCHED_FIFO`` ``_RT_PRIORITY``, reset in any child process); else try nice
+    ``_LOOP_NICE``. Returns (real-time, a note saying what it got and, if not, how to
+    allow it)."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK,
+                              os.sched_param(_RT_PRIORITY))
+        return True, f"loop at real-time priority (SCHED_FIFO {_RT_PRIORITY})"
+    except (AttributeError, OSError) as err:
+        why = getattr(err, "strerror", None) or str(err)
+    try:
+        os.setpriority(os.PRIO_PROCESS, 0, _LOOP_NICE)
+        got = f"nice {_LOOP_NICE}"
+    except OSError:
+        got = "normal priority"
+    return False, (f"the loop runs at {got}, not real-time priority: SCHED_FIFO refused "
+                   f"({why}); allow it with LimitRTPRIO={_RT_PRIORITY} (or "
+                   "AmbientCapabilities=CAP_SYS_NICE) in the tool's systemd unit, or an "
+                   "'rtprio' line in /etc/security/limits.conf. The network still cannot "
+                   "delay the loop's process, but other programs on this computer can")
+
+
 def _cmd_tool(args: argparse.Namespace) -> int:
     from articutool.cli_support import UsageError, new_output_file, spec_from_args
 
@@ -286,47 +332,37 @@ def _cmd_tool(args: argparse.Namespace) -> int:
     record = new_output_file("--record", args.record, (".mcap",))
     if record is not None and not args.serve:
         raise UsageError("--record records the link's messages: it needs --serve")
-    # The loop thread shares the interpreter with the link's threads: a waiting thread gets
-    # the GIL after at most one switch interval per thread ahead of it, 5 ms by default.
-    # 1 ms bounds what the network's threads can add to a tick (benchmarks/
-    # bench_link_flood.py measures it).
-    sys.setswitchinterval(_SWITCH_S)
-    link = None
-    if args.serve:  # open the link before anything moves: a tool that cannot serve says so
+    cfg = None
+    if args.serve:
         from articutool.link.config import ConfigError, config_from_args
-        from articutool.link.transport import LinkOpenError
-        from articutool.link.zenoh_transport import ZenohTransport
 
         try:
             cfg = config_from_args(args)
-            _check_exposure(cfg, args.insecure_listen)
-            link = ZenohTransport(cfg, "tool")
         except ConfigError as err:
             raise UsageError(str(err)) from None
-        except LinkOpenError as err:
-            raise UsageError(f"cannot serve the link: {err} (is another articutool tool "
-                             "running on that endpoint?)") from None
-    recorder = None
-    if record is not None and link is not None:
-        from articutool.link.recording import McapRecorder, RecordingError, RecordingTransport
+        _check_exposure(cfg, args.insecure_listen)
+    # The loop's process runs at real-time priority where allowed (its threads inherit it,
+    # the link process does not); the threads in it (loop, simulated world, status line)
+    # then share the interpreter with no thread the scheduler could hold back.
+    realtime, note = realtime_priority()
+    sys.setswitchinterval(_SWITCH_S)
+    link = None
+    if cfg is not None:  # open the link before anything moves: a tool that cannot serve says so
+        from articutool.onboard_link import LinkProcess, LinkProcessError
 
         try:
-            recorder = McapRecorder(record)
-        except RecordingError as err:
-            link.close()
-            raise UsageError(f"--record: {err}") from None
-        link = RecordingTransport(link, recorder)  # type: ignore[assignment]
+            link = LinkProcess(cfg, spec, record, nice=0 if realtime else _LINK_NICE)
+        except LinkProcessError as err:
+            raise UsageError(str(err)) from None
     try:
-        return _run_with_drivers(args, spec, link)
+        return _run_with_drivers(args, spec, link, realtime, note)
     finally:
         if link is not None:
             link.close()  # last: after the loop stopped and the motors are off
-        if recorder is not None:
-            recorder.close()
-            print(f"recording: {record} ({recorder.count} messages)", file=sys.stderr)
 
 
-def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: ZenohTransport | None) -> int:
+def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: LinkProcess | None,
+                      realtime: bool, note: str) -> int:
     from articutool.cli_support import UsageError
     from articutool.tool.drivers import make_drivers
     from articutool.tool.runtime import ToolRuntime
@@ -350,22 +386,32 @@ def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: ZenohTransport
     except Exception as err:  # port missing, motors silent: before the loop, nothing moved
         _close_failed(runtime)
         raise UsageError(f"cannot open the {args.driver} drivers: {err}") from None
-    server = None
+    stop = threading.Event()
+    lost: list[str] = []
     if link is not None:
-        from articutool.link.server import ToolServer
+        from articutool.onboard_link import LinkProcessError
 
-        try:  # endpoints declared here, in the main thread, before the loop runs
-            server = ToolServer(runtime, link, link.cfg)
-            server.start()
-        except BaseException:
+        def on_lost(reason: str) -> None:  # on the loop's thread: stop the tool
+            lost.append(reason)
+            stop.set()
+        try:  # endpoints declared before the loop runs
+            link.attach(runtime, extra={"loop_realtime": 1.0 if realtime else 0.0},
+                        on_lost=on_lost)
+        except BaseException as err:
             runtime.close()
+            if isinstance(err, LinkProcessError):
+                raise UsageError(str(err)) from None
             raise
-    try:
-        return run_tool(runtime, duration=args.duration, level=level,
-                        services=background_services(args, spec, sim), opened=True)
-    finally:
-        if server is not None:
-            server.stop()  # after run_tool stopped the motors and closed the drivers
+    if not realtime:
+        print(f"warning: {note}", file=sys.stderr)
+    code = run_tool(runtime, duration=args.duration, level=level, stop_event=stop,
+                    services=background_services(args, spec, sim), opened=True)
+    if lost:
+        print(f"error: the link process ended ({lost[0]}; exit code "
+              f"{link.proc.poll() if link is not None else None}): the motors were stopped, "
+              "since no stop could reach the tool", file=sys.stderr)
+        return 1
+    return code
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -92,18 +92,26 @@ class TrajectoryFollower:
     def prevalidate(self, trajectory: JointTrajectory) -> JointTrajectory:
         """The checks that do not depend on the wrist's state; see
         :meth:`~articutool.tool.runtime.ToolRuntime.prevalidate_trajectory`."""
-        traj = self._checked_shape_and_limits(trajectory)
+        return self.adopt(self._checked_shape_and_limits(trajectory))
+
+    def adopt(self, traj: JointTrajectory) -> JointTrajectory:
+        """Remember ``traj`` as prevalidated (while it lives): :meth:`validated` then only
+        checks its start."""
         key = id(traj)
         self._prechecked[key] = weakref.ref(traj, lambda _r: self._prechecked.pop(key, None))
         return traj
+
+    def is_prechecked(self, traj: JointTrajectory) -> bool:
+        """Whether :meth:`prevalidate` returned ``traj`` (or it was adopted)."""
+        ref = self._prechecked.get(id(traj))
+        return ref is not None and ref() is traj
 
     def validated(
         self, trajectory: JointTrajectory, q_now: NDArray[np.float64]
     ) -> JointTrajectory:
         """``trajectory`` in the wrist's joint order, starting from ``q_now``: a first point
         after t = 0 gets the present joints prepended. Raises TrajectoryError, TypeError."""
-        ref = self._prechecked.get(id(trajectory))
-        if ref is not None and ref() is trajectory:  # names, limits checked in the link thread
+        if self.is_prechecked(trajectory):  # names, limits checked in the link thread
             traj = trajectory
         else:
             traj = self._checked_shape_and_limits(trajectory)

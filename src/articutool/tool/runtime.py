@@ -598,6 +598,21 @@ class ToolRuntime:
         """
         return self._follower.prevalidate(trajectory)
 
+    def adopt_prevalidated(self, trajectory: JointTrajectory) -> JointTrajectory:
+        """``trajectory`` as :meth:`prevalidate_trajectory` returned it in the tool's link
+        process (the same spec, another process: it arrives as a new object), marked so that
+        :meth:`follow_trajectory` only checks its start. Its type, joint order and length are
+        checked again here (cheap); TrajectoryError otherwise."""
+        if not isinstance(trajectory, JointTrajectory):
+            raise TypeError(f"expected a JointTrajectory; got {type(trajectory).__name__}")
+        if tuple(trajectory.joint_names) != self.joint_names:
+            raise TrajectoryError(f"joint_names must be {list(self.joint_names)} in this "
+                                  f"order; got {list(trajectory.joint_names)}")
+        if float(trajectory.times[-1]) > self._follower.max_duration:
+            raise TrajectoryError(f"a trajectory ends at most {self._follower.max_duration:g} "
+                                  "s after its start (spec.primitives.max_duration_s)")
+        return self._follower.adopt(trajectory)
+
     # -- modes and faults --
     def _enter(self, mode: Mode) -> None:
         """Switch mode (lock held): abort a running primitive, drop a trajectory, and stop
