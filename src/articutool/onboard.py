@@ -1,19 +1,31 @@
-"""``articutool tool``: run the onboard tool loop in the foreground (issue 3, deliverable 6).
+"""``articutool tool``: run the onboard tool loop in the foreground.
 
 The onboard program (thesis §3.3): it composes the tool runtime (``tool/``) with the link
-server (``link/``), so it sits above both layers and neither imports it (issue 23).
+server (``link/``), so it sits above both layers and neither imports it.
 
 ::
 
     articutool tool [--driver sim|hardware] [--spec FILE] [--duration S] [--level/--no-level]
 
-The runtime's 50 Hz loop runs in its own thread; the main thread only draws the status line
-and waits, so Ctrl-C (SIGINT) or SIGTERM never interrupts a tick halfway through a bus write:
-it sets the stop event, the loop stops the motors, and the drivers are closed (torque off);
-the link is closed last. Exit code 0 after a clean stop, 2 for bad input, a link that cannot
-be served (endpoint in use, address not on this host) or drivers that cannot be opened (no
-hardware): each is one line on stderr, and nothing moves, since they are all checked before
-the loop starts.
+Two processes. This one owns the drivers and runs the runtime's 50 Hz loop; the link (the
+Zenoh session, the signature checks, the link server) runs in a second process
+(``onboard_link.py``) fed through a bounded channel (``tool/channel.py``), so no message from
+the network costs the loop's process any CPU or its interpreter lock. The loop's process runs
+at real-time priority (``SCHED_FIFO`` 50) where the system allows it (root, ``CAP_SYS_NICE``
+or an ``RLIMIT_RTPRIO``), every thread in it included, so neither the link process nor any
+other program can delay a tick; where it does not, the loop runs at nice -10 if allowed, the
+link process at nice 10, and a warning on stderr says how to allow real-time priority
+(:func:`realtime_priority`). The health telemetry reports which (``loop_realtime``).
+
+The loop runs in its own thread; the main thread only draws the status line and waits, so
+Ctrl-C (SIGINT) or SIGTERM never interrupts a tick halfway through a bus write: it sets the
+stop event, the loop stops the motors, and the drivers are closed (torque off); the link
+process is closed last (it ignores both signals and ends when the channel closes). Exit code
+0 after a clean stop, 1 when the motors did not confirm it or when the link process ended
+first (the loop then stops the motors: a tool no stop can reach does not go on moving), 2 for
+bad input, a link that cannot be served (endpoint in use, address not on this host) or
+drivers that cannot be opened (no hardware): each is one line on stderr, and nothing moves,
+since they are all checked before the loop starts.
 
 ``--driver sim`` (the default) runs against :class:`~articutool.tool.drivers.sim.SimWrist`
 advanced in real time by a background service, on a base that tilts and turns gently so
@@ -21,9 +33,10 @@ leveling is visible. ``--driver hardware`` opens the Dynamixel pair, the IMU and
 sensor on the ports in the spec.
 
 Background services: anything that must run alongside the loop (the simulated world) is a
-:data:`Service`, ``fn(api, stop_event)``, run in a daemon thread until ``stop_event`` is set;
-:func:`background_services` builds the list. The network link (``--serve``) is opened, and its
-endpoints declared, in the main thread before the loop starts, and closed after it.
+:data:`Service`, ``fn(api, stop_event)``, run in a daemon thread of the loop's process, at its
+priority, until ``stop_event`` is set; :func:`background_services` builds the list. The link
+process is started, and its session opened, before the drivers; its endpoints are declared
+once the drivers are open and before the loop starts; it is closed after the loop.
 """
 
 from __future__ import annotations
@@ -284,7 +297,7 @@ def _close_failed(runtime: object) -> None:
 
 def _check_exposure(cfg: object, insecure: bool) -> None:
     """Refuse (exit 2) a tool that accepts unsigned commands and could be reached from the
-    network, however its endpoints were configured (issue 22, S3)."""
+    network, however its endpoints were configured."""
     from articutool.cli_support import UsageError
     from articutool.link.zenoh_transport import exposure
 
