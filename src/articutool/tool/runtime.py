@@ -590,10 +590,10 @@ class ToolRuntime:
         """The checks of :meth:`follow_trajectory` that do not depend on the wrist's state
         (joint names, waypoint limits, the interpolated spline's limits), without the lock.
 
-        The link server runs this in its own thread, so the loop thread, which runs the
-        queued :meth:`follow_trajectory`, only checks the start against the present joints
-        (cost independent of the trajectory's length: a 1 MB, 1700 s trajectory took 190 ms
-        to validate in full). Raises TrajectoryError (or TypeError) with the reason; returns
+        The link server runs this in its own thread (in ``articutool tool``, its own
+        process), so the loop, which runs the queued :meth:`follow_trajectory`, only checks
+        the start against the present joints (cost independent of the trajectory's length:
+        a 1 MB trajectory takes up to 190 ms to validate in full). Raises TrajectoryError (or TypeError) with the reason; returns
         the trajectory in the wrist's joint order, marked as checked by this runtime.
         """
         return self._follower.prevalidate(trajectory)
