@@ -16,8 +16,8 @@ from a 0.1 ms histogram, ``overruns`` ticks that ended after the next deadline, 
 maximum cover the tool's whole run (the flood is all of it but the settle seconds), counters
 the flood alone. Beside them: the load average (1 min, sampled every 5 s), the CPU time of
 each tool process (user + system, from ``/proc``; a process's CPU time is not disturbed by
-the other sessions on a shared machine, wall time is), whether the loop ran at real-time
-priority, and what the flooders achieved. Writes JSON::
+the other sessions on a shared machine, wall time is), the hypervisor's steal time, whether
+the loop ran at real-time priority, and what the flooders achieved. Writes JSON::
 
     .venv/bin/python benchmarks/bench_loop_period.py --out results/loop_period.json
     .venv/bin/python benchmarks/bench_loop_period.py --short   # one 2x level for 10 s
@@ -60,6 +60,14 @@ def _cpu_s(pid: int) -> float:
     except OSError:
         return float("nan")
     return (int(fields[11]) + int(fields[12])) / _TICKS_PER_S
+
+
+def _steal_s() -> float:
+    """CPU time the hypervisor gave to others while this (virtual) machine wanted it, all CPUs
+    (``steal`` in ``/proc/stat``): nothing inside the machine, real-time priority included,
+    runs then."""
+    fields = Path("/proc/stat").read_text().splitlines()[0].split()
+    return int(fields[8]) / _TICKS_PER_S if len(fields) > 8 else float("nan")
 
 
 def _tree(pid: int) -> list[int]:
@@ -134,6 +142,7 @@ def run_level(k: int, a: argparse.Namespace, folder: Path) -> dict[str, Any]:
         res["tool_processes"] = {str(p): _comm(p) for p in pids}
         h0 = _health(watcher)
         cpu0 = {p: _cpu_s(p) for p in pids}
+        steal0 = _steal_s()
         floods = [_flooder(plain, a.rate, a.seconds + 60) for _ in range(k)]
         t0 = time.monotonic()
         load: list[float] = []
@@ -144,6 +153,7 @@ def run_level(k: int, a: argparse.Namespace, folder: Path) -> dict[str, Any]:
         floods = []
         elapsed = time.monotonic() - t0
         cpu1 = {p: _cpu_s(p) for p in pids}
+        steal = _steal_s() - steal0
         time.sleep(1.5)  # the last health message after the flood
         h1 = _health(watcher)
         period = 1.0 / 50.0
@@ -165,6 +175,7 @@ def run_level(k: int, a: argparse.Namespace, folder: Path) -> dict[str, Any]:
                              and h1["loop_periods_over_2x"] == 0),
             "tick_compute_max_ms": 1e3 * h1.get("tick_compute_max_s", float("nan")),
             "cpu_s_per_process": {str(p): round(cpu1[p] - cpu0[p], 2) for p in pids},
+            "steal_s_all_cpus": round(steal, 2),
             "load_avg_1min": {"min": min(load, default=None), "max": max(load, default=None),
                               "mean": round(sum(load) / len(load), 2) if load else None},
             "link_counters_delta": {key: h1.get(key, 0) - h0.get(key, 0) for key in h1

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 import zenoh
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.auth import AuthError, Verifier, sender_of
 from articutool.link.client import ArticutoolClient
@@ -23,9 +24,9 @@ from articutool.link.pairing import pair
 from articutool.link.transport import Names, key_expr
 from articutool.link.zenoh_transport import zenoh_config
 from articutool.tool.api import Mode
-from link_fake_tool import wait_until
+from conftest import free_port, wait_until
 from link_flooder import MALFORMED
-from test_link_security import FAST, free_port
+from test_link_security import FAST
 
 HERE = Path(__file__).parent
 
@@ -74,7 +75,7 @@ def _call(session: zenoh.Session, key: str, payload: bytes, attachment: bytes,
     """One request with ``attachment``: the decoded reply, or None if none came."""
     for reply in session.get(key, payload=payload, attachment=attachment, timeout=3.0):
         if reply.ok is not None:
-            return m.decode(reply.ok.payload.to_bytes(), response_type)
+            return cdr.decode(reply.ok.payload.to_bytes(), response_type)
     return None
 
 
@@ -85,7 +86,7 @@ def _session(port: int) -> zenoh.Session:
 
 def _soc(names: Names) -> tuple[str, bytes, str]:
     ep = names.set_orientation_control
-    payload = m.encode(m.soc_request(Mode.LEVELING, 0.0, 0.0), ep.request_type)
+    payload = cdr.encode(m.soc_request(Mode.LEVELING, 0.0, 0.0), ep.request_type)
     return key_expr(0, ep), payload, ep.response_type
 
 
@@ -154,7 +155,7 @@ def test_an_unpaired_tool_answers_a_malformed_claim(tmp_path: Path) -> None:
     try:
         ep = Names().set_orientation_control
         key, rtype = key_expr(0, ep), ep.response_type
-        payload = m.encode(m.soc_request(Mode.DISABLED, 0.0, 0.0), ep.request_type)
+        payload = cdr.encode(m.soc_request(Mode.DISABLED, 0.0, 0.0), ep.request_type)
         session = _session(q)
         try:
             assert wait_until(lambda: _call(session, key, payload, b"{}", rtype) is not None,

@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from articutool import load_spec
+from articutool.spec import Spec
 from articutool.tool import channel as ch
 from articutool.tool.api import Mode
 from articutool.tool.drivers import make_drivers
@@ -18,25 +18,24 @@ from articutool.tool.drivers.sim import SimWrist
 from articutool.tool.runtime import ToolRuntime
 from articutool.trajectory import JointTrajectory
 
-SPEC = load_spec()
 
-
-def _runtime() -> tuple[ToolRuntime, SimWrist]:
-    sim = SimWrist(SPEC, seed=0)
-    rt = ToolRuntime(SPEC, *make_drivers(SPEC, "sim", sim=sim), clock=sim.clock)
+def _runtime(spec: Spec) -> tuple[ToolRuntime, SimWrist]:
+    sim = SimWrist(spec, seed=0)
+    rt = ToolRuntime(spec, *make_drivers(spec, "sim", sim=sim), clock=sim.clock)
     rt.open()
     return rt, sim
 
 
 def _tick(rt: ToolRuntime, sim: SimWrist, work: ch.LoopChannel, n: int = 1) -> None:
     for _ in range(n):
-        sim.step(SPEC.wrist.period)
-        rt.tick(sim.time, SPEC.wrist.period)
+        sim.step(rt.period)
+        rt.tick(sim.time, rt.period)
         work.work_once()
 
 
-def test_a_link_process_that_reads_nothing_never_blocks_the_loop_nor_loses_answers() -> None:
-    rt, sim = _runtime()
+def test_a_link_process_that_reads_nothing_never_blocks_the_loop_nor_loses_answers(
+        spec: Spec) -> None:
+    rt, sim = _runtime(spec)
     loop_end, link_end = socket.socketpair()
     channel = ch.LoopChannel(ch.FrameReader(loop_end), rt)
     channel.start()
@@ -65,8 +64,8 @@ def test_a_link_process_that_reads_nothing_never_blocks_the_loop_nor_loses_answe
     rt.close()
 
 
-def test_a_command_past_its_deadline_is_not_run() -> None:
-    rt, sim = _runtime()
+def test_a_command_past_its_deadline_is_not_run(spec: Spec) -> None:
+    rt, sim = _runtime(spec)
     loop_end, link_end = socket.socketpair()
     channel = ch.LoopChannel(ch.FrameReader(loop_end), rt)
     channel.start()
@@ -82,13 +81,13 @@ def test_a_command_past_its_deadline_is_not_run() -> None:
     rt.close()
 
 
-def test_the_proxy_serves_the_runtime_across_the_channel() -> None:
-    rt, sim = _runtime()
+def test_the_proxy_serves_the_runtime_across_the_channel(spec: Spec) -> None:
+    rt, sim = _runtime(spec)
     loop_end, link_end = socket.socketpair()
     channel = ch.LoopChannel(ch.FrameReader(loop_end), rt, extra={"loop_realtime": 1.0})
     ch.send_frame(loop_end, channel.report())  # the first state, as at start-up
     channel.start()
-    proxy = ch.LoopProxy(ch.FrameReader(link_end), SPEC)
+    proxy = ch.LoopProxy(ch.FrameReader(link_end), spec)
     stop = threading.Event()
 
     def loop() -> None:

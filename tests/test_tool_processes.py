@@ -7,13 +7,13 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
-import time
 from pathlib import Path
 
 import pytest
 
 from articutool.link.client import ArticutoolClient
-from test_tool_cli import Tool, client_cfg, free_port
+from conftest import free_port, wait_until
+from test_tool_cli import Tool, client_cfg
 
 
 def _children(pid: int) -> list[int]:
@@ -24,28 +24,25 @@ def _children(pid: int) -> list[int]:
     return out
 
 
+def _link_pids(tool: Tool) -> list[int]:
+    return [p for p in _children(tool.proc.pid)
+            if b"articutool.onboard_link" in Path(f"/proc/{p}/cmdline").read_bytes()]
+
+
 def _link_pid(tool: Tool) -> int:
-    deadline = time.monotonic() + 10
-    while time.monotonic() < deadline:
-        kids = [p for p in _children(tool.proc.pid) if b"articutool.onboard_link" in
-                Path(f"/proc/{p}/cmdline").read_bytes()]
-        if kids:
-            return kids[0]
-        time.sleep(0.05)
-    raise AssertionError("no link process")
+    assert wait_until(lambda: _link_pids(tool), 10.0), "no link process"
+    return _link_pids(tool)[0]
+
+
+def _ended(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
+    except OSError:
+        return True
 
 
 def _gone(pid: int, timeout: float = 20.0) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        try:
-            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-        except OSError:
-            return True
-        if state == "Z":
-            return True
-        time.sleep(0.05)
-    return False
+    return wait_until(lambda: _ended(pid), timeout)
 
 
 def test_the_loop_and_the_link_run_in_two_processes_at_their_priorities() -> None:

@@ -9,16 +9,15 @@ import time
 import numpy as np
 import pytest
 
-from articutool import load_spec
 from articutool.link.client import ArticutoolClient
+from articutool.spec import Spec
 from articutool.tool.drivers.sim import SimWrist
 from articutool.tool.runtime import ToolRuntime
 from articutool.trajectory import JointTrajectory
-from link_fake_tool import wait_until
-from test_tool_cli import Tool, client_cfg, free_port
+from conftest import free_port, packaged_spec, wait_until
+from test_tool_cli import Tool, client_cfg
 
-SPEC = load_spec()
-NAMES = SPEC.wrist.joint_names
+NAMES = packaged_spec().wrist.joint_names
 
 
 def _traj(end: float, start: float = 0.0) -> JointTrajectory:
@@ -31,7 +30,8 @@ def _rss_mb(pid: int) -> float:
         return next(int(ln.split()[1]) for ln in f if ln.startswith("VmRSS:")) / 1024.0
 
 
-def test_the_tool_refuses_trajectories_longer_than_the_bound_before_sampling_them() -> None:
+def test_the_tool_refuses_trajectories_longer_than_the_bound_before_sampling_them(
+        spec: Spec) -> None:
     tool = Tool(free_port())
     try:
         with ArticutoolClient(client_cfg(tool)) as pc:
@@ -43,7 +43,7 @@ def test_the_tool_refuses_trajectories_longer_than_the_bound_before_sampling_the
             rejected = counter("link_rejected_trajectories")
             # 1e9 s first: before the bound the tool failed to allocate (MemoryError, a
             # handler error), and the 1e6 s one would then have taken ~10 GB here.
-            for end in (1e9, 1e6, SPEC.primitives.max_duration_s + 1.0):
+            for end in (1e9, 1e6, spec.primitives.max_duration_s + 1.0):
                 pc.follow_trajectory(_traj(end))
                 rejected += 1
                 assert wait_until(lambda r=rejected: counter("link_rejected_trajectories") >= r,
@@ -68,9 +68,9 @@ def test_the_tool_refuses_trajectories_longer_than_the_bound_before_sampling_the
 
 
 @pytest.mark.parametrize("end", [1e9, 1e6, 120.5])
-def test_the_runtime_says_why_a_long_trajectory_is_refused(end: float) -> None:
-    sim = SimWrist(SPEC, seed=0)
-    rt = ToolRuntime(SPEC, sim.motor_driver(), sim.imu_driver(), clock=sim.clock)
+def test_the_runtime_says_why_a_long_trajectory_is_refused(spec: Spec, end: float) -> None:
+    sim = SimWrist(spec, seed=0)
+    rt = ToolRuntime(spec, sim.motor_driver(), sim.imu_driver(), clock=sim.clock)
     rt.open()
     rt.tick()
     ok, msg = rt.follow_trajectory(_traj(end, 0.5))
