@@ -17,8 +17,9 @@ made and the answers wait for the next: a stalled link process costs the loop on
 Link side, :class:`LoopProxy`: a :class:`~articutool.tool.api.ToolAPI` for the link server.
 ``state()`` and ``primitive_status()`` return the latest report (no round trip); a command is
 sent with a deadline (``CALL_S``) and the caller waits for its answer. The loop refuses a
-call whose deadline has passed without running it, so a caller that gave up has not moved
-the wrist behind its back. Reports are read in order by one thread, which updates the state
+call whose deadline has passed without running it and says so, so a caller told "not run"
+has not moved the wrist behind its back (with no answer at all, ``_GRACE_S`` later, the
+caller is told it may have run). Reports are read in order by one thread, which updates the state
 before it wakes a caller, so an answer is never older than the state seen after it.
 
 Trajectories are validated in the link process (:meth:`LoopProxy.prevalidate_trajectory`,
@@ -292,7 +293,8 @@ class LoopProxy:
             send_frame(self.sock, message)
 
     def _call(self, name: str, *args: object) -> tuple[str, object]:
-        """(kind, value): ("ok", result), ("error", text), ("expired" or "gone", None)."""
+        """(kind, value): ("ok", result), ("error", text), or ("expired", "timeout" or "gone",
+        None): refused for its deadline, no answer in time, the loop process ended."""
         if self.closed.is_set():
             return "gone", None
         pending = _Pending()
@@ -307,7 +309,7 @@ class LoopProxy:
         if not pending.event.wait(CALL_S + _GRACE_S) or pending.result is None:
             with self._lock:
                 self._pending.pop(cid, None)
-            return ("gone", None) if self.closed.is_set() else ("expired", None)
+            return ("gone", None) if self.closed.is_set() else ("timeout", None)
         return pending.result
 
     def _command(self, name: str, *args: object) -> tuple[bool, str]:
@@ -320,6 +322,9 @@ class LoopProxy:
         if kind == "expired":
             return False, (f"refused: the tool's loop did not take the command within "
                            f"{CALL_S:g} s (not run)")
+        if kind == "timeout":  # its answer is late: it may have run just before its deadline
+            return False, (f"no answer from the tool's loop within {CALL_S + _GRACE_S:g} s; "
+                           "the command may have run: read the tool's state")
         return False, "refused: the tool's loop process has ended"
 
     # -- ToolAPI --
