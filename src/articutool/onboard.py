@@ -28,15 +28,14 @@ drivers that cannot be opened (no hardware): each is one line on stderr, and not
 since they are all checked before the loop starts.
 
 ``--driver sim`` (the default) runs against :class:`~articutool.tool.drivers.sim.SimWrist`
-advanced in real time by a background service, on a base that tilts and turns gently so
-leveling is visible. ``--driver hardware`` opens the Dynamixel pair, the IMU and the F/T
-sensor on the ports in the spec.
+advanced in real time by the loop itself (:func:`real_time_clock`: reading the clock steps
+the world to the present), on a base that tilts and turns gently so leveling is visible.
+``--driver hardware`` opens the Dynamixel pair, the IMU and the F/T sensor on the ports in
+the spec. Either way the loop's thread is the only busy thread of its process: the main
+thread wakes for the status line and nothing else shares the interpreter lock with the loop.
 
-Background services: anything that must run alongside the loop (the simulated world) is a
-:data:`Service`, ``fn(api, stop_event)``, run in a daemon thread of the loop's process, at its
-priority, until ``stop_event`` is set; :func:`background_services` builds the list. The link
-process is started, and its session opened, before the drivers; its endpoints are declared
-once the drivers are open and before the loop starts; it is closed after the loop.
+The link process is started, and its session opened, before the drivers; its endpoints are
+declared once the drivers are open and before the loop starts; it is closed after the loop.
 """
 
 from __future__ import annotations
@@ -57,27 +56,25 @@ from typing import TYPE_CHECKING, TextIO
 import numpy as np
 
 from articutool.spec import Spec
-from articutool.tool.api import Mode, ToolAPI, ToolState
+from articutool.tool.api import Mode, ToolState
 
 if TYPE_CHECKING:
     from articutool.onboard_link import LinkProcess
+    from articutool.tool.drivers.sim import SimWrist
 
 __all__ = [
-    "Service",
     "add_commands",
-    "background_services",
     "format_status",
     "gentle_base_motion",
     "main",
+    "real_time_clock",
     "realtime_priority",
     "run_tool",
 ]
 
-Service = Callable[[ToolAPI, threading.Event], None]
-
 _STATUS_HZ = 5.0  # status line refresh
-_SIM_STEP = 0.002  # s, real-time stepping of the simulated world
 _LEVEL_WAIT = 5.0  # s to wait for fresh IMU data before giving up on --level
+_LEVEL_RETRY_S = 0.05  # s between attempts to engage LEVELING meanwhile
 _SWITCH_S = 0.001  # s, the interpreter's thread switch interval in the loop's process
 _RT_PRIORITY = 50  # SCHED_FIFO priority of the loop's process (ros2_control's default)
 _LOOP_NICE = -10  # the loop's nice value when real-time priority is refused
@@ -133,29 +130,24 @@ def gentle_base_motion(t: float) -> tuple[np.ndarray, np.ndarray]:
     return R, dpsi * z + dphi * (Rz @ axis)
 
 
-def _sim_stepper(sim: object) -> Service:
-    """Advance the simulated world by the real elapsed time until stopped."""
+def real_time_clock(sim: SimWrist) -> Callable[[], float]:
+    """``sim``'s clock for a runtime run in real time: each read first advances the simulated
+    world by the real time elapsed since the previous read (``time.monotonic``), so the world
+    moves exactly as far as the loop, which reads the clock once per tick, has lived. No
+    thread of its own: the loop's thread is the only one that runs the world (thread-safe for
+    other readers)."""
+    lock = threading.Lock()
+    last: list[float] = []
 
-    def step(api: ToolAPI, stop: threading.Event) -> None:
-        last = time.monotonic()
-        while not stop.wait(_SIM_STEP):
+    def clock() -> float:
+        with lock:
             now = time.monotonic()
-            sim.step(max(now - last, 1e-6))  # type: ignore[attr-defined]
-            last = now
+            if last and now > last[0]:
+                sim.step(now - last[0])
+            last[:] = [now]
+        return sim.clock()
 
-    return step
-
-
-def background_services(args: argparse.Namespace | None, spec: Spec, sim: object | None
-                        ) -> list[tuple[str, Service]]:
-    """The services started with the runtime, as (name, service) pairs: the simulated world
-    (with ``sim``). The link is not one: ``articutool tool`` opens it and declares its
-    endpoints before the loop starts and closes it after the motors stopped, in the main
-    thread, so neither a link that cannot be served nor an early Ctrl-C races the loop."""
-    services: list[tuple[str, Service]] = []
-    if sim is not None:
-        services.append(("sim", _sim_stepper(sim)))
-    return services
+    return clock
 
 
 def format_status(s: ToolState) -> str:
@@ -184,16 +176,18 @@ def run_tool(
     *,
     duration: float | None = None,
     level: bool = False,
-    services: Sequence[tuple[str, Service]] = (),
     out: TextIO | None = None,
     stop_event: threading.Event | None = None,
     opened: bool = False,
 ) -> int:
-    """Open ``runtime`` (unless ``opened``), start the services and the loop, show status
-    until ``duration`` elapses, ``stop_event`` is set or Ctrl-C; then stop the motors and
-    close. Returns 0, or 1 when the motors did not confirm the final stop.
+    """Open ``runtime`` (unless ``opened``), start its loop in a thread, show status until
+    ``duration`` elapses, ``stop_event`` is set or Ctrl-C; then stop the motors and close.
+    Returns 0, or 1 when the motors did not confirm the final stop.
 
     ``runtime`` is a :class:`~articutool.tool.runtime.ToolRuntime` (open/run/close + ToolAPI).
+    This thread wakes only to draw the status line (5 Hz on a terminal, 1 Hz otherwise) and,
+    with ``level``, to try engaging LEVELING (every 50 ms until it succeeds): the loop's is
+    the only busy thread of the process.
     """
     out = sys.stdout if out is None else out
     stop = threading.Event() if stop_event is None else stop_event
@@ -201,10 +195,8 @@ def run_tool(
     rt = runtime
     if not opened:
         rt.open()  # type: ignore[attr-defined]
-    threads = [threading.Thread(target=_same_priority(fn), args=(rt, stop),
-                                name=f"tool-{name}", daemon=True) for name, fn in services]
     loop = _same_priority(rt.run)  # type: ignore[attr-defined]
-    threads.append(threading.Thread(target=loop, args=(stop,), name="tool-loop", daemon=True))
+    threads = [threading.Thread(target=loop, args=(stop,), name="tool-loop", daemon=True)]
     previous = _install_sigterm(stop)
     t_start = time.monotonic()
     leveled = not level
@@ -232,7 +224,10 @@ def run_tool(
                     print(line, file=out, flush=True)
                 last_line = line
                 next_print += interval
-            stop.wait(0.05)
+            wake = next_print if leveled else min(next_print, now + _LEVEL_RETRY_S)
+            if duration is not None:
+                wake = min(wake, t_start + duration)
+            stop.wait(max(0.0, wake - time.monotonic()))
     except KeyboardInterrupt:
         pass
     finally:
@@ -389,7 +384,7 @@ def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: LinkProcess | 
 
         sim = SimWrist(spec, gyro_bias=(0.005, -0.004, 0.003))
         sim.set_base_motion(gentle_base_motion)
-        clock = sim.clock
+        clock = real_time_clock(sim)
     try:
         motors, imu, ft = make_drivers(spec, args.driver, sim=sim)
     except Exception as err:  # hardware drivers import dynamixel_sdk / pyserial lazily
@@ -424,7 +419,7 @@ def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: LinkProcess | 
     gc.collect()
     gc.freeze()
     code = run_tool(runtime, duration=args.duration, level=level, stop_event=stop,
-                    services=background_services(args, spec, sim), opened=True)
+                    opened=True)
     if lost:
         print(f"error: the link process ended ({lost[0]}; exit code "
               f"{link.proc.poll() if link is not None else None}): the motors were stopped, "
