@@ -440,7 +440,7 @@ class ToolRuntime:
                 last_wake = wake
                 self.tick()
                 work = self._link_work
-                if work is not None:  # at most one queued link command per tick
+                if work is not None:  # the link's bounded share of the tick
                     try:
                         work()
                     except Exception:  # never escapes the loop
@@ -458,9 +458,11 @@ class ToolRuntime:
                 self._stop_motors()
 
     def set_link_work(self, work: Callable[[], None] | None) -> None:
-        """Have :meth:`run` call ``work()`` once per tick, after the tick (the link server's
-        ``work_once``: at most one queued command, already decoded and validated, so the
-        network never adds more than one bounded call to a tick). None detaches it."""
+        """Have :meth:`run` call ``work()`` once per tick, after the tick: a link server's
+        ``work_once`` in this process (at most one queued command, already decoded and
+        validated) or the channel to a link process (``tool/channel.py``: at most four
+        commands and one report, without waiting). Either way the network adds a bounded
+        call to a tick. None detaches it."""
         self._link_work = work
 
     def tick(self, now: float | None = None, dt: float | None = None) -> ToolState:
