@@ -17,7 +17,14 @@ maximum cover the tool's whole run (the flood is all of it but the settle second
 the flood alone. Beside them: the load average (1 min, sampled every 5 s), the CPU time of
 each tool process (user + system, from ``/proc``; a process's CPU time is not disturbed by
 the other sessions on a shared machine, wall time is), the hypervisor's steal time, whether
-the loop ran at real-time priority, and what the flooders achieved. Writes JSON::
+the loop ran at real-time priority, and what the flooders achieved.
+
+A control runs beside the tool during each flood: one Python thread at the tool's priority
+doing nothing but sleep to 20 ms deadlines, sampling the steal time each period. Its late
+periods and the steal bursts (20 ms or more of steal within one period), with their wall
+times, say what the machine itself took; each period over 40 ms of the tool's is timed (to
+the 0.5 s poll of its telemetry) and counted as coinciding when the control was late or a
+steal burst came within 1 s of it. Writes JSON::
 
     .venv/bin/python benchmarks/bench_loop_period.py --out results/loop_period.json
     .venv/bin/python benchmarks/bench_loop_period.py --short   # one 2x level for 10 s
@@ -51,6 +58,51 @@ ENV = dict(os.environ, PYTHONPATH=str(ROOT / "src"), PYTHONUNBUFFERED="1")
 _TICKS_PER_S = os.sysconf("SC_CLK_TCK")
 _HOG = ("import os, sys; os.sched_setaffinity(0, {int(sys.argv[1])}); print('READY', "
         "flush=True)\nwhile True: pass")
+# The control: the least a loop can be, one Python thread at the tool's priority sleeping to
+# 20 ms deadlines, beside the tool. What it misses, the machine took (it also samples the
+# hypervisor's steal time each period). Prints JSON when its stdin closes.
+_PROBE = r"""
+import json, os, sys, threading, time
+rt = sys.argv[1] == "1"
+if rt:
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
+    except OSError:
+        rt = False
+T = os.sysconf("SC_CLK_TCK")
+def steal():
+    return int(open("/proc/stat").readline().split()[8]) / T
+stop = threading.Event()
+threading.Thread(target=lambda: (sys.stdin.read(), stop.set()), daemon=True).start()
+print("READY", flush=True)
+n = over = 0
+worst = 0.0
+events, bursts = [], []
+t = last = time.monotonic()
+s0 = steal()
+while not stop.is_set():
+    t += 0.02
+    d = t - time.monotonic()
+    if d > 0:
+        time.sleep(d)
+    now = time.monotonic()
+    s = steal()
+    period, stolen = now - last, s - s0
+    n += 1
+    worst = max(worst, period)
+    if period >= 0.04:
+        over += 1
+    if period > 0.03:
+        events.append([round(time.time(), 2), round(period * 1e3, 1), round(stolen * 1e3, 1)])
+    if stolen >= 0.02:
+        bursts.append([round(time.time(), 2), round(stolen * 1e3, 1)])
+    last, s0 = now, s
+    if now - t > 0.02:
+        t = now
+print(json.dumps({"realtime": rt, "periods": n, "period_max_ms": round(worst * 1e3, 1),
+                  "periods_over_2x": over, "late_periods": events[:200],
+                  "steal_bursts_over_20ms": bursts[:200], "steal_bursts": len(bursts)}))
+"""
 
 
 def _cpu_s(pid: int) -> float:
@@ -143,14 +195,26 @@ def run_level(k: int, a: argparse.Namespace, folder: Path) -> dict[str, Any]:
         h0 = _health(watcher)
         cpu0 = {p: _cpu_s(p) for p in pids}
         steal0 = _steal_s()
+        probe = subprocess.Popen(
+            [*prefix, sys.executable, "-c", _PROBE, "0" if a.without_cap_sys_nice else "1"],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        assert probe.stdout is not None and probe.stdout.readline().strip() == "READY"
         floods = [_flooder(plain, a.rate, a.seconds + 60) for _ in range(k)]
         t0 = time.monotonic()
         load: list[float] = []
+        spikes: list[float] = []  # wall times at which the tool's count over 40 ms grew
+        seen, next_load = h0.get("loop_periods_over_2x", 0.0), t0
         while time.monotonic() - t0 < a.seconds:
-            time.sleep(min(5.0, max(0.0, a.seconds - (time.monotonic() - t0))))
-            load.append(os.getloadavg()[0])
+            time.sleep(0.5)
+            now = _health(watcher).get("loop_periods_over_2x", seen)
+            spikes += [round(time.time(), 1)] * int(now - seen)
+            seen = now
+            if time.monotonic() >= next_load:
+                load.append(os.getloadavg()[0])
+                next_load += 5.0
         sent = [_stop_flooder(f) for f in floods]
         floods = []
+        control = json.loads(probe.communicate(input="", timeout=30)[0])
         elapsed = time.monotonic() - t0
         cpu1 = {p: _cpu_s(p) for p in pids}
         steal = _steal_s() - steal0
@@ -180,6 +244,11 @@ def run_level(k: int, a: argparse.Namespace, folder: Path) -> dict[str, Any]:
                               "mean": round(sum(load) / len(load), 2) if load else None},
             "link_counters_delta": {key: h1.get(key, 0) - h0.get(key, 0) for key in h1
                                     if key.startswith("link_")},
+            "tool_spikes_at": spikes,
+            "control": control,
+            "tool_spikes_with_the_control_late_or_steal_within_1s": sum(
+                any(abs(t - e[0]) <= 1.0 for e in control["late_periods"]
+                    + control["steal_bursts_over_20ms"]) for t in spikes),
         })
     finally:
         for f in floods:

@@ -418,6 +418,7 @@ def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: LinkProcess | 
     # collections only look at what the loop itself allocates.
     gc.collect()
     gc.freeze()
+    runtime.clock()  # a simulated world catches up to the present here, not in the first tick
     code = run_tool(runtime, duration=args.duration, level=level, stop_event=stop,
                     opened=True)
     if lost:
