@@ -347,9 +347,9 @@ def _cmd_tool(args: argparse.Namespace) -> int:
 
         try:
             cfg = config_from_args(args)
+            _check_exposure(cfg, args.insecure_listen)  # builds the zenoh config: ConfigError
         except ConfigError as err:
             raise UsageError(str(err)) from None
-        _check_exposure(cfg, args.insecure_listen)
     # The loop's process runs at real-time priority where allowed (its threads inherit it,
     # the link process does not); the threads in it (loop, simulated world, status line)
     # then share the interpreter with no thread the scheduler could hold back.

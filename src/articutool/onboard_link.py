@@ -130,11 +130,14 @@ class LinkProcess:
 
 def _open(cfg: Any, record: str | None) -> tuple[Any, Any]:
     """The transport (recording if ``record``) and the recorder; LinkProcessError."""
+    from articutool.link.config import ConfigError
     from articutool.link.transport import LinkOpenError
     from articutool.link.zenoh_transport import ZenohTransport
 
     try:
         link: Any = ZenohTransport(cfg, "tool")
+    except ConfigError as err:
+        raise LinkProcessError(str(err)) from None
     except LinkOpenError as err:
         raise LinkProcessError(f"cannot serve the link: {err} (is another articutool tool "
                                "running on that endpoint?)") from None
