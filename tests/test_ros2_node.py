@@ -529,3 +529,60 @@ def test_a_cancel_whose_result_arrives_before_its_reply_still_cancels() -> None:
         server.destroy()
         node.destroy_node()
         rclpy.try_shutdown(context=ctx)
+
+
+class _RecordingClient(_ResultBeforeCancelReply):
+    """Records the offsets the node forwards (degrees, the link's unit)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.modes: list[tuple[int, float, float]] = []
+
+    def set_mode(self, mode: int, pitch: float = 0.0, roll: float = 0.0) -> tuple[bool, str]:
+        self.modes.append((int(mode), pitch, roll))
+        return True, "LEVELING"
+
+    def latest_state(self) -> None:
+        return None
+
+
+@pytest.mark.parametrize(("units", "expected_deg"), [("degrees", math.radians(10.0)),
+                                                     ("radians", 10.0)])
+def test_offset_units_read_what_ada_sends(units: str, expected_deg: float) -> None:
+    """ADA's CallSetOrientationControl sends math.radians(pitch_offset_deg). Read as degrees
+    (the upstream node's reading, the default) a 10° request levels 0.17° off; with
+    offset_units=radians it levels the 10° ADA meant."""
+    from rclpy.executors import MultiThreadedExecutor
+
+    from articutool.ros2.node import ArticutoolRos2Node, NodeSettings
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=DOMAIN)
+    fake = _RecordingClient()
+    ns = f"units_{units}_{os.getpid()}"
+    server = ArticutoolRos2Node(fake, NodeSettings(namespace=ns, offset_units=units),  # type: ignore[arg-type]
+                                context=ctx)
+    server_exec = MultiThreadedExecutor(num_threads=2, context=ctx)
+    server_exec.add_node(server.node)
+    threading.Thread(target=server_exec.spin, daemon=True).start()
+    node = rclpy.create_node("plain_units_client", context=ctx)
+    try:
+        cli = node.create_client(SetOrientationControl, f"/{ns}{SOC}")
+        assert cli.wait_for_service(timeout_sec=30)
+        req = SetOrientationControl.Request(control_mode=1,
+                                            pitch_offset=float(math.radians(10.0)),
+                                            roll_offset=float(math.radians(-5.0)))
+        req.target_orientation_robot_base = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
+        future = cli.call_async(req)
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        ex.spin_until_future_complete(future, timeout_sec=30)
+        assert future.result().success
+        (mode, pitch, roll), = fake.modes
+        assert mode == 1
+        assert pitch == pytest.approx(expected_deg, rel=1e-5)
+        assert roll == pytest.approx(-expected_deg / 2, rel=1e-5)
+    finally:
+        server_exec.shutdown(timeout_sec=2.0)
+        server.destroy()
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
