@@ -24,7 +24,7 @@ import pytest
 from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.ros2 import build_interfaces as bi
-from articutool.tool.api import PrimitiveStatus
+from articutool.tool.api import Mode, PrimitiveStatus
 
 _why = "rclpy and the built articutool_interfaces (make; CPython 3.11 on x86_64 only)"
 ser = pytest.importorskip("rclpy.serialization", reason=_why)
@@ -35,15 +35,15 @@ from articutool_interfaces.srv import SetOrientationControl as S  # noqa: E402
 
 GID = bytes(range(16))
 CASES: list[tuple[str, Any, Any]] = [
-    (f"{m.SET_ORIENTATION_CONTROL}_Request", S.Request, m.soc_request(m.Mode.LEVELING, 12.5, -3)),
-    (f"{m.SET_ORIENTATION_CONTROL}_Response", S.Response, m.soc_response(False, "refused: ü")),
-    (f"{m.SEND_GOAL}_Request", A.Impl.SendGoalService.Request,
+    (f"{cdr.SET_ORIENTATION_CONTROL}_Request", S.Request, m.soc_request(Mode.LEVELING, 12.5, -3)),
+    (f"{cdr.SET_ORIENTATION_CONTROL}_Response", S.Response, m.soc_response(False, "refused: ü")),
+    (f"{cdr.SEND_GOAL}_Request", A.Impl.SendGoalService.Request,
      m.send_goal_request(GID, "TWIRL_CW", [1.0, 3.0])),
-    (f"{m.SEND_GOAL}_Response", A.Impl.SendGoalService.Response,
+    (f"{cdr.SEND_GOAL}_Response", A.Impl.SendGoalService.Response,
      m.send_goal_response(True, 1_700_000_000.5)),
-    (f"{m.GET_RESULT}_Response", A.Impl.GetResultService.Response,
+    (f"{cdr.GET_RESULT}_Response", A.Impl.GetResultService.Response,
      m.result_msg(m.PrimitiveResult(True, "done", (0.25, 6.28), m.GoalStatus.SUCCEEDED))),
-    (m.FEEDBACK_MESSAGE, A.Impl.FeedbackMessage,
+    (cdr.FEEDBACK_MESSAGE, A.Impl.FeedbackMessage,
      m.feedback_msg(GID, PrimitiveStatus("TWIRL_CW", 42.0, "twirl", (0.0, 1.5), False))),
 ]
 IDS = [t.split("/")[-1] for t, _, _ in CASES]
@@ -51,22 +51,22 @@ IDS = [t.split("/")[-1] for t, _, _ in CASES]
 
 @pytest.mark.parametrize(("typename", "cls", "ours"), CASES, ids=IDS)
 def test_both_directions_carry_the_same_message(typename: str, cls: Any, ours: Any) -> None:
-    data = m.encode(ours, typename)
+    data = cdr.encode(ours, typename)
     theirs = ser.deserialize_message(data, cls)
-    back = m.decode(ser.serialize_message(theirs), typename)
-    assert m.encode(back, typename) == data
+    back = cdr.decode(ser.serialize_message(theirs), typename)
+    assert cdr.encode(back, typename) == data
 
 
 def test_rclpy_reads_the_fields_we_wrote() -> None:
     req = ser.deserialize_message(
-        m.encode(m.send_goal_request(GID, "VIBRATE_ROLL", [5.0, 0.1, 2.0]),
-                 f"{m.SEND_GOAL}_Request"),
+        cdr.encode(m.send_goal_request(GID, "VIBRATE_ROLL", [5.0, 0.1, 2.0]),
+                 f"{cdr.SEND_GOAL}_Request"),
         A.Impl.SendGoalService.Request)
     assert req.goal.primitive_name == "VIBRATE_ROLL"
     assert np.allclose(req.goal.parameters, [5.0, 0.1, 2.0])
     assert bytes(req.goal_id.uuid) == GID
-    soc = ser.deserialize_message(m.encode(m.soc_request(m.Mode.LEVELING, 12.5, -3.0),
-                                           f"{m.SET_ORIENTATION_CONTROL}_Request"), S.Request)
+    soc = ser.deserialize_message(cdr.encode(m.soc_request(Mode.LEVELING, 12.5, -3.0),
+                                           f"{cdr.SET_ORIENTATION_CONTROL}_Request"), S.Request)
     assert (soc.control_mode, soc.pitch_offset, soc.roll_offset) == (S.Request.MODE_LEVELING,
                                                                      12.5, -3.0)
     q = soc.target_orientation_robot_base
@@ -92,8 +92,8 @@ def test_the_hash_comparison_sees_a_missing_field() -> None:
     texts[rel] = texts[rel].replace("geometry_msgs/Quaternion target_orientation_robot_base\n",
                                     "")
     changed = cdr.interface_hashes(texts)
-    assert changed[m.SET_ORIENTATION_CONTROL] != m.type_hash(m.SET_ORIENTATION_CONTROL)
-    assert changed[m.ACTION] == m.type_hash(m.ACTION)
+    assert changed[cdr.SET_ORIENTATION_CONTROL] != cdr.type_hash(cdr.SET_ORIENTATION_CONTROL)
+    assert changed[cdr.ACTION] == cdr.type_hash(cdr.ACTION)
 
 
 INSTALLED = sorted((Path(sys.prefix) / "share" / "articutool_interfaces").glob("*/*.json"))
@@ -103,7 +103,7 @@ INSTALLED = sorted((Path(sys.prefix) / "share" / "articutool_interfaces").glob("
 def test_type_hashes_equal_the_built_packages(path: Path) -> None:
     doc = json.loads(path.read_text())
     for entry in doc["type_hashes"]:
-        assert m.type_hash(entry["type_name"]) == entry["hash_string"], entry["type_name"]
+        assert cdr.type_hash(entry["type_name"]) == entry["hash_string"], entry["type_name"]
 
 
 def test_every_interface_is_built() -> None:

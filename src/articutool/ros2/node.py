@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.client import ArticutoolClient, LinkError, parse_mode
 from articutool.ros2.lanes import StopLane, WorkLane
@@ -202,12 +203,12 @@ class ArticutoolRos2Node:
     def _rename_joints(self, msg: Any) -> bytes:
         """The tool's [pitch, roll] joint state under the ROS 2 joint names."""
         msg.name = list(self.settings.joint_names)
-        return m.encode(msg, m.JOINT_STATE)
+        return cdr.encode(msg, cdr.JOINT_STATE)
 
     def _forwarder(self, pub: Any, typename: str, convert: Any) -> Any:
         def on_data(data: bytes) -> None:
             try:  # only well-formed messages of the right type reach the ROS 2 graph
-                msg = m.decode(data, typename)
+                msg = cdr.decode(data, typename)
                 pub.publish(convert(msg) if convert is not None else bytes(data))
                 self.counters["forwarded"] += 1
             except Exception as err:  # malformed payload, or rclpy shutting down
@@ -312,7 +313,7 @@ class ArticutoolRos2Node:
         Joint names may be the ROS 2 names (``joint_names``) or the tool's own."""
         assert self.client is not None
         try:
-            msg = m.decode(data, m.JOINT_TRAJECTORY)
+            msg = cdr.decode(data, cdr.JOINT_TRAJECTORY)
             ros = list(self.settings.joint_names)
             state = self.client.latest_state()
             if sorted(msg.joint_names) == sorted(ros) and state is not None:
