@@ -136,3 +136,18 @@ def test_the_package_builds_from_the_same_files_the_link_parses() -> None:
     installed = Path(sys.prefix) / "share" / "articutool_interfaces"
     for rel, text in cdr.package_texts().items():
         assert (installed / rel).read_text() == text
+
+
+PEER_JSON = sorted(p for pkg in ("control_msgs", "controller_manager_msgs")
+                   for p in (Path(sys.prefix) / "share" / pkg).glob("*/*.json"))
+
+
+@pytest.mark.parametrize("path", PEER_JSON, ids=[p.stem for p in PEER_JSON])
+def test_the_trajectory_path_types_hash_as_rosidl_built_them(path: Path) -> None:
+    """control_msgs/FollowJointTrajectory and controller_manager_msgs/SwitchController,
+    built from the field layouts in ros2/peer_interfaces: our texts hash as rosidl does."""
+    from articutool.ros2.build_interfaces import PEERS
+    pkg = path.parts[-3]
+    ours = cdr.interface_hashes(cdr.package_texts(PEERS / pkg), pkg)
+    top = json.loads(path.read_text())["type_hashes"][0]
+    assert ours[top["type_name"]] == top["hash_string"]

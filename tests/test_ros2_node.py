@@ -392,6 +392,56 @@ def test_stops_and_cancels_are_all_answered_under_a_flood(graph: Graph) -> None:
     assert sent[0] == "SENT" and int(sent[1]) / float(sent[4]) > 500, out
 
 
+def test_adas_trajectory_path_moves_the_wrist(graph: Graph) -> None:
+    """As ADA's SwitchArticutoolControllers then ExecuteArticutoolTrajectory do: switch to the
+    joint_trajectory_controller (BEST_EFFORT), send a FollowJointTrajectory goal in the
+    upstream joint names, get SUCCESSFUL with the wrist at the last point."""
+    from control_msgs.action import FollowJointTrajectory
+    from controller_manager_msgs.srv import SwitchController
+    switch = graph.node.create_client(SwitchController,
+                                      "/articutool/controller_manager/switch_controller")
+    assert switch.wait_for_service(timeout_sec=30)
+    req = SwitchController.Request(activate_controllers=["joint_trajectory_controller"],
+                                   deactivate_controllers=["velocity_controller"],
+                                   strictness=SwitchController.Request.BEST_EFFORT)
+    assert graph.wait(switch.call_async(req)).ok
+    bad = SwitchController.Request(activate_controllers=["no_such_controller"],
+                                   strictness=SwitchController.Request.STRICT)
+    assert not graph.wait(switch.call_async(bad)).ok
+    fjt = ActionClient(graph.node, FollowJointTrajectory,
+                       "/articutool/joint_trajectory_controller/follow_joint_trajectory")
+    assert fjt.wait_for_server(timeout_sec=30)
+    assert graph.set_mode(0).success
+    res = graph.wait(graph.send_goal("HOMING", [2.0]).get_result_async(), 30)
+    assert res.status == GoalStatus.STATUS_SUCCEEDED, res.result.message
+    graph.spin_until(lambda: False, 0.3)
+    q0 = list(graph.received["js"][-1].position)
+    goal = FollowJointTrajectory.Goal()
+    goal.trajectory = JointTrajectory(joint_names=["atool_joint2", "atool_joint1"], points=[
+        JointTrajectoryPoint(positions=[q0[1], q0[0]], velocities=[0.0, 0.0],
+                             time_from_start=Duration(sec=0)),
+        JointTrajectoryPoint(positions=[q0[1], -0.25], velocities=[0.0, 0.0],
+                             time_from_start=Duration(sec=1, nanosec=200_000_000))])
+    feedback: list[Any] = []
+    handle = graph.wait(fjt.send_goal_async(goal, feedback_callback=lambda f: feedback.append(
+        f.feedback)))
+    assert handle.accepted
+    res = graph.wait(handle.get_result_async(), 30)
+    assert res.result.error_code == FollowJointTrajectory.Result.SUCCESSFUL, \
+        res.result.error_string
+    assert res.status == GoalStatus.STATUS_SUCCEEDED and feedback
+    assert list(feedback[-1].joint_names) == ["atool_joint1", "atool_joint2"]
+    assert graph.received["js"][-1].position[0] == pytest.approx(-0.25, abs=0.05)
+    wrong = FollowJointTrajectory.Goal()
+    wrong.trajectory = JointTrajectory(joint_names=["j2n6s200_joint_1", "atool_joint1"],
+                                       points=goal.trajectory.points)
+    handle = graph.wait(fjt.send_goal_async(wrong))
+    res = graph.wait(handle.get_result_async(), 30)
+    assert res.result.error_code == FollowJointTrajectory.Result.INVALID_JOINTS
+    assert "atool_joint1" in res.result.error_string
+    assert graph.set_mode(0).success
+
+
 def test_sigint_mid_goal_cancels_it_and_exits_0(graph: Graph) -> None:
     """Runs last: it stops the module's node."""
     assert graph.set_mode(0).success

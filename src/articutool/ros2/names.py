@@ -54,6 +54,14 @@ ENDPOINTS: dict[str, Endpoint] = {
     "imu": Endpoint(
         "articutool/imu_data_and_orientation", "publishes", "sensor_msgs/msg/Imu",
         "upstream orientation filters (read by the upstream controller)"),
+    "follow_joint_trajectory": Endpoint(
+        "articutool/joint_trajectory_controller/follow_joint_trajectory", "action",
+        "control_msgs/action/FollowJointTrajectory",
+        "ADA ExecuteArticutoolTrajectory; upstream joint_trajectory_controller"),
+    "switch_controller": Endpoint(
+        "articutool/controller_manager/switch_controller", "service",
+        "controller_manager_msgs/srv/SwitchController",
+        "ADA SwitchArticutoolControllers; upstream controller_manager"),
     "stop": Endpoint("articutool/stop", "service", "std_srvs/srv/Trigger"),
     "clear_fault": Endpoint("articutool/clear_fault", "service", "std_srvs/srv/Trigger"),
     "verify_trajectory": Endpoint("articutool/verify_trajectory", "service",

@@ -57,6 +57,10 @@ __all__ = ["ArticutoolRos2Node", "NodeSettings"]
 
 _log = logging.getLogger(__name__)
 
+# The upstream tool's ros2_control controllers (articutool_moveit/config/controllers.yaml).
+CONTROLLERS = ("velocity_controller", "joint_trajectory_controller", "joint_state_broadcaster")
+STRICT = 2  # controller_manager_msgs/srv/SwitchController strictness
+
 CALIBRATION_MESSAGE = (
     "nothing to calibrate: this wrist levels against gravity alone (its controller is "
     "yaw-invariant and its filter leaves yaw unobserved), so no yaw offset is computed or "
@@ -136,6 +140,7 @@ class ArticutoolRos2Node:
         self._setup_services()
         self._setup_action()
         self._setup_telemetry()
+        self._setup_trajectory_path()
 
     # ------------------------------------------------------------------- set-up --
     def _setup_services(self) -> None:
@@ -439,6 +444,173 @@ class ArticutoolRos2Node:
         return A.Result(success=bool(ok), message=str(msg),
                         final_joint_values=[float(v) for v in joints])
 
+    # ------------------------------------------------------- the trajectory path --
+    def _setup_trajectory_path(self) -> None:
+        """ADA's trajectory path: FollowJointTrajectory and the controller switch, when their
+        interface packages are installed (``make`` builds them where they are not)."""
+        try:
+            from control_msgs.action import FollowJointTrajectory
+            from controller_manager_msgs.srv import SwitchController
+        except ImportError as err:
+            self.node.get_logger().warning(f"trajectory path not served: {err}")
+            return
+        from rclpy.action import ActionServer
+
+        n, q = self.names, self._qos
+        self._fjt_type = FollowJointTrajectory
+        self._fjt = ActionServer(
+            self.safety_node, FollowJointTrajectory, n["follow_joint_trajectory"],
+            self._execute_fjt, goal_callback=self._on_goal,
+            handle_accepted_callback=self._on_accepted, cancel_callback=self._on_cancel_fjt,
+            goal_service_qos_profile=q, result_service_qos_profile=q,
+            cancel_service_qos_profile=q, callback_group=self._safety_group)
+        self.node.create_service(SwitchController, n["switch_controller"],
+                                 self._on_switch_controller, qos_profile=q,
+                                 callback_group=self._group)
+
+    def _on_switch_controller(self, request: Any, response: Any) -> Any:
+        """The wrist picks its control law per command (a trajectory, a primitive, a mode), so
+        there is nothing to switch: known controller names are accepted as they are, an
+        unknown one fails a STRICT request (ros2_control's meaning of strictness)."""
+        names = [*request.activate_controllers, *request.deactivate_controllers,
+                 *getattr(request, "start_controllers", []),
+                 *getattr(request, "stop_controllers", [])]
+        unknown = sorted({str(c) for c in names} - set(CONTROLLERS))
+        response.ok = not (unknown and int(request.strictness) == STRICT)
+        if hasattr(response, "message"):
+            response.message = (f"unknown controllers {unknown}; known: {list(CONTROLLERS)}"
+                                if unknown else "nothing to switch: the wrist picks its control "
+                                "law per command")
+        return response
+
+    def _on_cancel_fjt(self, goal_handle: Any) -> Any:
+        gid = bytes(goal_handle.goal_id.uuid)
+        with self._lock:
+            fwd = self._running.get(gid)
+            if fwd is None or fwd.done.is_set():
+                return self._cancel_no
+            fwd.cancel_requested = True
+        return self._cancel_ok
+
+    async def _execute_fjt(self, goal_handle: Any) -> Any:
+        """Forward the trajectory, report progress from the tool's joint states, and end
+        SUCCESSFUL when the wrist is at the last point (within the goal tolerance, 0.05 rad
+        where none is given) by the end plus ``goal_time_tolerance`` (0.5 s if zero)."""
+        from rclpy.task import Future
+        F = self._fjt_type
+        gid = bytes(goal_handle.goal_id.uuid)
+        assert self.client is not None
+        client = self.client
+        with self._lock:
+            fwd = self._running.setdefault(gid, _Forwarded())
+
+        def finish(code: int, text: str, how: str) -> Any:
+            fwd.done.set()
+            with self._lock:
+                self._running.pop(gid, None)
+            getattr(goal_handle, how)()
+            return F.Result(error_code=code, error_string=text)
+
+        try:
+            traj, tol, slack = self._fjt_goal(goal_handle.request)
+        except ValueError as err:
+            code = F.Result.INVALID_JOINTS if "joint" in str(err) else F.Result.INVALID_GOAL
+            return finish(code, str(err), "abort")
+        stamp = goal_handle.request.trajectory.header.stamp
+        start_at = float(stamp.sec) + float(stamp.nanosec) * 1e-9 or None
+
+        def run() -> str:
+            """'' when the trajectory ran to its end, else why not."""
+            try:
+                client.follow_trajectory(traj, start_at=start_at)
+            except (ValueError, LinkError) as err:
+                return str(err)
+            t0 = time.time() if start_at is None else start_at
+            end = t0 + traj.duration
+            taken = False
+            while time.time() < end + slack:
+                if fwd.cancel_requested:
+                    return "cancelled"
+                st = client.latest_state()
+                now = time.time()
+                if st is not None and now >= t0:
+                    taken = taken or st.mode is Mode.TRAJECTORY
+                    if not taken and now > t0 + 0.5:
+                        return (f"the tool did not take the trajectory (its mode is "
+                                f"{st.mode.name}; it refuses positions outside the wrist "
+                                "limits, velocities above them, or a first point far from "
+                                "the present joints)")
+                    if taken and st.mode is not Mode.TRAJECTORY:
+                        return f"the tool left the trajectory (now {st.mode.name})"
+                    self._fjt_feedback(goal_handle, traj, now - t0, st.position)
+                    if now >= end and np.all(np.abs(np.subtract(
+                            st.position, traj.positions[-1])) <= tol):
+                        return ""
+                time.sleep(0.05)
+            return "goal tolerance"
+
+        future: Future = Future()
+        wake = self._wake_safety
+        threading.Thread(target=lambda: (future.set_result(run()), wake.trigger()),
+                         name="ros2-trajectory", daemon=True).start()
+        why = await future
+        if why == "":
+            return finish(F.Result.SUCCESSFUL, "", "succeed")
+        if why == "cancelled":
+            stop = self._stops.submit(self._wake_safety)
+            _, msg = await self._outcome(stop, "stop")
+            return finish(F.Result.SUCCESSFUL, f"cancelled; stop: {msg}", "canceled")
+        if why == "goal tolerance":
+            st = client.latest_state()
+            at = None if st is None else [round(float(v), 4) for v in st.position]
+            return finish(F.Result.GOAL_TOLERANCE_VIOLATED,
+                          f"the wrist is at {at}, not within {list(tol)} rad of the last point "
+                          f"{[round(float(v), 4) for v in traj.positions[-1]]}", "abort")
+        return finish(F.Result.INVALID_GOAL, why, "abort")
+
+    def _fjt_goal(self, goal: Any) -> tuple[Any, np.ndarray, float]:
+        """(trajectory in the tool's joint order, per-joint goal tolerance, time slack)."""
+        from articutool.ros2.verify_service import BadRequestError, trajectory_from_ros
+        if len(goal.multi_dof_trajectory.points):
+            raise ValueError("multi_dof_trajectory is not supported by a 2-joint wrist")
+        st = self.client.latest_state() if self.client is not None else None
+        if st is None:
+            raise ValueError("no joint state from the tool yet")
+        ros, tool = list(self.settings.joint_names), list(st.joint_names)
+        try:
+            traj = trajectory_from_ros(goal.trajectory, "trajectory")
+        except BadRequestError as err:
+            raise ValueError(str(err)) from None
+        names = [tool[ros.index(j)] if j in ros else j for j in traj.joint_names]
+        if sorted(names) != sorted(tool):
+            raise ValueError(f"trajectory.joint_names must be the wrist's joints {ros} (or "
+                             f"{tool}) in any order; got {list(traj.joint_names)}")
+        from articutool.trajectory import JointTrajectory
+        traj = JointTrajectory(tuple(names), traj.times, traj.positions,
+                               traj.velocities).reordered(tool)
+        tol = np.full(2, 0.05)
+        for jt in goal.goal_tolerance:
+            name = tool[ros.index(jt.name)] if jt.name in ros else jt.name
+            if name in tool and jt.position > 0:
+                tol[tool.index(name)] = float(jt.position)
+        gt = goal.goal_time_tolerance
+        slack = float(gt.sec) + float(gt.nanosec) * 1e-9 or 0.5
+        return traj, tol, slack
+
+    def _fjt_feedback(self, goal_handle: Any, traj: Any, t: float, actual: Any) -> None:
+        from trajectory_msgs.msg import JointTrajectoryPoint
+        q, v = traj.sample(t)
+        fb = self._fjt_type.Feedback(joint_names=list(self.settings.joint_names))
+        fb.desired = JointTrajectoryPoint(positions=[float(x) for x in q],
+                                          velocities=[float(x) for x in v])
+        fb.actual = JointTrajectoryPoint(positions=[float(x) for x in actual])
+        fb.error = JointTrajectoryPoint(positions=[float(a - d) for a, d in zip(actual, q,
+                                                                                strict=True)])
+        try:
+            goal_handle.publish_feedback(fb)
+        except Exception as err:  # the goal ended meanwhile
+            _log.debug("feedback dropped: %s", err)
+
     # ------------------------------------------------------------------ shutdown --
     def cancel_all(self) -> None:
         """Cancel every goal this node forwarded that is still running (on shutdown)."""
@@ -458,6 +630,8 @@ class ArticutoolRos2Node:
             h.close()
         if self._action is not None:
             self._action.destroy()
+        if getattr(self, "_fjt", None) is not None:
+            self._fjt.destroy()
         self._work.close()
         self._verify_lane.close()
         if self.client is not None:
