@@ -4,7 +4,7 @@ network unless the user opens it.
 Plain DDS has no authentication: any participant that discovers the node can call its
 services and so command the wrist (the link's pairing and signatures protect only the link
 behind it). The ROS 2 wheels the node runs on carry no DDS-Security plugins (measured:
-``benchmarks/ros2_dds_security.py``), so discovery is the only lock. Since ROS 2 Iron the
+``studies/ros2_dds_security.py``), so discovery is the only lock. Since ROS 2 Iron the
 default discovery range is the whole subnet. :func:`discovery_scope` reads the environment
 rcl reads and says whether discovery stays on this host; the node starts only then, or when
 its own ``--allow-remote-ros-clients`` flag says the user wants the graph open (a variable in

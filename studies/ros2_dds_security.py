@@ -16,7 +16,7 @@ process (no keystore at all) on the same domain could see the node in the graph 
 whether security actually kept an outsider out. Also the strings the Fast DDS library
 carries that say whether it was compiled with its security plugins. Writes::
 
-    .venv/bin/python benchmarks/ros2_dds_security.py --out results/ros2_dds_security.json
+    .venv/bin/python studies/ros2_dds_security.py --out studies/results/ros2_dds_security.json
 """
 
 from __future__ import annotations
@@ -189,7 +189,7 @@ def library_strings() -> dict[str, Any]:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", default="results/ros2_dds_security.json")
+    ap.add_argument("--out", default="studies/results/ros2_dds_security.json")
     args = ap.parse_args()
     domain = random.Random(os.getpid()).randint(150, 220)
     base = {k: v for k, v in os.environ.items() if not k.startswith("ROS_SECURITY")}
