@@ -20,13 +20,15 @@ from typing import Any
 import numpy as np
 import pytest
 
-from articutool import load_spec
 from articutool.ros2.verify_service import Verifier
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 SRC = Path(__file__).resolve().parent.parent / "src"
-SPEC = load_spec()
-VERIFIER = Verifier(SPEC, "spoon", ("atool_joint1", "atool_joint2"))
+
+
+@pytest.fixture(scope="module")
+def verifier(spec: Any) -> Verifier:
+    return Verifier(spec, "spoon", ("atool_joint1", "atool_joint2"))
 
 
 def _dur(t: float) -> SimpleNamespace:
@@ -51,8 +53,8 @@ def _req(traj: Any, **kw: Any) -> SimpleNamespace:
     return SimpleNamespace(**base)
 
 
-def test_a_feasible_plan_returns_the_wrist_trajectory_under_ros_names() -> None:
-    out = VERIFIER.answer(_req(_example("transport_feasible.json")))
+def test_a_feasible_plan_returns_the_wrist_trajectory_under_ros_names(verifier: Verifier) -> None:
+    out = verifier.answer(_req(_example("transport_feasible.json")))
     assert out["feasible"] and out["reason"] == "ok", out["message"]
     assert out["first_failure_time"] == -1.0
     assert 0.0 < out["velocity_margin"] < 1.0
@@ -61,59 +63,59 @@ def test_a_feasible_plan_returns_the_wrist_trajectory_under_ros_names() -> None:
     assert len(wt) == out["samples_checked"] > 200  # dense, not 10 samples
 
 
-def test_joint_order_does_not_matter() -> None:
-    a = VERIFIER.answer(_req(_example("transport_feasible.json")))
-    b = VERIFIER.answer(_req(_example("transport_feasible.json", [5, 3, 1, 0, 2, 4])))
+def test_joint_order_does_not_matter(verifier: Verifier) -> None:
+    a = verifier.answer(_req(_example("transport_feasible.json")))
+    b = verifier.answer(_req(_example("transport_feasible.json", [5, 3, 1, 0, 2, 4])))
     assert (a["feasible"], a["samples_checked"]) == (b["feasible"], b["samples_checked"])
     assert a["velocity_margin"] == pytest.approx(b["velocity_margin"], abs=1e-12)
     np.testing.assert_allclose(a["wrist_trajectory"].positions,
                                b["wrist_trajectory"].positions, atol=1e-12)
 
 
-def test_a_flip_fails_with_its_time() -> None:
+def test_a_flip_fails_with_its_time(verifier: Verifier) -> None:
     traj = _example("transport_flip.json")
-    out = VERIFIER.answer(_req(traj))
+    out = verifier.answer(_req(traj))
     assert not out["feasible"] and out["reason"] == "discontinuity"
     end = traj.points[-1].time_from_start
     assert 0 < out["first_failure_time"] < end.sec + end.nanosec * 1e-9
 
 
-def _bad(**kw: Any) -> str:
+def _bad(verifier: Verifier, **kw: Any) -> str:
     traj = kw.pop("traj", None) or _example("transport_feasible.json")
-    out = VERIFIER.answer(_req(traj, **kw))
+    out = verifier.answer(_req(traj, **kw))
     assert not out["feasible"] and out["reason"] == "bad_request", out
     assert out["wrist_trajectory"] is None
     return str(out["message"])
 
 
-def test_bad_requests_are_refused_naming_the_field() -> None:
+def test_bad_requests_are_refused_naming_the_field(verifier: Verifier) -> None:
     t = _example("transport_feasible.json")
-    assert "trajectory.points is empty" in _bad(traj=SimpleNamespace(joint_names=t.joint_names,
-                                                                      points=[]))
+    empty = SimpleNamespace(joint_names=t.joint_names, points=[])
+    assert "trajectory.points is empty" in _bad(verifier, traj=empty)
     nan = _example("transport_feasible.json")
     nan.points[7].positions[2] = math.nan
-    assert "trajectory.points[7]" in _bad(traj=nan)
+    assert "trajectory.points[7]" in _bad(verifier, traj=nan)
     back = _example("transport_feasible.json")
     back.points[5].time_from_start = _dur(0.0)
-    assert "time_from_start must increase strictly" in _bad(traj=back)
+    assert "time_from_start must increase strictly" in _bad(verifier, traj=back)
     unknown = _example("transport_feasible.json")
     unknown.joint_names[0] = "elbow"
-    msg = _bad(traj=unknown)
+    msg = _bad(verifier, traj=unknown)
     assert "trajectory.joint_names" in msg and "elbow" in msg and "j2n6s200_joint_1" in msg
     short = _example("transport_feasible.json")
     short.points[3].positions = short.points[3].positions[:5]
-    assert "trajectory.points[3].positions" in _bad(traj=short)
-    assert "utensil" in _bad(utensil="ladle")
-    assert "max_step_deg" in _bad(max_step_deg=90.0)
-    assert "max_step_deg" in _bad(max_step_deg=math.inf)
-    assert "wrist_start" in _bad(wrist_start=[0.0, 0.0, 0.0])
-    assert "load_g" in _bad(load_g=-1.0)
-    assert "load_g" in _bad(load_g=math.nan)
-    assert "food" in _bad(food="", load_g=5.0)
+    assert "trajectory.points[3].positions" in _bad(verifier, traj=short)
+    assert "utensil" in _bad(verifier, utensil="ladle")
+    assert "max_step_deg" in _bad(verifier, max_step_deg=90.0)
+    assert "max_step_deg" in _bad(verifier, max_step_deg=math.inf)
+    assert "wrist_start" in _bad(verifier, wrist_start=[0.0, 0.0, 0.0])
+    assert "load_g" in _bad(verifier, load_g=-1.0)
+    assert "load_g" in _bad(verifier, load_g=math.nan)
+    assert "food" in _bad(verifier, food="", load_g=5.0)
 
 
-def test_a_load_is_read_and_said_unjudged() -> None:
-    out = VERIFIER.answer(_req(_example("transport_feasible.json"), food="water", load_g=8.0))
+def test_a_load_is_read_and_said_unjudged(verifier: Verifier) -> None:
+    out = verifier.answer(_req(_example("transport_feasible.json"), food="water", load_g=8.0))
     assert out["feasible"] and not out["spill_checked"] and math.isnan(out["predicted_spill_g"])
     assert "load not judged: 8 g of water" in out["message"]
 
@@ -173,7 +175,8 @@ def _call(verify_node: tuple[Any, Any, Any], req: Any) -> Any:
     return future.result()
 
 
-def test_the_service_verifies_a_jaco_trajectory_in_any_joint_order(verify_node: Any) -> None:
+def test_the_service_verifies_a_jaco_trajectory_in_any_joint_order(verify_node: Any,
+                                                                    verifier: Verifier) -> None:
     V = verify_node[2]
     a = _call(verify_node, _ros_request(V, "transport_feasible.json"))
     b = _call(verify_node, _ros_request(V, "transport_feasible.json", [2, 0, 5, 1, 4, 3]))
@@ -183,7 +186,7 @@ def test_the_service_verifies_a_jaco_trajectory_in_any_joint_order(verify_node: 
     assert list(a.wrist_trajectory.joint_names) == ["atool_joint1", "atool_joint2"]
     assert len(a.wrist_trajectory.points) == a.samples_checked
     assert list(a.max_required_velocity) and a.first_failure_time == -1.0
-    local = VERIFIER.answer(_req(_example("transport_feasible.json")))
+    local = verifier.answer(_req(_example("transport_feasible.json")))
     np.testing.assert_allclose([p.positions for p in a.wrist_trajectory.points],
                                local["wrist_trajectory"].positions, atol=1e-9)
 
