@@ -126,7 +126,7 @@ class Verifier:
                ) -> dict[str, Any]:
         """The reply's fields for ``req`` (``wrist_trajectory`` as a JointTrajectory or
         None); ``current_wrist`` is the tool's position, the default wrist start."""
-        from articutool.verify import verify_trajectory
+        from articutool.verify.verifier import verify_trajectory
         try:
             traj, utensil, step, start, food, load = self._checked(req, current_wrist)
             rep = verify_trajectory(traj, self._model(utensil), self.spec, max_step_deg=step,
