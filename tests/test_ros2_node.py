@@ -281,14 +281,16 @@ def test_a_ros2_trajectory_moves_the_wrist(graph: Graph) -> None:
     # the twirls left roll outside the trajectory's joint limits [-pi, pi]: home first
     res = graph.wait(graph.send_goal("HOMING", [2.0]).get_result_async(), 30)
     assert res.status == GoalStatus.STATUS_SUCCEEDED, res.result.message
-    graph.spin_until(lambda: bool(graph.received["js"]), 10)
+    graph.spin_until(lambda: False, 0.5)  # take the queued joint states: q0 is the latest
     q0 = list(graph.received["js"][-1].position)
     target = [0.3, q0[1]]
+    # the first point 0.3 s in: the tool moves there smoothly if the wrist is still settling
+    # (a first point at t = 0 must be within one tick's travel, else the tool refuses it)
     traj = JointTrajectory(joint_names=["atool_joint1", "atool_joint2"], points=[
         JointTrajectoryPoint(positions=q0, velocities=[0.0, 0.0],
-                             time_from_start=Duration(sec=0, nanosec=0)),
+                             time_from_start=Duration(sec=0, nanosec=300_000_000)),
         JointTrajectoryPoint(positions=target, velocities=[0.0, 0.0],
-                             time_from_start=Duration(sec=1, nanosec=500_000_000))])
+                             time_from_start=Duration(sec=1, nanosec=800_000_000))])
     graph.traj_pub.publish(traj)
     assert graph.spin_until(lambda: abs(graph.received["js"][-1].position[0] - 0.3) < 0.02,
                             15), graph.log.read_text()
@@ -415,9 +417,9 @@ def test_adas_trajectory_path_moves_the_wrist(graph: Graph) -> None:
     goal = FollowJointTrajectory.Goal()
     goal.trajectory = JointTrajectory(joint_names=["atool_joint2", "atool_joint1"], points=[
         JointTrajectoryPoint(positions=[q0[1], q0[0]], velocities=[0.0, 0.0],
-                             time_from_start=Duration(sec=0)),
+                             time_from_start=Duration(sec=0, nanosec=300_000_000)),
         JointTrajectoryPoint(positions=[q0[1], -0.25], velocities=[0.0, 0.0],
-                             time_from_start=Duration(sec=1, nanosec=200_000_000))])
+                             time_from_start=Duration(sec=1, nanosec=500_000_000))])
     feedback: list[Any] = []
     handle = graph.wait(fjt.send_goal_async(goal, feedback_callback=lambda f: feedback.append(
         f.feedback)))
