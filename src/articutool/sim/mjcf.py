@@ -381,7 +381,7 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
     layout = WorldLayout(xml="", arm_joints=arm.joint_names, wrist_joints=list(w.joint_names))
     layout.timestep = wp.timestep
     # The no-slip solver stops a loaded wrap creeping on soft contacts (strands only: it
-    # costs time, simulation-notes.md).
+    # costs time, docs/notes/2026-11-22-simulation-prototypes.md).
     noslip = food_p.noslip_iterations if isinstance(food_p, Strands) else 0
     x: list[str] = [
         f'<mujoco model="{arm.model}_articutool_feeding">',
