@@ -12,7 +12,8 @@ $(BIN)/python:
 # articutool_interfaces (the ROS 2 package for `articutool ros2`) is built with cmake into the
 # venv; where the ROS 2 wheels do not exist (not CPython 3.11 on x86-64) the step says so and
 # exits 0, and everything else installs and tests.
-IDL := $(wildcard src/articutool/link/articutool_interfaces/*.* src/articutool/link/articutool_interfaces/*/*)
+IDL := $(wildcard src/articutool/link/articutool_interfaces/*.* src/articutool/link/articutool_interfaces/*/* \
+  src/articutool/ros2/peer_interfaces/*/*.* src/articutool/ros2/peer_interfaces/*/*/*)
 $(VENV)/.installed: pyproject.toml $(IDL) | $(BIN)/python syspkgs
 	$(BIN)/python -m pip install -q -e '.[pc,dev,ros]'
 	$(BIN)/python -m articutool.ros2.build_interfaces
