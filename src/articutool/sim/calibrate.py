@@ -21,6 +21,7 @@ import mujoco
 import numpy as np
 
 from articutool.arm.scene import Cylinder, Scene
+from articutool.sim.mjcf import contact_attrs
 from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
 from articutool.sim.pieces import draw_piece, piece_extent
 from articutool.sim.world import FeedingWorld
@@ -44,8 +45,7 @@ def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = 80,
         q /= np.linalg.norm(q)
         geoms = "".join(
             f'<geom type="capsule" size="{r}" fromto="{" ".join(map(str, (*a, *b)))}" '
-            f'density="{food.density}" friction="{food.friction[0]} {food.friction[1]} '
-            f'{food.friction[2]}" condim="6" solref="{food.solref[0]} {food.solref[1]}"/>'
+            f'density="{food.density}" {contact_attrs(food.contacts.food, 0)}/>'
             for a, b, r in draw_piece(food, rng))
         bodies.append(
             f'<body pos="{x * cell + rng.uniform(-1e-3, 1e-3)} {y * cell} {z}" '
@@ -53,8 +53,8 @@ def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = 80,
     w = params.world
     xml = (f'<mujoco><option timestep="{w.timestep}" solver="{w.solver}" '
            f'iterations="{w.iterations}" tolerance="{w.tolerance}" cone="{w.cone}"/>'
-           f'<worldbody><geom type="plane" size="1 1 0.1" friction="{w.surface_friction} '
-           f'0.005 0.0001"/>{"".join(bodies)}</worldbody></mujoco>')
+           f'<worldbody><geom type="plane" size="1 1 0.1" '
+           f'{contact_attrs(food.contacts.surface, 1)}/>{"".join(bodies)}</worldbody></mujoco>')
     m = mujoco.MjModel.from_xml_string(xml)
     d = mujoco.MjData(m)
     for _ in range(round(4.0 / m.opt.timestep)):
