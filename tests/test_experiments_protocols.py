@@ -147,7 +147,7 @@ def test_a_particle_on_the_table_then_the_floor_is_spilled_once_in_a_record() ->
 
 
 def _dish_centre(model, q_arm, utensil_spec) -> np.ndarray:
-    from articutool.sim.mjcf import spoon_dish
+    from articutool.food.dish import spoon_dish
 
     T = model.tip_pose(np.r_[q_arm, 0.0, 0.0])
     return T[:3, 3] - (utensil_spec.tip_z - spoon_dish(utensil_spec)[0]) * T[:3, 2]

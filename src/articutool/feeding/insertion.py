@@ -68,8 +68,8 @@ def _wp(p: NDArray[np.float64], pitch_deg: float, speed: float,
 def dish_outline(spec: Spec, utensil: str) -> list[tuple[float, float]]:
     """Points of the utensil's outline that can touch a floor, as (up, forward) offsets from
     the tip (m): a spoon's dish floor and rim ends (its geometry in the spec,
-    :func:`articutool.sim.mjcf.spoon_dish`), a fork's tine ends."""
-    from articutool.sim.mjcf import spoon_dish
+    :func:`articutool.food.dish.spoon_dish`), a fork's tine ends."""
+    from articutool.food.dish import spoon_dish
 
     u = spec.utensil(utensil)
     if u.physics.kind != "spoon":

@@ -176,7 +176,7 @@ def shed_configuration(spec: Spec, scene: Scene, utensil: str, container: str = 
     """
     from articutool.arm.ik import solve_level_ik
     from articutool.arm.model import ArmModel
-    from articutool.sim.mjcf import spoon_dish
+    from articutool.food.dish import spoon_dish
 
     u = spec.utensil(utensil)
     if u.physics.kind == "spoon":
