@@ -313,7 +313,11 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
     floor_z = box.xyz[2] - box.length / 2 + box.container_wall
     cx, cy = box.xyz[0], box.xyz[1]
     out: list[str] = []
-    mass = food.piece_mass
+    # A placed liquid load has its own (finer) particles: a parcel must be small beside the
+    # dish it fills (physics.toml [foods.water] load_particle_radius).
+    radius = (food.load_particle_radius if isinstance(food, Liquid) and load_g is not None
+              else getattr(food, "particle_radius", 0.0))
+    mass = food.particle_mass(radius) if isinstance(food, Liquid) else food.piece_mass
     layout.piece_mass = mass
     count = max(1, round((food.fill_g if load_g is None else load_g) / 1000.0 / mass))
     fcls = f'contype="{_FOOD}" conaffinity="{_ALL}" {contact_attrs(food.contacts.food, 0)}'
@@ -351,8 +355,17 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
         size = 'type="capsule"'
         rgba = "0.55 0.33 0.15 1"
     else:
-        cell = 2 * food.particle_radius * 1.02
-        size = f'type="sphere" size="{food.particle_radius}"'
+        spread = food.load_radius_spread if load_g is not None else 0.0
+        radii_p = np.full(count, radius)
+        if spread > 0:  # radii drawn until their mass reaches the load (the count follows)
+            drawn: list[float] = []
+            total = 0.0
+            while total < load_g / 1000.0 - 0.5 * mass:
+                drawn.append(radius * (1.0 + spread * rng.uniform(-1.0, 1.0)))
+                total += food.particle_mass(drawn[-1])
+            radii_p, count = np.array(drawn), len(drawn)
+        cell = 2 * radius * (1.0 + spread) * 1.02
+        size = 'type="sphere"'
         rgba = "0.3 0.5 0.95 0.8"
         # Lattice inside the inner radius, layer by layer, with a small seeded jitter.
         pts = []
@@ -388,8 +401,9 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
                 f'{fcls} rgba="{rgba}"/>'
                 for i, (a, b, r) in enumerate(pieces[k]))
         else:
-            geoms = (f'<geom name="{name}" {size} mass="{mass:.9g}" '
-                     f'{fcls} rgba="{rgba}"/>')
+            rk = float(radii_p[k])
+            geoms = (f'<geom name="{name}" {size} size="{rk:.9g}" '
+                     f'mass="{food.particle_mass(rk):.9g}" {fcls} rgba="{rgba}"/>')
         out.append(f'<body name="{name}" pos="{_f(np.array([cx + x, cy + y, z]) + jitter)}" '
                    f'quat="{_f(q)}"{grav}><freejoint/>{geoms}</body>')
     return out

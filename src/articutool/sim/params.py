@@ -169,14 +169,20 @@ class Liquid(_FoodBase):
     """Frictionless spheres standing in for a liquid (e.g. water)."""
 
     kind: Literal["liquid"]
-    particle_radius: Positive
+    particle_radius: Positive  # a container fill
+    load_particle_radius: Positive  # a load placed on the utensil
+    # A placed load's radii spread uniformly by ± this fraction (a disordered packing).
+    load_radius_spread: Annotated[float, Field(ge=0, lt=0.5)] = 0.0
     packing_fraction: Annotated[float, Field(gt=0, le=0.74)]
+
+    def particle_mass(self, radius: float) -> float:
+        """kg per particle of ``radius``: density × sphere volume / packing fraction."""
+        return self.density * 4.0 / 3.0 * math.pi * radius**3 / self.packing_fraction
 
     @property
     def piece_mass(self) -> float:
-        """kg per particle: density × sphere volume / packing fraction."""
-        v = 4.0 / 3.0 * math.pi * self.particle_radius**3
-        return self.density * v / self.packing_fraction
+        """kg per particle of a container fill."""
+        return self.particle_mass(self.particle_radius)
 
 
 class Strands(_FoodBase):
