@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 
 from articutool.food.dish import Dish, spoon_dish
 from articutool.food.hydrostatics import SIDE, TIP, Hydrostatics, tilt_direction, up_vector
-from articutool.spec import load_spec
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 SOUP = Hydrostatics(spoon_dish(SPEC.utensil("soup_spoon")))
 ML = 1e-6
 

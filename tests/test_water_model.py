@@ -19,10 +19,8 @@ from articutool.sim.calibrate import static_tilt
 from articutool.sim.mjcf import dish_walls
 from articutool.sim.params import PhysicsParams
 from articutool.sim.world import FeedingWorld
-from articutool.spec import load_spec
 from articutool.tool.api import Mode
 
-SPEC = load_spec()
 
 
 def _wall_point(u, phi: float, h: float) -> tuple[np.ndarray, np.ndarray]:
@@ -45,11 +43,11 @@ def _wall_point(u, phi: float, h: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 @pytest.mark.parametrize("utensil", ["soup_spoon", "spoon"])
-def test_the_collision_dish_is_the_ideal_dish(utensil: str) -> None:
+def test_the_collision_dish_is_the_ideal_dish(utensil: str, spec) -> None:
     # The particles feel the dish the hydrostatics integrates: no wall box reaches into it
     # (beyond 0.1 mm: the wall is not developable), none stands above the rim, and behind
     # every point of the ideal wall there is a box (no gap a particle could sink into).
-    u = SPEC.utensil(utensil)
+    u = spec.utensil(utensil)
     boxes = dish_walls(u)
     depth = spoon_dish(u).depth
 
@@ -74,7 +72,7 @@ def _placed(load_g: float, seed: int = 0) -> FeedingWorld:
     return w
 
 
-def test_a_placed_load_settles_at_the_liquids_level() -> None:
+def test_a_placed_load_settles_at_the_liquids_level(spec) -> None:
     # The particles weigh what the water they stand for weighs (packing fraction): the load
     # that stayed fills the level dish as high as that much water, within a particle.
     w = _placed(8.0)
@@ -82,20 +80,20 @@ def test_a_placed_load_settles_at_the_liquids_level() -> None:
     food = w.params.food("water")
     r = food.load_particle_radius
     assert kept > 7.0
-    fill = Hydrostatics(spoon_dish(SPEC.utensil("soup_spoon"))).fill_height(kept * 1e-6)
+    fill = Hydrostatics(spoon_dish(spec.utensil("soup_spoon"))).fill_height(kept * 1e-6)
     body = w.model.body("utensil").id
     R, p = w.data.xmat[body].reshape(3, 3), w.data.xpos[body]
     on = w.item_classes() == 1
     x = np.array([(R.T @ (w.data.xpos[w.model.body(b).id] - p))[0]
                   for k, b in enumerate(w.layout.food_bodies) if on[k]])
-    top = float(np.quantile(x + r, 0.95)) - SPEC.utensil("soup_spoon").tip_x
+    top = float(np.quantile(x + r, 0.95)) - spec.utensil("soup_spoon").tip_x
     assert abs(top - fill) < 2 * r, (top, fill)
 
 
-def test_one_hold_past_the_onset_spills_and_never_more_than_the_ideal_liquid() -> None:
+def test_one_hold_past_the_onset_spills_and_never_more_than_the_ideal_liquid(spec) -> None:
     # Over the tip at 25° the ideal liquid has lost most of 8 mL; the particles lose some of
     # it (a granular pile holds a head above the rim: docs/food.md), never more.
-    out = static_tilt("water", SPEC, PhysicsParams.load(), None, load_g=8.0,
+    out = static_tilt("water", spec, PhysicsParams.load(), None, load_g=8.0,
                       steps_deg=(25.0,), directions=("tip",))
     row = out["tip"]["rows"][0]
     assert 23.0 < row["tilt_deg"] < 26.0

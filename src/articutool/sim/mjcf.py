@@ -37,8 +37,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from articutool.arm.model import TOOL_BASE_FRAME, tip_frame_name
-from articutool.arm.scene import Box, Capsule, Cylinder, Halfspace, Scene, Sphere, rpy_matrix
+from articutool.arm.scene import Box, Capsule, Cylinder, Halfspace, Scene, Sphere
 from articutool.food.dish import spoon_dish
+from articutool.rotations import rpy_matrix
 from articutool.sim.params import ContactParams, Granular, Liquid, PhysicsParams, Strands
 from articutool.sim.pieces import Capsule as PieceCapsules
 from articutool.sim.pieces import capsule_mass, draw_piece, footprint, pack_layer
