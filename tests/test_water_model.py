@@ -22,7 +22,6 @@ from articutool.sim.world import FeedingWorld
 from articutool.tool.api import Mode
 
 
-
 def _wall_point(u, phi: float, h: float) -> tuple[np.ndarray, np.ndarray]:
     """A point of the ideal dish wall (utensil frame) ``h`` above the floor at angle ``phi``,
     and the wall's outward normal there."""
