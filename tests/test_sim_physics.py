@@ -196,16 +196,13 @@ def test_every_gram_that_stays_off_the_utensil_has_a_spill_event_at_its_worst_pl
     # and the spilled mass counts the particle once, as critical. Water deposits where it
     # lands (physics.toml), so the drop over the table's edge is staged: one particle that
     # spilled on the table is moved to just above the floor beside the table.
+    from conftest import drop_off_the_table
+
     w = _leveled("water", 8.0, level=False)
     w.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)  # it is moved by hand
     w.move_arm(base_tilt_motion(w, 40.0))
     w.run(3.0)
-    on_table = np.flatnonzero(w.ledger.codes == acc.TABLE)
-    assert on_table.size
-    j = w.model.body(w.layout.food_bodies[int(on_table[0])]).jntadr[0]
-    qa, va = w.model.jnt_qposadr[j], w.model.jnt_dofadr[j]
-    w.data.qpos[qa:qa + 3] = (-0.2, 0.0, Scene.load().get("ground").xyz[2] + 0.05)
-    w.data.qvel[va:va + 6] = 0.0
+    drop_off_the_table(w)
     w.run(0.5)
     codes = w.ledger.codes.copy()
     w.run(w.params.world.spill_dwell_s)  # what arrived just now has stayed its dwell time
@@ -217,11 +214,11 @@ def test_every_gram_that_stays_off_the_utensil_has_a_spill_event_at_its_worst_pl
     for k in np.flatnonzero(stayed):
         assert worst.get(int(k)) == acc.CLASS_NAMES[codes[k]]
     # The spilled mass: each spilled item once, at its worst place.
-    m = w.layout.piece_mass * 1000.0
+    g = w.item_masses_g()
     by_place = acc.spilled_by_place(w.spills)
-    assert by_place["critical"] == pytest.approx(m * list(worst.values()).count("critical"))
-    assert by_place["table"] == pytest.approx(m * list(worst.values()).count("table"))
-    assert sum(by_place.values()) == pytest.approx(m * len(worst))
+    for place in ("critical", "table"):
+        assert by_place[place] == pytest.approx(sum(g[k] for k, p in worst.items() if p == place))
+    assert sum(by_place.values()) == pytest.approx(sum(g[k] for k in worst))
     assert len(w.spills) > len(worst)  # some particle went table → floor: two events
 
 
