@@ -98,11 +98,13 @@ def test_sim_record_holds_the_runs_spills_where_they_landed(water_run, spec) -> 
     # The frames from a spill's landing classify that item at the reported place during its
     # dwell (a drop may bounce into the air meanwhile: the event is dated from the landing;
     # later it may roll on, off the table or into the plate).
+    from articutool.sim.params import PhysicsParams
+
     names = rec.meta["class_names"]
-    dwell = int(np.searchsorted(rec.t, rec.t[0] + 0.2))  # frames in the dwell, with margin
+    dwell = PhysicsParams.load().world.spill_dwell_s
     for s in rec.spills:
-        k = int(np.searchsorted(rec.t, s["t"] - 1e-9))
-        during = {names[c] for c in rec.food_class[k:k + dwell + 1, s["item"]]}
+        frames = (rec.t >= s["t"] - 1e-9) & (rec.t < s["t"] + dwell - 1e-9)
+        during = {names[c] for c in rec.food_class[frames, s["item"]]}
         assert s["place"] in during and during <= {s["place"], "airborne", "table", "critical"}
     assert rec.q.shape == (len(rec), 8) and rec.meta["joint_names"][6:] == \
         list(spec.wrist.joint_names)

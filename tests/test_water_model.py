@@ -1,8 +1,8 @@
 """The particle water against the ideal liquid of the same dish (``articutool.food``): the
 collision dish is the ideal dish, a placed load settles at the liquid's level, and the
 static-tilt test (``articutool sim-calibrate --food water``) measures what spills at each tilt
-beside hydrostatics. The full table is slow (about 2 CPU-minutes); one hold past the onset
-checks the mechanism in the default suite."""
+beside hydrostatics. The full table is slow (about 2 CPU-minutes with the level-capacity
+run); one hold past the onset checks the mechanism in the default suite."""
 
 from __future__ import annotations
 
@@ -159,14 +159,14 @@ def test_static_tilt_table_stands_beside_hydrostatics(calibration: dict) -> None
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="the particle water holds a head of ~4 mm above the "
-                   "rim (a granular pile's yield at the outflow edge, docs/food.md): onset "
-                   "~10° late over the tip")
+@pytest.mark.xfail(strict=True, reason="a pile of frictionless spheres holds a head of a few mm "
+                   "above the rim (its yield: docs/food.md): the onset is ~6° late over the "
+                   "tip and > 8° late sideways")
 def test_static_tilt_meets_hydrostatics(calibration: dict) -> None:
     t = calibration["static_tilt"]
     for d in ("tip", "side"):
         assert t[d]["onset_deg"] is not None
         assert abs(t[d]["onset_deg"] - t[d]["hydrostatic_onset_deg"]) <= 3.0
-        for r in t[d]["rows"]:
-            if r["tilt_cmd_deg"] in (15, 20, 25) and r["hydrostatic_g"] > 0:
-                assert abs(r["spilled_g"] - r["hydrostatic_g"]) <= 0.25 * r["hydrostatic_g"]
+        for target in (15.0, 20.0, 25.0):  # the holds nearest these tilts
+            r = min(t[d]["rows"], key=lambda r, x=target: abs(r["tilt_deg"] - x))
+            assert abs(r["spilled_g"] - r["hydrostatic_g"]) <= 0.25 * r["hydrostatic_g"]
