@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from articutool import load_spec
+from articutool.spec import load_spec
 from articutool.arm.model import ArmModel
 from articutool.food.dish import spoon_dish
 from articutool.food.loads import food_load

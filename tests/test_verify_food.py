@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from articutool import load_spec
+from articutool.spec import load_spec
 from articutool.arm.model import ArmModel
 from articutool.food.loads import LoadError, food_load, parse_load
 from articutool.planning.timing import time_parameterize

@@ -189,7 +189,7 @@ def dish_walls(u: UtensilSpec, n: int = _DISH_WALLS
     The ideal wall is ruled: the line from the floor ellipse's point at angle φ to the rim's.
     Box k is the plate through the ruling at φ_k = 2πk/n, in the plane tangent to the wall
     at the ruling's mid-height (the wall is not developable, so that plane meets the ideal
-    surface only there: it departs from it by < 0.05 mm along the ruling, tested), thick
+    surface only there: it departs from it by < 0.1 mm along the ruling, tested), thick
     outward only; its inner face spans exactly the floor's height to the rim's, with
     horizontal bottom and top edges, and is as wide as the farthest point where it meets a
     neighbour's plane at the rim plus 0.2 mm, so neighbouring plates overlap outside the
@@ -314,11 +314,10 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
     floor_z = box.xyz[2] - box.length / 2 + box.container_wall
     cx, cy = box.xyz[0], box.xyz[1]
     out: list[str] = []
-    # A placed liquid load has its own (finer) particles: a parcel must be small beside the
-    # dish it fills (physics.toml [foods.water] load_particle_radius).
-    radius = (food.load_particle_radius if isinstance(food, Liquid) and load_g is not None
-              else getattr(food, "particle_radius", 0.0))
-    mass = food.particle_mass(radius) if isinstance(food, Liquid) else food.piece_mass
+    radius, mass = 0.0, food.piece_mass
+    if isinstance(food, Liquid):  # a placed load has its own, finer particles (physics.toml)
+        radius = food.load_particle_radius if load_g is not None else food.particle_radius
+        mass = food.particle_mass(radius)
     layout.piece_mass = mass
     count = max(1, round((food.fill_g if load_g is None else load_g) / 1000.0 / mass))
     fcls = f'contype="{_FOOD}" conaffinity="{_ALL}" {contact_attrs(food.contacts.food, 0)}'
