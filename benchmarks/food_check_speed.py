@@ -18,12 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from articutool.spec import load_spec
 from articutool.arm.model import ArmModel
 from articutool.food.dish import spoon_dish
 from articutool.food.loads import food_load
 from articutool.food.slosh import STANDARD_GRAVITY, SloshModel
 from articutool.sim.params import PhysicsParams
+from articutool.spec import load_spec
 from articutool.trajectory import JointTrajectory
 from articutool.verify import verify_trajectory
 from bench_io import machine, write_json

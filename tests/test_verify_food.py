@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from articutool.spec import load_spec
 from articutool.arm.model import ArmModel
 from articutool.food.loads import LoadError, food_load, parse_load
 from articutool.planning.timing import time_parameterize
 from articutool.sim.params import PhysicsParams
+from articutool.spec import load_spec
 from articutool.tool.following import TrajectoryFollower
 from articutool.trajectory import JointTrajectory
 from articutool.verify import verify_trajectory
