@@ -25,7 +25,7 @@ from articutool.food.slosh import STANDARD_GRAVITY, SloshModel
 from articutool.sim.params import PhysicsParams
 from articutool.spec import load_spec
 from articutool.trajectory import JointTrajectory
-from articutool.verify import verify_trajectory
+from articutool.verify.verifier import verify_trajectory
 from bench_io import machine, write_json
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"

@@ -17,8 +17,8 @@ from articutool.sim.params import PhysicsParams
 from articutool.spec import load_spec
 from articutool.tool.following import TrajectoryFollower
 from articutool.trajectory import JointTrajectory
-from articutool.verify import verify_trajectory
 from articutool.verify.food import dish_poses, food_check, slosh_free_wrist, spill_model
+from articutool.verify.verifier import verify_trajectory
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 SPEC = load_spec()
