@@ -357,12 +357,15 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
     else:
         spread = food.load_radius_spread if load_g is not None else 0.0
         radii_p = np.full(count, radius)
-        if spread > 0:  # radii drawn until their mass reaches the load (the count follows)
+        if spread > 0:  # radii drawn while the load stays within its mass (the count follows)
             drawn: list[float] = []
             total = 0.0
-            while total < load_g / 1000.0 - 0.5 * mass:
-                drawn.append(radius * (1.0 + spread * rng.uniform(-1.0, 1.0)))
-                total += food.particle_mass(drawn[-1])
+            while True:
+                r_k = radius * (1.0 + spread * rng.uniform(-1.0, 1.0))
+                if total + food.particle_mass(r_k) > load_g / 1000.0 and drawn:
+                    break
+                drawn.append(r_k)
+                total += food.particle_mass(r_k)
             radii_p, count = np.array(drawn), len(drawn)
         cell = 2 * radius * (1.0 + spread) * 1.02
         size = 'type="sphere"'
