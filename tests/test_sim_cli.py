@@ -88,11 +88,3 @@ def test_sim_calibrate_measures_the_pecan_model(capsys: pytest.CaptureFixture[st
     assert out["level_capacity_g"] > 0
 
 
-def test_water_calibration_pours_what_the_loader_can_and_says_it_is_a_lower_bound(
-        capsys: pytest.CaptureFixture[str]) -> None:
-    from articutool.cli import main
-
-    # The loader may refuse part of the load it is asked to pour: reported, not a crash.
-    assert main(["sim-calibrate", "--food", "water", "--json"]) == 0
-    out = json.loads(capsys.readouterr().out)
-    assert 0 < out["level_capacity_g"] <= out["loaded_g"] < 20.0
