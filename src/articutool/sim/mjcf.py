@@ -389,7 +389,7 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
     layout.timestep = wp.timestep
     # The no-slip solver stops a loaded wrap creeping on soft contacts (strands only: it
     # costs time, simulation-notes.md).
-    noslip = food_p.noslip_iterations if isinstance(food_p, Strands) else 0
+    noslip = food_p.noslip_iterations if isinstance(food_p, Strands | Granular) else 0
     x: list[str] = [
         f'<mujoco model="{arm.model}_articutool_feeding">',
         '<compiler angle="radian" autolimits="true"/>',
