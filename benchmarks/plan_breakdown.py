@@ -25,9 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from articutool.bench.tasks import TaskFileError, load_task_set
-from articutool.planning.api import PHASES, SYSTEMS, PlanRequest
+from articutool.bench.taskfile import TaskFileError, load_task_set
 from articutool.planning.ompl_planner import PlannerSettings, plan_transport
+from articutool.planning.types import PHASES, SYSTEMS, PlanRequest
 from articutool.spec import load_spec
 
 # The planner settings before issue 12 (toppra's constraint objects and the decoupled check's

@@ -19,9 +19,10 @@ import sys
 import tempfile
 from pathlib import Path
 
-from articutool.bench.tasks import load_task_set
+from articutool.bench.taskfile import load_task_set
 from articutool.cli import main as articutool
-from articutool.planning.api import PlanRequest, plan
+from articutool.planning.api import plan
+from articutool.planning.types import PlanRequest
 
 
 def systems(limit: int, timeout_s: float, workers: int) -> dict:

@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from articutool import load_spec
 from articutool.arm.model import ArmModel
+from articutool.spec import load_spec
 from articutool.trajectory import JointTrajectory
-from articutool.verify import verify_trajectory
+from articutool.verify.verifier import verify_trajectory
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 SPEC = load_spec()

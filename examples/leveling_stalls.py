@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from articutool import load_spec
+from articutool.spec import load_spec
 from articutool.tool.api import Mode
 from articutool.tool.drivers.sim import SimWrist, axis_angle_rotation
 from articutool.tool.runtime import ToolRuntime

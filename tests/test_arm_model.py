@@ -11,11 +11,12 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.spatial.transform import Rotation
 
-from articutool import load_spec
-from articutool.arm import ArmModel, Scene
+from articutool.arm.model import ArmModel
+from articutool.arm.scene import Scene
 from articutool.tool import kinematics as kin
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 TWO_PI = 2 * np.pi
 
 

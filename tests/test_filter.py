@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from articutool import load_spec
+from articutool.spec import load_spec
 from articutool.tool.filter import ComplementaryFilter
 
 G_STD = 9.80665  # the IMU's g (hardware-facts §3); the filter itself compares with 9.81

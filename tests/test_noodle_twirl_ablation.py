@@ -1,4 +1,4 @@
-"""benchmarks/noodle_twirl_ablation.py (issue 26): its no-twirl condition is the shipped
+"""benchmarks/noodle_twirl_ablation.py: its no-twirl condition is the shipped
 noodle strategy with exactly the two twirl stages emptied, loadable by the real action
 library; the statistics pair the conditions; bad input exits 2. The runs themselves (Exp. 1
 bites, a minute each) are the benchmark, not a test."""

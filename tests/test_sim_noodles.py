@@ -1,4 +1,4 @@
-"""Noodles as capsule chains (issue 26): the model, its stability, the fork's twirl option."""
+"""Noodles as capsule chains: the model, its stability, the fork's twirl option."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """Rotations: one small NumPy module for the rotation and quaternion formulas the tool and the
-arm share (issue 23). Core install (the Pi has NumPy only, no SciPy); scalar floats, since
-these run once per 50 Hz tick on 3x3 matrices, where NumPy's vector machinery costs more than
-it saves.
+arm share, so neither depends on the other. Core install (the Pi has NumPy only, no SciPy);
+scalar floats, since these run once per 50 Hz tick on 3x3 matrices, where NumPy's vector
+machinery costs more than it saves.
 
 Conventions: quaternions are Hamilton ``(w, x, y, z)``, scalar first (the IMU filter's output,
 thesis §4.2; hardware-facts §4; ``scene.toml``'s ``wxyz``); ``rpy`` is URDF's fixed-axis

@@ -68,7 +68,7 @@ class ArmModel:
     """The Jaco 2, with the Articutool and a utensil, as one Pinocchio model plus collision.
 
     Args:
-        spec: the hardware spec (``articutool.load_spec()``).
+        spec: the hardware spec (``articutool.spec.load_spec()``).
         utensil: which utensil's tip frame and collision capsule to use (``spec.utensils``).
         dof: 8 = arm + active pitch/roll wrist, 6 = wrist locked at zero (rigid tool).
         scene: obstacles; ``None`` loads the packaged default scene (``Scene.load()``).

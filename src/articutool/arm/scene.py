@@ -49,7 +49,6 @@ __all__ = [
     "StagingGoal",
     "StagingSet",
     "default_scene_path",
-    "rpy_matrix",
 ]
 
 # The direction the utensil's tip points while scooping, in the arm base frame of the default

@@ -1,4 +1,4 @@
-"""py_trees behaviours of the feeding tree (thesis §3.2.1, §4.3; issue 10), and the interfaces
+"""py_trees behaviours of the feeding tree (thesis §3.2.1, §4.3), and the interfaces
 they talk to.
 
 The tree reaches the arm only through :class:`ArmInterface` and the tool only through
@@ -238,7 +238,7 @@ class Verify(py_trees.behaviour.Behaviour):
 
 class Execute(_JobBehaviour):
     """Execute the trajectory on the blackboard. With ``tool`` and ``clock``, a trajectory
-    that also moves the wrist's joints (a wrist-made sweep, issue 25) sends them to the tool
+    that also moves the wrist's joints (a wrist-made sweep) sends them to the tool
     (TRAJECTORY mode) as the arm starts, and keeps the wrist's largest tracking error
     (``wrist_tracking_error``, rad, from the tool's measured joints)."""
 
@@ -419,7 +419,7 @@ class SafetyGuard(py_trees.decorators.EternalGuard):
     """The root safety guard: py_trees' EternalGuard, named ``Unsafe?``, around
     :class:`SafeStop`. Every tick, before the bite's steps, its condition asks whether the bite
     must stop: a tool fault, tool state older than ``stale_s``, a stop request on the
-    blackboard, or a stop from elsewhere (another paired PC, the tool's own console; issue 22):
+    blackboard, or a stop from elsewhere (another paired PC, the tool's own console):
     the tool DISABLED while the tree has it LEVELING — seen in two ticks running, since over a
     link a snapshot taken just before the tree's own LEVELING was carried out can arrive after
     it — or the tree's primitive aborted by a mode change. Then Safe stop runs and the guard

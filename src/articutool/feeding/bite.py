@@ -1,5 +1,4 @@
-"""One bite as a py_trees tree, from subtrees that each run alone (thesis §3.2.1, §4.3, §4.4;
-issue 10).
+"""One bite as a py_trees tree, from subtrees that each run alone (thesis §3.2.1, §4.3, §4.4).
 
 Stages, in order (:data:`STAGES`; a bite may run any ordered subset, e.g. Exp. 1 runs
 ``above, acquire, resting``):

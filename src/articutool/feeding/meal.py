@@ -1,5 +1,5 @@
 """Bites and meals in the physics world: the feeding tree driving the MuJoCo arm and the
-tool's own runtime, with the food accounted by physics (issue 10).
+tool's own runtime, with the food accounted by physics.
 
 :func:`make_bite_world` builds the world for a food and a system (the strategy, drawn from
 the action library with the seed, picks the utensil), puts the arm at Resting (the rigid
@@ -206,7 +206,7 @@ def shed_configuration(spec: Spec, scene: Scene, utensil: str, container: str = 
     """
     from articutool.arm.ik import solve_level_ik
     from articutool.arm.model import ArmModel
-    from articutool.sim.mjcf import spoon_dish
+    from articutool.food.dish import spoon_dish
 
     u = spec.utensil(utensil)
     if u.physics.kind == "spoon":

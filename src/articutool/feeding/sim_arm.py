@@ -33,7 +33,8 @@ from articutool.arm.model import ArmModel
 from articutool.arm.scene import SCOOP_HEADING
 from articutool.feeding.behaviours import JobResult
 from articutool.feeding.insertion import TipWaypoint
-from articutool.planning.api import PlanRequest, TransportTask, plan
+from articutool.planning.api import plan
+from articutool.planning.types import PlanRequest, TransportTask
 from articutool.sim.scenes import (
     ScriptError,
     cartesian_path,
@@ -43,7 +44,7 @@ from articutool.sim.scenes import (
 )
 from articutool.sim.world import FeedingWorld, smooth_joint_motion
 from articutool.trajectory import JointTrajectory
-from articutool.verify import verify_trajectory
+from articutool.verify.verifier import verify_trajectory
 
 __all__ = ["SimArm", "wrist_sweep"]
 
@@ -77,7 +78,7 @@ def wrist_sweep(model: ArmModel, q: np.ndarray, p0: np.ndarray, a0: float, p1: n
                 a1: float, speed: float, step_m: float = 0.002, dt: float = 0.02
                 ) -> JointTrajectory:
     """8-joint trajectory of a tip segment p0 → p1 whose pitch change a0 → a1 the wrist's
-    pitch makes while the arm translates (issue 25; thesis §4.3.1, "a 2-DOF local motion with
+    pitch makes while the arm translates (thesis §4.3.1, "a 2-DOF local motion with
     the Articutool"): the wrist pitch is interpolated from ``q``'s to the one that gives
     ``a1`` with the tool base as at ``q`` (within its range: beyond it the arm makes the rest
     of the turn), and the arm joints are solved by IK for every tip

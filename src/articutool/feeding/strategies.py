@@ -23,7 +23,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from articutool.datafile import format_validation_error, read_document
 from articutool.spec import NonNegative, Positive, Spec
-from articutool.tool.primitives import PrimitiveError, make_primitive, primitive_names
+from articutool.tool.primitive_base import PrimitiveError
+from articutool.tool.primitives import make_primitive, primitive_names
 
 __all__ = [
     "NONE",
@@ -80,7 +81,7 @@ class Approach(_Strict):
 class Insertion(_Strict):
     """How the utensil goes into the food."""
 
-    # sweep: dip tilted, level in the food while moving drag_m (issue 25; depth_m is then
+    # sweep: dip tilted, level in the food while moving drag_m (depth_m is then
     # the dish's lowest point above the floor)
     motion: Literal["scoop", "skewer", "dip", "sweep"]
     depth_m: NonNegative

@@ -1,9 +1,9 @@
-"""Assembling the feeding tree (issue 10): the transport subtree with plan → verify → execute,
+"""Assembling the feeding tree: the transport subtree with plan → verify → execute,
 bounded attempts, the tool's mode scoped, a safety guard at the root, and a visitor that
 records the bite's telemetry.
 
 Each attempt's budget is the planner's own (``budget_s`` of wall time inside ``plan()``, as
-OMPL counts it), never the simulated clock (issue 21). While a plan is computed in its worker
+OMPL counts it), never the simulated clock. While a plan is computed in its worker
 thread the world waits for it (:meth:`BiteRecorder.wait_for_plans`): a plan costs exactly one
 tick period of simulated time, so a trial's outcome does not depend on the machine's speed
 (a faster or a loaded machine gives the same record for the same seed).

@@ -4,7 +4,7 @@
 and acceleration limits (``spec.arm.max_velocity``, ``spec.arm.max_acceleration``) over a
 cubic spline through the path waypoints, parameterised by joint-space arc length.
 
-The **wrist-aware** variant (issue 5, deliverable 2) adds the wrist's velocity limit. Along a
+The **wrist-aware** variant adds the wrist's velocity limit. Along a
 path ``q(s)`` the tool base turns at ``ω = J_ω(q) q'(s) ṡ``, so the leveling rates of
 Eqs. 4.5–4.7 are linear in the path speed: ``q̇_wrist = A(s) ṡ`` with
 ``A(s) = J⁺(θ(s)) (ω_corr(s) × u(s))`` per unit ``ṡ`` (``ω_corr = −Rᵀ J_ω q'``). The constraint

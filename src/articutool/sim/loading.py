@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from articutool.sim.mjcf import spoon_dish
+from articutool.food.dish import spoon_dish
 from articutool.spec import UtensilSpec
 
 __all__ = ["DEPOSIT_CLEARANCE_M", "deposit_spot", "dish_surface_height", "dish_volume_m3",

@@ -155,7 +155,7 @@ class Strands(_FoodBase):
     pile_radius: Positive
     noslip_iterations: Annotated[int, Field(ge=0, le=1000)]
     # Starch-film adhesion (N per contact; MuJoCo ``geom/adhesion``, which acts only across a
-    # ``gap``): fork-strand, and strand-strand cohesion. 0 = friction only (issue 26's levers).
+    # ``gap``): fork-strand, and strand-strand cohesion. 0 = friction only.
     fork_adhesion: NonNegative = 0.0
     cohesion: NonNegative = 0.0
     adhesion_gap: Annotated[float, Field(ge=0, le=0.002)] = 0.0

@@ -41,7 +41,7 @@ base. In words: the tool is levelled, then turned a further ``a`` in pitch and `
 about its own joints. Steps 1–6 use ``q − o``; the joint limits (step 7) apply to the
 physical ``q``.
 
-**Stall report** (beyond Alg. 1; issue 21). Alg. 1 is local: from a base tilted 60–120° it
+**Stall report** (beyond Alg. 1). Alg. 1 is local: from a base tilted 60–120° it
 can come to rest with pitch pressed against a limit (or pitch damped away at the roll
 singularity) while the tool is still tilted, though a level configuration exists on the other
 side of the joint space (reaching it would swing the utensil through large tilts, so the
@@ -64,7 +64,6 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from articutool.rotations import quaternion_to_matrix
 from articutool.spec import Spec
 from articutool.tool.kinematics import (
     TWO_PI,
@@ -73,8 +72,7 @@ from articutool.tool.kinematics import (
     up_vector,
 )
 
-# quaternion_to_matrix (articutool.rotations) is re-exported: the runtime imports it from here.
-__all__ = ["LevelingController", "quaternion_to_matrix"]
+__all__ = ["LevelingController"]
 
 _Z = np.array([0.0, 0.0, 1.0])
 _X = np.array([1.0, 0.0, 0.0])

@@ -14,7 +14,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     from articutool.arm.model import ArmModel
     from articutool.cli_support import UsageError, spec_from_args
     from articutool.trajectory import JointTrajectory
-    from articutool.verify import verify_trajectory
+    from articutool.verify.verifier import verify_trajectory
 
     spec = spec_from_args(args)
     if args.utensil not in spec.utensils:

@@ -13,7 +13,7 @@ rotates at most ``max_step_deg`` between samples *and* no arm joint moves more t
 2. *kinematic check*: finds the leveling solutions inside the wrist limits (Eqs. 4.2–4.3, both
    branches) and follows the one nearest to the previous sample (Alg. 2 line 12);
 3. *continuity check*: every step of the followed solution must be one the motors can make
-   within the sample's time step — along one solution curve too (issue 21: passing close to
+   within the sample's time step — along one solution curve too (passing close to
    the wrist singularity, ``|cos θr| ≈ 0``, the leveling pitch swings by nearly π between two
    samples whose Eq. 4.7 rates are both small), and when the followed solution leaves the
    limits and the wrist must jump to another one (a branch switch or a whole roll turn);

@@ -111,12 +111,12 @@ def turn(food: str) -> dict[str, Any]:
     import numpy as np
 
     from articutool.arm.model import ArmModel
-    from articutool.arm.scene import Scene
+    from articutool.arm.scene import SCOOP_HEADING, Scene
     from articutool.feeding.insertion import acquisition_waypoints, dish_outline
     from articutool.feeding.meal import container_floor
     from articutool.feeding.sim_arm import wrist_sweep
     from articutool.feeding.strategies import StrategyLibrary
-    from articutool.sim.scenes import SCOOP_HEADING, cartesian_path, first_ik
+    from articutool.sim.scenes import cartesian_path, first_ik
     from articutool.spec import load_spec
 
     spec, scene = load_spec(), Scene.load()

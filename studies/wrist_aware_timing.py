@@ -19,8 +19,9 @@ import time
 import tomllib
 from pathlib import Path
 
-from articutool.bench.tasks import load_task_set
-from articutool.planning.api import PlanRequest, plan
+from articutool.bench.taskfile import load_task_set
+from articutool.planning.api import plan
+from articutool.planning.types import PlanRequest
 from articutool.spec import default_spec_path, parse_spec
 
 
