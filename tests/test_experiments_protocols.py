@@ -28,14 +28,30 @@ def _accounted(r: dict) -> float:
     return r["delivered_g"] + r["spilled_g"] + r.get("shed_g", 0.0)
 
 
-def test_capacity_trial_overfills_the_level_spoon_and_weighs_what_stays() -> None:
+def test_capacity_trial_scoops_the_full_bowl_and_weighs_what_the_level_spoon_holds() -> None:
     spec = make_trials("capacity", conditions("capacity", CFG), 1, 0)[0]  # pecans
     r = run_trial(spec)
-    assert r["error"] is None and r["food"] == "pecans" and r["seed"] == 0
-    assert r["fell_g"] > 0  # overfilled: some fell off, the rest is the capacity
-    assert 0 < r["capacity_g"] < r["overfill_g"]
-    assert r["ft_mass_g"] == pytest.approx(r["capacity_g"], abs=0.5)  # the HEX21 agrees
-    assert r["wall_time_s"] > 0
+    assert r["error"] is None, r.get("traceback")
+    assert r["food"] == "pecans" and r["seed"] == 0 and r["completed"]
+    assert r["tilt_deg"] < 3.0  # lifted level
+    assert r["scoop_g"] > 0.5  # at least a piece
+    assert r["scoop_g"] == pytest.approx(r["items_g"], abs=0.1)  # a scale reads the pieces
+    assert r["ft_mass_g"] == pytest.approx(r["scoop_g"], abs=0.5)  # the HEX21 agrees
+    assert "brim_g" not in r  # a brim test is a liquid's
+
+
+@pytest.mark.slow
+def test_capacity_trial_of_water_also_fills_the_dish_to_the_brim() -> None:
+    from articutool.sim.loading import dish_volume_m3
+    from articutool.spec import load_spec
+
+    spec = make_trials("capacity", conditions("capacity", CFG), 1, 0)[1]
+    r = run_trial(spec)
+    assert r["error"] is None, r.get("traceback")
+    assert r["food"] == "water" and r["completed"]
+    level_g = dish_volume_m3(load_spec().utensil("soup_spoon")) * 1e6
+    assert r["brim_poured_g"] < level_g
+    assert 0.8 * r["brim_poured_g"] < r["brim_g"] <= r["brim_poured_g"] + 1e-6
 
 
 def test_exp2b_trial_baseline_water_to_a_goal_accounts_for_every_gram() -> None:
@@ -129,21 +145,22 @@ def test_a_particle_on_the_table_then_the_floor_is_spilled_once_in_a_record() ->
     # Exp. 3 and Exp. 2b/2c read one definition of a spill: net mass changes, not summed
     # events (table + floor for one particle). A locked 40° carry of 8 g of water
     # (seed 0) sends particles over the table's edge onto the floor.
-    from articutool.experiments.protocols import _outcome_fields
+    from articutool.experiments.protocols import transport_outcome
     from articutool.sim.scenes import base_tilt_motion, load
     from articutool.sim.world import FeedingWorld
 
     w = FeedingWorld("water", seed=0, load_g=8.0)
     load(w, level=False)
-    before, n0 = w.masses_g(), len(w.spills)
+    before, n0, start = w.masses_g(), len(w.spills), w.item_classes()
     w.move_arm(base_tilt_motion(w, 40.0))
     w.run(3.0)
     events = w.spills[n0:]
     items = {e.item for e in events}
     assert len(events) > len(items)  # some particle spilled twice: table, then floor
-    r = _outcome_fields(w, before, n0)
+    r = transport_outcome(w, start, n0, before)
     m = w.layout.piece_mass * 1000.0
-    assert r["spilled_g"] == pytest.approx(m * len(items), abs=1e-3)
+    lost = ((start == 1) & (w.item_classes() != 1)).sum()  # left the spoon (1: utensil)
+    assert r["spilled_g"] == pytest.approx(m * lost, abs=1e-3)  # each once
     floor = {e.item for e in events if e.place == "critical"}
     assert r["spilled_by_place"]["critical"] == pytest.approx(m * len(floor), abs=1e-3)
 

@@ -212,7 +212,7 @@ def trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
     targets = None
     if exp == "exp2c":
         loads, src = _exp2c_loads(args, out, cfg)
-        th, th_src = _thresholds(args, out, cfg)
+        th, _ = _thresholds(args, out, cfg)
         if th is None or any(f not in th for f in cfg.exp2c.foods):
             raise _usage("exp2c needs each food's meaningful-success threshold (its "
                          "closed-loop target is derived from it): run `articutool experiment "

@@ -3,12 +3,14 @@
 These are measurements to compare with physical properties of the real food — never a loop
 that adjusts parameters towards an outcome of the thesis.
 
-- ``angle_of_repose_deg`` (granular): the "lifted cylinder" test — a column of pieces on the
-  table is released and spreads into a heap; the angle is ``atan(height / radius)`` of the
-  heap (radius: the distance from the heap's axis within which 90 % of the pieces lie).
-- ``level_capacity_g`` (granular, liquid): what the level utensil holds when loaded far
-  beyond its capacity by the world's own loading (pieces dropped one by one; particles
-  poured into the dish), after 1 s at rest.
+- ``angle_of_repose_deg`` (granular): the fixed-base lifted-cylinder test — a tube of pieces
+  standing on a round plate of the utensil's material is lifted slowly; the pieces pour into
+  a heap over the plate, the surplus falls over its edge; the angle is ``atan(H / R)``
+  (:func:`angle_of_repose_deg`), the mean of a few piles beside the cited measurement.
+- ``level_capacity_g`` (granular, liquid): what the level utensil holds when loaded with
+  the most it could hold (:func:`~articutool.sim.world.utensil_capacity_bound_g`) by the
+  world's own loading (pieces deposited over the dish; particles poured into it), after 1 s
+  at rest.
 - ``bulk_density_g_per_ml`` (liquid): the mass of the settled fill over the volume it fills
   in its container (the particle model is meant to weigh what the same volume of water does).
 """
@@ -24,7 +26,7 @@ import numpy as np
 from articutool.arm.scene import Cylinder, Scene
 from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
 from articutool.sim.pieces import draw_piece, footprint, pack_layer
-from articutool.sim.world import FeedingWorld
+from articutool.sim.world import FeedingWorld, utensil_capacity_bound_g
 from articutool.spec import Spec
 from articutool.tool.api import Mode
 
@@ -43,6 +45,8 @@ LIFT_SPEED_M_S = 0.01
 # the tolerance the check allows (our heap is three to four pieces wide: one piece more or
 # less on the apex moves the angle by 2-4°).
 REPOSE_TOLERANCE_DEG = 4.0
+# Piles per calibration (seeds seed, seed + 1, …): their mean is compared with the citation.
+REPOSE_SEEDS = 3
 
 
 def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = PILE_PIECES,
@@ -139,6 +143,7 @@ def level_capacity_g(food_name: str, spec: Spec, params: PhysicsParams, utensil:
     """(held, loaded) in g: what the leveled utensil still holds 1 s after being loaded with
     ``load_g``, or with as much as the loader can pour if that is less (a liquid heaped
     above the rim); if all of it stays, the capacity is at least that."""
+    load_g = min(load_g, utensil_capacity_bound_g(spec, params, food_name, utensil))
     world = FeedingWorld(food_name, utensil, spec=spec, params=params, seed=seed,
                          load_g=load_g)
     if world.max_load_g() < load_g:
@@ -157,7 +162,19 @@ def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
     out: dict[str, float | str] = {"food": food_name, "kind": food.kind,
                                    "piece_mass_g": round(food.piece_mass * 1000.0, 4)}
     if isinstance(food, Granular):
-        out["angle_of_repose_deg"] = round(angle_of_repose_deg(food, params, seed=seed), 1)
+        piles = [angle_of_repose_deg(food, params, seed=seed + k) for k in range(REPOSE_SEEDS)]
+        angles = [p["angle_deg"] for p in piles]
+        mean = float(np.mean(angles))
+        out.update(
+            angle_of_repose_deg=round(mean, 1),
+            angle_of_repose_sd_deg=round(float(np.std(angles, ddof=1)), 1),
+            angle_of_repose_piles_deg=", ".join(f"{a:.1f}" for a in angles),
+            angle_of_repose_cited_deg=food.angle_of_repose_deg,
+            angle_of_repose_tolerance_deg=REPOSE_TOLERANCE_DEG,
+            angle_of_repose_within_tolerance=(
+                "yes" if abs(mean - food.angle_of_repose_deg) <= REPOSE_TOLERANCE_DEG
+                else "no"),
+            angle_of_repose_cpu_s=round(sum(p["cpu_s"] for p in piles), 1))
     if isinstance(food, Granular | Liquid):
         held, loaded = level_capacity_g(food_name, spec, params, utensil, seed)
         out["level_capacity_g"] = round(held, 2)

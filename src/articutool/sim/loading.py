@@ -95,15 +95,13 @@ def pour_lattice(u: UtensilSpec, cell: float) -> list[tuple[float, float, float]
 
 
 def dish_volume_m3(u: UtensilSpec) -> float:
-    """Volume (m³) a spoon's dish holds filled level to its rim: the frustum of its floor
-    ellipse and 45° walls, ∫ π·a(h)·b(h) dh from the floor to the rim (0 for a fork)."""
+    """Volume (m³) a spoon's dish holds filled level to its rim (its hydrostatic level
+    capacity, :class:`articutool.food.hydrostatics.Hydrostatics`); 0 for a fork."""
     if u.physics.kind != "spoon":
         return 0.0
-    _, a, b, a0, b0, depth = spoon_dish(u)
-    sa, sb = (a - a0) / depth, (b - b0) / depth
-    # ∫0^d (a0 + sa h)(b0 + sb h) dh
-    return math.pi * (a0 * b0 * depth + (a0 * sb + b0 * sa) * depth**2 / 2
-                      + sa * sb * depth**3 / 3)
+    from articutool.food.hydrostatics import Hydrostatics
+
+    return float(Hydrostatics(spoon_dish(u)).level_capacity)
 
 
 def max_load_g(u: UtensilSpec, kind: str, density: float,
