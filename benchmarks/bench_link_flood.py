@@ -1,4 +1,4 @@
-"""The network cannot slow the loop (issue 13, item 4): the real tool under a link flood.
+"""The network cannot slow the loop: the real tool under a link flood.
 
 Runs ``articutool tool`` (simulated wrist, the real 50 Hz runtime, paired: mutual TLS and
 signed commands) as its own process, then from this process:

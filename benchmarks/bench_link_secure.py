@@ -1,4 +1,4 @@
-"""What pairing costs (issue 13, item 1): service round trips plain vs. mutual TLS + signatures.
+"""What pairing costs: service round trips plain vs. mutual TLS + signatures.
 
 Runs the fake tool (tests/link_fake_tool.py) in its own process twice, side by side in one
 invocation: unpaired on plain loopback TCP, and paired (``articutool pair``: mutual TLS and

@@ -1,4 +1,4 @@
-"""Stops under a flood (issue 22, S1): how many of a PC's stops the real tool accepts, and
+"""Stops under a flood: how many of a PC's stops the real tool accepts, and
 how long each takes, while other processes flood it.
 
 The tool is ``articutool tool --no-level`` (simulated wrist, the real 50 Hz runtime) in its

@@ -1,4 +1,5 @@
-"""Plan-then-verify speed: a 200-waypoint transport (issue 2 goal: about a millisecond).
+"""Plan-then-verify speed: a 200-waypoint transport (target: about a millisecond, so a plan can be
+verified before every motion).
 
     .venv/bin/python -m pytest benchmarks/test_bench_verify.py --benchmark-only
 """

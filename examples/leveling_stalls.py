@@ -1,4 +1,4 @@
-"""Leveling from static random base tilts (issue 21): how many starts reach level, how many
+"""Leveling from static random base tilts: how many starts reach level, how many
 stall and say so, how many stay tilted silently. Prints one line per tilt range.
 
     PYTHONPATH=src python examples/leveling_stalls.py [--starts 99]

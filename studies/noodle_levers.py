@@ -1,5 +1,5 @@
-"""Issue 26's levers, each twirl vs still on the same tuning seeds: does any justified change
-to the noodle model or the fork's motion make a twirling fork lift more than a still one?
+"""The noodle model's levers, each twirl vs still on the same tuning seeds: does any justified
+change to the noodle model or the fork's motion make a twirling fork lift more than a still one?
 
 Every variant changes one thing from the shipped world (``data/physics.toml``, the fork's
 acquisition ``sim/scenes.py: skewer``), with its source in ``LEVERS``. Tuning seeds are
@@ -8,9 +8,9 @@ acquisition ``sim/scenes.py: skewer``), with its source in ``LEVERS``. Tuning se
 run; rerunning keeps the runs already there), so two processes can run different variants;
 every listed variant runs on a seed before any runs on the next.
 
-    nice .venv/bin/python benchmarks/noodle_levers.py --lever baseline cohesion
-    .venv/bin/python benchmarks/noodle_levers.py --table     # the docs' table from the JSON
-    nice .venv/bin/python benchmarks/noodle_levers.py --confirm cohesion --seeds 10
+    nice .venv/bin/python studies/noodle_levers.py --lever baseline cohesion
+    .venv/bin/python studies/noodle_levers.py --table     # the docs' table from the JSON
+    nice .venv/bin/python studies/noodle_levers.py --confirm cohesion --seeds 10
 """
 
 from __future__ import annotations
@@ -36,7 +36,8 @@ from noodle_twirl import STUDY_BASE_SEED, one_run, summarise, write_study
 TUNING_SEED0 = 5100  # 5100 + r: never a confirmation seed (5000-5009, noodle_twirl.py)
 # Capillary adhesion of a starch film: F ≈ 2γℓ (a meniscus on both sides of a line contact),
 # γ ≈ 0.05 N/m (surface tension of a starch-laden water film, below water's 0.072 N/m) along
-# one 15.6 mm segment: 1.56e-3 N, the issue's upper bound per contact (simulation-notes.md).
+# one 15.6 mm segment: 1.56e-3 N, the cited upper bound per contact
+# (docs/notes/2026-11-22-simulation-prototypes.md).
 _GAMMA = 0.05
 _SEGMENT = 0.25 / 16
 ADHESION_BOUND_N = 2 * _GAMMA * _SEGMENT
@@ -150,9 +151,9 @@ def confirm(name: str, n_seeds: int, out_dir: Path) -> dict[str, Any]:
                                     **(lever.skewer if t else {})))
                 print(name, json.dumps(runs[-1]), flush=True)
                 write_study(path, runs, turns, ["--confirm", name, "--seeds", str(n_seeds)],
-                            "benchmarks/noodle_levers.py")
+                            "studies/noodle_levers.py")
     write_study(path, runs, turns, ["--confirm", name, "--seeds", str(n_seeds)],
-                "benchmarks/noodle_levers.py")
+                "studies/noodle_levers.py")
     return summarise(runs, turns)
 
 
@@ -223,7 +224,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--only-seed", type=int, default=None,
                     help="run the levers on this tuning seed only")
-    ap.add_argument("--out", default="results/noodle_levers")
+    ap.add_argument("--out", default="studies/results/noodle_levers")
     ap.add_argument("--table", action="store_true", help="print the docs' table; run nothing")
     ap.add_argument("--confirm", choices=sorted(LEVERS), default=None,
                     help="run this lever's confirmation study on seeds 5000 + r (--seeds of "

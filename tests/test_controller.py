@@ -1,4 +1,4 @@
-"""Leveling controller (thesis Alg. 1; hardware-facts §5): structure, closed loop, properties."""
+"""Leveling controller (thesis Alg. 1; docs/hardware.md §5): structure, closed loop, properties."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Food primitives (thesis §4.4; hardware-facts §6) run closed-loop against a simple wrist."""
+"""Food primitives (thesis §4.4; docs/hardware.md §6) run closed-loop against a simple wrist."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The planning-scene data file: defaults (hardware-facts §2), validation, poses, and its effect
+"""The planning-scene data file: defaults (docs/hardware.md §2), validation, poses, and its effect
 on the arm model's collision checks."""
 
 import math

@@ -1,6 +1,6 @@
 """Kinova Jaco 2 (j2n6s200) + Articutool models built with Pinocchio from the hardware spec.
 
-Kinematics (hardware-facts §1, §3):
+Kinematics (docs/hardware.md §1, §3):
 
 * Jaco chain: for each joint of ``spec.arm.joints`` the placement ``SE3(rpy, xyz)`` in the
   parent frame (URDF fixed-axis roll-pitch-yaw) followed by a revolute joint about local z;
@@ -128,7 +128,7 @@ class ArmModel:
             "tool_base": model.getFrameId(TOOL_BASE_FRAME),
             "tip": model.getFrameId(tip_frame_name(utensil)),
         }
-        # Fixed rotations of the vectorised F0 chain (hardware-facts §1, §3).
+        # Fixed rotations of the vectorised F0 chain (docs/hardware.md §1, §3).
         self._joint_rot = np.stack([rpy_matrix(j.rpy) for j in arm.joints])
         self._f0_in_link6 = rpy_matrix(arm.ee_rpy) @ rpy_matrix(w.mount_rpy)
 

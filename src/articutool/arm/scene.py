@@ -1,4 +1,4 @@
-"""The planning scene: named collision primitives in the arm base frame (hardware-facts §2).
+"""The planning scene: named collision primitives in the arm base frame (docs/hardware.md §2).
 
 The packaged default ``articutool/data/scene.toml`` is the seated-user feeding scene (table,
 plate, bowl, the user's head and torso, the wheelchair, the ground). ``Scene.load(path)``

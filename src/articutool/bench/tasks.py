@@ -3,7 +3,7 @@
 Thesis §5.2.1: a candidate set of (start, goal) transport tasks with level tool orientation
 at both ends is filtered down to the tasks that all three systems reach by IK (the "common
 IK-filtered set"). Here a candidate is a pair of tool-tip targets in the feeding scene
-(hardware-facts §2, ``data/scene.toml``):
+(docs/hardware.md §2, ``data/scene.toml``):
 
 * start: the tip above the plate or the bowl, level, heading roughly away from the arm base;
 * goal: a staging pose in front of the user's mouth, level, the utensil pointing at the user.

@@ -1,11 +1,11 @@
-"""Yaw-invariant leveling controller (thesis §4.2, Algorithm 1; hardware-facts §5).
+"""Yaw-invariant leveling controller (thesis §4.2, Algorithm 1; docs/hardware.md §5).
 
 Pure and stateful: :class:`LevelingController` holds only the PID memory (integral and last
 error) and the chosen offsets; it reads no sensor and drives no motor. Each 50 Hz tick the
 runtime hands it the tool-base orientation in the gravity-aligned world frame and the measured
 joints, and gets back a joint velocity command ``[pitch, roll]`` in rad/s.
 
-One tick (Algorithm 1, with the reference tuning of hardware-facts §5):
+One tick (Algorithm 1, with the reference tuning of docs/hardware.md §5):
 
 1. ``y_world = R_world←F0 · y(q)``, the tool's up vector (Eq. 4.1) in the world.
 2. Error: the axis-angle rotation taking ``y_world`` onto world +z (Alg. 1 lines 8–10). The
@@ -100,7 +100,7 @@ def _rotation_matrix(R: ArrayLike, name: str) -> NDArray[np.float64]:
 
 
 class LevelingController:
-    """PID leveling of the tool's up vector against gravity (thesis Alg. 1; hardware-facts §5).
+    """PID leveling of the tool's up vector against gravity (thesis Alg. 1; docs/hardware.md §5).
 
     Parameters are the reference tuning (``spec.controller``) and the wrist's leveling limits
     and commandable speeds (``spec.wrist``); :meth:`from_spec` reads them. ``R_base_imu`` is

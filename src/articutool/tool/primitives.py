@@ -1,4 +1,4 @@
-"""Food primitives: parameterised, stateful wrist motions (thesis §4.4; hardware-facts §6).
+"""Food primitives: parameterised, stateful wrist motions (thesis §4.4; docs/hardware.md §6).
 
 Pure: a primitive is built from its parameters, the spec and the joints at the start, then
 stepped once per control tick with the *measured* joints; it returns a joint velocity command

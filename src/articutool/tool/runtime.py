@@ -25,7 +25,7 @@ Modes (``Mode``):
   A ``start_delay`` (a ``header.stamp`` in the future, synchronised with the arm) holds the
   present position until then, as ROS trajectory controllers do.
 
-Rules (thesis §4.4, hardware-facts §6): a primitive is refused while leveling, while another
+Rules (thesis §4.4, docs/hardware.md §6): a primitive is refused while leveling, while another
 runs and while a fault is set; any mode change aborts a running primitive (its result is
 ``success=False``, message "aborted by mode change to …").
 

@@ -2,7 +2,7 @@
 
 Uses ``dynamixel_sdk`` (``PortHandler``, ``PacketHandler(2.0)``, ``GroupSyncWrite`` and the
 packet handler's sync-read primitives). Control-table addresses are those of the X-series
-(hardware-facts §3), checked against the ROBOTIS e-manual control table for the XC430-W250
+(docs/hardware.md §3), checked against the ROBOTIS e-manual control table for the XC430-W250
 family (EEPROM 0–63, RAM 64+). Units: velocity 0.229 rev/min per unit, position 4096 ticks
 per revolution, present values signed 32-bit two's complement, input voltage 0.1 V.
 
