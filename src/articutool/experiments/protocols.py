@@ -168,6 +168,10 @@ def capacity_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
         brim = dish_volume_m3(u) * fp.density * 1000.0 - fp.piece_mass * 1000.0
         b = FeedingWorld(food, w.utensil, spec=w.spec, scene=w.scene, seed=seed, load_g=brim,
                          mouth=False)
+        if b.max_load_g() < brim:  # the pour's lattice holds less than the level volume
+            brim = b.max_load_g() - 1e-6
+            b = FeedingWorld(food, w.utensil, spec=w.spec, scene=w.scene, seed=seed,
+                             load_g=brim, mouth=False)
         b.tool.set_mode(Mode.LEVELING)
         b.run(1.0)
         b.place_load(settle_s=cfg.settings.settle_s)
