@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import py_trees
 import pytest
 from py_trees.common import Status
@@ -73,6 +75,11 @@ class FakeArm:
     def verify(self, trajectory: str) -> JobResult:
         ok = self.verdicts.pop(0) if self.verdicts else True
         return JobResult(ok, "feasible" if ok else "wrist speed 4.3 rad/s > 4 at waypoint 12")
+
+    def check_food(self, trajectory: str) -> JobResult:
+        # nothing on the fork: the transport runs as planned
+        return JobResult(True, "no load to check",
+                         SimpleNamespace(trajectory=trajectory, record=None))
 
     def start_execute(self, trajectory: str) -> FakeJob:
         self.executed.append(trajectory)

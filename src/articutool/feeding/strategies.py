@@ -131,10 +131,14 @@ class Stages(_Strict):
 
 
 class Transport(_Strict):
-    """Which planner carries the bite, and its tolerance for the strict ones."""
+    """Which planner carries the bite, its tolerance for the strict ones, and what the
+    decoupled wrist levels against: ``gravity`` (the IMU loop, thesis Alg. 1) or ``apparent``
+    (slosh-free: the dish square to g − a of the planned motion, a wrist trajectory the tool
+    follows, plain leveling when the tool would refuse it)."""
 
     planner: Literal["decoupled", "strict6", "strict8"]
     tolerance_deg: Annotated[float, Field(gt=0, le=90)] | None = None
+    leveling: Literal["gravity", "apparent"] = "gravity"
 
     @model_validator(mode="after")
     def _tolerance(self) -> Transport:
@@ -143,6 +147,9 @@ class Transport(_Strict):
         if self.planner == "decoupled" and self.tolerance_deg is not None:
             raise ValueError("decoupled takes no tolerance_deg (its constraint is the "
                              "spec's loose band)")
+        if self.planner != "decoupled" and self.leveling != "gravity":
+            raise ValueError(f"leveling = {self.leveling!r} needs the decoupled planner (a "
+                             "strict plan keeps the wrist locked)")
         return self
 
 

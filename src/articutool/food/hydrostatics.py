@@ -153,7 +153,8 @@ class Hydrostatics:
                              np.where(rhs >= 0, 1.0, -1.0)), -1.0, 1.0)
         seg = np.pi - np.arccos(s) + s * np.sqrt(1.0 - s * s)  # unit disc below s
         area = A * B * seg
-        return np.sum(0.5 * (hi - lo)[..., 0] * np.sum(area * _GL_W, axis=-1), axis=-1)
+        vol = np.sum(0.5 * (hi - lo)[..., 0] * np.sum(area * _GL_W, axis=-1), axis=-1)
+        return np.maximum(vol, 0.0)  # never below zero by rounding
 
     def rim_level(self, up: ArrayLike) -> NDArray[np.float64]:
         """``min over the rim of n·p``: the highest surface level before liquid runs out."""
