@@ -21,8 +21,8 @@ from articutool.experiments.design import EXP2C_CONDITIONS
 from articutool.experiments.stats import describe, fisher, proportion_ci, welch
 from articutool.feeding.outcomes import OUTCOMES, classify_bite
 
-__all__ = ["EXP2C_CLASSES", "classify_exp2c", "representative_trials", "staging_attempts",
-           "summarize"]
+__all__ = ["EXP2C_CLASSES", "by_place", "classify_exp2c", "representative_trials",
+           "staging_attempts", "summarize"]
 
 EXP2C_CLASSES = ("meaningful_success", "trivial_success", "transport_failure", "failed")
 
@@ -143,7 +143,21 @@ def summarize_exp2b(records: Sequence[dict[str, Any]], cfg: Any) -> dict[str, An
                                                 ).to_dict(),
                        "held_g": describe([r["held_g"] for r in v]).to_dict()}
                    for s, v in rs.items()}
-    out.update(spill_frequency_fisher=freq, per_goal=per_goal, transport=plan)
+    out.update(spill_frequency_fisher=freq, per_goal=per_goal, transport=plan,
+               spilled_by_place={f: {sys_: by_place(_where(ok, food=f, system=sys_))
+                                     for sys_ in systems} for f in cfg.exp2b.foods})
+    return out
+
+
+def by_place(records: Sequence[Mapping[str, Any]]) -> dict[str, dict[str, float]]:
+    """Grams spilled over ``records`` per place (a container and the air apart from the
+    table and the user: accounting.transport_spill), and in how many trials."""
+    out: dict[str, dict[str, float]] = {}
+    for r in records:
+        for place, g in (r.get("spilled_by_place") or {}).items():
+            e = out.setdefault(place, {"g": 0.0, "trials": 0})
+            e["g"] = round(e["g"] + float(g), 4)
+            e["trials"] += int(float(g) > 1e-9)
     return out
 
 
@@ -164,7 +178,8 @@ def summarize_exp2c(records: Sequence[dict[str, Any]], cfg: Any,
                 "spill": _rate(sum(1 for r in rs if r["spilled_g"] > 1e-9), len(rs)),
                 "delivered_g": describe([r["delivered_g"] for r in rs]).to_dict(),
                 "held_g": describe([r["held_g"] for r in rs]).to_dict(),
-                "shed_g": describe([r["shed_g"] for r in rs]).to_dict()}
+                "shed_g": describe([r["shed_g"] for r in rs]).to_dict(),
+                "spilled_by_place": by_place(rs)}
             if thresholds_g and f in thresholds_g:
                 e.update(_counts([classify_exp2c(r, thresholds_g[f]) for r in rs],
                                  EXP2C_CLASSES))

@@ -285,6 +285,12 @@ def _sec_exp2b(s: Mapping[str, Any], cfg: Any) -> str:
     out += "\n\n" + _table(["food", "system", "load held after placing (g)", "completed",
                             "planning attempts", "max utensil tilt (°)",
                             "Fisher p, spill frequency"], rows)
+    if s.get("spilled_by_place"):
+        rows = [[f, sys_, _places(s["spilled_by_place"][f][sys_])]
+                for f in cfg.exp2b.foods for sys_ in cfg.exp2b.systems]
+        out += ("\n\nWhere the spilled food went (g over all trials, trials with any): in "
+                "transport anything that left the spoon is spilled, a container apart:\n\n"
+                + _table(["food", "system", "by place"], rows))
     rows = []
     for f in cfg.exp2b.foods:
         for sys_ in cfg.exp2b.systems:
@@ -293,6 +299,12 @@ def _sec_exp2b(s: Mapping[str, Any], cfg: Any) -> str:
     goals = list(next(iter(s["per_goal"][cfg.exp2b.foods[0]].values())).keys()) if rows else []
     out += "\n\nSpilled per goal (g):\n\n" + _table(["food", "system", *goals], rows)
     return out
+
+
+def _places(d: Mapping[str, Any] | None) -> str:
+    """``{"table": {"g", "trials"}, …}`` as "table 0.42 g (1), container …" (none: "none")."""
+    parts = [f"{p} {v['g']:.2f} g ({v['trials']})" for p, v in (d or {}).items() if v["g"] > 0]
+    return ", ".join(parts) or "none"
 
 
 def _sec_exp2c(s: Mapping[str, Any], cfg: Any) -> str:
@@ -305,7 +317,11 @@ def _sec_exp2c(s: Mapping[str, Any], cfg: Any) -> str:
            + f" ({s.get('thresholds_source', '?')}); thesis: "
            + " / ".join(f"> {cfg.thesis['exp1'][f]['articutool'][0]:g} g"
                         for f in cfg.exp2c.foods)
-           + " (its Exp. 1 means).\n\n")
+           + " (its Exp. 1 means)."
+           + (" Closed-loop load targets, from the thresholds (threshold + one item + 3 σ of one "
+              "weighing): " + ", ".join(f"{f} {g:.2f} g" for f, g in
+                                        s["closed_loop_target_g"].items()) + "."
+              if s.get("closed_loop_target_g") else "") + "\n\n")
     rows = []
     for f in cfg.exp2c.foods:
         e = s["foods"][f]
@@ -326,6 +342,10 @@ def _sec_exp2c(s: Mapping[str, Any], cfg: Any) -> str:
     out += _table(["food", "condition", "n", "held (g)", "shed into container (g)",
                    "delivered (g)", "meaningful", "trivial", "transport failure",
                    "tree failed", "thesis", "Fisher p (meaningful, vs control)"], rows)
+    rows = [[f, c, _places(s["foods"][f][c].get("spilled_by_place"))]
+            for f in cfg.exp2c.foods for c in EXP2C_CONDITIONS if c in s["foods"][f]]
+    out += ("\n\nWhere the spilled food went (g over all trials, trials with any):\n\n"
+            + _table(["food", "condition", "by place"], rows))
     out += ("\n\nSpill frequency alone (Fisher, no-spill trials, primitive vs control): "
             + ", ".join(f"{f} p = {_p(s['foods'][f]['fisher_no_spill'].get('p'))}"
                         for f in cfg.exp2c.foods) + ".")
@@ -546,7 +566,7 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
         summary = summarize(exp, recs, cfg, thresholds_g=thresholds_g, threshold_g=threshold_g)
         summary["run"].update({k: v for k, v in old.get("run", {}).items()
                                if k not in summary["run"]})
-        for k in ("load_g", "load_source", "goals"):
+        for k in ("load_g", "load_source", "goals", "closed_loop_target_g"):
             if k in old:
                 summary[k] = old[k]
         if exp == "exp2c":
