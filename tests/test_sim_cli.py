@@ -102,13 +102,3 @@ def test_a_small_pile_test_pours_a_heap_over_the_plate() -> None:
     assert r["angle_deg"] == pytest.approx(
         math.degrees(math.atan2(r["height_mm"] / 1e3, PLATE_RADIUS_M)))
     assert 5.0 < r["angle_deg"] < 60.0
-
-
-def test_water_calibration_pours_what_the_loader_can_and_says_it_is_a_lower_bound(
-        capsys: pytest.CaptureFixture[str]) -> None:
-    from articutool.cli import main
-
-    # The loader may refuse part of the load it is asked to pour: reported, not a crash.
-    assert main(["sim-calibrate", "--food", "water", "--json"]) == 0
-    out = json.loads(capsys.readouterr().out)
-    assert 0 < out["level_capacity_g"] <= out["loaded_g"] < 20.0

@@ -169,9 +169,10 @@ def test_fork_adhesion_and_cohesion_are_the_forces_of_their_contacts() -> None:
     w = FeedingWorld("noodles", seed=5100, params=p, settle=False)
     m = w.model
     tine, s0, s1 = (m.geom(n).id for n in ("utensil/tine0", "strand0/3", "strand1/7"))
-    # MuJoCo sums the two geoms' adhesion per contact (equal priorities).
-    assert m.geom_priority[tine] == m.geom_priority[s0]
-    assert m.geom_adhesion[tine] + m.geom_adhesion[s0] == pytest.approx(1.5e-3)
+    # A fork-strand contact takes the fork's adhesion alone (the higher priority decides, as
+    # for every food-partner law); two strands' contact sums theirs (equal priorities).
+    assert m.geom_priority[tine] > m.geom_priority[s0] == m.geom_priority[s1]
+    assert m.geom_adhesion[tine] == pytest.approx(1.5e-3)
     assert m.geom_adhesion[s0] + m.geom_adhesion[s1] == pytest.approx(1.0e-3)
     assert min(m.geom_gap[[tine, s0, s1]]) == pytest.approx(4e-4)
     # The settled nest's crossings pull: an adhesive passive force acts on the strands,

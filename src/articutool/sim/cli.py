@@ -153,16 +153,54 @@ def _check_twirl(args: argparse.Namespace, kw: dict) -> None:
                          + (" with --load" if args.load is not None else ""))
 
 
+def _liquid_load(args: argparse.Namespace, kw: dict, default: float | None) -> float | None:
+    """``--load`` of a liquid: a mass the level utensil holds (hydrostatics), else exit 2."""
+    from articutool.cli_support import UsageError
+    from articutool.sim.calibrate import max_liquid_load_g
+    from articutool.sim.params import Liquid
+
+    food = kw["params"].food(args.food)
+    load = args.load if args.load is not None else default
+    if load is None or not isinstance(food, Liquid):
+        return load
+    utensil = args.utensil or food.utensil
+    hi = max_liquid_load_g(food, kw["spec"].utensil(utensil))
+    if not (math.isfinite(load) and 0 < load <= hi):
+        raise UsageError(f"--load must be a mass in (0, {hi:.1f}] g (what the level {utensil} "
+                         f"holds of {args.food}); got {load}")
+    return load
+
+
 def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from articutool.cli_support import UsageError
     from articutool.sim.calibrate import run_calibration
+    from articutool.sim.params import Liquid
 
     kw = _world_args(args)
-    result = run_calibration(args.food, args.utensil, **kw)
+    if args.load is not None and not isinstance(kw["params"].food(args.food), Liquid):
+        raise UsageError(f"--load: the static-tilt test is for liquids; {args.food} is "
+                         f"{kw['params'].food(args.food).kind}")
+    load = _liquid_load(args, kw, None)
+    result = run_calibration(args.food, args.utensil, load_g=load, **kw)
     if args.json:
         print(json.dumps(result, indent=2))
-    else:
-        for k, v in result.items():
-            print(f"{k:28s} {v}")
+        return 0
+    tilt = result.pop("static_tilt", None)
+    for k, v in result.items():
+        print(f"{k:28s} {v}")
+    if tilt is not None:
+        print(f"static tilt of {tilt['load_g']:g} g on the {tilt['utensil']} (held "
+              f"{tilt['hold_s']:g} s at each tilt; hydrostatics of the load that stayed):")
+        for d in ("tip", "side"):
+            t = tilt[d]
+            print(f"  {'over the tip' if d == 'tip' else 'sideways'}: {t['kept_g']:.2f} g "
+                  f"stayed when placed; onset {t['onset_deg']}° (hydrostatics "
+                  f"{t['hydrostatic_onset_deg']}°)")
+            print("    tilt °   spilled g   hydrostatics g")
+            for r in t["rows"]:
+                print(f"    {r['tilt_deg']:6.1f}   {r['spilled_g']:9.2f}   "
+                      f"{r['hydrostatic_g']:14.2f}")
+        print(f"  {tilt['cpu_s']} s CPU, {tilt['realtime_factor']}x real time")
     return 0
 
 
@@ -206,6 +244,11 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         "articutool view --recording; never overwrites")
     p.set_defaults(func=_cmd_sim)
     c = sub.add_parser("sim-calibrate", help="calibration experiments of a food model "
-                       "(angle of repose, what a level utensil holds)")
+                       "(angle of repose, what a level utensil holds; a liquid's static-tilt "
+                       "test against the dish's hydrostatics)")
     _common(c)
+    c.add_argument("--load", type=float, metavar="G", default=None,
+                   help="a liquid's static-tilt test with this load (default 8 g; at most "
+                        "what the level utensil holds): grams spilled per tilt beside "
+                        "hydrostatics")
     c.set_defaults(func=_cmd_calibrate)

@@ -11,8 +11,20 @@ primitives: a bowl is a floor disc plus a ring of wall boxes; a spoon is a floor
 ring of sloped wall boxes round an ellipse (a dish); a fork is a handle plus capsule tines.
 
 Collision filtering (``contype``/``conaffinity`` bits): static surfaces 1, food 2,
-utensil 4, robot links 8. Food collides with everything; the utensil with food and static
-surfaces (it scrapes the bowl); the robot links only with food; static never with static.
+utensil 4, robot links 8. Food collides with everything; the robot links only with food;
+static never with static. The utensil touches the static surfaces (it scrapes the bowl)
+through explicit ``<pair>``s.
+
+Contact parameters: every pair that holds a food item gets exactly the law ``physics.toml``
+states for that food and that partner (``FoodContacts``: food, utensil, container, surface).
+MuJoCo mixes two geoms' parameters (larger condim, larger friction, solmix-weighted solref)
+unless their ``priority`` differs, when the higher-priority geom's values are used whole;
+so the food's geoms carry the food–food law at priority 0, and every other geom (utensil,
+containers, surfaces, the arm's links) carries the food–partner law at priority 1. Food–food
+pairs are then one law on both sides, and each food–partner pair takes the partner's. The
+utensil–surface pairs hold no food and are explicit ``<pair>``s with ``[world]
+utensil_contact``, so what the partners carry for the food never reaches them. (Explicit pairs
+for every food pair would be one per item and geom — hundreds of thousands in a bowl.)
 """
 
 from __future__ import annotations
@@ -28,19 +40,20 @@ from articutool.arm.model import TOOL_BASE_FRAME, tip_frame_name
 from articutool.arm.scene import Box, Capsule, Cylinder, Halfspace, Scene, Sphere
 from articutool.food.dish import spoon_dish
 from articutool.rotations import rpy_matrix
-from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
+from articutool.sim.params import ContactParams, Granular, Liquid, PhysicsParams, Strands
 from articutool.sim.pieces import Capsule as PieceCapsules
 from articutool.sim.pieces import capsule_mass, draw_piece, footprint, pack_layer
-from articutool.spec import Spec
+from articutool.spec import Spec, UtensilSpec
 
-__all__ = ["FT_SITE", "IMU_SITE", "WorldLayout", "build_mjcf", "tip_site_name"]
+__all__ = ["FT_SITE", "IMU_SITE", "WorldLayout", "build_mjcf", "contact_attrs", "dish_walls",
+           "tip_site_name"]
 
 IMU_SITE = "imu"
 FT_SITE = "ft"
 _STATIC, _FOOD, _UTENSIL, _ROBOT = 1, 2, 4, 8
 _ALL = _STATIC | _FOOD | _UTENSIL | _ROBOT
 _WALL_BOXES = 24
-_DISH_WALLS = 16
+_DISH_WALLS = 32
 
 
 def tip_site_name(utensil: str) -> str:
@@ -67,6 +80,7 @@ class WorldLayout:
     piece_size: float = 0.0  # lattice cell of one piece (m)
     food_contype: int = 0
     food_conaffinity: int = 0
+    static_geoms: list[str] = field(default_factory=list)
 
 
 def _f(v: float | NDArray[np.float64] | list[float] | tuple[float, ...]) -> str:
@@ -92,11 +106,30 @@ def _frame(z_dir: NDArray[np.float64], hint: NDArray[np.float64]) -> NDArray[np.
     return np.column_stack([x, np.cross(z, x), z])
 
 
-def _static_geoms(scene: Scene, friction: float, wall_factor: float,
+def contact_attrs(law: ContactParams | None, priority: int) -> str:
+    """A geom's contact attributes carrying ``law`` at ``priority`` (none without a law: the
+    geom then meets no food and MuJoCo's defaults never act)."""
+    if law is None:
+        return ""
+    return (f'priority="{priority}" condim="{law.condim}" friction="{_f(law.friction)}" '
+            f'solref="{_f(law.solref)}" solimp="{_f(law.solimp)}"')
+
+
+def _pair_attrs(law: ContactParams) -> str:
+    """An explicit pair's attributes (its friction has five values: both sliding directions,
+    torsional, both rolling directions)."""
+    sl, tor, roll = law.friction
+    return (f'condim="{law.condim}" friction="{_f((sl, sl, tor, roll, roll))}" '
+            f'solref="{_f(law.solref)}" solimp="{_f(law.solimp)}"')
+
+
+def _static_geoms(scene: Scene, food: Granular | Liquid | Strands | None, wall_factor: float,
                   layout: WorldLayout) -> list[str]:
     out = []
     for o in scene.objects:
-        cls = f'contype="{_STATIC}" conaffinity="0" friction="{friction} 0.005 0.0001"'
+        law = None if food is None else (food.contacts.container if o.place == "container"
+                                         else food.contacts.surface)
+        cls = f'contype="{_STATIC}" conaffinity="0" {contact_attrs(law, 1)}'
         rgba = {"container": "0.95 0.95 0.92 1", "table": "0.55 0.4 0.3 1",
                 "critical": "0.6 0.65 0.8 1"}.get(o.place or "", "0.7 0.7 0.7 1")
         pose = _pose_attr(o.xyz, o.rotation)
@@ -144,22 +177,88 @@ def _static_geoms(scene: Scene, friction: float, wall_factor: float,
         if o.place:
             for nm in names:
                 layout.places[nm] = o.place
+        layout.static_geoms += names
+    return out
+
+
+def dish_walls(u: UtensilSpec, n: int = _DISH_WALLS
+               ) -> list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]]:
+    """The spoon dish's sloped wall as ``n`` boxes (centre, rotation, half sizes; utensil
+    frame) whose inner faces lie on the ideal dish of :func:`spoon_dish`.
+
+    The ideal wall is ruled: the line from the floor ellipse's point at angle φ to the rim's.
+    Box k is the plate through the ruling at φ_k = 2πk/n, in the plane tangent to the wall
+    at the ruling's mid-height (the wall is not developable, so that plane meets the ideal
+    surface only there: it departs from it by < 0.1 mm along the ruling, tested), thick
+    outward only; its inner face spans exactly the floor's height to the rim's, with
+    horizontal bottom and top edges, and is as wide as the farthest point where it meets a
+    neighbour's plane at the rim plus 0.2 mm, so neighbouring plates overlap outside the
+    dish and leave no gap. With n divisible by 4 a plate is centred on the tip, the back and
+    both sides: the rim's lowest point when tilted is the ideal one.
+    """
+    zc, a, b, a0, b0, depth = spoon_dish(u)
+    th = u.physics.thickness
+    x0 = u.tip_x
+
+    def to_utensil(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        # Dish coordinates (along, across, up from the floor) → utensil frame.
+        return np.array([x0 + p[2], p[1], zc + p[0]])
+
+    def plate(phi: float) -> tuple[NDArray[np.float64], ...]:
+        c, s_ = math.cos(phi), math.sin(phi)
+        bottom = np.array([a0 * c, b0 * s_, 0.0])
+        top = np.array([a * c, b * s_, depth])
+        mid = (bottom + top) / 2
+        am, bm = (a0 + a) / 2, (b0 + b) / 2
+        t = np.array([-am * s_, bm * c, 0.0])
+        t /= np.linalg.norm(t)
+        normal = np.cross(top - bottom, t)  # outward (the ruling rises outward)
+        normal /= np.linalg.norm(normal)
+        if normal @ np.array([c, s_, 0.0]) < 0:
+            normal = -normal
+        slope = np.cross(normal, t)  # in the plate, perpendicular to its horizontal edges
+        if slope[2] < 0:
+            slope = -slope
+        return mid, t, normal, slope, top
+
+    plates = [plate(2 * math.pi * k / n) for k in range(n)]
+    out = []
+    for k, (mid, t, normal, slope, _) in enumerate(plates):
+        # Where this plate's top edge meets each neighbour's plane (both at the rim height).
+        reach = 0.0
+        for j in (k - 1, (k + 1) % n):
+            _, _, nj, _, topj = plates[j]
+            top_mid = mid + slope * ((depth - mid[2]) / slope[2])
+            # Solve for s: (top_mid + s·t − topj) · nj = 0.
+            denom = float(t @ nj)
+            if abs(denom) > 1e-12:
+                reach = max(reach, abs(float((topj - top_mid) @ nj) / denom))
+        half_w = reach + 2e-4
+        half_len = depth / slope[2] / 2
+        centre = mid + normal * th / 2
+        # The box's axes in the utensil frame (dish → utensil swaps along and up, a
+        # reflection; the width axis is flipped to keep the rotation proper — a box is
+        # symmetric).
+        P = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+        R = np.column_stack([P @ normal, -(P @ t), P @ slope])
+        out.append((to_utensil(centre), R, np.array([th / 2, half_w, half_len])))
     return out
 
 
 def _utensil_geoms(spec: Spec, utensil: str, layout: WorldLayout,
                    food: Granular | Liquid | Strands | None = None) -> list[str]:
     """Geoms of the utensil in the utensil body (origin at the utensil mount, roll-link axes:
-    x = up vector at zero angles, z = out along the roll axis). With strands, the utensil
-    carries the fork-strand adhesion (MuJoCo sums the two geoms' values per contact)."""
+    x = up vector at zero angles, z = out along the roll axis), carrying the food–utensil
+    contact law and, with strands, the fork-strand adhesion."""
     u = spec.utensil(utensil)
     ph = u.physics
     th = ph.thickness
     sticky = ""
     if isinstance(food, Strands) and food.adhesion_gap > 0:
-        sticky = f' adhesion="{max(food.fork_adhesion - food.cohesion / 2, 0.0):.6g}" ' \
-                 f'gap="{food.adhesion_gap:.6g}"'
-    cls = (f'contype="{_UTENSIL}" conaffinity="{_STATIC}" friction="0.5 0.005 0.0001" '
+        # The higher-priority geom's adhesion acts alone in a fork-strand contact.
+        sticky = f' adhesion="{food.fork_adhesion:.6g}" gap="{food.adhesion_gap:.6g}"'
+    law = food.contacts.utensil if food is not None else None
+    cls = (f'contype="{_UTENSIL}" conaffinity="0" {contact_attrs(law, 1)} '
            f'rgba="0.75 0.75 0.78 1"{sticky}')
     out: list[str] = []
 
@@ -168,30 +267,13 @@ def _utensil_geoms(spec: Spec, utensil: str, layout: WorldLayout,
         out.append(f'<geom name="{name}" {body} {cls}/>')
 
     if ph.kind == "spoon":
-        zc, a, b, a0, b0, depth = spoon_dish(u)
+        zc, a, _, a0, b0, depth = spoon_dish(u)
         length = 2 * a
         x0 = u.tip_x  # the floor's inner surface
         geom("utensil/floor", f'type="box" size="{th / 2} {b0} {a0}" '
              f'pos="{x0 - th / 2} 0 {zc}"')
-        n = _DISH_WALLS
-        for k in range(n):
-            phi = 2 * math.pi * (k + 0.5) / n
-            # Mid-height point of the sloped wall, on the ellipse between floor and rim.
-            am, bm = (a0 + a) / 2, (b0 + b) / 2
-            p = np.array([x0 + depth / 2, bm * math.sin(phi), zc + am * math.cos(phi)])
-            # Outward horizontal normal of the ellipse (in the y-z plane) at phi.
-            nh = np.array([0.0, math.sin(phi) / bm, math.cos(phi) / am])
-            nh /= np.linalg.norm(nh)
-            tangent = np.cross(np.array([1.0, 0.0, 0.0]), nh)
-            run = np.array([a - a0, b - b0]).mean()
-            slope = np.array([depth, 0.0, 0.0]) + run * nh  # from floor edge up to rim
-            slope_len = float(np.linalg.norm(slope))
-            # Wall box: thin along its normal, long along the tangent and the slope.
-            R = np.column_stack([np.cross(tangent, slope / slope_len), tangent,
-                                 slope / slope_len])
-            seg = 2 * math.pi * math.hypot(am, bm) / math.sqrt(2) / n
-            geom(f"utensil/wall{k}", f'type="box" size="{th / 2} {0.6 * seg} '
-                 f'{slope_len / 2}" {_pose_attr(p, R)}')
+        for k, (c, R, half) in enumerate(dish_walls(u)):
+            geom(f"utensil/wall{k}", f'type="box" size="{_f(half)}" {_pose_attr(c, R)}')
         z_end = u.tip_z - length
         geom("utensil/handle", f'type="box" size="{th / 2} 0.004 {z_end / 2}" '
              f'pos="{x0 + depth / 2} 0 {z_end / 2}"')
@@ -232,15 +314,18 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
     floor_z = box.xyz[2] - box.length / 2 + box.container_wall
     cx, cy = box.xyz[0], box.xyz[1]
     out: list[str] = []
-    mass = food.piece_mass
+    radius, mass = 0.0, food.piece_mass
+    if isinstance(food, Liquid):  # a placed load has its own, finer particles (physics.toml)
+        radius = food.load_particle_radius if load_g is not None else food.particle_radius
+        mass = food.particle_mass(radius)
     layout.piece_mass = mass
     count = max(1, round((food.fill_g if load_g is None else load_g) / 1000.0 / mass))
-    fcls = f'contype="{_FOOD}" conaffinity="{_ALL}"'
+    fcls = f'contype="{_FOOD}" conaffinity="{_ALL}" {contact_attrs(food.contacts.food, 0)}'
     layout.food_contype, layout.food_conaffinity = _FOOD, _ALL
     if load_g is not None:
         if isinstance(food, Strands):
             raise ValueError("load_g: strands cannot be placed as a load; use a container fill")
-        fcls = 'contype="0" conaffinity="0"'
+        fcls = f'contype="0" conaffinity="0" {contact_attrs(food.contacts.food, 0)}'
         layout.parked = True
     if isinstance(food, Strands):
         return _strands(food, count, inner, floor_z, cx, cy, rng, layout)
@@ -267,11 +352,20 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
                 raise ValueError(f"food {food.container}: a piece does not fit in the bowl")
             pts += [(x, y, z) for x, y in layer]
             z += cell_z
-        size = f'type="capsule" friction="{_f(food.friction)}" condim="6"'
+        size = 'type="capsule"'
         rgba = "0.55 0.33 0.15 1"
     else:
-        cell = 2 * food.particle_radius * 1.02
-        size = f'type="sphere" size="{food.particle_radius}" condim="1"'
+        spread = food.load_radius_spread if load_g is not None else 0.0
+        radii_p = np.full(count, radius)
+        if spread > 0:  # radii drawn until their mass reaches the load (the count follows)
+            drawn: list[float] = []
+            total = 0.0
+            while total < load_g / 1000.0 - 0.5 * mass:
+                drawn.append(radius * (1.0 + spread * rng.uniform(-1.0, 1.0)))
+                total += food.particle_mass(drawn[-1])
+            radii_p, count = np.array(drawn), len(drawn)
+        cell = 2 * radius * (1.0 + spread) * 1.02
+        size = 'type="sphere"'
         rgba = "0.3 0.5 0.95 0.8"
         # Lattice inside the inner radius, layer by layer, with a small seeded jitter.
         pts = []
@@ -304,11 +398,12 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
             geoms = "".join(
                 f'<geom name="{name}{"" if i == 0 else f"_{i}"}" {size} size="{r:.9g}" '
                 f'fromto="{_f(np.r_[a, b])}" density="{food.density:.9g}" '
-                f'solref="{_f(food.solref)}" {fcls} rgba="{rgba}"/>'
+                f'{fcls} rgba="{rgba}"/>'
                 for i, (a, b, r) in enumerate(pieces[k]))
         else:
-            geoms = (f'<geom name="{name}" {size} mass="{mass:.9g}" '
-                     f'solref="{_f(food.solref)}" {fcls} rgba="{rgba}"/>')
+            rk = float(radii_p[k])
+            geoms = (f'<geom name="{name}" {size} size="{rk:.9g}" '
+                     f'mass="{food.particle_mass(rk):.9g}" {fcls} rgba="{rgba}"/>')
         out.append(f'<body name="{name}" pos="{_f(np.array([cx + x, cy + y, z]) + jitter)}" '
                    f'quat="{_f(q)}"{grav}><freejoint/>{geoms}</body>')
     return out
@@ -358,8 +453,8 @@ def _strands(food: Strands, count: int, inner: float, floor_z: float, cx: float,
             out.append(
                 f'<body name="{name}/{i}" {pose}>{joint}'
                 f'<geom name="{name}/{i}" type="capsule" size="{r}" fromto="0 0 0 {ds} 0 0" '
-                f'mass="{mass:.9g}" contype="{_FOOD}" conaffinity="{_ALL}" condim="4" '
-                f'friction="{_f(food.friction)}" solref="{_f(food.solref)}" '
+                f'mass="{mass:.9g}" contype="{_FOOD}" conaffinity="{_ALL}" '
+                f'{contact_attrs(food.contacts.food, 0)} '
                 f'rgba="0.95 0.85 0.45 1"{sticky}/>')
         out.append("</body>" * n)
     return out
@@ -399,7 +494,7 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
 
         '<camera name="overview" pos="1.6 -0.9 1.1" xyaxes="0.5 0.87 0 -0.4 0.23 0.89"/>',
     ]
-    x += _static_geoms(scene, wp.surface_friction, wp.collision_wall_factor, layout)
+    x += _static_geoms(scene, food_p, wp.collision_wall_factor, layout)
     # Cameras placed from the scene: a close view of each container, and one that follows
     # the utensil from beside the food's container (the first container if there is none).
     containers = [o for o in scene.objects
@@ -420,7 +515,8 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
         x.append(f'<site name="region/{r.name}" pos="{_f(r.xyz)}" size="{r.radius}" '
                  'rgba="1 0.3 0.3 0.25"/>')
 
-    rcls = f'contype="{_ROBOT}" conaffinity="0" rgba="0.25 0.25 0.28 1"'
+    rcls = (f'contype="{_ROBOT}" conaffinity="0" rgba="0.25 0.25 0.28 1" '
+            f'{contact_attrs(food_p.contacts.surface if food_p else None, 1)}')
     h0 = arm.joints[0].xyz[2]
     x.append(f'<body name="{arm.base_frame}">')
     x.append(f'<geom name="{arm.base_frame}" type="cylinder" size="{col.base_radius} {h0 / 2}" '
@@ -475,6 +571,12 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
     if food_p is not None:
         x += _food_bodies(food_p, scene, params, rng, layout, load_g)
     x.append("</worldbody>")
+    # The utensil against every static surface: explicit pairs with their own law.
+    x.append("<contact>")
+    law = _pair_attrs(wp.utensil_contact)
+    x += [f'<pair geom1="{g}" geom2="{sg}" {law}/>'
+          for g in layout.utensil_geoms for sg in layout.static_geoms]
+    x.append("</contact>")
     x.append("<actuator>")
     for j in arm.joints:
         x.append(f'<position name="{j.name}/pos" joint="{j.name}" kp="{sp.kp}"/>')
