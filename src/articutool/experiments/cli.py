@@ -172,7 +172,7 @@ def _closed_loop_targets(thresholds: dict[str, float], cfg: Any) -> dict[str, fl
     closed_loop_target_g`): one item's mass (the physics' food model) and the noise of one
     weighing (the F/T sensor's per-sample noise over the primitive's window)."""
     from articutool.experiments.protocols import closed_loop_target_g
-    from articutool.sim.params import PhysicsParams
+    from articutool.sim.params import Liquid, PhysicsParams
     from articutool.spec import load_spec
     from articutool.tool.primitives import get_primitive
 
@@ -185,9 +185,11 @@ def _closed_loop_targets(thresholds: dict[str, float], cfg: Any) -> dict[str, fl
         window = shed.params[names.index("window_s")] if "window_s" in names else 0.0
         n = max(1, round(window * spec.ft.rate_hz))
         noise_g = spec.ft.force_noise_n / spec.imu.gravity * 1000.0 / math.sqrt(n)
-        out[food] = round(closed_loop_target_g(thresholds[food],
-                                               params.food(food).piece_mass * 1000.0,
-                                               noise_g), 3)
+        fp = params.food(food)
+        # One item of a placed load: a load particle of a liquid, a piece otherwise.
+        item = fp.particle_mass(fp.load_particle_radius) if isinstance(fp, Liquid) \
+            else fp.piece_mass
+        out[food] = round(closed_loop_target_g(thresholds[food], item * 1000.0, noise_g), 3)
     return out
 
 

@@ -164,8 +164,9 @@ def capacity_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
         from articutool.tool.api import Mode
 
         u = w.spec.utensil(w.utensil)
-        # The dish's level volume, less one particle: the pour's last cell must fit.
-        brim = dish_volume_m3(u) * fp.density * 1000.0 - fp.piece_mass * 1000.0
+        # The dish's level volume, less one of a load's particles: the pour's last must fit.
+        brim = (dish_volume_m3(u) * fp.density * 1000.0
+                - fp.particle_mass(fp.load_particle_radius) * 1000.0)
         b = FeedingWorld(food, w.utensil, spec=w.spec, scene=w.scene, seed=seed, load_g=brim,
                          mouth=False)
         if b.max_load_g() < brim:  # the pour's lattice holds less than the level volume
