@@ -273,7 +273,7 @@ def test_an_experiment_trial_recording_agrees_with_its_record(tmp_path: Path) ->
     got = _read(path)
     food = [d for t, _, d in got if t == "/sim/food"]
     on_spoon = {kv.key: float(kv.value) for kv in food[-1].status[0].values}["utensil_g"]
-    assert on_spoon == pytest.approx(rec["capacity_g"], abs=1e-3)  # the trial's own measure
+    assert on_spoon == pytest.approx(rec["items_g"], abs=1e-3)  # the trial's own measure
     assert sum(t.endswith("/joint_states") for t, _, _ in got) > 100
     for args, says in ((["--record", str(path), "--trial", "0"], "exists"),
                        (["--record", str(tmp_path / "new.mcap")], "--trial")):

@@ -12,7 +12,6 @@ from articutool.arm.model import ArmModel
 from articutool.food.loads import LoadError, food_load, parse_load
 from articutool.planning.timing import time_parameterize
 from articutool.sim.params import PhysicsParams
-from articutool.spec import load_spec
 from articutool.tool.following import TrajectoryFollower
 from articutool.trajectory import JointTrajectory
 from articutool.verify.food import dish_poses, food_check, slosh_free_wrist, spill_model

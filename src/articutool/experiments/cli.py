@@ -150,11 +150,57 @@ def _exp2c_loads(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[st
     missing = [f for f in cfg.exp2c.foods if f not in loads or loads[f] <= 0]
     if missing:
         raise _usage(f"--load-g: no load > 0 g for {missing}")
-    too_big = {f: g for f, g in loads.items() if g > MAX_LOAD_G}
-    if too_big:
-        raise _usage(f"--load-g: a load must be at most {MAX_LOAD_G:g} g (more than any "
-                     f"utensil holds); got {too_big} from {src}")
+    unknown = sorted(set(loads) - set(cfg.exp2c.foods))
+    if unknown:
+        raise _usage(f"--load-g: unknown foods {unknown}; Exp. 2c's foods: "
+                     f"{', '.join(cfg.exp2c.foods)}")
+    _check_loads(loads, cfg, "--load-g" if args.load_g else f"the capacity summary {src}")
     return loads, src
+
+
+def _check_loads(loads: dict[str, float], cfg: Any, field: str) -> None:
+    """Every load within what its food's Exp. 2c utensil can hold (exit 2 naming the range)."""
+    from articutool.feeding.strategies import StrategyLibrary
+    from articutool.sim.params import PhysicsParams
+    from articutool.sim.world import capacity_bound_reason, utensil_capacity_bound_g
+    from articutool.spec import load_spec
+
+    spec, params = load_spec(), PhysicsParams.load()
+    lib = StrategyLibrary.load(spec)
+    for food, g in loads.items():
+        utensil = lib.strategies[cfg.exp2c.strategy[food]].utensil
+        most = utensil_capacity_bound_g(spec, params, food, utensil)
+        if not g <= most:
+            raise _usage(f"{field}: {food} must be in (0, {most:.2f}] g, the most the "
+                         f"{utensil} can hold ({capacity_bound_reason(params.food(food))}); "
+                         f"got {g:g}")
+
+
+def _closed_loop_targets(thresholds: dict[str, float], cfg: Any) -> dict[str, float]:
+    """Per food with a load-targeting closed-loop primitive, its target from the food's
+    meaningful-success threshold (:func:`~articutool.experiments.protocols.
+    closed_loop_target_g`): one item's mass (the physics' food model) and the noise of one
+    weighing (the F/T sensor's per-sample noise over the primitive's window)."""
+    from articutool.experiments.protocols import closed_loop_target_g
+    from articutool.sim.params import Liquid, PhysicsParams
+    from articutool.spec import load_spec
+    from articutool.tool.primitives import get_primitive
+
+    spec, params = load_spec(), PhysicsParams.load()
+    out = {}
+    for food, shed in cfg.exp2c.closed_loop.items():
+        names = get_primitive(shed.primitive).parameter_names
+        if "target_load_g" not in names or food not in thresholds:
+            continue
+        window = shed.params[names.index("window_s")] if "window_s" in names else 0.0
+        n = max(1, round(window * spec.ft.rate_hz))
+        noise_g = spec.ft.force_noise_n / spec.imu.gravity * 1000.0 / math.sqrt(n)
+        fp = params.food(food)
+        # One item of a placed load: a load particle of a liquid, a piece otherwise.
+        item = fp.particle_mass(fp.load_particle_radius) if isinstance(fp, Liquid) \
+            else fp.piece_mass
+        out[food] = round(closed_loop_target_g(thresholds[food], item * 1000.0, noise_g), 3)
+    return out
 
 
 def trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
@@ -175,10 +221,18 @@ def trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
             raise _usage("the scene has no [staging_set] (Exp. 2b's start and goals)")
         goals = [g.name for g in sset.goals]
         extra["goals"] = goals
+    targets = None
     if exp == "exp2c":
         loads, src = _exp2c_loads(args, out, cfg)
-        extra.update(load_g=loads, load_source=src)
-    conds = conditions(exp, cfg, goals=goals, load_g=loads)
+        th, _ = _thresholds(args, out, cfg)
+        if th is None or any(f not in th for f in cfg.exp2c.foods):
+            raise _usage("exp2c needs each food's meaningful-success threshold (its "
+                         "closed-loop target is derived from it): run `articutool experiment "
+                         f"exp1 --out {out}` first, or pass --thresholds-g "
+                         + ",".join(f"{f}=G" for f in cfg.exp2c.foods))
+        targets = _closed_loop_targets(th, cfg)
+        extra.update(load_g=loads, load_source=src, closed_loop_target_g=targets)
+    conds = conditions(exp, cfg, goals=goals, load_g=loads, target_g=targets)
     return make_trials(exp, conds, args.trials, args.seed, goals=goals), {
         "conditions": conds, **extra}
 

@@ -44,9 +44,15 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     new_output_file("--snapshot", args.snapshot, (".png",))
     new_output_file("--record", args.record, (".npz",))
     kw = _world_args(args)
-    if args.load is not None and not (math.isfinite(args.load) and 0 < args.load <= 100):
-        raise UsageError(f"--load must be a mass in (0, 100] g; got {args.load}")
-    _liquid_load(args, kw, None)
+    if args.load is not None:
+        from articutool.sim.world import capacity_bound_reason, utensil_capacity_bound_g
+
+        fp = kw["params"].food(args.food)
+        most = utensil_capacity_bound_g(kw["spec"], kw["params"], args.food, args.utensil)
+        if not (math.isfinite(args.load) and 0 < args.load <= most):
+            raise UsageError(f"--load must be a mass in (0, {most:.2f}] g, the most the "
+                             f"{args.utensil or fp.utensil} can hold of {args.food} "
+                             f"({capacity_bound_reason(fp)}); got {args.load}")
     if args.twirl_turns is not None:
         _check_twirl(args, kw)
     try:

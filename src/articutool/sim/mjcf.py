@@ -478,9 +478,10 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
     rng = np.random.default_rng(seed)
     layout = WorldLayout(xml="", arm_joints=arm.joint_names, wrist_joints=list(w.joint_names))
     layout.timestep = wp.timestep
-    # The no-slip solver stops a loaded wrap creeping on soft contacts (strands only: it
-    # costs time, docs/notes/2026-11-22-simulation-prototypes.md).
-    noslip = food_p.noslip_iterations if isinstance(food_p, Strands) else 0
+    # The no-slip solver removes soft contacts' creep: a loaded wrap of strands slides off the
+    # tines, a heap of pieces flows below its angle of repose (physics.toml says why, per food;
+    # it costs time, docs/notes/2026-11-22-simulation-prototypes.md).
+    noslip = food_p.noslip_iterations if isinstance(food_p, Strands | Granular) else 0
     x: list[str] = [
         f'<mujoco model="{arm.model}_articutool_feeding">',
         '<compiler angle="radian" autolimits="true"/>',

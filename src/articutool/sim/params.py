@@ -146,6 +146,12 @@ class Granular(_FoodBase):
     half_width_m: tuple[Positive, Positive]
     half_length_ratio: Annotated[float, Field(ge=1, le=5)]
     piece_screen_m: tuple[Positive, Positive]
+    # The cited angle of repose of the food (degrees) that the pile test
+    # (``sim-calibrate``) is checked against; also bounds what a utensil can hold.
+    angle_of_repose_deg: Annotated[float, Field(gt=0, lt=90)]
+    # No-slip solver passes (MuJoCo ``noslip_iterations``): static friction without the
+    # soft contacts' creep (a resting heap must not flow).
+    noslip_iterations: Annotated[int, Field(ge=0, le=1000)] = 0
 
     @model_validator(mode="after")
     def _ranges(self) -> Granular:
