@@ -165,6 +165,14 @@ def trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
         loads, src = _exp2c_loads(args, out, cfg)
         extra.update(load_g=loads, load_source=src)
     conds = conditions(exp, cfg, goals=goals, load_g=loads)
+    foods = getattr(args, "foods", None)
+    if foods:
+        wanted = [f.strip() for f in foods.split(",") if f.strip()]
+        known = sorted({c["food"] for c in conds})
+        if not wanted or any(f not in known for f in wanted):
+            raise _usage(f"--foods must name foods of {exp} ({', '.join(known)}), "
+                         f"comma-separated; got {foods!r}")
+        conds = [c for c in conds if c["food"] in wanted]
     return make_trials(exp, conds, args.trials, args.seed, goals=goals), {
         "conditions": conds, **extra}
 
@@ -400,6 +408,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                        help="with --trial: record the trial as ROS 2 messages in MCAP (tool "
                             "telemetry and commands, arm joints, food, the feeding tree's "
                             "status); never overwrites")
+        if name != "exp3":
+            p.add_argument("--foods", metavar="FOOD,…", default=None,
+                           help="run only these foods' conditions (same seeds as a full run; "
+                                "use its own --out)")
         if name == "exp2c":
             p.add_argument("--load-g", default=None, metavar="FOOD=G,…",
                            help="the load per food (default: our capacity means)")

@@ -11,11 +11,14 @@ that adjusts parameters towards an outcome of the thesis.
   poured into the dish), after 1 s at rest.
 - ``bulk_density_g_per_ml`` (liquid): the mass of the settled fill over the volume it fills
   in its container (the particle model is meant to weigh what the same volume of water does).
+- strands: each mechanism alone beside its law (capstan, bending, tack, mass and diameter;
+  :mod:`articutool.sim.strand_laws`).
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -83,10 +86,10 @@ def level_capacity_g(food_name: str, spec: Spec, params: PhysicsParams, utensil:
 
 
 def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
-                    params: PhysicsParams, seed: int = 0) -> dict[str, float | str]:
+                    params: PhysicsParams, seed: int = 0) -> dict[str, Any]:
     """Every calibration experiment that applies to the food; a dict of measured values."""
     food = params.food(food_name)
-    out: dict[str, float | str] = {"food": food_name, "kind": food.kind,
+    out: dict[str, Any] = {"food": food_name, "kind": food.kind,
                                    "piece_mass_g": round(food.piece_mass * 1000.0, 4)}
     if isinstance(food, Granular):
         out["angle_of_repose_deg"] = round(angle_of_repose_deg(food, params, seed=seed), 1)
@@ -107,5 +110,7 @@ def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
         vol_ml = math.pi * inner**2 * (top - floor) * 1e6
         out["bulk_density_g_per_ml"] = round(world.masses_g()["container"] / vol_ml, 3)
     if isinstance(food, Strands):
-        out["note"] = "no calibration experiment for strands yet"
+        from articutool.sim.strand_laws import run_strand_calibration
+
+        out.update(run_strand_calibration(food, params, spec, utensil or food.utensil))
     return out

@@ -147,12 +147,20 @@ def _check_twirl(args: argparse.Namespace, kw: dict) -> None:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from articutool.cli_support import UsageError
     from articutool.sim.calibrate import run_calibration
 
     kw = _world_args(args)
-    result = run_calibration(args.food, args.utensil, **kw)
+    try:
+        result = run_calibration(args.food, args.utensil, **kw)
+    except ValueError as err:
+        raise UsageError(str(err)) from None
     if args.json:
         print(json.dumps(result, indent=2))
+    elif "capstan_bar" in result:  # strands: the table of laws
+        from articutool.sim.strand_laws import table
+
+        print(table(result))
     else:
         for k, v in result.items():
             print(f"{k:28s} {v}")
