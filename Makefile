@@ -45,7 +45,7 @@ demo: $(VENV)/.installed
 	$(BIN)/articutool meal --food $(DEMO_FOOD) --bites 1 --video results/demo/bite-$(DEMO_FOOD)-$$(date +%Y%m%d-%H%M%S).mp4
 
 test: $(VENV)/.installed
-	$(BIN)/ruff check src tests benchmarks examples
+	$(BIN)/ruff check src tests benchmarks studies examples
 	$(BIN)/python -m pytest -m "not slow" -q
 
 test-slow: $(VENV)/.installed
@@ -67,20 +67,20 @@ bench-full: $(VENV)/.installed
 bench-sim: $(VENV)/.installed
 	$(BIN)/python benchmarks/bench_sim.py --seeds 5 --out results/sim_benchmark.json
 
-# Issue 13: the real tool (sim) under 1000 goals/s + 16 MB payloads, rate limit on vs off.
+# The real tool (sim) under 1000 goals/s + 16 MB payloads, rate limit on vs off.
 bench-flood: $(VENV)/.installed
 	$(BIN)/python benchmarks/bench_link_flood.py --duration 60 --compare-unlimited --out results/link_flood.json
 
-# Issue 22: a PC's stops under floods (unsigned, forged, replayed, another paired PC, all).
+# A PC's stops under floods (unsigned, forged, replayed, another paired PC, all).
 bench-stops: $(VENV)/.installed
 	$(BIN)/python benchmarks/bench_link_stops.py --out results/link_stops.json
 
-# Issue 13: the tool against a random, hostile client; SOAK_S=600 make soak for a short one.
+# The tool against a random, hostile client; SOAK_S=600 make soak for a short one.
 SOAK_S ?= 3600
 soak: $(VENV)/.installed
 	$(BIN)/python benchmarks/soak.py --duration $(SOAK_S) --out results/soak.json
 
-# Issue 11: the thesis' physical experiments in the physics world (results/experiments),
+# The thesis' physical experiments in the physics world (results/experiments),
 # resumable: rerun to finish an interrupted run. EXP_TRIALS=5 make experiments for a short one.
 # Order: capacity gives Exp. 2c its load; Exp. 1 gives Exp. 2c its thresholds (at report time).
 EXP_TRIALS ?= 20
@@ -95,7 +95,7 @@ experiments: $(VENV)/.installed
 	$(BIN)/articutool experiment report --out $(EXP_OUT)
 
 lint: $(VENV)/.installed
-	$(BIN)/ruff check src tests benchmarks examples
+	$(BIN)/ruff check src tests benchmarks studies examples
 
 clean:
 	rm -rf $(VENV) .pytest_cache .benchmarks

@@ -1,4 +1,4 @@
-"""The network cannot slow the loop (issue 13, item 4): the real tool under a link flood.
+"""The network cannot slow the loop: the real tool under a link flood.
 
 Runs ``articutool tool`` (simulated wrist, the real 50 Hz runtime, paired: mutual TLS and
 signed commands) as its own process, then from this process:
@@ -35,6 +35,7 @@ from typing import Any
 
 import zenoh
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.client import ArticutoolClient
 from articutool.link.config import load_config
@@ -73,7 +74,7 @@ class Flood:
         next_t, next_big = time.monotonic(), time.monotonic()
         while not self.stop.is_set():
             for _ in range(batch):
-                payload = m.encode(m.send_goal_request(uuid.uuid4().bytes, "TWIRL", [0.1]),
+                payload = cdr.encode(m.send_goal_request(uuid.uuid4().bytes, "TWIRL", [0.1]),
                                    ep_goal.request_type)
                 session.get(key, handler=lambda _r: None, payload=payload,
                             attachment=self.tr._attachment(ep_goal, payload), timeout=1.0)

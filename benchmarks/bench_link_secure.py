@@ -1,4 +1,4 @@
-"""What pairing costs (issue 13, item 1): service round trips plain vs. mutual TLS + signatures.
+"""What pairing costs: service round trips plain vs. mutual TLS + signatures.
 
 Runs the fake tool (tests/link_fake_tool.py) in its own process twice, side by side in one
 invocation: unpaired on plain loopback TCP, and paired (``articutool pair``: mutual TLS and
@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.auth import Signer, Verifier
 from articutool.link.client import ArticutoolClient
@@ -97,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     signer = Signer(tmp / "pc-1" / "cert.pem", tmp / "pc-1" / "key.pem")
     verifier = Verifier(tmp / "ca" / "ca.pem")
     ep = Names(tool_id="wrist-1").send_goal
-    payload = m.encode(m.send_goal_request(uuid.uuid4().bytes, "TWIRL_CW", [1.0, 2.0]),
+    payload = cdr.encode(m.send_goal_request(uuid.uuid4().bytes, "TWIRL_CW", [1.0, 2.0]),
                        ep.request_type)
     n = 2000
     t = time.perf_counter()
@@ -109,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
     verify_us = (time.perf_counter() - t) / n * 1e6
     t = time.perf_counter()
     for _ in range(n):
-        m.decode(payload, ep.request_type)
+        cdr.decode(payload, ep.request_type)
     decode_us = (time.perf_counter() - t) / n * 1e6
     out["per_message_us"] = {"sign": round(sign_us, 1), "verify": round(verify_us, 1),
                              "decode_send_goal": round(decode_us, 1),

@@ -1,4 +1,4 @@
-"""Stops under a flood (issue 22, S1): how many of a PC's stops the real tool accepts, and
+"""Stops under a flood: how many of a PC's stops the real tool accepts, and
 how long each takes, while other processes flood it.
 
 The tool is ``articutool tool --no-level`` (simulated wrist, the real 50 Hz runtime) in its
@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.auth import Signer
 from articutool.link.client import ArticutoolClient, LinkError
@@ -146,7 +147,7 @@ def paired_scenario(kind: str, a: argparse.Namespace) -> dict[str, Any]:
                 args += ["--cert", str(folder / "pc-1" / "cert.pem")]
             elif k == "replay":
                 soc = Names(tool_id="wrist-1").set_orientation_control
-                payload = m.encode(m.soc_request(Mode.DISABLED, 0.0, 0.0), soc.request_type)
+                payload = cdr.encode(m.soc_request(Mode.DISABLED, 0.0, 0.0), soc.request_type)
                 att = Signer(folder / "pc-1" / "cert.pem", folder / "pc-1" / "key.pem") \
                     .attachment(soc.name, payload)
                 cap = folder / "capture.json"

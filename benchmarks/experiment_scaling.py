@@ -1,5 +1,5 @@
 """Speed-up per worker of an experiment's trials on a local process pool and on a Dask
-cluster (issue 24: "keep both, and measure the speed-up per worker").
+cluster: both executors are kept, so both are measured.
 
 The same trials (``--experiment``, ``--trials`` per condition, base seed 0) run, one
 configuration after the other, into a fresh temporary results root each (never the user's

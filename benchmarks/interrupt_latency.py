@@ -1,4 +1,4 @@
-"""How fast an interrupted experiment stops, and what it leaves (issue 22), as JSON.
+"""How fast an interrupted experiment stops, and what it leaves, as JSON.
 
 Runs ``articutool experiment capacity --trials N --workers W`` into a fresh folder, sends
 SIGINT (or SIGTERM) to its main process alone once ``--after`` trials are logged (as

@@ -9,8 +9,8 @@ so their ratios are measured side by side under the same load.
 
     .venv/bin/python benchmarks/plan_breakdown.py --limit 20 --timeout 10 [--out FILE]
 
-``--baseline`` also plans each (system, task) right after with the planner settings from before
-issue 12 (OMPL's automatic range in rejection mode, no direct motion, full smoothing, the pair
+``--baseline`` also plans each (system, task) right after with the baseline planner settings
+(OMPL's automatic range in rejection mode, no direct motion, full smoothing, the pair
 loop, models rebuilt per plan, toppra grid 0.01 rad) and reports paired median ratios (new /
 baseline) of planning time and trajectory duration on the tasks both solved.
 """
@@ -25,13 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
-from articutool.bench.tasks import TaskFileError, load_task_set
-from articutool.planning.api import PHASES, SYSTEMS, PlanRequest
+from articutool.bench.taskfile import TaskFileError, load_task_set
 from articutool.planning.ompl_planner import PlannerSettings, plan_transport
+from articutool.planning.types import PHASES, SYSTEMS, PlanRequest
 from articutool.spec import load_spec
 
-# The planner settings before issue 12 (toppra's constraint objects and the decoupled check's
-# buffer are reused regardless; they measured < 1 ms per plan).
+# The baseline planner settings, OMPL's and toppra's defaults (toppra's constraint objects and the
+# decoupled check's buffer are reused regardless; they measured < 1 ms per plan).
 BASELINE = PlannerSettings(range_everywhere=False, try_direct=False, simplify="full",
                            broadphase=False, cache_models=False, toppra_grid=0.01)
 

@@ -1,4 +1,4 @@
-"""Soak (issue 13, item 6): the real tool for a long time against a random, hostile client.
+"""Soak: the real tool for a long time against a random, hostile client.
 
 Runs ``articutool tool`` (simulated wrist, the real 50 Hz runtime, paired: mutual TLS on one
 port, plain loopback TCP on another) and, from this process, a paired client issuing random

@@ -1,8 +1,8 @@
-"""Planning speed comparisons that used to be test assertions (issue 21: no timing assertions
-in tests): is the decoupled system the fastest on the same Exp. 2a tasks (thesis Fig. 6.2),
-and does RRT* end within its budget? Wall time on this machine, so a measurement, not a
-pass/fail; the behaviour (every task planned, every trial finished) stays in
-``tests/test_slow_bench.py`` and ``tests/test_planning.py``.
+"""Planning speed comparisons, measured here because tests assert no timing: is the
+decoupled system the fastest on the same Exp. 2a tasks (thesis Fig. 6.2), and does RRT* end
+within its budget? Wall time on this machine, so a measurement, not a pass/fail; the
+behaviour (every task planned, every trial finished) stays in ``tests/test_slow_bench.py``
+and ``tests/test_planning.py``.
 
     .venv/bin/python benchmarks/system_speed.py --out results/system_speed.json
 """
@@ -19,9 +19,10 @@ import sys
 import tempfile
 from pathlib import Path
 
-from articutool.bench.tasks import load_task_set
+from articutool.bench.taskfile import load_task_set
 from articutool.cli import main as articutool
-from articutool.planning.api import PlanRequest, plan
+from articutool.planning.api import plan
+from articutool.planning.types import PlanRequest
 
 
 def systems(limit: int, timeout_s: float, workers: int) -> dict:

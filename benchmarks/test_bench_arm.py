@@ -5,8 +5,8 @@
 
 import numpy as np
 
-from articutool import load_spec
-from articutool.arm import ArmModel
+from articutool.arm.model import ArmModel
+from articutool.spec import load_spec
 
 SPEC = load_spec()
 MODEL8 = ArmModel(SPEC, dof=8)

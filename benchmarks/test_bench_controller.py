@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from articutool import load_spec
+from articutool.spec import load_spec
 from articutool.tool.controller import LevelingController
 from articutool.tool.primitives import make_primitive
 
@@ -34,7 +34,7 @@ def test_bench_leveling_update_with_rate_feedforward(benchmark):
 
 def test_bench_leveling_from_imu_quaternion(benchmark):
     """The runtime's path: filter quaternion → R_world←F0 → command."""
-    from articutool.tool.controller import quaternion_to_matrix
+    from articutool.rotations import quaternion_to_matrix
 
     ctrl = LevelingController.from_spec(SPEC)
     quat = Rotation.from_matrix(R).as_quat(scalar_first=True)

@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from articutool import load_spec
+from articutool.spec import load_spec
 from articutool.tool.filter import ComplementaryFilter
 
 DT = 0.02

@@ -7,6 +7,7 @@ health, battery, as the tool publishes them at 50 Hz) encoded and written to MCA
 import tempfile
 from pathlib import Path
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.recording import McapRecorder
 from articutool.tool.api import Mode, ToolState
@@ -24,10 +25,10 @@ def test_record_one_tick_of_telemetry(benchmark):
     with tempfile.TemporaryDirectory() as d, McapRecorder(Path(d) / "b.mcap") as rec:
         def tick():
             for topic, typename, msg in (
-                    ("/a/joint_states", m.JOINT_STATE, m.joint_state_msg(STATE, T)),
-                    ("/a/imu/data", m.IMU, m.imu_msg(STATE, T)),
-                    ("/a/health", m.DIAGNOSTIC_ARRAY, m.health_msg(STATE, T, {})),
-                    ("/a/battery", m.BATTERY_STATE, m.battery_msg(STATE, T))):
+                    ("/a/joint_states", cdr.JOINT_STATE, m.joint_state_msg(STATE, T)),
+                    ("/a/imu/data", cdr.IMU, m.imu_msg(STATE, T)),
+                    ("/a/health", cdr.DIAGNOSTIC_ARRAY, m.health_msg(STATE, T, {})),
+                    ("/a/battery", cdr.BATTERY_STATE, m.battery_msg(STATE, T))):
                 rec.write_msg(topic, typename, msg, T)
         benchmark(tick)
         assert rec.count > 0

@@ -14,9 +14,10 @@ import math
 
 import numpy as np
 
-from articutool import load_spec
+from articutool.rotations import quaternion_to_matrix
+from articutool.spec import load_spec
 from articutool.tool.api import Mode
-from articutool.tool.controller import LevelingController, quaternion_to_matrix
+from articutool.tool.controller import LevelingController
 from articutool.tool.drivers.sim import SimWrist, axis_angle_rotation, constant_rate_motion
 from articutool.tool.filter import ComplementaryFilter
 from articutool.tool.runtime import ToolRuntime

@@ -1,4 +1,5 @@
-"""Plan-then-verify speed: a 200-waypoint transport (issue 2 goal: about a millisecond).
+"""Plan-then-verify speed: a 200-waypoint transport (target: about a millisecond, so a plan can be
+verified before every motion).
 
     .venv/bin/python -m pytest benchmarks/test_bench_verify.py --benchmark-only
 """
@@ -8,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from articutool import load_spec
 from articutool.arm.model import ArmModel
+from articutool.spec import load_spec
 from articutool.trajectory import JointTrajectory
-from articutool.verify import verify_trajectory
+from articutool.verify.verifier import verify_trajectory
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 SPEC = load_spec()

@@ -1,5 +1,5 @@
 """How often the food accounting's class of some item depends on the order and direction of
-MuJoCo's contact pairs (issue 21): random contact graphs of 3–13 items, each classified as
+MuJoCo's contact pairs: random contact graphs of 3–13 items, each classified as
 listed and again with its pairs shuffled and flipped.
 
     .venv/bin/python examples/accounting_order.py [--graphs 1500] [--seed 2026]

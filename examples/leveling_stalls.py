@@ -1,4 +1,4 @@
-"""Leveling from static random base tilts (issue 21): how many starts reach level, how many
+"""Leveling from static random base tilts: how many starts reach level, how many
 stall and say so, how many stay tilted silently. Prints one line per tilt range.
 
     PYTHONPATH=src python examples/leveling_stalls.py [--starts 99]
@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from articutool import load_spec
+from articutool.spec import load_spec
 from articutool.tool.api import Mode
 from articutool.tool.drivers.sim import SimWrist, axis_angle_rotation
 from articutool.tool.runtime import ToolRuntime

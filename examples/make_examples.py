@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from articutool import load_spec
+from articutool.spec import load_spec
 from articutool.trajectory import JointTrajectory
 
 HERE = Path(__file__).parent

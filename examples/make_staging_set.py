@@ -73,7 +73,8 @@ def main() -> None:
             continue
         goals[name] = q
     if args.check_planning:
-        from articutool.planning.api import PlanRequest, TransportTask, plan
+        from articutool.planning.api import plan
+        from articutool.planning.types import PlanRequest, TransportTask
 
         for name, q in goals.items():
             task = TransportTask(0, tuple(start), tuple(q))

@@ -180,16 +180,6 @@ class TickingTool(FakeTool):
                 work()
 
 
-def wait_until(pred, timeout: float = 5.0) -> bool:  # type: ignore[no-untyped-def]
-    """Poll ``pred`` every 10 ms until it is true (True) or ``timeout`` seconds pass (False)."""
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if pred():
-            return True
-        time.sleep(0.01)
-    return False
-
-
 def main(argv: list[str]) -> int:
     """Serve a FakeTool until stdin closes or SIGTERM."""
     import argparse

@@ -1,4 +1,4 @@
-"""Floods a tool's command endpoints from its own process (issue 22, S1), as an attacker
+"""Floods a tool's command endpoints from its own process, as an attacker
 who reaches the tool's port would::
 
     python tests/link_flooder.py --connect ENDPOINT --mode MODE [--rate HZ] [--seconds S]
@@ -16,8 +16,8 @@ batches every 10 ms, round robin over the endpoints named):
   is then mutual TLS as that PC's): a paired PC flooding, which must not use another's share;
 - ``replay``: one captured signed request (``--capture``: JSON with key, payload and
   attachment, hex) sent again and again;
-- ``cancels``: cancel_goal for all goals and for random goal ids (an unpaired tool's stop
-  queue was filled this way).
+- ``cancels``: cancel_goal for all goals and for random goal ids (fills an unpaired tool's
+  stop queue unless equal stops join).
 
 Prints ``SENT <n> <seconds>`` on exit (stdin closed, or after ``--seconds``).
 """
@@ -35,6 +35,7 @@ import uuid
 
 import zenoh
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.auth import claim
 from articutool.link.config import LinkConfig, load_config
@@ -46,14 +47,14 @@ from articutool.tool.api import Mode
 def requests(names: Names) -> list[tuple[Endpoint, bytes]]:
     """One request of each command kind the flood sends."""
     soc = names.set_orientation_control
-    out = [(soc, m.encode(m.soc_request(Mode.DISABLED, 0.0, 0.0), soc.request_type)),
-           (soc, m.encode(m.soc_request(Mode.LEVELING, 0.0, 0.0), soc.request_type)),
-           (names.cancel_goal, m.encode(m.cancel_request(None), names.cancel_goal.request_type)),
-           (names.send_goal, m.encode(m.send_goal_request(uuid.uuid4().bytes, "TWIRL", [0.1]),
+    out = [(soc, cdr.encode(m.soc_request(Mode.DISABLED, 0.0, 0.0), soc.request_type)),
+           (soc, cdr.encode(m.soc_request(Mode.LEVELING, 0.0, 0.0), soc.request_type)),
+           (names.cancel_goal, cdr.encode(m.cancel_request(None), names.cancel_goal.request_type)),
+           (names.send_goal, cdr.encode(m.send_goal_request(uuid.uuid4().bytes, "TWIRL", [0.1]),
                                       names.send_goal.request_type)),
-           (names.clear_fault, m.encode(m.trigger_request(), names.clear_fault.request_type))]
+           (names.clear_fault, cdr.encode(m.trigger_request(), names.clear_fault.request_type))]
     gr = names.get_result
-    out.append((gr, m.encode(m.msg(gr.request_type, goal_id=m.goal_uuid(uuid.uuid4().bytes)),
+    out.append((gr, cdr.encode(cdr.msg(gr.request_type, goal_id=m.goal_uuid(uuid.uuid4().bytes)),
                              gr.request_type)))
     return out
 
@@ -89,8 +90,8 @@ def main(argv: list[str]) -> int:
         reqs = requests(names)
         if a.mode == "cancels":
             cg = names.cancel_goal
-            reqs = [(cg, m.encode(m.cancel_request(None), cg.request_type))] + [
-                (cg, m.encode(m.cancel_request(uuid.uuid4().bytes), cg.request_type))
+            reqs = [(cg, cdr.encode(m.cancel_request(None), cg.request_type))] + [
+                (cg, cdr.encode(m.cancel_request(uuid.uuid4().bytes), cg.request_type))
                 for _ in range(3)]
         if a.mode == "forged":
             from cryptography import x509

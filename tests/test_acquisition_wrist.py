@@ -1,4 +1,4 @@
-"""Acquisition that uses the wrist (issue 25), in physics through the real feeding tree."""
+"""Acquisition that uses the wrist, in physics through the real feeding tree."""
 
 from __future__ import annotations
 

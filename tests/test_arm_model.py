@@ -11,11 +11,12 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.spatial.transform import Rotation
 
-from articutool import load_spec
-from articutool.arm import ArmModel, Scene
+from articutool.arm.model import ArmModel
+from articutool.arm.scene import Scene
 from articutool.tool import kinematics as kin
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 TWO_PI = 2 * np.pi
 
 
@@ -37,7 +38,7 @@ wrist_angles = arrays(np.float64, 2, elements=st.floats(-np.pi, np.pi))
 
 
 # --------------------------------------------------- independent Kinova DH model --
-# Kinova's classic DH table for the Jaco 2 6-DOF non-spherical wrist (hardware-facts §1),
+# Kinova's classic DH table for the Jaco 2 6-DOF non-spherical wrist (docs/hardware.md §1),
 # standard DH: A_i = Rz(θ_i) Tz(d_i) Tx(a_i) Rx(α_i). Lengths from Kinova, not the spec.
 D1, D2, D3, D4, D5, D6, E2 = 0.2755, 0.41, 0.2073, 0.0741, 0.0741, 0.160, 0.0098
 AA = np.radians(60.0) / 2  # half the 60° wrist bend

@@ -14,7 +14,6 @@ import re
 
 import pytest
 
-import articutool.cli as cli
 from articutool.bench import report
 from articutool.bench.executors import DaskExecutor, ExecutorError, LocalExecutor
 from articutool.bench.runner import (
@@ -27,8 +26,9 @@ from articutool.bench.runner import (
     run_trial,
     run_trials,
 )
-from articutool.bench.tasks import load_task_set, save_task_set
-from articutool.planning.api import SYSTEMS, PlanRequest, PlanResult, TransportTask
+from articutool.bench.taskfile import load_task_set, save_task_set
+from articutool.cli import main
+from articutool.planning.types import SYSTEMS, PlanRequest, PlanResult, TransportTask
 
 # ------------------------------------------------------------- stand-ins --
 
@@ -71,11 +71,6 @@ def pool():
     ex = LocalExecutor(2)
     yield ex
     ex.close()
-
-
-@pytest.fixture
-def run_cli():
-    return cli.main
 
 
 # ------------------------------------------------------------------- log --
@@ -288,7 +283,7 @@ def tiny_tasks(tmp_path):
         (["--seed", "-1"], "--seed"),
     ],
 )
-def test_cli_refuses_bad_input_before_any_work(tmp_path, run_cli, capsys, tiny_tasks, args, msg):
+def test_cli_refuses_bad_input_before_any_work(tmp_path, capsys, tiny_tasks, args, msg):
     bad = tmp_path / "bad.json"
     doc = json.loads(tiny_tasks.read_text())
     doc["tasks"][0]["start"] = doc["tasks"][0]["start"][:4]
@@ -298,17 +293,17 @@ def test_cli_refuses_bad_input_before_any_work(tmp_path, run_cli, capsys, tiny_t
     if "--tasks" not in args:
         args += ["--tasks", str(tiny_tasks)]
     out = tmp_path / "out"
-    code = run_cli(["bench", "transport", "--out", str(out), *args])
+    code = main(["bench", "transport", "--out", str(out), *args])
     assert code == 2
     assert msg in capsys.readouterr().err
     assert not (out / "results.jsonl").exists()
 
 
-def test_cli_json_with_the_real_planner(tmp_path, run_cli, capsys, tiny_tasks):
+def test_cli_json_with_the_real_planner(tmp_path, capsys, tiny_tasks):
     out = tmp_path / "out"
     argv = ["bench", "transport", "--tasks", str(tiny_tasks), "--systems", "decoupled",
             "--timeout", "10", "--workers", "1", "--out", str(out), "--json"]
-    assert run_cli(argv) == 0
+    assert main(argv) == 0
     captured = capsys.readouterr()
     summary = json.loads(captured.out)
     assert list(summary) == ["decoupled"]
@@ -323,8 +318,8 @@ def test_cli_json_with_the_real_planner(tmp_path, run_cli, capsys, tiny_tasks):
         assert rec["verified"] is True
     assert (out / "results.csv").exists() and (out / "cactus.png").exists()
     # Rerunning resumes: nothing left to do, same summary.
-    assert run_cli(argv) == 0
+    assert main(argv) == 0
     assert json.loads(capsys.readouterr().out) == summary
     # Other settings in the same directory are refused before any work.
-    assert run_cli([*argv[:-1], "--planner", "rrtstar", "--json"]) == 2
+    assert main([*argv[:-1], "--planner", "rrtstar", "--json"]) == 2
     assert "other settings" in capsys.readouterr().err

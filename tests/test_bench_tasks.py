@@ -10,27 +10,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import articutool.cli as cli
-from articutool import load_spec
 from articutool.arm.ik import IKSettings, solve_pose_ik
 from articutool.arm.model import ArmModel
 from articutool.arm.scene import Scene
-from articutool.bench.tasks import (
-    FILE_VERSION,
-    TaskFileError,
-    generate_tasks,
-    load_task_set,
-    save_task_set,
-    tip_tilt_deg,
-)
+from articutool.bench.taskfile import FILE_VERSION, TaskFileError, load_task_set, save_task_set
+from articutool.bench.tasks import generate_tasks, tip_tilt_deg
+from articutool.cli import main
 from articutool.tool.kinematics import nearest_leveling_solution
 
 LEVEL_TOL_DEG = 0.1  # IK converges to 1e-3 rad ≈ 0.057°
-
-
-@pytest.fixture(scope="module")
-def spec():
-    return load_spec()
 
 
 @pytest.fixture(scope="module")
@@ -42,11 +30,6 @@ def models(spec):
 @pytest.fixture(scope="module")
 def small_set(spec):
     return generate_tasks(spec, 6, seed=11)
-
-
-@pytest.fixture
-def run_cli():
-    return cli.main
 
 
 def _assert_valid(task_set, spec, models):
@@ -187,16 +170,16 @@ def test_unreadable_and_non_json_files_are_refused(tmp_path):
         load_task_set(p)
 
 
-def test_cli_tasks_writes_a_valid_file_and_refuses_to_overwrite(tmp_path, run_cli, capsys):
+def test_cli_tasks_writes_a_valid_file_and_refuses_to_overwrite(tmp_path, capsys):
     out = tmp_path / "t.json"
-    assert run_cli(["bench", "tasks", "--count", "3", "--seed", "5", "--out", str(out)]) == 0
+    assert main(["bench", "tasks", "--count", "3", "--seed", "5", "--out", str(out)]) == 0
     ts = load_task_set(out)
     assert ts.seed == 5 and ts.candidates == 3
     assert f"kept {len(ts.tasks)} of 3" in capsys.readouterr().out
     before = out.read_bytes()
-    assert run_cli(["bench", "tasks", "--count", "3", "--seed", "6", "--out", str(out)]) == 2
+    assert main(["bench", "tasks", "--count", "3", "--seed", "6", "--out", str(out)]) == 2
     assert "refusing to overwrite" in capsys.readouterr().err
     assert out.read_bytes() == before
-    assert run_cli(["bench", "tasks", "--count", "0", "--seed", "6",
+    assert main(["bench", "tasks", "--count", "0", "--seed", "6",
                     "--out", str(tmp_path / "u.json")]) == 2
     assert not (tmp_path / "u.json").exists()

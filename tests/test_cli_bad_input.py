@@ -1,4 +1,4 @@
-"""Issue 22, bad input and data safety: nonsense given to any command exits 2 with a message
+"""Bad input and data safety: nonsense given to any command exits 2 with a message
 naming the field and its allowed range, never a traceback, a hang or a lost file.
 
 Every case runs the real command in a subprocess on this tree's sources.
@@ -6,11 +6,9 @@ Every case runs the real command in a subprocess on this tree's sources.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
-import socket
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,32 +16,14 @@ import pytest
 
 from articutool.bench.runner import read_log
 from articutool.link.config import ConfigError, LinkConfig
+from conftest import assert_refused, free_port, minimal_env, run_cli
 
 SRC = Path(__file__).parents[1] / "src"
 EXAMPLE = Path(__file__).parents[1] / "examples" / "transport_feasible.json"
 DEPTH = 100_000
 
 
-def _cli(*args: str, timeout: float = 120, cwd: Path | None = None,
-         stdout: int | None = subprocess.PIPE) -> subprocess.CompletedProcess[str]:
-    env = {"PATH": "/usr/bin:/bin", "MPLBACKEND": "Agg", "PYTHONPATH": str(SRC),
-           "HOME": os.environ.get("HOME", "/tmp")}
-    return subprocess.run([sys.executable, "-m", "articutool", *args], stdout=stdout,
-                          stderr=subprocess.PIPE, text=True, timeout=timeout, cwd=cwd, env=env)
-
-
-def _refused(proc: subprocess.CompletedProcess[str], *words: str) -> None:
-    err = proc.stderr
-    assert proc.returncode == 2, (proc.stdout, err)
-    assert "Traceback" not in err and "internal error" not in err, err
-    for w in words:
-        assert w in err, err
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+_cli = functools.partial(run_cli, env=minimal_env())
 
 
 # ----------------------------------------------------------- deep, odd files --
@@ -61,19 +41,19 @@ def deep(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     ("view", "--plan", "{json}", "--duration", "1", "--port", "{port}"),
 ])
 def test_a_100000_deep_document_is_refused_naming_the_file(command, deep, tmp_path):
-    args = [a.format(json=deep["json"], toml=deep["toml"], tmp=tmp_path, port=_free_port())
+    args = [a.format(json=deep["json"], toml=deep["toml"], tmp=tmp_path, port=free_port())
             for a in command]
     path = next(a for a in args if a.startswith(str(deep["json"].parent)))
-    _refused(_cli(*args), path, "nested too deeply")
+    assert_refused(_cli(*args), path, "nested too deeply")
 
 
 def test_a_run_json_100000_deep_in_the_results_folder_is_refused(deep, tmp_path):
     (tmp_path / "run.json").write_text(deep["json"].read_text())
-    _refused(_cli("bench", "transport", "--out", str(tmp_path), "--workers", "1", "--limit",
+    assert_refused(_cli("bench", "transport", "--out", str(tmp_path), "--workers", "1", "--limit",
                   "1"), "run.json", "use another --out")
     (tmp_path / "capacity").mkdir()
     (tmp_path / "capacity" / "run.json").write_text(deep["json"].read_text())
-    _refused(_cli("experiment", "capacity", "--trials", "1", "--workers", "1", "--out",
+    assert_refused(_cli("experiment", "capacity", "--trials", "1", "--workers", "1", "--out",
                   str(tmp_path)), "run.json", "use another --out")
 
 
@@ -83,8 +63,8 @@ def test_a_recording_whose_meta_is_100000_deep_is_refused(deep, tmp_path):
     rec = tmp_path / "deep.npz"
     np.savez(rec, meta=np.array(deep["json"].read_text()), mjcf=np.array(""),
              **{k: np.zeros(1) for k in _ARRAYS})
-    _refused(_cli("view", "--recording", str(rec), "--export", str(tmp_path / "v.mp4")),
-             "--recording", "meta", "nested too deeply")
+    assert_refused(_cli("view", "--recording", str(rec), "--export", str(tmp_path / "v.mp4")),
+                   "--recording", "meta", "nested too deeply")
 
 
 @pytest.mark.parametrize("kind", ["fifo", "/dev/zero", "folder"])
@@ -96,7 +76,7 @@ def test_info_spec_reads_regular_files_only_and_does_not_hang(kind, tmp_path):
         path = tmp_path
     else:
         path = Path(kind)  # never ends: reading it would fill memory
-    _refused(_cli("info", "--spec", str(path), timeout=60), str(path), "regular file")
+    assert_refused(_cli("info", "--spec", str(path), timeout=60), str(path), "regular file")
 
 
 # --------------------------------------------------------------- outputs --
@@ -104,34 +84,34 @@ def test_info_spec_reads_regular_files_only_and_does_not_hang(kind, tmp_path):
 def test_an_out_folder_that_cannot_be_created_is_refused(where, tmp_path):
     (tmp_path / "afile").write_text("x")
     out = tmp_path / "afile" / "o" if where == "under_a_file" else Path("/proc/articutool-o")
-    _refused(_cli("bench", "transport", "--out", str(out), "--workers", "1", "--limit", "1"),
-             "--out", str(out))
-    _refused(_cli("experiment", "capacity", "--trials", "1", "--workers", "1", "--out",
+    assert_refused(_cli("bench", "transport", "--out", str(out), "--workers", "1", "--limit", "1"),
+                   "--out", str(out))
+    assert_refused(_cli("experiment", "capacity", "--trials", "1", "--workers", "1", "--out",
                   str(out)), "--out", str(out))
     assert (tmp_path / "afile").read_text() == "x" and not out.exists()
 
 
 def test_a_results_log_that_is_a_folder_is_refused(tmp_path):
     (tmp_path / "results.jsonl").mkdir()
-    _refused(_cli("bench", "transport", "--out", str(tmp_path), "--workers", "1", "--limit",
+    assert_refused(_cli("bench", "transport", "--out", str(tmp_path), "--workers", "1", "--limit",
                   "1"), "--out", "results.jsonl")
     (tmp_path / "capacity" / "trials.jsonl").mkdir(parents=True)
-    _refused(_cli("experiment", "capacity", "--trials", "1", "--workers", "1", "--out",
+    assert_refused(_cli("experiment", "capacity", "--trials", "1", "--workers", "1", "--out",
                   str(tmp_path)), "--out", "trials.jsonl")
 
 
 def test_output_files_in_proc_are_refused_before_any_work():
-    _refused(_cli("bench", "tasks", "--count", "2", "--seed", "0", "--out",
+    assert_refused(_cli("bench", "tasks", "--count", "2", "--seed", "0", "--out",
                   "/proc/articutool-tasks.json"), "--out", "/proc/articutool-tasks.json")
-    _refused(_cli("demo", "--plot", "/proc/articutool-demo.png"), "--plot",
-             "/proc/articutool-demo.png")
+    assert_refused(_cli("demo", "--plot", "/proc/articutool-demo.png"), "--plot",
+                   "/proc/articutool-demo.png")
 
 
 @pytest.mark.parametrize("command", [("info",), ("info", "--json"), ("verify", str(EXAMPLE))])
 def test_an_unwritable_stdout_exits_2_without_a_traceback(command):
     with open("/dev/full", "w") as full:
         proc = _cli(*command, stdout=full.fileno())
-    _refused(proc, "cannot write to standard output", "No space left on device")
+    assert_refused(proc, "cannot write to standard output", "No space left on device")
 
 
 def test_a_resume_log_line_that_is_json_but_not_an_object_is_ignored(tmp_path):
@@ -148,7 +128,7 @@ def test_demo_plot_refuses_an_existing_file(tmp_path):
     plot = tmp_path / "mine.png"
     plot.write_bytes(b"my figure")
     r = _cli("demo", "--plot", str(plot), "--json")
-    _refused(r, "--plot", str(plot), "refusing to overwrite")
+    assert_refused(r, "--plot", str(plot), "refusing to overwrite")
     assert r.stdout == "" and plot.read_bytes() == b"my figure"
 
 
@@ -201,7 +181,7 @@ def test_an_edited_experiment_report_is_kept_before_regenerating(tmp_path):
 ])
 def test_pair_refuses_bad_names_and_hosts_leaving_nothing(args, field, tmp_path):
     d = tmp_path / "pairing"
-    _refused(_cli("pair", "--dir", str(d), *args), field)
+    assert_refused(_cli("pair", "--dir", str(d), *args), field)
     assert not d.exists()
 
 
@@ -218,8 +198,8 @@ def test_pair_refuses_a_pc_as_the_tool_and_changes_nothing(tmp_path):
     d = tmp_path / "pairing"
     assert _cli("pair", "--dir", str(d), "--tool", "wrist-1", "--pc", "pc-1").returncode == 0
     before = {p: p.read_bytes() for p in d.rglob("*") if p.is_file()}
-    _refused(_cli("pair", "--dir", str(d), "--tool", "pc-1", "--pc", "pc-2"), "--tool pc-1",
-             "not a tool's certificate")
+    assert_refused(_cli("pair", "--dir", str(d), "--tool", "pc-1", "--pc", "pc-2"), "--tool pc-1",
+                   "not a tool's certificate")
     assert {p: p.read_bytes() for p in d.rglob("*") if p.is_file()} == before
     assert not (d / "pc-2").exists()
 
@@ -229,7 +209,7 @@ def test_a_pairing_that_fails_midway_leaves_nothing_behind(tmp_path):
     d.mkdir()
     (d / "pc-1").write_text("in the way")  # the PC's folder cannot be made: after CA and tool
     r = _cli("pair", "--dir", str(d), "--tool", "wrist-1", "--pc", "pc-1")
-    _refused(r, "nothing was kept")
+    assert_refused(r, "nothing was kept")
     assert sorted(p.name for p in d.iterdir()) == ["pc-1"]
     assert (d / "pc-1").read_text() == "in the way"
 
@@ -237,16 +217,16 @@ def test_a_pairing_that_fails_midway_leaves_nothing_behind(tmp_path):
 # ------------------------------------------------------------ bounds, ranges --
 def test_bench_tasks_count_is_bounded(tmp_path):
     out = tmp_path / "t.json"
-    _refused(_cli("bench", "tasks", "--count", "1000000000", "--seed", "0", "--out", str(out),
+    assert_refused(_cli("bench", "tasks", "--count", "1000000000", "--seed", "0", "--out", str(out),
                   timeout=60), "--count", "[1, 10000]")
     assert not out.exists()
 
 
 @pytest.mark.parametrize("tols", [",", "nan", "0", "90", "5,abc"])
 def test_bench_tolerances_must_be_degrees_in_range(tols, tmp_path):
-    _refused(_cli("bench", "transport", "--tolerance-sweep", "--tolerances", tols, "--out",
+    assert_refused(_cli("bench", "transport", "--tolerance-sweep", "--tolerances", tols, "--out",
                   str(tmp_path / "o"), "--workers", "1", "--limit", "1"),
-             "--tolerances", "(0, 90)")
+                   "--tolerances", "(0, 90)")
     assert not (tmp_path / "o").exists()
 
 
@@ -261,14 +241,14 @@ def test_bench_tolerances_must_be_degrees_in_range(tols, tmp_path):
      ("--camera", "overview")),
 ])
 def test_view_nonsense_is_refused_before_serving(args, words, tmp_path):
-    r = _cli("view", "--duration", "1", "--port", str(_free_port()), *args, cwd=tmp_path)
-    _refused(r, *words)
+    r = _cli("view", "--duration", "1", "--port", str(free_port()), *args, cwd=tmp_path)
+    assert_refused(r, *words)
     assert "viewer: http" not in r.stdout
 
 
 def test_report_thresholds_for_an_unknown_food_are_refused(tmp_path):
-    _refused(_cli("experiment", "report", "--out", str(tmp_path), "--thresholds-g", "pizza=3"),
-             "--thresholds-g", "pecans", "water")
+    r = _cli("experiment", "report", "--out", str(tmp_path), "--thresholds-g", "pizza=3")
+    assert_refused(r, "--thresholds-g", "pecans", "water")
     assert list(tmp_path.iterdir()) == []
 
 
@@ -278,8 +258,8 @@ def test_a_wildcard_or_malformed_namespace_is_refused(ns, tmp_path):
         LinkConfig(namespace=ns)
     cfg = tmp_path / "link.json"
     cfg.write_text(json.dumps({"namespace": ns}))
-    _refused(_cli("client", "--link-config", str(cfg), "state", timeout=60), "namespace",
-             "'/articutool'")
+    assert_refused(_cli("client", "--link-config", str(cfg), "state", timeout=60), "namespace",
+                   "'/articutool'")
 
 
 def test_namespaces_in_use_still_load():

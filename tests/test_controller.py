@@ -1,4 +1,4 @@
-"""Leveling controller (thesis Alg. 1; hardware-facts §5): structure, closed loop, properties."""
+"""Leveling controller (thesis Alg. 1; docs/hardware.md §5): structure, closed loop, properties."""
 
 from __future__ import annotations
 
@@ -10,16 +10,17 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from articutool import load_spec
-from articutool.tool.controller import LevelingController, quaternion_to_matrix
+from articutool.rotations import quaternion_to_matrix
+from articutool.tool.controller import LevelingController
 from articutool.tool.kinematics import (
     jacobian,
     joint_rates_for_rotation,
     nearest_leveling_solution,
     up_vector,
 )
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 C = SPEC.controller
 LIMITS = SPEC.wrist.limits
 VMAX = SPEC.wrist.velocity_limits

@@ -13,7 +13,7 @@ class Block:
         if name.split('.')[0] in {PC_ONLY!r}:
             raise ImportError('blocked PC-only package: ' + name)
 sys.meta_path.insert(0, Block())
-import articutool
+from articutool.spec import load_spec
 from articutool.tool.runtime import ToolRuntime
 from articutool.tool.drivers import make_drivers
 from articutool.tool.drivers.sim import SimWrist
@@ -21,7 +21,7 @@ from articutool.link.server import ToolServer
 from articutool.link.client import ArticutoolClient
 from articutool.link.recording import McapRecorder, RecordingTransport
 from articutool.cli import build_parser
-spec = articutool.load_spec()
+spec = load_spec()
 sim = SimWrist(spec, seed=0)
 rt = ToolRuntime(spec, *make_drivers(spec, 'sim', sim=sim), clock=sim.clock)
 with rt:

@@ -2,9 +2,9 @@
 
 import json
 
-from articutool import load_spec
 from articutool.cli import main
 from articutool.sim.demo import run_demo
+from articutool.spec import load_spec
 
 
 def test_demo_figures_and_plot(tmp_path):

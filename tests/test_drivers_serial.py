@@ -16,7 +16,6 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from articutool import load_spec
 from articutool.tool.drivers.base import DriverError
 from articutool.tool.drivers.ft import (
     FRAME_LEN,
@@ -25,8 +24,9 @@ from articutool.tool.drivers.ft import (
     encode_frame,
 )
 from articutool.tool.drivers.imu import OpenLogImuDriver, parse_openlog_line
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 G = SPEC.imu.gravity
 HEADER = b"rtcDate,rtcTime,aX,aY,aZ,gX,gY,gZ,mX,mY,mZ,imu_degC,output_Hz,\r\n"
 

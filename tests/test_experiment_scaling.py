@@ -1,4 +1,4 @@
-"""benchmarks/experiment_scaling.py (issue 24): the same trials on a local pool and on a Dask
+"""benchmarks/experiment_scaling.py: the same trials on a local pool and on a Dask
 cluster give the same outcomes, the JSON has every field, an outcome that differs is caught
 (a timing-dependent field is not an outcome), and bad input exits 2. No timing is asserted."""
 

@@ -173,7 +173,7 @@ def test_no_summary_reads_the_thesis_numbers(cfg) -> None:
 def test_report_recomputes_the_thesis_exp3_p_value_from_its_counts(cfg) -> None:
     """The thesis prints p < 0.00012 for 14/20 against 7/20 trials without spill; Fisher's
     exact test on those counts gives p ≈ 0.056. The report prints both and says which is
-    which (issue 21)."""
+    which."""
     from articutool.experiments import report
 
     r = report.thesis_exp3_no_spill(cfg.thesis["exp3"])

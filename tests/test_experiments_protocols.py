@@ -124,8 +124,8 @@ def test_exp3_trial_noodles_whole_bite_is_classified_from_its_masses_at_analysis
 
 
 def test_a_particle_on_the_table_then_the_floor_is_spilled_once_in_a_record() -> None:
-    # Exp. 3 used to sum spill events (table + floor for one particle) while Exp. 2b/2c took
-    # net mass changes; both now read one definition. A locked 40° carry of 8 g of water
+    # Exp. 3 and Exp. 2b/2c read one definition of a spill: net mass changes, not summed
+    # events (table + floor for one particle). A locked 40° carry of 8 g of water
     # (seed 0) sends particles over the table's edge onto the floor.
     from articutool.experiments.protocols import _outcome_fields
     from articutool.sim.scenes import base_tilt_motion, load
@@ -147,7 +147,7 @@ def test_a_particle_on_the_table_then_the_floor_is_spilled_once_in_a_record() ->
 
 
 def _dish_centre(model, q_arm, utensil_spec) -> np.ndarray:
-    from articutool.sim.mjcf import spoon_dish
+    from articutool.food.dish import spoon_dish
 
     T = model.tip_pose(np.r_[q_arm, 0.0, 0.0])
     return T[:3, 3] - (utensil_spec.tip_z - spoon_dish(utensil_spec)[0]) * T[:3, 2]

@@ -9,7 +9,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -24,6 +23,7 @@ from articutool.experiments.runner import (
     read_trials,
     run_experiment,
 )
+from conftest import wait_until
 
 pytest.importorskip("mujoco")
 
@@ -92,11 +92,8 @@ def test_a_killed_run_resumes_and_loses_or_repeats_no_trial(tmp_path: Path) -> N
     p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                          start_new_session=True, env=env)
     log = log_path(out, "capacity")
-    t_end = time.monotonic() + 240
-    while time.monotonic() < t_end and p.poll() is None:
-        if log.exists() and len(log.read_text().splitlines()) >= 2:
-            break
-        time.sleep(0.1)
+    wait_until(lambda: p.poll() is not None
+               or (log.exists() and len(log.read_text().splitlines()) >= 2), 240, 0.1)
     assert p.poll() is None, "the run finished before it could be killed; use more trials"
     os.killpg(p.pid, signal.SIGKILL)  # the CLI and its worker processes, at once
     p.wait()

@@ -10,10 +10,9 @@ import pytest
 from articutool.arm.model import ArmModel
 from articutool.arm.scene import Scene, SceneError
 from articutool.experiments.config import ExperimentsConfig
-from articutool.planning.api import PlanRequest, TransportTask, plan
-from articutool.spec import load_spec
+from articutool.planning.api import plan
+from articutool.planning.types import PlanRequest, TransportTask
 
-SPEC = load_spec()
 SSET = Scene.load().staging_set
 
 
@@ -29,12 +28,12 @@ def test_a_malformed_staging_set_is_refused_naming_the_field() -> None:
 
 
 @pytest.mark.parametrize("utensil", ["spoon", "soup_spoon"])
-def test_every_configuration_is_level_collision_free_and_in_limits(utensil: str) -> None:
-    model = ArmModel(SPEC, utensil=utensil)
+def test_every_configuration_is_level_collision_free_and_in_limits(spec, utensil: str) -> None:
+    model = ArmModel(spec, utensil=utensil)
     tips = []
     for q in [SSET.start, *(g.q for g in SSET.goals)]:
         q = np.asarray(q)
-        assert np.all(q >= SPEC.arm.lower) and np.all(q <= SPEC.arm.upper)
+        assert np.all(q >= spec.arm.lower) and np.all(q <= spec.arm.upper)
         q8 = np.r_[q, 0.0, 0.0]
         T = model.tip_pose(q8)
         assert np.degrees(np.arccos(min(1.0, T[2, 1]))) < 1.0  # tip y axis ("up") vertical
@@ -46,12 +45,12 @@ def test_every_configuration_is_level_collision_free_and_in_limits(utensil: str)
 
 
 @pytest.mark.parametrize("system", ["decoupled", "strict6"])
-def test_every_goal_is_reached_from_the_start_by_both_systems(system: str) -> None:
+def test_every_goal_is_reached_from_the_start_by_both_systems(spec, system: str) -> None:
     cfg = ExperimentsConfig.load()
     tol = None if system == "decoupled" else cfg.settings.arm_tolerance_deg
     for utensil in ("spoon", "soup_spoon"):
         for g in SSET.goals:
             task = TransportTask(0, tuple(SSET.start), tuple(g.q))
             r = plan(PlanRequest(system=system, task=task, timeout_s=cfg.settings.plan_budget_s,
-                                 seed=0, tolerance_deg=tol, utensil=utensil), SPEC)
+                                 seed=0, tolerance_deg=tol, utensil=utensil), spec)
             assert r.success, f"{g.name} {utensil}: {r.message}"

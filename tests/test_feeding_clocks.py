@@ -1,4 +1,4 @@
-"""A transport's outcome does not depend on how fast the machine is (issues 21, 24): the
+"""A transport's outcome does not depend on how fast the machine is: the
 attempt budget and the recorded planning time are the planner's own, and the physics world
 waits for a plan (one tick period of simulated time), so a slower planner gives the same
 record, state for state."""
@@ -20,9 +20,9 @@ from articutool.sim.world import FeedingWorld
 from articutool.tool.api import Mode
 
 BUDGET_S = 2.0
-# A machine this much slower at planning (wall seconds added to every plan). Before issue 21
-# each attempt timed out after 2 × budget + 1 s of simulated time; before the world waited
-# for plans, the world stepped on while this lag passed and the bite's state differed.
+# A machine this much slower at planning (wall seconds added to every plan): an attempt timed
+# on the simulated clock, or a world that steps on while a plan is computed, would change the
+# bite's state by this lag.
 LAG_WALL_S = 1.5
 
 

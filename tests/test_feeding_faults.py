@@ -1,4 +1,4 @@
-"""Faults during a meal (issue 22): the feeding tree in the physics world with the real tool
+"""Faults during a meal: the feeding tree in the physics world with the real tool
 runtime, a fault injected at a chosen moment of a bite. For each: every goal is answered, the
 tool ends in its defined safe state, the tree ends in a named state the bite record reports,
 nothing is counted as delivered that was not, and the bite record (the run's log) has every

@@ -141,8 +141,8 @@ class _LockedCarry(py_trees.behaviour.Behaviour):
 
 
 def test_a_bites_spill_counts_a_particle_that_rolls_from_table_to_floor_once() -> None:
-    # A bite's record used to sum spill events: a particle that lands on the table and
-    # rolls to the floor was counted twice. Here a bite whose tree is a locked 40° carry of
+    # A particle that lands on the table and rolls to the floor is one spill, not two
+    # summed spill events. Here a bite whose tree is a locked 40° carry of
     # 8 g of water (seed 0 sends particles over the table's edge).
     from articutool.feeding.meal import make_bite_world, run_bite
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import py_trees
 import pytest
 from py_trees.common import Status
@@ -73,6 +75,11 @@ class FakeArm:
     def verify(self, trajectory: str) -> JobResult:
         ok = self.verdicts.pop(0) if self.verdicts else True
         return JobResult(ok, "feasible" if ok else "wrist speed 4.3 rad/s > 4 at waypoint 12")
+
+    def check_food(self, trajectory: str) -> JobResult:
+        # nothing on the fork: the transport runs as planned
+        return JobResult(True, "no load to check",
+                         SimpleNamespace(trajectory=trajectory, record=None))
 
     def start_execute(self, trajectory: str) -> FakeJob:
         self.executed.append(trajectory)
@@ -217,7 +224,7 @@ def test_tool_fault_mid_transport_stops_safely() -> None:
 
 
 def test_the_guard_is_py_trees_eternal_guard_failing_while_safe_and_naming_the_stop() -> None:
-    # issue 23: the root guard is py_trees' EternalGuard ("Unsafe?" around "Safe stop"):
+    # The root guard is py_trees' EternalGuard ("Unsafe?" around "Safe stop"):
     # checked before the task every tick, FAILURE while safe, SUCCESS with the reason after.
     clock = Clock()
     arm, tool = FakeArm(clock, [True], [True], motion_s=5.0), FakeTool(clock)
@@ -404,7 +411,7 @@ def test_the_trees_timeout_does_not_count_the_wait_for_a_plan() -> None:
 
 def test_run_tree_reports_a_safe_stop_as_a_failure_naming_its_reason() -> None:
     # The guard's branch succeeds (the safe state was reached), but the task did not: the
-    # experiments' transports must not count it as completed (issue 22).
+    # experiments' transports must not count it as completed.
     from articutool.feeding.tree import run_tree
 
     clock = Clock()
@@ -424,8 +431,8 @@ def test_run_tree_reports_a_safe_stop_as_a_failure_naming_its_reason() -> None:
 
 
 def test_a_retreat_step_failing_in_its_first_tick_is_not_taken_for_the_cause() -> None:
-    # Found by the fault-injection suite: a lift whose IK fails at once was recorded as the
-    # bite's cause instead of the exhausted planning attempts (issue 22).
+    # A lift whose IK fails at once: the bite's cause is the exhausted planning attempts,
+    # not the failed IK.
     clock = Clock()
     arm, tool = FakeArm(clock, [False] * 10, [], plan_s=0.0), FakeTool(clock)
     arm.fail_paths.add("lift")

@@ -1,4 +1,4 @@
-"""Tests for the Valenti complementary filter (src/articutool/tool/filter.py; hardware-facts §4).
+"""Tests for the Valenti complementary filter (src/articutool/tool/filter.py; docs/hardware.md §4).
 
 Agreement: ROS is not installable here (Debian packages no imu_tools), so ``_Reference`` below is
 an independent, deliberately literal scalar transcription of imu_tools'
@@ -16,13 +16,13 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from articutool import load_spec
+from articutool.spec import load_spec
 from articutool.tool.filter import ComplementaryFilter
 
-G_STD = 9.80665  # the IMU's g (hardware-facts §3); the filter itself compares with 9.81
+G_STD = 9.80665  # the IMU's g (docs/hardware.md §3); the filter itself compares with 9.81
 RATE_HZ = 50.0
 DT = 1.0 / RATE_HZ
-# Discrete white-noise sigma per sample at 50 Hz (Nyquist bandwidth 25 Hz), hardware-facts §3.
+# Discrete white-noise sigma per sample at 50 Hz (Nyquist bandwidth 25 Hz), docs/hardware.md §3.
 GYRO_SIGMA = math.radians(0.015) * math.sqrt(RATE_HZ / 2)  # rad/s
 ACCEL_SIGMA = 230e-6 * G_STD * math.sqrt(RATE_HZ / 2)  # m/s²
 GYRO_BIAS = np.radians([2.0, -3.0, 1.5])  # rad/s, "a few deg/s"
@@ -547,7 +547,7 @@ def test_degenerate_correction_rejected_and_state_unchanged():
 
 
 # ---------------------------------------------------------------------------------------
-# Tilt accuracy against ground truth (synthetic IMU streams, hardware-facts §3 noise)
+# Tilt accuracy against ground truth (synthetic IMU streams, docs/hardware.md §3 noise)
 # ---------------------------------------------------------------------------------------
 def _imu_from_trajectory(rots: Rotation, lin_acc_world: np.ndarray | None, seed: int):
     """Ideal sampled IMU for sensor orientations ``rots`` (sensor in world) at 50 Hz.

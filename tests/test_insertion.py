@@ -23,7 +23,6 @@ def _with(name: str, **insertion: float) -> object:
     return s.model_copy(update={"insertion": s.insertion.model_copy(update=insertion)})
 
 
-SPEC = load_spec()
 NOT_SWEEPS = sorted(n for n, s in LIB.strategies.items() if s.insertion.motion != "sweep")
 SWEEPS = sorted(n for n, s in LIB.strategies.items() if s.insertion.motion == "sweep")
 
@@ -71,10 +70,10 @@ def test_a_skewer_goes_straight_down_and_a_dip_can_level_in_the_food() -> None:
 @given(a=st.floats(10.0, 80.0), frac=st.floats(0.0, 0.9), drag=st.floats(0.005, 0.08),
        depth=st.floats(0.0, 0.03), off=st.floats(-0.05, 0.05))
 def test_a_sweep_keeps_the_dish_above_the_floor_and_the_wrist_makes_its_turn(
-        name: str, a: float, frac: float, drag: float, depth: float, off: float) -> None:
+        spec, name: str, a: float, frac: float, drag: float, depth: float, off: float) -> None:
     s = _with(name, pitch_down_deg=a, sweep_to_deg=a * frac, drag_m=drag, depth_m=depth,
               offset_m=off)
-    outline = dish_outline(SPEC, s.utensil)
+    outline = dish_outline(spec, s.utensil)
     w = acquisition_waypoints(s, FLOOR, HEADING, outline)
     assert w["into"][0] == w["above"][-1] and w["out"][0] == w["into"][-1]
     pts = [p for ph in w.values() for p in ph]

@@ -6,7 +6,6 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from articutool import load_spec
 from articutool.tool.kinematics import (
     jacobian,
     jacobian_pinv,
@@ -18,8 +17,9 @@ from articutool.tool.kinematics import (
     up_vector,
     wrap_angle,
 )
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 LIMITS = SPEC.wrist.limits
 angles = st.floats(-np.pi, np.pi, allow_nan=False)
 big_angles = st.floats(-40.0, 40.0, allow_nan=False)

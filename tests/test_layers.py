@@ -1,5 +1,5 @@
-"""The import graph of ``src/articutool`` (issue 23): the circles and upward arrows fixed so
-far stay fixed. Imports go down the README's layers: spec/data → tool, arm → link, verify,
+"""The import graph of ``src/articutool``: no import circles and no upward arrows. Imports go
+down the README's layers: spec/data → tool, arm → link, verify,
 planning → sim → feeding → experiments, viewer, CLIs. Parsed with ``ast`` (lazy imports
 inside functions count too)."""
 
@@ -119,8 +119,8 @@ def test_no_fixed_upward_arrow_returns() -> None:
 
 def test_validating_the_spec_does_not_import_the_motor_sdk() -> None:
     # the Bus Watchdog check needs the register's units, not dynamixel_sdk
-    script = ("import sys, articutool\n"
-              "articutool.load_spec()\n"
+    script = ("import sys\nfrom articutool.spec import load_spec\n"
+              "load_spec()\n"
               "print(sorted(m for m in sys.modules if m.startswith('dynamixel')))\n")
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                          timeout=120, check=True)
@@ -139,7 +139,7 @@ def test_only_the_entry_point_imports_the_top_level_cli() -> None:
 
 
 def test_feeding_takes_the_staging_goal_and_the_scoop_heading_from_the_arm_layer() -> None:
-    # issue 23: not from the demo or the scripted scenes (sim/demo.py, sim/scenes.py)
+    # not from the demo or the scripted scenes (sim/demo.py, sim/scenes.py)
     assert imports_from(GRAPH, "articutool.feeding", "articutool.sim.demo") == []
     assert ("articutool.arm.ik" in GRAPH["articutool.feeding.sim_arm"]
             and "articutool.arm.ik" in GRAPH["articutool.sim.demo"])

@@ -1,11 +1,10 @@
-"""The network cannot slow the loop (issue 13, item 4): bounded inbox, one command per tick,
+"""The network cannot slow the loop: bounded inbox, one command per tick,
 size and rate limits, and a flood against a real tool process."""
 
 from __future__ import annotations
 
 import contextlib
 import os
-import socket
 import subprocess
 import sys
 import threading
@@ -16,6 +15,7 @@ from pathlib import Path
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.client import ArticutoolClient, LinkError
 from articutool.link.config import LinkConfig
@@ -24,7 +24,8 @@ from articutool.link.server import ToolServer
 from articutool.link.transport import Names, RateGate, key_expr
 from articutool.link.zenoh_transport import ZenohTransport
 from articutool.tool.api import Mode
-from link_fake_tool import FakeTool, wait_until
+from conftest import free_port, wait_until
+from link_fake_tool import FakeTool
 
 HERE = Path(__file__).parent
 CFG = LinkConfig(tool_timeout=0.5, client_timeout=1.0, heartbeat_period=0.05,
@@ -95,7 +96,7 @@ def test_oversized_payloads_are_dropped_unread_and_counted() -> None:
     n = Names(tool_id=cfg.tool_id)
     try:
         raw.publish(n.joint_trajectory, b"\x00\x01\x00\x00" + bytes(5000))
-        req = m.encode(m.soc_request(Mode.LEVELING, 0.0, 0.0), n.set_orientation_control
+        req = cdr.encode(m.soc_request(Mode.LEVELING, 0.0, 0.0), n.set_orientation_control
                        .request_type)
         padded = req + bytes(300)
         try:
@@ -128,17 +129,11 @@ def test_rate_gate_passes_the_rate_and_drops_the_rest() -> None:
     assert 95 <= got <= 106
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def test_a_flood_is_dropped_and_counted_and_a_stop_still_gets_through() -> None:
     """Two processes: 2 s of ~2000 goals/s and 4 MB trajectories at the fake tool, while
     a client's DISABLED is answered. (Loop timing under a flood is measured, not asserted:
     benchmarks/bench_link_flood.py.)"""
-    port = _free_port()
+    port = free_port()
     env = dict(os.environ, PYTHONPATH=str(HERE.parent / "src"))
     proc = subprocess.Popen([sys.executable, str(HERE / "link_fake_tool.py"), "--listen",
                              f"tcp/127.0.0.1:{port}"], stdin=subprocess.PIPE,
@@ -157,7 +152,7 @@ def test_a_flood_is_dropped_and_counted_and_a_stop_still_gets_through() -> None:
         asked = False
         while time.monotonic() < end:
             for _ in range(20):
-                p = m.encode(m.send_goal_request(uuid.uuid4().bytes, "TWIRL", [0.1]),
+                p = cdr.encode(m.send_goal_request(uuid.uuid4().bytes, "TWIRL", [0.1]),
                              names.send_goal.request_type)
                 flood._session.get(key, handler=lambda _r: None, payload=p, timeout=1.0)
             flood.publish(names.joint_trajectory, big)
@@ -192,7 +187,7 @@ def test_a_flood_is_dropped_and_counted_and_a_stop_still_gets_through() -> None:
 
 def test_link_loss_is_the_lease_holders_silence_not_any_clients() -> None:
     """Policy 'cancel': the commanding PC goes silent while an observer chats on; the
-    running primitive is cancelled (before the fix the observer's heartbeats hid it)."""
+    running primitive is cancelled (the observer's heartbeats do not hide it)."""
     bus = MemoryBus()
     tool = FakeTool()
     cfg = CFG.replace(link_loss_policy="cancel", client_timeout=0.5)
@@ -259,7 +254,7 @@ def test_prevalidated_trajectories_leave_the_loop_only_the_start_to_check() -> N
 
 
 def test_a_flood_of_malformed_payloads_logs_a_few_lines_and_counts_them_all(caplog) -> None:  # type: ignore[no-untyped-def]
-    """Issue 22: one WARNING per malformed payload was ~1 800 lines/s under a flood."""
+    """One WARNING per malformed payload would be ~1 800 lines/s under a flood."""
     import logging
 
     bus = MemoryBus()
@@ -269,7 +264,7 @@ def test_a_flood_of_malformed_payloads_logs_a_few_lines_and_counts_them_all(capl
     raw = MemoryTransport(bus, "pc-1")
     ep = Names(tool_id=CFG.tool_id).client_heartbeat
     try:
-        with caplog.at_level(logging.WARNING, logger="articutool.link.server"):
+        with caplog.at_level(logging.WARNING, logger="articutool.link"):
             for i in range(3000):
                 raw.publish(ep, b"\x00\x01\x00\x00" + i.to_bytes(2, "little"))
             assert wait_until(lambda: server.counters["decode_errors"] == 3000, 10.0)
@@ -288,7 +283,7 @@ _OPS = ("disable", "level", "cancel_all", "cancel_other", "goal", "tick")
 @given(st.lists(st.tuples(st.sampled_from(_OPS), st.sampled_from(("pc-1", "pc-2"))),
                 max_size=60))
 def test_stops_are_never_refused_and_go_first_whatever_the_order(ops) -> None:  # type: ignore[no-untyped-def]
-    """Issue 22, S1, as a property over every interleaving of requests and loop ticks: no
+    """As a property over every interleaving of requests and loop ticks: no
     stop is refused, at most one DISABLED and one cancel wait, a tick with a stop waiting runs
     a stop, and every request is answered exactly once (equal stops joined, not dropped)."""
     tool = LoopTool()
@@ -311,7 +306,7 @@ def _play(server: ToolServer, tool: LoopTool, ops: list[tuple[str, str]]) -> Non
     def send(i: int, handler, ep, request, who: str) -> None:  # type: ignore[no-untyped-def]
         answers[i] = []
         try:
-            handler(m.encode(request, ep.request_type), answers[i].append,
+            handler(cdr.encode(request, ep.request_type), answers[i].append,
                     Sender(who, True, "pc"))
         except RefusalError as why:  # an error reply (rate, inbox full)
             answers[i].append(f"error: {why}")
@@ -346,4 +341,4 @@ def _play(server: ToolServer, tool: LoopTool, ops: list[tuple[str, str]]) -> Non
         reply = answers[i][0]
         assert isinstance(reply, bytes), reply  # a reply, not an error
         if ops[i][0] == "disable":
-            assert m.decode(reply, n.set_orientation_control.response_type).success
+            assert cdr.decode(reply, n.set_orientation_control.response_type).success

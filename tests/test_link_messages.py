@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.transport import Names, key_expr
 from articutool.tool.api import Mode, PrimitiveStatus, ToolState
@@ -20,9 +21,9 @@ N = Names()
 ALL_WIRE_TYPES = [N.set_orientation_control.request_type, N.set_orientation_control.response_type,
                   N.send_goal.request_type, N.send_goal.response_type, N.get_result.request_type,
                   N.get_result.response_type, N.cancel_goal.request_type,
-                  N.cancel_goal.response_type, m.FEEDBACK_MESSAGE, m.GOAL_STATUS_ARRAY,
-                  m.JOINT_STATE, m.IMU, m.JOINT_TRAJECTORY, m.DIAGNOSTIC_ARRAY, m.BATTERY_STATE,
-                  m.HEADER]
+                  N.cancel_goal.response_type, cdr.FEEDBACK_MESSAGE, cdr.GOAL_STATUS_ARRAY,
+                  cdr.JOINT_STATE, cdr.IMU, cdr.JOINT_TRAJECTORY, cdr.DIAGNOSTIC_ARRAY,
+                  cdr.BATTERY_STATE, cdr.HEADER]
 
 
 def _state(**kw: object) -> ToolState:
@@ -49,18 +50,18 @@ def _samples() -> list[tuple[bytes, str]]:
         (m.send_goal_request(gid, "TWIRL", [1.0, 2.5]), N.send_goal.request_type),
         (m.send_goal_response(True, 12.5), N.send_goal.response_type),
         (m.result_msg(res), N.get_result.response_type),
-        (m.feedback_msg(gid, status), m.FEEDBACK_MESSAGE),
-        (m.status_array([(gid, 3.0, m.GoalStatus.EXECUTING)]), m.GOAL_STATUS_ARRAY),
+        (m.feedback_msg(gid, status), cdr.FEEDBACK_MESSAGE),
+        (m.status_array([(gid, 3.0, m.GoalStatus.EXECUTING)]), cdr.GOAL_STATUS_ARRAY),
         (m.cancel_request(gid), N.cancel_goal.request_type),
         (m.cancel_response(0, [(gid, 3.0)]), N.cancel_goal.response_type),
-        (m.joint_state_msg(s, 100.25), m.JOINT_STATE),
-        (m.imu_msg(s, 100.25), m.IMU),
-        (m.health_msg(s, 100.25, {"decode_errors": 2}), m.DIAGNOSTIC_ARRAY),
-        (m.battery_msg(s, 100.25), m.BATTERY_STATE),
-        (m.trajectory_msg(traj, 5.0), m.JOINT_TRAJECTORY),
-        (m.heartbeat_msg(7.5, "pc"), m.HEADER),
+        (m.joint_state_msg(s, 100.25), cdr.JOINT_STATE),
+        (m.imu_msg(s, 100.25), cdr.IMU),
+        (m.health_msg(s, 100.25, {"decode_errors": 2}), cdr.DIAGNOSTIC_ARRAY),
+        (m.battery_msg(s, 100.25), cdr.BATTERY_STATE),
+        (m.trajectory_msg(traj, 5.0), cdr.JOINT_TRAJECTORY),
+        (m.heartbeat_msg(7.5, "pc"), cdr.HEADER),
     ]
-    return [(m.encode(msg, t), t) for msg, t in out]
+    return [(cdr.encode(msg, t), t) for msg, t in out]
 
 
 SAMPLES = _samples()
@@ -68,14 +69,14 @@ SAMPLES = _samples()
 
 def test_set_orientation_control_request_has_the_ros2_cdr_layout() -> None:
     # CDR: encapsulation 00 01 00 00, uint8, 3 bytes padding to 4, two little-endian float32.
-    data = m.encode(m.soc_request(Mode.LEVELING, 12.5, -3.0),
+    data = cdr.encode(m.soc_request(Mode.LEVELING, 12.5, -3.0),
                     N.set_orientation_control.request_type)
     assert data == b"\x00\x01\x00\x00" + b"\x01\x00\x00\x00" + struct.pack("<ff", 12.5, -3.0)
 
 
 def test_send_goal_layout_is_uuid_then_string_then_float_sequence() -> None:
     gid = bytes(range(16))
-    data = m.encode(m.send_goal_request(gid, "TWIRL", [1.5]), N.send_goal.request_type)
+    data = cdr.encode(m.send_goal_request(gid, "TWIRL", [1.5]), N.send_goal.request_type)
     body = data[4:]
     assert body[:16] == gid
     assert struct.unpack_from("<I", body, 16)[0] == 6  # "TWIRL\0"
@@ -86,14 +87,14 @@ def test_send_goal_layout_is_uuid_then_string_then_float_sequence() -> None:
 
 @pytest.mark.parametrize(("data", "typename"), SAMPLES, ids=[t for _, t in SAMPLES])
 def test_every_message_round_trips(data: bytes, typename: str) -> None:
-    assert m.encode(m.decode(data, typename), typename) == data
+    assert cdr.encode(cdr.decode(data, typename), typename) == data
 
 
 @pytest.mark.parametrize(("data", "typename"), SAMPLES, ids=[t for _, t in SAMPLES])
 def test_every_truncation_is_rejected(data: bytes, typename: str) -> None:
     for k in range(len(data) - 3):  # the last 3 bytes may be alignment padding
-        with pytest.raises(m.LinkDecodeError):
-            m.decode(data[:k], typename)
+        with pytest.raises(cdr.LinkDecodeError):
+            cdr.decode(data[:k], typename)
 
 
 @settings(max_examples=300, deadline=None)
@@ -101,10 +102,10 @@ def test_every_truncation_is_rejected(data: bytes, typename: str) -> None:
 def test_random_bytes_decode_or_raise_link_decode_error(typename: str, blob: bytes) -> None:
     for data in (blob, b"\x00\x01\x00\x00" + blob):
         try:
-            obj = m.decode(data, typename)
-        except m.LinkDecodeError:
+            obj = cdr.decode(data, typename)
+        except cdr.LinkDecodeError:
             continue
-        assert m.decode(m.encode(obj, typename), typename) is not None
+        assert cdr.decode(cdr.encode(obj, typename), typename) is not None
 
 
 @settings(max_examples=300, deadline=None)
@@ -116,8 +117,8 @@ def test_bit_flips_decode_or_raise_link_decode_error(sample: tuple[bytes, str],
     for _ in range(data.draw(st.integers(1, 4))):
         bit = data.draw(st.integers(0, len(buf) * 8 - 1))
         buf[bit // 8] ^= 1 << (bit % 8)
-    with contextlib.suppress(m.LinkDecodeError):
-        m.decode(bytes(buf), typename)
+    with contextlib.suppress(cdr.LinkDecodeError):
+        cdr.decode(bytes(buf), typename)
 
 
 # Bytes from real ROS 2: rclpy 9.1.2 ``serialize_message`` (rmw_fastrtps_cpp typesupport) of a
@@ -137,23 +138,23 @@ ROS2_JOINT_TRAJECTORY = bytes.fromhex(
 
 
 def test_real_ros2_bytes_with_trailing_alignment_padding_are_accepted() -> None:
-    js = m.decode(ROS2_JOINT_STATE, m.JOINT_STATE)
+    js = cdr.decode(ROS2_JOINT_STATE, cdr.JOINT_STATE)
     assert list(js.name) == ["pitch", "roll"] and list(js.position) == [0.1, 0.2]
-    traj = m.trajectory_from_msg(m.decode(ROS2_JOINT_TRAJECTORY, m.JOINT_TRAJECTORY))
+    traj = m.trajectory_from_msg(cdr.decode(ROS2_JOINT_TRAJECTORY, cdr.JOINT_TRAJECTORY))
     assert traj.joint_names == ("pitch", "roll") and list(traj.times) == [1.0]
     assert traj.positions.tolist() == [[0.1, 0.2]]
 
 
 def test_trailing_bytes_beyond_padding_and_wrong_header_are_rejected() -> None:
-    hb = m.encode(m.heartbeat_msg(5.0, "pc"), m.HEADER)
-    m.decode(hb + bytes(7), m.HEADER)  # rounding up to 8 is padding
-    with pytest.raises(m.LinkDecodeError, match="trailing"):
-        m.decode(hb + hb, m.HEADER)  # a second message is not padding
+    hb = cdr.encode(m.heartbeat_msg(5.0, "pc"), cdr.HEADER)
+    cdr.decode(hb + bytes(7), cdr.HEADER)  # rounding up to 8 is padding
+    with pytest.raises(cdr.LinkDecodeError, match="trailing"):
+        cdr.decode(hb + hb, cdr.HEADER)  # a second message is not padding
     for raw, t in SAMPLES:
-        with pytest.raises(m.LinkDecodeError, match="trailing"):
-            m.decode(raw + bytes(4096), t)
-        with pytest.raises(m.LinkDecodeError, match="CDR"):
-            m.decode(b"\x07" + raw[1:], t)
+        with pytest.raises(cdr.LinkDecodeError, match="trailing"):
+            cdr.decode(raw + bytes(4096), t)
+        with pytest.raises(cdr.LinkDecodeError, match="CDR"):
+            cdr.decode(b"\x07" + raw[1:], t)
 
 
 finite = st.floats(-10, 10, allow_nan=False, width=32)
@@ -167,8 +168,8 @@ def test_trajectory_conversion_round_trips(rows: list, dts: list[float]) -> None
     q = np.array([r[:2] for r in rows])
     v = np.array([r[2:] for r in rows])
     traj = JointTrajectory(("pitch", "roll"), times, q, v)
-    back = m.trajectory_from_msg(m.decode(m.encode(m.trajectory_msg(traj), m.JOINT_TRAJECTORY),
-                                          m.JOINT_TRAJECTORY))
+    back = m.trajectory_from_msg(cdr.decode(
+        cdr.encode(m.trajectory_msg(traj), cdr.JOINT_TRAJECTORY), cdr.JOINT_TRAJECTORY))
     assert back.joint_names == traj.joint_names
     np.testing.assert_allclose(back.times, traj.times, atol=1e-9)
     np.testing.assert_array_equal(back.positions, traj.positions)
@@ -179,19 +180,20 @@ def test_inconsistent_trajectory_message_is_a_decode_error_naming_the_field() ->
     msg = m.trajectory_msg(JointTrajectory(("pitch", "roll"), np.array([0.0, 1.0]),
                                            np.zeros((2, 2)), np.zeros((2, 2))))
     msg.points[1].positions = np.array([1.0])
-    with pytest.raises(m.LinkDecodeError, match=r"points\[1\].positions"):
+    with pytest.raises(cdr.LinkDecodeError, match=r"points\[1\].positions"):
         m.trajectory_from_msg(msg)
     msg.points[1].positions = np.array([1.0, 2.0])
     msg.points[1].time_from_start.sec = 0  # not after point 0
-    with pytest.raises(m.LinkDecodeError, match="increase"):
+    with pytest.raises(cdr.LinkDecodeError, match="increase"):
         m.trajectory_from_msg(msg)
 
 
 def test_state_survives_the_telemetry_messages() -> None:
     s = _state(fault="motor 1 overload", extra={"temp": 41.5})
-    msgs = [m.decode(m.encode(x, t), t) for x, t in (
-        (m.joint_state_msg(s, 1.0), m.JOINT_STATE), (m.imu_msg(s, 1.0), m.IMU),
-        (m.health_msg(s, 1.0, {}), m.DIAGNOSTIC_ARRAY), (m.battery_msg(s, 1.0), m.BATTERY_STATE))]
+    msgs = [cdr.decode(cdr.encode(x, t), t) for x, t in (
+        (m.joint_state_msg(s, 1.0), cdr.JOINT_STATE), (m.imu_msg(s, 1.0), cdr.IMU),
+        (m.health_msg(s, 1.0, {}), cdr.DIAGNOSTIC_ARRAY),
+        (m.battery_msg(s, 1.0), cdr.BATTERY_STATE))]
     back = m.state_from_msgs(*msgs, stamp=s.stamp)
     assert back.mode == s.mode and back.fault == s.fault
     assert back.joint_names == s.joint_names and back.position == s.position
@@ -221,8 +223,8 @@ def test_key_expressions_follow_rmw_zenoh() -> None:
     assert key_expr(0, N.cancel_goal).split("/")[-2] == "action_msgs::srv::dds_::CancelGoal_"
     assert key_expr(0, N.imu, with_hash=False).endswith("/*")
     # distinct interfaces have distinct hashes
-    assert len({m.type_hash(t) for t in (m.SET_ORIENTATION_CONTROL, m.SEND_GOAL,
-                                         m.GET_RESULT, m.ACTION)}) == 4
+    assert len({cdr.type_hash(t) for t in (cdr.SET_ORIENTATION_CONTROL, cdr.SEND_GOAL,
+                                         cdr.GET_RESULT, cdr.ACTION)}) == 4
 
 
 @pytest.mark.parametrize(("extra", "fault", "level", "text"), [
@@ -234,7 +236,7 @@ def test_key_expressions_follow_rmw_zenoh() -> None:
 def test_health_warns_while_leveling_is_stalled(extra, fault, level, text) -> None:
     """A stalled leveling is no fault but is never silent: WARN, and the target on the wire."""
     msg = m.health_msg(_state(extra=extra, fault=fault), 1.0, {})
-    back = m.decode(m.encode(msg, m.DIAGNOSTIC_ARRAY), m.DIAGNOSTIC_ARRAY)
+    back = cdr.decode(cdr.encode(msg, cdr.DIAGNOSTIC_ARRAY), cdr.DIAGNOSTIC_ARRAY)
     (st,) = back.status
     assert (st.level, st.message) == (level, text)
     state = m.state_from_msgs(m.joint_state_msg(_state(), 1.0), None, back, None, 2.0)
@@ -249,6 +251,6 @@ def test_a_wrist_part_sliced_from_a_longer_path_encodes() -> None:
     q8 = np.arange(24, dtype=np.float64).reshape(8, 3).T / 10  # rows strided
     wrist = JointTrajectory(("pitch", "roll"), times, q8[:, 6:], np.zeros((8, 3)).T[:, 6:])
     assert not wrist.positions[0].flags["C_CONTIGUOUS"]
-    data = m.encode(m.trajectory_msg(wrist), m.JOINT_TRAJECTORY)
-    back = m.trajectory_from_msg(m.decode(data, m.JOINT_TRAJECTORY))
+    data = cdr.encode(m.trajectory_msg(wrist), cdr.JOINT_TRAJECTORY)
+    back = m.trajectory_from_msg(cdr.decode(data, cdr.JOINT_TRAJECTORY))
     assert np.allclose(back.positions, q8[:, 6:8])

@@ -1,4 +1,4 @@
-"""Interoperability with real ROS 2: rclpy and the message packages from PyPI (issue 13, item 7).
+"""Interoperability with real ROS 2: rclpy and the message packages from PyPI.
 
 Every standard message type the link sends or receives is serialised by our encoder and
 deserialised by ROS 2 (``rclpy.serialization``, rmw_fastrtps_cpp typesupport), and the other
@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.tool.api import Mode, ToolState
 from articutool.trajectory import JointTrajectory
@@ -61,21 +62,21 @@ def _trajectory(n: int) -> JointTrajectory:
 T0 = 1_700_000_000.25
 # (our type name, ROS 2 class, our message)
 CASES: list[tuple[str, Any, Any]] = [
-    (m.JOINT_STATE, JointState, m.joint_state_msg(_state(), T0)),
-    (m.IMU, Imu, m.imu_msg(_state(), T0)),
-    (m.DIAGNOSTIC_ARRAY, DiagnosticArray, m.health_msg(_state(), T0, {"decode_errors": 3})),
-    (m.BATTERY_STATE, BatteryState, m.battery_msg(_state(), T0)),
-    (m.HEADER, Header, m.heartbeat_msg(T0, "pc-1")),
-    (m.JOINT_TRAJECTORY, RosJointTrajectory, m.trajectory_msg(_trajectory(1), T0)),
-    (m.JOINT_TRAJECTORY, RosJointTrajectory, m.trajectory_msg(_trajectory(7), 0.0)),
-    (m.GOAL_STATUS_ARRAY, GoalStatusArray,
+    (cdr.JOINT_STATE, JointState, m.joint_state_msg(_state(), T0)),
+    (cdr.IMU, Imu, m.imu_msg(_state(), T0)),
+    (cdr.DIAGNOSTIC_ARRAY, DiagnosticArray, m.health_msg(_state(), T0, {"decode_errors": 3})),
+    (cdr.BATTERY_STATE, BatteryState, m.battery_msg(_state(), T0)),
+    (cdr.HEADER, Header, m.heartbeat_msg(T0, "pc-1")),
+    (cdr.JOINT_TRAJECTORY, RosJointTrajectory, m.trajectory_msg(_trajectory(1), T0)),
+    (cdr.JOINT_TRAJECTORY, RosJointTrajectory, m.trajectory_msg(_trajectory(7), 0.0)),
+    (cdr.GOAL_STATUS_ARRAY, GoalStatusArray,
      m.status_array([(bytes(range(16)), T0, m.GoalStatus.EXECUTING),
                      (bytes(16), T0 + 1, m.GoalStatus.ABORTED)])),
-    (f"{m.CANCEL_GOAL}_Request", CancelGoal.Request, m.cancel_request(bytes(range(16)))),
-    (f"{m.CANCEL_GOAL}_Response", CancelGoal.Response,
+    (f"{cdr.CANCEL_GOAL}_Request", CancelGoal.Request, m.cancel_request(bytes(range(16)))),
+    (f"{cdr.CANCEL_GOAL}_Response", CancelGoal.Response,
      m.cancel_response(0, [(bytes(range(16)), T0)])),
-    (f"{m.TRIGGER}_Request", Trigger.Request, m.trigger_request()),
-    (f"{m.TRIGGER}_Response", Trigger.Response, m.trigger_response(False, "no fault to clear")),
+    (f"{cdr.TRIGGER}_Request", Trigger.Request, m.trigger_request()),
+    (f"{cdr.TRIGGER}_Response", Trigger.Response, m.trigger_response(False, "no fault to clear")),
 ]
 IDS = [f"{t.split('/')[-1]}-{i}" for i, (t, _, _) in enumerate(CASES)]
 
@@ -100,7 +101,7 @@ def _ours(value: Any, node: tuple[Any, Any]) -> Any:
     if kind == 1:
         return _scalar(value, desc[0])
     if kind == 2:
-        _, fields = m.typestore().fielddefs[desc]
+        _, fields = cdr.typestore().fielddefs[desc]
         return {f: _ours(getattr(value, f), t) for f, t in fields
                 if f != "structure_needs_at_least_one_member"}  # rosidl's placeholder
     return [_ours(v, desc[0]) for v in value]
@@ -119,25 +120,26 @@ def _theirs(value: Any) -> Any:
 
 @pytest.mark.parametrize(("typename", "ros_cls", "ours"), CASES, ids=IDS)
 def test_ros2_decodes_what_we_encode(typename: str, ros_cls: Any, ours: Any) -> None:
-    theirs = rclpy_ser.deserialize_message(m.encode(ours, typename), ros_cls)
+    theirs = rclpy_ser.deserialize_message(cdr.encode(ours, typename), ros_cls)
     assert _theirs(theirs) == _ours(ours, (2, typename))
 
 
 @pytest.mark.parametrize(("typename", "ros_cls", "ours"), CASES, ids=IDS)
 def test_we_decode_what_ros2_encodes(typename: str, ros_cls: Any, ours: Any) -> None:
-    theirs = rclpy_ser.deserialize_message(m.encode(ours, typename), ros_cls)  # a ROS object
+    theirs = rclpy_ser.deserialize_message(cdr.encode(ours, typename), ros_cls)  # a ROS object
     data = rclpy_ser.serialize_message(theirs)  # ROS 2's bytes (with its trailing padding)
-    assert _ours(m.decode(data, typename), (2, typename)) == _theirs(theirs)
+    assert _ours(cdr.decode(data, typename), (2, typename)) == _theirs(theirs)
 
 
 def test_a_ros2_trajectory_reaches_the_tool_as_sent() -> None:
     """The issue's case: a ROS 2 PC's wrist trajectory is accepted and means the same."""
     ros = rclpy_ser.deserialize_message(
-        m.encode(m.trajectory_msg(_trajectory(20), 0.0), m.JOINT_TRAJECTORY), RosJointTrajectory)
+        cdr.encode(m.trajectory_msg(_trajectory(20), 0.0), cdr.JOINT_TRAJECTORY),
+        RosJointTrajectory)
     data = rclpy_ser.serialize_message(ros)
-    assert len(data) > len(m.encode(m.trajectory_msg(_trajectory(20), 0.0),
-                                     m.JOINT_TRAJECTORY))  # ROS 2 pads: the bug's trigger
-    traj = m.trajectory_from_msg(m.decode(data, m.JOINT_TRAJECTORY))
+    assert len(data) > len(cdr.encode(m.trajectory_msg(_trajectory(20), 0.0),
+                                     cdr.JOINT_TRAJECTORY))  # ROS 2 pads: the bug's trigger
+    traj = m.trajectory_from_msg(cdr.decode(data, cdr.JOINT_TRAJECTORY))
     ref = _trajectory(20)
     assert np.allclose(traj.times, ref.times, atol=1e-9)
     assert np.array_equal(traj.positions, ref.positions)
@@ -152,7 +154,7 @@ def _ros_hash(typename: str) -> str:
 
 
 @pytest.mark.parametrize("typename", [
-    m.JOINT_STATE, m.HEADER, m.JOINT_TRAJECTORY, m.IMU, m.DIAGNOSTIC_ARRAY, m.BATTERY_STATE,
-    m.GOAL_STATUS_ARRAY, m.CANCEL_GOAL, m.TRIGGER])
+    cdr.JOINT_STATE, cdr.HEADER, cdr.JOINT_TRAJECTORY, cdr.IMU, cdr.DIAGNOSTIC_ARRAY,
+    cdr.BATTERY_STATE, cdr.GOAL_STATUS_ARRAY, cdr.CANCEL_GOAL, cdr.TRIGGER])
 def test_type_hashes_equal_ros2_installed_descriptions(typename: str) -> None:
-    assert m.type_hash(typename) == _ros_hash(typename)
+    assert cdr.type_hash(typename) == _ros_hash(typename)

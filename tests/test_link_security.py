@@ -1,4 +1,4 @@
-"""Only the paired PC moves the utensil (issue 13, items 1-3 and 5): two real processes.
+"""Only the paired PC moves the utensil: two real processes.
 
 The fake tool (``link_fake_tool.py``) runs in its own process, paired by ``articutool pair``
 and listening on mutual TLS and, in one test, also on a plain loopback port (what a local
@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import os
-import socket
 import subprocess
 import sys
 import time
@@ -19,22 +18,17 @@ from pathlib import Path
 
 import pytest
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.client import ArticutoolClient, ToolConflictError
 from articutool.link.config import LinkConfig, load_config
 from articutool.link.pairing import pair
 from articutool.link.transport import Names
 from articutool.link.zenoh_transport import ZenohTransport
-from link_fake_tool import wait_until
+from conftest import free_port, wait_until
 
 HERE = Path(__file__).parent
 FAST = {"tool_timeout": 0.5, "heartbeat_period": 0.05, "call_timeout": 2.0}
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 class Tool:
@@ -151,7 +145,7 @@ def test_one_commander_lease_take_over_and_forged_heartbeats(
         ep = Names(tool_id="wrist-1").client_heartbeat
         end = time.monotonic() + 1.5
         while time.monotonic() < end:  # longer than the tool's client_timeout (0.6 s)
-            forger.publish(ep, m.encode(m.heartbeat_msg(time.time(), "pc-1"), ep.type))
+            forger.publish(ep, cdr.encode(m.heartbeat_msg(time.time(), "pc-1"), ep.type))
             time.sleep(0.05)
         ok, msg = two.set_mode("leveling")  # the lease expired: the forgery kept nothing
         assert ok, msg

@@ -1,7 +1,7 @@
-"""Stops that always get through, replays that never do (issue 22, S1, S2 and refusal
-reasons): the tool (``link_fake_tool.py``) and the flooders (``link_flooder.py``) each run
-in their own process; the PCs run in pytest. ``CALLS`` (printed by the tool on exit) is what
-reached the tool's API. How long stops take under the worst flood is measured, not asserted:
+"""Stops that always get through, replays that never do, refusals that say why: the tool
+(``link_fake_tool.py``) and the flooders (``link_flooder.py``) each run in their own process;
+the PCs run in pytest. ``CALLS`` (printed by the tool on exit) is what reached the tool's API.
+How long stops take under the worst flood is measured, not asserted:
 ``benchmarks/bench_link_stops.py``."""
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 import zenoh
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.auth import Signer
 from articutool.link.client import ArticutoolClient, LinkError
@@ -24,8 +25,8 @@ from articutool.link.config import LinkConfig, load_config
 from articutool.link.pairing import pair
 from articutool.link.transport import Names, key_expr
 from articutool.tool.api import Mode
-from link_fake_tool import wait_until
-from test_link_security import FAST, Tool, free_port
+from conftest import free_port, wait_until
+from test_link_security import FAST, Tool
 
 
 class Flooder(Tool):
@@ -40,6 +41,12 @@ class Flooder(Tool):
         """Stop flooding; how many requests it sent."""
         return int(next((ln.split()[1] for ln in self.output().splitlines()
                          if ln.startswith("SENT")), "0"))
+
+
+def _counter(client: ArticutoolClient, name: str) -> float:
+    """A link counter from the tool's telemetry (0 before any telemetry arrived)."""
+    s = client.latest_state()
+    return float(s.extra.get(f"link_{name}", 0)) if s is not None else 0.0
 
 
 @pytest.fixture(scope="module")
@@ -75,8 +82,8 @@ def _stop(client: ArticutoolClient) -> tuple[bool, str]:
 
 def test_floods_of_unsigned_and_forged_commands_never_hold_back_a_paired_pcs_stops(
         paired: Path, tool: tuple[Tool, int, int]) -> None:
-    """Before the fix 38 of 40 of these stops failed 'rate limited' (the gate was per
-    endpoint, shared with the flood, and ran before the signature check)."""
+    """A rate gate per endpoint, shared with the flood and run before the signature check,
+    fails 38 of 40 of these stops 'rate limited': the gate is per verified sender."""
     t, p, q = tool
     pc = _pc(paired, "pc-1", p)
     floods = []
@@ -86,7 +93,7 @@ def test_floods_of_unsigned_and_forged_commands_never_hold_back_a_paired_pcs_sto
         floods = [Flooder("--connect", plain, "--mode", "unsigned", "--rate", "3000"),
                   Flooder("--connect", plain, "--mode", "forged", "--rate", "1000",
                           "--cert", str(paired / "pc-1" / "cert.pem"))]
-        time.sleep(0.5)
+        assert wait_until(lambda: _counter(pc, "refused_unpaired") > 0, 10.0)  # flood arrived
         stops = [_stop(pc) for _ in range(40)]
         refused = [s for s in stops if not s[0]]
         assert not refused, f"{len(refused)} of 40 stops refused: {refused[:3]}"
@@ -116,8 +123,8 @@ def test_floods_of_unsigned_and_forged_commands_never_hold_back_a_paired_pcs_sto
 
 
 def test_a_flood_of_cancels_never_fills_an_unpaired_tools_stops() -> None:
-    """Unpaired (loopback) tool, a flood of cancels: before the fix real stops got 'inbox is
-    full' (the cancels filled the stop queue); now equal stops join one another."""
+    """Unpaired (loopback) tool, a flood of cancels: equal stops join one another, so the
+    cancels cannot fill the stop queue and real stops never get 'inbox is full'."""
     q = free_port()
     t = Tool("--listen", f"tcp/127.0.0.1:{q}", "--tool-id", "wrist-1", "--tick-hz", "50")
     cfg = LinkConfig(connect=(f"tcp/127.0.0.1:{q}",), listen=(), tool_id="wrist-1", **FAST)
@@ -127,7 +134,7 @@ def test_a_flood_of_cancels_never_fills_an_unpaired_tools_stops() -> None:
         assert client.wait_for_tool(15.0)
         flood = Flooder("--connect", f"tcp/127.0.0.1:{q}", "--mode", "cancels", "--rate",
                         "3000")
-        time.sleep(0.5)
+        time.sleep(0.5)  # the flood runs before the stops (the tool counts no joined cancel)
         stops = [_stop(client) for _ in range(20)]
         assert all(ok for ok, _ in stops), [s for s in stops if not s[0]][:3]
     finally:
@@ -198,7 +205,7 @@ def _send(port: int, ep_name_key: str, payload: bytes, attachment: bytes,
             for reply in session.get(ep_name_key, payload=payload, attachment=attachment,
                                      timeout=2.0):
                 if reply.ok is not None:
-                    return m.decode(reply.ok.payload.to_bytes(), reply_type), ""
+                    return cdr.decode(reply.ok.payload.to_bytes(), reply_type), ""
                 return None, reply.err.payload.to_string()
             time.sleep(0.1)  # not connected yet
     raise AssertionError("no reply from the tool")
@@ -206,12 +213,12 @@ def _send(port: int, ep_name_key: str, payload: bytes, attachment: bytes,
 
 def test_a_replay_with_a_re_encoded_certificate_is_refused_and_nothing_moves(
         paired: Path, tool: tuple[Tool, int, int]) -> None:
-    """Before the fix the one-time cache keyed on the certificate's last 64 bytes: the
-    malleated copy of a captured LEVELING was accepted again and the tool moved."""
+    """The one-time cache keys on the signer's public key, not on the certificate's bytes:
+    a malleated copy of a captured LEVELING is a replay, and the tool does not move."""
     t, p, q = tool
     soc = Names(tool_id="wrist-1").set_orientation_control
     key = key_expr(0, soc)
-    payload = m.encode(m.soc_request(Mode.LEVELING, 0.0, 0.0), soc.request_type)
+    payload = cdr.encode(m.soc_request(Mode.LEVELING, 0.0, 0.0), soc.request_type)
     att = _capture(paired, soc.name, payload)
     reply, err = _send(q, key, payload, att, soc.response_type)
     assert reply is not None and reply.success, err  # the original: accepted once
@@ -224,7 +231,8 @@ def test_a_replay_with_a_re_encoded_certificate_is_refused_and_nothing_moves(
             reply, err = _send(q, key, payload, again, soc.response_type)
             assert reply is not None and not reply.success
             assert "replayed" in reply.message and "not a paired PC" not in reply.message
-        time.sleep(0.2)
+        seen = pc2.latest_state().stamp  # type: ignore[union-attr]
+        assert wait_until(lambda: pc2.latest_state().stamp >= seen + 0.2)  # newer telemetry
         assert pc2.latest_state().mode.name == "DISABLED"  # type: ignore[union-attr]
     assert t.calls() == ["set_mode LEVELING", "set_mode DISABLED"]
 
@@ -237,12 +245,12 @@ def test_a_paired_pcs_refusals_name_the_real_reason(paired: Path,
     signer = Signer(paired / "pc-1" / "cert.pem", paired / "pc-1" / "key.pem")
     names = Names(tool_id="wrist-1")
     soc = names.set_orientation_control
-    payload = m.encode(m.soc_request(Mode.LEVELING, 0.0, 0.0), soc.request_type)
+    payload = cdr.encode(m.soc_request(Mode.LEVELING, 0.0, 0.0), soc.request_type)
     real = time.time_ns
     try:  # pc-1's clock 90 s behind the tool's
         time.time_ns = lambda: real() - 90 * 10**9  # type: ignore[assignment]
         late = signer.attachment(soc.name, payload)
-        goal = m.encode(m.send_goal_request(os.urandom(16), "TWIRL", [0.1]),
+        goal = cdr.encode(m.send_goal_request(os.urandom(16), "TWIRL", [0.1]),
                         names.send_goal.request_type)
         late_goal = signer.attachment(names.send_goal.name, goal)
     finally:

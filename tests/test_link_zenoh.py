@@ -6,10 +6,8 @@ import argparse
 import json
 import math
 import os
-import socket
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -20,14 +18,9 @@ from articutool.link import cli as link_cli
 from articutool.link import messages as m
 from articutool.link.client import ArticutoolClient, ToolSilentError
 from articutool.link.config import LinkConfig
+from conftest import free_port, wait_until
 
 HERE = Path(__file__).parent
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 class ToolProcess:
@@ -113,11 +106,7 @@ def test_link_loss_is_detected_and_the_client_recovers(port: int, cfg: LinkConfi
         assert c.wait_for_tool(15.0)
         assert c.set_mode("leveling")[0]
         first.kill()  # the tool vanishes without a goodbye
-        for _ in range(100):  # the client must call the tool silent (5 s cap, no timing)
-            if not c.tool_alive:
-                break
-            time.sleep(0.05)
-        assert not c.tool_alive
+        assert wait_until(lambda: not c.tool_alive)  # the client calls the tool silent
         with pytest.raises(ToolSilentError):
             c.set_mode("disabled")
         second = ToolProcess(port)  # tool restarts on the same endpoint

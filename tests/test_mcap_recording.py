@@ -1,4 +1,4 @@
-"""MCAP recordings (issue 28, item 4): ROS 2 CDR messages with embedded ``ros2msg`` schemas,
+"""MCAP recordings: ROS 2 CDR messages with embedded ``ros2msg`` schemas,
 read back with the standard readers (``mcap``'s reader and the ``mcap_ros2`` decoder).
 
 The tool and the client are real processes (``articutool tool --record``, ``articutool client
@@ -10,11 +10,9 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
-import time
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -27,10 +25,12 @@ from mcap.exceptions import McapError
 from mcap.reader import NonSeekingReader, make_reader
 from mcap_ros2.decoder import DecoderFactory
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.recording import McapRecorder, RecordingError, schema_name
 from articutool.tool.api import Mode, PrimitiveStatus, ToolState
 from articutool.trajectory import JointTrajectory
+from conftest import free_port, wait_until
 
 SRC = Path(__file__).resolve().parent.parent / "src"
 ENV = dict(os.environ, PYTHONPATH=str(SRC))
@@ -53,36 +53,30 @@ def _read(path: Path) -> list[tuple[str, str, Any]]:
         return [(ch.topic, sch.name, dec) for sch, ch, _, dec in reader.iter_decoded_messages()]
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 T = 1_700_000_000.5
 GID = bytes(range(16))
 ALL: list[tuple[str, Any]] = [
-    (m.JOINT_STATE, m.joint_state_msg(_state(), T)),
-    (m.IMU, m.imu_msg(_state(), T)),
-    (m.DIAGNOSTIC_ARRAY, m.health_msg(_state(), T, {"decode_errors": 2}, "wrist_1", "pc_1")),
-    (m.BATTERY_STATE, m.battery_msg(_state(), T)),
-    (m.HEADER, m.heartbeat_msg(T, "pc_1")),
-    (m.JOINT_TRAJECTORY, m.trajectory_msg(JointTrajectory(
+    (cdr.JOINT_STATE, m.joint_state_msg(_state(), T)),
+    (cdr.IMU, m.imu_msg(_state(), T)),
+    (cdr.DIAGNOSTIC_ARRAY, m.health_msg(_state(), T, {"decode_errors": 2}, "wrist_1", "pc_1")),
+    (cdr.BATTERY_STATE, m.battery_msg(_state(), T)),
+    (cdr.HEADER, m.heartbeat_msg(T, "pc_1")),
+    (cdr.JOINT_TRAJECTORY, m.trajectory_msg(JointTrajectory(
         ("atool_pitch", "atool_roll"), np.array([0.0, 1.5]), np.array([[0, 0], [0.3, 0.1]]),
         np.zeros((2, 2))), T)),
-    (m.GOAL_STATUS_ARRAY, m.status_array([(GID, T, m.GoalStatus.EXECUTING)])),
-    (m.FEEDBACK_MESSAGE, m.feedback_msg(GID, PrimitiveStatus("TWIRL_CW", 40.0, "twirl",
+    (cdr.GOAL_STATUS_ARRAY, m.status_array([(GID, T, m.GoalStatus.EXECUTING)])),
+    (cdr.FEEDBACK_MESSAGE, m.feedback_msg(GID, PrimitiveStatus("TWIRL_CW", 40.0, "twirl",
                                                              (0.0, 2.5), False))),
-    (f"{m.SET_ORIENTATION_CONTROL}_Request", m.soc_request(Mode.LEVELING, 10.0, -5.0)),
-    (f"{m.SET_ORIENTATION_CONTROL}_Response", m.soc_response(False, "refused")),
-    (f"{m.SEND_GOAL}_Request", m.send_goal_request(GID, "TWIRL_CW", [1.0, 3.0])),
-    (f"{m.SEND_GOAL}_Response", m.send_goal_response(True, T)),
-    (f"{m.GET_RESULT}_Request", m.msg(f"{m.GET_RESULT}_Request", goal_id=m.goal_uuid(GID))),
-    (f"{m.GET_RESULT}_Response", m.result_msg(m.PrimitiveResult(True, "done", (0.0, 6.28), 4))),
-    (f"{m.CANCEL_GOAL}_Request", m.cancel_request(GID)),
-    (f"{m.CANCEL_GOAL}_Response", m.cancel_response(0, [(GID, T)])),
-    (f"{m.TRIGGER}_Request", m.trigger_request()),
-    (f"{m.TRIGGER}_Response", m.trigger_response(False, "no fault to clear")),
+    (f"{cdr.SET_ORIENTATION_CONTROL}_Request", m.soc_request(Mode.LEVELING, 10.0, -5.0)),
+    (f"{cdr.SET_ORIENTATION_CONTROL}_Response", m.soc_response(False, "refused")),
+    (f"{cdr.SEND_GOAL}_Request", m.send_goal_request(GID, "TWIRL_CW", [1.0, 3.0])),
+    (f"{cdr.SEND_GOAL}_Response", m.send_goal_response(True, T)),
+    (f"{cdr.GET_RESULT}_Request", cdr.msg(f"{cdr.GET_RESULT}_Request", goal_id=m.goal_uuid(GID))),
+    (f"{cdr.GET_RESULT}_Response", m.result_msg(m.PrimitiveResult(True, "done", (0.0, 6.28), 4))),
+    (f"{cdr.CANCEL_GOAL}_Request", m.cancel_request(GID)),
+    (f"{cdr.CANCEL_GOAL}_Response", m.cancel_response(0, [(GID, T)])),
+    (f"{cdr.TRIGGER}_Request", m.trigger_request()),
+    (f"{cdr.TRIGGER}_Response", m.trigger_response(False, "no fault to clear")),
 ]
 
 
@@ -144,17 +138,13 @@ def _tool(tmp_path: Path, port: int, *extra: str) -> subprocess.Popen[str]:
 
 
 def _wait_for(path: Path, size: int, timeout: float) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if path.exists() and path.stat().st_size >= size:
-            return
-        time.sleep(0.1)
-    raise AssertionError(f"{path} did not reach {size} bytes")
+    assert wait_until(lambda: path.exists() and path.stat().st_size >= size, timeout, 0.1), \
+        f"{path} did not reach {size} bytes"
 
 
 def test_a_killed_tools_recording_is_readable_to_its_last_chunk(tmp_path: Path) -> None:
     path = tmp_path / "killed.mcap"
-    tool = _tool(tmp_path, _free_port(), "--record", str(path))
+    tool = _tool(tmp_path, free_port(), "--record", str(path))
     try:
         _wait_for(path, 60_000, 60)  # a few complete chunks (each about a second)
     finally:
@@ -178,9 +168,8 @@ def test_a_killed_tools_recording_is_readable_to_its_last_chunk(tmp_path: Path) 
 
 def test_ctrl_c_closes_the_tools_recording(tmp_path: Path) -> None:
     path = tmp_path / "tool.mcap"
-    tool = _tool(tmp_path, _free_port(), "--record", str(path))
-    _wait_for(path, 1, 60)
-    time.sleep(2.0)
+    tool = _tool(tmp_path, free_port(), "--record", str(path))
+    _wait_for(path, 60_000, 60)  # a few complete chunks (each about a second)
     tool.send_signal(signal.SIGINT)
     _, err = tool.communicate(timeout=30)
     assert tool.returncode == 0, err
@@ -194,7 +183,7 @@ def test_ctrl_c_closes_the_tools_recording(tmp_path: Path) -> None:
 
 
 def test_the_clients_recording_holds_its_goal(tmp_path: Path) -> None:
-    port = _free_port()
+    port = free_port()
     tool = _tool(tmp_path, port)
     path = tmp_path / "client.mcap"
     try:
@@ -325,7 +314,7 @@ def test_an_experiment_trials_recording_holds_its_feeding_tree(tmp_path: Path) -
         got = [(ch.topic, sch.name, dec) for sch, ch, _, dec in reader.iter_decoded_messages()]
     assert meta.metadata["experiment"] == "exp2b"
     tree = [(s, d) for t, s, d in got if t == "/feeding/tree"]
-    assert len(tree) >= 2 and {s for s, _ in tree} == {m.DIAGNOSTIC_ARRAY}
+    assert len(tree) >= 2 and {s for s, _ in tree} == {cdr.DIAGNOSTIC_ARRAY}
     status = [{st.name: st.message for st in d.status} for _, d in tree]
     assert status[0]["bite"] == "RUNNING"
     assert status[-1]["bite"] == ("SUCCESS" if rec["completed"] else "FAILURE")
@@ -339,14 +328,14 @@ def test_an_experiment_trials_recording_holds_its_feeding_tree(tmp_path: Path) -
 
 
 def _joint_states(names: list[str], t: float, q: list[float]) -> Any:
-    return m.msg(m.JOINT_STATE, header=m.header(t), name=names,
+    return cdr.msg(cdr.JOINT_STATE, header=m.header(t), name=names,
                  position=np.asarray(q, dtype=np.float64), velocity=np.zeros(0),
                  effort=np.zeros(0))
 
 
 def test_view_replays_an_mcap_recordings_joint_states(tmp_path: Path) -> None:
-    from articutool import load_spec
     from articutool.sim.recording import RecordingError
+    from articutool.spec import load_spec
     from articutool.viewer.mcap_replay import load_mcap_motion
 
     spec = load_spec()
@@ -357,11 +346,11 @@ def test_view_replays_an_mcap_recordings_joint_states(tmp_path: Path) -> None:
     path = tmp_path / "run.mcap"
     with McapRecorder(path) as rec:
         for k, tk in enumerate(t):
-            rec.write_msg("/articutool/wrist_1/joint_states", m.JOINT_STATE,
+            rec.write_msg("/articutool/wrist_1/joint_states", cdr.JOINT_STATE,
                           _joint_states(wrist, tk, list(q_wrist[k])), tk)
-            rec.write_msg("/arm/joint_states", m.JOINT_STATE,
+            rec.write_msg("/arm/joint_states", cdr.JOINT_STATE,
                           _joint_states(arm, tk + 0.001, list(q_arm[k])), tk + 0.001)
-            rec.write_msg("/articutool/wrist_1/health", m.DIAGNOSTIC_ARRAY,
+            rec.write_msg("/articutool/wrist_1/health", cdr.DIAGNOSTIC_ARRAY,
                           m.health_msg(_state(), tk, {}), tk)
     motion = load_mcap_motion(path, spec)
     assert motion.joint_names == (*arm, *wrist)
@@ -372,7 +361,7 @@ def test_view_replays_an_mcap_recordings_joint_states(tmp_path: Path) -> None:
     tool_only = tmp_path / "tool.mcap"
     with McapRecorder(tool_only) as rec:
         for k, tk in enumerate(t[:10]):
-            rec.write_msg("/articutool/default/joint_states", m.JOINT_STATE,
+            rec.write_msg("/articutool/default/joint_states", cdr.JOINT_STATE,
                           _joint_states(wrist, tk, list(q_wrist[k])), tk)
     rest = load_mcap_motion(tool_only, spec).positions[:, :6]
     assert np.allclose(rest, spec.arm.configuration("Resting"))
@@ -381,7 +370,7 @@ def test_view_replays_an_mcap_recordings_joint_states(tmp_path: Path) -> None:
     with pytest.raises(RecordingError, match="not a readable MCAP"):
         load_mcap_motion(junk, spec)
     view = [sys.executable, "-m", "articutool", "view", "--recording"]
-    p = subprocess.run([*view, str(path), "--duration", "1", "--port", str(_free_port())],
+    p = subprocess.run([*view, str(path), "--duration", "1", "--port", str(free_port())],
                        env=ENV, capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
     assert "8-joint trajectory" in p.stdout and "viewer: http://" in p.stdout
@@ -407,7 +396,7 @@ def test_recorded_messages_decode_to_what_was_written(names: list[str], data: An
                                                       prim: str, params: list[float]) -> None:
     """Any field contents survive our schema text + mcap_ros2's decoder (strings, arrays)."""
     pos = data.draw(st.lists(_f64, min_size=len(names), max_size=len(names)))
-    js = m.msg(m.JOINT_STATE, header=m.header(T, "f"), name=names,
+    js = cdr.msg(cdr.JOINT_STATE, header=m.header(T, "f"), name=names,
                position=np.asarray(pos, dtype=np.float64), velocity=np.zeros(0),
                effort=np.zeros(0))
     fbm = m.feedback_msg(GID, PrimitiveStatus(prim, pct, fb, tuple(joints), False))  # type: ignore[arg-type]
@@ -415,9 +404,9 @@ def test_recorded_messages_decode_to_what_was_written(names: list[str], data: An
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "p.mcap"
         with McapRecorder(path) as rec:
-            rec.write_msg("/js", m.JOINT_STATE, js, T)
-            rec.write_msg("/fb", m.FEEDBACK_MESSAGE, fbm, T)
-            rec.write_msg("/goal", f"{m.SEND_GOAL}_Request", goal, T)
+            rec.write_msg("/js", cdr.JOINT_STATE, js, T)
+            rec.write_msg("/fb", cdr.FEEDBACK_MESSAGE, fbm, T)
+            rec.write_msg("/goal", f"{cdr.SEND_GOAL}_Request", goal, T)
         got = {t: dec for t, _, dec in _read(path)}
     assert list(got["/js"].name) == names and list(got["/js"].position) == pos
     f = got["/fb"].feedback

@@ -9,12 +9,9 @@ from pathlib import Path
 
 import pytest
 
+from conftest import run_cli
+
 pytest.importorskip("mujoco")
-
-
-def _run(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "articutool", "meal", *args],
-                          capture_output=True, text=True, timeout=300)
 
 
 def _main(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
@@ -70,20 +67,20 @@ def test_a_sweep_that_does_not_move_is_refused_naming_the_field(
 def test_show_tree_prints_every_stage_and_writes_dot_without_overwriting(
         tmp_path: Path) -> None:
     out = tmp_path / "tree.dot"
-    r = _run("--food", "noodles", "--show-tree", str(out))
+    r = run_cli("meal", "--food", "noodles", "--show-tree", str(out))
     assert r.returncode == 0, r.stderr
     for name in ("above", "acquire", "shed", "transport to Staging", "pre-move-into: TWIRL_CW",
                  "post-acquisition: NOODLE_SHED", "retreat (the bite failed)", "Unsafe?"):
         assert name in r.stdout
     assert "digraph" in out.read_text() and "NOODLE_SHED" in out.read_text()
-    again = _run("--food", "noodles", "--show-tree", str(out))
+    again = run_cli("meal", "--food", "noodles", "--show-tree", str(out))
     assert again.returncode == 2 and "exists" in again.stderr
 
 
 @pytest.mark.skipif(shutil.which("dot") is None, reason="Graphviz `dot` is not installed")
 def test_show_tree_renders_a_png(tmp_path: Path) -> None:
     out = tmp_path / "tree.png"
-    r = _run("--food", "water", "--system", "baseline", "--show-tree", str(out))
+    r = run_cli("meal", "--food", "water", "--system", "baseline", "--show-tree", str(out))
     assert r.returncode == 0, r.stderr
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 

@@ -1,4 +1,4 @@
-"""The one simulated motor model (issue 23): both simulated worlds' motor drivers keep the
+"""The one simulated motor model: both simulated worlds' motor drivers keep the
 Dynamixel X-series semantics of the Shutdown register — per the ROBOTIS XC430-W240 e-manual
 ("Shutdown" 63, default 52 = OVERHEATING | ELECTRICAL_SHOCK | OVERLOAD; "Hardware Error
 Status" 70), a Shutdown error drops torque and blocks Torque Enable until reboot; any other
@@ -11,13 +11,13 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from articutool import load_spec
 from articutool.sim.mj_drivers import MjMotorDriver
 from articutool.tool.drivers.base import HardwareError
 from articutool.tool.drivers.motor_model import SHUTDOWN_BITS, MotorModel, MotorPlant
 from articutool.tool.drivers.sim import SimWrist
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 E = HardwareError
 BITS = st.sampled_from(list(E)).flatmap(
     lambda b: st.lists(st.sampled_from(list(E)), max_size=3).map(lambda r: [b, *r]))
@@ -85,7 +85,7 @@ def mj_driver(q: tuple[float, float] = (0.0, 0.0),
 
 @given(BITS, st.integers(0, 1))
 def test_only_shutdown_bits_block_torque_on_the_mujoco_wrist(bits: list[E], joint: int) -> None:
-    # it used to block torque on any bit (INPUT_VOLTAGE, MOTOR_ENCODER too)
+    # only the Shutdown register's bits, not INPUT_VOLTAGE or MOTOR_ENCODER
     m = mj_driver()
     for b in bits:
         m.model.raise_error(joint, b)

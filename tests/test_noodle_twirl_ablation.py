@@ -1,4 +1,4 @@
-"""benchmarks/noodle_twirl_ablation.py (issue 26): its no-twirl condition is the shipped
+"""studies/noodle_twirl_ablation.py: its no-twirl condition is the shipped
 noodle strategy with exactly the two twirl stages emptied, loadable by the real action
 library; the statistics pair the conditions; bad input exits 2. The runs themselves (Exp. 1
 bites, a minute each) are the benchmark, not a test."""
@@ -13,12 +13,12 @@ import pytest
 from articutool.feeding.strategies import StrategyLibrary
 from articutool.spec import load_spec
 
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+STUDIES = Path(__file__).resolve().parents[1] / "studies"
 
 
 @pytest.fixture
 def ablation(monkeypatch):
-    monkeypatch.syspath_prepend(str(BENCH))
+    monkeypatch.syspath_prepend(str(STUDIES))
     return importlib.import_module("noodle_twirl_ablation")
 
 

@@ -1,4 +1,4 @@
-"""``articutool pair`` and the pairing config (issue 13, item 1): safe files, never overwritten,
+"""``articutool pair`` and the pairing config: safe files, never overwritten,
 bad input exits 2 naming the field; signatures verify only for the pairing CA's devices."""
 
 from __future__ import annotations
@@ -120,7 +120,7 @@ def test_an_unpaired_tool_refuses_a_plain_network_listener(capsys: pytest.Captur
 ])
 def test_every_way_to_expose_an_unpaired_tool_is_refused(
         setting: str, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    """Issue 22, S3: before, only --listen/listen were checked, by their spelling."""
+    """Every setting that opens the tool to the network counts, however it is spelled."""
     f = tmp_path / "link.toml"
     f.write_text(setting + "\n")
     assert main(["tool", "--link-config", str(f), "--duration", "1"]) == 2

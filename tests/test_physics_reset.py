@@ -1,7 +1,7 @@
-"""A run that MuJoCo reset after a numerical instability is detected and never counted
-(issue 26). Exp. 3 counted three such runs as bites: MuJoCo's reset put the arm, the wrist and
-the noodles back at the model's defaults mid-transport (the fork "tilted" 146–156°, the
-noodles "returned" to the bowl) and the bite went on."""
+"""A run that MuJoCo reset after a numerical instability is detected and never counted:
+MuJoCo's reset puts the arm, the wrist and the noodles back at the model's defaults
+mid-transport (the fork "tilted" 146–156°, the noodles "returned" to the bowl), and a bite
+that went on would count as one."""
 
 from __future__ import annotations
 

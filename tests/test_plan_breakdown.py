@@ -8,7 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from articutool.planning.api import PHASES
+from articutool.planning.types import PHASES
 
 SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "plan_breakdown.py"
 

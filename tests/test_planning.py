@@ -1,4 +1,4 @@
-"""Transport planners (issue 5): constraints math, OMPL planners, toppra timing, API errors."""
+"""Transport planners: constraints math, OMPL planners, toppra timing, API errors."""
 
 from __future__ import annotations
 
@@ -11,9 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from articutool import load_spec
 from articutool.arm.model import ArmModel
-from articutool.planning.api import PHASES, PlanRequest, TransportTask, plan
+from articutool.planning.api import plan
 from articutool.planning.constraints import (
     LooseConstraint,
     StrictConstraint,
@@ -21,13 +20,16 @@ from articutool.planning.constraints import (
     tip_tilt,
     tip_tilt_deg,
 )
-from articutool.planning.ompl_planner import _dense_times, level_configuration, plan_transport
+from articutool.planning.ompl_planner import _dense_times, plan_transport
+from articutool.planning.queries import level_configuration
 from articutool.planning.timing import time_parameterize
+from articutool.planning.types import PHASES, PlanRequest, TransportTask
 from articutool.sim.transport import simulate_transport
 from articutool.tool.kinematics import rotation as wrist_rotation
 from articutool.verify.verifier import verify_trajectory
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 angles = st.floats(-math.pi, math.pi, allow_nan=False)
 
 

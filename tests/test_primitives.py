@@ -1,4 +1,4 @@
-"""Food primitives (thesis §4.4; hardware-facts §6) run closed-loop against a simple wrist."""
+"""Food primitives (thesis §4.4; docs/hardware.md §6) run closed-loop against a simple wrist."""
 
 from __future__ import annotations
 
@@ -10,19 +10,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from articutool import load_spec
 from articutool.tool.api import PrimitiveStatus
 from articutool.tool.kinematics import rotation, up_vector, wrap_angle
+from articutool.tool.primitive_base import Primitive, PrimitiveError
 from articutool.tool.primitives import (
-    Primitive,
-    PrimitiveError,
     make_primitive,
     primitive_names,
     register_primitive,
     unregister_primitive,
 )
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 DT = SPEC.wrist.period
 VMAX = SPEC.wrist.velocity_limits
 TOL = SPEC.primitives.position_tolerance
@@ -266,7 +265,7 @@ class _PushRoll(Primitive):
     parameter_names = ("speed_rad_s", "duration_s")
 
     def _plan(self, speed, duration):
-        from articutool.tool.primitives import Phase
+        from articutool.tool.phases import Phase
 
         class Push(Phase):
             def step(self, prim, t, q, dt):
@@ -427,7 +426,7 @@ def test_any_accepted_request_runs_safely_to_completion(name, raw, q0):
     assert (np.abs(r.qs[:, 1]) <= max(BUDGET, abs(q0[1])) + 0.05).all()
 
 
-# ------------------------------------------------------- bounded primitives (issue 8) --
+# -------------------------------------------------------------- bounded primitives --
 P = SPEC.primitives
 
 

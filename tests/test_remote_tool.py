@@ -1,4 +1,4 @@
-"""RemoteTool: the link client as the ToolAPI the feeding tree drives (issue 22). Against the
+"""RemoteTool: the link client as the ToolAPI the feeding tree drives. Against the
 real runtime (``ToolRuntime`` on ``SimWrist`` in real time) behind a ``ToolServer`` on the
 memory transport, and over a link that carries nothing: the link's failures become refusals,
 never exceptions, and every goal is answered."""
@@ -16,17 +16,17 @@ from articutool.link.memory_transport import MemoryBus, MemoryTransport
 from articutool.link.remote_tool import RemoteTool
 from articutool.tool.api import Mode, PrimitiveStatus
 from articutool.trajectory import JointTrajectory
+from conftest import wait_until
 from test_link_goals import CFG, _RealTool
 
 
 def _answer(tool: RemoteTool, within_s: float = 5.0) -> PrimitiveStatus:
-    end = time.monotonic() + within_s
-    while time.monotonic() < end:
+    def done() -> bool:
         st = tool.primitive_status()
-        if st is not None and st.done:
-            return st
-        time.sleep(0.02)
-    raise AssertionError(f"no answer within {within_s} s: {tool.primitive_status()}")
+        return st is not None and st.done
+
+    assert wait_until(done, within_s), f"no answer within {within_s} s: {tool.primitive_status()}"
+    return tool.primitive_status()  # type: ignore[return-value]
 
 
 @pytest.fixture
@@ -56,18 +56,16 @@ def test_a_cancel_and_a_mode_change_reach_the_tool_and_state_is_fresh(
         real: tuple[_RealTool, RemoteTool]) -> None:
     rt, tool = real
     assert tool.start_primitive("TWIRL_CW", [3.0, 1.0])[0]
-    end = time.monotonic() + 5.0
-    while rt.rt.mode != Mode.PRIMITIVE and time.monotonic() < end:
-        time.sleep(0.02)
+    assert wait_until(lambda: rt.rt.mode == Mode.PRIMITIVE)
     assert tool.cancel_primitive()
     st = _answer(tool)
     assert not st.success and rt.rt.mode == Mode.DISABLED
     assert not tool.cancel_primitive()  # nothing of this object's runs now
     ok, msg = tool.set_mode(Mode.LEVELING)
     assert ok, msg
-    time.sleep(0.2)
+    assert wait_until(lambda: tool.state().mode == Mode.LEVELING)
     s = tool.state()
-    assert s.mode == Mode.LEVELING and abs(s.stamp - time.monotonic()) < 0.5
+    assert abs(s.stamp - time.monotonic()) < 0.5
 
 
 def test_over_a_link_that_carries_nothing_every_call_is_refused_and_the_goal_answered() -> None:

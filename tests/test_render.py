@@ -1,5 +1,5 @@
-"""Offscreen rendering: close views of a loaded world, and side-by-side videos (issue 29's
-replays show what the utensil holds)."""
+"""Offscreen rendering: close views of a loaded world, and side-by-side videos (the
+experiments' replays show what the utensil holds)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""The built ``articutool_interfaces`` ROS 2 package and the link's messages are one definition
-(issue 28, item 1): ROS 2 decodes the link's bytes of our own types and the other way round,
+"""The built ``articutool_interfaces`` ROS 2 package and the link's messages are one definition:
+ROS 2 decodes the link's bytes of our own types and the other way round,
 and the link's RIHS01 type hashes equal those rosidl wrote into the installed package.
 The include-path fix of the wheels' CMake exports is checked on copies of the real files.
 
@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.ros2 import build_interfaces as bi
 from articutool.tool.api import PrimitiveStatus
@@ -31,15 +32,15 @@ from articutool_interfaces.srv import SetOrientationControl as S  # noqa: E402
 
 GID = bytes(range(16))
 CASES: list[tuple[str, Any, Any]] = [
-    (f"{m.SET_ORIENTATION_CONTROL}_Request", S.Request, m.soc_request(m.Mode.LEVELING, 12.5, -3)),
-    (f"{m.SET_ORIENTATION_CONTROL}_Response", S.Response, m.soc_response(False, "refused: ü")),
-    (f"{m.SEND_GOAL}_Request", A.Impl.SendGoalService.Request,
+    (f"{cdr.SET_ORIENTATION_CONTROL}_Request", S.Request, m.soc_request(m.Mode.LEVELING, 12.5, -3)),
+    (f"{cdr.SET_ORIENTATION_CONTROL}_Response", S.Response, m.soc_response(False, "refused: ü")),
+    (f"{cdr.SEND_GOAL}_Request", A.Impl.SendGoalService.Request,
      m.send_goal_request(GID, "TWIRL_CW", [1.0, 3.0])),
-    (f"{m.SEND_GOAL}_Response", A.Impl.SendGoalService.Response,
+    (f"{cdr.SEND_GOAL}_Response", A.Impl.SendGoalService.Response,
      m.send_goal_response(True, 1_700_000_000.5)),
-    (f"{m.GET_RESULT}_Response", A.Impl.GetResultService.Response,
+    (f"{cdr.GET_RESULT}_Response", A.Impl.GetResultService.Response,
      m.result_msg(m.PrimitiveResult(True, "done", (0.25, 6.28), m.GoalStatus.SUCCEEDED))),
-    (m.FEEDBACK_MESSAGE, A.Impl.FeedbackMessage,
+    (cdr.FEEDBACK_MESSAGE, A.Impl.FeedbackMessage,
      m.feedback_msg(GID, PrimitiveStatus("TWIRL_CW", 42.0, "twirl", (0.0, 1.5), False))),
 ]
 IDS = [t.split("/")[-1] for t, _, _ in CASES]
@@ -47,32 +48,32 @@ IDS = [t.split("/")[-1] for t, _, _ in CASES]
 
 @pytest.mark.parametrize(("typename", "cls", "ours"), CASES, ids=IDS)
 def test_both_directions_carry_the_same_message(typename: str, cls: Any, ours: Any) -> None:
-    data = m.encode(ours, typename)
+    data = cdr.encode(ours, typename)
     theirs = ser.deserialize_message(data, cls)
-    back = m.decode(ser.serialize_message(theirs), typename)
-    assert m.encode(back, typename) == data
+    back = cdr.decode(ser.serialize_message(theirs), typename)
+    assert cdr.encode(back, typename) == data
 
 
 def test_rclpy_reads_the_fields_we_wrote() -> None:
     req = ser.deserialize_message(
-        m.encode(m.send_goal_request(GID, "VIBRATE_ROLL", [5.0, 0.1, 2.0]),
-                 f"{m.SEND_GOAL}_Request"),
+        cdr.encode(m.send_goal_request(GID, "VIBRATE_ROLL", [5.0, 0.1, 2.0]),
+                 f"{cdr.SEND_GOAL}_Request"),
         A.Impl.SendGoalService.Request)
     assert req.goal.primitive_name == "VIBRATE_ROLL"
     assert np.allclose(req.goal.parameters, [5.0, 0.1, 2.0])
     assert bytes(req.goal_id.uuid) == GID
-    soc = ser.deserialize_message(m.encode(m.soc_request(m.Mode.LEVELING, 12.5, -3.0),
-                                           f"{m.SET_ORIENTATION_CONTROL}_Request"), S.Request)
+    soc = ser.deserialize_message(cdr.encode(m.soc_request(m.Mode.LEVELING, 12.5, -3.0),
+                                           f"{cdr.SET_ORIENTATION_CONTROL}_Request"), S.Request)
     assert (soc.control_mode, soc.pitch_offset, soc.roll_offset) == (S.Request.MODE_LEVELING,
                                                                      12.5, -3.0)
 
 
-@pytest.mark.parametrize("typename", [m.SET_ORIENTATION_CONTROL, m.ACTION])
+@pytest.mark.parametrize("typename", [cdr.SET_ORIENTATION_CONTROL, cdr.ACTION])
 def test_type_hashes_equal_the_built_packages(typename: str) -> None:
     pkg, kind, name = typename.split("/")
     doc = json.loads((Path(sys.prefix) / "share" / pkg / kind / f"{name}.json").read_text())
     for entry in doc["type_hashes"]:
-        assert m.type_hash(entry["type_name"]) == entry["hash_string"], entry["type_name"]
+        assert cdr.type_hash(entry["type_name"]) == entry["hash_string"], entry["type_name"]
 
 
 def test_the_export_path_fix_is_idempotent(tmp_path: Path) -> None:
@@ -100,4 +101,4 @@ def test_the_export_path_fix_is_idempotent(tmp_path: Path) -> None:
 def test_the_package_builds_from_the_same_files_the_link_parses() -> None:
     installed = Path(sys.prefix) / "share" / "articutool_interfaces"
     for rel in ("srv/SetOrientationControl.srv", "action/ExecuteArticutoolPrimitive.action"):
-        assert (installed / rel).read_text() == (m.IDL_DIR / rel).read_text()
+        assert (installed / rel).read_text() == (cdr.IDL_DIR / rel).read_text()

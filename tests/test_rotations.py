@@ -1,4 +1,4 @@
-"""The rotations module (issue 23): properties that must hold for every rotation, and
+"""The rotations module: properties that must hold for every rotation, and
 agreement with SciPy's ``Rotation`` (an independent implementation, PC extra)."""
 
 import math

@@ -1,4 +1,4 @@
-"""Issue 22: a run interrupted by SIGINT or SIGTERM sent to its main process alone (as
+"""A run interrupted by SIGINT or SIGTERM sent to its main process alone (as
 ``kill -INT`` and ``timeout -s INT`` do) stops although trials are still running, keeps every
 finished trial in its log, and leaves no process behind. Real processes, real signals.
 
@@ -17,6 +17,8 @@ from pathlib import Path
 
 import psutil
 import pytest
+
+from conftest import wait_until
 
 HERE = Path(__file__).parent
 SRC = HERE.parent / "src"
@@ -51,11 +53,9 @@ def _interrupt_when_logged(proc: subprocess.Popen[str], log: Path, n: int,
                            sig: signal.Signals) -> tuple[set[int], str, str]:
     """Wait until ``log`` holds ``n`` lines, send ``sig`` to the main process only, wait for
     it to end; its processes before the signal, and its output."""
-    deadline = time.monotonic() + HANG
-    while len(_lines(log)) < n:
-        assert proc.poll() is None, proc.communicate()
-        assert time.monotonic() < deadline, "no trial finished"
-        time.sleep(0.1)
+    assert wait_until(lambda: len(_lines(log)) >= n or proc.poll() is not None, HANG, 0.1), \
+        "no trial finished"
+    assert proc.poll() is None, proc.communicate()
     time.sleep(0.5)  # let the workers settle into the trials that never end
     children = _descendants(proc.pid)
     os.kill(proc.pid, sig)
@@ -68,9 +68,7 @@ def _interrupt_when_logged(proc: subprocess.Popen[str], log: Path, n: int,
             os.kill(c, signal.SIGKILL)
         pytest.fail(f"the run did not end after {sig.name}: it hung")
     # The processes it started are gone (a stopped resource tracker may take a moment).
-    deadline = time.monotonic() + 30
-    while any(_running(c) for c in children) and time.monotonic() < deadline:
-        time.sleep(0.2)
+    wait_until(lambda: not any(_running(c) for c in children), 30, 0.2)
     left = [c for c in children if _running(c)]
     for c in left:
         os.kill(c, signal.SIGKILL)

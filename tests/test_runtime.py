@@ -20,7 +20,6 @@ import time
 import numpy as np
 import pytest
 
-from articutool import load_spec
 from articutool.onboard import background_services, format_status, main, run_tool
 from articutool.tool.api import Mode, ToolAPI
 from articutool.tool.drivers.base import DriverError, HardwareError, ImuSample
@@ -32,9 +31,10 @@ from articutool.tool.drivers.sim import (
 )
 from articutool.tool.runtime import ToolRuntime
 from articutool.trajectory import JointTrajectory
-from articutool.verify import verify_trajectory
+from articutool.verify.verifier import verify_trajectory
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 DT = SPEC.wrist.period
 PITCH, ROLL = SPEC.wrist.joint_names
 R0 = axis_angle_rotation([0.0, 1.0, 0.0], -math.pi / 2)  # F0 +x (up at q = 0) along world z

@@ -1,4 +1,4 @@
-"""The planning-scene data file: defaults (hardware-facts §2), validation, poses, and its effect
+"""The planning-scene data file: defaults (docs/hardware.md §2), validation, poses, and its effect
 on the arm model's collision checks."""
 
 import math
@@ -8,15 +8,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from articutool import load_spec
-from articutool.arm import ArmModel, Scene, SceneError, default_scene_path
-
-SPEC = load_spec()
-
-
-@pytest.fixture(scope="module")
-def scene() -> Scene:
-    return Scene.load()
+from articutool.arm.model import ArmModel
+from articutool.arm.scene import Scene, SceneError, default_scene_path
 
 
 def test_default_scene_holds_the_feeding_setup(scene):
@@ -30,12 +23,12 @@ def test_default_scene_holds_the_feeding_setup(scene):
     np.testing.assert_allclose(scene.get("plate").xyz[:2], [0.25, -0.30])
 
 
-def test_default_scene_geometry_is_plausible(scene):
+def test_default_scene_geometry_is_plausible(spec, scene):
     table = scene.get("table")
     top = table.xyz[2] + table.size[2] / 2
     assert -0.05 <= top <= 0.01  # table top ≈ level with the arm base
     # In front of the user (−y) and clear of the arm base footprint.
-    assert table.xyz[1] + table.size[1] / 2 < -SPEC.collision.base_radius - 0.05
+    assert table.xyz[1] + table.size[1] / 2 < -spec.collision.base_radius - 0.05
     assert scene.get("ground").xyz[2] < -0.5
     head = scene.get("user_head")
     for name in ("user_torso", "wheelchair_back"):
@@ -113,7 +106,7 @@ def test_bad_scenes_name_the_object_and_field(data, expected):
 
 
 def test_the_scoop_heading_is_one_constant_of_the_arm_scene_the_scripts_use():
-    # issue 23: one source (arm/scene.py) for the sim scripts and the feeding tree
+    # one source (arm/scene.py) for the sim scripts and the feeding tree
     from articutool.arm.scene import SCOOP_HEADING
     from articutool.sim import scenes
 
@@ -135,9 +128,9 @@ def test_bad_files_are_reported(tmp_path):
         Scene.load(nan)
 
 
-def test_a_scene_file_changes_what_the_arm_collides_with(tmp_path):
-    q = np.r_[SPEC.arm.configuration("AbovePlate"), 0.0, 0.0]
-    assert not ArmModel(SPEC).in_collision(q)
+def test_a_scene_file_changes_what_the_arm_collides_with(spec, tmp_path):
+    q = np.r_[spec.arm.configuration("AbovePlate"), 0.0, 0.0]
+    assert not ArmModel(spec).in_collision(q)
     path = tmp_path / "raised_floor.toml"
     path.write_text(
         '[[objects]]\nname = "shelf"\nshape = "halfspace"\nxyz = [0.0, 0.0, 0.40]\n'
@@ -145,7 +138,7 @@ def test_a_scene_file_changes_what_the_arm_collides_with(tmp_path):
         "xyz = [-0.5, 0.5, 0.3]\n",
         encoding="utf-8",
     )
-    model = ArmModel(SPEC, scene=Scene.load(path))
+    model = ArmModel(spec, scene=Scene.load(path))
     pairs = model.colliding_pairs(q)
     assert ("utensil_spoon", "scene/shelf") in pairs  # the tip hangs below z = 0.40
     assert not any(b == "scene/ball" for _, b in pairs)
@@ -156,7 +149,7 @@ def test_a_scene_file_changes_what_the_arm_collides_with(tmp_path):
             f"rpy = [0.0, {pitch!r}, 0.0]\n",
             encoding="utf-8",
         )
-        return ArmModel(SPEC, scene=Scene.load(path))
+        return ArmModel(spec, scene=Scene.load(path))
 
     assert wall(math.pi / 2).colliding_pairs(q) == []  # the arm is on the free side
     assert ("j2n6s200_link_2", "scene/wall") in wall(-math.pi / 2).colliding_pairs(q)

@@ -12,12 +12,12 @@ import math
 import numpy as np
 import pytest
 
-from articutool import load_spec
 from articutool.tool.api import Mode
 from articutool.tool.drivers.sim import SimWrist
 from articutool.tool.runtime import ToolRuntime
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 DT = SPEC.wrist.period
 G = SPEC.imu.gravity
 

@@ -1,4 +1,4 @@
-"""Food that spills as real food does (issue 27): irregular pecan pieces of varying size, a
+"""Food that spills as real food does: irregular pecan pieces of varying size, a
 heaped (unstable) load that a locked carry spills, the closed-loop primitives as data."""
 
 from __future__ import annotations
@@ -11,7 +11,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from articutool import load_spec
 from articutool.experiments.config import (
     ExperimentsConfig,
     ExperimentsConfigError,
@@ -20,6 +19,7 @@ from articutool.experiments.config import (
 from articutool.feeding.strategies import StrategyError, StrategyLibrary, default_strategies_path
 from articutool.sim.params import PhysicsParams
 from articutool.sim.pieces import capsule_mass, draw_piece, footprint, pack_layer, piece_extent
+from articutool.spec import load_spec
 
 PECANS = PhysicsParams.load().food("pecans")
 

@@ -1,4 +1,4 @@
-"""Noodles as capsule chains (issue 26): the model, its stability, the fork's twirl option."""
+"""Noodles as capsule chains: the model, its stability, the fork's twirl option."""
 
 from __future__ import annotations
 
@@ -98,7 +98,7 @@ def test_the_forks_acquisition_twirls_through_the_tool_runtime_and_lifts_strands
     from articutool.sim.accounting import UTENSIL
     from articutool.sim.scenes import skewer
 
-    w = FeedingWorld("noodles", seed=5000)  # a study seed (benchmarks/noodle_twirl.py)
+    w = FeedingWorld("noodles", seed=5000)  # a study seed (studies/noodle_twirl.py)
     turns = max_twirl_turns(w.spec)
     roll: list[float] = []
     w.on_tick.append(lambda world: roll.append(float(world.wrist_q[1])))
@@ -116,7 +116,7 @@ def _study_module():
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "noodle_twirl.py"
+    path = Path(__file__).resolve().parents[1] / "studies" / "noodle_twirl.py"
     spec = importlib.util.spec_from_file_location("noodle_twirl", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
@@ -213,7 +213,7 @@ def test_the_lever_table_shows_every_run_and_never_counts_a_reset_one(tmp_path,
     import json
     from pathlib import Path
 
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "studies"))
     levers = importlib.import_module("noodle_levers")
 
     def run(seed: int, turns: float, g: float, reset: bool = False) -> dict:

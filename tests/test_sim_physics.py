@@ -21,10 +21,10 @@ from articutool.sim.mjcf import build_mjcf, tip_site_name  # noqa: E402
 from articutool.sim.params import PhysicsError, PhysicsParams, default_physics_path  # noqa: E402
 from articutool.sim.scenes import base_tilt_motion, load  # noqa: E402
 from articutool.sim.world import FeedingWorld  # noqa: E402
-from articutool.spec import load_spec  # noqa: E402
 from articutool.tool.api import Mode  # noqa: E402
+from conftest import packaged_spec  # noqa: E402
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 PARAMS = PhysicsParams.load()
 
 

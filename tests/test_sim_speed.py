@@ -1,4 +1,4 @@
-"""Speed changes of the feeding world that must not change what it computes (issue 24).
+"""Speed changes of the feeding world that must not change what it computes.
 
 A settled pile restored from the process's cache (``FeedingWorld._settle``) is the state a
 fresh settle makes, to the bit, and so is everything after it.

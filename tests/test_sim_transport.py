@@ -5,21 +5,23 @@ from pathlib import Path
 
 import pytest
 
-from articutool import load_spec
-from articutool.arm import ArmModel
+from articutool.arm.model import ArmModel
 from articutool.sim.transport import simulate_transport
 from articutool.spec import default_spec_path, parse_spec
 from articutool.trajectory import JointTrajectory
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-SPEC = load_spec()
-MODEL = ArmModel(SPEC)
 TRAJ = JointTrajectory.load(EXAMPLES / "transport_feasible.json")
 
 
 @pytest.fixture(scope="module")
-def result():
-    return simulate_transport(TRAJ, MODEL, SPEC, seed=3)
+def model(spec):
+    return ArmModel(spec)
+
+
+@pytest.fixture(scope="module")
+def result(spec, model):
+    return simulate_transport(TRAJ, model, spec, seed=3)
 
 
 def test_spoon_stays_level_while_the_tool_base_tilts(result):
@@ -38,23 +40,23 @@ def test_wrist_starts_unlevel_and_the_loop_levels_it(result):
     assert result.tilt_deg[settled].max() < 1.5
 
 
-def test_reference_bias_alpha_absorbs_slow_arm_rotation():
+def test_reference_bias_alpha_absorbs_slow_arm_rotation(spec, model):
     # The reference configuration (bias_alpha 0.05) treats the slow transport rotation as gyro
     # bias; this is why the spec defaults to 0.01 (see hardware.toml [filter]).
     raw = tomllib.loads(default_spec_path().read_text())
     raw["filter"]["bias_alpha"] = 0.05
-    ref = simulate_transport(TRAJ, MODEL, parse_spec(raw), seed=3)
-    ours = simulate_transport(TRAJ, MODEL, SPEC, seed=3)
+    ref = simulate_transport(TRAJ, model, parse_spec(raw), seed=3)
+    ours = simulate_transport(TRAJ, model, spec, seed=3)
     assert ref.max_tilt_error_deg > 2 * ours.max_tilt_error_deg
 
 
-def test_bad_arguments():
+def test_bad_arguments(spec, model):
     with pytest.raises(ValueError, match="settle_s"):
-        simulate_transport(TRAJ, MODEL, SPEC, settle_s=0.0)
+        simulate_transport(TRAJ, model, spec, settle_s=0.0)
     other = JointTrajectory(("a",) * 1, TRAJ.times, TRAJ.positions[:, :1], TRAJ.velocities[:, :1])
     with pytest.raises(ValueError, match="joint_names"):
-        simulate_transport(other, MODEL, SPEC)
+        simulate_transport(other, model, spec)
     with pytest.raises(ValueError, match="hold_s"):
-        simulate_transport(TRAJ, MODEL, SPEC, hold_s=-1.0)
+        simulate_transport(TRAJ, model, spec, hold_s=-1.0)
     with pytest.raises(ValueError, match="settle_s"):
-        simulate_transport(TRAJ, MODEL, SPEC, settle_s=float("nan"))
+        simulate_transport(TRAJ, model, spec, settle_s=float("nan"))

@@ -9,7 +9,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from articutool import load_spec
 from articutool.tool.drivers import make_drivers
 from articutool.tool.drivers.base import DriverError, HardwareError
 from articutool.tool.drivers.sim import (
@@ -20,8 +19,9 @@ from articutool.tool.drivers.sim import (
     axis_angle_rotation,
     constant_rate_motion,
 )
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 VMAX = np.array(SPEC.wrist.max_velocity)
 RATE = SPEC.imu.rate_hz
 DT = SPEC.wrist.period

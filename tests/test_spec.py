@@ -4,9 +4,8 @@ import tomllib
 
 import pytest
 
-from articutool import SpecError, load_spec
 from articutool.cli import main
-from articutool.spec import default_spec_path
+from articutool.spec import SpecError, default_spec_path, load_spec
 
 
 def _spec_text() -> str:

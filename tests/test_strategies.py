@@ -13,14 +13,12 @@ from articutool.feeding.strategies import (
     StrategyLibrary,
     default_strategies_path,
 )
-from articutool.spec import load_spec
 
-SPEC = load_spec()
 RAW = tomllib.loads(default_strategies_path().read_text())
 
 
-def test_shipped_library_has_the_thesis_strategies_and_rigid_baselines() -> None:
-    lib = StrategyLibrary.load(SPEC)
+def test_shipped_library_has_the_thesis_strategies_and_rigid_baselines(spec) -> None:
+    lib = StrategyLibrary.load(spec)
     for food, first, shed in (("noodles", "TWIRL_CW", "NOODLE_SHED"),
                               ("pecans", "NONE", "VIBRATE_ROLL"), ("water", "NONE", "TILT")):
         _, s = lib.choose(food, "articutool", np.random.default_rng(0))
@@ -52,9 +50,9 @@ def _with(edit) -> dict:
     (lambda s: s["transport"].update(planner="strict6"), "tolerance_deg"),
     (lambda s: s["attempts"].update(plan=0), "attempts.plan"),
 ])
-def test_bad_strategies_are_refused_naming_the_field(edit, field: str) -> None:
+def test_bad_strategies_are_refused_naming_the_field(spec, edit, field: str) -> None:
     with pytest.raises(StrategyError, match=field.replace(".", r"\.")):
-        StrategyLibrary.from_dict(_with(edit), SPEC)
+        StrategyLibrary.from_dict(_with(edit), spec)
 
 
 @pytest.mark.parametrize("edit,field", [
@@ -62,21 +60,21 @@ def test_bad_strategies_are_refused_naming_the_field(edit, field: str) -> None:
     (dict(level_height_m=0.02), "level_height_m"),
     (dict(extract_pitch_down_deg=30.0), "extract_pitch_down_deg"),
 ])
-def test_a_bad_sweep_is_refused_naming_the_insertion_and_the_field(edit: dict,
+def test_a_bad_sweep_is_refused_naming_the_insertion_and_the_field(spec, edit: dict,
                                                                    field: str) -> None:
-    # A sweep (issue 25) moves while it levels, stays near the floor and levels in the food.
+    # A sweep moves while it levels, stays near the floor and levels in the food.
     data = _with(lambda s: s["insertion"].update(motion="sweep", **edit))
     with pytest.raises(StrategyError, match=r"pecans_tilted_scoop\.insertion") as err:
-        StrategyLibrary.from_dict(data, SPEC)
+        StrategyLibrary.from_dict(data, spec)
     assert field in str(err.value)
 
 
-def test_choice_is_weighted_and_deterministic_for_a_seed() -> None:
+def test_choice_is_weighted_and_deterministic_for_a_seed(spec) -> None:
     data = copy.deepcopy(RAW)
     alt = copy.deepcopy(data["strategies"]["pecans_tilted_scoop"])
     alt["weight"] = 3.0
     data["strategies"]["pecans_deeper"] = alt
-    lib = StrategyLibrary.from_dict(data, SPEC)
+    lib = StrategyLibrary.from_dict(data, spec)
     picks = [lib.choose("pecans", "articutool", np.random.default_rng(s))[0] for s in range(400)]
     again = [lib.choose("pecans", "articutool", np.random.default_rng(s))[0] for s in range(400)]
     assert picks == again

@@ -1,4 +1,4 @@
-"""One tilt: the angle between the utensil's up vector and vertical (issue 8.6)."""
+"""One tilt: the angle between the utensil's up vector and vertical."""
 
 from __future__ import annotations
 

@@ -16,13 +16,13 @@ import math
 import numpy as np
 import pytest
 
-from articutool import load_spec
 from articutool.tool.api import Mode
 from articutool.tool.drivers.sim import SimWrist, axis_angle_rotation
 from articutool.tool.kinematics import up_vector
 from articutool.tool.runtime import ToolRuntime
+from conftest import packaged_spec
 
-SPEC = load_spec()
+SPEC = packaged_spec()
 DT = SPEC.wrist.period
 JACO_MAX_RATE = float(SPEC.arm.max_velocity.max())  # 0.84 rad/s (joints 4-6)
 # F0 "neutral": the wrist's up vector at q = 0 (F0 +x) along world +z, utensil horizontal.
@@ -220,7 +220,7 @@ def test_leveling_degrades_gracefully_near_the_singularity():
     assert err[after].max() < 1.5  # and recovers
 
 
-# ------------------------------------------------ leveling from any roll (issue 8) --
+# -------------------------------------------------------- leveling from any roll --
 def base_roll_both_ways(t0, amplitude=0.6, ramp=1.0, hold=2.0):
     """The base rolls about the utensil axis (F0 z) to +amplitude and back, then to
     −amplitude and back (raised-cosine ramps, ``hold`` s at each extreme), from ``t0``."""
@@ -409,7 +409,7 @@ def test_leveling_from_a_base_tilted_under_30_degrees_converges_without_a_stall(
 def test_leveling_from_a_base_tilted_60_to_120_degrees_levels_or_reports_the_stall():
     """Alg. 1 is local: from a base tilted this far it can rest at a pitch limit (or at the
     roll singularity) still tilted. It must then say so — in the state's telemetry, with the
-    reachable level configuration — never stay tilted silently (issue 21)."""
+    reachable level configuration — never stay tilted silently."""
     rng = np.random.default_rng(60)
     stalls = 0
     for k in range(16):

@@ -1,4 +1,4 @@
-"""The report's per-hypothesis verdicts (issue 29): decided from our measurement's direction and
+"""The report's per-hypothesis verdicts: decided from our measurement's direction and
 test, never from the thesis' numbers."""
 
 from __future__ import annotations

@@ -7,11 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from articutool import load_spec
-from articutool.spec import default_spec_path, parse_spec
+from articutool.spec import default_spec_path, load_spec, parse_spec
 from articutool.tool.kinematics import up_vector
 from articutool.trajectory import JointTrajectory, TrajectoryError
-from articutool.verify import densify, verify_trajectory
+from articutool.verify.verifier import densify, verify_trajectory
 
 
 def _gimbal_spec(**wrist: object):

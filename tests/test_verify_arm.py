@@ -6,25 +6,27 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from articutool import load_spec
 from articutool.arm.model import ArmModel
 from articutool.cli import main
 from articutool.trajectory import JointTrajectory
-from articutool.verify import verify_trajectory
+from articutool.verify.verifier import verify_trajectory
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-SPEC = load_spec()
-MODEL = ArmModel(SPEC, utensil="spoon")
 
 
-def test_feasible_example_levels_the_spoon_tip_at_every_sample():
+@pytest.fixture(scope="module")
+def model(spec):
+    return ArmModel(spec, utensil="spoon")
+
+
+def test_feasible_example_levels_the_spoon_tip_at_every_sample(spec, model):
     traj = JointTrajectory.load(EXAMPLES / "transport_feasible.json")
-    rep = verify_trajectory(traj, MODEL, SPEC)
+    rep = verify_trajectory(traj, model, spec)
     assert rep.feasible, rep.message
     w = rep.wrist_trajectory
     q_arm, _ = traj.sample(w.times)
     for qa, qw in zip(q_arm[::7], w.positions[::7], strict=True):
-        tip = MODEL.tip_pose(np.r_[qa, qw])
+        tip = model.tip_pose(np.r_[qa, qw])
         # The tip's y axis is the utensil's up vector (Eq. 4.1): it must point along world z.
         np.testing.assert_allclose(tip[:3, 1], [0.0, 0.0, 1.0], atol=1e-9)
     # Eq. 4.7 rates agree with the derivative of the leveling positions along the real arm.
@@ -32,15 +34,15 @@ def test_feasible_example_levels_the_spoon_tip_at_every_sample():
     np.testing.assert_allclose(w.velocities[2:-2], fd[2:-2], atol=0.02)
 
 
-def test_flip_example_is_a_branch_switch():
+def test_flip_example_is_a_branch_switch(spec, model):
     traj = JointTrajectory.load(EXAMPLES / "transport_flip.json")
-    rep = verify_trajectory(traj, MODEL, SPEC)
+    rep = verify_trajectory(traj, model, spec)
     assert not rep.feasible and rep.reason == "discontinuity"
     assert 0 < rep.first_failure_time < traj.duration
     assert abs(rep.wrist_trajectory.positions[-1, 0]) == pytest.approx(np.pi / 2, abs=0.05)
 
 
-def test_cli_exit_codes_and_json(tmp_path, capsys):
+def test_cli_exit_codes_and_json(spec, tmp_path, capsys):
     assert main(["verify", str(EXAMPLES / "transport_feasible.json"), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["feasible"] is True and out["velocity_margin"] > 0
@@ -51,7 +53,7 @@ def test_cli_exit_codes_and_json(tmp_path, capsys):
     assert main(["verify", str(EXAMPLES / "transport_feasible.json"),
                  "--wrist-out", str(wrist)]) == 0
     w = JointTrajectory.load(wrist)
-    assert w.joint_names == SPEC.wrist.joint_names
+    assert w.joint_names == spec.wrist.joint_names
     # Refuses to overwrite what a user saved.
     before = wrist.read_bytes()
     assert main(["verify", str(EXAMPLES / "transport_feasible.json"),

@@ -6,8 +6,6 @@ from __future__ import annotations
 
 import json
 import socket
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,24 +14,14 @@ import pytest
 pytest.importorskip("mujoco")
 pytest.importorskip("viser")
 
-from articutool import load_spec
 from articutool.arm.model import ArmModel
 from articutool.sim.recording import Recorder, Recording, RecordingError
 from articutool.trajectory import JointTrajectory
-from articutool.verify import verify_trajectory
+from articutool.verify.verifier import verify_trajectory
 from articutool.viewer.plan import plan_view
+from conftest import free_port, run_cli
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-
-
-def _run(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "articutool", *args], capture_output=True,
-                          text=True, timeout=timeout)
-
-
-@pytest.fixture(scope="module")
-def spec():
-    return load_spec()
 
 
 @pytest.fixture(scope="module")
@@ -46,8 +34,8 @@ def water_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     """A locked-wrist carry of 8 g of water (it spills), recorded through the sim CLI."""
     d = tmp_path_factory.mktemp("rec")
     path = d / "water.npz"
-    r = _run("sim", "--food", "water", "--script", "carry", "--no-level", "--load", "8",
-             "--json", "--record", str(path))
+    r = run_cli("sim", "--food", "water", "--script", "carry", "--no-level", "--load", "8",
+                "--json", "--record", str(path))
     assert r.returncode == 0, r.stderr
     return path, json.loads(r.stdout)
 
@@ -136,7 +124,7 @@ def test_bad_recordings_are_refused_naming_the_problem(tmp_path: Path, content, 
         p.write_bytes(content)
     with pytest.raises(RecordingError, match=match):
         Recording.load(p)
-    r = _run("view", "--recording", str(p), "--duration", "1")
+    r = run_cli("view", "--recording", str(p), "--duration", "1")
     assert r.returncode == 2, r.stderr
     assert "--recording" in r.stderr and match.split()[0] in r.stderr
     assert "Traceback" not in r.stderr
@@ -148,14 +136,14 @@ def test_export_renders_every_recorded_state_without_a_browser(water_run, tmp_pa
     path, _ = water_run
     rec = Recording.load(path)
     out = tmp_path / "water.gif"
-    r = _run("view", "--recording", str(path), "--export", str(out), "--fps", "5",
-             "--camera", "overview")
+    r = run_cli("view", "--recording", str(path), "--export", str(out), "--fps", "5",
+                "--camera", "overview")
     assert r.returncode == 0, r.stderr
     frames = iio.imread(out, index=None)
     expected = len(np.arange(rec.t[0], rec.t[-1] + 1e-9, 1 / 5))
     assert frames.shape[0] == expected
     assert frames.std(axis=0).max() > 0  # the arm moved between frames
-    again = _run("view", "--recording", str(path), "--export", str(out))
+    again = run_cli("view", "--recording", str(path), "--export", str(out))
     assert again.returncode == 2 and "exists" in again.stderr
 
 
@@ -259,7 +247,7 @@ def test_view_bad_input_exits_2(tmp_path: Path, args: list[str], field: str) -> 
     JointTrajectory(("a", "b"), [0.0, 1.0], np.zeros((2, 2)), np.zeros((2, 2))).save(wrong)
     args = [str(bad) if a == "BADJSON" else str(wrong) if a == "WRONGJOINTS" else a
             for a in args]
-    r = _run("view", *args, "--duration", "1")
+    r = run_cli("view", *args, "--duration", "1")
     assert r.returncode == 2, (r.stdout, r.stderr)
     assert field in r.stderr and "Traceback" not in r.stderr
     assert "viewer: http" not in r.stdout  # no server was started
@@ -268,21 +256,17 @@ def test_view_bad_input_exits_2(tmp_path: Path, args: list[str], field: str) -> 
 def test_view_refuses_a_port_in_use() -> None:
     s, port = _busy_port()
     try:
-        r = _run("view", "--port", str(port), "--duration", "1")
+        r = run_cli("view", "--port", str(port), "--duration", "1")
     finally:
         s.close()
     assert r.returncode == 2 and "--port" in r.stderr and "in use" in r.stderr
 
 
 def test_view_plans_a_benchmark_task_then_serves_it() -> None:
-    r = _run("view", "--plan-task", "0", "--system", "strict8", "--timeout", "20",
-             "--duration", "1", "--port", str(_free_port()))
+    r = run_cli("view", "--plan-task", "0", "--system", "strict8", "--timeout", "20",
+                "--duration", "1", "--port", str(free_port()))
     assert r.returncode == 0, r.stderr
     assert "planning task 0 with strict8" in r.stdout
     assert "8-joint trajectory" in r.stdout and "viewer: http://127.0.0.1:" in r.stdout
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]

@@ -6,7 +6,6 @@ console errors."""
 from __future__ import annotations
 
 import signal
-import socket
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -20,6 +19,7 @@ pytest.importorskip("viser")
 pytest.importorskip("playwright")
 
 from articutool.viewer.snapshot import chromium_path, screenshot
+from conftest import free_port
 
 pytestmark = pytest.mark.skipif(
     chromium_path() is None,
@@ -28,17 +28,11 @@ pytestmark = pytest.mark.skipif(
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @contextmanager
 def viewer(*args: str) -> Iterator[str]:
     """Start ``articutool view`` as a process; yields the URL it printed."""
     p = subprocess.Popen([sys.executable, "-m", "articutool", "view", "--port",
-                          str(_free_port()), "--duration", "300", *args],
+                          str(free_port()), "--duration", "300", *args],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         url = None

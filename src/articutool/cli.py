@@ -1,4 +1,4 @@
-"""The ``articutool`` command line.
+"""The articutool command line: one parser whose subcommands come from the subsystems.
 
 Exit codes everywhere: 0 success, 1 the job ran and said no (e.g. infeasible), 2 bad input,
 3 internal error.
@@ -23,6 +23,12 @@ from articutool.spec import SpecError
 from articutool.trajectory import TrajectoryError
 
 __all__ = ["main"]
+
+DESCRIPTION = ("Robot-assisted feeding with a decoupled 2-DOF active wrist: the wrist's onboard\n"
+               "loop, the tool-PC link, planning and verification, the physics world, the\n"
+               "feeding tree and the thesis' experiments.")
+EPILOG = ("Exit codes: 0 success, 1 the job ran and said no (e.g. infeasible), 2 bad input,\n"
+          "3 internal error. 'articutool COMMAND --help' describes each command.")
 
 _COMMAND_MODULES: tuple[str, ...] = (
     "articutool.verify.cli",
@@ -86,7 +92,9 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser."""
-    parser = argparse.ArgumentParser(prog="articutool", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="articutool", description=DESCRIPTION, epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     p = sub.add_parser("info", help="print the hardware spec")
     add_spec_option(p)

@@ -2,7 +2,7 @@
 
 The spec validates ``motors.bus_watchdog_s`` against the Bus Watchdog register with
 ``bus_watchdog_units``, and the driver (``tool/drivers/dynamixel.py``) writes the registers
-with all of them: one definition, importable on a PC without the SDK (hardware-facts §3,
+with all of them: one definition, importable on a PC without the SDK (docs/hardware.md §3,
 ROBOTIS e-manual X-series control table; thesis §3.2).
 """
 

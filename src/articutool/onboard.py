@@ -1,7 +1,7 @@
-"""``articutool tool``: run the onboard tool loop in the foreground (issue 3, deliverable 6).
+"""``articutool tool``: run the onboard tool loop in the foreground.
 
 The onboard program (thesis §3.3): it composes the tool runtime (``tool/``) with the link
-server (``link/``), so it sits above both layers and neither imports it (issue 23).
+server (``link/``), so it sits above both layers and neither imports it.
 
 ::
 
@@ -261,7 +261,7 @@ def _close_failed(runtime: object) -> None:
 
 def _check_exposure(cfg: object, insecure: bool) -> None:
     """Refuse (exit 2) a tool that accepts unsigned commands and could be reached from the
-    network, however its endpoints were configured (issue 22, S3)."""
+    network, however its endpoints were configured."""
     from articutool.cli_support import UsageError
     from articutool.link.zenoh_transport import exposure
 

@@ -1,10 +1,10 @@
 """Rotations: one small NumPy module for the rotation and quaternion formulas the tool and the
-arm share (issue 23). Core install (the Pi has NumPy only, no SciPy); scalar floats, since
-these run once per 50 Hz tick on 3x3 matrices, where NumPy's vector machinery costs more than
-it saves.
+arm share, so neither depends on the other. Core install (the Pi has NumPy only, no SciPy);
+scalar floats, since these run once per 50 Hz tick on 3x3 matrices, where NumPy's vector
+machinery costs more than it saves.
 
 Conventions: quaternions are Hamilton ``(w, x, y, z)``, scalar first (the IMU filter's output,
-thesis §4.2; hardware-facts §4; ``scene.toml``'s ``wxyz``); ``rpy`` is URDF's fixed-axis
+thesis §4.2; docs/hardware.md §4; ``scene.toml``'s ``wxyz``); ``rpy`` is URDF's fixed-axis
 roll-pitch-yaw, ``Rz(yaw) @ Ry(pitch) @ Rx(roll)`` (thesis §4.1, the arm's joint table).
 The IMU filter keeps its own quaternion arithmetic on purpose: it transcribes the C++
 reference operation by operation, to agree with it bit for bit (``tool/filter.py``).
@@ -29,7 +29,7 @@ __all__ = [
 def quaternion_to_matrix(wxyz: ArrayLike) -> NDArray[np.float64]:
     """Rotation matrix of a Hamilton quaternion ``(w, x, y, z)`` (normalised first).
 
-    With the filter's output (sensor in the gravity-aligned world, hardware-facts §4) this is
+    With the filter's output (sensor in the gravity-aligned world, docs/hardware.md §4) this is
     ``R_world←imu``. ``ValueError`` for anything but 4 finite numbers, not all zero.
     """
     q = np.asarray(wxyz, dtype=np.float64)

@@ -1,7 +1,7 @@
 """The hardware spec: one validated TOML file holds every limit, rate and geometry number.
 
 The packaged default is ``articutool/data/hardware.toml`` (values from
-``shared/reference/hardware-facts.md``). ``load_spec(path)`` reads another file of the same
+``docs/hardware.md``). ``load_spec(path)`` reads another file of the same
 shape; unknown keys, NaN/inf, negative speeds and inverted limits fail with a message naming
 the field.
 """
@@ -252,7 +252,7 @@ class CollisionSpec(_Strict):
 
 
 class ControllerSpec(_Strict):
-    """Leveling controller gains (thesis Alg. 1; hardware-facts §5)."""
+    """Leveling controller gains (thesis Alg. 1; docs/hardware.md §5)."""
 
     kp: NonNegative
     ki: NonNegative
@@ -268,7 +268,7 @@ class ControllerSpec(_Strict):
 
 
 class PrimitivesSpec(_Strict):
-    """Closed-loop moves inside the primitives (thesis §4.4; hardware-facts §6)."""
+    """Closed-loop moves inside the primitives (thesis §4.4; docs/hardware.md §6)."""
 
     position_gain: Positive
     position_tolerance: Positive
@@ -288,7 +288,7 @@ class PrimitivesSpec(_Strict):
 
 
 class FilterSpec(_Strict):
-    """Complementary filter parameters (Valenti et al. 2015; hardware-facts §4)."""
+    """Complementary filter parameters (Valenti et al. 2015; docs/hardware.md §4)."""
 
     gain_acc: Unit
     bias_alpha: Unit
@@ -351,7 +351,7 @@ class FTSpec(_Strict):
 
 
 class PlanningSpec(_Strict):
-    """Transport planning tolerances (thesis §5.2, Exp. 2a; hardware-facts §7)."""
+    """Transport planning tolerances (thesis §5.2, Exp. 2a; docs/hardware.md §7)."""
 
     strict_tolerance_deg: Annotated[float, AfterValidator(_finite), Field(gt=0, lt=90)]
     loose_roll_deg: Annotated[float, AfterValidator(_finite), Field(gt=0, le=90)]

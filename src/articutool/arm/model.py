@@ -1,6 +1,6 @@
 """Kinova Jaco 2 (j2n6s200) + Articutool models built with Pinocchio from the hardware spec.
 
-Kinematics (hardware-facts §1, §3):
+Kinematics (docs/hardware.md §1, §3):
 
 * Jaco chain: for each joint of ``spec.arm.joints`` the placement ``SE3(rpy, xyz)`` in the
   parent frame (URDF fixed-axis roll-pitch-yaw) followed by a revolute joint about local z;
@@ -68,7 +68,7 @@ class ArmModel:
     """The Jaco 2, with the Articutool and a utensil, as one Pinocchio model plus collision.
 
     Args:
-        spec: the hardware spec (``articutool.load_spec()``).
+        spec: the hardware spec (``articutool.spec.load_spec()``).
         utensil: which utensil's tip frame and collision capsule to use (``spec.utensils``).
         dof: 8 = arm + active pitch/roll wrist, 6 = wrist locked at zero (rigid tool).
         scene: obstacles; ``None`` loads the packaged default scene (``Scene.load()``).
@@ -128,9 +128,12 @@ class ArmModel:
             "tool_base": model.getFrameId(TOOL_BASE_FRAME),
             "tip": model.getFrameId(tip_frame_name(utensil)),
         }
-        # Fixed rotations of the vectorised F0 chain (hardware-facts §1, §3).
+        # Fixed rotations of the vectorised F0 chain (docs/hardware.md §1, §3).
         self._joint_rot = np.stack([rpy_matrix(j.rpy) for j in arm.joints])
+        self._joint_xyz = np.array([j.xyz for j in arm.joints])
         self._f0_in_link6 = rpy_matrix(arm.ee_rpy) @ rpy_matrix(w.mount_rpy)
+        self._f0_xyz_in_link6 = (np.asarray(arm.ee_xyz)
+                                 + rpy_matrix(arm.ee_rpy) @ np.asarray(w.mount_xyz))
 
     # ------------------------------------------------------------------ building --
     def _build_full(self) -> tuple[pin.Model, pin.GeometryModel, dict[str, int]]:
@@ -292,8 +295,8 @@ class ArmModel:
         ).copy()
 
     def _tool_base_chain(
-        self, q_arm: ArrayLike, qd_arm: ArrayLike | None
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+        self, q_arm: ArrayLike, qd_arm: ArrayLike | None, positions: bool = False
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None, NDArray[np.float64] | None]:
         q = np.asarray(q_arm, dtype=np.float64)
         if q.ndim == 0 or q.shape[-1] != 6:
             raise ValueError(f"q_arm must have shape (..., 6); got {q.shape}")
@@ -310,9 +313,13 @@ class ArmModel:
         c, s = np.cos(q), np.sin(q)
         R = np.empty((*lead, 3, 3))
         R[...] = self._joint_rot[0]
+        p = np.zeros((*lead, 3)) + self._joint_xyz[0] if positions else None
         omega = np.zeros((*lead, 3)) if qd is not None else None
         for i in range(6):
             if i:
+                if p is not None:  # the joint's origin, placed in its parent's frame
+                    x, y, z = self._joint_xyz[i]
+                    p = p + R[..., :, 0] * x + R[..., :, 1] * y + R[..., :, 2] * z
                 # One GEMM for the whole batch: the fixed joint placement rotation.
                 R = (R.reshape(-1, 3) @ self._joint_rot[i]).reshape(*lead, 3, 3)
             if omega is not None:
@@ -322,7 +329,18 @@ class ArmModel:
             ci, si = c[..., i, None], s[..., i, None]
             R[..., :, 0] = ci * x + si * y
             R[..., :, 1] = ci * y - si * x
-        return (R.reshape(-1, 3) @ self._f0_in_link6).reshape(*lead, 3, 3), omega
+        if p is not None:
+            x, y, z = self._f0_xyz_in_link6
+            p = p + R[..., :, 0] * x + R[..., :, 1] * y + R[..., :, 2] * z
+        return (R.reshape(-1, 3) @ self._f0_in_link6).reshape(*lead, 3, 3), omega, p
+
+    def tool_base_poses(
+        self, q_arm: ArrayLike
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Rotations (..., 3, 3) and origins (..., 3) of F0 in the base frame, vectorised."""
+        R, _, p = self._tool_base_chain(q_arm, None, positions=True)
+        assert p is not None
+        return R, p
 
     def tool_base_rotations(self, q_arm: ArrayLike) -> NDArray[np.float64]:
         """Rotations of F0 in the arm base frame, vectorised: (..., 6) → (..., 3, 3)."""
@@ -340,7 +358,7 @@ class ArmModel:
         self, q_arm: ArrayLike, qd_arm: ArrayLike
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Both F0 rotations (..., 3, 3) and angular velocities (..., 3) in one pass."""
-        R, omega = self._tool_base_chain(q_arm, qd_arm)
+        R, omega, _ = self._tool_base_chain(q_arm, qd_arm)
         assert omega is not None
         return R, omega
 

@@ -1,4 +1,4 @@
-"""The planning scene: named collision primitives in the arm base frame (hardware-facts §2).
+"""The planning scene: named collision primitives in the arm base frame (docs/hardware.md §2).
 
 The packaged default ``articutool/data/scene.toml`` is the seated-user feeding scene (table,
 plate, bowl, the user's head and torso, the wheelchair, the ground). ``Scene.load(path)``
@@ -49,7 +49,6 @@ __all__ = [
     "StagingGoal",
     "StagingSet",
     "default_scene_path",
-    "rpy_matrix",
 ]
 
 # The direction the utensil's tip points while scooping, in the arm base frame of the default

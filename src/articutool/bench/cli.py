@@ -51,7 +51,8 @@ def _cmd_tasks(args: argparse.Namespace) -> int:
 
     from rich.progress import Progress
 
-    from articutool.bench.tasks import TaskFileError, generate_tasks, save_task_set
+    from articutool.bench.taskfile import TaskFileError, save_task_set
+    from articutool.bench.tasks import generate_tasks
 
     t0 = time.perf_counter()
     with Progress(console=_stderr_console(), transient=True) as bar:
@@ -106,12 +107,7 @@ def _cmd_transport(args: argparse.Namespace) -> int:
         run_trials,
         select,
     )
-    from articutool.bench.tasks import (
-        TaskFileError,
-        check_task_limits,
-        load_task_set,
-        spec_hash,
-    )
+    from articutool.bench.taskfile import TaskFileError, check_task_limits, load_task_set, spec_hash
     from articutool.cli_support import output_dir, spec_from_args
 
     # ---- validate everything before any work ----

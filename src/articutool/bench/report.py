@@ -27,7 +27,7 @@ __all__ = [
     "write_sweep_csv",
 ]
 
-# Thesis Exp. 2a (hardware-facts §7): RRT-Connect, 1000 s timeout, MoveIt + OMPL.
+# Thesis Exp. 2a (docs/hardware.md §7): RRT-Connect, 1000 s timeout, MoveIt + OMPL.
 THESIS: dict[str, dict[str, float | None]] = {
     "decoupled": {"success_rate": 0.960, "median_time_s": 4.02, "mean_time_s": 4.7},
     "strict8": {"success_rate": 0.950, "median_time_s": 75.7, "mean_time_s": None},

@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from articutool.bench.executors import Executor
-from articutool.planning.api import PLANNERS, SYSTEMS, PlanRequest, PlanResult, TransportTask
+from articutool.planning.types import PLANNERS, SYSTEMS, PlanRequest, PlanResult, TransportTask
 from articutool.spec import Spec, load_spec
 
 __all__ = [

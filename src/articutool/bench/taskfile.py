@@ -21,7 +21,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from articutool.arm.scene import Scene
 from articutool.datafile import format_validation_error, read_document
-from articutool.planning.api import TransportTask
+from articutool.planning.types import TransportTask
 from articutool.spec import Spec
 
 __all__ = [

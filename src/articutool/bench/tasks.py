@@ -3,7 +3,7 @@
 Thesis §5.2.1: a candidate set of (start, goal) transport tasks with level tool orientation
 at both ends is filtered down to the tasks that all three systems reach by IK (the "common
 IK-filtered set"). Here a candidate is a pair of tool-tip targets in the feeding scene
-(hardware-facts §2, ``data/scene.toml``):
+(docs/hardware.md §2, ``data/scene.toml``):
 
 * start: the tip above the plate or the bowl, level, heading roughly away from the arm base;
 * goal: a staging pose in front of the user's mouth, level, the utensil pointing at the user.
@@ -24,8 +24,7 @@ the three systems: the 6 arm joints, and for the 8-DOF start/goal the leveling w
 at that arm configuration. Generation is deterministic given the seed; the file records the
 seed, the generator version and hashes of the spec and scene it was made with.
 
-The task file itself (its format, loading, checks and saving) is ``bench/taskfile.py``; its
-names are re-exported here.
+The task file itself (its format, loading, checks and saving) is ``bench/taskfile.py``.
 """
 
 from __future__ import annotations
@@ -42,39 +41,15 @@ from articutool.arm.ik import IKSettings, solve_pose_ik
 from articutool.arm.model import ArmModel
 from articutool.arm.scene import Scene
 from articutool.bench.taskfile import (
-    FILE_FORMAT,
-    FILE_VERSION,
-    GENERATOR_VERSION,
-    TaskFileError,
     TaskSet,
-    check_task_limits,
-    default_tasks_path,
-    load_task_set,
-    parse_task_set,
-    save_task_set,
     scene_hash,
     spec_hash,
 )
-from articutool.planning.api import SYSTEMS, TransportTask
+from articutool.planning.types import SYSTEMS, TransportTask
 from articutool.spec import Spec
 from articutool.tool.kinematics import nearest_leveling_solution, tilt_from_vertical
 
-__all__ = [
-    "FILE_FORMAT",
-    "FILE_VERSION",
-    "GENERATOR_VERSION",
-    "TaskFileError",
-    "TaskSet",
-    "check_task_limits",
-    "default_tasks_path",
-    "generate_tasks",
-    "load_task_set",
-    "parse_task_set",
-    "save_task_set",
-    "scene_hash",
-    "spec_hash",
-    "tip_tilt_deg",
-]
+__all__ = ["generate_tasks", "tip_tilt_deg"]
 
 # Candidates per generated set: IK-filtering one takes ~0.1-1 s, so this bounds a run to
 # hours (the thesis' set came from 100); a typo such as 1000000000 is refused, not run.

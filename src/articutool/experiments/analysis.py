@@ -248,7 +248,7 @@ def mean_or_none(values: Sequence[float]) -> float | None:
 def representative_trials(records: Sequence[dict[str, Any]]) -> dict[str, dict[str, int]]:
     """Per condition (food + system or Exp. 2c condition), the trial numbers of a *typical*
     trial (its food mass — acquired, delivered or held — nearest the condition's median) and
-    the *worst* (most spilled, then least food), for the report's replays (issue 29). Ties go
+    the *worst* (most spilled, then least food), for the report's replays. Ties go
     to the lowest trial number, so the choice does not depend on the log's order."""
     groups: dict[str, list[dict[str, Any]]] = {}
     for r in _ok(records):

@@ -30,7 +30,7 @@ DEFAULT_OUT = "results/experiments"
 # A trial record's fields that a rerun of its seed need not reproduce (the replay check,
 # benchmarks/experiment_scaling.py). Plans run in a thread while the world steps, so when a
 # plan is ready in simulated time depends on the machine's speed: these may differ slightly
-# between runs of one seed (``planning_time_s``: records written before issue 21).
+# between runs of one seed (``planning_time_s`` in older records).
 TIMING_FIELDS = frozenset({"planning_time_s", "planning_wall_s", "planning_wait_sim_s",
                            "motion_time_s", "sim_time_s", "max_tilt_deg",
                            "transport_max_tilt_deg"})
@@ -94,7 +94,7 @@ def _thresholds(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str
                                                                          str]:
     """Exp. 2c's thresholds: ``--thresholds-g``, else OUR Exp. 1 Articutool means (the thesis
     took its own Exp. 1 means), else none (only spill / no spill is reported)."""
-    from articutool.experiments.runner import exp1_means
+    from articutool.thresholds import exp1_means
 
     if getattr(args, "thresholds_g", None):
         th = _parse_food_grams(args.thresholds_g, "--thresholds-g")
@@ -113,7 +113,7 @@ def _thresholds(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str
 def _exp3_threshold(args: argparse.Namespace, out: Path, cfg: Any) -> float:
     """Exp. 3's threshold: ``--threshold-g``, else our Exp. 1 Articutool mean for its food
     (the thesis derived its 3.0 g from its own data; we do not borrow it)."""
-    from articutool.experiments.runner import exp1_means
+    from articutool.thresholds import exp1_means
 
     if getattr(args, "threshold_g", None) is not None:
         return float(args.threshold_g)

@@ -273,7 +273,7 @@ def thesis_exp3_no_spill(thesis_exp3: Mapping[str, Any]) -> FisherResult | None:
     """Fisher's exact test (two-sided) of trials without spill (meaningful + trivial
     success), Articutool against the baseline, recomputed from the thesis' own Exp. 3 counts
     (§6.3, Fig. 6.5; ``[thesis.exp3]`` of experiments.toml). From 14/20 against 7/20 it gives
-    p ≈ 0.056, where the thesis prints p < 0.00012 (issue 21). None if a count is missing."""
+    p ≈ 0.056, where the thesis prints p < 0.00012. None if a count is missing."""
     counts = []
     for sys_ in ("articutool", "baseline"):
         t = thesis_exp3.get(sys_, {})

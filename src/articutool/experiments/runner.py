@@ -32,10 +32,18 @@ from articutool.bench.executors import Executor
 from articutool.bench.runner import read_log, run_logged
 from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import TrialSpec
-from articutool.thresholds import DEFAULT_OUT, exp1_means
 
-__all__ = ["DEFAULT_OUT", "RunError", "RunResult", "data_hash", "exp1_means", "log_path",
-           "pin_run", "read_trials", "run_experiment", "run_trial", "source_version"]
+__all__ = [
+    "RunError",
+    "RunResult",
+    "data_hash",
+    "log_path",
+    "pin_run",
+    "read_trials",
+    "run_experiment",
+    "run_trial",
+    "source_version",
+]
 
 LOG_NAME = "trials.jsonl"
 

@@ -1,4 +1,4 @@
-"""py_trees behaviours of the feeding tree (thesis §3.2.1, §4.3; issue 10), and the interfaces
+"""py_trees behaviours of the feeding tree (thesis §3.2.1, §4.3), and the interfaces
 they talk to.
 
 The tree reaches the arm only through :class:`ArmInterface` and the tool only through
@@ -28,6 +28,7 @@ from articutool.tool.api import ABORTED_BY_MODE_CHANGE, Mode, ToolAPI
 __all__ = [
     "ArmInterface",
     "Attempts",
+    "CheckFood",
     "Execute",
     "Job",
     "JobResult",
@@ -86,6 +87,13 @@ class ArmInterface(Protocol):
 
     def verify(self, trajectory: Any) -> JobResult:
         """Plan-then-verify (Alg. 2) for the tool that will follow it."""
+
+    def check_food(self, trajectory: Any) -> JobResult:
+        """What the trajectory does to the load on the utensil: ok with a trajectory that is
+        predicted not to spill (the plan itself, retimed slower, or with the wrist's joints
+        for slosh-free leveling) as ``value.trajectory``; not ok with the reason when no
+        timing within the arm's budget is. ``value.record`` says what was done and
+        predicted."""
 
     def start_plan_path(self, name: str, waypoints: Any) -> Job:
         """Plan a Cartesian path of the utensil tip through ``waypoints`` (a list of
@@ -236,17 +244,43 @@ class Verify(py_trees.behaviour.Behaviour):
         return Status.SUCCESS if r.ok else Status.FAILURE
 
 
+class CheckFood(py_trees.behaviour.Behaviour):
+    """Food-aware verification of the trajectory on the blackboard: the arm predicts what it
+    does to the load and replaces it by one predicted not to spill (retimed, or slosh-free);
+    a trajectory that cannot be made spill-free fails, so the enclosing attempts re-plan and
+    the transport never executes a predicted spill. ``records`` keeps each check's record
+    (what was done, the prediction) for the bite's telemetry."""
+
+    def __init__(self, arm: ArmInterface) -> None:
+        super().__init__("Check the food")
+        self.arm = arm
+        self.bb = _bb(self, ("trajectory", Access.WRITE))
+        self.records: list[dict[str, Any]] = []
+
+    def update(self) -> Status:
+        r = self.arm.check_food(self.bb.trajectory)
+        self.feedback_message = r.message
+        if r.value is not None and getattr(r.value, "record", None) is not None:
+            self.records.append(r.value.record)
+        if not r.ok:
+            return Status.FAILURE
+        self.bb.trajectory = r.value.trajectory
+        return Status.SUCCESS
+
+
 class Execute(_JobBehaviour):
     """Execute the trajectory on the blackboard. With ``tool`` and ``clock``, a trajectory
-    that also moves the wrist's joints (a wrist-made sweep, issue 25) sends them to the tool
+    that also moves the wrist's joints (a wrist-made sweep) sends them to the tool
     (TRAJECTORY mode) as the arm starts, and keeps the wrist's largest tracking error
-    (``wrist_tracking_error``, rad, from the tool's measured joints)."""
+    (``wrist_tracking_error``, rad, from the tool's measured joints). ``then``: the tool's
+    mode once such a motion ended (the leveling loop takes over after a slosh-free
+    transport)."""
 
     def __init__(self, arm: ArmInterface, what: str = "motion", tool: ToolAPI | None = None,
-                 clock: Callable[[], float] | None = None) -> None:
+                 clock: Callable[[], float] | None = None, then: Mode | None = None) -> None:
         super().__init__(f"Execute {what}")
-        self.arm, self.tool, self.clock = arm, tool, clock
-        self.bb = _bb(self, ("trajectory", Access.READ))
+        self.arm, self.tool, self.clock, self.then = arm, tool, clock, then
+        self.bb = _bb(self, ("trajectory", Access.READ), ("tool_mode", Access.WRITE))
         self.wrist_tracking_error = 0.0
         self._wrist: Any = None
 
@@ -273,6 +307,13 @@ class Execute(_JobBehaviour):
         if status != Status.RUNNING and self._wrist is not None:
             self.feedback_message += (f"; wrist tracking error ≤ "
                                       f"{math.degrees(self.wrist_tracking_error):.2f}°")
+            if self.then is not None:
+                ok, msg = self.tool.set_mode(self.then)  # type: ignore[union-attr]
+                if ok:
+                    self.bb.set("tool_mode", self.then)
+                else:
+                    self.feedback_message += f"; {self.then.name} refused: {msg}"
+                    return Status.FAILURE
         return status
 
 
@@ -419,7 +460,7 @@ class SafetyGuard(py_trees.decorators.EternalGuard):
     """The root safety guard: py_trees' EternalGuard, named ``Unsafe?``, around
     :class:`SafeStop`. Every tick, before the bite's steps, its condition asks whether the bite
     must stop: a tool fault, tool state older than ``stale_s``, a stop request on the
-    blackboard, or a stop from elsewhere (another paired PC, the tool's own console; issue 22):
+    blackboard, or a stop from elsewhere (another paired PC, the tool's own console):
     the tool DISABLED while the tree has it LEVELING — seen in two ticks running, since over a
     link a snapshot taken just before the tree's own LEVELING was carried out can arrive after
     it — or the tree's primitive aborted by a mode change. Then Safe stop runs and the guard

@@ -1,5 +1,4 @@
-"""One bite as a py_trees tree, from subtrees that each run alone (thesis §3.2.1, §4.3, §4.4;
-issue 10).
+"""One bite as a py_trees tree, from subtrees that each run alone (thesis §3.2.1, §4.3, §4.4).
 
 Stages, in order (:data:`STAGES`; a bite may run any ordered subset, e.g. Exp. 1 runs
 ``above, acquire, resting``):
@@ -10,7 +9,8 @@ Stages, in order (:data:`STAGES`; a bite may run any ordered subset, e.g. Exp. 1
   primitive, out of the food, tool-only leveling (Articutool), lift; up to the strategy's
   ``attempts.acquire`` times;
 - ``shed``:    Post-Acquisition primitive over the container (shedding), then level again;
-- ``resting``: transport to Resting (plan → verify → execute, bounded attempts);
+- ``resting``: transport to Resting (plan → verify → check the food → execute, bounded
+  attempts; the food check retimes a transport predicted to spill, or re-plans);
 - ``staging``: transport to Staging (the same; the thesis' planning attempts count here);
 - ``present``: hold the bite still at Staging for the user;
 - ``return``:  move back to Resting.
@@ -123,7 +123,8 @@ def stage_tree(name: str, arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
         return seq("shed", memory=True, children=steps)
     if name in ("resting", "staging"):
         goal = name.capitalize()
-        return motion(arm, goal, planner, name=f"transport to {goal}", **plan_kw)
+        return motion(arm, goal, planner, name=f"transport to {goal}", food=True, tool=tool,
+                      clock=clock, then=carry if wrist else None, **plan_kw)
     if name == "present":
         return Settle(tool, carry, settings.present_s, clock,
                       name=f"present at Staging {settings.present_s:g} s ({carry.name})")

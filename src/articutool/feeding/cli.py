@@ -1,4 +1,4 @@
-"""``articutool meal``: bites with the feeding tree in the physics world (issue 10).
+"""``articutool meal``: bites with the feeding tree in the physics world.
 
 Prints the tree's progress live (the running behaviour, planning attempts, simulated time)
 and one record per bite; ``--json`` prints the records; ``--show-tree`` prints the tree and
@@ -200,7 +200,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--record", metavar="FILE", default=None,
                    help="record the meal: .mcap (ROS 2 messages: tool telemetry and commands "
                         "as the link carries them, arm joints, food, tree status) or .npz "
-                        "(the full MuJoCo state for `articutool view --recording`); never "
+                        "(the full MuJoCo state for articutool view --recording); never "
                         "overwrites")
     p.add_argument("--json", action="store_true", help="the bite records as JSON")
     p.add_argument("--show-tree", nargs="?", const=None, default=False, metavar="FILE",

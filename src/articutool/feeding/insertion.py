@@ -9,7 +9,7 @@ arm base frame, relative to the centre of the container's inner floor ``floor``.
   into it at ``depth_m`` above the floor, dragged ``drag_m`` through it along the heading
   (centred on the container), then out.
 - **skewer**: straight down at the container's centre to ``depth_m``, then out.
-- **sweep** (issue 25; §4.4's "tilted dip" and "tilted scoop" made by the wrist): down at
+- **sweep** (§4.4's "tilted dip" and "tilted scoop" made by the wrist): down at
   ``pitch_down_deg`` until the dish's lowest point is ``depth_m`` above the floor, then level
   *in the food* while moving ``drag_m`` along the heading, about a pivot that keeps every point
   of the dish's outline at least ``depth_m`` above the floor (heights from the utensil's
@@ -55,7 +55,7 @@ class TipWaypoint:
     pitch_down: float
     speed: float
     # The pitch change of the segment ending here is the wrist's (Articutool): the arm
-    # translates, the wrist turns the utensil (issue 25).
+    # translates, the wrist turns the utensil.
     wrist: bool = False
 
 
@@ -68,8 +68,8 @@ def _wp(p: NDArray[np.float64], pitch_deg: float, speed: float,
 def dish_outline(spec: Spec, utensil: str) -> list[tuple[float, float]]:
     """Points of the utensil's outline that can touch a floor, as (up, forward) offsets from
     the tip (m): a spoon's dish floor and rim ends (its geometry in the spec,
-    :func:`articutool.sim.mjcf.spoon_dish`), a fork's tine ends."""
-    from articutool.sim.mjcf import spoon_dish
+    :func:`articutool.food.dish.spoon_dish`), a fork's tine ends."""
+    from articutool.food.dish import spoon_dish
 
     u = spec.utensil(utensil)
     if u.physics.kind != "spoon":

@@ -1,5 +1,5 @@
 """Bites and meals in the physics world: the feeding tree driving the MuJoCo arm and the
-tool's own runtime, with the food accounted by physics (issue 10).
+tool's own runtime, with the food accounted by physics.
 
 :func:`make_bite_world` builds the world for a food and a system (the strategy, drawn from
 the action library with the seed, picks the utensil), puts the arm at Resting (the rigid
@@ -33,7 +33,7 @@ from articutool.feeding.behaviours import Attempts
 from articutool.feeding.bite import STAGES, BiteSettings, bite_tree
 from articutool.feeding.insertion import acquisition_waypoints, dish_outline
 from articutool.feeding.outcomes import classify_bite
-from articutool.feeding.sim_arm import SimArm
+from articutool.feeding.sim_arm import SimArm, world_load
 from articutool.feeding.strategies import Strategy, StrategyLibrary
 from articutool.feeding.tree import BiteRecorder, safe_stop_reason, tick_until_done
 from articutool.sim import accounting as acc
@@ -83,6 +83,10 @@ class BiteResult:
     end_state: str = ""
     # The stage running (or the last one that ended) when the bite ended: where a fault hit.
     last_stage: str = ""
+    # The food checks before each transport (what was done, the prediction) and the grams
+    # they predicted, beside ``spilled_g`` that the world measured.
+    food_checks: list[dict[str, Any]] = field(default_factory=list)
+    predicted_spill_g: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready record."""
@@ -140,7 +144,8 @@ def make_bite_world(food: str, system: str, seed: int = 0, *,
     name, strat = lib.choose(food, system, np.random.default_rng(seed))
     world = FeedingWorld(food, strat.utensil, spec=spec, seed=seed, load_g=load_g)
     rigid = system == "baseline"
-    arm = SimArm(world, tolerance_deg=strat.transport.tolerance_deg, seed=seed, rigid=rigid)
+    arm = SimArm(world, tolerance_deg=strat.transport.tolerance_deg, seed=seed, rigid=rigid,
+                 load=lambda: world_load(world), leveling=strat.transport.leveling)
     if rigid:
         world.move_arm(arm.goal_configuration("Resting"))
         world.run(0.5)
@@ -176,7 +181,7 @@ def shed_configuration(spec: Spec, scene: Scene, utensil: str, container: str = 
     """
     from articutool.arm.ik import solve_level_ik
     from articutool.arm.model import ArmModel
-    from articutool.sim.mjcf import spoon_dish
+    from articutool.food.dish import spoon_dish
 
     u = spec.utensil(utensil)
     if u.physics.kind == "spoon":
@@ -282,7 +287,16 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
         failed_stage="" if completed else rec.record.failed_stage or "stopped",
         stages=list(stages), masses_after=after,
         transport_max_tilt_deg=max(ledger.tilts) if ledger.tilts else float("nan"),
-        end_state=end_state, last_stage=ledger.last_stage)
+        end_state=end_state, last_stage=ledger.last_stage,
+        food_checks=rec.record.food_checks,
+        predicted_spill_g=_predicted(rec.record.food_checks))
+
+
+def _predicted(checks: list[dict[str, Any]]) -> float | None:
+    """Grams the executed transports' food checks predicted (None if none was checked)."""
+    done = [c["predicted_spill_g"] for c in checks
+            if c.get("duration_s") is not None and c.get("predicted_spill_g") is not None]
+    return round(sum(done), 4) if done else None
 
 
 def run_meal(food: str, system: str, *, bites: int = 1, seed: int = 0,

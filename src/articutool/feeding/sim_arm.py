@@ -33,7 +33,8 @@ from articutool.arm.model import ArmModel
 from articutool.arm.scene import SCOOP_HEADING
 from articutool.feeding.behaviours import JobResult
 from articutool.feeding.insertion import TipWaypoint
-from articutool.planning.api import PlanRequest, TransportTask, plan
+from articutool.planning.api import plan
+from articutool.planning.types import PlanRequest, TransportTask
 from articutool.sim.scenes import (
     ScriptError,
     cartesian_path,
@@ -43,9 +44,9 @@ from articutool.sim.scenes import (
 )
 from articutool.sim.world import FeedingWorld, smooth_joint_motion
 from articutool.trajectory import JointTrajectory
-from articutool.verify import verify_trajectory
+from articutool.verify.verifier import verify_trajectory
 
-__all__ = ["SimArm", "wrist_sweep"]
+__all__ = ["FoodDecision", "SimArm", "world_load", "wrist_sweep"]
 
 # Where a rigid utensil must wait level with food on it.
 _CARRY_GOALS = ("Resting", "Staging")
@@ -77,7 +78,7 @@ def wrist_sweep(model: ArmModel, q: np.ndarray, p0: np.ndarray, a0: float, p1: n
                 a1: float, speed: float, step_m: float = 0.002, dt: float = 0.02
                 ) -> JointTrajectory:
     """8-joint trajectory of a tip segment p0 → p1 whose pitch change a0 → a1 the wrist's
-    pitch makes while the arm translates (issue 25; thesis §4.3.1, "a 2-DOF local motion with
+    pitch makes while the arm translates (thesis §4.3.1, "a 2-DOF local motion with
     the Articutool"): the wrist pitch is interpolated from ``q``'s to the one that gives
     ``a1`` with the tool base as at ``q`` (within its range: beyond it the arm makes the rest
     of the turn), and the arm joints are solved by IK for every tip
@@ -196,15 +197,62 @@ class _MotionJob:
         self.cancelled = True
 
 
+@dataclasses.dataclass(frozen=True)
+class FoodDecision:
+    """What :meth:`SimArm.check_food` decided: the trajectory to execute (None when no
+    timing is predicted spill-free) and the record of what was done and predicted."""
+
+    trajectory: JointTrajectory | None
+    record: dict[str, Any]
+
+
+def world_load(world: FeedingWorld) -> Any:
+    """The load on the world's utensil as the food check models it: its food and the grams
+    on the utensil (the physics world's count stands for the weighing the F/T sensor gives
+    a real tool), or None for a food whose spill is not modelled (strands) or nothing."""
+    from articutool.food.loads import LoadError, food_load
+
+    if not world.food:
+        return None
+    grams = world.masses_g()["utensil"]
+    try:
+        return food_load(world.food, round(grams, 3), world.params.food(world.food))
+    except LoadError:
+        return None
+
+
+def _food_record(pred: Any, load: Any, wrist: str, scale: float, planned: JointTrajectory,
+                 executed: JointTrajectory | None) -> dict[str, Any]:
+    return {"food": load.food, "load_g": round(load.grams, 4), "wrist": wrist,
+            "scale": scale, "retimed": scale < 1.0,
+            "planned_duration_s": round(planned.duration, 3),
+            "duration_s": None if executed is None else round(executed.duration, 3),
+            "predicted_spill_g": round(pred.spilled_g, 4),
+            "peak_apparent_tilt_deg": round(pred.peak_apparent_tilt_deg, 3),
+            "peak_surface_tilt_deg": round(pred.peak_surface_tilt_deg, 3),
+            "min_margin_deg": round(pred.min_margin_deg, 3)}
+
+
 class SimArm:
-    """The physics world's arm for the feeding tree (see module doc)."""
+    """The physics world's arm for the feeding tree (see module doc).
+
+    ``load`` gives the load on the utensil when a transport is checked (None: nothing to
+    check): a :class:`~articutool.food.loads.FoodLoad` or a callable returning one (the
+    protocols and the meal weigh it). ``leveling`` is what the decoupled wrist levels
+    against: ``"gravity"`` (its IMU loop) or ``"apparent"`` (slosh-free).
+    """
 
     def __init__(self, world: FeedingWorld, tolerance_deg: float | None = None,
-                 seed: int = 0, rigid: bool = False) -> None:
+                 seed: int = 0, rigid: bool = False, load: Any = None,
+                 leveling: str = "gravity") -> None:
+        if leveling not in ("gravity", "apparent"):
+            raise ValueError(f"leveling must be 'gravity' or 'apparent'; got {leveling!r}")
         self.world = world
         self.tolerance_deg = tolerance_deg
         self.seed = seed
         self.rigid = rigid
+        self.load = load
+        self.leveling = leveling
         self.model = ArmModel(world.spec, world.utensil, 8, world.scene)
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="plan")
         self._goals: dict[str, np.ndarray] = {}
@@ -283,6 +331,83 @@ class SimArm:
         if rep.feasible:
             return JobResult(True, f"feasible, velocity margin {rep.velocity_margin:.0%}")
         return JobResult(False, f"the wrist cannot follow: {rep.reason}")
+
+    def current_load(self) -> Any:
+        """The load to check (``self.load`` called if it is a callable), or None."""
+        return self.load() if callable(self.load) else self.load
+
+    def check_food(self, trajectory: Any) -> JobResult:
+        """Food-aware verification (see :class:`~articutool.feeding.behaviours.CheckFood`):
+        predict the load's spill along ``trajectory`` with the wrist as this system moves it
+        — locked (rigid), leveling, or slosh-free (``leveling = "apparent"``; plain leveling
+        when the tool would refuse that trajectory) — and retime it with TOPP-RA at the
+        speed scales of :data:`~articutool.planning.timing.RETIME_SCALES` until it is
+        predicted spill-free. Both systems get the same retiming."""
+        from articutool.food.loads import LoadError
+        from articutool.planning.timing import RETIME_SCALES, retime
+        from articutool.verify.food import food_check, slosh_free_wrist, spill_model
+
+        load = self.current_load()
+        if load is None or load.grams <= 0:
+            return JobResult(True, "no load to check", FoodDecision(trajectory, None))
+        if not isinstance(trajectory, JointTrajectory):
+            return JobResult(False, "no trajectory to check")
+        spec, utensil = self.world.spec, self.world.utensil
+        try:
+            spill_model(spec, utensil, load)
+        except LoadError as err:
+            return JobResult(False, f"the load cannot be modelled: {err}",
+                             FoodDecision(None, {"food": load.food, "load_g": load.grams,
+                                                 "error": str(err)}))
+        arm = JointTrajectory(trajectory.joint_names[:6], trajectory.times,
+                              trajectory.positions[:, :6], trajectory.velocities[:, :6])
+        tried: list[dict[str, Any]] = []
+        fallback = ""
+        for scale in RETIME_SCALES:
+            timed = arm if scale == 1.0 else retime(arm, spec.arm.max_velocity,
+                                                    spec.arm.max_acceleration, scale)
+            if timed is None:
+                continue
+            if self.rigid:
+                wrist: Any = np.asarray(self.world.wrist_q, dtype=float)
+                kind, executed = "locked", timed
+            else:
+                rep = verify_trajectory(timed, self.model, spec)
+                if not rep.feasible or rep.wrist_trajectory is None:
+                    tried.append({"scale": scale, "infeasible": rep.reason})
+                    continue
+                wrist, kind, executed = rep.wrist_trajectory, "leveling", timed
+                if self.leveling == "apparent":
+                    sf = slosh_free_wrist(timed, self.model, spec, utensil,
+                                          q_wrist_start=self.world.wrist_q)
+                    if sf.ok:
+                        assert sf.arm is not None
+                        wrist, kind, executed = sf.wrist, "slosh_free", sf.combined()
+                        timed = sf.arm
+                    else:
+                        fallback = sf.message
+            rep_f = food_check(timed, wrist, self.model, spec, utensil, load, kind)
+            pred = rep_f.prediction
+            tried.append({"scale": scale, "wrist": kind,
+                          "predicted_spill_g": round(pred.spilled_g, 4)})
+            record = _food_record(pred, load, kind, scale, arm, executed)
+            record["tried"] = tried
+            if fallback:
+                record["slosh_free_fallback"] = fallback
+            if not rep_f.spills:
+                what = ("as planned" if scale == 1.0 else
+                        f"retimed to {scale:g}× speed ({arm.duration:.1f} → "
+                        f"{executed.duration:.1f} s)")
+                return JobResult(True, f"food check: {what}, wrist {kind.replace('_', '-')}, "
+                                       f"predicted spill {pred.spilled_g:.3f} g, margin "
+                                       f"{pred.min_margin_deg:.1f}°",
+                                 FoodDecision(executed, record))
+        worst = tried[-1].get("predicted_spill_g") if tried else None
+        record = {"food": load.food, "load_g": load.grams, "tried": tried,
+                  "predicted_spill_g": worst, "executed": False}
+        return JobResult(False, f"predicted to spill {load.food} even at "
+                                f"{RETIME_SCALES[-1]:g}× speed ({worst} g): re-plan",
+                         FoodDecision(None, record))
 
     def start_plan_path(self, name: str, waypoints: Sequence[TipWaypoint]) -> _FutureJob:
         """Plan the tip's Cartesian path through ``waypoints`` in a worker thread: a joint

@@ -23,7 +23,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from articutool.datafile import format_validation_error, read_document
 from articutool.spec import NonNegative, Positive, Spec
-from articutool.tool.primitives import PrimitiveError, make_primitive, primitive_names
+from articutool.tool.primitive_base import PrimitiveError
+from articutool.tool.primitives import make_primitive, primitive_names
 
 __all__ = [
     "NONE",
@@ -80,7 +81,7 @@ class Approach(_Strict):
 class Insertion(_Strict):
     """How the utensil goes into the food."""
 
-    # sweep: dip tilted, level in the food while moving drag_m (issue 25; depth_m is then
+    # sweep: dip tilted, level in the food while moving drag_m (depth_m is then
     # the dish's lowest point above the floor)
     motion: Literal["scoop", "skewer", "dip", "sweep"]
     depth_m: NonNegative
@@ -130,10 +131,14 @@ class Stages(_Strict):
 
 
 class Transport(_Strict):
-    """Which planner carries the bite, and its tolerance for the strict ones."""
+    """Which planner carries the bite, its tolerance for the strict ones, and what the
+    decoupled wrist levels against: ``gravity`` (the IMU loop, thesis Alg. 1) or ``apparent``
+    (slosh-free: the dish square to g − a of the planned motion, a wrist trajectory the tool
+    follows, plain leveling when the tool would refuse it)."""
 
     planner: Literal["decoupled", "strict6", "strict8"]
     tolerance_deg: Annotated[float, Field(gt=0, le=90)] | None = None
+    leveling: Literal["gravity", "apparent"] = "gravity"
 
     @model_validator(mode="after")
     def _tolerance(self) -> Transport:
@@ -142,6 +147,9 @@ class Transport(_Strict):
         if self.planner == "decoupled" and self.tolerance_deg is not None:
             raise ValueError("decoupled takes no tolerance_deg (its constraint is the "
                              "spec's loose band)")
+        if self.planner != "decoupled" and self.leveling != "gravity":
+            raise ValueError(f"leveling = {self.leveling!r} needs the decoupled planner (a "
+                             "strict plan keeps the wrist locked)")
         return self
 
 

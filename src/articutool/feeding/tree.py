@@ -1,9 +1,9 @@
-"""Assembling the feeding tree (issue 10): the transport subtree with plan → verify → execute,
+"""Assembling the feeding tree: the transport subtree with plan → verify → execute,
 bounded attempts, the tool's mode scoped, a safety guard at the root, and a visitor that
 records the bite's telemetry.
 
 Each attempt's budget is the planner's own (``budget_s`` of wall time inside ``plan()``, as
-OMPL counts it), never the simulated clock (issue 21). While a plan is computed in its worker
+OMPL counts it), never the simulated clock. While a plan is computed in its worker
 thread the world waits for it (:meth:`BiteRecorder.wait_for_plans`): a plan costs exactly one
 tick period of simulated time, so a trial's outcome does not depend on the machine's speed
 (a faster or a loaded machine gives the same record for the same seed).
@@ -16,7 +16,9 @@ Shape of :func:`transport_tree`::
         Sequence "transport"
           Attempts "up to N attempts"    (planning_attempts_<goal> on the blackboard)
             Sequence "plan+verify"  Plan (the planner's own budget) -> Verify
-          Execute motion
+                                    [-> Check the food: retime until predicted spill-free]
+          Execute motion            (a slosh-free wrist trajectory goes to the tool; then
+                                     LEVELING again)
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from py_trees.common import Status
 from articutool.feeding.behaviours import (
     ArmInterface,
     Attempts,
+    CheckFood,
     Execute,
     Plan,
     PlanPath,
@@ -66,19 +69,27 @@ class ClockedTimeout(py_trees.decorators.Timeout):
 
 
 def motion(arm: ArmInterface, goal: str, planner: str, *, attempts: int, budget_s: float,
-           verify: bool | None = None, name: str | None = None) -> py_trees.behaviour.Behaviour:
-    """Move the arm to a named goal: bounded attempts of (plan → verify), then execute. Each
-    plan gets ``budget_s`` of the planner's own wall time (see the module doc). ``verify``
-    (default: for the decoupled planner) adds plan-then-verify (Alg. 2, thesis §4.2); a strict
-    plan's constraint is the planner's own. Attempts are counted on the blackboard as
-    ``planning_attempts_<goal>``."""
+           verify: bool | None = None, name: str | None = None, food: bool = False,
+           tool: ToolAPI | None = None, clock: Callable[[], float] | None = None,
+           then: Mode | None = None) -> py_trees.behaviour.Behaviour:
+    """Move the arm to a named goal: bounded attempts of (plan → verify → check the food),
+    then execute. Each plan gets ``budget_s`` of the planner's own wall time (see the module
+    doc). ``verify`` (default: for the decoupled planner) adds plan-then-verify (Alg. 2,
+    thesis §4.2); a strict plan's constraint is the planner's own. ``food`` adds the
+    food-aware check (:class:`CheckFood`: retimed until predicted spill-free, or re-planned);
+    with ``tool`` and ``clock`` a trajectory carrying the wrist's joints (slosh-free leveling)
+    sends them to the tool, whose mode is ``then`` afterwards. Attempts are counted on the
+    blackboard as ``planning_attempts_<goal>``."""
     steps: list[py_trees.behaviour.Behaviour] = [Plan(arm, goal, planner, budget_s)]
     if verify if verify is not None else planner == "decoupled":
         steps.append(Verify(arm))
+    if food:
+        steps.append(CheckFood(arm))
     plan_verify = py_trees.composites.Sequence("plan+verify", memory=True, children=steps)
     tries = Attempts(plan_verify, attempts, f"planning_attempts_{goal}")
     return py_trees.composites.Sequence(
-        name or f"move to {goal}", memory=True, children=[tries, Execute(arm, f"to {goal}")])
+        name or f"move to {goal}", memory=True,
+        children=[tries, Execute(arm, f"to {goal}", tool, clock, then)])
 
 
 def guarded(child: py_trees.behaviour.Behaviour, arm: ArmInterface, tool: ToolAPI,
@@ -103,11 +114,13 @@ def safe_stop_reason(root: py_trees.behaviour.Behaviour) -> str | None:
 
 def transport_tree(arm: ArmInterface, tool: ToolAPI, goal: str, planner: str, *,
                    attempts: int, budget_s: float, clock: Callable[[], float],
-                   stale_s: float = 0.5) -> py_trees.behaviour.Behaviour:
-    """The transport subtree (see the module doc): it runs alone as a tree."""
-    move = motion(arm, goal, planner, attempts=attempts, budget_s=budget_s)
+                   stale_s: float = 0.5, food: bool = False) -> py_trees.behaviour.Behaviour:
+    """The transport subtree (see the module doc): it runs alone as a tree. ``food`` checks
+    the load before executing (:func:`motion`)."""
     # The decoupled arm needs the wrist leveling; a strict (baseline) plan keeps it locked.
     mode = Mode.LEVELING if planner == "decoupled" else Mode.DISABLED
+    move = motion(arm, goal, planner, attempts=attempts, budget_s=budget_s, food=food,
+                  tool=tool, clock=clock, then=mode if mode == Mode.LEVELING else None)
     return guarded(ToolModeScope(move, tool, mode, Mode.DISABLED), arm, tool, clock, stale_s)
 
 
@@ -124,6 +137,9 @@ class BiteRecord:
     failures: list[tuple[str, str]] = field(default_factory=list)
     # The failure that made the bite retreat (a retreat's own failures come after it).
     cause: tuple[str, str] | None = None
+    # Every food check before a transport (what was done — retimed, slosh-free — and the
+    # prediction), in order.
+    food_checks: list[dict] = field(default_factory=list)
 
     @property
     def failed_stage(self) -> str:
@@ -169,6 +185,10 @@ class BiteRecorder(py_trees.visitors.VisitorBase):
                 wait()
 
     def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
+        if isinstance(behaviour, CheckFood) and behaviour.status in (Status.SUCCESS,
+                                                                    Status.FAILURE):
+            while behaviour.records:
+                self.record.food_checks.append(behaviour.records.pop(0))
         if isinstance(behaviour, Plan | PlanPath | Execute):
             key = id(behaviour)
             if behaviour.status == Status.RUNNING:

@@ -1,4 +1,4 @@
-"""The tool <-> PC link: the Articutool API over Zenoh with ROS 2 CDR messages (issue 4).
+"""The tool <-> PC link: the Articutool API over Zenoh with ROS 2 CDR messages.
 
 Modules: ``messages`` (interfaces, CDR codecs, conversions), ``transport`` (interface and the
 rmw_zenoh-style key mapping), ``zenoh_transport`` / ``memory_transport`` (implementations),

@@ -1,4 +1,4 @@
-"""Who may reach the tool's commands, and how often (issues 13 and 22; thesis §3.2.2, §4.5).
+"""Who may reach the tool's commands, and how often (thesis §3.2.2, §4.5).
 
 On a paired tool (``LinkConfig.requires_pairing``) a command must come from a verified paired
 PC; the refusal names the real reason (clock out of sync, replay, expired certificate; "not a
@@ -18,12 +18,13 @@ import logging
 import threading
 from collections import OrderedDict
 
+from articutool.link.auth import Sender
 from articutool.link.config import LinkConfig
-from articutool.link.transport import Endpoint, RateGate, RefusalError, Sender
+from articutool.link.transport import Endpoint, RateGate, RefusalError
 
 __all__ = ["Admission"]
 
-_log = logging.getLogger("articutool.link.server")  # the server's log, as before the split
+_log = logging.getLogger(__name__)
 _MAX_GATES = 1024  # per-sender rate gates kept (oldest forgotten: a fresh gate is full)
 _LOGGED = 10  # log lines per kind of dropped/refused/malformed message, then 1 in _EVERY
 _EVERY = 1000
@@ -42,7 +43,7 @@ class Admission:
     def note(self, key: str, fmt: str, *args: object) -> None:
         """Count one dropped, refused or malformed message under ``key`` and log it: the
         first few of each kind, then one in _EVERY with the count (a flood must not flood
-        the log: issue 22)."""
+        the log)."""
         with self._lock:
             self.counters[key] += 1
             n = self.counters[key]

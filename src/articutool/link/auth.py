@@ -1,4 +1,4 @@
-"""Who sent a link message: signatures with the paired certificates (issue 13).
+"""Who sent a link message: signatures with the paired certificates.
 
 A paired sender attaches (as the Zenoh attachment) its certificate, a timestamp, a random
 nonce and an ECDSA P-256 signature over the key expression, the timestamp, the nonce and the
@@ -9,7 +9,7 @@ and the tool's clocks are synchronised already, for trajectory start times) and 
 not seen within that window (no replay on a plain link). The verified identity is the
 certificate's common name. Certificates already verified are cached by their bytes.
 
-Replay protection keys on what cannot be re-encoded (issue 22, S2): the signer's public key
+Replay protection keys on what cannot be re-encoded: the signer's public key
 (DER SubjectPublicKeyInfo, canonical), the nonce and the timestamp. ECDSA signatures are
 malleable (``s → n − s`` verifies too), so a certificate's bytes are not a stable name for
 it: a captured command re-sent with a re-encoded certificate is the same command. A message

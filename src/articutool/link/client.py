@@ -19,6 +19,7 @@ import uuid
 from collections.abc import Callable
 from typing import Any
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.config import LinkConfig
 from articutool.link.transport import (
@@ -109,8 +110,8 @@ class ArticutoolClient:
     # ---------------------------------------------------------------- plumbing --
     def _decode(self, data: bytes, typename: str) -> Any | None:
         try:
-            return m.decode(data, typename)
-        except m.LinkDecodeError as err:
+            return cdr.decode(data, typename)
+        except cdr.LinkDecodeError as err:
             with self._lock:
                 self.counters["decode_errors"] += 1
             _log.warning("dropped malformed payload: %s", err)
@@ -188,7 +189,7 @@ class ArticutoolClient:
         ep = self.names.client_heartbeat
         while not self._stop.is_set():
             try:
-                self.transport.publish(ep, m.encode(m.heartbeat_msg(time.time(), self.sender),
+                self.transport.publish(ep, cdr.encode(m.heartbeat_msg(time.time(), self.sender),
                                                     ep.type))
             except Exception:
                 _log.exception("heartbeat publish failed")
@@ -204,7 +205,7 @@ class ArticutoolClient:
         if ep not in (self.names.get_result, self.names.release):
             self._commanded = True  # may hold the lease: release it on close
         t = self.cfg.call_timeout if timeout is None else timeout
-        payload = m.encode(request, ep.request_type)
+        payload = cdr.encode(request, ep.request_type)
         try:
             reply = self.transport.call(ep, payload, t)
         except LinkRefusedError as err:
@@ -275,7 +276,7 @@ class ArticutoolClient:
             return None
         try:
             return m.state_from_msgs(js, *parts, stamp=stamp)
-        except m.LinkDecodeError:
+        except cdr.LinkDecodeError:
             with self._lock:
                 self.counters["decode_errors"] += 1
             return None
@@ -354,7 +355,7 @@ class ArticutoolClient:
     def _await_result(self, gid: bytes, timeout: float | None) -> m.PrimitiveResult:
         ep = self.names.get_result
         deadline = None if timeout is None else time.monotonic() + timeout
-        req = m.encode(m.msg(ep.request_type, goal_id=m.goal_uuid(gid)), ep.request_type)
+        req = cdr.encode(cdr.msg(ep.request_type, goal_id=m.goal_uuid(gid)), ep.request_type)
         while True:
             left = None if deadline is None else deadline - time.monotonic()
             if left is not None and left <= 0:
@@ -430,7 +431,7 @@ class ArticutoolClient:
         if start_at is not None and not (math.isfinite(start_at) and start_at > 0):
             raise ValueError(f"start_at must be a wall-clock time > 0; got {start_at!r}")
         stamp = 0.0 if start_at is None else float(start_at)
-        self.transport.publish(ep, m.encode(m.trajectory_msg(trajectory, stamp), ep.type))
+        self.transport.publish(ep, cdr.encode(m.trajectory_msg(trajectory, stamp), ep.type))
 
     def close(self) -> None:
         """Release the command lease if this client holds it, stop the heartbeat, undeclare

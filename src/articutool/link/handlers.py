@@ -1,5 +1,5 @@
 """The link's command handlers: one per service and topic the tool serves (thesis §3.2.2,
-§4.5; issues 13 and 22).
+§4.5).
 
 Each handler admits the sender (``link/admission.py``: pairing, per-sender rate), decodes and
 validates the request, checks the command lease (``link/lease.py``), then queues the ToolAPI
@@ -20,17 +20,19 @@ import threading
 import time
 from collections.abc import Callable
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.admission import Admission
+from articutool.link.auth import Sender
 from articutool.link.goals import Goal, GoalTable
 from articutool.link.inbox import CommandInbox
 from articutool.link.lease import CommandLease
-from articutool.link.transport import Endpoint, Names, RefusalError, Responder, Sender, Transport
+from articutool.link.transport import Endpoint, Names, RefusalError, Responder, Transport
 from articutool.tool.api import Mode, PrimitiveStatus, ToolAPI
 
 __all__ = ["CommandHandlers"]
 
-_log = logging.getLogger("articutool.link.server")  # the server's log, as before the split
+_log = logging.getLogger(__name__)
 _ZERO_ID = bytes(16)
 
 
@@ -69,15 +71,15 @@ class CommandHandlers:
     def _refuse(self, respond: Responder, ep: Endpoint, msg: str) -> None:
         """Answer a refused service call with success=false and ``msg``."""
         t = ep.response_type
-        if ep.type == m.SET_ORIENTATION_CONTROL:
-            respond(m.encode(m.soc_response(False, msg), t))
-        elif ep.type == m.TRIGGER:
-            respond(m.encode(m.trigger_response(False, msg), t))
-        elif ep.type == m.SEND_GOAL:  # ROS 2's SendGoal reply has no text: not accepted
-            respond(m.encode(m.send_goal_response(False, time.time()), t))
-        elif ep.type == m.CANCEL_GOAL:
-            R = m.typestore().types[t]
-            respond(m.encode(m.cancel_response(R.ERROR_REJECTED, []), t))
+        if ep.type == cdr.SET_ORIENTATION_CONTROL:
+            respond(cdr.encode(m.soc_response(False, msg), t))
+        elif ep.type == cdr.TRIGGER:
+            respond(cdr.encode(m.trigger_response(False, msg), t))
+        elif ep.type == cdr.SEND_GOAL:  # ROS 2's SendGoal reply has no text: not accepted
+            respond(cdr.encode(m.send_goal_response(False, time.time()), t))
+        elif ep.type == cdr.CANCEL_GOAL:
+            R = cdr.typestore().types[t]
+            respond(cdr.encode(m.cancel_response(R.ERROR_REJECTED, []), t))
 
     def _ask(self, fn: Callable[..., tuple[bool, str]], *args: object) -> tuple[bool, str]:
         """Call a ToolAPI command; an exception becomes a refusal the client can read."""
@@ -102,7 +104,7 @@ class CommandHandlers:
         who, refusal = self.admission.admit(sender, "set_orientation_control")
         if who is None:
             return self._refuse(respond, ep, refusal)
-        req = m.decode(data, ep.request_type)
+        req = cdr.decode(data, ep.request_type)
         stop = req.control_mode == Mode.DISABLED
         if not stop:
             self.admission.rate_limit(ep, sender)
@@ -120,7 +122,7 @@ class CommandHandlers:
             return self._ask(self.api.set_mode, Mode(req.control_mode), pitch, roll)
 
         def answer(result: object) -> None:
-            respond(m.encode(m.soc_response(*result), ep.response_type))  # type: ignore[misc]
+            respond(cdr.encode(m.soc_response(*result), ep.response_type))  # type: ignore[misc]
         if stop:  # every DISABLED is the same stop: waiting ones are run once
             return self.inbox.submit_stop("disable", run, answer)
         if not self.inbox.submit(lambda: answer(run())):
@@ -133,7 +135,7 @@ class CommandHandlers:
         if who is None:
             return self._refuse(respond, ep, refusal)
         self.admission.rate_limit(ep, sender)
-        m.decode(data, ep.request_type)
+        cdr.decode(data, ep.request_type)
         self._client_seen(who)
         refusal = self._lease(who)
         if refusal:
@@ -141,7 +143,7 @@ class CommandHandlers:
 
         def work() -> None:
             ok, msg = self._ask(self.api.clear_fault)
-            respond(m.encode(m.trigger_response(ok, msg), ep.response_type))
+            respond(cdr.encode(m.trigger_response(ok, msg), ep.response_type))
         if not self.inbox.submit(work):
             self._refuse(respond, ep, "refused: the tool's command inbox is full")
         return None
@@ -152,7 +154,7 @@ class CommandHandlers:
         if who is None:
             return self._refuse(respond, ep, refusal)
         self.admission.rate_limit(ep, sender)
-        m.decode(data, ep.request_type)
+        cdr.decode(data, ep.request_type)
         self._client_seen(who)
         with self._lock:
             before = self.lease.take_over(who, time.monotonic())
@@ -161,7 +163,7 @@ class CommandHandlers:
         _log.warning("AUDIT take-over: %s took the command lease from %s", who,
                      before or "nobody")
         self.lease.record("take_over", who, before)
-        respond(m.encode(m.trigger_response(True, f"{who} holds the command lease (was: "
+        respond(cdr.encode(m.trigger_response(True, f"{who} holds the command lease (was: "
                                                   f"{before or 'nobody'})"), ep.response_type))
         return None
 
@@ -171,13 +173,13 @@ class CommandHandlers:
         if who is None:
             return self._refuse(respond, ep, refusal)
         self.admission.rate_limit(ep, sender)
-        m.decode(data, ep.request_type)
+        cdr.decode(data, ep.request_type)
         with self._lock:
             mine = self.lease.release(who)
         if mine:
             _log.info("command lease released by %s", who)
             self.lease.record("lease_released", who, None)
-        respond(m.encode(m.trigger_response(mine, "released" if mine else
+        respond(cdr.encode(m.trigger_response(mine, "released" if mine else
                                             f"not held by {who} (holder: {self.lease.holder})"),
                          ep.response_type))
         return None
@@ -188,7 +190,7 @@ class CommandHandlers:
         if who is None:  # SendGoal's reply has no text: an error reply names the reason
             raise RefusalError(refusal)
         self.admission.rate_limit(ep, sender)
-        req = m.decode(data, ep.request_type)
+        req = cdr.decode(data, ep.request_type)
         self._client_seen(who)
         refusal = self._lease(who)
         gid = m.uuid_bytes(req.goal_id)
@@ -202,7 +204,7 @@ class CommandHandlers:
                 self.goals.remember(Goal(gid, name, now, m.GoalStatus.ABORTED, result=(
                     m.PrimitiveResult(False, refusal, self._joints_now(),
                                       m.GoalStatus.ABORTED))))
-            respond(m.encode(m.send_goal_response(True, now), ep.response_type))
+            respond(cdr.encode(m.send_goal_response(True, now), ep.response_type))
             return None
 
         def work() -> None:
@@ -217,7 +219,7 @@ class CommandHandlers:
         ep = self.names.send_goal
         with self._lock:
             if gid in self.goals:  # a resent goal id is a protocol error: reject it
-                respond(m.encode(m.send_goal_response(False, now), ep.response_type))
+                respond(cdr.encode(m.send_goal_response(False, now), ep.response_type))
                 return
             ended = self._settle()  # the running goal may have ended since the last tick
             running = self.goals.active
@@ -234,13 +236,13 @@ class CommandHandlers:
                                                 m.GoalStatus.ABORTED)
             self.goals.remember(goal)
         self._answer(ended)
-        respond(m.encode(m.send_goal_response(True, now), ep.response_type))
+        respond(cdr.encode(m.send_goal_response(True, now), ep.response_type))
         self._publish_status()
 
     def _on_get_result(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.get_result  # read-only: open to all, within each sender's rate
         self.admission.rate_limit(ep, sender)
-        req = m.decode(data, ep.request_type)
+        req = cdr.decode(data, ep.request_type)
         gid = m.uuid_bytes(req.goal_id)
         with self._lock:
             goal = self.goals.get(gid)
@@ -249,21 +251,21 @@ class CommandHandlers:
                 return
             result = goal.result if goal is not None else m.PrimitiveResult(
                 False, "unknown goal id", (), m.GoalStatus.UNKNOWN)
-        respond(m.encode(m.result_msg(result), ep.response_type))
+        respond(cdr.encode(m.result_msg(result), ep.response_type))
 
     def _on_cancel(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.cancel_goal
         who, refusal = self.admission.admit(sender, "cancel_goal")
         if who is None:  # CancelGoal's reply has no text: an error reply names the reason
             raise RefusalError(refusal)
-        req = m.decode(data, ep.request_type)  # a stop: no rate limit, never refused for room
+        req = cdr.decode(data, ep.request_type)  # a stop: no rate limit, never refused for room
         self._client_seen(who)
         self._lease(who, stop=True)  # a stop: accepted from any admitted client
         gid = m.uuid_bytes(req.goal_info.goal_id)
-        R = m.typestore().types[ep.response_type]
+        R = cdr.typestore().types[ep.response_type]
 
         def answer(result: object) -> None:
-            respond(m.encode(m.cancel_response(*result), ep.response_type))  # type: ignore[misc]
+            respond(cdr.encode(m.cancel_response(*result), ep.response_type))  # type: ignore[misc]
         with self._lock:
             goal = self.goals.active if gid == _ZERO_ID else self.goals.get(gid)
             if goal is None:
@@ -296,7 +298,7 @@ class CommandHandlers:
         who, _ = self.admission.admit(sender, "a trajectory")
         if who is None or not self.admission.within_rate(ep, sender):
             return
-        message = m.decode(data, ep.type)  # in the link thread
+        message = cdr.decode(data, ep.type)  # in the link thread
         traj = m.trajectory_from_msg(message)
         pre = getattr(self.api, "prevalidate_trajectory", None)
         if callable(pre):  # the length-dependent checks here, not in the loop's tick
@@ -334,7 +336,7 @@ class CommandHandlers:
         who, _ = self.admission.admit(sender, "a client heartbeat")
         if who is None or not self.admission.within_rate(ep, sender):  # a forged heartbeat keeps
             return  # neither a lease nor the link alive
-        m.decode(data, ep.type)
+        cdr.decode(data, ep.type)
         self._client_seen(who)
         with self._lock:
             self.lease.renew(who, time.monotonic())
@@ -349,7 +351,7 @@ class CommandHandlers:
         if not isinstance(ended, tuple):
             return
         waiters, result = ended
-        payload = m.encode(m.result_msg(result), self.names.get_result.response_type)
+        payload = cdr.encode(m.result_msg(result), self.names.get_result.response_type)
         for respond in waiters:
             respond(payload)
         self._publish_status()
@@ -357,5 +359,5 @@ class CommandHandlers:
     def _publish_status(self) -> None:
         with self._lock:
             goals = self.goals.statuses()
-        payload = m.encode(m.status_array(goals), m.GOAL_STATUS_ARRAY)
+        payload = cdr.encode(m.status_array(goals), cdr.GOAL_STATUS_ARRAY)
         self.inbox.off_loop(lambda: self.transport.publish(self.names.status, payload))

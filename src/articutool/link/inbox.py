@@ -1,5 +1,5 @@
 """The link's command inbox: decoded, validated ToolAPI calls waiting for the tool's loop, and
-the I/O that must never run on the loop's thread (issue 22, S1; thesis §3.2.2, §4.5).
+the I/O that must never run on the loop's thread (thesis §3.2.2, §4.5).
 
 The network cannot slow the loop, and no flood can hold back a stop. Commands wait in a
 bounded inbox (``inbox_size``; a full inbox refuses the command, ``dropped_excess``). Stops
@@ -23,11 +23,12 @@ from collections import OrderedDict, deque
 from collections.abc import Callable
 from functools import partial
 
-from articutool.link.transport import Responder, Sender
+from articutool.link.auth import Sender
+from articutool.link.transport import Responder
 
 __all__ = ["CommandInbox"]
 
-_log = logging.getLogger("articutool.link.server")  # the server's log, as before the split
+_log = logging.getLogger(__name__)
 
 
 class CommandInbox:

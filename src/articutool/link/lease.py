@@ -1,4 +1,4 @@
-"""The command lease: one commander at a time (issue 13; thesis §3.2.2, §4.5).
+"""The command lease: one commander at a time (thesis §3.2.2, §4.5).
 
 The first command from a client gives it the lease, which its heartbeats and commands renew
 and which expires ``client_timeout`` seconds after it was last heard, or when it releases it.
@@ -19,7 +19,7 @@ from collections import deque
 
 __all__ = ["CommandLease"]
 
-_log = logging.getLogger("articutool.link.server")  # the server's log, as before the split
+_log = logging.getLogger(__name__)
 
 
 class CommandLease:

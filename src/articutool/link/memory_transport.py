@@ -12,13 +12,13 @@ import queue
 import threading
 from collections.abc import Callable
 
+from articutool.link.auth import Sender
 from articutool.link.transport import (
     Endpoint,
     Handle,
     LinkRefusedError,
     LinkTimeoutError,
     RefusalError,
-    Sender,
     Transport,
 )
 

@@ -8,8 +8,8 @@ orientation), ``diagnostic_msgs/DiagnosticArray`` (loop health, fault, mode, lin
 ``sensor_msgs/BatteryState`` (motor input voltage) and ``std_msgs/Header`` as a heartbeat.
 
 Payloads are serialised with ``rosbags`` as ROS 2 CDR (:mod:`articutool.link.cdr`: the type
-names, the interfaces parsed from the ROS 2 package beside it, ``encode``/``decode``; its names
-are re-exported here). Every decoder raises :class:`LinkDecodeError` on malformed input (never
+names, the interfaces parsed from the ROS 2 package beside it, ``encode``/``decode``).
+Every decoder raises :class:`LinkDecodeError` on malformed input (never
 another exception type), so a receiver can count and drop bad payloads. This module is pure.
 """
 
@@ -31,55 +31,19 @@ from articutool.link.cdr import (
     GET_RESULT,
     GOAL_STATUS_ARRAY,
     HEADER,
-    IDL_DIR,
     IMU,
     JOINT_STATE,
     JOINT_TRAJECTORY,
-    PKG,
     SEND_GOAL,
     SET_ORIENTATION_CONTROL,
     TRIGGER,
     LinkDecodeError,
-    dds_type_name,
-    decode,
-    encode,
     msg,
-    type_hash,
-    typestore,
 )
 from articutool.tool.api import Mode, PrimitiveStatus, ToolState
 from articutool.trajectory import JointTrajectory, TrajectoryError
 
-__all__ = [
-    "ACTION",
-    "BATTERY_STATE",
-    "CANCEL_GOAL",
-    "DIAGNOSTIC_ARRAY",
-    "FEEDBACK_MESSAGE",
-    "GET_RESULT",
-    "GOAL_STATUS_ARRAY",
-    "HEADER",
-    "IDL_DIR",
-    "IMU",
-    "JOINT_STATE",
-    "JOINT_TRAJECTORY",
-    "PKG",
-    "SEND_GOAL",
-    "SET_ORIENTATION_CONTROL",
-    "TRIGGER",
-    "GoalStatus",
-    "LinkDecodeError",
-    "PrimitiveResult",
-    "dds_type_name",
-    "decode",
-    "encode",
-    "goal_uuid",
-    "msg",
-    "stamp_to_time",
-    "time_to_stamp",
-    "type_hash",
-    "typestore",
-]
+__all__ = ["GoalStatus", "PrimitiveResult", "goal_uuid", "stamp_to_time", "time_to_stamp"]
 
 
 class GoalStatus:

@@ -1,6 +1,6 @@
 """``articutool pair``: a small certificate authority and one certificate per device.
 
-Pairing makes the tool and the PC trust each other and nobody else (issue 13). It writes::
+Pairing makes the tool and the PC trust each other and nobody else. It writes::
 
     <dir>/ca/ca.pem, ca.key            the pairing CA (keep ca.key off the tool)
     <dir>/<device>/cert.pem, key.pem   the device's certificate (CN = device name) and key

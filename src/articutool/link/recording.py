@@ -24,7 +24,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from articutool.link import messages as m
+from articutool.link import cdr
 from articutool.link.transport import Endpoint, Handle, Transport
 
 __all__ = ["McapRecorder", "RecordingError", "RecordingTransport", "ros2msg_definition",
@@ -81,7 +81,7 @@ def ros2msg_definition(typename: str) -> str:
     """The ``ros2msg`` schema of ``typename`` (any type in :func:`messages.typestore`, also
     service and action parts): its fields, then each type it uses after a ``MSG: pkg/Name``
     header, separated by ``=`` lines, as rosbag2 writes it into MCAP."""
-    ts = m.typestore()
+    ts = cdr.typestore()
     parts, seen, todo = [], {typename}, [typename]
     while todo:
         t = todo.pop(0)
@@ -157,7 +157,7 @@ class McapRecorder:
 
     def write_msg(self, topic: str, typename: str, message: Any, t: float | None = None) -> None:
         """Record a message object (encoded with :func:`messages.encode`)."""
-        self.write(topic, typename, m.encode(message, typename), t)
+        self.write(topic, typename, cdr.encode(message, typename), t)
 
     def metadata(self, name: str, values: dict[str, str]) -> None:
         """An MCAP metadata record (e.g. the run's food, system and seed)."""

@@ -1,6 +1,6 @@
 """The tool behind the link as a ``ToolAPI`` (thesis §3.2.2): what lets the feeding tree,
 which only knows :class:`~articutool.tool.api.ToolAPI`, drive a tool over the link exactly as
-it drives the in-process runtime (issue 22: faults of the link during a bite).
+it drives the in-process runtime, faults of the link during a bite included.
 
 Calls never raise for the link: a call the link could not carry is refused with the link's
 reason (``(False, why)``), as the tool refuses one. A primitive runs as an action goal on a

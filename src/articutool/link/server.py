@@ -19,13 +19,13 @@ one the server settles the current goal (a goal that ended between two ticks get
 then), and while its goal still runs it refuses the new one itself, so no goal's final status
 is ever overwritten unseen.
 
-Who may command (issue 13): on a paired tool (``LinkConfig.requires_pairing``) every command,
+Who may command: on a paired tool (``LinkConfig.requires_pairing``) every command,
 trajectory and client heartbeat must carry a paired PC's signature (``articutool.link.auth``);
 anything else is refused (services answer ``success=false`` with the reason, topics are
 dropped) and counted (``refused_unpaired``). Telemetry is open to any session that reached the
 tool (on a paired tool, over mutual TLS, only paired devices reach it).
 
-A paired PC's refusals say why (issue 22): clocks out of sync, a replay, an expired
+A paired PC's refusals say why: clocks out of sync, a replay, an expired
 certificate; "not a paired PC" only when it is not. Refused goals and cancels, whose ROS
 replies carry no text, are answered with an error naming the reason (the client reads it).
 
@@ -39,7 +39,7 @@ stops: DISABLED and cancel are accepted from any admitted client, without moving
 per lease transition: granted, released, expired, take_over). On an unpaired link the names
 are the clients' own claims, so the lease orders honest clients only.
 
-The network cannot slow the loop, and no flood can hold back a stop (issue 22, S1): the
+The network cannot slow the loop, and no flood can hold back a stop: the
 transport drops payloads above a per-type size (``max_trajectory_bytes``,
 ``max_request_bytes``) before copying them (``oversized``) and verifies the sender; this
 server then refuses what is not admitted, limits each *sender* to ``max_rate_hz`` per
@@ -80,6 +80,7 @@ import uuid
 from collections import deque
 from collections.abc import Callable
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.admission import Admission
 from articutool.link.config import LinkConfig
@@ -199,7 +200,7 @@ class ToolServer(CommandHandlers):
                 fn(*args)
             except RefusalError:  # the transport answers it with the reason
                 raise
-            except m.LinkDecodeError as err:
+            except cdr.LinkDecodeError as err:
                 self._note("decode_errors", "dropped a malformed payload (%s)", err)
             except Exception:
                 with self._lock:
@@ -214,7 +215,7 @@ class ToolServer(CommandHandlers):
         self._note("oversized", "dropped a message on %s (%s)", name, reason)
 
     def _pub(self, ep_name: str, message: object, typename: str) -> None:
-        self.transport.publish(getattr(self.names, ep_name), m.encode(message, typename))
+        self.transport.publish(getattr(self.names, ep_name), cdr.encode(message, typename))
 
     def work_once(self) -> None:
         """Run at most one queued ToolAPI call (stops first): :meth:`CommandInbox.work_once`.
@@ -227,7 +228,7 @@ class ToolServer(CommandHandlers):
             goal = self.goals.active
             ended = self._settle()
         if isinstance(ended, PrimitiveStatus) and goal is not None:
-            self._pub("feedback", m.feedback_msg(goal.goal_id, ended), m.FEEDBACK_MESSAGE)
+            self._pub("feedback", m.feedback_msg(goal.goal_id, ended), cdr.FEEDBACK_MESSAGE)
         self._answer(ended)
 
     def _check_client(self, now: float) -> None:
@@ -257,15 +258,15 @@ class ToolServer(CommandHandlers):
         with self._lock:
             counters = dict(self.counters)
             holder = self.holder or ""
-        self._pub("joint_states", m.joint_state_msg(state, wall), m.JOINT_STATE)
-        self._pub("imu", m.imu_msg(state, wall), m.IMU)
+        self._pub("joint_states", m.joint_state_msg(state, wall), cdr.JOINT_STATE)
+        self._pub("imu", m.imu_msg(state, wall), cdr.IMU)
         self._pub("health", m.health_msg(state, wall, counters, tool_id=self.cfg.tool_id,
-                                         lease_holder=holder), m.DIAGNOSTIC_ARRAY)
-        self._pub("battery", m.battery_msg(state, wall, self.cfg.tool_id), m.BATTERY_STATE)
+                                         lease_holder=holder), cdr.DIAGNOSTIC_ARRAY)
+        self._pub("battery", m.battery_msg(state, wall, self.cfg.tool_id), cdr.BATTERY_STATE)
         if now >= self._next_beat:
             self._next_beat = now + self.cfg.heartbeat_period
             self._pub("heartbeat", m.heartbeat_msg(wall, f"{self.cfg.tool_id}/{self.instance}"),
-                      m.HEADER)
+                      cdr.HEADER)
             self._publish_status()
 
     def _run(self) -> None:

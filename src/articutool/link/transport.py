@@ -64,11 +64,20 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from articutool.link import messages as m
-from articutool.link.auth import Sender
+from articutool.link import cdr
 
-__all__ = ["Endpoint", "LinkOpenError", "LinkRefusedError", "LinkTimeoutError", "Names",
-           "RateGate", "RefusalError", "Responder", "Sender", "Transport", "key_expr"]
+__all__ = [
+    "Endpoint",
+    "LinkOpenError",
+    "LinkRefusedError",
+    "LinkTimeoutError",
+    "Names",
+    "RateGate",
+    "RefusalError",
+    "Responder",
+    "Transport",
+    "key_expr",
+]
 
 Responder = Callable[[bytes], None]
 """Sends the reply to one service request; may be called later, from any thread, once."""
@@ -119,8 +128,8 @@ class Endpoint:
 
 def key_expr(domain_id: int, ep: Endpoint, with_hash: bool = True) -> str:
     """The Zenoh key expression of ``ep`` (see the module docstring)."""
-    h = m.type_hash(ep.type) if with_hash else "*"
-    return f"{domain_id}/{ep.name.strip('/')}/{m.dds_type_name(ep.type)}/{h}"
+    h = cdr.type_hash(ep.type) if with_hash else "*"
+    return f"{domain_id}/{ep.name.strip('/')}/{cdr.dds_type_name(ep.type)}/{h}"
 
 
 @dataclass(frozen=True)
@@ -138,22 +147,22 @@ class Names:
     @property
     def take_over(self) -> Endpoint:
         """Take the command lease from its holder (audited; a caregiver's stop)."""
-        return Endpoint(self._n("take_over"), m.TRIGGER, True)
+        return Endpoint(self._n("take_over"), cdr.TRIGGER, True)
 
     @property
     def release(self) -> Endpoint:
         """Give the command lease back."""
-        return Endpoint(self._n("release"), m.TRIGGER, True)
+        return Endpoint(self._n("release"), cdr.TRIGGER, True)
 
     @property
     def set_orientation_control(self) -> Endpoint:
         """The mode service."""
-        return Endpoint(self._n("set_orientation_control"), m.SET_ORIENTATION_CONTROL, True)
+        return Endpoint(self._n("set_orientation_control"), cdr.SET_ORIENTATION_CONTROL, True)
 
     @property
     def clear_fault(self) -> Endpoint:
         """The explicit fault clear (reboots motors after a hardware error)."""
-        return Endpoint(self._n("clear_fault"), m.TRIGGER, True)
+        return Endpoint(self._n("clear_fault"), cdr.TRIGGER, True)
 
     def _action(self, sub: str) -> str:
         return self._n(f"execute_primitive/_action/{sub}")
@@ -161,62 +170,62 @@ class Names:
     @property
     def send_goal(self) -> Endpoint:
         """Action sub-service: send a goal."""
-        return Endpoint(self._action("send_goal"), m.SEND_GOAL, True)
+        return Endpoint(self._action("send_goal"), cdr.SEND_GOAL, True)
 
     @property
     def get_result(self) -> Endpoint:
         """Action sub-service: long-poll a goal's result."""
-        return Endpoint(self._action("get_result"), m.GET_RESULT, True)
+        return Endpoint(self._action("get_result"), cdr.GET_RESULT, True)
 
     @property
     def cancel_goal(self) -> Endpoint:
         """Action sub-service: cancel goals."""
-        return Endpoint(self._action("cancel_goal"), m.CANCEL_GOAL, True)
+        return Endpoint(self._action("cancel_goal"), cdr.CANCEL_GOAL, True)
 
     @property
     def feedback(self) -> Endpoint:
         """Action feedback topic."""
-        return Endpoint(self._action("feedback"), m.FEEDBACK_MESSAGE)
+        return Endpoint(self._action("feedback"), cdr.FEEDBACK_MESSAGE)
 
     @property
     def status(self) -> Endpoint:
         """Action status topic."""
-        return Endpoint(self._action("status"), m.GOAL_STATUS_ARRAY)
+        return Endpoint(self._action("status"), cdr.GOAL_STATUS_ARRAY)
 
     @property
     def joint_trajectory(self) -> Endpoint:
         """Wrist trajectories, PC → tool."""
-        return Endpoint(self._n("joint_trajectory"), m.JOINT_TRAJECTORY)
+        return Endpoint(self._n("joint_trajectory"), cdr.JOINT_TRAJECTORY)
 
     @property
     def joint_states(self) -> Endpoint:
         """Joint states, tool → PC."""
-        return Endpoint(self._n("joint_states"), m.JOINT_STATE)
+        return Endpoint(self._n("joint_states"), cdr.JOINT_STATE)
 
     @property
     def imu(self) -> Endpoint:
         """Filtered IMU orientation, tool → PC."""
-        return Endpoint(self._n("imu/data"), m.IMU)
+        return Endpoint(self._n("imu/data"), cdr.IMU)
 
     @property
     def health(self) -> Endpoint:
         """Loop health / fault / mode diagnostics, tool → PC."""
-        return Endpoint(self._n("health"), m.DIAGNOSTIC_ARRAY)
+        return Endpoint(self._n("health"), cdr.DIAGNOSTIC_ARRAY)
 
     @property
     def battery(self) -> Endpoint:
         """Battery (motor input voltage), tool → PC."""
-        return Endpoint(self._n("battery"), m.BATTERY_STATE)
+        return Endpoint(self._n("battery"), cdr.BATTERY_STATE)
 
     @property
     def heartbeat(self) -> Endpoint:
         """Tool heartbeat."""
-        return Endpoint(self._n("heartbeat"), m.HEADER)
+        return Endpoint(self._n("heartbeat"), cdr.HEADER)
 
     @property
     def client_heartbeat(self) -> Endpoint:
         """PC heartbeat (the tool's link-loss detector listens to it)."""
-        return Endpoint(self._n("client_heartbeat"), m.HEADER)
+        return Endpoint(self._n("client_heartbeat"), cdr.HEADER)
 
 
 class Handle(ABC):
@@ -262,8 +271,9 @@ class Transport(ABC):
     Every message sent carries its sender (``articutool.link.auth``: a signature on a paired
     transport, a bare name otherwise). With ``with_sender=True`` a callback also receives the
     :class:`Sender` (verified before the callback runs, so the receiver can limit each
-    sender's rate on its own: issue 22, S1). With ``max_bytes`` a larger payload is dropped
-    before it is copied or decoded; ``on_drop(endpoint name, reason)`` (if set) is told.
+    sender's rate on its own, and no flood holds back a stop). With ``max_bytes`` a larger
+    payload is dropped before it is copied or decoded; ``on_drop(endpoint name, reason)`` (if
+    set) is told.
     """
 
     on_drop: Callable[[str, str], None] | None = None

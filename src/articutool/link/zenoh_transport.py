@@ -107,7 +107,7 @@ def _loopback(host: str) -> bool:
 
 def exposure(cfg: LinkConfig, role: Literal["tool", "client"] = "tool") -> list[str]:
     """How anyone but a local process could reach a session of ``role`` opened with
-    ``cfg`` and, unless it requires signatures, command it (issue 22, S3); [] if nobody.
+    ``cfg`` and, unless it requires signatures, command it; [] if nobody.
 
     Read from the zenoh config the session would open with, after every way of setting it
     (flags, the link config's fields, its raw ``extra`` zenoh settings, zenoh's defaults):

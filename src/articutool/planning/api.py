@@ -7,8 +7,7 @@ Three systems (thesis Ch. 5, Exp. 2a):
 * ``strict6`` — 6-DOF arm with the rigid utensil (wrist locked at 0); tip level within ±tol.
 * ``strict8`` — 8-DOF arm + wrist; tip level within ±tol.
 
-The request/result types live in ``planning.types`` and are re-exported here, where callers
-import them.
+The request/result types live in ``planning.types``.
 """
 
 from __future__ import annotations
@@ -16,25 +15,14 @@ from __future__ import annotations
 import math
 
 from articutool.planning.types import (
-    PHASES,
     PLANNERS,
     SYSTEMS,
     PlanRequest,
     PlanResult,
-    TransportTask,
 )
 from articutool.spec import Spec
 
-__all__ = [
-    "PHASES",
-    "PLANNERS",
-    "SYSTEMS",
-    "PlanRequest",
-    "PlanResult",
-    "TransportTask",
-    "plan",
-    "validate_request",
-]
+__all__ = ["plan", "validate_request"]
 
 
 def validate_request(request: PlanRequest) -> None:

@@ -19,7 +19,7 @@
   checker with the tolerance band + fine motion checks): it measured faster and more
   reliable on the benchmark tasks (see :func:`plan_transport`).
 
-Speed (issue 12; per-phase times in ``PlanResult.phases``, ``benchmarks/plan_breakdown.py``):
+Speed (per-phase times in ``PlanResult.phases``, ``benchmarks/plan_breakdown.py``):
 RRT-Connect extends at most ``range`` rad in every mode; in rejection mode the straight
 start→goal motion is tried first (it is the whole path of most decoupled tasks); paths are
 simplified with shortcuts and a few B-spline steps; collisions go through coal's broad phase;
@@ -69,7 +69,6 @@ from articutool.planning.queries import (
     ArmQueries,
     dense_times,
     densify,
-    level_configuration,
     path_length,
 )
 from articutool.planning.timing import time_parameterize, wrist_rate_profile
@@ -79,7 +78,7 @@ from articutool.tool.kinematics import rotation as wrist_rotation
 from articutool.trajectory import JointTrajectory
 from articutool.verify.verifier import verify_trajectory
 
-__all__ = ["METHODS", "PlannerSettings", "level_configuration", "plan_transport"]
+__all__ = ["METHODS", "PlannerSettings", "plan_transport"]
 
 METHODS = ("projection", "rejection")
 _dense_times = dense_times  # its name here before the queries moved out (tests import it)
@@ -102,7 +101,7 @@ class PlannerSettings:
     # rad, RRT-Connect's extension range, in every mode. OMPL's automatic range (0.2 x the
     # space's extent, ~5.2 rad with +-2pi joints) makes 96-98 % of strict motions leave the
     # band; 1 rad measured strict6 0.17x / strict8 0.094x the time, decoupled 0.92x (paired
-    # medians, first 20 tasks, issue 12). range_everywhere=False: projected spaces only.
+    # medians, first 20 tasks). range_everywhere=False: projected spaces only.
     range: float = 1.0
     range_everywhere: bool = True
     # Accept the straight start->goal motion when it passes the search's own motion check

@@ -4,7 +4,7 @@
 and acceleration limits (``spec.arm.max_velocity``, ``spec.arm.max_acceleration``) over a
 cubic spline through the path waypoints, parameterised by joint-space arc length.
 
-The **wrist-aware** variant (issue 5, deliverable 2) adds the wrist's velocity limit. Along a
+The **wrist-aware** variant adds the wrist's velocity limit. Along a
 path ``q(s)`` the tool base turns at ``ω = J_ω(q) q'(s) ṡ``, so the leveling rates of
 Eqs. 4.5–4.7 are linear in the path speed: ``q̇_wrist = A(s) ṡ`` with
 ``A(s) = J⁺(θ(s)) (ω_corr(s) × u(s))`` per unit ``ṡ`` (``ω_corr = −Rᵀ J_ω q'``). The constraint
@@ -16,6 +16,7 @@ first-order linear constraint — the result is feasible for the verifier by con
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -28,7 +29,8 @@ from articutool.planning.constraints import f0_leveling_angles
 from articutool.tool.kinematics import joint_rates_for_rotation
 from articutool.trajectory import JointTrajectory
 
-__all__ = ["WristSpeedConstraint", "time_parameterize", "wrist_rate_profile"]
+__all__ = ["RETIME_SCALES", "WristSpeedConstraint", "retime", "time_parameterize",
+           "wrist_rate_profile"]
 
 # toppra logs at INFO on every call; keep library output quiet.
 toppra.setup_logging("WARNING")
@@ -141,3 +143,21 @@ def time_parameterize(
     q[0], q[-1] = wp[0], wp[-1]
     qd[0], qd[-1] = 0.0, 0.0
     return JointTrajectory(tuple(joint_names), t, q, qd)
+
+
+# Speed scales tried in turn to make a transport spill-free: 0.8ⁿ down to a quarter of the
+# arm's speed (four times the duration, sixteen times less acceleration).
+RETIME_SCALES = (1.0, 0.8, 0.64, 0.51, 0.41, 0.33, 0.26)
+
+
+def retime(traj: JointTrajectory, max_velocity: NDArray[np.float64],
+           max_acceleration: NDArray[np.float64], scale: float) -> JointTrajectory | None:
+    """The same path as ``traj`` (its samples as waypoints, in its joint order) timed by
+    TOPP-RA at ``scale`` × the velocity limits and ``scale²`` × the acceleration limits — a
+    trajectory ``1/scale`` times slower wherever the limits bind. ``None`` if TOPP-RA finds
+    no parameterisation."""
+    if not (math.isfinite(scale) and 0.0 < scale <= 1.0):
+        raise ValueError(f"scale must be in (0, 1]; got {scale}")
+    return time_parameterize(traj.positions, traj.joint_names,
+                             np.asarray(max_velocity) * scale,
+                             np.asarray(max_acceleration) * scale * scale)

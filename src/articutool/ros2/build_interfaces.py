@@ -6,7 +6,7 @@ out like a ROS install space), so ``import articutool_interfaces.srv`` works wit
 environment set-up. The package's ``.srv``/``.action`` files are the ones the link's CDR
 messages are parsed from (``articutool/link/articutool_interfaces``): one definition.
 
-Two facts measured with these wheels (``ros2-notes.md``): their
+Two facts measured with these wheels (``docs/notes/2026-11-22-ros2-from-pypi.md``): their
 ``*__rosidl_generator_pyExport.cmake`` files name the wheel builder's Python and NumPy include
 directories, which CMake rejects as non-existent paths, so they are rewritten to this
 interpreter's (idempotent; a forced reinstall of a wheel undoes it and the next run redoes it);

@@ -33,6 +33,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.client import ArticutoolClient, LinkError
 
@@ -122,7 +123,7 @@ class ArticutoolRos2Node:
     def _forwarder(self, pub: Any, typename: str) -> Any:
         def on_data(data: bytes) -> None:
             try:  # only well-formed messages of the right type reach the ROS 2 graph
-                m.decode(data, typename)
+                cdr.decode(data, typename)
                 pub.publish(bytes(data))
                 self.counters["forwarded"] += 1
             except Exception as err:  # malformed payload, or rclpy shutting down
@@ -158,7 +159,7 @@ class ArticutoolRos2Node:
     def _on_trajectory(self, data: bytes) -> None:
         """A ROS 2 wrist trajectory (serialised) → the tool; header.stamp 0 = start now."""
         try:
-            msg = m.decode(data, m.JOINT_TRAJECTORY)
+            msg = cdr.decode(data, cdr.JOINT_TRAJECTORY)
             traj = m.trajectory_from_msg(msg)
             stamp = m.stamp_to_time(msg.header.stamp)
             self.client.follow_trajectory(traj, start_at=stamp if stamp > 0 else None)

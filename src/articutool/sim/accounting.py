@@ -15,8 +15,9 @@ An item (a pecan piece, a water particle, a noodle strand) is, at each accountin
   the hops before it decided, so the result (the fixed point where no unclassified item
   touches a classified one) is a function of the contact graph alone: neither the order in
   which MuJoCo lists the contacts nor the direction of a pair can change it (thesis §5's
-  outcome classes rest on it; issue 21 found 15 % of random graphs order-dependent). A heap
-  on a spoon counts as on the spoon and a heap in the bowl as in the bowl;
+  outcome classes rest on it; a single pass that reads its own earlier decisions depends on
+  the order in 15 % of random graphs). A heap on a spoon counts as on the spoon and a heap in
+  the bowl as in the bowl;
 - **airborne** when it touches nothing that is classified (falling, or flung);
 - **eaten** once it entered the mouth region (the world removes it).
 

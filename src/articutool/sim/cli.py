@@ -204,7 +204,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    help="save a PNG of the last frame; never overwrites")
     p.add_argument("--record", metavar="FILE", default=None,
                    help="record the run (.npz: joints, food, spills, tool telemetry) for "
-                        "`articutool view --recording`; never overwrites")
+                        "articutool view --recording; never overwrites")
     p.set_defaults(func=_cmd_sim)
     c = sub.add_parser("sim-calibrate", help="calibration experiments of a food model "
                        "(angle of repose, what a level utensil holds)")

@@ -36,11 +36,12 @@ def run_demo(
 ) -> dict[str, Any]:
     """Run the demo; returns the figures (see module docstring)."""
     import articutool.planning.ompl_planner  # noqa: F401  (import OMPL/toppra before timing)
-    from articutool.arm import ArmModel
     from articutool.arm.ik import staging_configuration
-    from articutool.planning.api import PlanRequest, TransportTask, plan
+    from articutool.arm.model import ArmModel
+    from articutool.planning.api import plan
+    from articutool.planning.types import PlanRequest, TransportTask
     from articutool.sim.transport import simulate_transport
-    from articutool.verify import verify_trajectory
+    from articutool.verify.verifier import verify_trajectory
 
     model = ArmModel(spec, utensil=utensil)
     start = spec.arm.configuration("Resting")

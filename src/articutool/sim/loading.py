@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from articutool.sim.mjcf import spoon_dish
+from articutool.food.dish import spoon_dish
 from articutool.spec import UtensilSpec
 
 __all__ = ["drop_points", "pour_lattice"]

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import py_trees
 
+from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.recording import McapRecorder
 from articutool.link.transport import Names
@@ -148,11 +149,11 @@ class WorldMcapRecorder:
                         (n.health, m.health_msg(st, t, {}, self.tool_id)),
                         (n.battery, m.battery_msg(st, t, self.tool_id))):
             self.rec.write_msg(ep.name, ep.type, msg, t)
-        arm = m.msg(m.JOINT_STATE, header=m.header(t, "j2n6s200_link_base"),
+        arm = cdr.msg(cdr.JOINT_STATE, header=m.header(t, "j2n6s200_link_base"),
                     name=list(world.layout.arm_joints),
                     position=np.asarray(world.arm_q, dtype=np.float64),
                     velocity=np.zeros(0), effort=np.zeros(0))
-        self.rec.write_msg("/arm/joint_states", m.JOINT_STATE, arm, t)
+        self.rec.write_msg("/arm/joint_states", cdr.JOINT_STATE, arm, t)
         if self.goal is not None:
             self._goal_tick(self._api.primitive_status())
         if world.time >= self._next_food or len(world.spills) != self._spills:
@@ -174,20 +175,20 @@ class WorldMcapRecorder:
                                            status))
 
     def _food(self, world: Any, t: float) -> None:
-        kv = [m.msg("diagnostic_msgs/msg/KeyValue", key=f"{k}_g", value=repr(v))
+        kv = [cdr.msg("diagnostic_msgs/msg/KeyValue", key=f"{k}_g", value=repr(v))
               for k, v in world.masses_g().items()]
-        sts = [m.msg("diagnostic_msgs/msg/DiagnosticStatus", level=0, name="food: mass per place",
+        sts = [cdr.msg("diagnostic_msgs/msg/DiagnosticStatus", level=0, name="food: mass per place",
                      message=world.food, hardware_id="sim", values=kv)]
         for s in world.spills:
-            sts.append(m.msg("diagnostic_msgs/msg/DiagnosticStatus", level=1,
+            sts.append(cdr.msg("diagnostic_msgs/msg/DiagnosticStatus", level=1,
                              name=f"food: spill of item {s.item}", message=s.place,
                              hardware_id="sim", values=[
-                                 m.msg("diagnostic_msgs/msg/KeyValue", key=k, value=str(v))
+                                 cdr.msg("diagnostic_msgs/msg/KeyValue", key=k, value=str(v))
                                  for k, v in (("t", s.t), ("mass_g", s.mass_g),
                                               ("where", s.where))]))
         self._spills = len(world.spills)
-        self.rec.write_msg("/sim/food", m.DIAGNOSTIC_ARRAY,
-                           m.msg(m.DIAGNOSTIC_ARRAY, header=m.header(t), status=sts), t)
+        self.rec.write_msg("/sim/food", cdr.DIAGNOSTIC_ARRAY,
+                           cdr.msg(cdr.DIAGNOSTIC_ARRAY, header=m.header(t), status=sts), t)
 
     def close(self) -> None:
         """Restore the world's tool API, stop recording and finish the file."""
@@ -224,12 +225,12 @@ class _TreeStatus(py_trees.visitors.VisitorBase):
         if self.now == self.last or self.o.rec.closed:
             return
         self.last = dict(self.now)
-        sts = [m.msg("diagnostic_msgs/msg/DiagnosticStatus",
+        sts = [cdr.msg("diagnostic_msgs/msg/DiagnosticStatus",
                       level=_LEVEL.get(py_trees.common.Status[s], 0), name=name, message=s,
                       hardware_id="feeding tree",
-                      values=[m.msg("diagnostic_msgs/msg/KeyValue", key="feedback", value=fb)]
+                      values=[cdr.msg("diagnostic_msgs/msg/KeyValue", key="feedback", value=fb)]
                       if fb else [])
                for name, (s, fb) in self.now.items()]
         t = self.o.stamp()
-        self.o.rec.write_msg("/feeding/tree", m.DIAGNOSTIC_ARRAY,
-                             m.msg(m.DIAGNOSTIC_ARRAY, header=m.header(t), status=sts), t)
+        self.o.rec.write_msg("/feeding/tree", cdr.DIAGNOSTIC_ARRAY,
+                             cdr.msg(cdr.DIAGNOSTIC_ARRAY, header=m.header(t), status=sts), t)

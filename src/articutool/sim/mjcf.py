@@ -25,24 +25,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from articutool.arm.model import TOOL_BASE_FRAME, tip_frame_name
-from articutool.arm.scene import Box, Capsule, Cylinder, Halfspace, Scene, Sphere, rpy_matrix
+from articutool.arm.scene import Box, Capsule, Cylinder, Halfspace, Scene, Sphere
+from articutool.food.dish import spoon_dish
+from articutool.rotations import rpy_matrix
 from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
 from articutool.sim.pieces import Capsule as PieceCapsules
 from articutool.sim.pieces import capsule_mass, draw_piece, footprint, pack_layer
-from articutool.spec import Spec, UtensilSpec
+from articutool.spec import Spec
 
-__all__ = [
-    "FT_SITE",
-    "IMU_SITE",
-    "WorldLayout",
-    "build_mjcf",
-    "fork_strand_attrs",
-    "spoon_dish",
-    "strand_chain",
-    "strand_geom_attrs",
-    "strand_tack_attrs",
-    "tip_site_name",
-]
+__all__ = ["FT_SITE", "IMU_SITE", "WorldLayout", "build_mjcf", "fork_strand_attrs", "strand_chain",
+           "strand_geom_attrs", "strand_tack_attrs", "tip_site_name"]
 
 IMU_SITE = "imu"
 FT_SITE = "ft"
@@ -154,15 +146,6 @@ def _static_geoms(scene: Scene, friction: float, wall_factor: float,
             for nm in names:
                 layout.places[nm] = o.place
     return out
-
-
-def spoon_dish(u: UtensilSpec) -> tuple[float, float, float, float, float, float]:
-    """(zc, a, b, a0, b0, depth) of a spoon's dish in the utensil frame: centre z, rim
-    semi-axes along z and y, floor semi-axes (45° walls), depth; the floor is at x = tip_x."""
-    assert u.physics.bowl is not None
-    length, width, depth = u.physics.bowl
-    a, b = length / 2, width / 2
-    return u.tip_z - a, a, b, max(a - depth, 0.25 * a), max(b - depth, 0.25 * b), depth
 
 
 def _utensil_geoms(spec: Spec, utensil: str, layout: WorldLayout,
@@ -426,7 +409,7 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
     layout = WorldLayout(xml="", arm_joints=arm.joint_names, wrist_joints=list(w.joint_names))
     layout.timestep = wp.timestep
     # The no-slip solver stops a loaded wrap creeping on soft contacts (strands only: it
-    # costs time, simulation-notes.md).
+    # costs time, docs/notes/2026-11-22-simulation-prototypes.md).
     noslip = food_p.noslip_iterations if isinstance(food_p, Strands) else 0
     x: list[str] = [
         f'<mujoco model="{arm.model}_articutool_feeding">',

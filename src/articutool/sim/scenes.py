@@ -34,8 +34,19 @@ from articutool.spec import Spec
 from articutool.tool.api import Mode
 from articutool.trajectory import JointTrajectory
 
-__all__ = ["SCOOP_HEADING", "SCRIPTS", "ScriptError", "acquire", "cartesian_path", "first_ik",
-           "lift_trajectory", "max_twirl_turns", "run_script", "scoop", "skewer", "tip_target"]
+__all__ = [
+    "SCRIPTS",
+    "ScriptError",
+    "acquire",
+    "cartesian_path",
+    "first_ik",
+    "lift_trajectory",
+    "max_twirl_turns",
+    "run_script",
+    "scoop",
+    "skewer",
+    "tip_target",
+]
 
 SCRIPTS = ("scoop", "carry", "tilt")
 _Z = np.array([0.0, 0.0, 1.0])

@@ -7,13 +7,13 @@
 each physics step applies the arm servos' references and the wrist motors' torques, steps,
 then emits IMU and F/T samples at their rates; every loop period the runtime ticks on the
 simulation clock. Commands reach the tool through ``world.tool``, the same ``ToolAPI`` the
-link serves. For speed (issue 24) the steps between two ticks run as one batch with the
+link serves. For speed the steps between two ticks run as one batch with the
 per-step Python cut to what depends on the step, and a settled pile is restored rather than
 settled again; both are bit-identical to stepping one at a time and settling afresh
 (``tests/test_sim_speed.py``; where the time goes: docs/simulation.md, *Speed*).
 
-(~590 lines: one stepping loop — arm servos, the wrist's velocity loop, sensors, the tool's
-tick — and the arm-motion API around it; the food ledger and load placement live apart.)
+One stepping loop — arm servos, the wrist's velocity loop, sensors, the tool's tick — and the
+arm-motion API around it; the food ledger and load placement live apart.
 
 The arm follows a :class:`~articutool.trajectory.JointTrajectory` with joint servos (PD with
 velocity feed-forward, torque-limited by the spec's efforts), so contacts see the real
@@ -68,8 +68,8 @@ _RESET_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BA
 
 class PhysicsResetError(RuntimeError):
     """MuJoCo reset the simulation after a numerical instability: the arm, the wrist and the
-    food jumped back to the model's defaults, so the run's outcome is meaningless and it stops
-    here (issue 26: such a run is detected and never counted)."""
+    food jumped back to the model's defaults, so the run's outcome is meaningless: it stops
+    here and is never counted."""
 
 # Settled piles by (model, start state): restored instead of settled again (_settle). A few:
 # an experiment's conditions share a repeat's seed (common random numbers, experiments.design).

@@ -1,11 +1,11 @@
-"""Yaw-invariant leveling controller (thesis §4.2, Algorithm 1; hardware-facts §5).
+"""Yaw-invariant leveling controller (thesis §4.2, Algorithm 1; docs/hardware.md §5).
 
 Pure and stateful: :class:`LevelingController` holds only the PID memory (integral and last
 error) and the chosen offsets; it reads no sensor and drives no motor. Each 50 Hz tick the
 runtime hands it the tool-base orientation in the gravity-aligned world frame and the measured
 joints, and gets back a joint velocity command ``[pitch, roll]`` in rad/s.
 
-One tick (Algorithm 1, with the reference tuning of hardware-facts §5):
+One tick (Algorithm 1, with the reference tuning of docs/hardware.md §5):
 
 1. ``y_world = R_world←F0 · y(q)``, the tool's up vector (Eq. 4.1) in the world.
 2. Error: the axis-angle rotation taking ``y_world`` onto world +z (Alg. 1 lines 8–10). The
@@ -41,7 +41,7 @@ base. In words: the tool is levelled, then turned a further ``a`` in pitch and `
 about its own joints. Steps 1–6 use ``q − o``; the joint limits (step 7) apply to the
 physical ``q``.
 
-**Stall report** (beyond Alg. 1; issue 21). Alg. 1 is local: from a base tilted 60–120° it
+**Stall report** (beyond Alg. 1). Alg. 1 is local: from a base tilted 60–120° it
 can come to rest with pitch pressed against a limit (or pitch damped away at the roll
 singularity) while the tool is still tilted, though a level configuration exists on the other
 side of the joint space (reaching it would swing the utensil through large tilts, so the
@@ -64,7 +64,6 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from articutool.rotations import quaternion_to_matrix
 from articutool.spec import Spec
 from articutool.tool.kinematics import (
     TWO_PI,
@@ -73,8 +72,7 @@ from articutool.tool.kinematics import (
     up_vector,
 )
 
-# quaternion_to_matrix (articutool.rotations) is re-exported: the runtime imports it from here.
-__all__ = ["LevelingController", "quaternion_to_matrix"]
+__all__ = ["LevelingController"]
 
 _Z = np.array([0.0, 0.0, 1.0])
 _X = np.array([1.0, 0.0, 0.0])
@@ -102,7 +100,7 @@ def _rotation_matrix(R: ArrayLike, name: str) -> NDArray[np.float64]:
 
 
 class LevelingController:
-    """PID leveling of the tool's up vector against gravity (thesis Alg. 1; hardware-facts §5).
+    """PID leveling of the tool's up vector against gravity (thesis Alg. 1; docs/hardware.md §5).
 
     Parameters are the reference tuning (``spec.controller``) and the wrist's leveling limits
     and commandable speeds (``spec.wrist``); :meth:`from_spec` reads them. ``R_base_imu`` is

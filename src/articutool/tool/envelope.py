@@ -1,5 +1,5 @@
 """The runtime's joint safety envelope and its limit-fault recovery (thesis §4.4,
-hardware-facts §6).
+docs/hardware.md §6).
 
 The envelope is pitch ``spec.wrist.pitch_limits`` and roll ``±spec.wrist.roll_turn_budget``
 turns (the cable), each widened by the distance one tick covers at the commandable speed

@@ -1,6 +1,6 @@
 """Orientation filter: the Valenti et al. (2015) gyro + accelerometer complementary filter.
 
-Thesis §4.2; behaviour and parameters in hardware-facts §4. The arithmetic follows the ROS
+Thesis §4.2; behaviour and parameters in docs/hardware.md §4. The arithmetic follows the ROS
 ``imu_complementary_filter`` library (CCNYRoboticsLab/imu_tools, ``complementary_filter.cpp``,
 after PR #234, which set the LERP/SLERP threshold to the paper's 0.9) step by step, in the same
 order of floating-point operations, so that for the same inputs and parameters the output agrees
@@ -82,7 +82,7 @@ def _unit_interval(value: float, name: str) -> float:
 
 
 def _adaptive_gain(gain_acc: float, ax: float, ay: float, az: float) -> float:
-    """Gain scaled by the acceleration-magnitude error (hardware-facts §4, Valenti Eq. 60)."""
+    """Gain scaled by the acceleration-magnitude error (docs/hardware.md §4, Valenti Eq. 60)."""
     error = abs(math.sqrt(ax * ax + ay * ay + az * az) - GRAVITY) / GRAVITY
     if error < _ERR1:
         factor = 1.0
@@ -97,7 +97,7 @@ class ComplementaryFilter:
     """Gyro + accelerometer attitude filter with adaptive gain and gyro-bias estimation.
 
     Valenti, Dryanovski & Xiao (2015), as implemented by ROS ``imu_complementary_filter``;
-    hardware-facts §4. Defaults are the library's; :meth:`from_spec` gives the Articutool's.
+    docs/hardware.md §4. Defaults are the library's; :meth:`from_spec` gives the Articutool's.
 
     Args:
         gain_acc: accelerometer correction gain in [0, 1].

@@ -2,7 +2,7 @@
 
 Pure NumPy; every function accepts any leading batch shape. Joint order is [pitch, roll].
 
-Model (hardware-facts §3): the tool-tip "up" axis y expressed in the tool base frame F0 is
+Model (docs/hardware.md §3): the tool-tip "up" axis y expressed in the tool base frame F0 is
 Eq. 4.1, ``y = (cos θp cos θr, sin θr, sin θp cos θr)``, and the full tip orientation is
 ``R_F0←tip = R_y(−θp) R_z(θr) R_z(−π/2)`` whose second column is Eq. 4.1. The Jacobian
 ``∂y/∂q`` is Eq. 4.4. Its columns are orthogonal with norms |cos θr| and 1, so
@@ -80,7 +80,7 @@ def tilt_from_vertical(up_world: ArrayLike) -> NDArray[np.float64]:
 
 
 def rotation(q: ArrayLike) -> NDArray[np.float64]:
-    """Full tip orientation ``R_F0←tip`` (hardware-facts §3). ``q``: (..., 2) → (..., 3, 3)."""
+    """Full tip orientation ``R_F0←tip`` (docs/hardware.md §3). ``q``: (..., 2) → (..., 3, 3)."""
     q = _as_q(q)
     cp, sp = np.cos(q[..., 0]), np.sin(q[..., 0])
     cr, sr = np.cos(q[..., 1]), np.sin(q[..., 1])

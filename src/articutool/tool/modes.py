@@ -8,7 +8,7 @@ command from :class:`~articutool.tool.controller.LevelingController` with the bi
 gyro fed forward (Eq. 4.5) unless ``rate_feedforward=False``. A stall (the controller at
 rest short of level) is no fault: the tool keeps leveling and :attr:`Leveling.stall_target`
 holds the nearest reachable level configuration (NaN when none is reachable), which
-telemetry reports (issue 21). :class:`~articutool.tool.runtime.ToolRuntime` composes it.
+telemetry reports. :class:`~articutool.tool.runtime.ToolRuntime` composes it.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from articutool.tool.controller import LevelingController
 
 __all__ = ["Leveling", "check_offsets", "requested_mode"]
 
-log = logging.getLogger("articutool.tool.runtime")  # the runtime's log, as before the split
+log = logging.getLogger(__name__)
 
 _TWO_PI = 2.0 * math.pi
 

@@ -1,5 +1,5 @@
 """The food primitive's base class: parameters checked, phases planned, stepped with the safety
-clip, progress and result reported (thesis §4.4; hardware-facts §6). The conventions, limits
+clip, progress and result reported (thesis §4.4; docs/hardware.md §6). The conventions, limits
 and the library are described in :mod:`articutool.tool.primitives`, which re-exports
 :class:`Primitive` and :class:`PrimitiveError`.
 """

@@ -1,4 +1,4 @@
-"""Food primitives: parameterised, stateful wrist motions (thesis §4.4; hardware-facts §6).
+"""Food primitives: parameterised, stateful wrist motions (thesis §4.4; docs/hardware.md §6).
 
 Pure: a primitive is built from its parameters, the spec and the joints at the start, then
 stepped once per control tick with the *measured* joints; it returns a joint velocity command
@@ -55,7 +55,7 @@ A new primitive is one class: subclass :class:`Primitive`, set ``name`` and
 
 Where it lives: this module is the registry and the library; the base class is
 ``primitive_base.py`` and the phases (moves, holds, vibrations, the F/T-weighing ones) are
-``phases.py``. The names are re-exported here.
+``phases.py``.
 """
 
 from __future__ import annotations
@@ -81,9 +81,6 @@ from articutool.tool.primitive_base import Primitive, PrimitiveError
 __all__ = [
     "Homing",
     "NoodleShed",
-    "Phase",
-    "Primitive",
-    "PrimitiveError",
     "Tilt",
     "TiltUntilLoad",
     "TwirlCCW",

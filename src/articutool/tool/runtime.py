@@ -16,7 +16,7 @@ Modes (``Mode``):
   at rest short of level, :attr:`LevelingController.stalled`) is no fault: the tool keeps
   leveling, and ``extra`` reports ``leveling_stalled`` = 1 with the tilt and the nearest
   reachable level configuration (``leveling_target_pitch``/``_roll``, rad; NaN when none is
-  reachable), so the PC sees it (issue 21).
+  reachable), so the PC sees it.
 - ``PRIMITIVE``: a primitive from :func:`~articutool.tool.primitives.make_primitive`; when it
   finishes the runtime returns to ``DISABLED`` and keeps its result.
 - ``TRAJECTORY``: follows a wrist :class:`~articutool.trajectory.JointTrajectory` (e.g. the
@@ -25,7 +25,7 @@ Modes (``Mode``):
   A ``start_delay`` (a ``header.stamp`` in the future, synchronised with the arm) holds the
   present position until then, as ROS trajectory controllers do.
 
-Rules (thesis §4.4, hardware-facts §6): a primitive is refused while leveling, while another
+Rules (thesis §4.4, docs/hardware.md §6): a primitive is refused while leveling, while another
 runs and while a fault is set; any mode change aborts a running primitive (its result is
 ``success=False``, message "aborted by mode change to …").
 
@@ -81,8 +81,7 @@ Composition: this module is the state machine, the loop and the fault handling; 
 composes are their own modules: ``modes.py`` (mode requests, LEVELING), ``envelope.py`` (the
 safety envelope and limit recovery), ``following.py`` (TRAJECTORY: validation and following),
 ``sensing.py`` (IMU → filter, freshness, F/T) and ``telemetry.py`` (loop statistics, energy,
-the state snapshot). Their names are re-exported here. What stays here (about 580 lines of
-code under this page of documentation) is one unit on purpose: the ToolAPI calls, the tick and
+the state snapshot). What stays here is one unit on purpose: the ToolAPI calls, the tick and
 the fault transitions read and write the same mode and fault state under one lock, and split
 apart each would have to reach into the others' state.
 """
@@ -99,21 +98,23 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
+from articutool.rotations import quaternion_to_matrix
 from articutool.spec import Spec
 from articutool.tool.api import ABORTED_BY_MODE_CHANGE, Mode, PrimitiveStatus, ToolState
-from articutool.tool.controller import LevelingController, quaternion_to_matrix
+from articutool.tool.controller import LevelingController
 from articutool.tool.drivers.base import FTDriver, ImuDriver, MotorDriver, MotorState
 from articutool.tool.envelope import SafetyEnvelope
 from articutool.tool.filter import ComplementaryFilter
 from articutool.tool.following import TrajectoryFollower
 from articutool.tool.kinematics import tilt_from_vertical, up_vector
 from articutool.tool.modes import Leveling, check_offsets, requested_mode
-from articutool.tool.primitives import Primitive, PrimitiveError, make_primitive
+from articutool.tool.primitive_base import Primitive, PrimitiveError
+from articutool.tool.primitives import make_primitive
 from articutool.tool.sensing import STALE_IMU_PERIODS, Sensing
 from articutool.tool.telemetry import EnergyMeter, LoopStats, build_state
 from articutool.trajectory import JointTrajectory, TrajectoryError
 
-__all__ = ["STALE_IMU_PERIODS", "LoopStats", "ToolRuntime"]
+__all__ = ["ToolRuntime"]
 
 log = logging.getLogger(__name__)
 

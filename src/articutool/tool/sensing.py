@@ -1,5 +1,5 @@
 """The runtime's sensor reading: the IMU into the complementary filter, its freshness, and the
-F/T sensor (thesis §3.2, §4.2; issue 3).
+F/T sensor (thesis §3.2, §4.2).
 
 Each tick :class:`Sensing` feeds every IMU sample since the last tick, in order, to the
 filter. The IMU samples on its own timer at ``spec.imu.rate_hz`` and the stamps are reception
@@ -24,9 +24,9 @@ from articutool.tool.filter import ComplementaryFilter
 
 __all__ = ["STALE_IMU_PERIODS", "Sensing"]
 
-log = logging.getLogger("articutool.tool.runtime")  # the runtime's log, as before the split
+log = logging.getLogger(__name__)
 
-STALE_IMU_PERIODS = 2.0  # issue 3: IMU data older than two loop periods is stale
+STALE_IMU_PERIODS = 2.0  # IMU data older than two loop periods is stale
 
 
 class Sensing:

@@ -13,7 +13,7 @@ rotates at most ``max_step_deg`` between samples *and* no arm joint moves more t
 2. *kinematic check*: finds the leveling solutions inside the wrist limits (Eqs. 4.2–4.3, both
    branches) and follows the one nearest to the previous sample (Alg. 2 line 12);
 3. *continuity check*: every step of the followed solution must be one the motors can make
-   within the sample's time step — along one solution curve too (issue 21: passing close to
+   within the sample's time step — along one solution curve too (passing close to
    the wrist singularity, ``|cos θr| ≈ 0``, the leveling pitch swings by nearly π between two
    samples whose Eq. 4.7 rates are both small), and when the followed solution leaves the
    limits and the wrist must jump to another one (a branch switch or a whole roll turn);
@@ -25,6 +25,14 @@ rotates at most ``max_step_deg`` between samples *and* no arm joint moves more t
 Everything is vectorised over samples; only branch switches (rare) are handled in a loop.
 The report carries the synchronised leveling trajectory (positions and velocities) that the
 tool's TRAJECTORY mode can execute.
+
+With a ``load`` (food-aware verification) a feasible trajectory is also checked against the
+food it carries (:mod:`articutool.verify.food`): the load's model predicts, along the arm and
+the synchronised leveling wrist, the apparent tilt of the dish, the liquid's surface tilt, the
+margin to the first spill and the grams spilled; a predicted spill makes the trajectory
+infeasible (reason ``"spill"``). ``slosh_free`` checks the slosh-free wrist trajectory instead
+(:func:`~articutool.verify.food.slosh_free_wrist`), plain leveling when none passes the tool's
+validation.
 """
 
 from __future__ import annotations
@@ -36,9 +44,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from articutool.api_types import OrientationModel
+from articutool.food.loads import FoodLoad
 from articutool.spec import Spec
-from articutool.tool.kinematics import joint_rates_for_rotation, wrap_angle
+from articutool.tool.kinematics import joint_rates_for_rotation
 from articutool.trajectory import JointTrajectory, TrajectoryError
+from articutool.verify.leveling import candidate_curves, follow
 
 __all__ = ["VerificationReport", "densify", "verify_trajectory"]
 
@@ -55,13 +65,16 @@ class VerificationReport:
 
     ``reason`` is one of ``"ok"``, ``"arm_joint_limit"``, ``"arm_velocity_limit"``,
     ``"no_leveling_solution"``,
-    ``"discontinuity"`` (a branch switch or jump the motors cannot make in the time step) and
-    ``"velocity"`` (Eq. 4.7 rate above the limit). ``velocity_margin`` is
+    ``"discontinuity"`` (a branch switch or jump the motors cannot make in the time step),
+    ``"velocity"`` (Eq. 4.7 rate above the limit) and ``"spill"`` (feasible for the wrist, but
+    the load is predicted to spill). ``velocity_margin`` is
     ``1 − max_j(max|q̇_j| / q̇max_j)`` over the checked samples: the fraction of motor speed
     left (negative when infeasible; NaN, like ``max_required_velocity``, when no sample's
     rates were evaluated — an arm limit or no leveling solution at the start).
     ``wrist_trajectory`` levels the tool up to the first failure (the whole trajectory when
-    feasible).
+    feasible). ``food`` is the food check (:class:`~articutool.verify.food.FoodReport`) of a
+    kinematically feasible trajectory when a load was given; ``slosh_free`` the slosh-free
+    wrist (:class:`~articutool.verify.food.SloshFreeResult`) when asked for.
     """
 
     feasible: bool
@@ -78,6 +91,8 @@ class VerificationReport:
     waypoints: int
     max_step_deg: float
     wrist_trajectory: JointTrajectory | None = field(repr=False, default=None)
+    food: Any = field(repr=False, default=None)
+    slosh_free: Any = field(repr=False, default=None)
 
     def to_dict(self, include_trajectory: bool = False) -> dict[str, Any]:
         """JSON-ready summary (the wrist trajectory only when asked)."""
@@ -92,6 +107,11 @@ class VerificationReport:
         d["min_singularity_measure"] = _num(self.min_singularity_measure)
         if include_trajectory and self.wrist_trajectory is not None:
             d["wrist_trajectory"] = self.wrist_trajectory.to_dict()
+        if self.food is not None:
+            d["food"] = self.food.to_dict()
+        if self.slosh_free is not None:
+            d["slosh_free"] = {"ok": self.slosh_free.ok, "message": self.slosh_free.message,
+                               "sigma_s": _num(self.slosh_free.sigma_s)}
         return d
 
 
@@ -149,74 +169,6 @@ def densify(
     return t, q, qd, R
 
 
-def _branch_curves(u: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Both IK branches (Eqs. 4.2–4.3) made continuous along the samples: (2, N, 2)."""
-    p_a = np.arctan2(u[:, 2], u[:, 0])
-    r_a = np.arcsin(np.clip(u[:, 1], -1.0, 1.0))
-    a = np.stack([p_a, r_a], axis=-1)
-    b = np.stack([wrap_angle(p_a + np.pi), wrap_angle(np.pi - r_a)], axis=-1)
-    return np.unwrap(np.stack([a, b]), axis=1)
-
-
-def _candidate_curves(u: NDArray[np.float64], lim: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Every branch curve shifted by whole turns that enters the limits somewhere: (C, N, 2)."""
-    base = _branch_curves(u)
-    out = []
-    for curve in base:
-        shifts = []
-        for j in range(2):
-            lo_k = np.ceil((lim[j, 0] - curve[:, j].max()) / (2 * np.pi) - 1e-12)
-            hi_k = np.floor((lim[j, 1] - curve[:, j].min()) / (2 * np.pi) + 1e-12)
-            shifts.append(2 * np.pi * np.arange(lo_k, hi_k + 1))
-        for sp in shifts[0]:
-            for sr in shifts[1]:
-                out.append(curve + np.array([sp, sr]))
-    if not out:
-        return np.empty((0,) + u.shape[:1] + (2,))
-    return np.stack(out)
-
-
-def _follow(
-    curves: NDArray[np.float64],
-    valid: NDArray[np.bool_],
-    q_start: NDArray[np.float64],
-    t: NDArray[np.float64],
-    vmax: NDArray[np.float64],
-) -> tuple[NDArray[np.float64], int, int | None, str]:
-    """Follow the nearest valid solution; returns (q, switches, fail_index, fail_reason).
-    Every step, along a curve or across a switch, must fit ``vmax`` × the time step;
-    ``fail_reason`` "discontinuity" (a switch) or "discontinuity_along" (along one curve)."""
-    n = t.size
-    q = np.full((n, 2), np.nan)
-    if curves.shape[0] == 0 or not valid[:, 0].any():
-        return q, 0, 0, "no_leveling_solution"
-    d0 = np.where(valid[:, 0], np.linalg.norm(curves[:, 0] - q_start, axis=-1), np.inf)
-    c = int(np.argmin(d0))
-    k = 0
-    switches = 0
-    while True:
-        bad = np.flatnonzero(~valid[c, k:])
-        end = n if bad.size == 0 else k + int(bad[0])
-        q[k:end] = curves[c, k:end]
-        fast = np.flatnonzero((np.abs(np.diff(q[k:end], axis=0))
-                               > vmax * np.diff(t[k:end])[:, None]).any(axis=-1))
-        if fast.size:
-            return q, switches, k + int(fast[0]) + 1, "discontinuity_along"
-        if end == n:
-            return q, switches, None, ""
-        if not valid[:, end].any():
-            return q, switches, end, "no_leveling_solution"
-        prev = q[end - 1]
-        d = np.where(valid[:, end], np.linalg.norm(curves[:, end] - prev, axis=-1), np.inf)
-        c = int(np.argmin(d))
-        jump = np.abs(curves[c, end] - prev)
-        switches += 1
-        if (jump > vmax * (t[end] - t[end - 1])).any():
-            q[end] = curves[c, end]
-            return q, switches, end, "discontinuity"
-        k = end
-
-
 def verify_trajectory(
     traj: JointTrajectory,
     model: OrientationModel,
@@ -224,13 +176,66 @@ def verify_trajectory(
     *,
     max_step_deg: float = 1.0,
     q_wrist_start: tuple[float, float] | NDArray[np.float64] = (0.0, 0.0),
+    load: FoodLoad | None = None,
+    utensil: str | None = None,
+    slosh_free: bool = False,
 ) -> VerificationReport:
     """Check that the wrist can keep the utensil level along an arm trajectory (Alg. 2).
 
     ``traj`` holds the arm's joints (any order; names must match ``spec.arm``).
     ``q_wrist_start`` is the wrist configuration the first sample's solution is chosen
-    nearest to. Raises :class:`TrajectoryError` for malformed input.
+    nearest to. With a ``load`` on ``utensil`` (default: the model's), the food check too
+    (see the module doc; ``model`` then needs ``tool_base_poses``). Raises
+    :class:`TrajectoryError` for malformed input and
+    :class:`~articutool.food.loads.LoadError` for a load that cannot be modelled.
     """
+    rep = _verify_leveling(traj, model, spec, max_step_deg, q_wrist_start)
+    if load is None:
+        return rep
+    from dataclasses import replace
+
+    from articutool.verify.food import food_check, slosh_free_wrist, spill_model
+
+    name = utensil if utensil is not None else getattr(model, "utensil", None)
+    if name is None:
+        raise TrajectoryError("utensil: name the utensil that carries the load")
+    spill_model(spec, name, load)  # refuses a load it cannot model, before any answer
+    if not rep.feasible or rep.wrist_trajectory is None:
+        return rep
+    sf = None
+    food = None
+    if slosh_free:
+        sf = slosh_free_wrist(traj, model, spec, name,  # type: ignore[arg-type]
+                              q_wrist_start=rep.wrist_trajectory.positions[0])
+        if sf.ok:
+            assert sf.arm is not None and sf.wrist is not None
+            food = food_check(sf.arm, sf.wrist, model, spec, name,  # type: ignore[arg-type]
+                              load, "slosh_free")
+    if food is None:
+        food = food_check(traj, rep.wrist_trajectory, model, spec, name,  # type: ignore[arg-type]
+                          load, "leveling")
+    if not food.spills:
+        return replace(rep, food=food, slosh_free=sf)
+    p = food.prediction
+    msg = (f"predicted to spill {p.spilled_g:.2f} g of {load.grams:g} g {load.food} "
+           f"(first at t = {p.first_spill_time:.2f} s; peak apparent tilt "
+           f"{p.peak_apparent_tilt_deg:.1f}°, liquid surface {p.peak_surface_tilt_deg:.1f}°, "
+           f"margin {p.min_margin_deg:.1f}°) with the wrist {food.wrist.replace('_', '-')}")
+    t_spill = p.first_spill_time
+    wp = None if t_spill is None else max(
+        int(np.searchsorted(traj.times, t_spill, side="right")) - 1, 0)
+    return replace(rep, feasible=False, reason="spill", message=msg, first_failure_time=t_spill,
+                   first_failure_index=wp, food=food, slosh_free=sf)
+
+
+def _verify_leveling(
+    traj: JointTrajectory,
+    model: OrientationModel,
+    spec: Spec,
+    max_step_deg: float,
+    q_wrist_start: tuple[float, float] | NDArray[np.float64],
+) -> VerificationReport:
+    """Alg. 2 proper: the wrist can level along the arm trajectory (no food)."""
     if not (np.isfinite(max_step_deg) and 0.0 < max_step_deg <= 45.0):
         raise TrajectoryError(f"max_step_deg must be in (0, 45] degrees; got {max_step_deg}")
     q_start = np.asarray(q_wrist_start, dtype=np.float64)
@@ -296,10 +301,10 @@ def verify_trajectory(
             return report(False, reason, f"t = {t[k]:.3f} s (between waypoints): {detail}",
                           k, t, empty, empty, 0, 0, 0)
     u = np.einsum("kji,j->ki", R, _WORLD_UP)  # Rᵀ z, Alg. 2 line 6
-    curves = _candidate_curves(u, lim)
+    curves = candidate_curves(u, lim)
     inside = (curves >= lim[:, 0] - 1e-12) & (curves <= lim[:, 1] + 1e-12)
     valid = inside.all(axis=-1)
-    qw, switches, fail, fail_reason = _follow(curves, valid, q_start, t, vmax)
+    qw, switches, fail, fail_reason = follow(curves, valid, q_start, t, vmax)
 
     omega = model.tool_base_angular_velocity(q, qd)
     omega_local = -np.einsum("kji,kj->ki", R, omega)  # Eq. 4.5

@@ -41,9 +41,10 @@ def _check_address(host: str, port: int) -> None:
 
 def _plan_from_task(args: argparse.Namespace, spec: Any) -> tuple[Any, str, str]:
     """Plan benchmark task ``--plan-task`` with ``--system``; (trajectory, wrist, title)."""
-    from articutool.bench.tasks import TaskFileError, check_task_limits, load_task_set
+    from articutool.bench.taskfile import TaskFileError, check_task_limits, load_task_set
     from articutool.cli_support import UsageError
-    from articutool.planning.api import PlanRequest, plan
+    from articutool.planning.api import plan
+    from articutool.planning.types import PlanRequest
 
     try:
         ts = load_task_set(args.tasks)

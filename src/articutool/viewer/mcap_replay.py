@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from articutool.link import messages as m
+from articutool.link import cdr
 from articutool.sim.recording import RecordingError
 from articutool.spec import Spec
 from articutool.trajectory import JointTrajectory
@@ -59,8 +59,8 @@ def load_mcap_motion(path: str | Path, spec: Spec) -> JointTrajectory:
                 if not (arm or ch.topic.endswith("/joint_states")):
                     continue
                 try:
-                    js = m.decode(msg.data, m.JOINT_STATE)
-                except m.LinkDecodeError:
+                    js = cdr.decode(msg.data, cdr.JOINT_STATE)
+                except cdr.LinkDecodeError:
                     continue
                 names = tuple(str(n) for n in js.name)
                 want = arm_names if arm else wrist_names

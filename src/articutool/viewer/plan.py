@@ -101,7 +101,7 @@ def plan_view(traj: JointTrajectory, model: ArmModel, spec: Spec, *, wrist: str 
             q = np.concatenate([arm.sample(t)[0], np.zeros((t.size, 2))], axis=1)
             summary.append("rigid tool: wrist locked at zero (not verified)")
         else:
-            from articutool.verify import verify_trajectory
+            from articutool.verify.verifier import verify_trajectory
 
             rep = verify_trajectory(arm, model, spec, max_step_deg=max_step_deg)
             verified, reason, message = rep.feasible, rep.reason, rep.message

@@ -9,37 +9,10 @@ from __future__ import annotations
 from typing import Literal
 
 from articutool.spec import Spec
-from articutool.tool.drivers.base import (
-    JOINTS,
-    DriverError,
-    FTDriver,
-    FTSample,
-    HardwareError,
-    ImuDriver,
-    ImuSample,
-    MotorDriver,
-    MotorMode,
-    MotorState,
-)
-from articutool.tool.drivers.sim import SimFTDriver, SimImuDriver, SimMotorDriver, SimWrist
+from articutool.tool.drivers.base import FTDriver, ImuDriver, MotorDriver
+from articutool.tool.drivers.sim import SimWrist
 
-__all__ = [
-    "JOINTS",
-    "DriverError",
-    "FTDriver",
-    "FTSample",
-    "HardwareError",
-    "ImuDriver",
-    "ImuSample",
-    "MotorDriver",
-    "MotorMode",
-    "MotorState",
-    "SimFTDriver",
-    "SimImuDriver",
-    "SimMotorDriver",
-    "SimWrist",
-    "make_drivers",
-]
+__all__ = ["make_drivers"]
 
 
 def make_drivers(

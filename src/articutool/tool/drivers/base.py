@@ -1,6 +1,6 @@
 """The small, synchronous driver interface the 50 Hz tool runtime is written against.
 
-Three device kinds (hardware-facts §3): the Dynamixel pitch/roll motor pair, the OpenLog
+Three device kinds (docs/hardware.md §3): the Dynamixel pitch/roll motor pair, the OpenLog
 Artemis IMU and the Resense HEX21 force/torque sensor. Every method returns promptly (no
 call waits for more than one bus transaction), so the runtime loop can call them each tick.
 Each real driver has a simulated twin in ``articutool.tool.drivers.sim`` with the same API.
@@ -287,7 +287,7 @@ class FTDriver(_StreamDriver):
 
     def tare(self, n: int | None = None) -> None:
         """Average the next ``n`` raw samples (default ``spec.ft.tare_samples``) and subtract
-        that offset from every later sample (hardware-facts §3). Non-blocking: the new offset
+        that offset from every later sample (docs/hardware.md §3). Non-blocking: the new offset
         applies once ``n`` samples have arrived (see ``tare_pending``)."""
         n = self._tare_default if n is None else n
         if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:

@@ -2,7 +2,7 @@
 
 Uses ``dynamixel_sdk`` (``PortHandler``, ``PacketHandler(2.0)``, ``GroupSyncWrite`` and the
 packet handler's sync-read primitives). Control-table addresses are those of the X-series
-(hardware-facts §3), checked against the ROBOTIS e-manual control table for the XC430-W250
+(docs/hardware.md §3), checked against the ROBOTIS e-manual control table for the XC430-W250
 family (EEPROM 0–63, RAM 64+). Units: velocity 0.229 rev/min per unit, position 4096 ticks
 per revolution, present values signed 32-bit two's complement, input voltage 0.1 V.
 
@@ -22,7 +22,7 @@ Safety choices:
 - The multi-turn count survives a reboot (``clear_errors``): a rebooted X-series motor reports
   its position within one turn again, so the driver keeps the lost whole turns as an offset.
 
-One file on purpose (about 520 lines): it is one class implementing ``MotorDriver`` over
+One file on purpose: it is one class implementing ``MotorDriver`` over
 ``dynamixel_sdk``, and its register I/O and the safety sequences above (open, stop with its
 read-back, the watchdog's arming and clearing, the reboot with the turn offset) share the
 port, the registers' cached state and the error handling. The SDK-free register units are
@@ -54,7 +54,6 @@ from articutool.dynamixel_units import (
     to_unsigned32,
     turns_lost_in_reboot,
     velocity_limit_units,
-    velocity_unit_rad_s,
     velocity_units_to_rad_s,
 )
 from articutool.spec import Spec
@@ -85,17 +84,6 @@ __all__ = [
     "OPERATING_MODE_POSITION",
     "OPERATING_MODE_VELOCITY",
     "DynamixelDriver",
-    "bus_watchdog_units",
-    "position_limit_ticks",
-    "rad_s_to_velocity_units",
-    "rad_to_ticks",
-    "ticks_to_rad",
-    "to_signed32",
-    "to_unsigned32",
-    "turns_lost_in_reboot",
-    "velocity_limit_units",
-    "velocity_unit_rad_s",
-    "velocity_units_to_rad_s",
 ]
 
 # --- X-series control table (protocol 2.0), address: size in bytes ------------------------

@@ -1,4 +1,4 @@
-"""Resense HEX21 6-axis force/torque sensor over USB serial (hardware-facts §3).
+"""Resense HEX21 6-axis force/torque sensor over USB serial (docs/hardware.md §3).
 
 The stream is 28-byte frames of 7 little-endian float32 — Fx, Fy, Fz (N), Mx, My, Mz (N·m),
 temperature (°C) — at ≈ 100 Hz and 2 Mbaud, with no header or checksum. Frame alignment is

@@ -1,4 +1,4 @@
-"""SparkFun OpenLog Artemis (ICM-20948) IMU: CSV lines over USB serial (hardware-facts §3).
+"""SparkFun OpenLog Artemis (ICM-20948) IMU: CSV lines over USB serial (docs/hardware.md §3).
 
 Each data line has 13 comma-separated fields (the logger usually adds a trailing comma):
 ``rtcDate, rtcTime, aX, aY, aZ (milli-g), gX, gY, gZ (deg/s), mX, mY, mZ (µT), imu_degC,

@@ -3,7 +3,7 @@
 ``SimWrist`` integrates commanded joint velocities through a first-order motor lag
 (exact discretisation), the motors' velocity-limit registers (``spec.wrist.max_velocity``)
 and the joint position limits (pitch ``spec.wrist.pitch_limits``, roll within
-``±spec.wrist.roll_turn_budget`` turns — the cable wind-up budget, hardware-facts §3).
+``±spec.wrist.roll_turn_budget`` turns — the cable wind-up budget, docs/hardware.md §3).
 Driving a joint into a limit faster than ``hard_stop_velocity`` raises the OVERLOAD hardware
 error bit and drops that motor's torque, as a real XC430 does on a hard stop.
 

@@ -1,4 +1,4 @@
-"""Issue 5 deliverable 2: how many verifier rejections and replans wrist-aware timing removes.
+"""How many verifier rejections and replans wrist-aware timing removes.
 
 The decoupled planner times its path with toppra under the Jaco's limits; with
 ``wrist_aware_timing`` it also bounds the path speed so the wrist's required velocity (linear
@@ -6,7 +6,7 @@ in the path speed, Eq. 4.7) stays within the wrist's limit. The verifier stays a
 check. This script plans the benchmark tasks both ways, for the spec's wrist speed and for
 slower wrists (a heavier utensil or a sagging supply), and counts rejections and attempts.
 
-    .venv/bin/python benchmarks/wrist_aware_timing.py --out results/wrist_aware_timing.json
+    .venv/bin/python studies/wrist_aware_timing.py --out studies/results/wrist_aware_timing.json
 """
 
 from __future__ import annotations
@@ -19,8 +19,9 @@ import time
 import tomllib
 from pathlib import Path
 
-from articutool.bench.tasks import load_task_set
-from articutool.planning.api import PlanRequest, plan
+from articutool.bench.taskfile import load_task_set
+from articutool.planning.api import plan
+from articutool.planning.types import PlanRequest
 from articutool.spec import default_spec_path, parse_spec
 
 

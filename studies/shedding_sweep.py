@@ -1,4 +1,4 @@
-"""Sweep of the open-loop shedding primitives' parameters (issue 27; thesis §4.4, §5.2.3).
+"""Sweep of the open-loop shedding primitives' parameters (thesis §4.4, §5.2.3).
 
 Each candidate runs Exp. 2c's protocol (:func:`articutool.experiments.protocols.exp2c_trial`:
 the capacity load placed at the shedding pose over the bowl, the primitive, the transport to
@@ -8,8 +8,8 @@ Staging) on TUNING seeds — base seed 9 (seeds 9000+r), disjoint from the exper
 own code. Score: meaningful successes (no spill, delivered above the food's threshold), ties
 broken by the mean delivered grams.
 
-    PYTHONPATH=src python benchmarks/shedding_sweep.py --food pecans --seeds 3 \\
-        --load-g 6.5 --threshold-g 1.47 --out results/shedding/sweep_pecans.json
+    PYTHONPATH=src python studies/shedding_sweep.py --food pecans --seeds 3 \\
+        --load-g 6.5 --threshold-g 1.47 --out studies/results/shedding/sweep_pecans.json
 
 Writes JSON (every trial, every candidate's score) and, with ``--plot``, a PNG.
 """
@@ -89,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     best = max(rows, key=lambda r: (r["meaningful"], r["mean_delivered_g"]))
     out = {"food": a.food, "load_g": a.load_g, "threshold_g": a.threshold_g,
            "tuning_base_seed": TUNING_BASE_SEED, "seeds": a.seeds,
-           "command": "PYTHONPATH=src python " + " ".join(["benchmarks/shedding_sweep.py",
+           "command": "PYTHONPATH=src python " + " ".join(["studies/shedding_sweep.py",
                                                            *(argv or sys.argv[1:])]),
            "wall_s": round(time.time() - t0, 1), "best": {k: best[k] for k in
                                                           ("primitive", "params", "meaningful",

@@ -1,13 +1,13 @@
-"""One fork acquisition in the noodles with the levers of issue 26 exposed, printing how many
+"""One fork acquisition in the noodles with the model's levers exposed, printing how many
 strands touch the fork after each phase (in, during and after the twirl, risen, levelled,
-lifted) as one JSON line: the diagnostic behind the README's table of what was tried.
+lifted) as one JSON line: the diagnostic behind the lever study (studies/noodle_levers.py).
 
 It runs ``articutool.sim.scenes.skewer`` (the tool's own TWIRL_CW and LEVELING) with:
 ``--rise steep`` (rise with the tines still 60° down, the earlier script) or ``tines-up``
 (the shipped skewer); ``--fork-offset`` to move the tines onto the roll axis (the spec's fork
 is ``utensils.fork.tip_x`` = 7 mm off it; 0 is *not* the Articutool's geometry, a what-if).
 
-    nice .venv/bin/python benchmarks/noodle_variant.py --seed 5000 --turns 2.9 --rise tines-up
+    nice .venv/bin/python studies/noodle_variant.py --seed 5000 --turns 2.9 --rise tines-up
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Acquisition that uses the wrist (issue 25): one acquisition through the real feeding tree in
+"""Acquisition that uses the wrist: one acquisition through the real feeding tree in
 the physics world (the meal path up to Resting: above, acquire, shed, resting), per food ×
 system × seed, and the parameter search that chose the strategies' sweep values.
 
@@ -16,10 +16,11 @@ system's own strategy), on the tuning seeds; the candidate with the highest mean
 per food and system. The JSON is rewritten after every run, so an interrupted run keeps what
 finished.
 
-Run (one process, niced): ``PYTHONPATH=src nice python benchmarks/acquisition_study.py
-measure --foods water --seeds 10 --out results/acquisition_study_water.json`` (pecans:
-``--foods pecans --out results/acquisition_study_pecans.json``) and ``... search --foods water
---seeds 3 --out results/strategy_search.json`` (pecans: ``results/strategy_search_pecans.json``).
+Run (one process, niced): ``PYTHONPATH=src nice python studies/acquisition_study.py
+measure --foods water --seeds 10 --out studies/results/acquisition_study_water.json``
+(pecans: ``--foods pecans --out studies/results/acquisition_study_pecans.json``) and
+``... search --foods water --seeds 3 --out studies/results/strategy_search.json`` (pecans:
+``studies/results/strategy_search_pecans.json``).
 """
 
 from __future__ import annotations
@@ -111,12 +112,12 @@ def turn(food: str) -> dict[str, Any]:
     import numpy as np
 
     from articutool.arm.model import ArmModel
-    from articutool.arm.scene import Scene
+    from articutool.arm.scene import SCOOP_HEADING, Scene
     from articutool.feeding.insertion import acquisition_waypoints, dish_outline
     from articutool.feeding.meal import container_floor
     from articutool.feeding.sim_arm import wrist_sweep
     from articutool.feeding.strategies import StrategyLibrary
-    from articutool.sim.scenes import SCOOP_HEADING, cartesian_path, first_ik
+    from articutool.sim.scenes import cartesian_path, first_ik
     from articutool.spec import load_spec
 
     spec, scene = load_spec(), Scene.load()
@@ -197,7 +198,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.mode == "table":  # the README's table from a measure JSON
         print(table(json.loads(args.out.read_text())))
         return 0
-    cmd = "PYTHONPATH=src nice python benchmarks/acquisition_study.py " + " ".join(
+    cmd = "PYTHONPATH=src nice python studies/acquisition_study.py " + " ".join(
         sys.argv[1:] if argv is None else argv)
     doc: dict[str, Any] = {"command": cmd, "stages": list(STAGES), "runs": []}
     if args.mode == "measure":

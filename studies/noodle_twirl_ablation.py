@@ -1,8 +1,8 @@
-"""Which difference makes the feeding tree's twirled noodle bite win in Exp. 1 (issue 26)?
+"""Which difference makes the feeding tree's twirled noodle bite win in Exp. 1?
 
 In the committed Exp. 1 the Articutool's ``noodles_twirl`` brought 1.52 ± 1.46 g of noodles to
 Resting and the locked fork (``noodles_baseline``) none, while the scripted fork study
-(``benchmarks/noodle_twirl.py``) found a twirl lifting no more than a still fork. The two
+(``studies/noodle_twirl.py``) found a twirl lifting no more than a still fork. The two
 tree strategies differ by the twirls (TWIRL_CW 1 turn above the nest, TWIRL_CCW 2 turns
 inside) *and* by the system: the wrist's tool-only levelling before the lift and the
 decoupled transport against the arm-levelled, strict ±20° one. This study adds a third
@@ -13,10 +13,10 @@ resting``, its timeout, plan budget and settling; the mass on the utensil at Res
 Seeds: 8 000 000 + k (the measurement seeds of ``acquisition_study.py``), disjoint from the
 experiments' 0–999 and from every tuning seed; nothing here chooses a parameter.
 
-    PYTHONPATH=src nice .venv/bin/python benchmarks/noodle_twirl_ablation.py --seeds 10
-    .venv/bin/python benchmarks/noodle_twirl_ablation.py --table
+    PYTHONPATH=src nice .venv/bin/python studies/noodle_twirl_ablation.py --seeds 10
+    .venv/bin/python studies/noodle_twirl_ablation.py --table
 
-The JSON (``results/noodle_twirl_ablation.json``) is rewritten after every run, and a rerun
+The JSON (``studies/results/noodle_twirl_ablation.json``) is rewritten after every run, and a rerun
 skips the runs already in it.
 """
 
@@ -34,11 +34,14 @@ from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.protocols import exp1_trial
 from articutool.experiments.stats import describe, welch
 from articutool.feeding.strategies import default_strategies_path
-from bench_io import machine
 from noodle_twirl import twirl_vs_still
 
+# The machine block is the benchmarks' (benchmarks/bench_io.py), so every JSON records it alike.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from bench_io import machine
+
 MEASURE_SEED0 = 8_000_000
-DEFAULT_JSON = Path("results/noodle_twirl_ablation.json")
+DEFAULT_JSON = Path("studies/results/noodle_twirl_ablation.json")
 # condition → (system, strategy file: None = the shipped one, "no_twirl" = its variant)
 CONDITIONS = {"articutool": ("articutool", None),
               "articutool_no_twirl": ("articutool", "no_twirl"),
@@ -76,7 +79,7 @@ def one(condition: str, seed: int, strategies: Path | None, cfg: ExperimentsConf
 
 def summarise(runs: list[dict[str, Any]]) -> dict[str, Any]:
     """Per condition: describe() of the mass at Resting and after ``acquire``; Welch's
-    two-sided test of the mass at Resting between each pair of conditions; and issue 26's
+    two-sided test of the mass at Resting between each pair of conditions; and the study's
     question, twirl > no twirl, one-sided (Welch and Mann–Whitney) and seed by seed."""
     by = {c: [r for r in runs if r["condition"] == c] for c in CONDITIONS}
     out: dict[str, Any] = {c: {"n": len(rs),
@@ -133,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
     cfg = ExperimentsConfig.load()
     doc: dict[str, Any] = (json.loads(args.out.read_text()) if args.out.exists() else
                            {"issue": 26, "command": "PYTHONPATH=src nice .venv/bin/python "
-                            "benchmarks/noodle_twirl_ablation.py --seeds " + str(args.seeds),
+                            "studies/noodle_twirl_ablation.py --seeds " + str(args.seeds),
                             "machine": machine(), "runs": []})
     with tempfile.TemporaryDirectory() as tmp:
         variant = no_twirl_library(Path(tmp) / "strategies.toml")

@@ -10,9 +10,9 @@ acquisition ``sim/scenes.py: skewer``), with its source in ``LEVERS``. Tuning se
 run; rerunning keeps the runs already there), so two processes can run different variants;
 every listed variant runs on a seed before any runs on the next.
 
-    nice .venv/bin/python benchmarks/noodle_levers.py --lever baseline no_tack
-    .venv/bin/python benchmarks/noodle_levers.py --table     # the docs' table from the JSON
-    nice .venv/bin/python benchmarks/noodle_levers.py --confirm no_tack --seeds 10
+    nice .venv/bin/python studies/noodle_levers.py --lever baseline no_tack
+    .venv/bin/python studies/noodle_levers.py --table     # the docs' table from the JSON
+    nice .venv/bin/python studies/noodle_levers.py --confirm no_tack --seeds 10
 """
 
 from __future__ import annotations
@@ -137,9 +137,9 @@ def confirm(name: str, n_seeds: int, out_dir: Path) -> dict[str, Any]:
                                     **(lever.skewer if t else {})))
                 print(name, json.dumps(runs[-1]), flush=True)
                 write_study(path, runs, turns, ["--confirm", name, "--seeds", str(n_seeds)],
-                            "benchmarks/noodle_levers.py")
+                            "studies/noodle_levers.py")
     write_study(path, runs, turns, ["--confirm", name, "--seeds", str(n_seeds)],
-                "benchmarks/noodle_levers.py")
+                "studies/noodle_levers.py")
     return summarise(runs, turns)
 
 
@@ -210,7 +210,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--only-seed", type=int, default=None,
                     help="run the levers on this tuning seed only")
-    ap.add_argument("--out", default="results/noodle_levers")
+    ap.add_argument("--out", default="studies/results/noodle_levers")
     ap.add_argument("--table", action="store_true", help="print the docs' table; run nothing")
     ap.add_argument("--confirm", choices=sorted(LEVERS), default=None,
                     help="run this lever's confirmation study on seeds 5000 + r (--seeds of "

@@ -1,4 +1,4 @@
-"""Does a twirling fork lift more noodle than a still one? (issue 26). Runs the fork's
+"""Does a twirling fork lift more noodle than a still one? Runs the fork's
 acquisition (``articutool.sim.scenes.skewer``: into the heaped noodles, pressed to 2 mm above
 the bowl's floor, TWIRL_CW ``--turns`` turns through the tool runtime, rise, level, lift 12 cm)
 with the twirl and with a still fork (0 turns) on the same study seeds, and writes every run,
@@ -10,7 +10,7 @@ Study seeds are ``trial_seed(5, r)`` = 5000 + r: not seeds of the shipped experi
 (base seed 0). Runs are interleaved (twirl, still, next seed) and the JSON is rewritten after
 each, so a partial study is balanced; ``--resume`` keeps the runs already in ``--out``.
 
-    nice .venv/bin/python benchmarks/noodle_twirl.py --seeds 10 --out results/noodle_twirl.json
+    nice .venv/bin/python studies/noodle_twirl.py --seeds 10 --out studies/results/noodle_twirl.json
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ def one_run(seed: int, turns: float, params: PhysicsParams | None = None,
             **skewer_kw: Any) -> dict[str, Any]:
     """One acquisition; what the fork holds after the lift, and whether MuJoCo reset.
     ``params``, ``prepare`` (called on the settled world) and ``skewer_kw``: a variant's
-    physics, a change to the built world and the fork motion (benchmarks/noodle_levers.py)."""
+    physics, a change to the built world and the fork motion (studies/noodle_levers.py)."""
     t0 = time.perf_counter()
     w = FeedingWorld("noodles", seed=seed, params=params)
     if prepare is not None:
@@ -150,7 +150,7 @@ def table(summary: dict[str, Any]) -> str:
 
 
 def write_study(path: Path, runs: list[dict[str, Any]], turns: float,
-                argv: list[str] | None, script: str = "benchmarks/noodle_twirl.py") -> None:
+                argv: list[str] | None, script: str = "studies/noodle_twirl.py") -> None:
     """The study's JSON: the command, MuJoCo's version, the summary and every run."""
     out = {"issue": 26, "command": f"{script} " + " ".join(
                sys.argv[1:] if argv is None else argv),
@@ -164,7 +164,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--turns", type=float, default=None,
                     help="twirl turns (default: the cable budget less 0.1 turn)")
-    ap.add_argument("--out", default="results/noodle_twirl.json")
+    ap.add_argument("--out", default="studies/results/noodle_twirl.json")
     ap.add_argument("--resume", action="store_true", help="keep the runs already in --out")
     ap.add_argument("--table", action="store_true",
                     help="print the README's table of the study in --out; run nothing")

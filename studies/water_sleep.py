@@ -1,4 +1,4 @@
-"""Why the water pool does not sleep (issue 24): its particles' spin, not their motion.
+"""Why the water pool does not sleep: its particles' spin, not their motion.
 
 For each seed the water world is built (settled, tool idle, arm at Resting, the spoon far
 from the bowl) and run ``--seconds``; every second: the awake dofs (MuJoCo sleeping), the
@@ -8,16 +8,19 @@ tolerance). A frictionless particle (condim 1) takes no torque from its contacts
 so its spin never decays and keeps its island — the whole pool — awake; a measurement, the
 water model is unchanged.
 
-    PYTHONPATH=src .venv/bin/python benchmarks/water_sleep.py --out results/water_sleep.json
+    PYTHONPATH=src .venv/bin/python studies/water_sleep.py --out studies/results/water_sleep.json
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 import numpy as np
 
+# JSON written as the benchmarks write it (benchmarks/bench_io.py).
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from bench_io import write_json
 
 
@@ -25,7 +28,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--seconds", type=int, default=5)
-    ap.add_argument("--out", default="results/water_sleep.json")
+    ap.add_argument("--out", default="studies/results/water_sleep.json")
     args = ap.parse_args(argv)
     from articutool.sim.world import FeedingWorld
 

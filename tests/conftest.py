@@ -1,0 +1,103 @@
+"""Shared test fixtures and helpers.
+
+Fixtures: ``spec`` and ``scene`` — the packaged hardware spec and scene, loaded once per
+session (both are frozen models, so sharing them is safe).
+
+Helpers, imported where a module-level helper or class needs them (``from conftest import
+free_port``):
+
+- :func:`free_port` — a loopback TCP port that nobody listens on now;
+- :func:`run_cli` — the ``articutool`` command as a user runs it, in its own process;
+- :func:`minimal_env` — the environment of a bare shell (no venv variables, no display);
+- :func:`assert_refused` — bad input: exit 2, the named fields in stderr, no traceback;
+- :func:`wait_until` — poll a condition; the deadline only bounds a failing test.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import pytest
+
+from articutool.spec import Spec, load_spec
+
+ROOT = Path(__file__).resolve().parents[1]
+SRC = ROOT / "src"
+EXAMPLES = ROOT / "examples"
+# The ``articutool`` command, as the console script runs it.
+CLI = [sys.executable, "-m", "articutool"]
+
+
+@functools.cache
+def packaged_spec() -> Spec:
+    """The packaged hardware spec, parsed once (for constants a module needs at import, such
+    as a hypothesis strategy's bounds; tests take the ``spec`` fixture)."""
+    return load_spec()
+
+
+@pytest.fixture(scope="session")
+def spec() -> Spec:
+    """The packaged hardware spec."""
+    return packaged_spec()
+
+
+@pytest.fixture(scope="session")
+def scene():  # type: ignore[no-untyped-def]
+    """The packaged scene (``data/scene.toml``); imported here, not at the top, so that
+    collecting the tests does not load coal."""
+    from articutool.arm.scene import Scene
+
+    return Scene.load()
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that nobody listens on now."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def minimal_env(**extra: str) -> dict[str, str]:
+    """A bare shell's environment: the system PATH, a HOME, no display (``MPLBACKEND=Agg``),
+    and the package on ``PYTHONPATH`` (no venv variables)."""
+    return {"PATH": "/usr/bin:/bin", "MPLBACKEND": "Agg", "PYTHONPATH": str(SRC),
+            "HOME": os.environ.get("HOME", "/tmp"), **extra}
+
+
+def run_cli(*args: str, timeout: float = 300.0, env: Mapping[str, str] | None = None,
+            cwd: Path | None = None, stdout: int | None = subprocess.PIPE,
+            input: str | None = None) -> subprocess.CompletedProcess[str]:
+    """Run ``articutool ARGS`` in a child process (``python -m articutool``, what the console
+    script runs) and return it finished; ``timeout`` only bounds a hang."""
+    if env is None:
+        env = dict(os.environ, MPLBACKEND="Agg", PYTHONUNBUFFERED="1")
+    return subprocess.run([*CLI, *args], stdout=stdout,
+                          stderr=subprocess.PIPE, text=True, timeout=timeout, cwd=cwd,
+                          env=dict(env), input=input)
+
+
+def assert_refused(proc: subprocess.CompletedProcess[str], *words: str) -> None:
+    """Bad input: exit 2, every word of ``words`` in stderr, and no traceback."""
+    err = proc.stderr
+    assert proc.returncode == 2, (proc.stdout, err)
+    assert "Traceback" not in (proc.stdout or "") + err and "internal error" not in err, err
+    for w in words:
+        assert w in err, err
+
+
+def wait_until(pred: Callable[[], object], timeout: float = 5.0, period: float = 0.01) -> bool:
+    """Poll ``pred`` every ``period`` s until it is true (True) or ``timeout`` s pass (False).
+    The timeout bounds a failing test on a loaded machine; no timing is asserted."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if pred():
+            return True
+        time.sleep(period)
+    return bool(pred())
