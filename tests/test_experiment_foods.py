@@ -43,3 +43,22 @@ def test_the_cli_exits_2_on_a_bad_food_and_writes_nothing(tmp_path) -> None:
                         "soup", "--out", str(out)], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "--foods" in r.stderr and "Traceback" not in r.stderr
     assert not (out / "exp1").exists()
+
+
+def test_physics_file_is_carried_by_every_condition(tmp_path) -> None:
+    from articutool.sim.params import default_physics_path
+
+    f = tmp_path / "noodles125.toml"
+    f.write_text(default_physics_path().read_text().replace("fill_g = 20.0", "fill_g = 125.0"))
+    args = argparse.Namespace(trials=1, seed=0, load_g=None, foods="noodles", physics=str(f))
+    trials = trials_for("exp1", args, tmp_path, ExperimentsConfig.load())[0]
+    assert trials and all(t.cond["physics"] == str(f.resolve()) for t in trials)
+
+
+def test_a_bad_physics_file_exits_2_naming_the_field(tmp_path) -> None:
+    f = tmp_path / "bad.toml"
+    f.write_text("version = 1\n")
+    r = subprocess.run([sys.executable, "-m", "articutool", "experiment", "exp1", "--foods",
+                        "noodles", "--physics", str(f), "--out", str(tmp_path / "res")],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "--physics" in r.stderr and "Traceback" not in r.stderr
