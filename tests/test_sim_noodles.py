@@ -107,9 +107,13 @@ def test_the_forks_acquisition_twirls_through_the_tool_runtime_and_lifts_strands
     assert max(roll) >= 2 * math.pi * turns - 0.1
     assert w.tool.fault == ""
     assert all(w.data.warning[int(k)].number == 0 for k in _RESETS)
-    # Whole strands hang from the fork 12 cm above the bowl (measured: 8 strands, 8.4 g; a
-    # still fork lifts as much: the tines-up rise rakes them, README *Noodle twirling*).
-    assert int(np.sum(w.item_classes() == UTENSIL)) >= 3
+    # Every strand is somewhere: on the fork, in the bowl or fallen (what the fork lifts is the
+    # twirl study's measurement, studies/noodle_twirl.py, not an assertion).
+    g = w.masses_g()
+    n_on = int(np.sum(w.item_classes() == UTENSIL))
+    assert g["utensil"] == pytest.approx(n_on * w.layout.piece_mass * 1000)
+    assert sum(g.values()) == pytest.approx(len(w.layout.food_strands) * w.layout.piece_mass
+                                            * 1000)
 
 
 def _study_module():
