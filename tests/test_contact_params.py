@@ -59,6 +59,15 @@ def _check(world: FeedingWorld, con: mujoco.MjContact, laws: dict, food_geoms: s
     partner = b if a == "food" else a
     dim, fr, ref, imp = _expected(laws[partner])
     names = f"{world.model.geom(g1).name} – {world.model.geom(g2).name} ({where})"
+    # In the gap of a sticky pair (strands' starch tack) MuJoCo makes an adhesion contact:
+    # the normal pull alone (condim 1); touching, the pair's law applies whole.
+    # A pair's adhesion is the higher-priority geom's, or the sum of equal priorities'.
+    m = world.model
+    p1, p2 = m.geom_priority[g1], m.geom_priority[g2]
+    adhesion = (m.geom_adhesion[g1] + m.geom_adhesion[g2] if p1 == p2
+                else m.geom_adhesion[g1 if p1 > p2 else g2])
+    if con.dist > 0 and adhesion > 0:
+        dim = 1
     assert con.dim == dim, f"{names}: condim {con.dim}, file {partner}: {dim}"
     # MuJoCo stores a zero friction as its floor mjMINMU (1e-5).
     assert np.allclose(con.friction, np.maximum(fr, mujoco.mjMINMU), rtol=0, atol=1e-9), \

@@ -42,6 +42,9 @@ BOOKKEEPING_FIELDS = frozenset({"wall_time_s", "pid", "realtime_factor", "bite_w
                                 "traceback", "source"})
 
 
+BITE_EXPERIMENTS = ("exp1", "exp3")
+
+
 def _usage(msg: str) -> Exception:
     from articutool.cli_support import UsageError
 
@@ -233,6 +236,26 @@ def trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
         targets = _closed_loop_targets(th, cfg)
         extra.update(load_g=loads, load_source=src, closed_loop_target_g=targets)
     conds = conditions(exp, cfg, goals=goals, load_g=loads, target_g=targets)
+    foods = getattr(args, "foods", None)
+    if foods:
+        wanted = [f.strip() for f in foods.split(",") if f.strip()]
+        known = sorted({c["food"] for c in conds})
+        if not wanted or any(f not in known for f in wanted):
+            raise _usage(f"--foods must name foods of {exp} ({', '.join(known)}), "
+                         f"comma-separated; got {foods!r}")
+        conds = [c for c in conds if c["food"] in wanted]
+    physics = getattr(args, "physics", None)
+    if physics is not None:
+        from articutool.sim.params import PhysicsError, PhysicsParams
+
+        try:
+            params = PhysicsParams.load(physics)
+        except PhysicsError as err:
+            raise _usage(f"--physics: {err}") from None
+        missing = sorted({c["food"] for c in conds} - set(params.foods))
+        if missing:
+            raise _usage(f"--physics {physics}: no parameters for {missing}")
+        conds = [{**c, "physics": str(Path(physics).resolve())} for c in conds]
     return make_trials(exp, conds, args.trials, args.seed, goals=goals), {
         "conditions": conds, **extra}
 
@@ -468,6 +491,14 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                        help="with --trial: record the trial as ROS 2 messages in MCAP (tool "
                             "telemetry and commands, arm joints, food, the feeding tree's "
                             "status); never overwrites")
+        if name in BITE_EXPERIMENTS:
+            p.add_argument("--physics", metavar="FILE", default=None,
+                           help="another physics parameter file for the bite's world (e.g. the "
+                                "thesis' 125 g of noodles: docs/food.md); use its own --out")
+        if name != "exp3":
+            p.add_argument("--foods", metavar="FOOD,…", default=None,
+                           help="run only these foods' conditions (same seeds as a full run; "
+                                "use its own --out)")
         if name == "exp2c":
             p.add_argument("--load-g", default=None, metavar="FOOD=G,…",
                            help="the load per food (default: our capacity means)")

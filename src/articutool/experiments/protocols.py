@@ -349,7 +349,7 @@ def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
     from articutool.feeding.meal import make_bite_world, run_bite
 
     setup = make_bite_world(cond["food"], cond["system"], seed,
-                            strategies=cond.get("strategies"))
+                            strategies=cond.get("strategies"), physics=cond.get("physics"))
     if hook:
         hook(setup.world)
     try:

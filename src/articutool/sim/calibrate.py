@@ -20,12 +20,15 @@ that adjusts parameters towards an outcome of the thesis.
   (:mod:`articutool.food.hydrostatics`, an ideal liquid of the load's volume) spills at the
   tilt the utensil really has. The spill onset is the first hold at which at least
   ``ONSET_G`` has left, beside the tilt at which the ideal liquid has lost as much.
+- strands: each mechanism alone beside its law (capstan, bending, tack, mass and diameter;
+  :mod:`articutool.sim.strand_laws`).
 """
 
 from __future__ import annotations
 
 import math
 import time
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -173,12 +176,12 @@ def level_capacity_g(food_name: str, spec: Spec, params: PhysicsParams, utensil:
 
 def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
                     params: PhysicsParams, seed: int = 0,
-                    load_g: float | None = None) -> dict:
+                    load_g: float | None = None) -> dict[str, Any]:
     """Every calibration experiment that applies to the food; a dict of measured values (a
     liquid's static-tilt test with ``load_g``, default 8 g, under ``static_tilt``)."""
     food = params.food(food_name)
-    out: dict[str, float | str] = {"food": food_name, "kind": food.kind,
-                                   "piece_mass_g": round(food.piece_mass * 1000.0, 4)}
+    out: dict[str, Any] = {"food": food_name, "kind": food.kind,
+                           "piece_mass_g": round(food.piece_mass * 1000.0, 4)}
     if isinstance(food, Granular):
         piles = [angle_of_repose_deg(food, params, seed=seed + k) for k in range(REPOSE_SEEDS)]
         angles = [p["angle_deg"] for p in piles]
@@ -213,7 +216,9 @@ def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
         out["static_tilt"] = static_tilt(food_name, spec, params, utensil,
                                          8.0 if load_g is None else load_g, seed)
     if isinstance(food, Strands):
-        out["note"] = "no calibration experiment for strands yet"
+        from articutool.sim.strand_laws import run_strand_calibration
+
+        out.update(run_strand_calibration(food, params, spec, utensil or food.utensil))
     return out
 
 

@@ -163,9 +163,17 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         raise UsageError(f"--load: the static-tilt test is for liquids; {args.food} is "
                          f"{kw['params'].food(args.food).kind}")
     load = _liquid_load(args, kw, None)
-    result = run_calibration(args.food, args.utensil, load_g=load, **kw)
+    try:
+        result = run_calibration(args.food, args.utensil, load_g=load, **kw)
+    except ValueError as err:
+        raise UsageError(str(err)) from None
     if args.json:
         print(json.dumps(result, indent=2))
+        return 0
+    if "capstan_bar" in result:  # strands: the table of laws
+        from articutool.sim.strand_laws import table
+
+        print(table(result))
         return 0
     tilt = result.pop("static_tilt", None)
     for k, v in result.items():

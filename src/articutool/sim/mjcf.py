@@ -46,6 +46,7 @@ from articutool.sim.pieces import capsule_mass, draw_piece, footprint, pack_laye
 from articutool.spec import Spec, UtensilSpec
 
 __all__ = ["FT_SITE", "IMU_SITE", "WorldLayout", "build_mjcf", "contact_attrs", "dish_walls",
+           "fork_strand_attrs", "strand_chain", "strand_geom_attrs", "strand_tack_attrs",
            "tip_site_name"]
 
 IMU_SITE = "imu"
@@ -253,13 +254,11 @@ def _utensil_geoms(spec: Spec, utensil: str, layout: WorldLayout,
     u = spec.utensil(utensil)
     ph = u.physics
     th = ph.thickness
-    sticky = ""
-    if isinstance(food, Strands) and food.adhesion_gap > 0:
-        # The higher-priority geom's adhesion acts alone in a fork-strand contact.
-        sticky = f' adhesion="{food.fork_adhesion:.6g}" gap="{food.adhesion_gap:.6g}"'
-    law = food.contacts.utensil if food is not None else None
-    cls = (f'contype="{_UTENSIL}" conaffinity="0" {contact_attrs(law, 1)} '
-           f'rgba="0.75 0.75 0.78 1"{sticky}')
+    if isinstance(food, Strands):
+        law = fork_strand_attrs(food)
+    else:
+        law = contact_attrs(food.contacts.utensil, 1) if food is not None else ""
+    cls = f'contype="{_UTENSIL}" conaffinity="0" {law} rgba="0.75 0.75 0.78 1"'
     out: list[str] = []
 
     def geom(name: str, body: str) -> None:
@@ -412,25 +411,72 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
     return out
 
 
+def strand_tack_attrs(food: Strands, share: float) -> str:
+    """A geom's starch tack toward strands: ``share`` × the tack of one contact
+    (:attr:`Strands.tack_per_contact`) acting across the food's ``adhesion_gap``."""
+    if food.stickiness_pa <= 0:
+        return ""
+    return f' adhesion="{share * food.tack_per_contact:.6g}" gap="{food.adhesion_gap:.6g}"'
+
+
+def fork_strand_attrs(food: Strands, tack: bool = True) -> str:
+    """The utensil geoms' contact attributes in a strand world: the strands' law for the
+    utensil at priority 1 and the whole tack of one contact. MuJoCo takes a contact's
+    adhesion from the higher-priority geom alone, so the fork's tack is all a fork-strand
+    contact pulls with."""
+    return (contact_attrs(food.contacts.utensil, 1)
+            + (strand_tack_attrs(food, 1.0) if tack else ""))
+
+
+def strand_geom_attrs(food: Strands, tack: bool = True) -> str:
+    """A strand geom's contact attributes: the strand-strand law at priority 0 and half the
+    tack. MuJoCo sums the adhesion of two geoms of equal priority, so two strands pull with
+    the whole tack."""
+    return (contact_attrs(food.contacts.food, 0)
+            + (strand_tack_attrs(food, 0.5) if tack else ""))
+
+
+def strand_chain(food: Strands, name: str, pos: NDArray[np.float64] | tuple[float, ...],
+                 rotations: list[NDArray[np.float64]], geom_attrs: str,
+                 free: bool = True) -> list[str]:
+    """One strand: ``food.segments`` capsule bodies ``name/i`` of length ds = L/segments, body
+    0 at ``pos`` turned by ``rotations[0]`` (with a free joint, or fixed to its parent when
+    ``free`` is false), body i > 0 at the end of body i-1 turned by ``rotations[i]`` relative
+    to it, joined by a ball joint whose spring gives the rod's bending stiffness
+    (k = E·I/ds, :attr:`Strands.bend_stiffness`; its rest shape is the shape built) and whose
+    damping is k × ``bend_damping_s``. Each geom carries ``geom_attrs`` (collision bits and
+    contact law). The builder of the bowl's strands and of the calibration experiments."""
+    n = food.segments
+    ds = food.strand_length / n
+    k = food.bend_stiffness
+    out = []
+    for i in range(n):
+        if i == 0:
+            joint = "<freejoint/>" if free else ""
+            pose = _pose_attr(pos, rotations[0])
+        else:
+            joint = (f'<joint type="ball" stiffness="{k:.6g}" '
+                     f'damping="{k * food.bend_damping_s:.6g}"/>')
+            pose = _pose_attr((ds, 0.0, 0.0), rotations[i])
+        out.append(f'<body name="{name}/{i}" {pose}>{joint}'
+                   f'<geom name="{name}/{i}" type="capsule" size="{food.strand_radius}" '
+                   f'fromto="0 0 0 {ds} 0 0" mass="{food.piece_mass / n:.9g}" {geom_attrs} '
+                   f'rgba="0.95 0.85 0.45 1"/>')
+    out.append("</body>" * n)
+    return out
+
+
 def _strands(food: Strands, count: int, inner: float, floor_z: float, cx: float, cy: float,
              rng: np.random.Generator, layout: WorldLayout) -> list[str]:
-    """Strands as chains of ``food.segments`` capsule bodies joined by ball joints whose
-    springs give the rod's bending stiffness (k = E·I/ds), heaped in layers as spirals of
-    ``food.pile_radius`` round the container's centre. The rest shape is the laid shape
-    (cooked pasta relaxes to how it lies). Adjacent capsules do not collide (parent-child);
-    every other pair does, so a strand can lie on its own wrap."""
+    """Strands (:func:`strand_chain`) heaped in layers as spirals of ``food.pile_radius``
+    round the container's centre. The rest shape is the laid shape (cooked pasta relaxes to
+    how it lies). Adjacent capsules do not collide (parent-child); every other pair does, so
+    a strand can lie on its own wrap."""
     out = []
     r, n = food.strand_radius, food.segments
     ds = food.strand_length / n
-    mass = food.piece_mass / n
-    k_bend = food.bend_stiffness
-    # Twist has the segment's tiny axial inertia against the same spring: a floor on the
-    # inertia (armature) keeps the explicit spring at ω·dt ≤ 0.5 (a numerical choice).
-    armature = k_bend * (2.0 * layout.timestep) ** 2
     layout.strand_segments = n
-    # Cohesion: each strand geom carries half, so a strand-strand contact pulls with all of it.
-    sticky = (f' adhesion="{food.cohesion / 2:.6g}" gap="{food.adhesion_gap:.6g}"'
-              if food.cohesion > 0 else "")
+    attrs = f'contype="{_FOOD}" conaffinity="{_ALL}" {strand_geom_attrs(food)}'
     for k in range(count):
         rad0 = food.pile_radius * rng.uniform(0.5, 1.0)
         off = rng.uniform(-0.3, 0.3, 2) * food.pile_radius
@@ -438,28 +484,11 @@ def _strands(food: Strands, count: int, inner: float, floor_z: float, cx: float,
         z = floor_z + r + k * 2.2 * r + 0.002
         # A spiral laid segment by segment: its radius of curvature shrinks to half.
         p = np.array([cx + off[0] + rad0 * math.cos(a0), cy + off[1] + rad0 * math.sin(a0), z])
-        heading = a0 + math.pi / 2
+        turns = [a0 + math.pi / 2] + [ds / (rad0 * (1.0 - 0.5 * i / max(n - 1, 1)))
+                                      for i in range(1, n)]
         name = f"strand{k}"
         layout.food_strands.append(name)
-        for i in range(n):
-            rad = rad0 * (1.0 - 0.5 * i / max(n - 1, 1))
-            turn = ds / rad if i else 0.0
-            heading += turn
-            if i == 0:
-                pose = _pose_attr(p, rpy_matrix((0.0, 0.0, heading)))
-                joint = "<freejoint/>"
-            else:
-                pose = _pose_attr((ds, 0.0, 0.0), rpy_matrix((0.0, 0.0, turn)))
-                joint = (f'<joint type="ball" stiffness="{k_bend:.6g}" '
-                         f'damping="{k_bend * food.bend_damping_s:.6g}" '
-                         f'armature="{armature:.6g}"/>')
-            out.append(
-                f'<body name="{name}/{i}" {pose}>{joint}'
-                f'<geom name="{name}/{i}" type="capsule" size="{r}" fromto="0 0 0 {ds} 0 0" '
-                f'mass="{mass:.9g}" contype="{_FOOD}" conaffinity="{_ALL}" '
-                f'{contact_attrs(food.contacts.food, 0)} '
-                f'rgba="0.95 0.85 0.45 1"{sticky}/>')
-        out.append("</body>" * n)
+        out += strand_chain(food, name, p, [rpy_matrix((0.0, 0.0, t)) for t in turns], attrs)
     return out
 
 

@@ -193,7 +193,7 @@ class Liquid(_FoodBase):
 
 class Strands(_FoodBase):
     """Elastic strands (e.g. noodles): chains of capsule bodies with ball-joint bending springs,
-    heaped in the container."""
+    heaped in the container (:func:`articutool.sim.mjcf.strand_chain`)."""
 
     kind: Literal["strands"]
     strand_radius: Positive
@@ -203,16 +203,17 @@ class Strands(_FoodBase):
     bend_damping_s: Positive
     pile_radius: Positive
     noslip_iterations: Annotated[int, Field(ge=0, le=1000)]
-    # Starch-film adhesion (N per contact; MuJoCo ``geom/adhesion``, which acts only across a
-    # ``gap``): fork-strand, and strand-strand cohesion. 0 = friction only.
-    fork_adhesion: NonNegative = 0.0
-    cohesion: NonNegative = 0.0
+    # Starch tack: the measured stickiness (N/m², pull-off force per area) over a contact band
+    # ``tack_width`` wide, acting across ``adhesion_gap`` (MuJoCo's contact adhesion acts only
+    # across a gap). 0 = friction only.
+    stickiness_pa: NonNegative = 0.0
+    tack_width: Positive = 0.001
     adhesion_gap: Annotated[float, Field(ge=0, le=0.002)] = 0.0
 
     @model_validator(mode="after")
     def _adhesion_needs_a_gap(self) -> Strands:
-        if (self.fork_adhesion or self.cohesion) and not self.adhesion_gap:
-            raise ValueError("adhesion_gap must be > 0 when fork_adhesion or cohesion is set "
+        if self.stickiness_pa and not self.adhesion_gap:
+            raise ValueError("adhesion_gap must be > 0 when stickiness_pa is set "
                              "(MuJoCo's contact adhesion acts only across the gap)")
         return self
 
@@ -222,10 +223,28 @@ class Strands(_FoodBase):
         return self.density * math.pi * self.strand_radius**2 * self.strand_length
 
     @property
+    def segment_length(self) -> float:
+        """m: one capsule's length, ds = L / segments."""
+        return self.strand_length / self.segments
+
+    @property
     def bend_stiffness(self) -> float:
         """N·m/rad of each joint: the rod's E·I over the segment length (I = π r⁴ / 4)."""
         inertia = math.pi * self.strand_radius**4 / 4.0
-        return self.young * inertia / (self.strand_length / self.segments)
+        return self.young * inertia / self.segment_length
+
+    @property
+    def tack_per_length(self) -> float:
+        """N/m: the pull-off force per metre of a strand lying on a surface, stickiness ×
+        contact band width."""
+        return self.stickiness_pa * self.tack_width
+
+    @property
+    def tack_per_contact(self) -> float:
+        """N: MuJoCo's adhesion of one contact point. A segment lying along a surface touches
+        it at two points (its capsule's two ends), so each carries the tack of half a
+        segment: stickiness × width × ds / 2."""
+        return self.tack_per_length * self.segment_length / 2.0
 
 
 Food = Annotated[Granular | Liquid | Strands, Field(discriminator="kind")]
