@@ -146,7 +146,7 @@ def measure(experiment: str, trials: int, workers: Sequence[int], *, root: Path,
     if experiment == "exp2c" and not load_g:
         doc["load_run"] = _capacity_first(trials, max(workers), load_root)
     # Exp. 2c's closed-loop target comes from the thresholds: the committed Exp. 1 means.
-    from articutool.experiments.runner import DEFAULT_OUT, exp1_means
+    from articutool.thresholds import DEFAULT_OUT, exp1_means
 
     cfg = ExperimentsConfig.load()
     means = {f: g for f, g in exp1_means(DEFAULT_OUT).items() if f in cfg.exp2c.foods}

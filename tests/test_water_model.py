@@ -125,7 +125,7 @@ def test_a_water_load_the_spoon_cannot_hold_is_refused_before_any_motion(
 
     assert main(["sim", "--food", "water", "--load", "20", "--json"]) == 2
     err = capsys.readouterr().err
-    assert "--load" in err and "(0, 16.8] g" in err
+    assert "--load" in err and "(0, 16.79] g" in err
 
 
 @pytest.fixture(scope="module")

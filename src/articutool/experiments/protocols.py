@@ -112,10 +112,14 @@ def transport_outcome(world: FeedingWorld, start: np.ndarray, n_spills: int,
     (:mod:`articutool.sim.accounting`): everything that left the utensil since the transport
     began (item classes ``start``, the world's spill events from index ``n_spills``, masses
     ``before``) is spilled, by place — a container included (``spilled_by_place``); what is
-    on the utensil now (plus anything eaten) is delivered."""
+    on the utensil now (plus anything eaten) is delivered. Only the load counts, as the
+    experimenter weighs the utensil: food that missed it while the load was placed (a
+    particle sliding off the plate meanwhile) is not the transport's."""
     after = world.masses_g()
+    carried = {int(k) for k in np.flatnonzero(np.asarray(start) == acc.UTENSIL)}
+    events = world.spills[:n_spills] + [e for e in world.spills[n_spills:] if e.item in carried]
     spilled = {k: _r(v) for k, v in acc.transport_spill(
-        start, world.item_classes(), world.item_masses_g(), world.spills, n_spills).items()}
+        start, world.item_classes(), world.item_masses_g(), events, n_spills).items()}
     return {
         "spilled_by_place": spilled,
         "spilled_g": _r(sum(spilled.values())),

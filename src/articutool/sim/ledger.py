@@ -149,6 +149,7 @@ class FoodLedger:
             prev[k], prev_where[k] = self._place_below(self.data.xpos[self.item_body[k]])
         codes, where = acc.classify_items(self.n_items, ii, iu, isf, self.surface_codes,
                                           prev, prev_where, asleep)
+        self._sleep_policy(codes)
         # An event each time an item has stayed on a spill place worse than any it reached
         # before for the dwell time (a drop that lands on the table and rolls onto the floor
         # is two events; the spilled mass counts it once, at the floor: acc.spilled_by_place).
@@ -157,6 +158,25 @@ class FoodLedger:
                 t=round(t0, 4), mass_g=float(self.item_g[k]), place=acc.CLASS_NAMES[code],
                 where=self.surface_names[w] if w >= 0 else "", item=k))
         self.codes, self.where = codes, where
+
+    def _sleep_policy(self, codes: NDArray[np.int64]) -> None:
+        """Food on the utensil may not sleep; food at rest on a place may again.
+
+        A piece resting in a still dish can lose its contact for a few steps and fall
+        asleep; a sleeping tree wakes only when an awake one touches it, so when the utensil
+        moves away the piece would hang in the air where the dish was. What the utensil
+        carries therefore stays awake until it lands in a container, on the table or the
+        floor (an item in the air keeps its policy: it is on its way from one to the other).
+        """
+        if not self.active.any():
+            return
+        m = self.model
+        trees = m.body_treeid[self.item_body]
+        carried = self.active & (codes == acc.UTENSIL)
+        landed = self.active & ((codes == acc.CONTAINER) | (codes == acc.TABLE)
+                                | (codes == acc.CRITICAL))
+        m.tree_sleep_policy[trees[carried]] = int(mujoco.mjtSleepPolicy.mjSLEEP_NEVER)
+        m.tree_sleep_policy[trees[landed]] = int(mujoco.mjtSleepPolicy.mjSLEEP_AUTO_ALLOWED)
 
     def _place_below(self, p: NDArray[np.float64]) -> tuple[int, int]:
         """(class, surface index) of the least severe place whose object holds point ``p``
