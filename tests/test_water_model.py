@@ -116,7 +116,7 @@ def test_bad_static_tilt_input_exits_2_naming_the_field(
     err = capsys.readouterr().err
     assert field in err
     if argv[:1] == ["--load"] and "pecans" not in argv:
-        assert "(0, 16.8] g" in err
+        assert "(0, 16.79] g" in err
 
 
 def test_a_water_load_the_spoon_cannot_hold_is_refused_before_any_motion(
