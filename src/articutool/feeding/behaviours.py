@@ -73,7 +73,8 @@ class Job(Protocol):
     # Optional: ``wait_off_clock() -> None`` on a job computed off the tree's clock (a plan in
     # a worker thread beside a simulated world): the tick driver blocks on it instead of
     # advancing the world, so the simulated time a plan costs does not depend on the machine
-    # (:meth:`articutool.feeding.tree.BiteRecorder.wait_for_plans`). A job without it (a real
+    # (:meth:`articutool.feeding.tree.BiteRecorder.wait_for_plans`); its result is read in the
+    # tick after the one that started it, so it costs one tick period. A job without it (a real
     # robot's, on wall time) is polled while the clock runs.
 
 
@@ -124,6 +125,7 @@ class _JobBehaviour(py_trees.behaviour.Behaviour):
         super().__init__(name)
         self.job: Job | None = None
         self.job_wall_s = 0.0  # the finished job's own wall time (``JobResult.wall_s``)
+        self._started_this_tick = False
 
     def start(self) -> Job:
         raise NotImplementedError
@@ -134,11 +136,17 @@ class _JobBehaviour(py_trees.behaviour.Behaviour):
     def initialise(self) -> None:
         self.job_wall_s = 0.0
         self.job = self.start()
+        self._started_this_tick = True
         self.feedback_message = "started"
 
     def update(self) -> Status:
         assert self.job is not None
-        if not self.job.done():
+        started, self._started_this_tick = self._started_this_tick, False
+        # A job computed off the tree's clock ends at the earliest in the tick after the one
+        # that started it: whether its worker thread is done before this poll is up to the
+        # operating system's scheduling, so without this the world would wait one tick for
+        # the same plan on one run and none on another, and the physics would differ.
+        if not self.job.done() or (started and hasattr(self.job, "wait_off_clock")):
             return Status.RUNNING
         r = self.job.result()
         self.feedback_message, self.job_wall_s = r.message, r.wall_s
