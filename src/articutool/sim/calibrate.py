@@ -110,7 +110,8 @@ def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = PILE_PIE
             for a, b, r in caps)
         bodies.append(f'<body pos="{x} {y} {zz}" euler="0 0 {yaw}"><freejoint/>{geoms}</body>')
     nw, t = 24, 0.004
-    hw = TUBE_RADIUS_M * math.tan(math.pi / nw) * 1.15
+    # Each wall's half-width reaches its neighbours' at the wall's outer face: a closed tube.
+    hw = (TUBE_RADIUS_M + t) * math.tan(math.pi / nw)
     walls = "".join(
         f'<geom type="box" size="{t / 2} {hw} {height / 2}" '
         f'pos="{(TUBE_RADIUS_M + t / 2) * math.cos(2 * math.pi * k / nw)} '
