@@ -13,6 +13,7 @@ or too large load — is a :class:`LoadError` naming the field and the allowed r
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -22,18 +23,15 @@ from articutool.food.pile import PileModel
 from articutool.food.slosh import WATER_KINEMATIC_VISCOSITY, SloshModel
 
 __all__ = [
-    "KERNEL_REPOSE_DEG",
     "PIECE_PACKING",
     "FoodLoad",
     "LoadError",
     "food_load",
     "load_model",
+    "named_load",
     "parse_load",
 ]
 
-# Angle of repose of nut kernels heaped on stainless steel, 27.8 ± 0.4° (Table 1 of PMC6400730;
-# 26.3–28.0° on glass, plywood, galvanised steel); used when the physics parameters give none.
-KERNEL_REPOSE_DEG = 27.8
 # Volume fraction of a loose heap of irregular pieces: between random loose (0.55) and random
 # close (0.64) packing of spheres (Onoda & Liniger, Phys. Rev. Lett. 64:2727, 1990); the
 # kernels' measured bulk over true density is 0.59 (556 of ~940 kg/m³, PMC6400730). Approx.
@@ -89,8 +87,8 @@ def parse_load(text: str) -> tuple[str, float]:
 def food_load(name: str, grams: float, food: Any) -> FoodLoad:
     """The load ``grams`` of the food ``name`` whose physics-parameter entry is ``food`` (an
     object with ``kind`` and ``density``, as :class:`articutool.sim.params.PhysicsParams`'
-    foods; a granular one may carry ``repose_deg``). Strands are not modelled (a
-    :class:`LoadError`)."""
+    foods; a granular one carries its cited ``angle_of_repose_deg``). Strands are not modelled
+    (a :class:`LoadError`)."""
     g = float(grams)
     if not math.isfinite(g) or g < 0:
         raise LoadError(f"--load grams must be a finite number ≥ 0; got {grams!r}")
@@ -99,11 +97,19 @@ def food_load(name: str, grams: float, food: Any) -> FoodLoad:
         return FoodLoad(name, "liquid", g, float(food.density),
                         float(getattr(food, "viscosity", WATER_KINEMATIC_VISCOSITY)))
     if kind == "granular":
-        repose = float(getattr(food, "repose_deg", KERNEL_REPOSE_DEG))
         return FoodLoad(name, "granular", g, float(food.density) * PIECE_PACKING,
-                        repose_deg=repose)
+                        repose_deg=float(food.angle_of_repose_deg))
     raise LoadError(f"--load food {name!r} is {kind or 'unknown'}: its spill is not modelled "
                     "(a liquid or granular food is)")
+
+
+def named_load(name: str, grams: float, foods: Mapping[str, Any],
+               field: str = "--load food") -> FoodLoad:
+    """:func:`food_load` of the food ``name`` among ``foods`` (the physics parameters' foods
+    by name); an unknown name is a :class:`LoadError` naming ``field`` and the known ones."""
+    if name not in foods:
+        raise LoadError(f"{field} must be one of {sorted(foods)}; got {name!r}")
+    return food_load(name, grams, foods[name])
 
 
 @lru_cache(maxsize=64)

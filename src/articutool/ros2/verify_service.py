@@ -36,14 +36,10 @@ class BadRequestError(ValueError):
 def food_load(food: str, grams: float) -> Any:
     """The request's load as the verifier models it, with the packaged food parameters
     (:class:`~articutool.food.loads.LoadError` naming ``food`` for an unknown one)."""
-    from articutool.food.loads import LoadError
-    from articutool.food.loads import food_load as make_load
+    from articutool.food.loads import named_load
     from articutool.sim.params import PhysicsParams
 
-    params = PhysicsParams.load()
-    if food not in params.foods:
-        raise LoadError(f"food must be one of {sorted(params.foods)}; got {food!r}")
-    return make_load(food, grams, params.food(food))
+    return named_load(food, grams, PhysicsParams.load().foods, "food")
 
 
 def _duration(d: Any) -> float:

@@ -12,7 +12,7 @@ __all__ = ["add_commands"]
 def _load(args: argparse.Namespace, spec: object) -> object:
     """The ``--load FOOD:GRAMS`` as a FoodLoad checked against the utensil (UsageError)."""
     from articutool.cli_support import UsageError
-    from articutool.food.loads import LoadError, food_load, parse_load
+    from articutool.food.loads import LoadError, named_load, parse_load
     from articutool.sim.params import PhysicsError, PhysicsParams
     from articutool.verify.food import spill_model
 
@@ -22,9 +22,7 @@ def _load(args: argparse.Namespace, spec: object) -> object:
             params = PhysicsParams.load(args.physics)
         except PhysicsError as err:
             raise UsageError(f"--physics: {err}") from None
-        if food not in params.foods:
-            raise LoadError(f"--load food must be one of {sorted(params.foods)}; got {food!r}")
-        load = food_load(food, grams, params.food(food))
+        load = named_load(food, grams, params.foods)
         spill_model(spec, args.utensil, load)  # type: ignore[arg-type]
     except LoadError as err:
         raise UsageError(str(err)) from None
