@@ -35,8 +35,40 @@ def _world_args(args: argparse.Namespace) -> dict:
     return {"spec": spec, "params": params, "seed": args.seed}
 
 
+def _write_mjcf(args: argparse.Namespace) -> int:
+    """``--mjcf FILE``: write the world (food placed with the seed, the arm at Resting in the
+    keyframe ``start``) for MuJoCo's viewer, and run nothing."""
+    from articutool.arm.scene import Scene
+    from articutool.cli_support import UsageError, new_output_file
+    from articutool.sim.mjcf import build_mjcf, viewer_mjcf
+
+    out = new_output_file("--mjcf", args.mjcf, (".xml",))
+    assert out is not None
+    kw = _world_args(args)
+    if args.load is not None and not (math.isfinite(args.load) and 0 < args.load <= 100):
+        raise UsageError(f"--load must be a mass in (0, 100] g; got {args.load}")
+    spec, params = kw["spec"], kw["params"]
+    utensil = args.utensil or params.food(args.food).utensil
+    try:
+        layout = build_mjcf(spec, Scene.load(), params, utensil, args.food, args.seed, args.load)
+    except ValueError as err:  # e.g. strands cannot be placed as a load
+        raise UsageError(f"--load: {err}") from None
+    text = viewer_mjcf(layout, spec.arm.configuration("Resting"))
+    try:
+        with out.open("x", encoding="utf-8") as f:  # never replaces a file or a link
+            f.write(text)
+    except OSError as err:
+        raise UsageError(f"--mjcf: cannot create {out}: {err.strerror}") from None
+    print(f"world: {out} ({args.food} on the {utensil}, seed {args.seed}); open it with "
+          f"`python -m mujoco.viewer --mjcf {out}` and load the keyframe 'start'")
+    return 0
+
+
 def _cmd_sim(args: argparse.Namespace) -> int:
     from articutool.cli_support import UsageError
+
+    if args.mjcf is not None:
+        return _write_mjcf(args)
     from articutool.sim.render import RenderError
     from articutool.sim.scenes import ScriptError, run_script
     from articutool.sim.world import FeedingWorld, PhysicsResetError
@@ -197,6 +229,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--record", metavar="FILE", default=None,
                    help="record the run (.npz: joints, food, spills, tool telemetry) for "
                         "articutool view --recording; never overwrites")
+    p.add_argument("--mjcf", metavar="FILE", default=None,
+                   help="instead of running, write the world (.xml: robot, scene, the food as "
+                        "placed with --seed) for `python -m mujoco.viewer --mjcf FILE`; its "
+                        "keyframe 'start' holds the arm at Resting; never overwrites")
     p.set_defaults(func=_cmd_sim)
     c = sub.add_parser("sim-calibrate", help="calibration experiments of a food model "
                        "(angle of repose, what a level utensil holds)")

@@ -79,6 +79,13 @@ _SETTLED_KEEP = 4
 _ZUP = np.array([0.0, 0.0, 1.0])
 
 
+def _model_bytes(m: mujoco.MjModel) -> bytes:
+    """The compiled model as MuJoCo saves it (every number and name): its identity."""
+    buf = np.empty(mujoco.mj_sizeModel(m), dtype=np.uint8)
+    mujoco.mj_saveModel(m, None, buf)
+    return buf.tobytes()
+
+
 @dataclass
 class FoodReport:
     """Where the food is (grams) at time ``t``, and every spill so far."""
@@ -171,7 +178,7 @@ class FeedingWorld:
             raise ValueError("load_g needs a food")
         self.layout: WorldLayout = build_mjcf(self.spec, self.scene, self.params, self.utensil,
                                               food, self.seed, load_g)
-        self.model = mujoco.MjModel.from_xml_string(self.layout.xml)
+        self.model = self.layout.spec.compile()
         self.data = mujoco.MjData(self.model)
         m, d = self.model, self.data
         rng = np.random.default_rng(self.seed + 1_000_003)
@@ -268,7 +275,7 @@ class FeedingWorld:
         the solver's warm start included) and the world's own servo state — bit-identical to
         settling it again (``tests/test_sim_speed.py``)."""
         m, d = self.model, self.data
-        h = hashlib.sha256(self.layout.xml.encode())
+        h = hashlib.sha256(_model_bytes(m))
         for a in (d.qpos, d.qvel, m.tree_sleep_policy,
                   np.array([seconds, self._kv, self._ki, self._tq])):
             h.update(np.ascontiguousarray(a).tobytes())
