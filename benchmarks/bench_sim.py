@@ -13,7 +13,9 @@ skewer, lift, level; ~19-25 s simulated) for one seed, reporting
   one thread still varies with the load, through caches and memory bandwidth);
 - an outcome: the mass acquired (pecans, noodles) or, for water (which the scripted scoop
   does not acquire), the mass kept by a locked soup spoon loaded with 8 g through the 40°
-  carry tilt.
+  carry tilt;
+- for water also ``realtime_factor_load``: the same clock for that placed load's world (the
+  fine particles of a hand-placed load: placing, settling and the carry, a transport).
 
 ``--code NAME=SRC`` (repeatable) runs the same seeds on several copies of the source
 (``git archive <rev> src | tar -x -C /tmp/old``), interleaved seed by seed so that the
@@ -76,6 +78,8 @@ def one(food: str, seed: int, variant: str) -> dict:
         w.move_arm(base_tilt_motion(w, 40.0))
         w.run(1.5)
         outcome = w.masses_g()["utensil"]
+        row["realtime_factor_load"] = round(w.realtime_factor, 3)
+        row["load_particles"] = w.n_items
     row["outcome_g"] = round(outcome, 3)
     return row
 
@@ -91,7 +95,10 @@ def _summary(rows: list[dict], food: str) -> dict:
     acq = [r["outcome_g"] for r in rows]
     rtf = [r["realtime_factor"] for r in rows]
     e2e = [r["realtime_factor_end_to_end"] for r in rows]
-    return {"realtime_factor_median": round(statistics.median(rtf), 3),
+    load = [r["realtime_factor_load"] for r in rows if "realtime_factor_load" in r]
+    extra = ({"realtime_factor_load_median": round(statistics.median(load), 3),
+              "realtime_factor_load_min": round(min(load), 3)} if load else {})
+    return {**extra,"realtime_factor_median": round(statistics.median(rtf), 3),
             "realtime_factor_min": round(min(rtf), 3),
             "realtime_factor_end_to_end_median": round(statistics.median(e2e), 3),
             "loadavg_1min_median": round(statistics.median(r["loadavg_1min_start"]

@@ -145,8 +145,14 @@ def measure(experiment: str, trials: int, workers: Sequence[int], *, root: Path,
     load_root = root / "load"
     if experiment == "exp2c" and not load_g:
         doc["load_run"] = _capacity_first(trials, max(workers), load_root)
-    ns = argparse.Namespace(trials=trials, seed=seed, load_g=load_g)
-    specs, extra = trials_for(experiment, ns, load_root, ExperimentsConfig.load())
+    # Exp. 2c's closed-loop target comes from the thresholds: the committed Exp. 1 means.
+    from articutool.thresholds import DEFAULT_OUT, exp1_means
+
+    cfg = ExperimentsConfig.load()
+    means = {f: g for f, g in exp1_means(DEFAULT_OUT).items() if f in cfg.exp2c.foods}
+    ns = argparse.Namespace(trials=trials, seed=seed, load_g=load_g,
+                            thresholds_g=",".join(f"{f}={g}" for f, g in means.items()) or None)
+    specs, extra = trials_for(experiment, ns, load_root, cfg)
     doc["conditions"] = extra["conditions"]
     if "load_source" in extra:  # the capacity summary it names was in the temporary root
         doc["load_g"] = extra["load_g"]

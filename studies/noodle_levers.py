@@ -1,5 +1,7 @@
-"""The noodle model's levers, each twirl vs still on the same tuning seeds: does any justified
-change to the noodle model or the fork's motion make a twirling fork lift more than a still one?
+"""Levers of the noodle acquisition, each twirl vs still on the same tuning seeds: does any
+justified change to the noodle model or the fork's motion make a twirling fork lift more than
+a still one? (The earlier adhesion levers are the shipped model's measured tack now;
+``no_tack`` removes it.)
 
 Every variant changes one thing from the shipped world (``data/physics.toml``, the fork's
 acquisition ``sim/scenes.py: skewer``), with its source in ``LEVERS``. Tuning seeds are
@@ -8,9 +10,9 @@ acquisition ``sim/scenes.py: skewer``), with its source in ``LEVERS``. Tuning se
 run; rerunning keeps the runs already there), so two processes can run different variants;
 every listed variant runs on a seed before any runs on the next.
 
-    nice .venv/bin/python studies/noodle_levers.py --lever baseline cohesion
+    nice .venv/bin/python studies/noodle_levers.py --lever baseline no_tack
     .venv/bin/python studies/noodle_levers.py --table     # the docs' table from the JSON
-    nice .venv/bin/python studies/noodle_levers.py --confirm cohesion --seeds 10
+    nice .venv/bin/python studies/noodle_levers.py --confirm no_tack --seeds 10
 """
 
 from __future__ import annotations
@@ -34,17 +36,6 @@ from articutool.spec import load_spec
 from noodle_twirl import STUDY_BASE_SEED, one_run, summarise, write_study
 
 TUNING_SEED0 = 5100  # 5100 + r: never a confirmation seed (5000-5009, noodle_twirl.py)
-# Capillary adhesion of a starch film: F ≈ 2γℓ (a meniscus on both sides of a line contact),
-# γ ≈ 0.05 N/m (surface tension of a starch-laden water film, below water's 0.072 N/m) along
-# one 15.6 mm segment: 1.56e-3 N, the cited upper bound per contact
-# (docs/notes/2026-11-22-simulation-prototypes.md).
-_GAMMA = 0.05
-_SEGMENT = 0.25 / 16
-ADHESION_BOUND_N = 2 * _GAMMA * _SEGMENT
-# Range over which the film's bridge pulls (MuJoCo ``gap``): a liquid bridge breaks at a
-# separation of about V^(1/3) of its volume (Lian, Thornton & Adams 1993, J. Colloid Interface
-# Sci. 161:138); a ~20 µm film over a 2 × 2 mm crossing holds ~8e-11 m³ → ~0.4 mm (estimate).
-ADHESION_GAP_M = 4e-4
 
 
 def _straight_rest(w: FeedingWorld) -> None:
@@ -80,15 +71,10 @@ class Lever:
 
 LEVERS: dict[str, Lever] = {
     "baseline": Lever("shipped model and motion", "data/physics.toml"),
-    "fork_adhesion": Lever(
-        f"fork-strand adhesion {ADHESION_BOUND_N * 1e3:.2f} mN per contact, gap 0.4 mm",
-        "upper bound 2γℓ, γ 0.05 N/m, ℓ one 15.6 mm segment; gap ≈ V^(1/3) of the film bridge",
-        food={"fork_adhesion": ADHESION_BOUND_N, "adhesion_gap": ADHESION_GAP_M}),
-    "cohesion": Lever(
-        f"strand-strand cohesion {ADHESION_BOUND_N * 1e3:.2f} mN per contact, gap 0.4 mm "
-        "(the fork gets half: MuJoCo sums the two geoms)",
-        "same film and bound as fork_adhesion (crossed wet cylinders alone: 2πγr ≈ 0.35 mN)",
-        food={"cohesion": ADHESION_BOUND_N, "adhesion_gap": ADHESION_GAP_M}),
+    "no_tack": Lever(
+        "no starch tack: friction only",
+        "the shipped strands without their measured stickiness (physics.toml stickiness_pa)",
+        food={"stickiness_pa": 0.0}),
     "straight_rest": Lever(
         "strands' rest shape straight (laid as spirals, then relaxed 1 s)",
         "a fresh strand's rest shape; the shipped one is its laid shape (fully relaxed)",

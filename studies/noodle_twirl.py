@@ -162,6 +162,9 @@ def write_study(path: Path, runs: list[dict[str, Any]], turns: float,
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--base-seed", type=int, default=STUDY_BASE_SEED,
+                    help=f"study seeds trial_seed(B, r) = 1000·B + r (default {STUDY_BASE_SEED}; "
+                         "6 = 6000-6009, held out from every earlier noodle study)")
     ap.add_argument("--turns", type=float, default=None,
                     help="twirl turns (default: the cable budget less 0.1 turn)")
     ap.add_argument("--out", default="studies/results/noodle_twirl.json")
@@ -176,6 +179,8 @@ def main(argv: list[str] | None = None) -> int:
     turns = hi if args.turns is None else args.turns
     if not 0 < turns <= hi:
         ap.error(f"--turns must be in (0, {hi:g}]; got {turns}")
+    if not 1 <= args.base_seed <= 9999:
+        ap.error(f"--base-seed must be in [1, 9999]; got {args.base_seed}")
     if args.seeds < 2:
         ap.error(f"--seeds must be >= 2; got {args.seeds}")
     out_path = Path(args.out)
@@ -184,7 +189,7 @@ def main(argv: list[str] | None = None) -> int:
         runs = json.loads(out_path.read_text())["runs"]
     done = {(r["seed"], r["twirl_turns"]) for r in runs}
     for r in range(args.seeds):
-        seed = trial_seed(STUDY_BASE_SEED, r)
+        seed = trial_seed(args.base_seed, r)
         for t in (turns, 0.0):
             if (seed, t) in done:
                 continue

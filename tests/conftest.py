@@ -10,7 +10,9 @@ free_port``):
 - :func:`run_cli` — the ``articutool`` command as a user runs it, in its own process;
 - :func:`minimal_env` — the environment of a bare shell (no venv variables, no display);
 - :func:`assert_refused` — bad input: exit 2, the named fields in stderr, no traceback;
-- :func:`wait_until` — poll a condition; the deadline only bounds a failing test.
+- :func:`wait_until` — poll a condition; the deadline only bounds a failing test;
+- :func:`drop_off_the_table` — move a food item that spilled on the table to just above the
+  floor beside it (water deposits where it lands, so a table-then-floor spill is staged).
 """
 
 from __future__ import annotations
@@ -101,3 +103,21 @@ def wait_until(pred: Callable[[], object], timeout: float = 5.0, period: float =
             return True
         time.sleep(period)
     return bool(pred())
+
+
+def drop_off_the_table(world) -> int:  # type: ignore[no-untyped-def]
+    """Move the first food item now on the table to 5 cm above the floor beside the table, at
+    rest (the world's sleeping must be off: a sleeping body does not move); returns it."""
+    import numpy as np
+
+    from articutool.sim import accounting as acc
+
+    on_table = np.flatnonzero(world.ledger.codes == acc.TABLE)
+    assert on_table.size, "nothing spilled on the table"
+    k = int(on_table[0])
+    m, d = world.model, world.data
+    j = m.body(world.layout.food_bodies[k]).jntadr[0]
+    qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
+    d.qpos[qa:qa + 3] = (-0.2, 0.0, world.scene.get("ground").xyz[2] + 0.05)
+    d.qvel[va:va + 6] = 0.0
+    return k

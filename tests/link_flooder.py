@@ -17,7 +17,11 @@ batches every 10 ms, round robin over the endpoints named):
 - ``replay``: one captured signed request (``--capture``: JSON with key, payload and
   attachment, hex) sent again and again;
 - ``cancels``: cancel_goal for all goals and for random goal ids (fills an unpaired tool's
-  stop queue unless equal stops join).
+  stop queue unless equal stops join);
+- ``malformed``: the commands of ``unsigned`` (not get_result) with attachments that are not
+  valid signature JSON (:data:`MALFORMED`: ``Infinity`` and 400-digit timestamps, brackets
+  nested 4 000 deep, invalid UTF-8, wrong types), which the verifier must refuse like any
+  unsigned message.
 
 Prints ``SENT <n> <seconds>`` on exit (stdin closed, or after ``--seconds``).
 """
@@ -59,6 +63,29 @@ def requests(names: Names) -> list[tuple[Endpoint, bytes]]:
     return out
 
 
+def _signed_shape(t: str) -> bytes:
+    return b'{"c": "AAAA", "t": ' + t.encode() + b', "n": "00112233445566778899aabb", "s": "AAAA"}'
+
+
+MALFORMED: dict[str, bytes] = {
+    "t_infinity": _signed_shape("Infinity"),
+    "t_minus_infinity": _signed_shape("-Infinity"),
+    "t_nan": _signed_shape("NaN"),
+    "t_400_digits": _signed_shape("9" * 400),
+    "t_1e400": _signed_shape("1e400"),
+    "t_2_pow_64": _signed_shape(str(2**64)),
+    "t_negative": _signed_shape("-5"),
+    "t_string": _signed_shape('"123"'),
+    "nested_4000": b"[" * 4000 + b"]" * 4000,
+    "nested_objects": b'{"a":' * 1300 + b"1" + b"}" * 1300,
+    "not_utf8": b"\xff\xfe\x00{",
+    "wrong_types": b'{"c": 5, "t": 1, "n": [], "s": {}}',
+    "a_list": b'[1, 2, 3]',
+    "id_is_an_object": b'{"id": {"name": "pc-1"}}',
+}
+"""Attachments that are not signatures, by name: each must be refused as unsigned."""
+
+
 def forged(cert_b64: str) -> bytes:
     """A paired PC's certificate with a random (wrong) signature, fresh time and nonce."""
     return json.dumps({"c": cert_b64, "t": time.time_ns(), "n": os.urandom(12).hex(),
@@ -69,7 +96,8 @@ def main(argv: list[str]) -> int:
     """Flood until stdin closes or ``--seconds`` pass."""
     p = argparse.ArgumentParser()
     p.add_argument("--connect", required=True)
-    p.add_argument("--mode", choices=("unsigned", "forged", "signed", "replay", "cancels"),
+    p.add_argument("--mode", choices=("unsigned", "forged", "signed", "replay", "cancels",
+                                     "malformed"),
                    required=True)
     p.add_argument("--rate", type=float, default=3000.0)
     p.add_argument("--seconds", type=float, default=3600.0)
@@ -106,6 +134,10 @@ def main(argv: list[str]) -> int:
             signer = Signer(cfg.tls_certificate, cfg.tls_private_key)  # type: ignore[arg-type]
             plan = [(key_expr(cfg.domain_id, ep), pl,
                      lambda n=ep.name, pl=pl: signer.attachment(n, pl)) for ep, pl in reqs]
+        elif a.mode == "malformed":
+            bad = list(MALFORMED.values())  # commands only: get_result is open to all
+            plan = [(key_expr(cfg.domain_id, ep), pl, lambda b=b: b)
+                    for b in bad for ep, pl in reqs if ep != names.get_result]
         else:
             unsigned = claim("pc-1")
             plan = [(key_expr(cfg.domain_id, ep), pl, lambda c=unsigned: c)

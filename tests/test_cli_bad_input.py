@@ -47,7 +47,7 @@ def test_a_100000_deep_document_is_refused_naming_the_file(command, deep, tmp_pa
     assert_refused(_cli(*args), path, "nested too deeply")
 
 
-def test_a_run_json_100000_deep_in_the_results_folder_is_refused(deep, tmp_path):
+def test_a_run_json_100000_deep_in_the_results_folder_isassert_refused(deep, tmp_path):
     (tmp_path / "run.json").write_text(deep["json"].read_text())
     assert_refused(_cli("bench", "transport", "--out", str(tmp_path), "--workers", "1", "--limit",
                   "1"), "run.json", "use another --out")
@@ -57,7 +57,7 @@ def test_a_run_json_100000_deep_in_the_results_folder_is_refused(deep, tmp_path)
                   str(tmp_path)), "run.json", "use another --out")
 
 
-def test_a_recording_whose_meta_is_100000_deep_is_refused(deep, tmp_path):
+def test_a_recording_whose_meta_is_100000_deep_isassert_refused(deep, tmp_path):
     from articutool.sim.recording import _ARRAYS
 
     rec = tmp_path / "deep.npz"
@@ -81,7 +81,7 @@ def test_info_spec_reads_regular_files_only_and_does_not_hang(kind, tmp_path):
 
 # --------------------------------------------------------------- outputs --
 @pytest.mark.parametrize("where", ["under_a_file", "proc"])
-def test_an_out_folder_that_cannot_be_created_is_refused(where, tmp_path):
+def test_an_out_folder_that_cannot_be_created_isassert_refused(where, tmp_path):
     (tmp_path / "afile").write_text("x")
     out = tmp_path / "afile" / "o" if where == "under_a_file" else Path("/proc/articutool-o")
     assert_refused(_cli("bench", "transport", "--out", str(out), "--workers", "1", "--limit", "1"),
@@ -91,7 +91,7 @@ def test_an_out_folder_that_cannot_be_created_is_refused(where, tmp_path):
     assert (tmp_path / "afile").read_text() == "x" and not out.exists()
 
 
-def test_a_results_log_that_is_a_folder_is_refused(tmp_path):
+def test_a_results_log_that_is_a_folder_isassert_refused(tmp_path):
     (tmp_path / "results.jsonl").mkdir()
     assert_refused(_cli("bench", "transport", "--out", str(tmp_path), "--workers", "1", "--limit",
                   "1"), "--out", "results.jsonl")
@@ -246,14 +246,14 @@ def test_view_nonsense_is_refused_before_serving(args, words, tmp_path):
     assert "viewer: http" not in r.stdout
 
 
-def test_report_thresholds_for_an_unknown_food_are_refused(tmp_path):
+def test_report_thresholds_for_an_unknown_food_areassert_refused(tmp_path):
     r = _cli("experiment", "report", "--out", str(tmp_path), "--thresholds-g", "pizza=3")
     assert_refused(r, "--thresholds-g", "pecans", "water")
     assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize("ns", ["/*", "/**", "/articutool/*", "/a/$*", "//a", "/a/", "a"])
-def test_a_wildcard_or_malformed_namespace_is_refused(ns, tmp_path):
+def test_a_wildcard_or_malformed_namespace_isassert_refused(ns, tmp_path):
     with pytest.raises(ConfigError, match="namespace must be"):
         LinkConfig(namespace=ns)
     cfg = tmp_path / "link.json"
@@ -265,3 +265,269 @@ def test_a_wildcard_or_malformed_namespace_is_refused(ns, tmp_path):
 def test_namespaces_in_use_still_load():
     for ns in ("/", "/articutool", "/lab_2/articutool"):
         assert LinkConfig(namespace=ns).namespace == ns
+
+
+# ------------------------------------------------- a run's own result files --
+RESULTS = Path(__file__).parents[1] / "results" / "experiments"
+NAN_EXP1 = '{"acquired_g": {"noodles": {"articutool": {"mean": NaN}}, "pecans": {"articutool": ' \
+           '{"mean": NaN}}, "water": {"articutool": {"mean": NaN}}}}'
+
+
+def _plant(path: Path, kind: str) -> None:
+    """A file that is not as articutool writes it, at ``path`` (its folder created)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if kind == "garbage":
+        path.write_text("this is not { json")
+    elif kind == "shape":
+        path.write_text('{"acquired_g": [1, 2], "foods": {"pecans": {"capacity_g": "heavy"}}}')
+    elif kind == "deep":
+        path.write_text("[" * DEPTH + "]" * DEPTH)
+    elif kind == "binary":
+        path.write_bytes(bytes(range(256)) * 8)
+    elif kind == "folder":
+        path.mkdir()
+    elif kind == "fifo":
+        os.mkfifo(path)  # nobody writes: a read would wait forever
+    elif kind == "nan":
+        path.write_text(NAN_EXP1.replace('"articutool": {"mean": NaN}', '"articutool": '
+                                         '{"mean": NaN}, "capacity_g": {"mean": NaN}')
+                        .replace('"acquired_g"', '"foods": {"pecans": {"capacity_g": {"mean": '
+                                 'NaN}}, "water": {"capacity_g": {"mean": NaN}}}, "acquired_g"'))
+    elif kind == "dangling":
+        path.symlink_to(path.parent / "nowhere.json")
+    else:
+        raise AssertionError(kind)
+
+
+# What each command reads: meal, exp3 and the report read Exp. 1's summary (their
+# thresholds), exp2c reads the capacity summary (its load).
+_READERS = {
+    "meal": (("meal", "--food", "pecans", "--bites", "1"), "exp1"),
+    "report": (("experiment", "report", "--out", "{out}"), "exp1"),
+    "exp3": (("experiment", "exp3", "--trials", "1", "--workers", "1", "--out", "{out}"),
+             "exp1"),
+    "exp2c": (("experiment", "exp2c", "--trials", "1", "--workers", "1", "--out", "{out}"),
+              "capacity"),
+}
+
+
+@pytest.mark.parametrize("command,kind", [
+    *(("report", k) for k in ("garbage", "shape", "deep", "binary", "folder", "fifo", "nan",
+                               "dangling")),
+    *((c, k) for c in ("meal", "exp3", "exp2c") for k in ("fifo", "nan")),
+])
+def test_a_result_summary_not_as_written_is_refused_naming_it(command, kind, tmp_path):
+    args, exp = _READERS[command]
+    out = tmp_path / "results" / "experiments"  # `meal` reads it relative to its folder
+    summary = out / exp / "summary.json"
+    _plant(summary, kind)
+    r = _cli(*(a.format(out=out) for a in args), cwd=tmp_path, timeout=60)
+    assert_refused(r, "summary.json")
+    assert not (out / exp / "trials.jsonl").exists() and not (out / exp / "run.json").exists()
+    assert not (out / "report.md").exists()
+
+
+def test_an_unreadable_old_summary_is_refused_before_resuming(tmp_path):
+    _plant(tmp_path / "capacity" / "summary.json", "garbage")
+    r = _cli("experiment", "capacity", "--trials", "1", "--workers", "1", "--out",
+             str(tmp_path))
+    assert_refused(r, str(tmp_path / "capacity" / "summary.json"), "not valid JSON")
+    assert sorted(p.name for p in (tmp_path / "capacity").iterdir()) == ["summary.json"]
+
+
+@pytest.mark.parametrize("name", ["trials.jsonl", "summary.json", "run.json"])
+def test_an_experiments_own_file_as_a_link_is_refused_and_the_target_kept(name, tmp_path):
+    mine = tmp_path / "mine.txt"
+    mine.write_text("my notes, no newline at the end")  # would be cut as a "torn tail"
+    (tmp_path / "out" / "capacity").mkdir(parents=True)
+    (tmp_path / "out" / "capacity" / name).symlink_to(mine)
+    r = _cli("experiment", "capacity", "--trials", "1", "--workers", "1", "--out",
+             str(tmp_path / "out"))
+    assert_refused(r, "--out", name, "symbolic link")
+    assert mine.read_text() == "my notes, no newline at the end"
+
+
+def test_an_experiments_own_folder_as_a_link_isassert_refused(tmp_path):
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "capacity").symlink_to(tmp_path / "elsewhere")
+    assert_refused(_cli("experiment", "capacity", "--trials", "1", "--workers", "1", "--out",
+                  str(tmp_path / "out")), "--out", "capacity", "symbolic link")
+    assert list((tmp_path / "elsewhere").iterdir()) == []
+
+
+@pytest.mark.parametrize("name", ["results.jsonl", "results.csv", "cactus.png", "run.json"])
+def test_a_benchmarks_own_file_as_a_link_is_refused_and_the_target_kept(name, tmp_path):
+    mine = tmp_path / "mine.txt"
+    mine.write_text('{"a torn": "tail"')
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / name).symlink_to(mine)
+    r = _cli("bench", "transport", "--out", str(out), "--workers", "1", "--limit", "1",
+             "--timeout", "1", "--systems", "decoupled")
+    assert_refused(r, "--out", name, "symbolic link")
+    assert mine.read_text() == '{"a torn": "tail"'
+    assert not (out / "results.jsonl").exists() or name == "results.jsonl"
+
+
+@pytest.fixture(scope="module")
+def exp1_results(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A copy of the committed Exp. 1 results (log and summary): a report can be written."""
+    out = tmp_path_factory.mktemp("results")
+    (out / "exp1").mkdir()
+    for name in ("trials.jsonl", "summary.json"):
+        (out / "exp1" / name).write_bytes((RESULTS / "exp1" / name).read_bytes())
+    return out
+
+
+@pytest.mark.parametrize("name", ["exp1/exp1.png", "report.md", "report.html"])
+def test_the_report_writes_no_figure_or_page_through_a_link(name, exp1_results, tmp_path):
+    mine = tmp_path / "mine.png"
+    mine.write_bytes(b"my own picture")
+    link = exp1_results / name
+    link.unlink(missing_ok=True)
+    link.symlink_to(mine)
+    try:
+        assert_refused(_cli("experiment", "report", "--out", str(exp1_results)),
+                       name.split("/")[-1], "symbolic link")
+    finally:
+        link.unlink()
+    assert mine.read_bytes() == b"my own picture"
+
+
+def test_a_fifo_as_the_reports_notes_or_old_report_does_not_hang(exp1_results):
+    for name in ("exp1/notes.md", "report.md"):
+        (exp1_results / name).unlink(missing_ok=True)
+        os.mkfifo(exp1_results / name)
+        try:
+            assert_refused(_cli("experiment", "report", "--out", str(exp1_results), timeout=60),
+                     name.split("/")[-1])
+        finally:
+            (exp1_results / name).unlink()
+
+
+# ------------------------------------------------------------------ numbers --
+@pytest.mark.parametrize("step", ["1e-300", "1e-6"])
+def test_a_step_too_small_to_check_is_refused_not_reported_feasible(step):
+    r = _cli("verify", str(EXAMPLE), "--max-step-deg", step)
+    assert_refused(r, "max_step_deg", "samples")
+    assert "FEASIBLE" not in r.stdout
+
+
+@pytest.mark.parametrize("command", [
+    ("bench", "transport", "--out", "{tmp}/o", "--limit", "1"),
+    ("experiment", "capacity", "--trials", "1", "--out", "{tmp}/o"),
+])
+@pytest.mark.parametrize("workers", ["100000000000000000000", "1025", "0", "1e20"])
+def test_workers_must_be_a_count_in_range(command, workers, tmp_path):
+    r = _cli(*(a.format(tmp=tmp_path) for a in command), "--workers", workers, timeout=60)
+    assert_refused(r, "--workers", "[1, 1024]" if "e" not in workers else "invalid int value")
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("loads", ["pecans=1e308,water=15", "pecans=7,water=inf",
+                                   "pecans=nan,water=15", "pecans=101,water=15"])
+def test_an_exp2c_load_beyond_any_utensil_isassert_refused(loads, tmp_path):
+    assert_refused(_cli("experiment", "exp2c", "--trials", "1", "--workers", "1", "--out",
+                  str(tmp_path), "--load-g", loads, timeout=60), "--load-g", "[0, 100]")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("setting,words", [
+    ("extra = 5", ("extra must be a table",)),
+    ('extra = {"a//b" = 1}', ("extra", "zenoh config path")),
+    ('extra = {"transport/unicast/max_links" = nan}', ("extra", "finite")),
+    ("reconnect_period = 1e308", ("reconnect_period", "(0, 60]")),
+    ("heartbeat_period = 1e9", ("heartbeat_period", "(0, 10]")),
+    ("call_timeout = inf", ("call_timeout", "(0, 3600]")),
+    ('multicast_scouting = "yes"', ("multicast_scouting", "true or false")),
+    ("publish_rate_hz = true", ("publish_rate_hz", "(0, 1000]")),
+])
+def test_link_config_values_out_of_range_are_refused_naming_the_field(setting, words,
+                                                                       tmp_path):
+    cfg = tmp_path / "link.toml"
+    cfg.write_text(setting + "\n")
+    assert_refused(_cli("client", "--link-config", str(cfg), "--wait", "1", "state", timeout=60),
+             str(cfg), *words)
+
+
+@pytest.mark.parametrize("var,value", [
+    ("ROS_DOMAIN_ID", "abc"), ("ROS_DOMAIN_ID", "233"), ("ROS_DOMAIN_ID", "-1"),
+    ("RMW_IMPLEMENTATION", "rmw_nothing_cpp"),
+])
+def test_a_bad_ros2_environment_is_refused_naming_the_variable(var, value):
+    env = minimal_env(ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", **{var: value})
+    assert_refused(run_cli("ros2", "--wait", "1", env=env, timeout=60), var, repr(value))
+
+
+def test_the_installed_middleware_is_accepted():
+    from articutool.link.config import check_ros_environment, installed_rmw_implementations
+
+    for rmw in installed_rmw_implementations():
+        check_ros_environment({"RMW_IMPLEMENTATION": rmw, "ROS_DOMAIN_ID": "232"})
+    check_ros_environment({"RMW_IMPLEMENTATION": "", "ROS_DOMAIN_ID": ""})  # rcl's defaults
+
+
+@pytest.mark.parametrize("args", [
+    ("vibrate_roll", *[str(k) for k in range(1100)]),  # 1 100 float32 parameters
+    ("x" * 5000,),  # a name longer than any request the tool reads
+])
+def test_an_oversized_primitive_request_is_refused_before_sending(args):
+    import time
+
+    t0 = time.monotonic()
+    r = _cli("client", "--wait", "30", "primitive", *args, timeout=60)
+    assert_refused(r, "max_request_bytes = 4096", "bytes")
+    assert time.monotonic() - t0 < 25  # refused, not waited for a tool or a reply
+
+
+def test_run_primitive_refuses_an_oversized_request_without_sending_it():
+    from articutool.link.client import ArticutoolClient
+    from articutool.link.memory_transport import MemoryBus, MemoryTransport
+
+    class Spy(MemoryTransport):
+        calls = 0
+
+        def call(self, ep, payload, timeout):  # type: ignore[no-untyped-def]
+            Spy.calls += 1
+            return super().call(ep, payload, timeout)
+
+    bus = MemoryBus()
+    client = ArticutoolClient(LinkConfig(), Spy(bus))
+    try:
+        with pytest.raises(ValueError, match="max_request_bytes"):
+            client.run_primitive("vibrate_roll", [1.0] * 1100)
+        assert Spy.calls == 0
+    finally:
+        client.close()
+        bus.close()
+
+
+def test_meal_show_tree_needs_no_threshold_and_help_promises_no_yaml(tmp_path):
+    r = _cli("meal", "--show-tree", cwd=tmp_path)  # no results/experiments here
+    assert r.returncode == 0, r.stderr
+    assert "bite tree for noodles" in r.stdout
+    assert "YAML" not in _cli("meal", "--help").stdout
+    (tmp_path / "s.yaml").write_text("strategies: {}\n")
+    assert_refused(_cli("meal", "--strategies", str(tmp_path / "s.yaml"), "--show-tree"),
+             "--strategies", "s.yaml", "YAML is not read")
+
+
+# A careless user's inputs found by going over every subcommand once more.
+@pytest.mark.parametrize("args,words", [
+    (("verify", "{d}/garbage.json"), ("{d}/garbage.json", "joint_names")),
+    (("view", "--recording", "{d}/fifo.npz", "--duration", "1"), ("fifo.npz", "FIFO")),
+    (("view", "--recording", "{d}/dir.npz", "--duration", "1"), ("dir.npz", "folder")),
+    (("bench", "transport", "--out", "{d}/dangling", "--workers", "1", "--limit", "1"),
+     ("--out", "symbolic link to nothing")),
+    (("experiment", "capacity", "--out", "{d}/dangling", "--workers", "1", "--trials", "1"),
+     ("--out", "symbolic link to nothing")),
+])
+def test_careless_paths_are_refused_naming_the_file_and_what_it_is(args, words, tmp_path):
+    (tmp_path / "garbage.json").write_text('{"a": 1}')
+    os.mkfifo(tmp_path / "fifo.npz")
+    (tmp_path / "dir.npz").mkdir()
+    (tmp_path / "dangling").symlink_to(tmp_path / "nowhere")
+    r = _cli(*(a.format(d=tmp_path) for a in args), timeout=60)
+    assert_refused(r, *(w.format(d=tmp_path) for w in words))
+    assert not (tmp_path / "nowhere").exists()

@@ -22,11 +22,11 @@ def scaling(monkeypatch):
     return importlib.import_module("experiment_scaling")
 
 
-def test_capacity_on_a_local_pool_and_on_dask_gives_the_same_outcomes(scaling, tmp_path,
-                                                                      monkeypatch) -> None:
+def test_exp2b_on_a_local_pool_and_on_dask_gives_the_same_outcomes(scaling, tmp_path,
+                                                                   monkeypatch) -> None:
     pytest.importorskip("distributed")
     monkeypatch.chdir(tmp_path)  # MuJoCo writes MUJOCO_LOG.TXT on a warning
-    doc = scaling.measure("capacity", 1, [1], root=tmp_path / "roots")
+    doc = scaling.measure("exp2b", 1, [1], root=tmp_path / "roots")
     out = tmp_path / "s.json"
     scaling.write_json(out, doc)
     doc = json.loads(out.read_text())
@@ -43,7 +43,7 @@ def test_capacity_on_a_local_pool_and_on_dask_gives_the_same_outcomes(scaling, t
     assert "Dask cluster" in dask["executor"] and "cluster_start_s" in dask
     # The trials ran into the temporary roots, each its own log, never results/.
     for kind in ("local", "dask"):
-        assert (tmp_path / "roots" / f"{kind}-1" / "capacity" / "trials.jsonl").exists()
+        assert (tmp_path / "roots" / f"{kind}-1" / "exp2b" / "trials.jsonl").exists()
     assert not (tmp_path / "results" / "experiments").exists()
     table = scaling.table(doc)
     assert table.count("| yes |") == 2 and "Dask LocalCluster" in table

@@ -70,28 +70,30 @@ class _Serial:
 
 def test_a_torn_last_line_is_cut_off_and_its_trial_rerun(tmp_path: Path) -> None:
     cfg = ExperimentsConfig.load()
-    trials = make_trials("capacity", conditions("capacity", cfg), 1, 0)
-    log = log_path(tmp_path, "capacity")
+    goals = ["low_near"]
+    trials = make_trials("exp2b", conditions("exp2b", cfg, goals=goals), 1, 0,
+                         goals=goals)[:2]  # pecans: Articutool, baseline
+    log = log_path(tmp_path, "exp2b")
     first = run_experiment(trials[:1], log, _Serial())
     assert first.ran == 1
     with open(log, "ab") as f:
-        f.write(b'{"experiment": "capacity", "trial": 1, "cap')  # a crash mid-write
+        f.write(b'{"experiment": "exp2b", "trial": 1, "hel')  # a crash mid-write
     res = run_experiment(trials, log, _Serial())
     assert res.torn == 1 and res.skipped == 1 and res.ran == 1
     recs = _lines(log)
     assert [r["trial"] for r in recs] == [0, 1]
-    assert recs[1]["food"] == "water" and recs[1]["capacity_g"] > 0
+    assert recs[1]["system"] == "baseline" and recs[1]["held_g"] > 0
 
 
 @pytest.mark.slow  # two real CLI runs with spawned workers: ~30 s on the shared 2 cores
 def test_a_killed_run_resumes_and_loses_or_repeats_no_trial(tmp_path: Path) -> None:
     out = tmp_path / "res"
-    cmd = [*ARTICUTOOL, "experiment", "capacity", "--trials", "3", "--workers", "1",
+    cmd = [*ARTICUTOOL, "experiment", "exp2b", "--trials", "2", "--workers", "1",
            "--out", str(out)]
     env = {**os.environ, "MPLBACKEND": "Agg"}
     p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                          start_new_session=True, env=env)
-    log = log_path(out, "capacity")
+    log = log_path(out, "exp2b")
     wait_until(lambda: p.poll() is not None
                or (log.exists() and len(log.read_text().splitlines()) >= 2), 240, 0.1)
     assert p.poll() is None, "the run finished before it could be killed; use more trials"
@@ -100,19 +102,19 @@ def test_a_killed_run_resumes_and_loses_or_repeats_no_trial(tmp_path: Path) -> N
     before = log.read_bytes()
     done_before = {r["trial"] for r in _lines(log)} if before.endswith(b"\n") else {
         r["trial"] for r in _lines(log)[:-1]}
-    assert 2 <= len(done_before) < 6
+    assert 2 <= len(done_before) < 8
     r = subprocess.run([*cmd, "--json"], capture_output=True, text=True, env=env,
                        timeout=600)
     assert r.returncode == 0, r.stderr
     recs = _lines(log)
     trials = [x["trial"] for x in recs]
-    assert sorted(trials) == list(range(6))  # none lost, none repeated
+    assert sorted(trials) == list(range(8))  # none lost, none repeated
     assert log.read_bytes().startswith(before.rsplit(b"\n", 1)[0])  # old lines untouched
     assert f"{len(done_before)} already in" in r.stderr
     summary = json.loads(r.stdout)
-    assert summary["run"]["trials"] == 6
-    assert summary["foods"]["pecans"]["capacity_g"]["n"] == 3
-    assert read_trials(out, "capacity")[0]["trial"] == 0
+    assert summary["run"]["trials"] == 8
+    assert summary["spilled_g"]["pecans"]["articutool"]["n"] == 2
+    assert read_trials(out, "exp2b")[0]["trial"] == 0
 
 
 @pytest.mark.parametrize("argv, field", [
@@ -178,13 +180,12 @@ class _TreeReachedError(Exception):
     """Raised by the stand-ins for the tree runners: the trial got as far as its tree."""
 
 
-@pytest.mark.parametrize("experiment", ["exp1", "exp2b", "exp2c", "exp3"])
+@pytest.mark.parametrize("experiment", ["capacity", "exp1", "exp2b", "exp2c", "exp3"])
 def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
         monkeypatch: pytest.MonkeyPatch, experiment: str) -> None:
     """``run_trial(…, visitors=…)`` reaches the feeding tree of every protocol that runs one
     (what ``--record`` relies on for ``/feeding/tree``). The physics is stubbed out here; a
-    real recording is in test_mcap_recording.py. The capacity protocol runs no tree."""
-    import inspect
+    real recording is in test_mcap_recording.py."""
     from types import SimpleNamespace
     from unittest import mock
 
@@ -200,10 +201,11 @@ def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
         raise _TreeReachedError
 
     monkeypatch.setattr(tree, "run_tree", runner)  # exp2b, exp2c (transport)
-    monkeypatch.setattr(meal, "run_bite", runner)  # exp1, exp3
+    monkeypatch.setattr(meal, "run_bite", runner)  # capacity, exp1, exp3
     monkeypatch.setattr(tree, "transport_tree", mock.MagicMock())
     monkeypatch.setattr(meal, "make_bite_world", lambda *a, **k: SimpleNamespace(
-        world=mock.MagicMock(), arm=mock.MagicMock()))
+        world=mock.MagicMock(), arm=mock.MagicMock(), strategy=mock.MagicMock()))
+    monkeypatch.setattr(protocols, "capacity_strategy", lambda s, _: s)
     monkeypatch.setattr(meal, "shed_configuration", lambda *a, **k: None)
     for name in ("FeedingWorld", "SimArm", "_GoalArm"):
         monkeypatch.setattr(protocols, name, mock.MagicMock())
@@ -214,4 +216,3 @@ def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
     rec = run_trial(make_trials(experiment, conds, 1, 0, goals=goals)[0], visitors=mine)
     assert rec["error"] is not None and "_TreeReachedError" in rec["error"], rec
     assert got == [mine] and got[0] is mine
-    assert "visitors" in inspect.signature(protocols.capacity_trial).parameters

@@ -67,6 +67,3 @@ def test_a_slower_planner_gives_the_same_attempts_and_outcome(
     assert (slow["qpos"] == fast["qpos"]).all()
     assert slow["masses"] == fast["masses"]
     assert slow["rec"].planning_wall_s >= LAG_WALL_S  # the recorded time is the planner's own
-    for r in (fast, slow):  # nothing spilled in the transport
-        for place in ("table", "critical"):
-            assert r["masses"][place] == r["before"][place]

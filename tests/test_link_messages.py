@@ -68,10 +68,12 @@ SAMPLES = _samples()
 
 
 def test_set_orientation_control_request_has_the_ros2_cdr_layout() -> None:
-    # CDR: encapsulation 00 01 00 00, uint8, 3 bytes padding to 4, two little-endian float32.
+    # CDR: encapsulation 00 01 00 00, uint8, 3 bytes padding to 4, two little-endian float32,
+    # 4 bytes padding to 8, then the upstream's quaternion (x, y, z, w float64; identity).
     data = cdr.encode(m.soc_request(Mode.LEVELING, 12.5, -3.0),
                     N.set_orientation_control.request_type)
-    assert data == b"\x00\x01\x00\x00" + b"\x01\x00\x00\x00" + struct.pack("<ff", 12.5, -3.0)
+    assert data == (b"\x00\x01\x00\x00" + b"\x01\x00\x00\x00" + struct.pack("<ff", 12.5, -3.0)
+                    + bytes(4) + struct.pack("<dddd", 0.0, 0.0, 0.0, 1.0))
 
 
 def test_send_goal_layout_is_uuid_then_string_then_float_sequence() -> None:

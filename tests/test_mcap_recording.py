@@ -132,9 +132,12 @@ def test_tool_record_bad_input_exits_2(tmp_path: Path, args: list[str], says: st
 
 
 def _tool(tmp_path: Path, port: int, *extra: str) -> subprocess.Popen[str]:
+    """``articutool tool`` in a session of its own: its loop process and the link process it
+    starts (which writes the recording) can be killed together, as a power cut would."""
     return subprocess.Popen([sys.executable, "-m", "articutool", "tool", "--no-level",
                              "--listen", f"tcp/127.0.0.1:{port}", *extra], env=ENV,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
 
 
 def _wait_for(path: Path, size: int, timeout: float) -> None:
@@ -148,7 +151,7 @@ def test_a_killed_tools_recording_is_readable_to_its_last_chunk(tmp_path: Path) 
     try:
         _wait_for(path, 60_000, 60)  # a few complete chunks (each about a second)
     finally:
-        tool.send_signal(signal.SIGKILL)
+        os.killpg(tool.pid, signal.SIGKILL)  # both processes: the recorder gets no chance
         tool.wait(10)
     with path.open("rb") as f, pytest.raises(McapError):  # no summary: the file was cut
         make_reader(f).get_summary()
@@ -164,6 +167,11 @@ def test_a_killed_tools_recording_is_readable_to_its_last_chunk(tmp_path: Path) 
         except (McapError, EOFError):
             pass
     assert counts["joint_states"] >= 10 and counts["battery"] >= 10
+    from articutool.link.recording import read_recording
+
+    got = read_recording(path)  # our reader: the same messages, and says the file was cut
+    assert not got.complete and "was cut" in got.cut
+    assert len(got.messages) == sum(counts.values())
 
 
 def test_ctrl_c_closes_the_tools_recording(tmp_path: Path) -> None:
@@ -268,7 +276,7 @@ def test_an_experiment_trial_recording_agrees_with_its_record(tmp_path: Path) ->
     got = _read(path)
     food = [d for t, _, d in got if t == "/sim/food"]
     on_spoon = {kv.key: float(kv.value) for kv in food[-1].status[0].values}["utensil_g"]
-    assert on_spoon == pytest.approx(rec["capacity_g"], abs=1e-3)  # the trial's own measure
+    assert on_spoon == pytest.approx(rec["items_g"], abs=1e-3)  # the trial's own measure
     assert sum(t.endswith("/joint_states") for t, _, _ in got) > 100
     for args, says in ((["--record", str(path), "--trial", "0"], "exists"),
                        (["--record", str(tmp_path / "new.mcap")], "--trial")):
@@ -414,3 +422,83 @@ def test_recorded_messages_decode_to_what_was_written(names: list[str], data: An
     assert list(f.current_joint_values) == joints
     g = got["/goal"].goal
     assert g.primitive_name == prim and list(g.parameters) == params
+
+
+# ------------------------------------------------- corrupt and cut recordings --
+def _wrist_recording(path: Path, n: int = 300, close: bool = True) -> bytes:
+    """A recording of ``n`` wrist joint states in 2 KiB chunks; its bytes on disk (with
+    ``close=False``: as a recorder killed now leaves them, every completed chunk flushed)."""
+    from articutool.spec import load_spec
+
+    wrist = list(load_spec().wrist.joint_names)
+    rec = McapRecorder(path, chunk_bytes=2048)
+    for k in range(n):
+        t = T + 0.02 * k
+        rec.write_msg("/articutool/default/joint_states", cdr.JOINT_STATE,
+                      _joint_states(wrist, t, [0.1 * np.sin(0.02 * k), 0.01 * k]), t)
+    data = path.read_bytes()
+    rec.close()
+    return path.read_bytes() if close else data
+
+
+def test_every_flipped_bit_is_refused_naming_the_file(tmp_path: Path) -> None:
+    from articutool.link.recording import read_recording
+
+    good = _wrist_recording(tmp_path / "good.mcap")
+    assert read_recording(tmp_path / "good.mcap").complete
+    rng = np.random.default_rng(0)
+    offsets = sorted({0, len(good) - 1, *rng.integers(0, len(good), 60).tolist()})
+    for off in offsets:
+        for bit in (0, 5):
+            bad = bytearray(good)
+            bad[off] ^= 1 << bit
+            p = tmp_path / f"flip-{off}-{bit}.mcap"
+            p.write_bytes(bytes(bad))
+            with pytest.raises(RecordingError, match=str(p)):
+                read_recording(p)
+    # Through the viewer: exit 2 naming the file, never a decompressor's traceback.
+    chunk = good.index(b"zstd") + 40  # inside the first chunk's compressed bytes
+    bad = bytearray(good)
+    bad[chunk] ^= 0x10
+    p = tmp_path / "chunk.mcap"
+    p.write_bytes(bytes(bad))
+    r = subprocess.run([sys.executable, "-m", "articutool", "view", "--recording", str(p),
+                        "--duration", "1", "--port", str(free_port())], env=ENV,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert str(p) in r.stderr and "not a readable MCAP" in r.stderr
+
+
+def test_a_cut_recording_is_read_to_its_last_chunk_and_said_to_be_cut(tmp_path: Path) -> None:
+    from articutool.link.recording import read_recording
+
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(_wrist_recording(tmp_path / "whole.mcap", close=False))
+    whole = read_recording(tmp_path / "whole.mcap")
+    got = read_recording(cut)
+    assert not got.complete and "was cut" in got.cut
+    assert 100 < len(got.messages) < len(whole.messages) == 300
+    assert got.messages == whole.messages[:len(got.messages)]  # file order, nothing invented
+    # What mcap's reader gives by default (log-time order, so it reads to the end): nothing.
+    with cut.open("rb") as f, pytest.raises(McapError):
+        list(NonSeekingReader(f).iter_messages())
+    r = subprocess.run([sys.executable, "-m", "articutool", "view", "--recording", str(cut),
+                        "--duration", "1", "--port", str(free_port())], env=ENV,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "note:" in r.stderr and "was cut" in r.stderr and "viewer: http://" in r.stdout
+
+
+@pytest.mark.parametrize("kind", ["fifo", "folder"])
+def test_a_recording_that_is_not_a_regular_file_is_refused_without_waiting(kind,
+                                                                           tmp_path: Path):
+    p = tmp_path / "r.mcap"
+    if kind == "fifo":
+        os.mkfifo(p)
+    else:
+        p.mkdir()
+    r = subprocess.run([sys.executable, "-m", "articutool", "view", "--recording", str(p),
+                        "--duration", "1", "--port", str(free_port())], env=ENV,
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert str(p) in r.stderr

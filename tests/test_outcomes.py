@@ -24,7 +24,20 @@ def test_user_spill_dominates_table_spill_and_failure() -> None:
 
 
 def test_food_shed_into_the_bowl_is_no_spill() -> None:
-    assert classify_bite(4.0, {"container": 3.0, "table": 0.0}, 3.0) == "meaningful_success"
+    # A primitive's shed never enters spilled_g: a bite that shed 3 g and spilled nothing.
+    assert classify_bite(4.0, {"table": 0.0, "critical": 0.0}, 3.0) == "meaningful_success"
+
+
+def test_food_lost_into_a_container_in_transport_is_a_non_critical_spill() -> None:
+    # One particle that left the spoon on the way to the user and landed in the plate.
+    assert classify_bite(7.5, {"table": 0.0, "critical": 0.0, "container": 0.42}, 3.0) \
+        == "table_spill"
+    assert classify_bite(7.5, {"airborne": 0.42}, 3.0) == "table_spill"
+
+
+def test_an_unknown_spill_place_is_refused() -> None:
+    with pytest.raises(ValueError, match="unknown places"):
+        classify_bite(1.0, {"bowl": 0.5}, 3.0)
 
 
 def test_an_incomplete_bite_without_spill_failed() -> None:

@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from articutool.bench.taskfile import default_tasks_path
 from conftest import assert_refused, minimal_env, run_cli
 
@@ -73,3 +75,34 @@ def test_bad_input_exits_2_also_when_run_as_a_module():
         proc = subprocess.run([sys.executable, "-m", module, "demo", "--seed", "-1"],
                               capture_output=True, text=True, timeout=120)
         assert_refused(proc, "--seed")
+
+
+# Every command that writes a new file the user names refuses, before any work, a path that
+# is a link (even one to nothing: the file would be created at its target) or that cannot be
+# created (in /proc); rendering commands used to render first and fail, or run until killed.
+_OUTPUTS = {
+    "verify --wrist-out": (("verify", str(EXAMPLE), "--wrist-out", "{out}"), ".json"),
+    "view --export": (("view", "--recording", "missing.npz", "--export", "{out}"), ".mp4"),
+    "sim --video": (("sim", "--video", "{out}"), ".mp4"),
+    "sim --snapshot": (("sim", "--snapshot", "{out}"), ".png"),
+    "sim --record": (("sim", "--record", "{out}"), ".npz"),
+    "meal --video": (("meal", "--threshold", "1", "--video", "{out}"), ".gif"),
+    "experiment --video": (("experiment", "exp1", "--trial", "0", "--video", "{out}"), ".mp4"),
+}
+
+
+@pytest.mark.parametrize("where", ["dangling", "proc"])
+@pytest.mark.parametrize("command", sorted(_OUTPUTS))
+def test_an_output_that_is_a_link_or_cannot_be_created_is_refused_first(command, where,
+                                                                         tmp_path):
+    args, suffix = _OUTPUTS[command]
+    target = tmp_path / f"target{suffix}"
+    if where == "dangling":
+        out = tmp_path / f"out{suffix}"
+        out.symlink_to(target)
+    else:
+        out = Path(f"/proc/articutool-out{suffix}")
+    r = _cli(*(a.format(out=out) for a in args), cwd=tmp_path)
+    assert_refused(r, command.split()[1], str(out))
+    assert r.stdout == ""
+    assert not target.exists() and not out.exists()

@@ -32,7 +32,10 @@ def _answer(tool: RemoteTool, within_s: float = 5.0) -> PrimitiveStatus:
 @pytest.fixture
 def real() -> Iterator[tuple[_RealTool, RemoteTool]]:
     r = _RealTool()
-    client = ArticutoolClient(CFG, MemoryTransport(r.bus), sender="pc-1")
+    # The runtime here runs in real time in this process: a 2 s silence bound, not the 0.5 s of
+    # the link tests, so a loaded machine (load 35) that starves its thread is not "silence".
+    client = ArticutoolClient(CFG.replace(tool_timeout=2.0), MemoryTransport(r.bus),
+                              sender="pc-1")
     assert client.wait_for_tool(5.0)
     yield r, RemoteTool(client)
     client.close()

@@ -1,7 +1,10 @@
 """The built ``articutool_interfaces`` ROS 2 package and the link's messages are one definition:
-ROS 2 decodes the link's bytes of our own types and the other way round,
-and the link's RIHS01 type hashes equal those rosidl wrote into the installed package.
-The include-path fix of the wheels' CMake exports is checked on copies of the real files.
+ROS 2 decodes the link's bytes of our own types and the other way round, and the link's RIHS01
+type hashes equal those rosidl wrote into the installed package. The upstream package's
+types (``personalrobotics/articutool_ros2``, field layout kept in
+``tests/data/upstream_articutool_interfaces``) hash exactly as ours, so a Jazzy or later
+client built from upstream connects to our services. The include-path fix of the wheels'
+CMake exports is checked on copies of the real files.
 
 Skipped where rclpy or the built package are unavailable (``make`` builds it on CPython 3.11
 x86-64 only).
@@ -21,7 +24,7 @@ import pytest
 from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.ros2 import build_interfaces as bi
-from articutool.tool.api import PrimitiveStatus
+from articutool.tool.api import Mode, PrimitiveStatus
 
 _why = "rclpy and the built articutool_interfaces (make; CPython 3.11 on x86_64 only)"
 ser = pytest.importorskip("rclpy.serialization", reason=_why)
@@ -32,7 +35,7 @@ from articutool_interfaces.srv import SetOrientationControl as S  # noqa: E402
 
 GID = bytes(range(16))
 CASES: list[tuple[str, Any, Any]] = [
-    (f"{cdr.SET_ORIENTATION_CONTROL}_Request", S.Request, m.soc_request(m.Mode.LEVELING, 12.5, -3)),
+    (f"{cdr.SET_ORIENTATION_CONTROL}_Request", S.Request, m.soc_request(Mode.LEVELING, 12.5, -3)),
     (f"{cdr.SET_ORIENTATION_CONTROL}_Response", S.Response, m.soc_response(False, "refused: ü")),
     (f"{cdr.SEND_GOAL}_Request", A.Impl.SendGoalService.Request,
      m.send_goal_request(GID, "TWIRL_CW", [1.0, 3.0])),
@@ -62,18 +65,49 @@ def test_rclpy_reads_the_fields_we_wrote() -> None:
     assert req.goal.primitive_name == "VIBRATE_ROLL"
     assert np.allclose(req.goal.parameters, [5.0, 0.1, 2.0])
     assert bytes(req.goal_id.uuid) == GID
-    soc = ser.deserialize_message(cdr.encode(m.soc_request(m.Mode.LEVELING, 12.5, -3.0),
+    soc = ser.deserialize_message(cdr.encode(m.soc_request(Mode.LEVELING, 12.5, -3.0),
                                            f"{cdr.SET_ORIENTATION_CONTROL}_Request"), S.Request)
     assert (soc.control_mode, soc.pitch_offset, soc.roll_offset) == (S.Request.MODE_LEVELING,
                                                                      12.5, -3.0)
+    q = soc.target_orientation_robot_base
+    assert (q.x, q.y, q.z, q.w) == (0.0, 0.0, 0.0, 1.0)
 
 
-@pytest.mark.parametrize("typename", [cdr.SET_ORIENTATION_CONTROL, cdr.ACTION])
-def test_type_hashes_equal_the_built_packages(typename: str) -> None:
-    pkg, kind, name = typename.split("/")
-    doc = json.loads((Path(sys.prefix) / "share" / pkg / kind / f"{name}.json").read_text())
+UPSTREAM = Path(__file__).resolve().parent / "data" / "upstream_articutool_interfaces"
+
+
+def test_type_hashes_equal_the_upstream_packages() -> None:
+    upstream = cdr.interface_hashes(cdr.package_texts(UPSTREAM))
+    ours = cdr.interface_hashes(cdr.package_texts())
+    assert sorted(upstream) == sorted(set(ours) - {"articutool_interfaces/srv/VerifyTrajectory"})
+    for name, digest in upstream.items():
+        assert ours[name] == digest, name
+
+
+def test_the_hash_comparison_sees_a_missing_field() -> None:
+    """Without the quaternion upstream keeps (our package's earlier layout) the service
+    hash differs: the comparison above can fail."""
+    texts = cdr.package_texts(UPSTREAM)
+    rel = "srv/SetOrientationControl.srv"
+    texts[rel] = texts[rel].replace("geometry_msgs/Quaternion target_orientation_robot_base\n",
+                                    "")
+    changed = cdr.interface_hashes(texts)
+    assert changed[cdr.SET_ORIENTATION_CONTROL] != cdr.type_hash(cdr.SET_ORIENTATION_CONTROL)
+    assert changed[cdr.ACTION] == cdr.type_hash(cdr.ACTION)
+
+
+INSTALLED = sorted((Path(sys.prefix) / "share" / "articutool_interfaces").glob("*/*.json"))
+
+
+@pytest.mark.parametrize("path", INSTALLED, ids=[p.stem for p in INSTALLED])
+def test_type_hashes_equal_the_built_packages(path: Path) -> None:
+    doc = json.loads(path.read_text())
     for entry in doc["type_hashes"]:
         assert cdr.type_hash(entry["type_name"]) == entry["hash_string"], entry["type_name"]
+
+
+def test_every_interface_is_built() -> None:
+    assert {p.stem for p in INSTALLED} == {Path(r).stem for r in cdr.package_texts()}
 
 
 def test_the_export_path_fix_is_idempotent(tmp_path: Path) -> None:
@@ -100,5 +134,20 @@ def test_the_export_path_fix_is_idempotent(tmp_path: Path) -> None:
 
 def test_the_package_builds_from_the_same_files_the_link_parses() -> None:
     installed = Path(sys.prefix) / "share" / "articutool_interfaces"
-    for rel in ("srv/SetOrientationControl.srv", "action/ExecuteArticutoolPrimitive.action"):
-        assert (installed / rel).read_text() == (cdr.IDL_DIR / rel).read_text()
+    for rel, text in cdr.package_texts().items():
+        assert (installed / rel).read_text() == text
+
+
+PEER_JSON = sorted(p for pkg in ("control_msgs", "controller_manager_msgs")
+                   for p in (Path(sys.prefix) / "share" / pkg).glob("*/*.json"))
+
+
+@pytest.mark.parametrize("path", PEER_JSON, ids=[p.stem for p in PEER_JSON])
+def test_the_trajectory_path_types_hash_as_rosidl_built_them(path: Path) -> None:
+    """control_msgs/FollowJointTrajectory and controller_manager_msgs/SwitchController,
+    built from the field layouts in ros2/peer_interfaces: our texts hash as rosidl does."""
+    from articutool.ros2.build_interfaces import PEERS
+    pkg = path.parts[-3]
+    ours = cdr.interface_hashes(cdr.package_texts(PEERS / pkg), pkg)
+    top = json.loads(path.read_text())["type_hashes"][0]
+    assert ours[top["type_name"]] == top["hash_string"]

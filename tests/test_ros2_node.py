@@ -3,8 +3,12 @@
 The real tool (``articutool tool`` on the simulated drivers, paired, loopback TLS), the node
 (``articutool ros2``, forwarding over the paired link), and this test process as a plain
 rclpy client written here (rclpy's own Client/ActionClient/Subscription, none of our code),
-on a DDS domain of its own restricted to localhost. The refusals a ROS 2 client gets are
-compared with what the link client gets for the same bad requests.
+on a DDS domain of its own restricted to localhost. The client uses the interfaces as ADA's
+Articutool behaviours do (``personalrobotics/ada_feeding``, ``behaviors/articutool/``): the
+upstream names with no namespace, ``CallSetOrientationControl``'s request fields (offsets
+sent as ``math.radians``, the identity quaternion), ``ExecuteNamedPrimitive``'s goals and
+cancels, ``TriggerArticutoolCalibration``'s empty request. The refusals a ROS 2 client gets
+are compared with what the link client gets for the same bad requests.
 
 Skipped where rclpy or the built ``articutool_interfaces`` are unavailable (``make`` builds
 the package on CPython 3.11 x86-64 only).
@@ -38,18 +42,25 @@ pytest.importorskip("articutool_interfaces.action", reason=_why)
 
 from action_msgs.msg import GoalStatus  # noqa: E402
 from articutool_interfaces.action import ExecuteArticutoolPrimitive  # noqa: E402
-from articutool_interfaces.srv import SetOrientationControl  # noqa: E402
+from articutool_interfaces.msg import ImuCalibrationStatus  # noqa: E402
+from articutool_interfaces.srv import SetOrientationControl, TriggerCalibration  # noqa: E402
 from builtin_interfaces.msg import Duration  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from geometry_msgs.msg import Quaternion  # noqa: E402
 from rclpy.action import ActionClient  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter_client import AsyncParameterClient  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile  # noqa: E402
 from sensor_msgs.msg import BatteryState, Imu, JointState  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
 SRC = Path(__file__).resolve().parent.parent / "src"
-TOOL = f"wrist_{os.getpid()}"  # with the domain below: apart from other runs on this host
-NS = f"/articutool/{TOOL}"
+TOOL = f"wrist_{os.getpid()}"
+# ADA's default names (no namespace); the random domain keeps other runs on this host apart.
+SOC = "/articutool/set_orientation_control"
+PRIMITIVE = "/orientation_control/execute_primitive"
+CALIBRATION = "/orientation_calibration_service/trigger_calibration"
 DOMAIN = random.Random(os.getpid()).randint(120, 220)  # away from others' default domain 0
 ENV = dict(os.environ, PYTHONPATH=str(SRC), ROS_DOMAIN_ID=str(DOMAIN),
            ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
@@ -60,13 +71,15 @@ def _articutool(*args: str, **kw: Any) -> subprocess.Popen[str]:
                             **kw)
 
 
-def _start_node(pc_cfg: Path, port: int, log: Path) -> subprocess.Popen[str]:
+def _start_node(pc_cfg: Path, port: int, log: Path, *ros_args: str) -> subprocess.Popen[str]:
     with log.open("a") as err:
         node = _articutool("ros2", "--link-config", str(pc_cfg), "--connect",
-                           f"tls/127.0.0.1:{port}", stdout=subprocess.PIPE, stderr=err)
+                           f"tls/127.0.0.1:{port}", *(("--ros-args", *ros_args) if ros_args
+                                                       else ()),
+                           stdout=subprocess.PIPE, stderr=err)
     assert node.stdout is not None
     line = node.stdout.readline()  # the node prints one line once it serves
-    assert f"serving {NS}/" in line, (line, log.read_text())
+    assert "serving" in line, (line, log.read_text())
     return node
 
 
@@ -95,25 +108,36 @@ class Graph:
                 "clear": c.clear_fault(),
             }
         self.log = folder / "node.log"
-        self.node_proc = _start_node(self.pc_cfg, self.port, self.log)
+        # parameters the ROS 2 way: -p overrides the flag's --wait 10
+        self.node_proc = _start_node(self.pc_cfg, self.port, self.log, "-p", "wait_s:=30",
+                                     "-p", "offset_units:=degrees")
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx, domain_id=DOMAIN)
         self.node = rclpy.create_node("plain_test_client", context=self.ctx)
         self.executor = SingleThreadedExecutor(context=self.ctx)
         self.executor.add_node(self.node)
         self.received: dict[str, list[Any]] = {"js": [], "imu": [], "health": [], "battery": []}
-        for key, cls, rel in (("js", JointState, "joint_states"), ("imu", Imu, "imu/data"),
-                              ("health", DiagnosticArray, "health"),
-                              ("battery", BatteryState, "battery")):
-            self.node.create_subscription(cls, f"{NS}/{rel}", self.received[key].append, 10)
-        self.soc = self.node.create_client(SetOrientationControl,
-                                           f"{NS}/set_orientation_control")
-        self.clear = self.node.create_client(Trigger, f"{NS}/clear_fault")
-        self.action = ActionClient(self.node, ExecuteArticutoolPrimitive,
-                                   f"{NS}/execute_primitive")
-        self.traj_pub = self.node.create_publisher(JointTrajectory, f"{NS}/joint_trajectory", 10)
-        assert self.soc.wait_for_service(timeout_sec=30)
-        assert self.clear.wait_for_service(timeout_sec=30)
+        self.received["status"] = []
+        for key, cls, name in (("js", JointState, "/articutool/joint_states"),
+                               ("imu", Imu, "/articutool/imu_data_and_orientation"),
+                               ("health", DiagnosticArray, "/articutool/health"),
+                               ("battery", BatteryState, "/articutool/battery")):
+            self.node.create_subscription(cls, name, self.received[key].append, 10)
+        self.node.create_subscription(
+            ImuCalibrationStatus, "/orientation_calibration_service/status",
+            self.received["status"].append,
+            QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.soc = self.node.create_client(SetOrientationControl, SOC)
+        self.soc_mode = self.node.create_client(
+            SetOrientationControl, "/orientation_control/set_orientation_control_mode")
+        self.calibration = self.node.create_client(TriggerCalibration, CALIBRATION)
+        self.clear = self.node.create_client(Trigger, "/articutool/clear_fault")
+        self.stop = self.node.create_client(Trigger, "/articutool/stop")
+        self.action = ActionClient(self.node, ExecuteArticutoolPrimitive, PRIMITIVE)
+        self.traj_pub = self.node.create_publisher(JointTrajectory,
+                                                   "/articutool/joint_trajectory", 10)
+        for c in (self.soc, self.soc_mode, self.calibration, self.clear, self.stop):
+            assert c.wait_for_service(timeout_sec=30), c.srv_name
         assert self.action.wait_for_server(timeout_sec=30)
 
     def wait(self, future: Any, timeout: float = 30.0) -> Any:
@@ -129,10 +153,13 @@ class Graph:
                 return True
         return False
 
-    def set_mode(self, mode: int, pitch: float = 0.0, roll: float = 0.0) -> Any:
+    def set_mode(self, mode: int, pitch: float = 0.0, roll: float = 0.0,
+                 client: Any = None) -> Any:
+        """As ADA's CallSetOrientationControl fills the request (offsets as given here)."""
         req = SetOrientationControl.Request(control_mode=mode, pitch_offset=pitch,
                                             roll_offset=roll)
-        return self.wait(self.soc.call_async(req))
+        req.target_orientation_robot_base = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
+        return self.wait((client or self.soc).call_async(req))
 
     def send_goal(self, name: str, params: list[float],
                   feedback: list[Any] | None = None) -> Any:
@@ -239,9 +266,10 @@ def test_a_cancelled_goal_stops_the_tool(graph: Graph) -> None:
 
 
 def test_telemetry_is_forwarded(graph: Graph) -> None:
-    assert graph.spin_until(lambda: all(len(v) >= 5 for v in graph.received.values()), 10)
-    js = graph.received["js"][-1]
-    assert list(js.name) == ["atool_pitch", "atool_roll"] and len(js.position) == 2
+    streams = ("js", "imu", "health", "battery")
+    assert graph.spin_until(lambda: all(len(graph.received[k]) >= 5 for k in streams), 10)
+    js = graph.received["js"][-1]  # under the upstream joint names, [pitch, roll]
+    assert list(js.name) == ["atool_joint1", "atool_joint2"] and len(js.position) == 2
     q = graph.received["imu"][-1].orientation
     assert math.isclose(q.w**2 + q.x**2 + q.y**2 + q.z**2, 1.0, rel_tol=1e-6)
     assert graph.received["health"][-1].status[0].hardware_id == TOOL
@@ -253,17 +281,161 @@ def test_a_ros2_trajectory_moves_the_wrist(graph: Graph) -> None:
     # the twirls left roll outside the trajectory's joint limits [-pi, pi]: home first
     res = graph.wait(graph.send_goal("HOMING", [2.0]).get_result_async(), 30)
     assert res.status == GoalStatus.STATUS_SUCCEEDED, res.result.message
-    graph.spin_until(lambda: bool(graph.received["js"]), 10)
+    graph.spin_until(lambda: False, 0.5)  # take the queued joint states: q0 is the latest
     q0 = list(graph.received["js"][-1].position)
     target = [0.3, q0[1]]
-    traj = JointTrajectory(joint_names=["atool_pitch", "atool_roll"], points=[
+    # the first point 0.3 s in: the tool moves there smoothly if the wrist is still settling
+    # (a first point at t = 0 must be within one tick's travel, else the tool refuses it)
+    traj = JointTrajectory(joint_names=["atool_joint1", "atool_joint2"], points=[
         JointTrajectoryPoint(positions=q0, velocities=[0.0, 0.0],
-                             time_from_start=Duration(sec=0, nanosec=0)),
+                             time_from_start=Duration(sec=0, nanosec=300_000_000)),
         JointTrajectoryPoint(positions=target, velocities=[0.0, 0.0],
-                             time_from_start=Duration(sec=1, nanosec=500_000_000))])
+                             time_from_start=Duration(sec=1, nanosec=800_000_000))])
     graph.traj_pub.publish(traj)
     assert graph.spin_until(lambda: abs(graph.received["js"][-1].position[0] - 0.3) < 0.02,
                             15), graph.log.read_text()
+    assert graph.set_mode(0).success
+
+
+def test_the_upstream_nodes_mode_service_name_sets_the_mode_too(graph: Graph) -> None:
+    resp = graph.set_mode(SetOrientationControl.Request.MODE_LEVELING, client=graph.soc_mode)
+    assert resp.success, resp.message
+    assert graph.spin_until(lambda: _health(graph).get("mode") == "LEVELING", 10)
+    assert graph.set_mode(0, client=graph.soc_mode).success
+
+
+def test_calibration_is_answered_without_pretending(graph: Graph) -> None:
+    """As ADA's TriggerArticutoolCalibration calls it: an empty request; the reply says
+    there is nothing to calibrate, the offset is the identity, and the latched status says
+    yaw is not referenced."""
+    resp = graph.wait(graph.calibration.call_async(TriggerCalibration.Request()))
+    assert resp.success and "nothing to calibrate" in resp.message
+    q = resp.computed_offset_jacobase_to_filterworld
+    assert (q.x, q.y, q.z, q.w) == (0.0, 0.0, 0.0, 1.0)
+    assert graph.spin_until(lambda: bool(graph.received["status"]), 10)
+    assert graph.received["status"][-1].is_yaw_calibrated is False
+
+
+def test_parameters_are_declared_typed_and_readable(graph: Graph) -> None:
+    """What ``ros2 param get/describe /articutool_ros2 …`` reads, through rclpy's parameter
+    services; ``-p wait_s:=30`` overrode the flag's 10 s."""
+    pc = AsyncParameterClient(graph.node, "/articutool_ros2")
+    assert pc.wait_for_services(timeout_sec=30)
+    names = ["tool_id", "wait_s", "namespace", "offset_units", "joint_names",
+             "call_timeout_s", "tool_timeout_s", "link_config", "utensil"]
+    got = graph.wait(pc.get_parameters(names)).values
+    values = dict(zip(names, got, strict=True))
+    assert values["tool_id"].string_value == TOOL
+    assert values["wait_s"].double_value == 30.0
+    assert values["namespace"].string_value == ""
+    assert values["offset_units"].string_value == "degrees"
+    assert list(values["joint_names"].string_array_value) == ["atool_joint1", "atool_joint2"]
+    assert values["call_timeout_s"].double_value > 0
+    desc = {d.name: d for d in graph.wait(pc.describe_parameters(names)).descriptors}
+    rng = desc["wait_s"].floating_point_range[0]
+    assert (rng.from_value, rng.to_value) == (0.0, 3600.0)
+    assert all(d.read_only for d in desc.values())
+    res = graph.wait(pc.set_parameters([rclpy.parameter.Parameter("wait_s", value=5.0)]))
+    assert not res.results[0].successful  # read-only: they configure how the node started
+
+
+def test_stop_ends_a_running_primitive(graph: Graph) -> None:
+    assert graph.set_mode(0).success
+    feedback: list[Any] = []
+    handle = graph.send_goal("TWIRL_CCW", [1.0, 0.5], feedback)
+    assert graph.spin_until(lambda: len(feedback) >= 3, 10)
+    resp = graph.wait(graph.stop.call_async(Trigger.Request()))
+    assert resp.success, resp.message
+    res = graph.wait(handle.get_result_async(), 30)
+    assert res.status in (GoalStatus.STATUS_ABORTED, GoalStatus.STATUS_CANCELED)
+    assert not res.result.success
+    graph.spin_until(lambda: False, 0.5)
+    r1 = graph.received["js"][-1].position[1]
+    graph.spin_until(lambda: False, 1.0)
+    assert graph.received["js"][-1].position[1] == pytest.approx(r1, abs=1e-3)
+
+
+def test_stops_and_cancels_are_all_answered_under_a_flood(graph: Graph) -> None:
+    """Another process floods the node's services with 1 000 bad calls/s (mode 7, a 500°
+    offset, NaN, calibration) while this client stops the wrist and
+    cancels goals: every stop and every cancel is answered (the flood's own calls may be
+    refused as busy). A flood of the action's own goals and cancels is measured by
+    benchmarks/bench_ros2_stops.py: it shares the action's queues with a client's cancels."""
+    flooder = subprocess.Popen([sys.executable, str(Path(__file__).parent / "ros2_flooder.py"),
+                                "--rate", "1000", "--seconds", "60",
+                                "--kinds", "mode,offset,nan,calibration"], env=ENV, text=True,
+                               stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    assert flooder.stdout is not None
+    assert flooder.stdout.readline().strip() == "READY"
+    try:
+        graph.spin_until(lambda: False, 1.0)  # the flood is on
+        answers = []
+        for _ in range(20):  # one after another, each awaited, as ADA's behaviours call
+            answers.append(graph.wait(graph.stop.call_async(Trigger.Request()), 10))
+        assert all(a.success for a in answers), [a.message for a in answers]
+        cancelled = 0
+        for _ in range(3):
+            feedback: list[Any] = []
+            handle = graph.send_goal("TWIRL_CW", [1.0, 0.5], feedback)
+            assert graph.spin_until(lambda fb=feedback: len(fb) >= 2, 20)
+            cancel = graph.wait(handle.cancel_goal_async(), 20)
+            assert len(cancel.goals_canceling) == 1
+            res = graph.wait(handle.get_result_async(), 30)
+            cancelled += res.status == GoalStatus.STATUS_CANCELED
+        assert cancelled == 3
+    finally:
+        out, _ = flooder.communicate(input="", timeout=60)
+    sent = out.split()  # SENT n ANSWERED n seconds: it flooded throughout
+    assert sent[0] == "SENT" and int(sent[1]) / float(sent[4]) > 500, out
+
+
+def test_adas_trajectory_path_moves_the_wrist(graph: Graph) -> None:
+    """As ADA's SwitchArticutoolControllers then ExecuteArticutoolTrajectory do: switch to the
+    joint_trajectory_controller (BEST_EFFORT), send a FollowJointTrajectory goal in the
+    upstream joint names, get SUCCESSFUL with the wrist at the last point."""
+    from control_msgs.action import FollowJointTrajectory
+    from controller_manager_msgs.srv import SwitchController
+    switch = graph.node.create_client(SwitchController,
+                                      "/articutool/controller_manager/switch_controller")
+    assert switch.wait_for_service(timeout_sec=30)
+    req = SwitchController.Request(activate_controllers=["joint_trajectory_controller"],
+                                   deactivate_controllers=["velocity_controller"],
+                                   strictness=SwitchController.Request.BEST_EFFORT)
+    assert graph.wait(switch.call_async(req)).ok
+    bad = SwitchController.Request(activate_controllers=["no_such_controller"],
+                                   strictness=SwitchController.Request.STRICT)
+    assert not graph.wait(switch.call_async(bad)).ok
+    fjt = ActionClient(graph.node, FollowJointTrajectory,
+                       "/articutool/joint_trajectory_controller/follow_joint_trajectory")
+    assert fjt.wait_for_server(timeout_sec=30)
+    assert graph.set_mode(0).success
+    res = graph.wait(graph.send_goal("HOMING", [2.0]).get_result_async(), 30)
+    assert res.status == GoalStatus.STATUS_SUCCEEDED, res.result.message
+    graph.spin_until(lambda: False, 0.3)
+    q0 = list(graph.received["js"][-1].position)
+    goal = FollowJointTrajectory.Goal()
+    goal.trajectory = JointTrajectory(joint_names=["atool_joint2", "atool_joint1"], points=[
+        JointTrajectoryPoint(positions=[q0[1], q0[0]], velocities=[0.0, 0.0],
+                             time_from_start=Duration(sec=0, nanosec=300_000_000)),
+        JointTrajectoryPoint(positions=[q0[1], -0.25], velocities=[0.0, 0.0],
+                             time_from_start=Duration(sec=1, nanosec=500_000_000))])
+    feedback: list[Any] = []
+    handle = graph.wait(fjt.send_goal_async(goal, feedback_callback=lambda f: feedback.append(
+        f.feedback)))
+    assert handle.accepted
+    res = graph.wait(handle.get_result_async(), 30)
+    assert res.result.error_code == FollowJointTrajectory.Result.SUCCESSFUL, \
+        res.result.error_string
+    assert res.status == GoalStatus.STATUS_SUCCEEDED and feedback
+    assert list(feedback[-1].joint_names) == ["atool_joint1", "atool_joint2"]
+    assert graph.received["js"][-1].position[0] == pytest.approx(-0.25, abs=0.05)
+    wrong = FollowJointTrajectory.Goal()
+    wrong.trajectory = JointTrajectory(joint_names=["j2n6s200_joint_1", "atool_joint1"],
+                                       points=goal.trajectory.points)
+    handle = graph.wait(fjt.send_goal_async(wrong))
+    res = graph.wait(handle.get_result_async(), 30)
+    assert res.result.error_code == FollowJointTrajectory.Result.INVALID_JOINTS
+    assert "atool_joint1" in res.result.error_string
     assert graph.set_mode(0).success
 
 
@@ -296,8 +468,15 @@ def test_sigterm_stops_an_idle_node(graph: Graph) -> None:
 
 
 @pytest.mark.parametrize(("args", "field"), [
-    (["--tool-id", "wrist-1"], "--tool-id"),
-    (["--ros-tool-id", "9lives"], "--ros-tool-id"),
+    (["--ros-namespace", "a b"], "--ros-namespace"),
+    (["--ros-namespace", "9lives"], "--ros-namespace"),
+    (["--ros-args", "-p", "wait_s:=-1.0"], "wait_s"),
+    (["--ros-args", "-p", "wait_s:=soon"], "wait_s"),
+    (["--ros-args", "-p", "offset_units:=furlongs"], "offset_units"),
+    (["--ros-args", "-p", "joint_names:=[a]"], "joint_names"),
+    (["--ros-args", "-p", "namespace:=a b"], "namespace"),
+    (["--ros-args", "-p", "utensil:=ladle"], "utensil"),
+    (["--ros-args", "-p", "tool_idd:=x"], "tool_idd"),
     (["--connect", "tcp/nowhere"], "connect"),
     (["--wait", "-1"], "--wait"),
     (["--wait", "1e300"], "--wait"),  # bounded like the client's: a huge wait would hang
@@ -361,22 +540,23 @@ def test_a_cancel_whose_result_arrives_before_its_reply_still_cancels() -> None:
     goals_canceling=[])."""
     from rclpy.executors import MultiThreadedExecutor
 
-    from articutool.ros2.node import ArticutoolRos2Node
+    from articutool.ros2.node import ArticutoolRos2Node, NodeSettings
     ctx = rclpy.Context()
     rclpy.init(context=ctx, domain_id=DOMAIN)
     fake = _ResultBeforeCancelReply()
-    ros_id = f"race_{os.getpid()}"
-    server = ArticutoolRos2Node(fake, ros_id, context=ctx)  # type: ignore[arg-type]
+    ns = f"race_{os.getpid()}"
+    server = ArticutoolRos2Node(fake, NodeSettings(namespace=ns),  # type: ignore[arg-type]
+                                context=ctx)
     server_exec = MultiThreadedExecutor(num_threads=4, context=ctx)
     server_exec.add_node(server.node)
+    server_exec.add_node(server.safety_node)
     spinner = threading.Thread(target=server_exec.spin, daemon=True)
     spinner.start()
     node = rclpy.create_node("plain_race_client", context=ctx)
     ex = SingleThreadedExecutor(context=ctx)
     ex.add_node(node)
     try:
-        action = ActionClient(node, ExecuteArticutoolPrimitive,
-                              f"/articutool/{ros_id}/execute_primitive")
+        action = ActionClient(node, ExecuteArticutoolPrimitive, f"/{ns}{PRIMITIVE}")
         assert action.wait_for_server(timeout_sec=30)
 
         def wait(future: Any) -> Any:
@@ -391,6 +571,63 @@ def test_a_cancel_whose_result_arrives_before_its_reply_still_cancels() -> None:
         res = wait(handle.get_result_async())
         assert res.status == GoalStatus.STATUS_CANCELED
         assert fake.cancels == [bytes(handle.goal_id.uuid)]
+    finally:
+        server_exec.shutdown(timeout_sec=2.0)
+        server.destroy()
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+
+
+class _RecordingClient(_ResultBeforeCancelReply):
+    """Records the offsets the node forwards (degrees, the link's unit)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.modes: list[tuple[int, float, float]] = []
+
+    def set_mode(self, mode: int, pitch: float = 0.0, roll: float = 0.0) -> tuple[bool, str]:
+        self.modes.append((int(mode), pitch, roll))
+        return True, "LEVELING"
+
+    def latest_state(self) -> None:
+        return None
+
+
+@pytest.mark.parametrize(("units", "expected_deg"), [("degrees", math.radians(10.0)),
+                                                     ("radians", 10.0)])
+def test_offset_units_read_what_ada_sends(units: str, expected_deg: float) -> None:
+    """ADA's CallSetOrientationControl sends math.radians(pitch_offset_deg). Read as degrees
+    (the upstream node's reading, the default) a 10° request levels 0.17° off; with
+    offset_units=radians it levels the 10° ADA meant."""
+    from rclpy.executors import MultiThreadedExecutor
+
+    from articutool.ros2.node import ArticutoolRos2Node, NodeSettings
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=DOMAIN)
+    fake = _RecordingClient()
+    ns = f"units_{units}_{os.getpid()}"
+    server = ArticutoolRos2Node(fake, NodeSettings(namespace=ns, offset_units=units),  # type: ignore[arg-type]
+                                context=ctx)
+    server_exec = MultiThreadedExecutor(num_threads=2, context=ctx)
+    server_exec.add_node(server.node)
+    threading.Thread(target=server_exec.spin, daemon=True).start()
+    node = rclpy.create_node("plain_units_client", context=ctx)
+    try:
+        cli = node.create_client(SetOrientationControl, f"/{ns}{SOC}")
+        assert cli.wait_for_service(timeout_sec=30)
+        req = SetOrientationControl.Request(control_mode=1,
+                                            pitch_offset=float(math.radians(10.0)),
+                                            roll_offset=float(math.radians(-5.0)))
+        req.target_orientation_robot_base = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
+        future = cli.call_async(req)
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        ex.spin_until_future_complete(future, timeout_sec=30)
+        assert future.result().success
+        (mode, pitch, roll), = fake.modes
+        assert mode == 1
+        assert pitch == pytest.approx(expected_deg, rel=1e-5)
+        assert roll == pytest.approx(-expected_deg / 2, rel=1e-5)
     finally:
         server_exec.shutdown(timeout_sec=2.0)
         server.destroy()

@@ -104,10 +104,10 @@ def test_an_interrupted_dask_run_stops_and_keeps_the_finished(tmp_path):
 
 
 def test_experiment_interrupted_by_sigint_keeps_its_trials_and_resumes(tmp_path):
-    """The real command on a cheap experiment (capacity: 40 trials of 0.4-5 s)."""
-    cmd = [sys.executable, "-m", "articutool", "experiment", "capacity", "--trials", "20",
+    """The real command on a cheap experiment (Exp. 2b: 80 trials of 0.5-5 s)."""
+    cmd = [sys.executable, "-m", "articutool", "experiment", "exp2b", "--trials", "20",
            "--workers", "2", "--out", str(tmp_path)]
-    log = tmp_path / "capacity" / "trials.jsonl"
+    log = tmp_path / "exp2b" / "trials.jsonl"
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=_env())
     _, _, err = _interrupt_when_logged(proc, log, 2, signal.SIGINT)
@@ -117,13 +117,13 @@ def test_experiment_interrupted_by_sigint_keeps_its_trials_and_resumes(tmp_path)
     recs = [json.loads(x) for x in _lines(log)]  # every line whole
     kept = [r["trial"] for r in recs]
     assert len(kept) == len(set(kept)) >= 2
-    assert len(kept) < 40  # it stopped: the rest was not run
-    assert not (tmp_path / "capacity" / "summary.json").exists()
+    assert len(kept) < 80  # it stopped: the rest was not run
+    assert not (tmp_path / "exp2b" / "summary.json").exists()
     # The resume starts from what was kept, running only the others.
     again = subprocess.run([*cmd[:-4], "--trials", "1", "--workers", "1", "--out",
                             str(tmp_path)], capture_output=True, text=True, env=_env(),
                            timeout=HANG * 5)
     assert again.returncode == 0, again.stderr
-    first_two = {0, 1}  # --trials 1: trial 0 of each of the two foods
+    first_two = {0, 1, 2, 3}  # --trials 1: trial 0 of each food and system
     done_before = len(first_two & set(kept))
     assert f"{done_before} already in" in " ".join(again.stderr.split())

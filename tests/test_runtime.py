@@ -20,7 +20,7 @@ import time
 import numpy as np
 import pytest
 
-from articutool.onboard import background_services, format_status, main, run_tool
+from articutool.onboard import format_status, main, real_time_clock, run_tool
 from articutool.tool.api import Mode, ToolAPI
 from articutool.tool.drivers.base import DriverError, HardwareError, ImuSample
 from articutool.tool.drivers.sim import (
@@ -738,6 +738,7 @@ def test_run_in_a_thread_with_concurrent_commands():
     """~1 s of real time: the loop thread, the simulated world advancing in real time and
     this thread hammering the API. No fault, no exception, statistics populated."""
     sim, rt, motors = make(base=axis_angle_rotation([1.0, 0.0, 0.0], 0.2) @ R0)
+    rt.clock = real_time_clock(sim)  # the world advances as the loop reads the clock
     stop = threading.Event()
     errors: list[BaseException] = []
 
@@ -749,9 +750,7 @@ def test_run_in_a_thread_with_concurrent_commands():
                 errors.append(e)
         return inner
 
-    services = background_services(None, SPEC, sim)
-    threads = [threading.Thread(target=guarded(fn), args=(rt, stop)) for _, fn in services]
-    threads.append(threading.Thread(target=guarded(rt.run), args=(stop,)))
+    threads = [threading.Thread(target=guarded(rt.run), args=(stop,))]
     for th in threads:
         th.start()
     t_end = time.monotonic() + 1.0
@@ -781,10 +780,10 @@ def test_run_tool_levels_the_sim_and_stops_cleanly():
     sim = SimWrist(SPEC, seed=0)
     sim.set_base_pose(axis_angle_rotation([1.0, 0.0, 0.0], 0.3) @ R0)
     motors = SpyMotors(sim)
-    rt = ToolRuntime(SPEC, motors, sim.imu_driver(), sim.ft_driver(), clock=sim.clock)
+    rt = ToolRuntime(SPEC, motors, sim.imu_driver(), sim.ft_driver(),
+                     clock=real_time_clock(sim))
     out = io.StringIO()
-    rc = run_tool(rt, duration=1.2, level=True, services=background_services(None, SPEC, sim),
-                  out=out)
+    rc = run_tool(rt, duration=1.2, level=True, out=out)
     text = out.getvalue()
     assert rc == 0
     assert "LEVELING with offsets" in text and "stopped: motors stopped" in text

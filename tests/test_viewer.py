@@ -5,6 +5,7 @@ and ``articutool view``'s bad-input handling (real processes)."""
 from __future__ import annotations
 
 import json
+import math
 import socket
 from pathlib import Path
 
@@ -40,6 +41,34 @@ def water_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     return path, json.loads(r.stdout)
 
 
+def _deepest_landing(rec: Recording, scene) -> float:
+    """How far (m) below a surface a landing particle's centre can be, from the recorded run
+    and the contact law MuJoCo applied: a contact exists only once the particle touches, so
+    it can enter up to one step's travel v·dt before any force acts; the water-surface law
+    (damping ratio 2) then stops it within that step without rebound (measured, physics.toml);
+    resting, the contact spring sags by at most g·(τ·ζ)² under the particle's own weight.
+    v is the fastest landing the run allows: a fall from the highest point any food reached
+    above the ground, starting at the fastest the food moved while on the utensil."""
+    import mujoco
+
+    m = mujoco.MjModel.from_xml_string(rec.mjcf)
+    ground = m.geom("scene/ground").id
+    tau, zeta = m.geom_solref[ground]
+    food = next(g for g in range(m.ngeom) if m.geom_priority[g] == 0 and m.geom_bodyid[g] > 0
+                and m.body(m.geom_bodyid[g]).name.startswith("food"))
+    r = float(m.geom_size[food][0])
+    g = -float(m.opt.gravity[2])
+    xyz = rec.food_xyz.astype(float)
+    placed = rec.food_class >= 0  # a load waits out of the world until it is placed
+    height = float(xyz[..., 2][placed].max() - scene.get("ground").xyz[2])
+    held = rec.food_class == rec.meta["class_names"].index("utensil")
+    on = held[1:] & held[:-1]
+    step = np.linalg.norm(np.diff(xyz, axis=0), axis=2) / np.diff(rec.t)[:, None]
+    v_launch = float(step[on].max()) if on.any() else 0.0
+    v = math.hypot(v_launch, math.sqrt(2.0 * g * height))
+    return v * m.opt.timestep + g * (tau * zeta) ** 2 - r
+
+
 # ------------------------------------------------------------------ recordings --
 def test_sim_record_holds_the_runs_spills_where_they_landed(water_run, spec) -> None:
     path, report = water_run
@@ -50,27 +79,32 @@ def test_sim_record_holds_the_runs_spills_where_they_landed(water_run, spec) -> 
     from articutool.arm.scene import Scene
 
     scene = Scene.load()
+    sink = _deepest_landing(rec, scene)
     for s in rec.spills:
         o = scene.get(s["where"])
         local = o.rotation.T @ (np.asarray(s["xyz"]) - np.asarray(o.xyz))
-        # Where the item was when it counted as spilled: on (or just above) that object; on
-        # an unbounded ground plane (a halfspace) that is any point just above the plane.
+        # Where the item was when it counted as spilled: on (or just above) that object —
+        # an item may be counted as it lands, still inside the surface by as much as the
+        # contact lets it sink; on an unbounded ground plane (a halfspace) that is any point
+        # just above the plane.
         if o.shape == "halfspace":
-            assert -0.01 <= local[2] <= 0.05, (s["where"], local)
+            assert -sink <= local[2] <= 0.05, (s["where"], local, sink)
         else:
             assert np.linalg.norm(local) < 1.0, (s["where"], s["place"], local)
         if s["where"] == "table":
             half = np.asarray(o.size) / 2
             assert np.all(np.abs(local[:2]) <= half[:2] + 0.01)
-            assert -half[2] <= local[2] <= half[2] + 0.03
+            assert half[2] - sink <= local[2] <= half[2] + 0.03, (local, sink)
     # The frames from a spill's landing classify that item at the reported place during its
     # dwell (a drop may bounce into the air meanwhile: the event is dated from the landing;
     # later it may roll on, off the table or into the plate).
+    from articutool.sim.params import PhysicsParams
+
     names = rec.meta["class_names"]
-    dwell = int(np.searchsorted(rec.t, rec.t[0] + 0.2))  # frames in the dwell, with margin
+    dwell = PhysicsParams.load().world.spill_dwell_s
     for s in rec.spills:
-        k = int(np.searchsorted(rec.t, s["t"] - 1e-9))
-        during = {names[c] for c in rec.food_class[k:k + dwell + 1, s["item"]]}
+        frames = (rec.t >= s["t"] - 1e-9) & (rec.t < s["t"] + dwell - 1e-9)
+        during = {names[c] for c in rec.food_class[frames, s["item"]]}
         assert s["place"] in during and during <= {s["place"], "airborne", "table", "critical"}
     assert rec.q.shape == (len(rec), 8) and rec.meta["joint_names"][6:] == \
         list(spec.wrist.joint_names)

@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from articutool.cli_support import UsageError, add_spec_option, spec_from_args
+from articutool.datafile import ResultsError
 from articutool.spec import SpecError
 from articutool.trajectory import TrajectoryError
 
@@ -157,7 +158,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         code = int(args.func(args))
         sys.stdout.flush()
         return code
-    except (SpecError, UsageError, TrajectoryError) as err:
+    except (SpecError, UsageError, TrajectoryError, ResultsError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     except _StdoutError as err:

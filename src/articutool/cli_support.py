@@ -14,7 +14,8 @@ from pathlib import Path
 
 from articutool.spec import Spec, load_spec
 
-__all__ = ["UsageError", "add_spec_option", "new_output_file", "output_dir", "spec_from_args"]
+__all__ = ["UsageError", "add_spec_option", "new_output_file", "output_dir",
+           "spec_from_args"]
 
 
 class UsageError(Exception):
@@ -29,14 +30,20 @@ def add_spec_option(p: argparse.ArgumentParser) -> None:
 
 def new_output_file(opt: str, path: str | None, suffixes: tuple[str, ...]) -> Path | None:
     """``path`` checked as a new output file for option ``opt`` (``None`` passes through):
-    one of ``suffixes``, not existing (nothing is overwritten), creatable (it is created and
-    removed again, so a folder that cannot be written, e.g. in ``/proc``, is found before any
-    work); ``UsageError`` naming the option otherwise."""
+    one of ``suffixes``, not existing and not a link, even a dangling one (nothing is
+    overwritten or written through), creatable (it is created and removed again, so a folder
+    that cannot be written, e.g. in ``/proc``, is found before any work); ``UsageError``
+    naming the option otherwise. The file is then written by an exclusive create or
+    :func:`articutool.datafile.publish_new`, which never replace anything either."""
     if path is None:
         return None
     p = Path(path)
     if p.suffix.lower() not in suffixes:
         raise UsageError(f"{opt} must end in {' or '.join(suffixes)}; got {p.name!r}")
+    if p.is_symlink():
+        dangling = "" if p.exists() else " to nothing"
+        raise UsageError(f"{opt}: {p} is a symbolic link{dangling}; refusing to write through "
+                         "it (choose a new file)")
     if p.exists():
         raise UsageError(f"{opt}: {p} exists; refusing to overwrite it (choose a new file)")
     if not p.parent.is_dir():
@@ -49,23 +56,31 @@ def new_output_file(opt: str, path: str | None, suffixes: tuple[str, ...]) -> Pa
     return p
 
 
-def output_dir(opt: str, path: str | Path, files: tuple[str, ...] = ()) -> Path:
-    """The results folder ``path`` of option ``opt``, created if needed and checked writable
-    (with an unnamed temporary file: nothing is left in it); each of ``files`` inside it
-    that exists must be a regular file. ``UsageError`` naming the option otherwise."""
+def output_dir(opt: str, path: str | Path, files: tuple[str, ...] = (),
+               own: str | None = None) -> Path:
+    """The results folder ``path`` of option ``opt`` (or, with ``own``, the run's own
+    subfolder ``path/own``), created if needed and checked writable (with an unnamed
+    temporary file: nothing is left in it). The folder the user named may be a link they
+    made; ``own`` must be a real folder, and each of ``files`` inside that exists must be a
+    regular file, not a link, FIFO or folder (:mod:`articutool.datafile`: a run writes its own
+    files only). ``UsageError`` naming the option otherwise."""
+    from articutool.datafile import ResultsError, check_own, own_folder
+
     p = Path(path)
     if p.exists() and not p.is_dir():
         raise UsageError(f"{opt} {p} exists and is not a directory")
     try:
-        p.mkdir(parents=True, exist_ok=True)
+        p = own_folder(p, *([own] if own else []), opt=opt)
         tempfile.TemporaryFile(dir=p).close()
+    except ResultsError as err:
+        raise UsageError(str(err)) from None
     except OSError as err:
         raise UsageError(f"{opt}: cannot write into the folder {p}: {err.strerror}") from None
     for name in files:
-        f = p / name
-        if f.exists() and not f.is_file():
-            raise UsageError(f"{opt}: {f} must be a regular file (this run's {name}); it is "
-                             "a folder or a device: move it away or use another folder")
+        try:
+            check_own(p / name, opt)
+        except ResultsError as err:
+            raise UsageError(f"{err} (this run's {name})") from None
     return p
 
 

@@ -7,30 +7,45 @@ server (``link/``), so it sits above both layers and neither imports it.
 
     articutool tool [--driver sim|hardware] [--spec FILE] [--duration S] [--level/--no-level]
 
-The runtime's 50 Hz loop runs in its own thread; the main thread only draws the status line
-and waits, so Ctrl-C (SIGINT) or SIGTERM never interrupts a tick halfway through a bus write:
-it sets the stop event, the loop stops the motors, and the drivers are closed (torque off);
-the link is closed last. Exit code 0 after a clean stop, 2 for bad input, a link that cannot
-be served (endpoint in use, address not on this host) or drivers that cannot be opened (no
-hardware): each is one line on stderr, and nothing moves, since they are all checked before
-the loop starts.
+Two processes. This one owns the drivers and runs the runtime's 50 Hz loop; the link (the
+Zenoh session, the signature checks, the link server) runs in a second process
+(``onboard_link.py``) fed through a bounded channel (``tool/channel.py``), so no message from
+the network costs the loop's process any CPU or its interpreter lock. The loop's process runs
+at real-time priority (``SCHED_FIFO`` 50) where the system allows it (root, ``CAP_SYS_NICE``
+or an ``RLIMIT_RTPRIO``), every thread in it included, so neither the link process nor any
+other program can delay a tick; where it does not, the loop runs at nice -10 if allowed, the
+link process at nice 10, and a warning on stderr says how to allow real-time priority
+(:func:`realtime_priority`). The health telemetry reports which (``loop_realtime``).
+
+The loop runs in its own thread; the main thread only draws the status line and waits, so
+Ctrl-C (SIGINT) or SIGTERM never interrupts a tick halfway through a bus write: it sets the
+stop event, the loop stops the motors, and the drivers are closed (torque off); the link
+process is closed last (it ignores both signals and ends when the channel closes). Exit code
+0 after a clean stop, 1 when the motors did not confirm it or when the link process ended
+first (the loop then stops the motors: a tool no stop can reach does not go on moving), 2 for
+bad input, a link that cannot be served (endpoint in use, address not on this host) or
+drivers that cannot be opened (no hardware): each is one line on stderr, and nothing moves,
+since they are all checked before the loop starts.
 
 ``--driver sim`` (the default) runs against :class:`~articutool.tool.drivers.sim.SimWrist`
-advanced in real time by a background service, on a base that tilts and turns gently so
-leveling is visible. ``--driver hardware`` opens the Dynamixel pair, the IMU and the F/T
-sensor on the ports in the spec.
+advanced in real time by the loop itself (:func:`real_time_clock`: reading the clock steps
+the world to the present), on a base that tilts and turns gently so leveling is visible.
+``--driver hardware`` opens the Dynamixel pair, the IMU and the F/T sensor on the ports in
+the spec. Either way the loop's thread is the only busy thread of its process: the main
+thread wakes for the status line and nothing else shares the interpreter lock with the loop.
 
-Background services: anything that must run alongside the loop (the simulated world) is a
-:data:`Service`, ``fn(api, stop_event)``, run in a daemon thread until ``stop_event`` is set;
-:func:`background_services` builds the list. The network link (``--serve``) is opened, and its
-endpoints declared, in the main thread before the loop starts, and closed after it.
+The link process is started, and its session opened, before the drivers; its endpoints are
+declared once the drivers are open and before the loop starts; it is closed after the loop.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import gc
 import logging
 import math
+import os
 import signal
 import sys
 import threading
@@ -41,27 +56,29 @@ from typing import TYPE_CHECKING, TextIO
 import numpy as np
 
 from articutool.spec import Spec
-from articutool.tool.api import Mode, ToolAPI, ToolState
+from articutool.tool.api import Mode, ToolState
 
 if TYPE_CHECKING:
-    from articutool.link.zenoh_transport import ZenohTransport
+    from articutool.onboard_link import LinkProcess
+    from articutool.tool.drivers.sim import SimWrist
 
 __all__ = [
-    "Service",
     "add_commands",
-    "background_services",
     "format_status",
     "gentle_base_motion",
     "main",
+    "real_time_clock",
+    "realtime_priority",
     "run_tool",
 ]
 
-Service = Callable[[ToolAPI, threading.Event], None]
-
 _STATUS_HZ = 5.0  # status line refresh
-_SIM_STEP = 0.002  # s, real-time stepping of the simulated world
 _LEVEL_WAIT = 5.0  # s to wait for fresh IMU data before giving up on --level
-_SWITCH_S = 0.001  # s, the interpreter's thread switch interval in the tool process
+_LEVEL_RETRY_S = 0.05  # s between attempts to engage LEVELING meanwhile
+_SWITCH_S = 0.001  # s, the interpreter's thread switch interval in the loop's process
+_RT_PRIORITY = 50  # SCHED_FIFO priority of the loop's process (ros2_control's default)
+_LOOP_NICE = -10  # the loop's nice value when real-time priority is refused
+_LINK_NICE = 10  # the link process's nice value then
 
 
 def add_commands(subparsers: argparse._SubParsersAction) -> None:
@@ -113,29 +130,24 @@ def gentle_base_motion(t: float) -> tuple[np.ndarray, np.ndarray]:
     return R, dpsi * z + dphi * (Rz @ axis)
 
 
-def _sim_stepper(sim: object) -> Service:
-    """Advance the simulated world by the real elapsed time until stopped."""
+def real_time_clock(sim: SimWrist) -> Callable[[], float]:
+    """``sim``'s clock for a runtime run in real time: each read first advances the simulated
+    world by the real time elapsed since the previous read (``time.monotonic``), so the world
+    moves exactly as far as the loop, which reads the clock once per tick, has lived. No
+    thread of its own: the loop's thread is the only one that runs the world (thread-safe for
+    other readers)."""
+    lock = threading.Lock()
+    last: list[float] = []
 
-    def step(api: ToolAPI, stop: threading.Event) -> None:
-        last = time.monotonic()
-        while not stop.wait(_SIM_STEP):
+    def clock() -> float:
+        with lock:
             now = time.monotonic()
-            sim.step(max(now - last, 1e-6))  # type: ignore[attr-defined]
-            last = now
+            if last and now > last[0]:
+                sim.step(now - last[0])
+            last[:] = [now]
+        return sim.clock()
 
-    return step
-
-
-def background_services(args: argparse.Namespace | None, spec: Spec, sim: object | None
-                        ) -> list[tuple[str, Service]]:
-    """The services started with the runtime, as (name, service) pairs: the simulated world
-    (with ``sim``). The link is not one: ``articutool tool`` opens it and declares its
-    endpoints before the loop starts and closes it after the motors stopped, in the main
-    thread, so neither a link that cannot be served nor an early Ctrl-C races the loop."""
-    services: list[tuple[str, Service]] = []
-    if sim is not None:
-        services.append(("sim", _sim_stepper(sim)))
-    return services
+    return clock
 
 
 def format_status(s: ToolState) -> str:
@@ -164,16 +176,18 @@ def run_tool(
     *,
     duration: float | None = None,
     level: bool = False,
-    services: Sequence[tuple[str, Service]] = (),
     out: TextIO | None = None,
     stop_event: threading.Event | None = None,
     opened: bool = False,
 ) -> int:
-    """Open ``runtime`` (unless ``opened``), start the services and the loop, show status
-    until ``duration`` elapses, ``stop_event`` is set or Ctrl-C; then stop the motors and
-    close. Returns 0, or 1 when the motors did not confirm the final stop.
+    """Open ``runtime`` (unless ``opened``), start its loop in a thread, show status until
+    ``duration`` elapses, ``stop_event`` is set or Ctrl-C; then stop the motors and close.
+    Returns 0, or 1 when the motors did not confirm the final stop.
 
     ``runtime`` is a :class:`~articutool.tool.runtime.ToolRuntime` (open/run/close + ToolAPI).
+    This thread wakes only to draw the status line (5 Hz on a terminal, 1 Hz otherwise) and,
+    with ``level``, to try engaging LEVELING (every 50 ms until it succeeds): the loop's is
+    the only busy thread of the process.
     """
     out = sys.stdout if out is None else out
     stop = threading.Event() if stop_event is None else stop_event
@@ -181,10 +195,8 @@ def run_tool(
     rt = runtime
     if not opened:
         rt.open()  # type: ignore[attr-defined]
-    threads = [threading.Thread(target=fn, args=(rt, stop), name=f"tool-{name}", daemon=True)
-               for name, fn in services]
-    loop = rt.run  # type: ignore[attr-defined]
-    threads.append(threading.Thread(target=loop, args=(stop,), name="tool-loop", daemon=True))
+    loop = _same_priority(rt.run)  # type: ignore[attr-defined]
+    threads = [threading.Thread(target=loop, args=(stop,), name="tool-loop", daemon=True)]
     previous = _install_sigterm(stop)
     t_start = time.monotonic()
     leveled = not level
@@ -212,7 +224,10 @@ def run_tool(
                     print(line, file=out, flush=True)
                 last_line = line
                 next_print += interval
-            stop.wait(0.05)
+            wake = next_print if leveled else min(next_print, now + _LEVEL_RETRY_S)
+            if duration is not None:
+                wake = min(wake, t_start + duration)
+            stop.wait(max(0.0, wake - time.monotonic()))
     except KeyboardInterrupt:
         pass
     finally:
@@ -234,6 +249,23 @@ def run_tool(
             print(f"error: the motors did not confirm the stop ({fault}); they stop "
                   f"themselves {watchdog_s:g} s after the last packet (bus watchdog)", file=out)
     return 0 if stopped else 1
+
+
+def _same_priority(fn: Callable[..., None]) -> Callable[..., None]:
+    """``fn`` run at the calling thread's scheduling policy and priority (a real-time policy
+    set with ``SCHED_RESET_ON_FORK`` is not inherited by new threads: every thread that
+    holds the interpreter lock in the loop's process must have it, or the scheduler could
+    stop that thread while the loop waits for the lock)."""
+    try:
+        policy, param = os.sched_getscheduler(0), os.sched_getparam(0)
+    except (AttributeError, OSError):
+        return fn
+
+    def run(*args: object) -> None:
+        with contextlib.suppress(OSError):
+            os.sched_setscheduler(0, policy, param)
+        fn(*args)
+    return run
 
 
 def _install_sigterm(stop: threading.Event) -> object:
@@ -277,6 +309,29 @@ def _check_exposure(cfg: object, insecure: bool) -> None:
             "tls/), use loopback only, or pass --insecure-listen")
 
 
+def realtime_priority() -> tuple[bool, str]:
+    """Give the calling thread, and the threads it starts, real-time priority
+    (``SCHED_FIFO`` ``_RT_PRIORITY``, reset in any child process); else try nice
+    ``_LOOP_NICE``. Returns (real-time, a note saying what it got and, if not, how to
+    allow it)."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK,
+                              os.sched_param(_RT_PRIORITY))
+        return True, f"loop at real-time priority (SCHED_FIFO {_RT_PRIORITY})"
+    except (AttributeError, OSError) as err:
+        why = getattr(err, "strerror", None) or str(err)
+    try:
+        os.setpriority(os.PRIO_PROCESS, 0, _LOOP_NICE)
+        got = f"nice {_LOOP_NICE}"
+    except OSError:
+        got = "normal priority"
+    return False, (f"the loop runs at {got}, not real-time priority: SCHED_FIFO refused "
+                   f"({why}); allow it with LimitRTPRIO={_RT_PRIORITY} (or "
+                   "AmbientCapabilities=CAP_SYS_NICE) in the tool's systemd unit, or an "
+                   "'rtprio' line in /etc/security/limits.conf. The network still cannot "
+                   "delay the loop's process, but other programs on this computer can")
+
+
 def _cmd_tool(args: argparse.Namespace) -> int:
     from articutool.cli_support import UsageError, new_output_file, spec_from_args
 
@@ -286,47 +341,37 @@ def _cmd_tool(args: argparse.Namespace) -> int:
     record = new_output_file("--record", args.record, (".mcap",))
     if record is not None and not args.serve:
         raise UsageError("--record records the link's messages: it needs --serve")
-    # The loop thread shares the interpreter with the link's threads: a waiting thread gets
-    # the GIL after at most one switch interval per thread ahead of it, 5 ms by default.
-    # 1 ms bounds what the network's threads can add to a tick (benchmarks/
-    # bench_link_flood.py measures it).
-    sys.setswitchinterval(_SWITCH_S)
-    link = None
-    if args.serve:  # open the link before anything moves: a tool that cannot serve says so
+    cfg = None
+    if args.serve:
         from articutool.link.config import ConfigError, config_from_args
-        from articutool.link.transport import LinkOpenError
-        from articutool.link.zenoh_transport import ZenohTransport
 
         try:
             cfg = config_from_args(args)
-            _check_exposure(cfg, args.insecure_listen)
-            link = ZenohTransport(cfg, "tool")
+            _check_exposure(cfg, args.insecure_listen)  # builds the zenoh config: ConfigError
         except ConfigError as err:
             raise UsageError(str(err)) from None
-        except LinkOpenError as err:
-            raise UsageError(f"cannot serve the link: {err} (is another articutool tool "
-                             "running on that endpoint?)") from None
-    recorder = None
-    if record is not None and link is not None:
-        from articutool.link.recording import McapRecorder, RecordingError, RecordingTransport
+    # The loop's process runs at real-time priority where allowed (its threads inherit it,
+    # the link process does not); the threads in it (loop, simulated world, status line)
+    # then share the interpreter with no thread the scheduler could hold back.
+    realtime, note = realtime_priority()
+    sys.setswitchinterval(_SWITCH_S)
+    link = None
+    if cfg is not None:  # open the link before anything moves: a tool that cannot serve says so
+        from articutool.onboard_link import LinkProcess, LinkProcessError
 
         try:
-            recorder = McapRecorder(record)
-        except RecordingError as err:
-            link.close()
-            raise UsageError(f"--record: {err}") from None
-        link = RecordingTransport(link, recorder)  # type: ignore[assignment]
+            link = LinkProcess(cfg, spec, record, nice=0 if realtime else _LINK_NICE)
+        except LinkProcessError as err:
+            raise UsageError(str(err)) from None
     try:
-        return _run_with_drivers(args, spec, link)
+        return _run_with_drivers(args, spec, link, realtime, note)
     finally:
         if link is not None:
             link.close()  # last: after the loop stopped and the motors are off
-        if recorder is not None:
-            recorder.close()
-            print(f"recording: {record} ({recorder.count} messages)", file=sys.stderr)
 
 
-def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: ZenohTransport | None) -> int:
+def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: LinkProcess | None,
+                      realtime: bool, note: str) -> int:
     from articutool.cli_support import UsageError
     from articutool.tool.drivers import make_drivers
     from articutool.tool.runtime import ToolRuntime
@@ -339,7 +384,7 @@ def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: ZenohTransport
 
         sim = SimWrist(spec, gyro_bias=(0.005, -0.004, 0.003))
         sim.set_base_motion(gentle_base_motion)
-        clock = sim.clock
+        clock = real_time_clock(sim)
     try:
         motors, imu, ft = make_drivers(spec, args.driver, sim=sim)
     except Exception as err:  # hardware drivers import dynamixel_sdk / pyserial lazily
@@ -350,22 +395,38 @@ def _run_with_drivers(args: argparse.Namespace, spec: Spec, link: ZenohTransport
     except Exception as err:  # port missing, motors silent: before the loop, nothing moved
         _close_failed(runtime)
         raise UsageError(f"cannot open the {args.driver} drivers: {err}") from None
-    server = None
+    stop = threading.Event()
+    lost: list[str] = []
     if link is not None:
-        from articutool.link.server import ToolServer
+        from articutool.onboard_link import LinkProcessError
 
-        try:  # endpoints declared here, in the main thread, before the loop runs
-            server = ToolServer(runtime, link, link.cfg)
-            server.start()
-        except BaseException:
+        def on_lost(reason: str) -> None:  # on the loop's thread: stop the tool
+            lost.append(reason)
+            stop.set()
+        try:  # endpoints declared before the loop runs
+            link.attach(runtime, extra={"loop_realtime": 1.0 if realtime else 0.0},
+                        on_lost=on_lost)
+        except BaseException as err:
             runtime.close()
+            if isinstance(err, LinkProcessError):
+                raise UsageError(str(err)) from None
             raise
-    try:
-        return run_tool(runtime, duration=args.duration, level=level,
-                        services=background_services(args, spec, sim), opened=True)
-    finally:
-        if server is not None:
-            server.stop()  # after run_tool stopped the motors and closed the drivers
+    if not realtime:
+        print(f"warning: {note}", file=sys.stderr)
+    # A full collection of the ~46 000 objects start-up leaves took 11-20 ms of CPU, holding
+    # the interpreter lock, whichever thread ran it: collected once now and frozen, later
+    # collections only look at what the loop itself allocates.
+    gc.collect()
+    gc.freeze()
+    runtime.clock()  # a simulated world catches up to the present here, not in the first tick
+    code = run_tool(runtime, duration=args.duration, level=level, stop_event=stop,
+                    opened=True)
+    if lost:
+        print(f"error: the link process ended ({lost[0]}; exit code "
+              f"{link.proc.poll() if link is not None else None}): the motors were stopped, "
+              "since no stop could reach the tool", file=sys.stderr)
+        return 1
+    return code
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -185,7 +185,10 @@ class JointTrajectory:
     def load(cls, path: str | Path) -> JointTrajectory:
         """Read a trajectory JSON file."""
         data = read_document(path, "trajectory file", TrajectoryError, fmt="json")
-        return cls.from_dict(data)
+        try:
+            return cls.from_dict(data)
+        except TrajectoryError as err:  # say which file the field is in
+            raise TrajectoryError(f"trajectory file {path}: {err}") from None
 
     def save(self, path: str | Path) -> None:
         """Write the trajectory as JSON (refuses to overwrite an existing file)."""

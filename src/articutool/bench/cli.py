@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-__all__ = ["add_commands", "make_executor"]
+__all__ = ["add_commands", "check_workers", "make_executor"]
 
 
 def _usage(msg: str) -> Exception:
@@ -71,6 +71,15 @@ def _cmd_tasks(args: argparse.Namespace) -> int:
 
 
 # --------------------------------------------------------------- transport --
+def check_workers(workers: int) -> None:
+    """``--workers``: local worker processes in [1, MAX_WORKERS] (a larger count is a typo:
+    ``100000000000000000000`` overflowed the process pool)."""
+    from articutool.bench.executors import MAX_WORKERS
+
+    if not 1 <= workers <= MAX_WORKERS:
+        raise _usage(f"--workers must be in [1, {MAX_WORKERS}] processes; got {workers}")
+
+
 def make_executor(args: argparse.Namespace) -> Any:
     """A Dask executor for ``--scheduler``, else a local pool of ``--workers`` processes
     (a scheduler that cannot be reached is bad input)."""
@@ -111,8 +120,7 @@ def _cmd_transport(args: argparse.Namespace) -> int:
     from articutool.cli_support import output_dir, spec_from_args
 
     # ---- validate everything before any work ----
-    if args.workers < 1:
-        raise _usage(f"--workers must be >= 1; got {args.workers}")
+    check_workers(args.workers)
     if not math.isfinite(args.timeout) or args.timeout <= 0:
         raise _usage(f"--timeout must be a finite number of seconds > 0; got {args.timeout}")
     if args.limit is not None and args.limit < 1:
@@ -145,7 +153,9 @@ def _cmd_transport(args: argparse.Namespace) -> int:
         systems = tuple(dict.fromkeys(t.system for t in trials))
         config = RunConfig(ts.sha256, float(args.timeout), args.planner, ts.utensil,
                            spec_hash(spec))
-        output_dir("--out", out, ("run.json", "results.jsonl", "tolerance_sweep.jsonl"))
+        output_dir("--out", out, ("run.json", "results.jsonl", "tolerance_sweep.jsonl",
+                                  "results.csv", "cactus.png", "tolerance_sweep.csv",
+                                  "tolerance_sweep.png", "tolerance_sweep_trials.csv"))
         config.check_or_write(out / "run.json")
     except RunConfigError as err:
         raise _usage(str(err)) from None
@@ -245,6 +255,7 @@ def _cmd_transport(args: argparse.Namespace) -> int:
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``bench tasks`` and ``bench transport``."""
+    from articutool.bench.executors import MAX_WORKERS
     from articutool.bench.runner import DEFAULT_TOLERANCES_DEG
     from articutool.cli_support import add_spec_option
 
@@ -267,7 +278,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--timeout", type=float, default=30.0,
                    help="planning timeout per trial, s (default 30; the thesis used 1000)")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
-                   help="local worker processes (default: CPU count)")
+                   help=f"local worker processes in [1, {MAX_WORKERS}] (default: CPU count)")
     p.add_argument("--out", metavar="DIR", default="bench-results",
                    help="results directory; rerun with the same DIR to resume")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")

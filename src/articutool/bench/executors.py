@@ -24,7 +24,7 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any, Protocol, TypeVar
 
-__all__ = ["DaskExecutor", "Executor", "ExecutorError", "LocalExecutor"]
+__all__ = ["MAX_WORKERS", "DaskExecutor", "Executor", "ExecutorError", "LocalExecutor"]
 
 T = TypeVar("T")
 Outcome = tuple[Any, Any, BaseException | None]
@@ -52,6 +52,11 @@ class Executor(Protocol):
         ...
 
 
+# The most local worker processes: one per core of a large workstation and then some. A
+# larger number is a typo (1e20 overflowed the pool's C int), not a machine.
+MAX_WORKERS = 1024
+
+
 class LocalExecutor:
     """``concurrent.futures.ProcessPoolExecutor`` with ``workers`` processes.
 
@@ -61,8 +66,10 @@ class LocalExecutor:
     """
 
     def __init__(self, workers: int) -> None:
-        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-            raise ValueError(f"workers must be an integer >= 1; got {workers!r}")
+        if isinstance(workers, bool) or not isinstance(workers, int) \
+                or not 1 <= workers <= MAX_WORKERS:
+            raise ValueError(f"workers must be an integer in [1, {MAX_WORKERS}]; got "
+                             f"{workers!r}")
         self.workers = workers
         self.description = f"local process pool ({workers} worker{'s' * (workers > 1)})"
         self._pool: cf.ProcessPoolExecutor | None = None

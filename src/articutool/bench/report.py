@@ -8,12 +8,15 @@ plot, Fig. 6.2); the success rate is solved / trials. Plots use Matplotlib's Agg
 from __future__ import annotations
 
 import csv
+import io
 import math
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from articutool.datafile import replace_own, save_figure
 
 __all__ = [
     "CSV_FIELDS",
@@ -156,28 +159,26 @@ def _csv_value(v: Any) -> Any:
 
 def write_results_csv(records: Iterable[dict[str, Any]], path: str | Path) -> Path:
     """One row per trial, columns :data:`CSV_FIELDS`, sorted by system, tolerance, task."""
-    p = Path(path)
     rows = sorted(records, key=lambda r: (str(r.get("system")), r.get("tolerance_deg") or 0.0,
                                           int(r.get("task_id", 0)), int(r.get("seed", 0))))
-    with p.open("w", newline="", encoding="utf-8") as f:
-        w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: _csv_value(r.get(k)) for k in CSV_FIELDS})
-    return p
+    f = io.StringIO(newline="")
+    w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: _csv_value(r.get(k)) for k in CSV_FIELDS})
+    return replace_own(path, f.getvalue())
 
 
 def write_sweep_csv(sweep: dict[float, dict], path: str | Path) -> Path:
     """One row per tolerance: trials, successes, success rate, median/mean/p90 time."""
-    p = Path(path)
     cols = ("tolerance_deg", "trials", "successes", "success_rate", "median_time_s",
             "mean_time_s", "p90_time_s")
-    with p.open("w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f)
-        w.writerow(cols)
-        for tol, v in sweep.items():
-            w.writerow([tol, *(_csv_value(v[c]) for c in cols[1:])])
-    return p
+    f = io.StringIO(newline="")
+    w = csv.writer(f)
+    w.writerow(cols)
+    for tol, v in sweep.items():
+        w.writerow([tol, *(_csv_value(v[c]) for c in cols[1:])])
+    return replace_own(path, f.getvalue())
 
 
 # ------------------------------------------------------------------ plots --
@@ -219,10 +220,10 @@ def cactus_plot(records: Iterable[dict[str, Any]], systems: Sequence[str], path:
     if drawn or timeout_s is not None:
         ax.legend(fontsize=8)
     fig.tight_layout()
-    p = Path(path)
-    fig.savefig(p, dpi=120)
-    plt.close(fig)
-    return p
+    try:
+        return save_figure(fig, path)
+    finally:
+        plt.close(fig)
 
 
 def tolerance_sweep_plot(sweep: dict[float, dict], path: str | Path,
@@ -249,7 +250,7 @@ def tolerance_sweep_plot(sweep: dict[float, dict], path: str | Path,
     ax.set_title(f"{system}: success and time vs. tolerance (cf. thesis Fig. 5.1)")
     ax.grid(True, alpha=0.3)
     fig.tight_layout()
-    p = Path(path)
-    fig.savefig(p, dpi=120)
-    plt.close(fig)
-    return p
+    try:
+        return save_figure(fig, path)
+    finally:
+        plt.close(fig)

@@ -46,6 +46,9 @@ __all__ = [
 ]
 
 DEFAULT_TOLERANCES_DEG = (5.0, 10.0, 15.0, 20.0, 30.0, 45.0)
+# The largest trial log read (a record is ~0.5 kB, one with a traceback a few kB): far above
+# any run's, a bound so that a wrong file is refused instead of filling memory.
+_MAX_LOG_BYTES = 1 << 30
 PlanFn = Callable[[PlanRequest, Spec], PlanResult]
 
 
@@ -185,13 +188,17 @@ class LogState:
 def read_log(path: str | Path,
              key: Callable[[dict[str, Any]], Hashable] = record_key) -> LogState:
     """Read a results log; a missing file is an empty log. ``key`` gives a record's trial
-    identity (a line it cannot key is corrupt); other JSON-lines logs (the experiments)
-    pass their own."""
+    identity (a line it cannot key is corrupt, as is one holding NaN or Infinity, which the
+    runner never writes); other JSON-lines logs (the experiments) pass their own. The log is
+    a run's own file (:func:`articutool.datafile.read_own_bytes`): a link, FIFO or folder in
+    its place raises :class:`~articutool.datafile.ResultsError` — its last line is never cut
+    from a file the run did not write."""
+    from articutool.datafile import read_own_bytes
+
     p = Path(path)
     state = LogState(key=key)
-    try:
-        data = p.read_bytes()
-    except FileNotFoundError:
+    data = read_own_bytes(p, "results log", max_bytes=_MAX_LOG_BYTES)
+    if data is None:
         return state
     end = data.rfind(b"\n") + 1  # everything after the last newline is a torn write
     state.valid_bytes = end
@@ -201,7 +208,7 @@ def read_log(path: str | Path,
         if not line.strip():
             continue
         try:
-            rec = json.loads(line)
+            rec = json.loads(line, parse_constant=_no_constant)
             if not isinstance(rec, dict):  # JSON, but not a record ([1, 2], 42, null)
                 raise TypeError(rec)
             key(rec)
@@ -210,6 +217,10 @@ def read_log(path: str | Path,
             continue
         state.records.append(rec)
     return state
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a JSON number")
 
 
 def append_record(fd: int, rec: dict[str, Any]) -> None:
@@ -238,20 +249,24 @@ class RunConfig:
 
     def check_or_write(self, path: Path) -> None:
         """Write ``path`` on a fresh run; on a resume refuse differing settings."""
-        if path.exists():
-            try:
-                old = json.loads(path.read_text(encoding="utf-8"))
-            except (OSError, ValueError, RecursionError) as err:  # Recursion: too deep
-                raise RunConfigError(f"{path} is unreadable ({err}); use another --out") from None
-            new = self.to_dict()
-            diff = [k for k in new if old.get(k) != new[k]]
-            if diff:
-                parts = ", ".join(f"{k} {old.get(k)!r} → {new[k]!r}" for k in diff)
-                raise RunConfigError(
-                    f"{path.parent} holds results of a run with other settings ({parts}); "
-                    "use the same settings to resume it, or another --out")
+        from articutool.datafile import ResultsError, read_own_json, replace_own
+
+        try:
+            old = read_own_json(path, "the run's settings")
+        except ResultsError as err:
+            raise RunConfigError(f"{err}; use another --out") from None
+        if old is None:
+            replace_own(path, json.dumps(self.to_dict(), indent=1) + "\n")
             return
-        path.write_text(json.dumps(self.to_dict(), indent=1) + "\n", encoding="utf-8")
+        if not isinstance(old, dict):
+            raise RunConfigError(f"{path} is not a JSON object of settings; use another --out")
+        new = self.to_dict()
+        diff = [k for k in new if old.get(k) != new[k]]
+        if diff:
+            parts = ", ".join(f"{k} {old.get(k)!r} → {new[k]!r}" for k in diff)
+            raise RunConfigError(
+                f"{path.parent} holds results of a run with other settings ({parts}); "
+                "use the same settings to resume it, or another --out")
 
 
 # ----------------------------------------------------------------- runner --
@@ -309,6 +324,8 @@ def run_logged(
     within ``POLL_S``: every trial finished by then is logged, the running ones are abandoned
     with their worker processes, and the summary says ``interrupted``.
     """
+    from articutool.datafile import append_own
+
     log_path = Path(log_path)
     state = read_log(log_path, key=key)
     done = state.done
@@ -319,7 +336,7 @@ def run_logged(
     if on_start is not None:
         on_start(len(pending), skipped)
     log_path.parent.mkdir(parents=True, exist_ok=True)
-    fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+    fd = append_own(log_path)  # never through a link: the log is this run's own file
     lost: list[tuple[Any, str]] = []
     records = list(state.records)
     stop = threading.Event()

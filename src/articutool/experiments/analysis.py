@@ -21,8 +21,8 @@ from articutool.experiments.design import EXP2C_CONDITIONS
 from articutool.experiments.stats import describe, fisher, proportion_ci, welch
 from articutool.feeding.outcomes import OUTCOMES, classify_bite
 
-__all__ = ["EXP2C_CLASSES", "classify_exp2c", "representative_trials", "staging_attempts",
-           "summarize"]
+__all__ = ["EXP2C_CLASSES", "by_place", "classify_exp2c", "representative_trials",
+           "staging_attempts", "summarize"]
 
 EXP2C_CLASSES = ("meaningful_success", "trivial_success", "transport_failure", "failed")
 
@@ -74,16 +74,28 @@ def _rate(k: int, n: int) -> dict[str, Any]:
 
 # ------------------------------------------------------------------ per experiment --
 def summarize_capacity(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    """Mean maximal load per food (the Exp. 2c load)."""
+    """Per food, the maximal scoops' mass (completed scoops; a scoop whose tree failed is no
+    maximal scoop) and, for a liquid, the brim test's; the capacity — Exp. 2c's load — is the
+    mean maximal scoop, unless a liquid's scoops do not fill the dish to the brim: then the
+    scoop was bounded by the pool it dipped in, not the spoon, and the capacity is the brim."""
     ok = _ok(records)
     foods = list(dict.fromkeys(r["food"] for r in ok))
     out: dict[str, Any] = {"foods": {}}
     for f in foods:
         rs = _where(ok, food=f)
-        out["foods"][f] = {"capacity_g": describe([r["capacity_g"] for r in rs]).to_dict(),
-                           "utensil": rs[0]["utensil"], "overfill_g": rs[0]["overfill_g"],
-                           # Nothing fell in some trial: the load, not the utensil, bounded it.
-                           "lower_bound": any(r["fell_g"] <= 1e-9 for r in rs)}
+        done = [r for r in rs if r.get("completed")]
+        scoop = describe([r["scoop_g"] for r in done]).to_dict()
+        entry: dict[str, Any] = {"utensil": rs[0]["utensil"], "scoop_g": scoop,
+                                 "completed": _rate(len(done), len(rs))}
+        brims = [r["brim_g"] for r in rs if r.get("brim_g") is not None]
+        cap, source = scoop, "mean maximal scoop"
+        if brims:
+            entry["brim_g"] = describe(brims).to_dict()
+            if scoop.get("mean") is None or scoop["mean"] < entry["brim_g"]["mean"]:
+                cap, source = entry["brim_g"], ("the dish filled to the brim: the scoops "
+                                                "were bounded by the pool's depth")
+        entry.update(capacity_g=cap, capacity_source=source)
+        out["foods"][f] = entry
     return out
 
 
@@ -131,7 +143,21 @@ def summarize_exp2b(records: Sequence[dict[str, Any]], cfg: Any) -> dict[str, An
                                                 ).to_dict(),
                        "held_g": describe([r["held_g"] for r in v]).to_dict()}
                    for s, v in rs.items()}
-    out.update(spill_frequency_fisher=freq, per_goal=per_goal, transport=plan)
+    out.update(spill_frequency_fisher=freq, per_goal=per_goal, transport=plan,
+               spilled_by_place={f: {sys_: by_place(_where(ok, food=f, system=sys_))
+                                     for sys_ in systems} for f in cfg.exp2b.foods})
+    return out
+
+
+def by_place(records: Sequence[Mapping[str, Any]]) -> dict[str, dict[str, float]]:
+    """Grams spilled over ``records`` per place (a container and the air apart from the
+    table and the user: accounting.transport_spill), and in how many trials."""
+    out: dict[str, dict[str, float]] = {}
+    for r in records:
+        for place, g in (r.get("spilled_by_place") or {}).items():
+            e = out.setdefault(place, {"g": 0.0, "trials": 0})
+            e["g"] = round(e["g"] + float(g), 4)
+            e["trials"] += int(float(g) > 1e-9)
     return out
 
 
@@ -152,7 +178,8 @@ def summarize_exp2c(records: Sequence[dict[str, Any]], cfg: Any,
                 "spill": _rate(sum(1 for r in rs if r["spilled_g"] > 1e-9), len(rs)),
                 "delivered_g": describe([r["delivered_g"] for r in rs]).to_dict(),
                 "held_g": describe([r["held_g"] for r in rs]).to_dict(),
-                "shed_g": describe([r["shed_g"] for r in rs]).to_dict()}
+                "shed_g": describe([r["shed_g"] for r in rs]).to_dict(),
+                "spilled_by_place": by_place(rs)}
             if thresholds_g and f in thresholds_g:
                 e.update(_counts([classify_exp2c(r, thresholds_g[f]) for r in rs],
                                  EXP2C_CLASSES))
@@ -256,7 +283,7 @@ def representative_trials(records: Sequence[dict[str, Any]]) -> dict[str, dict[s
         groups.setdefault(key, []).append(r)
 
     def food_g(r: Mapping[str, Any]) -> float:
-        for k in ("acquired_g", "delivered_g", "capacity_g", "held_g"):
+        for k in ("acquired_g", "delivered_g", "scoop_g", "held_g"):
             if r.get(k) is not None:
                 return float(r[k])
         return 0.0

@@ -27,6 +27,9 @@ __all__ = ["BOOKKEEPING_FIELDS", "TIMING_FIELDS", "add_commands", "trials_for"]
 
 RUN_EXPERIMENTS = ("capacity", "exp1", "exp2b", "exp2c", "exp3")
 DEFAULT_OUT = "results/experiments"
+# The most food a load or a threshold may name (g): more than any utensil of the spec holds
+# (a soup spoon's capacity is ~15 g), as ``sim --load`` and ``meal --threshold`` bound it.
+MAX_LOAD_G = 100.0
 # A trial record's fields that a rerun of its seed need not reproduce (the replay check,
 # benchmarks/experiment_scaling.py). Plans run in a thread while the world steps, so when a
 # plan is ready in simulated time depends on the machine's speed: these may differ slightly
@@ -39,14 +42,17 @@ BOOKKEEPING_FIELDS = frozenset({"wall_time_s", "pid", "realtime_factor", "bite_w
                                 "traceback", "source"})
 
 
+BITE_EXPERIMENTS = ("exp1", "exp3")
+
+
 def _usage(msg: str) -> Exception:
     from articutool.cli_support import UsageError
 
     return UsageError(msg)
 
 
-def _parse_food_grams(text: str, field: str) -> dict[str, float]:
-    """``"pecans=7,water=20"`` → ``{"pecans": 7.0, "water": 20.0}`` (grams > 0, finite)."""
+def _parse_food_grams(text: str, field: str, most: float) -> dict[str, float]:
+    """``"pecans=7,water=20"`` → ``{"pecans": 7.0, "water": 20.0}`` (grams in [0, most])."""
     out: dict[str, float] = {}
     for part in text.split(","):
         if not part.strip():
@@ -56,9 +62,9 @@ def _parse_food_grams(text: str, field: str) -> dict[str, float]:
             g = float(val)
         except ValueError:
             g = math.nan
-        if not sep or not food.strip() or not math.isfinite(g) or g < 0:
-            raise _usage(f"{field} must be FOOD=GRAMS[,FOOD=GRAMS] with grams >= 0; "
-                         f"got {part.strip()!r}")
+        if not sep or not food.strip() or not 0 <= g <= most:  # also refuses NaN
+            raise _usage(f"{field} must be FOOD=GRAMS[,FOOD=GRAMS] with grams in "
+                         f"[0, {most:g}]; got {part.strip()!r}")
         out[food.strip()] = g
     return out
 
@@ -68,8 +74,9 @@ def _check_common(args: argparse.Namespace) -> Path:
 
     if not 1 <= args.trials <= MAX_TRIALS:
         raise _usage(f"--trials must be in [1, {MAX_TRIALS}] per condition; got {args.trials}")
-    if args.workers < 1:
-        raise _usage(f"--workers must be >= 1; got {args.workers}")
+    from articutool.bench.cli import check_workers
+
+    check_workers(args.workers)
     if args.seed < 0:
         raise _usage(f"--seed must be >= 0; got {args.seed}")
     out = Path(args.out)
@@ -97,7 +104,7 @@ def _thresholds(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str
     from articutool.thresholds import exp1_means
 
     if getattr(args, "thresholds_g", None):
-        th = _parse_food_grams(args.thresholds_g, "--thresholds-g")
+        th = _parse_food_grams(args.thresholds_g, "--thresholds-g", MAX_LOAD_G)
         other = sorted(set(th) - set(cfg.exp2c.foods))
         if other or not th:
             raise _usage(f"--thresholds-g must give grams for foods of Exp. 2c "
@@ -108,6 +115,12 @@ def _thresholds(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str
     if th:
         return th, f"our Exp. 1 Articutool means ({out / 'exp1' / 'summary.json'})"
     return None, "none: run exp1 first or pass --thresholds-g"
+
+
+def _check_threshold_g(args: argparse.Namespace) -> None:
+    v = getattr(args, "threshold_g", None)
+    if v is not None and not 0 <= v <= MAX_LOAD_G:  # also refuses NaN
+        raise _usage(f"--threshold-g must be a mass in [0, {MAX_LOAD_G:g}] g; got {v}")
 
 
 def _exp3_threshold(args: argparse.Namespace, out: Path, cfg: Any) -> float:
@@ -125,22 +138,72 @@ def _exp3_threshold(args: argparse.Namespace, out: Path, cfg: Any) -> float:
 
 
 def _exp2c_loads(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str, float], str]:
+    from articutool.thresholds import capacity_means
+
     if args.load_g:
-        loads = _parse_food_grams(args.load_g, "--load-g")
+        loads = _parse_food_grams(args.load_g, "--load-g", MAX_LOAD_G)
         src = "--load-g"
     else:
+        loads = capacity_means(out)
         p = out / "capacity" / "summary.json"
-        if not p.exists():
+        if loads is None:
             raise _usage(f"exp2c needs the capacity load: run `articutool experiment capacity "
                          f"--out {out}` first, or pass --load-g pecans=G,water=G")
-        s = json.loads(p.read_text(encoding="utf-8"))
-        loads = {f: v["capacity_g"]["mean"] for f, v in s["foods"].items()
-                 if v["capacity_g"].get("mean")}
         src = f"our capacity means ({p})"
     missing = [f for f in cfg.exp2c.foods if f not in loads or loads[f] <= 0]
     if missing:
         raise _usage(f"--load-g: no load > 0 g for {missing}")
+    unknown = sorted(set(loads) - set(cfg.exp2c.foods))
+    if unknown:
+        raise _usage(f"--load-g: unknown foods {unknown}; Exp. 2c's foods: "
+                     f"{', '.join(cfg.exp2c.foods)}")
+    _check_loads(loads, cfg, "--load-g" if args.load_g else f"the capacity summary {src}")
     return loads, src
+
+
+def _check_loads(loads: dict[str, float], cfg: Any, field: str) -> None:
+    """Every load within what its food's Exp. 2c utensil can hold (exit 2 naming the range)."""
+    from articutool.feeding.strategies import StrategyLibrary
+    from articutool.sim.params import PhysicsParams
+    from articutool.sim.world import capacity_bound_reason, utensil_capacity_bound_g
+    from articutool.spec import load_spec
+
+    spec, params = load_spec(), PhysicsParams.load()
+    lib = StrategyLibrary.load(spec)
+    for food, g in loads.items():
+        utensil = lib.strategies[cfg.exp2c.strategy[food]].utensil
+        most = utensil_capacity_bound_g(spec, params, food, utensil)
+        if not g <= most:
+            raise _usage(f"{field}: {food} must be in (0, {most:.2f}] g, the most the "
+                         f"{utensil} can hold ({capacity_bound_reason(params.food(food))}); "
+                         f"got {g:g}")
+
+
+def _closed_loop_targets(thresholds: dict[str, float], cfg: Any) -> dict[str, float]:
+    """Per food with a load-targeting closed-loop primitive, its target from the food's
+    meaningful-success threshold (:func:`~articutool.experiments.protocols.
+    closed_loop_target_g`): one item's mass (the physics' food model) and the noise of one
+    weighing (the F/T sensor's per-sample noise over the primitive's window)."""
+    from articutool.experiments.protocols import closed_loop_target_g
+    from articutool.sim.params import Liquid, PhysicsParams
+    from articutool.spec import load_spec
+    from articutool.tool.primitives import get_primitive
+
+    spec, params = load_spec(), PhysicsParams.load()
+    out = {}
+    for food, shed in cfg.exp2c.closed_loop.items():
+        names = get_primitive(shed.primitive).parameter_names
+        if "target_load_g" not in names or food not in thresholds:
+            continue
+        window = shed.params[names.index("window_s")] if "window_s" in names else 0.0
+        n = max(1, round(window * spec.ft.rate_hz))
+        noise_g = spec.ft.force_noise_n / spec.imu.gravity * 1000.0 / math.sqrt(n)
+        fp = params.food(food)
+        # One item of a placed load: a load particle of a liquid, a piece otherwise.
+        item = fp.particle_mass(fp.load_particle_radius) if isinstance(fp, Liquid) \
+            else fp.piece_mass
+        out[food] = round(closed_loop_target_g(thresholds[food], item * 1000.0, noise_g), 3)
+    return out
 
 
 def trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
@@ -161,10 +224,38 @@ def trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
             raise _usage("the scene has no [staging_set] (Exp. 2b's start and goals)")
         goals = [g.name for g in sset.goals]
         extra["goals"] = goals
+    targets = None
     if exp == "exp2c":
         loads, src = _exp2c_loads(args, out, cfg)
-        extra.update(load_g=loads, load_source=src)
-    conds = conditions(exp, cfg, goals=goals, load_g=loads)
+        th, _ = _thresholds(args, out, cfg)
+        if th is None or any(f not in th for f in cfg.exp2c.foods):
+            raise _usage("exp2c needs each food's meaningful-success threshold (its "
+                         "closed-loop target is derived from it): run `articutool experiment "
+                         f"exp1 --out {out}` first, or pass --thresholds-g "
+                         + ",".join(f"{f}=G" for f in cfg.exp2c.foods))
+        targets = _closed_loop_targets(th, cfg)
+        extra.update(load_g=loads, load_source=src, closed_loop_target_g=targets)
+    conds = conditions(exp, cfg, goals=goals, load_g=loads, target_g=targets)
+    foods = getattr(args, "foods", None)
+    if foods:
+        wanted = [f.strip() for f in foods.split(",") if f.strip()]
+        known = sorted({c["food"] for c in conds})
+        if not wanted or any(f not in known for f in wanted):
+            raise _usage(f"--foods must name foods of {exp} ({', '.join(known)}), "
+                         f"comma-separated; got {foods!r}")
+        conds = [c for c in conds if c["food"] in wanted]
+    physics = getattr(args, "physics", None)
+    if physics is not None:
+        from articutool.sim.params import PhysicsError, PhysicsParams
+
+        try:
+            params = PhysicsParams.load(physics)
+        except PhysicsError as err:
+            raise _usage(f"--physics: {err}") from None
+        missing = sorted({c["food"] for c in conds} - set(params.foods))
+        if missing:
+            raise _usage(f"--physics {physics}: no parameters for {missing}")
+        conds = [{**c, "physics": str(Path(physics).resolve())} for c in conds]
     return make_trials(exp, conds, args.trials, args.seed, goals=goals), {
         "conditions": conds, **extra}
 
@@ -247,9 +338,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     exp = args.experiment
     out = _check_common(args)
-    if getattr(args, "threshold_g", None) is not None and not (
-            math.isfinite(args.threshold_g) and args.threshold_g >= 0):
-        raise _usage(f"--threshold-g must be a finite mass >= 0 g; got {args.threshold_g}")
+    _check_threshold_g(args)
     try:
         cfg = ExperimentsConfig.load()
     except ExperimentsConfigError as err:
@@ -262,7 +351,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return _replay(args, exp, trials, out)
     from articutool.cli_support import output_dir
 
-    d = output_dir("--out", out / exp, ("run.json", "trials.jsonl", "summary.json"))
+    d = output_dir("--out", out, ("run.json", "trials.jsonl", "summary.json", "notes.md",
+                                  f"{exp}.png"), own=exp)
+    old_summary = report.read_summary(d / "summary.json")  # unreadable: refused before a trial
     settings = {"experiment": exp, "seed": args.seed, "data_hash": data_hash(exp, cfg),
                 "conditions": extra["conditions"]}
     try:
@@ -288,17 +379,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
         command="articutool " + " ".join(shlex.quote(a) for a in sys.argv[1:])
         if sys.argv[1:2] == ["experiment"] else f"articutool experiment {exp}",
         data_hash=settings["data_hash"])
-    old_path = d / "summary.json"
-    if summary_run.ran == 0 and old_path.exists():  # nothing ran: keep when and how it did
-        old_run = json.loads(old_path.read_text(encoding="utf-8")).get("run", {})
+    if summary_run.ran == 0 and old_summary is not None:  # nothing ran: keep when and how
         for k in ("experiment_wall_time_s", "executor", "machine", "date", "command"):
-            if k in old_run:
-                summary["run"][k] = old_run[k]
+            if k in old_summary["run"]:
+                summary["run"][k] = old_summary["run"][k]
     summary.update({k: v for k, v in extra.items() if k != "conditions"})
     if exp == "exp2c":
         summary["thresholds_source"] = th_src
-    (d / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n",
-                                    encoding="utf-8")
+    from articutool.datafile import replace_own
+
+    replace_own(d / "summary.json", json.dumps(summary, indent=1, allow_nan=False) + "\n")
     figure = report.figure(exp, records, summary, cfg, d)
     md = report.section(exp, summary, cfg, figure.name if figure else None)
     if args.json:
@@ -353,9 +443,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if not out.is_dir():
         raise _usage(f"--out {out} is not a directory of experiment results")
-    if args.threshold_g is not None and not (math.isfinite(args.threshold_g)
-                                             and args.threshold_g >= 0):
-        raise _usage(f"--threshold-g must be a finite mass >= 0 g; got {args.threshold_g}")
+    _check_threshold_g(args)
     cfg = ExperimentsConfig.load()
     th, src = _thresholds(args, out, cfg)
     threshold = (_exp3_threshold(args, out, cfg) if (out / "exp3" / "trials.jsonl").exists()
@@ -372,6 +460,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``experiment …``."""
+    from articutool.bench.executors import MAX_WORKERS
+
     p0 = sub.add_parser("experiment", help="the thesis' physical experiments in simulation")
     esub = p0.add_subparsers(dest="experiment", required=True, metavar="EXPERIMENT")
     helps = {"capacity": "maximum-capacity loads (Exp. 2c's load)",
@@ -384,7 +474,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         p.add_argument("--trials", type=int, default=20,
                        help="trials per condition (default 20, as the thesis)")
         p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
-                       help="local worker processes (default: CPU count)")
+                       help=f"local worker processes in [1, {MAX_WORKERS}] (default: CPU "
+                            "count)")
         p.add_argument("--scheduler", metavar="ADDRESS", default=None,
                        help="run on a Dask distributed cluster at ADDRESS")
         p.add_argument("--out", metavar="DIR", default=DEFAULT_OUT,
@@ -400,6 +491,14 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                        help="with --trial: record the trial as ROS 2 messages in MCAP (tool "
                             "telemetry and commands, arm joints, food, the feeding tree's "
                             "status); never overwrites")
+        if name in BITE_EXPERIMENTS:
+            p.add_argument("--physics", metavar="FILE", default=None,
+                           help="another physics parameter file for the bite's world (e.g. the "
+                                "thesis' 125 g of noodles: docs/food.md); use its own --out")
+        if name != "exp3":
+            p.add_argument("--foods", metavar="FOOD,…", default=None,
+                           help="run only these foods' conditions (same seeds as a full run; "
+                                "use its own --out)")
         if name == "exp2c":
             p.add_argument("--load-g", default=None, metavar="FOOD=G,…",
                            help="the load per food (default: our capacity means)")

@@ -77,11 +77,28 @@ class Exp2c(_Strict):
     closed_loop: dict[str, ShedPrimitive]
 
 
+class Scoop(_Strict):
+    """The maximal scoop's path: the food's Articutool sweep (strategies.toml) with these
+    insertion values (see the data file)."""
+
+    depth_m: Annotated[float, Field(ge=0, le=0.02)]
+    drag_m: Annotated[float, Field(ge=0, le=0.2)]
+    offset_m: Annotated[float, Field(ge=-0.1, le=0.1)]
+    sweep_to_deg: Annotated[float, Field(ge=0, le=90)]
+
+
 class Capacity(_Strict):
     """Our "maximum capacity" protocol (see the data file)."""
 
     foods: Names
-    overfill_g: dict[str, Positive]
+    scoop: dict[str, Scoop]
+
+    @model_validator(mode="after")
+    def _every_food_scoops(self) -> Capacity:
+        missing = [f for f in self.foods if f not in self.scoop]
+        if missing:
+            raise ValueError(f"scoop: no scoop for {missing}")
+        return self
 
 
 class Exp3(_Strict):

@@ -49,9 +49,13 @@ def trial_seed(base_seed: int, repeat: int) -> int:
 
 
 def conditions(experiment: str, cfg: Any, *, goals: Sequence[str] = (),
-               load_g: Mapping[str, float] | None = None) -> list[dict[str, Any]]:
+               load_g: Mapping[str, float] | None = None,
+               target_g: Mapping[str, float] | None = None) -> list[dict[str, Any]]:
     """The conditions of ``experiment`` in a fixed order (``cfg``: the experiments config;
-    ``goals``: the staging set's goal names for exp2b; ``load_g``: exp2c's load per food)."""
+    ``goals``: the staging set's goal names for exp2b; ``load_g``: exp2c's load per food;
+    ``target_g``: exp2c's closed-loop load target per food, derived from the food's
+    meaningful-success threshold — :func:`articutool.experiments.protocols.
+    closed_loop_target_g`)."""
     if experiment == "capacity":
         return [{"food": f} for f in cfg.capacity.foods]
     if experiment == "exp1":
@@ -61,8 +65,15 @@ def conditions(experiment: str, cfg: Any, *, goals: Sequence[str] = (),
     if experiment == "exp2c":
         if load_g is None:
             raise ValueError("exp2c needs the load per food (the capacity)")
-        return [{"food": f, "condition": c, "load_g": round(float(load_g[f]), 2)}
-                for f in cfg.exp2c.foods for c in EXP2C_CONDITIONS]
+        out = []
+        for f in cfg.exp2c.foods:
+            for c in EXP2C_CONDITIONS:
+                cond: dict[str, Any] = {"food": f, "condition": c,
+                                        "load_g": round(float(load_g[f]), 2)}
+                if c == "closed_loop" and target_g is not None and f in target_g:
+                    cond["target_g"] = round(float(target_g[f]), 3)
+                out.append(cond)
+        return out
     if experiment == "exp3":
         return [{"food": cfg.exp3.food, "system": s} for s in cfg.exp3.systems]
     raise ValueError(f"experiment must be one of {EXPERIMENTS}; got {experiment!r}")

@@ -14,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from articutool.datafile import save_figure
+
 __all__ = ["mass_bars", "outcome_bars"]
 
 COLORS = {"articutool": "#e8772e", "baseline": "#8c8c8c"}
@@ -66,10 +68,10 @@ def mass_bars(records: Sequence[dict[str, Any]], summary: Mapping[str, Any],
     ax.set_title(title, fontsize=10)
     ax.legend(frameon=False)
     fig.tight_layout()
-    out = Path(path)
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
-    return out
+    try:
+        return save_figure(fig, path)
+    finally:
+        plt.close(fig)
 
 
 def outcome_bars(groups: Mapping[str, Mapping[str, int]], classes: Sequence[str], title: str,
@@ -98,7 +100,7 @@ def outcome_bars(groups: Mapping[str, Mapping[str, int]], classes: Sequence[str]
     ax.set_title(title, fontsize=10)
     ax.legend(frameon=False, fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     fig.tight_layout()
-    out = Path(path)
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
-    return out
+    try:
+        return save_figure(fig, path)
+    finally:
+        plt.close(fig)

@@ -37,8 +37,9 @@ from articutool.sim.world import FeedingWorld
 if TYPE_CHECKING:
     import py_trees
 
-__all__ = ["BITE_PROTOCOLS", "Hook", "capacity_trial", "exp1_trial", "exp2b_trial",
-           "exp2c_trial", "exp3_trial", "json_safe", "transport"]
+__all__ = ["BITE_PROTOCOLS", "Hook", "capacity_strategy", "capacity_trial", "closed_loop_params",
+           "closed_loop_target_g", "exp1_trial", "exp2b_trial", "exp2c_trial", "exp3_trial",
+           "json_safe", "transport", "transport_outcome"]
 
 Hook = Callable[[FeedingWorld], None] | None
 Visitors = Sequence["py_trees.visitors.VisitorBase"]
@@ -105,17 +106,23 @@ def transport(world: FeedingWorld, arm: SimArm, goal: str, planner: str, *, atte
     }
 
 
-def _outcome_fields(world: FeedingWorld, before: dict[str, float], n_spills: int
-                    ) -> dict[str, Any]:
-    """Spill since ``before`` (the world's spill events from index ``n_spills``) by place,
-    and what was delivered (on the utensil or eaten at the mouth), by the one definition of
-    both (:mod:`articutool.sim.accounting`)."""
+def transport_outcome(world: FeedingWorld, start: np.ndarray, n_spills: int,
+                      before: dict[str, float]) -> dict[str, Any]:
+    """What a transport did to the load, by the one definition of both
+    (:mod:`articutool.sim.accounting`): everything that left the utensil since the transport
+    began (item classes ``start``, the world's spill events from index ``n_spills``, masses
+    ``before``) is spilled, by place — a container included (``spilled_by_place``); what is
+    on the utensil now (plus anything eaten) is delivered. Only the load counts, as the
+    experimenter weighs the utensil: food that missed it while the load was placed (a
+    particle sliding off the plate meanwhile) is not the transport's."""
     after = world.masses_g()
-    spilled = {k: _r(v) for k, v in acc.spilled_by_place(world.spills, n_spills).items()}
+    carried = {int(k) for k in np.flatnonzero(np.asarray(start) == acc.UTENSIL)}
+    events = world.spills[:n_spills] + [e for e in world.spills[n_spills:] if e.item in carried]
+    spilled = {k: _r(v) for k, v in acc.transport_spill(
+        start, world.item_classes(), world.item_masses_g(), events, n_spills).items()}
     return {
         "spilled_by_place": spilled,
         "spilled_g": _r(sum(spilled.values())),
-        "shed_g": _r(max(0.0, after["container"] - before["container"])),
         "delivered_g": _r(acc.delivered_g(before, after)),
         "airborne_g": after["airborne"],
     }
@@ -123,24 +130,73 @@ def _outcome_fields(world: FeedingWorld, before: dict[str, float], n_spills: int
 
 def capacity_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
                    hook: Hook = None, visitors: Visitors = ()) -> dict[str, Any]:
-    """One maximal load: the leveled, tared utensil loaded with ``overfill_g``; what stays
-    after ``settle_s`` level, by ground truth and as the F/T sensor weighs it. No feeding
-    tree runs (the tool levels on its own), so ``visitors`` see nothing."""
-    from articutool.tool.api import Mode
+    """One maximal scoop (thesis §5.2.3: an experimenter's repeated maximal manual scoops,
+    their mean): the Articutool scoops through the full bowl along the capacity scoop's path
+    (``[capacity.scoop]``: the food's own sweep made as deep and long as the bowl allows,
+    no shedding), lifts the utensil level out of the food, holds it ``settle_s``; what it
+    holds then is one maximal load (``scoop_g``; weighed as a scale under the utensil would,
+    and by the F/T sensor). For a liquid, ``brim_g``: what the leveled spoon keeps of a pour
+    filling its dish to the rim — the most any scoop can leave in it without surface
+    tension."""
+    from articutool.feeding.bite import BiteSettings
+    from articutool.feeding.meal import make_bite_world, run_bite
+    from articutool.sim.loading import dish_volume_m3
+    from articutool.sim.params import Liquid
 
     food = cond["food"]
-    over = cfg.capacity.overfill_g[food]
-    w = FeedingWorld(food, seed=seed, load_g=over)
+    setup = make_bite_world(food, "articutool", seed)
+    setup.strategy = capacity_strategy(setup.strategy, cfg.capacity.scoop[food])
+    w = setup.world
     if hook:
         hook(w)
-    w.tool.set_mode(Mode.LEVELING)
-    w.run(1.0)
-    w.tare_ft(0.3)
-    w.place_load(settle_s=cfg.settings.settle_s)
+    try:
+        r = run_bite(setup, stages=("above", "acquire"), timeout_s=cfg.exp1.timeout_s,
+                     settings=BiteSettings(budget_s=cfg.settings.plan_budget_s),
+                     visitors=visitors)
+    finally:
+        setup.arm.close()
+    w.run(cfg.settings.settle_s)
     g = w.masses_g()
-    return {"utensil": w.utensil, "overfill_g": over, "capacity_g": _r(g["utensil"]),
-            "ft_mass_g": _r(w.ft_mass_g()) if w.ft_comparable() else None,
-            "fell_g": _r(g["container"] + g["table"] + g["critical"])}
+    out: dict[str, Any] = {
+        "utensil": w.utensil, "completed": r.completed, "failed_stage": r.failed_stage,
+        "scoop_g": _r(w.utensil_mass_g()), "items_g": _r(g["utensil"]),
+        "ft_mass_g": _r(w.ft_mass_g()) if w.ft_comparable() else None,
+        "tilt_deg": _r(w.tilt_deg()), "spilled_g": _r(r.spilled_g),
+        "realtime_factor": _r(w.realtime_factor)}
+    fp = w.params.food(food)
+    if isinstance(fp, Liquid):
+        from articutool.tool.api import Mode
+
+        u = w.spec.utensil(w.utensil)
+        # The dish's level volume, less one of a load's particles: the pour's last must fit.
+        brim = (dish_volume_m3(u) * fp.density * 1000.0
+                - fp.particle_mass(fp.load_particle_radius) * 1000.0)
+        b = FeedingWorld(food, w.utensil, spec=w.spec, scene=w.scene, seed=seed, load_g=brim,
+                         mouth=False)
+        if b.max_load_g() < brim:  # the pour's lattice holds less than the level volume
+            brim = b.max_load_g() - 1e-6
+            b = FeedingWorld(food, w.utensil, spec=w.spec, scene=w.scene, seed=seed,
+                             load_g=brim, mouth=False)
+        b.tool.set_mode(Mode.LEVELING)
+        b.run(1.0)
+        b.place_load(settle_s=cfg.settings.settle_s)
+        out.update(brim_poured_g=_r(brim), brim_g=_r(b.masses_g()["utensil"]))
+    return out
+
+
+def capacity_strategy(strategy: Any, scoop: Any) -> Any:
+    """The food's Articutool strategy with the capacity scoop's path (``scoop``: depth, drag,
+    offset, the pitch it levels to in the food) and no primitive: the scoop lifts what it
+    gathered and sheds nothing on purpose."""
+    from articutool.feeding.strategies import Stage, Stages
+
+    none = Stage(primitive="NONE", params=[])
+    ins = strategy.insertion.model_copy(update={
+        "motion": "sweep", "depth_m": scoop.depth_m, "drag_m": scoop.drag_m,
+        "offset_m": scoop.offset_m, "sweep_to_deg": scoop.sweep_to_deg})
+    return strategy.model_copy(update={
+        "insertion": ins,
+        "stages": Stages(pre_move_into=none, post_move_into=none, post_acquisition=none)})
 
 
 def exp2b_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
@@ -154,7 +210,7 @@ def exp2b_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
     if sset is None:
         raise ValueError("the scene has no [staging_set]")
     load = cfg.exp2b.load_g[food]
-    w = FeedingWorld(food, seed=seed, load_g=load, q_arm=sset.start)
+    w = FeedingWorld(food, seed=seed, load_g=load, q_arm=sset.start, mouth=False)
     if hook:
         hook(w)
     goals = {g.name: g.q for g in sset.goals}
@@ -167,13 +223,14 @@ def exp2b_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
         w.run(1.0)
         w.tare_ft(0.3)
         held = w.place_load(settle_s=cfg.settings.settle_s)
-        before, n_spills = w.masses_g(), len(w.spills)
+        before, n_spills, start = w.masses_g(), len(w.spills), w.item_classes()
         tr = transport(w, arm, goal, "decoupled" if articutool else "strict6",
                        attempts=_plan_attempts(food, system), cfg=cfg, visitors=visitors)
     finally:
         arm.close()
     return {"load_g": load, "held_g": _r(held), "planner": "decoupled" if articutool
-            else "strict6", "tolerance_deg": tol, **tr, **_outcome_fields(w, before, n_spills),
+            else "strict6", "tolerance_deg": tol, **tr,
+            **transport_outcome(w, start, n_spills, before), "weighed_g": _r(w.carried_g()),
             "masses_after_g": _masses(w), "realtime_factor": _r(w.realtime_factor)}
 
 
@@ -207,7 +264,7 @@ def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
     scene = Scene.load()
     q_shed = shed_configuration(spec, scene, strat.utensil)
     w = FeedingWorld(food, strat.utensil, spec=spec, scene=scene, seed=seed, load_g=load,
-                     q_arm=q_shed)
+                     q_arm=q_shed, mouth=False)
     if hook:
         hook(w)
     arm = SimArm(w, seed=seed)
@@ -220,28 +277,59 @@ def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
         loaded, n_loaded = w.masses_g(), len(w.spills)
         if arm_cond in ("primitive", "closed_loop"):
             shed = cfg.exp2c.closed_loop[food] if arm_cond == "closed_loop" else stage
+            params = list(shed.params)
+            if arm_cond == "closed_loop" and cond.get("target_g") is not None:
+                params = closed_loop_params(shed.primitive, params, float(cond["target_g"]))
             w.tool.set_mode(Mode.DISABLED)  # primitives are refused while leveling
-            ok, msg = w.tool.start_primitive(shed.primitive, list(shed.params))
+            ok, msg = w.tool.start_primitive(shed.primitive, params)
             done = ok and w.run_until(lambda: w.tool.mode != Mode.PRIMITIVE, 60.0)
             st = w.tool.primitive_status()
             w.run(cfg.settings.settle_s)
-            prim = {"primitive": shed.primitive, "primitive_params": list(shed.params),
+            prim = {"primitive": shed.primitive, "primitive_params": params,
                     "primitive_ok": bool(done and st is not None and st.success),
                     "primitive_message": msg if not ok else (st.message if st else "")}
-        before = w.masses_g()
+        before, n_before, start = w.masses_g(), len(w.spills), w.item_classes()
         spills_primitive = acc.spilled_by_place(w.spills, n_loaded)
         tr = transport(w, arm, "Staging", strat.transport.planner,
                        attempts=strat.attempts.plan, cfg=cfg, visitors=visitors)
     finally:
         arm.close()
-    # Food on the table or the user is a spill whenever it falls (during the primitive too);
-    # into the container it is shed (thesis §5: not a failure).
-    by_primitive = {"container": _r(max(0.0, before["container"] - loaded["container"])),
-                    **{k: _r(v) for k, v in spills_primitive.items()}}
+    # Over the bowl, before transport, what the primitive moves into the container is shed
+    # (thesis §5: not a failure); onto the table or the user it is spilled. In transport
+    # anything that leaves the spoon is spilled, wherever it lands.
+    shed_g = _r(max(0.0, before["container"] - loaded["container"]))
+    by_primitive = {"container": shed_g, **{k: _r(v) for k, v in spills_primitive.items()}}
+    out = transport_outcome(w, start, n_before, before)
+    for place, g in spills_primitive.items():  # a primitive's spill is a spill of the trial
+        out["spilled_by_place"][place] = _r(out["spilled_by_place"][place] + g)
+    out["spilled_g"] = _r(sum(out["spilled_by_place"].values()))
     return {"load_g": load, "held_g": _r(held), **prim, "primitive_moved_g": by_primitive,
-            "after_primitive_g": _r(before["utensil"]), **tr,
-            **_outcome_fields(w, loaded, n_loaded), "masses_after_g": _masses(w),
+            "after_primitive_g": _r(before["utensil"]), "shed_g": shed_g, **tr, **out,
+            "weighed_g": _r(w.carried_g()), "masses_after_g": _masses(w),
             "realtime_factor": _r(w.realtime_factor)}
+
+
+def closed_loop_target_g(threshold_g: float, item_g: float, noise_g: float) -> float:
+    """The closed-loop shedding target for a meaningful-success threshold: the primitive
+    stops at the first weighing at most this; for the load left to stay *above* the
+    threshold, the target stands one item (the smallest step a load changes by) plus three
+    standard deviations of one weighing above it."""
+    if not (threshold_g >= 0 and item_g > 0 and noise_g >= 0):
+        raise ValueError("threshold_g >= 0, item_g > 0 and noise_g >= 0 are required")
+    return threshold_g + item_g + 3.0 * noise_g
+
+
+def closed_loop_params(primitive: str, params: list[float], target_g: float) -> list[float]:
+    """``params`` of a closed-loop shedding primitive with its load target set to
+    ``target_g`` (primitives without a load target are returned unchanged)."""
+    from articutool.tool.primitives import get_primitive
+
+    names = get_primitive(primitive).parameter_names
+    if "target_load_g" not in names:
+        return list(params)
+    out = list(params)
+    out[names.index("target_load_g")] = float(target_g)
+    return out
 
 
 def json_safe(x: Any) -> Any:
@@ -265,7 +353,7 @@ def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
     from articutool.feeding.meal import make_bite_world, run_bite
 
     setup = make_bite_world(cond["food"], cond["system"], seed,
-                            strategies=cond.get("strategies"))
+                            strategies=cond.get("strategies"), physics=cond.get("physics"))
     if hook:
         hook(setup.world)
     try:
@@ -281,6 +369,7 @@ def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
     for k in ("bite", "food", "system", "seed"):
         rec.pop(k)
     return json_safe({**rec, "utensil": w.utensil, "masses_end_g": _masses(w),
+                      "weighed_end_g": _r(w.utensil_mass_g()),
                       "realtime_factor": _r(w.realtime_factor)})
 
 
@@ -291,7 +380,7 @@ def exp1_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
     ``ft_mass_g`` as the F/T sensor weighs it when comparable)."""
     rec = _bite(cond, seed, cfg, hook, ("above", "acquire", "resting"), cfg.exp1.timeout_s,
                 visitors)
-    rec["mass_g"] = rec["masses_end_g"]["utensil"]
+    rec["mass_g"] = rec["weighed_end_g"]  # as the experimenter weighs it (strands: borne)
     return rec
 
 

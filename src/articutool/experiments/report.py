@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import datetime as _dt
 import hashlib
-import json
 import os
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
+
+from pydantic import BaseModel, ConfigDict, Field
 
 from articutool.experiments.analysis import EXP2C_CLASSES, representative_trials, summarize
 from articutool.experiments.design import EXP2C_CONDITIONS
@@ -22,8 +23,10 @@ from articutool.experiments.figures import mass_bars, outcome_bars
 from articutool.experiments.stats import FisherResult, fisher
 from articutool.experiments.verdicts import code_versions, thesis_trials, verdicts
 from articutool.feeding.outcomes import OUTCOMES
+from articutool.thresholds import Grams
 
-__all__ = ["HONESTY", "differences", "figure", "section", "thesis_exp3_no_spill", "write_report"]
+__all__ = ["CROSS_CHECKS", "HONESTY", "cross_checks", "differences", "figure", "read_summary",
+           "section", "thesis_exp3_no_spill", "write_report"]
 
 ORDER = ("exp1", "exp2b", "capacity", "exp2c", "exp3")
 TITLES = {
@@ -50,12 +53,16 @@ HONESTY = """\
 - **Outcomes come from physics and the tool's own code**: masses are the world's accounting
   of every piece or particle (on the utensil, shed into a container, on the table, on the
   user/wheelchair/floor, eaten at the mouth); the classes are
-  `articutool.feeding.outcomes.classify_bite`; a shed into the bowl or plate is no spill.
+  `articutool.feeding.outcomes.classify_bite`. Only a shedding primitive over the bowl,
+  before the transport, sheds; in transport anything that leaves the utensil is spilled
+  wherever it lands, a container included (reported apart, by place; docs/accounting.md).
 - **One meaning of spilled and eaten in every experiment** (`articutool.sim.accounting`):
-  spilled grams count each piece or particle once, at the worst place it reached, once it
-  stayed 0.1 s there (a piece that lands on the table and rolls to the floor is one critical
-  spill); eaten is each item once (pieces, particles, noodle strands); delivered is what is
-  on the utensil plus what was eaten.
+  spilled grams count each piece or particle once, at the worst place it reached (before the
+  transport once it stayed 0.1 s on the table or the user; a piece that lands on the table
+  and rolls to the floor is one critical spill); eaten is each item once (pieces, particles,
+  noodle strands); delivered is what is on the utensil plus what was eaten; noodle grams are
+  what the fork bears, as a scale under it would read. Exp. 2b and 2c have no mouth: the
+  experimenter weighs the utensil at the goal.
 """
 
 
@@ -92,6 +99,42 @@ def _table(head: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
     return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------- summaries --
+class _Open(BaseModel):
+    model_config = ConfigDict(extra="allow", frozen=True)
+
+
+class _Run(_Open):
+    machine: dict[str, Any] | None = None
+    date: str | None = None
+    command: str | None = None
+    executor: str | None = None
+    experiment_wall_time_s: Annotated[float, Field(strict=True, allow_inf_nan=False,
+                                                   ge=0)] | None = None
+
+
+class _SummaryFile(_Open):
+    run: _Run = Field(default_factory=_Run)
+    load_g: dict[str, Grams] | None = None
+    load_source: str | None = None
+    goals: list[str] | None = None
+
+
+def read_summary(path: Path) -> dict[str, Any] | None:
+    """An experiment's ``summary.json`` as this package writes it (``None`` if absent), for
+    what a rerun and the report take from it (the run's machine, date, command, loads,
+    goals): a file that is not as written (garbage, another shape, NaN, a link, a FIFO, a
+    folder) raises :class:`~articutool.datafile.ResultsError` naming it and the field."""
+    from articutool.datafile import read_own_json
+
+    s = read_own_json(path, "experiment summary", _SummaryFile)
+    if s is None:
+        return None
+    out = s.model_dump(exclude_unset=True)
+    out["run"] = s.run.model_dump(exclude_unset=True)
+    return out
 
 
 # ------------------------------------------------------------------------ figures --
@@ -151,20 +194,96 @@ def _sec_capacity(s: Mapping[str, Any], cfg: Any) -> str:
         c = v["capacity_g"]
         diff = (f"{c['mean'] - th[f]:+.1f} g ({100 * (c['mean'] / th[f] - 1):+.0f} %)"
                 if c.get("mean") is not None and f in th else "–")
-        held = ("≥ " if v.get("lower_bound") else "") + _msd(c)
-        rows.append([f, v["utensil"], c["n"], held, _ci(c), f"{th.get(f, '–')}", diff])
-    return (_table(["food", "utensil", "n", "ours: held level (g), mean ± SD", "95 % CI",
-                    "thesis (g)", "ours − thesis"], rows)
-            + "\n\nProtocol (ours; the thesis' was an experimenter's repeated maximal manual "
-              "scoops, their mean): the leveled, tared utensil is loaded far beyond what it "
-              "holds (`[capacity] overfill_g`: pieces dropped one by one, particles poured "
-              "in) and held level for `settle_s`; what stays is one maximal load; the mean is "
-              "Exp. 2c's load. A strategy's scoop (Exp. 1) is one bite, not a maximal load, so "
-              "it cannot be the protocol. \"≥\" marks "
-              "a food for which nothing fell off in some trial: the most the world's loader "
-              "places (water: 15.5 g, a heap above the rim) all stayed, so the spoon's "
-              "capacity is at least that — a limit of our loader, not a measurement of the "
-              "spoon's maximum.")
+        done = v.get("completed", {})
+        rows.append([f, v["utensil"], f"{done.get('k', '?')}/{done.get('n', '?')}",
+                     _msd(v.get("scoop_g")), _ci(v.get("scoop_g")), _msd(v.get("brim_g")),
+                     f"**{_f(c.get('mean'))}**", v.get("capacity_source", "–"),
+                     f"{th.get(f, '–')}", diff])
+    return (_table(["food", "utensil", "scoops completed", "maximal scoop (g), mean ± SD",
+                    "95 % CI", "dish filled to the brim (g)", "capacity (Exp. 2c's load, g)",
+                    "from", "thesis (g)", "ours − thesis"], rows)
+            + "\n\nProtocol (§5.2.3: an experimenter's repeated maximal manual scoops; their "
+              "mean is Exp. 2c's load): the Articutool scoops through the full bowl along "
+              "the food's own sweep made maximal (`experiments.toml [capacity.scoop]`: the "
+              "dish's outline 1 mm above the bowl's floor, dragged through the food, levelled "
+              "in it as far as the handle clears the rim; no shedding primitive), lifts the "
+              "spoon level and holds it 1 s; what it holds then, pieces perched on others "
+              "included, is one maximal load. A liquid's trial also fills the leveled dish to "
+              "its brim: a particle liquid without surface tension holds at most the dish's "
+              "level volume (the soup spoon: 16.79 mL, 16.8 g of water). The thesis' 20 g of "
+              "water is 3.2 g (19 %) more than that level volume: spread over the rim's "
+              "opening (π · 30 · 22.5 mm² = 21.2 cm²) it is a 1.5 mm layer above the rim — a "
+              "meniscus pinned at a brim-full spoon's rim (water's capillary length is "
+              "2.7 mm; such menisci bulge 1-2 mm), which a model without surface tension "
+              "cannot hold.")
+
+
+def _sec_static_tilt(d: Mapping[str, Any]) -> str:
+    """The liquid's static-tilt test beside hydrostatics (``sim-calibrate --food water
+    --json``'s ``static_tilt``)."""
+    st = d.get("static_tilt", d)
+    out = (f"Load {st.get('load_g', '?')} g on the {st.get('utensil', '?')}, the wrist "
+           f"turned at {st.get('rate_rad_s', '?')} rad/s to each tilt and held "
+           f"{st.get('hold_s', '?')} s; grams that left the spoon in the particle world beside "
+           "what an ideal liquid of the load's volume spills at the tilt the spoon really has "
+           "(`articutool.food.hydrostatics`).\n\n")
+    for direction in ("tip", "side"):
+        v = st.get(direction)
+        if not v:
+            continue
+        rows = [[f"{r['tilt_deg']:.1f}", f"{r['spilled_g']:.2f}", f"{r['hydrostatic_g']:.2f}"]
+                for r in v.get("rows", [])]
+        out += (f"**{'Over the tip' if direction == 'tip' else 'Sideways'}** (load kept "
+                f"{_f(v.get('kept_g'))} g): spill onset {_f(v.get('onset_deg'), 1)}° in the "
+                f"world, {_f(v.get('hydrostatic_onset_deg'), 1)}° by hydrostatics.\n\n"
+                + _table(["tilt (°)", "spilled, particles (g)", "spilled, hydrostatics (g)"],
+                         rows) + "\n\n")
+    return out
+
+
+def _sec_slosh(d: Mapping[str, Any]) -> str:
+    """The slosh model's predicted spill beside the particle world's, per trial, on the
+    Exp. 2b paths (``studies/transport_spill.py``'s JSON)."""
+    rows = []
+    for t in d.get("trials", []):
+        rows.append([t.get("goal", "–"), t.get("condition", t.get("wrist_used", "–")),
+                     _f(t.get("scale")), t.get("seed", "–"), _f(t.get("max_tilt_deg"), 1),
+                     _f(t.get("predicted_spill_g")), _f(t.get("simulated_spill_g"))])
+    head = (f"{d.get('water', '')}\n\nLoad {d.get('load_g', '?')} g; command: "
+            f"`{d.get('command', '?')}`.\n\n")
+    return head + _table(["goal", "wrist", "speed scale", "seed", "max tilt (°)",
+                          "predicted by the slosh model (g)", "simulated (g)"], rows) + "\n"
+
+
+# The cross-checks the report shows when their JSON files are in the results directory.
+CROSS_CHECKS = {
+    "static_tilt_water.json": (
+        "Static-tilt test of the water", _sec_static_tilt,
+        "articutool sim-calibrate --food water --json > {out}/static_tilt_water.json"),
+    "slosh_crosscheck.json": (
+        "Slosh model vs particle world on the Exp. 2b paths", _sec_slosh,
+        "python studies/transport_spill.py --out {out}/slosh_crosscheck.json"),
+}
+
+
+def cross_checks(out: Path) -> str:
+    """The static-tilt table and the slosh cross-check, read from their JSON files in
+    ``out``; a clear "not yet measured" for a missing one."""
+    from articutool.datafile import ResultsError, read_own_json
+
+    md = ""
+    for name, (title, render, cmd) in CROSS_CHECKS.items():
+        md += f"## {title}\n\n"
+        try:
+            d = read_own_json(out / name, name)
+            if d is None:
+                md += (f"Not yet measured: `{name}` is not in this results directory. Make "
+                       f"it with `{cmd.format(out=out)}`.\n\n")
+                continue
+            md += render(d) + f"\n*Source:* `{name}`.\n\n"
+        except (ResultsError, KeyError, TypeError, ValueError) as err:
+            md += f"`{name}` could not be read ({type(err).__name__}: {err}).\n\n"
+    return md
 
 
 def _mass_rows(block: Mapping[str, Any], foods: Sequence[str], systems: Sequence[str],
@@ -205,6 +324,12 @@ def _sec_exp2b(s: Mapping[str, Any], cfg: Any) -> str:
     out += "\n\n" + _table(["food", "system", "load held after placing (g)", "completed",
                             "planning attempts", "max utensil tilt (°)",
                             "Fisher p, spill frequency"], rows)
+    if s.get("spilled_by_place"):
+        rows = [[f, sys_, _places(s["spilled_by_place"][f][sys_])]
+                for f in cfg.exp2b.foods for sys_ in cfg.exp2b.systems]
+        out += ("\n\nWhere the spilled food went (g over all trials, trials with any): in "
+                "transport anything that left the spoon is spilled, a container apart:\n\n"
+                + _table(["food", "system", "by place"], rows))
     rows = []
     for f in cfg.exp2b.foods:
         for sys_ in cfg.exp2b.systems:
@@ -213,6 +338,12 @@ def _sec_exp2b(s: Mapping[str, Any], cfg: Any) -> str:
     goals = list(next(iter(s["per_goal"][cfg.exp2b.foods[0]].values())).keys()) if rows else []
     out += "\n\nSpilled per goal (g):\n\n" + _table(["food", "system", *goals], rows)
     return out
+
+
+def _places(d: Mapping[str, Any] | None) -> str:
+    """``{"table": {"g", "trials"}, …}`` as "table 0.42 g (1), container …" (none: "none")."""
+    parts = [f"{p} {v['g']:.2f} g ({v['trials']})" for p, v in (d or {}).items() if v["g"] > 0]
+    return ", ".join(parts) or "none"
 
 
 def _sec_exp2c(s: Mapping[str, Any], cfg: Any) -> str:
@@ -225,7 +356,11 @@ def _sec_exp2c(s: Mapping[str, Any], cfg: Any) -> str:
            + f" ({s.get('thresholds_source', '?')}); thesis: "
            + " / ".join(f"> {cfg.thesis['exp1'][f]['articutool'][0]:g} g"
                         for f in cfg.exp2c.foods)
-           + " (its Exp. 1 means).\n\n")
+           + " (its Exp. 1 means)."
+           + (" Closed-loop load targets, from the thresholds (threshold + one item + 3 σ of one "
+              "weighing): " + ", ".join(f"{f} {g:.2f} g" for f, g in
+                                        s["closed_loop_target_g"].items()) + "."
+              if s.get("closed_loop_target_g") else "") + "\n\n")
     rows = []
     for f in cfg.exp2c.foods:
         e = s["foods"][f]
@@ -246,6 +381,10 @@ def _sec_exp2c(s: Mapping[str, Any], cfg: Any) -> str:
     out += _table(["food", "condition", "n", "held (g)", "shed into container (g)",
                    "delivered (g)", "meaningful", "trivial", "transport failure",
                    "tree failed", "thesis", "Fisher p (meaningful, vs control)"], rows)
+    rows = [[f, c, _places(s["foods"][f][c].get("spilled_by_place"))]
+            for f in cfg.exp2c.foods for c in EXP2C_CONDITIONS if c in s["foods"][f]]
+    out += ("\n\nWhere the spilled food went (g over all trials, trials with any):\n\n"
+            + _table(["food", "condition", "by place"], rows))
     out += ("\n\nSpill frequency alone (Fisher, no-spill trials, primitive vs control): "
             + ", ".join(f"{f} p = {_p(s['foods'][f]['fisher_no_spill'].get('p'))}"
                         for f in cfg.exp2c.foods) + ".")
@@ -439,6 +578,7 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
     where our numbers differ, written by whoever examined the run (trials, videos).
     A report there that is not as this command wrote it (edited) is kept beside it first
     (:func:`_write_generated`), and ``on_kept(report, copy)`` is told."""
+    from articutool.datafile import ResultsError, own_folder, read_text
     from articutool.experiments.runner import read_trials
 
     parts = ["# The thesis' physical experiments in simulation\n",
@@ -458,29 +598,30 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
     at_verdicts = len(parts)
     for exp in ORDER:
         recs = read_trials(out, exp)
-        spath = out / exp / "summary.json"
-        if not recs or not spath.exists():
+        old = read_summary(out / exp / "summary.json")
+        if not recs or old is None:
             missing.append(exp)
             continue
-        old = json.loads(spath.read_text(encoding="utf-8"))
         summary = summarize(exp, recs, cfg, thresholds_g=thresholds_g, threshold_g=threshold_g)
-        summary["run"].update({k: v for k, v in old.get("run", {}).items()
+        summary["run"].update({k: v for k, v in old["run"].items()
                                if k not in summary["run"]})
-        for k in ("load_g", "load_source", "goals"):
+        for k in ("load_g", "load_source", "goals", "closed_loop_target_g"):
             if k in old:
                 summary[k] = old[k]
         if exp == "exp2c":
             summary["thresholds_source"] = thresholds_source
-        fig = figure(exp, recs, summary, cfg, out / exp)
+        fig = figure(exp, recs, summary, cfg, own_folder(out, exp))
         rel = f"{exp}/{fig.name}" if fig else None
         npath = out / exp / "notes.md"
-        notes = npath.read_text(encoding="utf-8") if npath.exists() else ""
+        notes = (read_text(npath, "notes", ResultsError) if npath.exists()
+                 or npath.is_symlink() else "")
         parts.append(section(exp, summary, cfg, rel, notes) + replays(exp, recs, summary, out))
         summaries[exp] = summary
-        m = old.get("run", {}).get("machine")
+        m = old["run"].get("machine")
         if m:
             machines[exp] = (m, old["run"].get("date"))
     parts.insert(at_verdicts, hypotheses_section(summaries, cfg))
+    parts.append(cross_checks(out))
     if missing:
         parts.append("## Not run yet\n\n" + ", ".join(missing) + " (no trials or no "
                      "summary under this directory).\n")
@@ -521,25 +662,24 @@ def _ours(text: str) -> bool:
 
 def _write_generated(path: Path, text: str, on_kept: Callable[[Path, Path], None] | None
                      ) -> None:
-    """Write ``text`` and its mark to ``path``. A file there that is not, unchanged, one this
-    command wrote (a user edited it, or an older version wrote it) is first kept as
-    ``<name>.edited-<UTC time>`` (never overwritten) and ``on_kept(path, kept)`` is told."""
-    if path.exists():
-        try:
-            old = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError):
-            old = ""
-        if not _ours(old):
-            stamp = _dt.datetime.now(_dt.UTC).strftime("%Y%m%dT%H%M%SZ")
-            kept = path.with_name(f"{path.name}.edited-{stamp}")
-            n = 1
-            while kept.exists():
-                n += 1
-                kept = path.with_name(f"{path.name}.edited-{stamp}-{n}")
-            os.link(path, kept)  # fails rather than replace anything
-            path.unlink()  # the new report is a new file; the kept name holds the old one
-            if on_kept is not None:
-                on_kept(path, kept)
+    """Write ``text`` and its mark to ``path`` (:func:`articutool.datafile.replace_own`:
+    never through a link). A file there that is not, unchanged, one this command wrote (a
+    user edited it, or an older version wrote it) is first kept as ``<name>.edited-<UTC
+    time>`` (never overwritten) and ``on_kept(path, kept)`` is told; a link, FIFO or folder
+    there is refused (:class:`~articutool.datafile.ResultsError`)."""
+    from articutool.datafile import read_own_bytes, replace_own
+
+    old = read_own_bytes(path, "report")
+    if old is not None and not _ours(old.decode("utf-8", errors="replace")):
+        stamp = _dt.datetime.now(_dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+        kept = path.with_name(f"{path.name}.edited-{stamp}")
+        n = 1
+        while kept.exists() or kept.is_symlink():
+            n += 1
+            kept = path.with_name(f"{path.name}.edited-{stamp}-{n}")
+        os.link(path, kept, follow_symlinks=False)  # fails rather than replace anything
+        if on_kept is not None:
+            on_kept(path, kept)
     text = text if text.endswith("\n") else text + "\n"
     digest = hashlib.sha256(text.encode("utf-8")).hexdigest()
-    path.write_text(f"{text}{_MARK}{digest} -->\n", encoding="utf-8")
+    replace_own(path, f"{text}{_MARK}{digest} -->\n")

@@ -109,19 +109,23 @@ def source_version() -> str:
 
 def pin_run(path: Path, settings: dict[str, Any]) -> None:
     """Write ``run.json`` on a fresh run; on a resume refuse different settings."""
-    if path.exists():
-        try:
-            old = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError, RecursionError) as err:  # Recursion: too deep
-            raise RunError(f"{path} is unreadable ({err}); use another --out") from None
-        diff = [k for k in settings if old.get(k) != settings[k]]
-        if diff:
-            parts = "; ".join(f"{k}: {old.get(k)!r} → {settings[k]!r}" for k in diff)
-            raise RunError(f"{path.parent} holds trials run with other settings ({parts}); "
-                           "use the same settings to resume, or another --out")
+    from articutool.datafile import ResultsError, read_own_json, replace_own
+
+    try:
+        old = read_own_json(path, "the run's settings")
+    except ResultsError as err:
+        raise RunError(f"{err}; use another --out") from None
+    if old is None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        replace_own(path, json.dumps(settings, indent=1) + "\n")
         return
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(settings, indent=1) + "\n", encoding="utf-8")
+    if not isinstance(old, dict):
+        raise RunError(f"{path} is not a JSON object of settings; use another --out")
+    diff = [k for k in settings if old.get(k) != settings[k]]
+    if diff:
+        parts = "; ".join(f"{k}: {old.get(k)!r} → {settings[k]!r}" for k in diff)
+        raise RunError(f"{path.parent} holds trials run with other settings ({parts}); "
+                       "use the same settings to resume, or another --out")
 
 
 def _protocol(experiment: str) -> Callable[..., dict[str, Any]]:

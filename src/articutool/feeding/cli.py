@@ -26,6 +26,9 @@ def _check(args: argparse.Namespace) -> Any:
     from articutool.cli_support import UsageError, spec_from_args
     from articutool.feeding.strategies import StrategyError, StrategyLibrary
 
+    if args.threshold is not None and not (math.isfinite(args.threshold)
+                                           and 0 <= args.threshold <= 100):
+        raise UsageError(f"--threshold must be a mass in [0, 100] g; got {args.threshold}")
     if not 1 <= args.bites <= 100:
         raise UsageError(f"--bites must be an integer in [1, 100]; got {args.bites}")
     if args.seed < 0:
@@ -38,6 +41,8 @@ def _check(args: argparse.Namespace) -> Any:
     if args.food not in foods:
         raise UsageError(f"--food: no {args.system} strategy for {args.food!r}; allowed: "
                          f"{', '.join(foods)}")
+    if args.show_tree is not False:  # the tree's shape does not depend on the threshold
+        return lib
     if args.threshold is None:  # derived from our own data, as the thesis derived its own
         from articutool.thresholds import DEFAULT_OUT, exp1_means
 
@@ -191,7 +196,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0,
                    help="food placement, sensor noise, planner and strategy choice")
     p.add_argument("--strategies", metavar="FILE", default=None,
-                   help="action library TOML/YAML (default: the packaged strategies.toml)")
+                   help="action library: TOML, or JSON if it ends in .json (default: the "
+                        "packaged strategies.toml)")
     p.add_argument("--threshold", type=float, default=None, metavar="G",
                    help="a bite above G grams is a meaningful success (default: our Exp. 1 "
                         "Articutool mean for the food, results/experiments)")

@@ -37,6 +37,7 @@ from articutool.feeding.sim_arm import SimArm, world_load
 from articutool.feeding.strategies import Strategy, StrategyLibrary
 from articutool.feeding.tree import BiteRecorder, safe_stop_reason, tick_until_done
 from articutool.sim import accounting as acc
+from articutool.sim.params import PhysicsParams
 from articutool.sim.world import FeedingWorld
 from articutool.spec import Spec, load_spec
 from articutool.tool.api import Mode, ToolAPI
@@ -93,9 +94,15 @@ class BiteResult:
         return asdict(self)
 
 
+# The bite's transport: from the first of these stages that runs to the end of the last;
+# anything that leaves the utensil then is spilled wherever it lands (sim.accounting).
+TRANSPORT_STAGES = ("resting", "staging", "present")
+
+
 class FoodLedger(py_trees.visitors.VisitorBase):
     """Visitor: the world's food masses when each stage subtree ends, the utensil's tilt
-    while transporting, and the user's bite when ``present`` succeeds."""
+    while transporting, where every item was when the transport began and when it ended
+    (:data:`TRANSPORT_STAGES`), and the user's bite when ``present`` succeeds."""
 
     def __init__(self, world: FeedingWorld) -> None:
         super().__init__(full=False)
@@ -105,6 +112,20 @@ class FoodLedger(py_trees.visitors.VisitorBase):
         self.tilts: list[float] = []
         self.presented = False  # ``present`` succeeded: the user was offered the bite
         self.last_stage = ""  # the stage ticked last
+        # (item classes, spill events so far, masses) when the transport began / ended
+        self.transport_start: tuple[np.ndarray, int, dict[str, float]] | None = None
+        self.transport_end: np.ndarray | None = None
+
+    def transport_spill(self) -> dict[str, float]:
+        """Grams that left the utensil in transport, by place (container included): up to
+        the end of the last transport stage, or now if the bite ended inside one."""
+        if self.transport_start is None:
+            return dict.fromkeys(acc.TRANSPORT_PLACES, 0.0)
+        start, n, _ = self.transport_start
+        end = self.transport_end if self.transport_end is not None \
+            else self.world.item_classes()
+        return acc.transport_spill(start, end, self.world.item_masses_g(), self.world.spills,
+                                   n)
 
     def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
         stage = getattr(behaviour, "bite_stage", None)
@@ -112,10 +133,20 @@ class FoodLedger(py_trees.visitors.VisitorBase):
             return
         if behaviour.status != Status.INVALID:
             self.last_stage = stage
-        if behaviour.status == Status.RUNNING and stage in ("resting", "staging"):
-            self.tilts.append(self.world.tilt_deg())
+        if behaviour.status == Status.RUNNING and stage in TRANSPORT_STAGES:
+            if self.transport_start is None:
+                w = self.world
+                self.transport_start = (w.item_classes(), len(w.spills), w.masses_g())
+            self.transport_end = None  # (a later transport stage runs: not ended yet)
+            if stage in ("resting", "staging"):
+                self.tilts.append(self.world.tilt_deg())
         if behaviour.status in (Status.SUCCESS, Status.FAILURE) and stage not in self.after:
             self.after[stage] = self.world.masses_g()
+            # What a scale under the utensil reads (a hanging strand counts as borne).
+            self.after[stage]["carried"] = self.world.carried_g()
+            if stage in TRANSPORT_STAGES and self.transport_start is not None:
+                # Before the user eats: what is eaten is delivered, not lost.
+                self.transport_end = self.world.item_classes()
             if stage == "present" and behaviour.status == Status.SUCCESS:
                 self.presented = True
                 self.after["present"]["ft"] = (self.world.ft_mass_g(0.5)
@@ -135,14 +166,18 @@ class MealSetup:
 
 
 def make_bite_world(food: str, system: str, seed: int = 0, *,
-                    strategies: str | Path | None = None, load_g: float | None = None) -> MealSetup:
+                    strategies: str | Path | None = None, load_g: float | None = None,
+                    physics: str | Path | None = None) -> MealSetup:
     """The world, the arm and the strategy for ``food`` with ``system`` (see module doc).
     ``load_g`` builds a world with a load to place by hand (Exp. 2b/2c) instead of a full
-    container. Raises ``StrategyError`` / ``ValueError`` naming the field for bad input."""
+    container; ``physics`` another physics parameter file (e.g. the thesis' 125 g of noodles).
+    Raises ``StrategyError`` / ``ValueError`` naming the field for bad input."""
     spec = load_spec()
     lib = StrategyLibrary.load(spec, strategies)
     name, strat = lib.choose(food, system, np.random.default_rng(seed))
-    world = FeedingWorld(food, strat.utensil, spec=spec, seed=seed, load_g=load_g)
+    params = PhysicsParams.load(physics) if physics is not None else None
+    world = FeedingWorld(food, strat.utensil, spec=spec, params=params, seed=seed,
+                         load_g=load_g)
     rigid = system == "baseline"
     arm = SimArm(world, tolerance_deg=strat.transport.tolerance_deg, seed=seed, rigid=rigid,
                  load=lambda: world_load(world), leveling=strat.transport.leveling)
@@ -244,8 +279,16 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
         rec.record.failures.append((root.name, f"did not finish within {timeout_s:g} s"))
     if stopped is not None:
         rec.record.cause = ("Safe stop", stopped)
-    # Spilled and delivered as everywhere (sim.accounting): each item once, at its worst place.
-    spilled = acc.spilled_by_place(w.spills, n_spills)
+    # Spilled and delivered as everywhere (sim.accounting): each item once, at its worst place;
+    # before the transport a spill is food on the table or the user, in transport anything
+    # that left the utensil, wherever it landed (a container apart).
+    n_transport = (ledger.transport_start[1] if ledger.transport_start is not None
+                   else len(w.spills))
+    spilled = acc.spilled_by_place(w.spills[:n_transport], n_spills)
+    moved = ledger.transport_spill()
+    spilled = {"table": spilled["table"] + moved["table"],
+               "critical": spilled["critical"] + moved["critical"],
+               "container": moved["container"], "airborne": moved["airborne"]}
     after = ledger.after
     acquired = after.get("acquire", before)["utensil"]
     # Shed: what fell from the utensil back into the container during the shed stage.
@@ -262,6 +305,10 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
         end = after.get(stages[-1]) or w.masses_g()
     else:
         end = {**w.masses_g(), "utensil": 0.0}
+    if w.strands and "carried" in end and end["utensil"] > 0:
+        # A strand can hang from the fork onto a surface: its grams are what the fork bears,
+        # as a scale under it reads (rigid pieces and particles are wholly on it or not).
+        end = {**end, "utensil": end["carried"]}
     delivered = acc.delivered_g(before, end)
     # Attempts per goal, from this tree's own counters (zeroed before the bite; in tree
     # order, a retreat's last), also of a stage that failed and was stopped (INVALID since).

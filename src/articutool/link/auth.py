@@ -45,6 +45,9 @@ __all__ = ["AuthError", "Sender", "Signer", "Verifier", "claim", "sender_of"]
 
 _CONTEXT = b"articutool-link-v1\0"
 _MAX_ATTACHMENT = 8192  # bytes; a certificate is ~700
+_MAX_DEPTH = 4  # JSON nesting of an attachment (ours are flat objects)
+_MAX_DIGITS = 20  # digits of an integer in an attachment (a timestamp in ns has 19)
+_T_MAX = 2**63  # timestamps are int64 nanoseconds, as time.time_ns() and ROS stamps
 
 
 class AuthError(ValueError):
@@ -138,18 +141,26 @@ class Verifier:
         return name, role, pub, key_id
 
     def verify(self, key: str, payload: bytes, attachment: bytes | None) -> Sender:
-        """The verified sender of ``payload`` on ``key``; AuthError says why not."""
+        """The verified sender of ``payload`` on ``key``; AuthError says why not. Every
+        malformed attachment is an AuthError, never another exception."""
         if not attachment:
             raise AuthError("not a paired PC: no signature")
         if len(attachment) > _MAX_ATTACHMENT:
-            raise AuthError(f"attachment of {len(attachment)} bytes is too large")
+            raise AuthError(f"not a paired PC: attachment of {len(attachment)} bytes is too "
+                            f"large (at most {_MAX_ATTACHMENT})")
+        a = _load(attachment)
         try:
-            a = json.loads(attachment)
-            der, t_ns = base64.b64decode(a["c"], validate=True), int(a["t"])
+            if not isinstance(a, dict):
+                raise ValueError("not a JSON object")
+            t_ns = a["t"]
+            if isinstance(t_ns, bool) or not isinstance(t_ns, int) or not 0 <= t_ns < _T_MAX:
+                raise ValueError("timestamp 't' must be an integer of nanoseconds since 1970")
+            der = base64.b64decode(a["c"], validate=True)
             nonce, sig = bytes.fromhex(a["n"]), base64.b64decode(a["s"], validate=True)
         except (ValueError, KeyError, TypeError) as err:
-            claimed = a.get("id") if isinstance(locals().get("a"), dict) else None
-            why = f"unsigned claim to be {claimed!r}" if claimed else f"malformed ({err})"
+            claimed = a.get("id") if isinstance(a, dict) else None
+            why = (f"unsigned claim to be {str(claimed)[:64]!r}" if claimed
+                   else f"malformed ({str(err)[:200]})")
             raise AuthError(f"not a paired PC: no valid signature: {why}") from None
         name, role, pub, key_id = self._cert(der)
         skew = time.time() - t_ns * 1e-9
@@ -182,13 +193,46 @@ class Verifier:
         return Sender(name, True, role)
 
 
+def _load(attachment: bytes) -> object:
+    """The attachment's JSON; AuthError for anything that is not plain, shallow JSON.
+
+    An attacker controls these bytes: ``Infinity``/``NaN`` (Python's json accepts them), a
+    number of hundreds of digits, brackets nested thousands deep (the parser recurses and
+    raises RecursionError) and invalid UTF-8 are each refused here as a malformed signature.
+    """
+    depth = 0
+    for byte in attachment:  # bounded by _MAX_ATTACHMENT; strings may hold brackets, so
+        if byte in b"[{":    # this over-counts, which only refuses nonsense earlier
+            depth += 1
+            if depth > _MAX_DEPTH:
+                raise AuthError("not a paired PC: no valid signature: malformed (nested "
+                                f"deeper than {_MAX_DEPTH})")
+        elif byte in b"]}":
+            depth -= 1
+
+    def constant(name: str) -> object:
+        raise ValueError(f"{name} is not JSON")
+    try:
+        return json.loads(attachment, parse_constant=constant, parse_int=_bounded_int)
+    except (ValueError, TypeError, RecursionError, OverflowError) as err:
+        raise AuthError("not a paired PC: no valid signature: malformed "
+                        f"({type(err).__name__}: {str(err)[:200]})") from None
+
+
+def _bounded_int(text: str) -> int:
+    if len(text.lstrip("-")) > _MAX_DIGITS:
+        raise ValueError(f"an integer of {len(text)} digits")
+    return int(text)
+
+
 def sender_of(attachment: bytes | None) -> Sender:
-    """The unverified claim in an attachment (unpaired links): ``Sender(name)`` or empty."""
+    """The unverified claim in an attachment (unpaired links): ``Sender(name)`` or empty;
+    a malformed attachment is no claim."""
     if not attachment or len(attachment) > _MAX_ATTACHMENT:
         return Sender()
     try:
-        a = json.loads(attachment)
-        name = a.get("id") if isinstance(a, dict) else None
-    except ValueError:
+        a = _load(attachment)
+    except AuthError:
         return Sender()
+    name = a.get("id") if isinstance(a, dict) else None
     return Sender(str(name)[:64]) if isinstance(name, str) and name else Sender()

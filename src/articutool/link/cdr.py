@@ -1,11 +1,11 @@
 """The link's wire format: ROS 2 type names, the Articutool interfaces and CDR (thesis §3.2.2).
 
 The Articutool's own types are defined once, in the ROS 2 interface package shipped beside this
-module (``articutool_interfaces/srv/SetOrientationControl.srv`` and
-``articutool_interfaces/action/ExecuteArticutoolPrimitive.action``, thesis Listings 3.1-3.2):
-this module parses those files into a ``rosbags`` type store with the action protocol's and
-the standard types, and ``make`` builds the same files into a real ROS 2 package
-(:mod:`articutool.ros2.build_interfaces`). Payloads are ROS 2 CDR, including the 4-byte
+module (``articutool_interfaces``: ``SetOrientationControl``, ``TriggerCalibration``,
+``ImuCalibrationStatus``, ``ExecuteArticutoolPrimitive`` and ``VerifyTrajectory``, thesis
+Listings 3.1-3.2): this module parses those files into a ``rosbags`` type store with the
+action protocol's and the standard types, and ``make`` builds the same files into a real ROS 2
+package (:mod:`articutool.ros2.build_interfaces`). Payloads are ROS 2 CDR, including the 4-byte
 encapsulation header, i.e. the bytes a ROS 2 node puts on the wire; :func:`decode` raises
 :class:`LinkDecodeError` on malformed input (never another exception type). Pure (its only I/O
 is reading its own interface files once, at import). :mod:`articutool.link.messages` builds
@@ -32,23 +32,32 @@ __all__ = [
     "HEADER",
     "IDL_DIR",
     "IMU",
+    "IMU_CALIBRATION_STATUS",
     "JOINT_STATE",
     "JOINT_TRAJECTORY",
     "PKG",
     "SEND_GOAL",
     "SET_ORIENTATION_CONTROL",
     "TRIGGER",
+    "TRIGGER_CALIBRATION",
+    "VERIFY_TRAJECTORY",
     "LinkDecodeError",
     "dds_type_name",
     "decode",
     "encode",
+    "interface_hashes",
     "msg",
+    "package_texts",
+    "register_interfaces",
     "type_hash",
     "typestore",
 ]
 
 PKG = "articutool_interfaces"
 SET_ORIENTATION_CONTROL = f"{PKG}/srv/SetOrientationControl"
+TRIGGER_CALIBRATION = f"{PKG}/srv/TriggerCalibration"
+IMU_CALIBRATION_STATUS = f"{PKG}/msg/ImuCalibrationStatus"
+VERIFY_TRAJECTORY = f"{PKG}/srv/VerifyTrajectory"
 ACTION = f"{PKG}/action/ExecuteArticutoolPrimitive"
 SEND_GOAL = f"{ACTION}_SendGoal"
 GET_RESULT = f"{ACTION}_GetResult"
@@ -66,36 +75,27 @@ HEADER = "std_msgs/msg/Header"
 IDL_DIR = Path(__file__).resolve().parent / PKG  # the ROS 2 package's source
 
 
-def _idl(rel: str, parts: tuple[str, ...]) -> dict[str, str]:
-    """The ``---``-separated sections of an interface file as {type name: .msg text}."""
-    text = (IDL_DIR / rel).read_text(encoding="utf-8")
+def _sections(text: str, parts: tuple[str, ...], where: str) -> dict[str, str]:
+    """The ``---``-separated sections of an interface text as {type name: .msg text}."""
     sections = re.split(r"^---[ \t]*$", text, flags=re.MULTILINE)
     if len(sections) != len(parts):
-        raise RuntimeError(f"{IDL_DIR / rel}: expected {len(parts)} sections separated by "
-                           f"'---'; found {len(sections)}")
+        raise RuntimeError(f"{where}: expected {len(parts)} sections separated by '---'; "
+                           f"found {len(sections)}")
     return {name: body.strip("\n") + "\n" for name, body in zip(parts, sections, strict=True)}
 
 
-# (final type name, .msg text); names of our own types are rewritten from pkg/msg/X.
-_SRV_SOC = _idl("srv/SetOrientationControl.srv",
-                ("SetOrientationControl_Request", "SetOrientationControl_Response"))
+def package_texts(root: Path = IDL_DIR) -> dict[str, str]:
+    """Every ``msg/*.msg``, ``srv/*.srv`` and ``action/*.action`` of a package folder, as
+    {relative path: text}."""
+    return {f"{kind}/{f.name}": f.read_text(encoding="utf-8")
+            for kind in ("msg", "srv", "action")
+            for f in sorted((root / kind).glob(f"*.{kind}"))}
+
+
 # std_srvs/srv/Trigger; an empty ROS 2 request carries the IDL generator's placeholder byte.
 _SRV_TRIGGER = {
     "Trigger_Request": "uint8 structure_needs_at_least_one_member\n",
     "Trigger_Response": "bool success\nstring message\n",
-}
-_ACTION_MSGS = {
-    **_idl("action/ExecuteArticutoolPrimitive.action",
-           tuple(f"ExecuteArticutoolPrimitive_{p}" for p in ("Goal", "Result", "Feedback"))),
-    "ExecuteArticutoolPrimitive_SendGoal_Request": (
-        "unique_identifier_msgs/UUID goal_id\nExecuteArticutoolPrimitive_Goal goal\n"),
-    "ExecuteArticutoolPrimitive_SendGoal_Response": (
-        "bool accepted\nbuiltin_interfaces/Time stamp\n"),
-    "ExecuteArticutoolPrimitive_GetResult_Request": "unique_identifier_msgs/UUID goal_id\n",
-    "ExecuteArticutoolPrimitive_GetResult_Response": (
-        "int8 status\nExecuteArticutoolPrimitive_Result result\n"),
-    "ExecuteArticutoolPrimitive_FeedbackMessage": (
-        "unique_identifier_msgs/UUID goal_id\nExecuteArticutoolPrimitive_Feedback feedback\n"),
 }
 # action_msgs/srv/CancelGoal is not in rosbags' stores (it only holds messages).
 _CANCEL = {
@@ -144,20 +144,58 @@ def _srv_description(pkg: str, kind: str, base: str) -> dict[str, Any]:
     return _parse(pkg, kind, defs, also=(f"{base}_Request", f"{base}_Response"))
 
 
-_ACTION_DESCRIPTION = (
-    "ExecuteArticutoolPrimitive_Goal goal\nExecuteArticutoolPrimitive_Result result\n"
-    "ExecuteArticutoolPrimitive_Feedback feedback\n"
-    "ExecuteArticutoolPrimitive_SendGoal send_goal_service\n"
-    "ExecuteArticutoolPrimitive_GetResult get_result_service\n"
-    "ExecuteArticutoolPrimitive_FeedbackMessage feedback_message\n")
-
-
 _SEI = "service_msgs/msg/ServiceEventInfo"
 
 
-@lru_cache(maxsize=1)
-def typestore() -> Any:
-    """The ROS 2 (Jazzy) type store with the Articutool and action protocol types."""
+def _empty_placeholder(defs: dict[str, str]) -> dict[str, str]:
+    """A section without fields gets the placeholder byte rosidl gives an empty structure
+    (``TriggerCalibration``'s request), as for ``std_srvs/Trigger``."""
+    return {k: (v if re.search(r"^\s*[A-Za-z]", v, flags=re.MULTILINE)
+                else "uint8 structure_needs_at_least_one_member\n") for k, v in defs.items()}
+
+
+def register_interfaces(ts: Any, pkg: str, texts: dict[str, str]) -> list[str]:
+    """Register a package's interfaces ({``msg|srv|action/Name.ext``: text}) in ``ts`` as
+    rosidl generates them: messages; a service's request, response and REP 2011 description;
+    an action's goal, result, feedback, its SendGoal/GetResult services, feedback message and
+    description. Returns the top-level type names (``pkg/kind/Name``)."""
+    out = []
+    for rel, text in texts.items():
+        kind, fname = rel.split("/")
+        name = fname.rsplit(".", 1)[0]
+        if kind == "msg":
+            ts.register(_parse(pkg, "msg", _sections(text, (name,), rel)))
+        elif kind == "srv":
+            defs = _sections(text, (f"{name}_Request", f"{name}_Response"), rel)
+            ts.register(_parse(pkg, "srv", _empty_placeholder(defs)))
+            ts.register(_srv_description(pkg, "srv", name))
+        else:
+            parts = ("Goal", "Result", "Feedback")
+            defs = _sections(text, tuple(f"{name}_{p}" for p in parts), rel)
+            defs.update({
+                f"{name}_SendGoal_Request": (
+                    f"unique_identifier_msgs/UUID goal_id\n{name}_Goal goal\n"),
+                f"{name}_SendGoal_Response": "bool accepted\nbuiltin_interfaces/Time stamp\n",
+                f"{name}_GetResult_Request": "unique_identifier_msgs/UUID goal_id\n",
+                f"{name}_GetResult_Response": f"int8 status\n{name}_Result result\n",
+                f"{name}_FeedbackMessage": (
+                    f"unique_identifier_msgs/UUID goal_id\n{name}_Feedback feedback\n"),
+            })
+            ts.register(_parse(pkg, "action", _empty_placeholder(defs)))
+            for sub in ("SendGoal", "GetResult"):
+                ts.register(_srv_description(pkg, "action", f"{name}_{sub}"))
+            subs = ("Goal", "Result", "Feedback", "SendGoal", "GetResult", "FeedbackMessage")
+            fields = "".join(f"{name}_{p} {f}\n" for p, f in zip(subs, (
+                "goal", "result", "feedback", "send_goal_service", "get_result_service",
+                "feedback_message"), strict=True))
+            ts.register(_parse(pkg, "action", {name: fields},
+                               also=tuple(f"{name}_{p}" for p in subs)))
+        out.append(f"{pkg}/{kind}/{name}")
+    return out
+
+
+def _base_store() -> Any:
+    """rosbags' ROS 2 (Jazzy) store, with ServiceEventInfo as rosidl describes it."""
     ts = get_typestore(Stores.ROS2_JAZZY)
     # rosidl maps a .msg ``char`` to uint8, and ROS 2's type descriptions (hence every
     # service's RIHS01 hash) say uint8[16] for ServiceEventInfo.client_gid; rosbags keeps
@@ -167,21 +205,27 @@ def typestore() -> Any:
     ts.fielddefs[_SEI] = (consts, [
         (n, (t[0], ((t[1][0][0], ("uint8", 0)), t[1][1])) if n == "client_gid" else t)
         for n, t in fields])
-    ts.register(_parse(PKG, "srv", _SRV_SOC))
-    ts.register(_parse(PKG, "action", _ACTION_MSGS))
+    return ts
+
+
+@lru_cache(maxsize=1)
+def typestore() -> Any:
+    """The ROS 2 (Jazzy) type store with the Articutool and action protocol types."""
+    ts = _base_store()
+    register_interfaces(ts, PKG, package_texts())
     ts.register(_parse("action_msgs", "srv", _CANCEL))
-    ts.register(_srv_description(PKG, "srv", "SetOrientationControl"))
     if f"{TRIGGER}_Request" not in ts.fielddefs:
         ts.register(_parse("std_srvs", "srv", _SRV_TRIGGER))
         ts.register(_srv_description("std_srvs", "srv", "Trigger"))
     ts.register(_srv_description("action_msgs", "srv", "CancelGoal"))
-    for sub in ("SendGoal", "GetResult"):
-        ts.register(_srv_description(PKG, "action", f"ExecuteArticutoolPrimitive_{sub}"))
-    ts.register(_parse(PKG, "action", {"ExecuteArticutoolPrimitive": _ACTION_DESCRIPTION},
-                       also=tuple(f"ExecuteArticutoolPrimitive_{p}" for p in (
-                           "Goal", "Result", "Feedback", "SendGoal", "GetResult",
-                           "FeedbackMessage"))))
     return ts
+
+
+def interface_hashes(texts: dict[str, str], pkg: str = PKG) -> dict[str, str]:
+    """RIHS01 hashes of a package's interfaces computed from their texts alone
+    ({``srv/X.srv``: text, …}), e.g. another release of ``articutool_interfaces``."""
+    ts = _base_store()
+    return {name: str(ts.hash_rihs01(name)) for name in register_interfaces(ts, pkg, texts)}
 
 
 def type_hash(typename: str) -> str:

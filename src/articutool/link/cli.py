@@ -151,7 +151,12 @@ def _check_offsets(args: argparse.Namespace) -> None:
 def run(args: argparse.Namespace) -> int:
     """Handler of ``articutool client``."""
     from articutool.cli_support import new_output_file
-    from articutool.link.client import ArticutoolClient, LinkError, ToolConflictError
+    from articutool.link.client import (
+        ArticutoolClient,
+        LinkError,
+        ToolConflictError,
+        check_primitive_request,
+    )
     from articutool.link.config import ConfigError, config_from_args
     from articutool.link.transport import LinkOpenError
 
@@ -161,11 +166,13 @@ def run(args: argparse.Namespace) -> int:
     recorder = None
     try:
         cfg = config_from_args(args)
+        if args.client_command == "primitive":  # before connecting: bad input is said first
+            check_primitive_request(cfg, args.name, args.params)
         if record is None:
             client = ArticutoolClient(cfg)
         else:
             client, recorder = _recording_client(cfg, record)
-    except (ConfigError, LinkOpenError) as err:
+    except (ConfigError, LinkOpenError, ValueError) as err:
         return _usage(str(err))
     try:
         try:

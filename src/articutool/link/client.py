@@ -33,7 +33,7 @@ from articutool.tool.api import Mode, PrimitiveStatus, ToolState
 from articutool.trajectory import JointTrajectory
 
 __all__ = ["ArticutoolClient", "LinkError", "ToolConflictError", "ToolRefusedError",
-           "ToolSilentError"]
+           "ToolSilentError", "check_primitive_request"]
 
 _log = logging.getLogger(__name__)
 
@@ -65,6 +65,26 @@ def parse_mode(mode: Mode | str | int) -> Mode:
     if mode not in (Mode.DISABLED, Mode.LEVELING):
         raise ValueError(f"mode must be DISABLED (0) or LEVELING (1); got {mode!r}")
     return Mode(mode)
+
+
+def _check_size(what: str, size: int, most: int, setting: str) -> None:
+    """A message the tool would drop unread for its size (and so never answer) is refused
+    before it is sent: ValueError naming the link config setting."""
+    if size > most:
+        raise ValueError(f"{what}: the message is {size} bytes, more than {setting} = {most} "
+                         "(link config) the tool reads: it would drop it unanswered; send "
+                         "fewer or shorter values")
+
+
+def check_primitive_request(cfg: LinkConfig, name: str, params: list[float]) -> None:
+    """The goal request of primitive ``name`` with ``params`` fits the tool's
+    ``max_request_bytes``: checked before connecting (``client primitive``); ValueError
+    otherwise. :meth:`ArticutoolClient.run_primitive` checks every request again."""
+    ep = Names(cfg.namespace, cfg.tool_id).send_goal
+    payload = cdr.encode(m.send_goal_request(bytes(16), name, [float(p) for p in params]),
+                       ep.request_type)
+    _check_size(f"primitive {name!r} with {len(params)} parameter(s)", len(payload),
+                cfg.max_request_bytes, "max_request_bytes")
 
 
 class ArticutoolClient:
@@ -206,6 +226,7 @@ class ArticutoolClient:
             self._commanded = True  # may hold the lease: release it on close
         t = self.cfg.call_timeout if timeout is None else timeout
         payload = cdr.encode(request, ep.request_type)
+        _check_size(ep.name, len(payload), self.cfg.max_request_bytes, "max_request_bytes")
         try:
             reply = self.transport.call(ep, payload, t)
         except LinkRefusedError as err:
@@ -431,7 +452,10 @@ class ArticutoolClient:
         if start_at is not None and not (math.isfinite(start_at) and start_at > 0):
             raise ValueError(f"start_at must be a wall-clock time > 0; got {start_at!r}")
         stamp = 0.0 if start_at is None else float(start_at)
-        self.transport.publish(ep, cdr.encode(m.trajectory_msg(trajectory, stamp), ep.type))
+        payload = cdr.encode(m.trajectory_msg(trajectory, stamp), ep.type)
+        _check_size(ep.name, len(payload), self.cfg.max_trajectory_bytes,
+                    "max_trajectory_bytes")
+        self.transport.publish(ep, payload)
 
     def close(self) -> None:
         """Release the command lease if this client holds it, stop the heartbeat, undeclare

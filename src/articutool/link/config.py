@@ -29,15 +29,20 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import os
 import re
+import sys
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-__all__ = ["DEFAULT_ENDPOINT", "ConfigError", "LinkConfig", "add_config_args",
-           "check_endpoint", "config_from_args", "load_config"]
+__all__ = ["DEFAULT_ENDPOINT", "MAX_DOMAIN_ID", "ConfigError", "LinkConfig", "add_config_args",
+           "check_endpoint", "check_ros_environment", "config_from_args",
+           "installed_rmw_implementations", "load_config"]
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+MAX_DOMAIN_ID = 232  # the largest ROS domain id DDS can map to UDP ports
 
 
 class ConfigError(ValueError):
@@ -80,6 +85,46 @@ def check_endpoint(endpoint: object, field_name: str) -> str:
 NAMESPACE_FORM = ("'/' or '/'-separated names of letters, digits and '_' (each starting with a "
                   "letter or '_'), e.g. '/articutool'")
 _NAMESPACE = re.compile(r"^/$|^(/[A-Za-z_][A-Za-z0-9_]*)+$")
+
+
+# The longest each period may be (s): beyond these a value is a unit slip (ms written as s)
+# or a typo, and 1e308 s overflowed zenoh's retry period in milliseconds.
+_PERIODS_S = {"heartbeat_period": 10.0, "tool_timeout": 3600.0, "client_timeout": 3600.0,
+              "call_timeout": 3600.0, "reconnect_period": 60.0}
+# zenoh's own settings: '/'-separated names of letters, digits, '_' and '-' (e.g.
+# "transport/unicast/max_links"); a value is JSON (tables and lists at most this deep).
+_EXTRA_PATH = re.compile(r"^[A-Za-z0-9_-]+(/[A-Za-z0-9_-]+)*$")
+_EXTRA_DEPTH = 8
+
+
+def _check_extra(extra: object) -> None:
+    """``extra``: a table of zenoh config paths to JSON values (checked here for shape;
+    zenoh says whether it accepts each when the session opens)."""
+    if not isinstance(extra, dict):
+        raise ConfigError("extra must be a table of zenoh settings (path = value, e.g. "
+                          f"\"transport/unicast/max_links\" = 2); got {extra!r}")
+
+    def check(path: str, v: object, depth: int) -> None:
+        if depth > _EXTRA_DEPTH:
+            raise ConfigError(f"extra[{path!r}] is nested deeper than {_EXTRA_DEPTH} levels")
+        if isinstance(v, float) and not math.isfinite(v):
+            raise ConfigError(f"extra[{path!r}] must be finite; got {v!r}")
+        if isinstance(v, dict):
+            for k, x in v.items():
+                if not isinstance(k, str):
+                    raise ConfigError(f"extra[{path!r}] keys must be strings; got {k!r}")
+                check(path, x, depth + 1)
+        elif isinstance(v, list | tuple):
+            for x in v:
+                check(path, x, depth + 1)
+        elif not (v is None or isinstance(v, str | bool | int | float)):
+            raise ConfigError(f"extra[{path!r}] must be a JSON value; got {v!r}")
+
+    for path, v in extra.items():
+        if not isinstance(path, str) or not _EXTRA_PATH.match(path):
+            raise ConfigError(f"extra: {path!r} is not a zenoh config path ('/'-separated "
+                              "names of letters, digits, '_' and '-')")
+        check(path, v, 1)
 
 
 @dataclass(frozen=True)
@@ -146,20 +191,26 @@ class LinkConfig:
                 check_endpoint(e, f"{name}[{i}]")
             object.__setattr__(self, name, tuple(v))
         if isinstance(self.domain_id, bool) or not isinstance(self.domain_id, int) \
-                or not 0 <= self.domain_id <= 232:
-            raise ConfigError(f"domain_id must be an integer in [0, 232]; got {self.domain_id!r}")
-        for name in ("heartbeat_period", "tool_timeout", "client_timeout", "call_timeout",
-                     "reconnect_period"):
+                or not 0 <= self.domain_id <= MAX_DOMAIN_ID:
+            raise ConfigError(f"domain_id must be an integer in [0, {MAX_DOMAIN_ID}]; got "
+                              f"{self.domain_id!r}")
+        for name in ("multicast_scouting", "type_hash_in_keys"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"{name} must be true or false; got {getattr(self, name)!r}")
+        for name, most in _PERIODS_S.items():
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
-                    or v <= 0:
-                raise ConfigError(f"{name} must be a positive number of seconds; got {v!r}")
+            if isinstance(v, bool) or not isinstance(v, int | float) or not 0 < v <= most:
+                raise ConfigError(f"{name} must be a number of seconds in (0, {most:g}]; "
+                                  f"got {v!r}")
         if self.heartbeat_period >= min(self.tool_timeout, self.client_timeout):
             raise ConfigError("heartbeat_period must be shorter than tool_timeout and "
                               f"client_timeout; got {self.heartbeat_period}")
-        if self.publish_rate_hz is not None and not (
-                isinstance(self.publish_rate_hz, int | float) and 0 < self.publish_rate_hz <= 1000):
+        if self.publish_rate_hz is not None and (
+                isinstance(self.publish_rate_hz, bool)
+                or not isinstance(self.publish_rate_hz, int | float)
+                or not 0 < self.publish_rate_hz <= 1000):
             raise ConfigError(f"publish_rate_hz must be in (0, 1000]; got {self.publish_rate_hz!r}")
+        _check_extra(self.extra)
         if not isinstance(self.namespace, str) or not _NAMESPACE.match(self.namespace):
             raise ConfigError(f"namespace must be {NAMESPACE_FORM}; got {self.namespace!r}")
         from articutool.link.pairing import NAME_FORM, check_name
@@ -290,3 +341,45 @@ def config_from_args(args: argparse.Namespace) -> LinkConfig:
     if getattr(args, "tool_id", None) is not None:
         changes["tool_id"] = args.tool_id
     return cfg.replace(**changes) if changes else cfg
+
+
+# ------------------------------------------------------ the ROS 2 environment --
+# rcl refuses a bad ``ROS_DOMAIN_ID`` with an exception from deep inside ``rclpy.init`` and an
+# unknown ``RMW_IMPLEMENTATION`` by ending the whole process (exit code 102, no message the
+# user can act on); ``articutool ros2`` checks both first. Unset or empty, each takes rcl's
+# default.
+def installed_rmw_implementations(prefixes: Iterable[str | Path] | None = None
+                                  ) -> tuple[str, ...]:
+    """The RMW implementations the ament index lists under ``prefixes`` (default: the
+    ``AMENT_PREFIX_PATH`` entries and ``sys.prefix``), sorted; ``rmw_implementation`` (the
+    loader, not a middleware) is left out."""
+    if prefixes is None:
+        prefixes = [*filter(None, os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)),
+                    sys.prefix]
+    found: set[str] = set()
+    for prefix in prefixes:
+        index = Path(prefix) / "share" / "ament_index" / "resource_index" / "rmw_typesupport"
+        try:
+            found.update(p.name for p in index.iterdir())
+        except OSError:
+            continue
+    found.discard("rmw_implementation")
+    return tuple(sorted(found))
+
+
+def check_ros_environment(env: Mapping[str, str],
+                          rmw_installed: Iterable[str] | None = None) -> None:
+    """Raise ``ValueError`` naming the variable when ``ROS_DOMAIN_ID`` or
+    ``RMW_IMPLEMENTATION`` in ``env`` would make rcl fail or end the process."""
+    domain = env.get("ROS_DOMAIN_ID", "")
+    if domain and not (domain.isascii() and domain.isdigit()
+                       and int(domain) <= MAX_DOMAIN_ID):
+        raise ValueError(f"ROS_DOMAIN_ID must be an integer in [0, {MAX_DOMAIN_ID}] (or unset "
+                         f"for 0); got {domain!r}")
+    rmw = env.get("RMW_IMPLEMENTATION", "")
+    if rmw:
+        known = tuple(rmw_installed) if rmw_installed is not None else \
+            installed_rmw_implementations()
+        if rmw not in known:
+            raise ValueError(f"RMW_IMPLEMENTATION must name an installed middleware "
+                             f"({', '.join(known) or 'none found'}) or be unset; got {rmw!r}")

@@ -111,14 +111,17 @@ def _f32(values: Any) -> Any:
 
 # ------------------------------------------------------------- service/action --
 def soc_request(mode: Mode, pitch_offset_deg: float, roll_offset_deg: float) -> Any:
-    """``SetOrientationControl`` request (only DISABLED and LEVELING exist on the wire)."""
+    """``SetOrientationControl`` request (only DISABLED and LEVELING exist on the wire; the
+    unused ``target_orientation_robot_base`` is the identity)."""
     if mode not in (Mode.DISABLED, Mode.LEVELING):
         raise ValueError(f"control_mode must be DISABLED (0) or LEVELING (1); got {mode!r}")
     for name, v in (("pitch_offset", pitch_offset_deg), ("roll_offset", roll_offset_deg)):
         if not math.isfinite(v):
             raise ValueError(f"{name} must be a finite number of degrees; got {v}")
     return msg(f"{SET_ORIENTATION_CONTROL}_Request", control_mode=int(mode),
-               pitch_offset=float(pitch_offset_deg), roll_offset=float(roll_offset_deg))
+               pitch_offset=float(pitch_offset_deg), roll_offset=float(roll_offset_deg),
+               target_orientation_robot_base=msg("geometry_msgs/msg/Quaternion", x=0.0,
+                                                 y=0.0, z=0.0, w=1.0))
 
 
 def soc_response(success: bool, message: str) -> Any:

@@ -12,29 +12,42 @@ Never overwrites: the file is created exclusively (:class:`RecordingError` if it
 Messages are written in zstd chunks of ``chunk_bytes`` (default 64 KiB, about a second of the
 tool's telemetry), each handed to the OS as it completes (the file is flushed after every
 message; messages themselves wait in the chunk being built), so a recording cut
-by a crash or kill is readable with a streaming reader (``mcap.reader.NonSeekingReader``) up
-to its last complete chunk; a normal close (also on Ctrl-C) writes the summary and index.
+by a crash or kill keeps every complete chunk; a normal close (also on Ctrl-C) writes the
+summary and index. Every chunk, the data section and the summary carry CRC-32s.
+
+:func:`read_recording` reads a recording back the one way that works for both: in file
+order, streaming, every CRC checked. A reader that orders by log time first
+(``mcap``'s ``iter_messages`` default) buffers to the end and so yields nothing from a cut
+file; one that skips the CRCs accepts flipped bits in a chunk's bytes. A corrupt file
+(a CRC mismatch, a record that does not parse, a chunk that does not decompress) is refused
+naming where; a cut one (it ends before the footer, without MCAP's closing magic) is read up
+to its last complete chunk and said to be cut.
 """
 
 from __future__ import annotations
 
+import os
+import stat
 import threading
 import time
+import zlib
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from articutool.link import cdr
 from articutool.link.transport import Endpoint, Handle, Transport
 
-__all__ = ["McapRecorder", "RecordingError", "RecordingTransport", "ros2msg_definition",
-           "schema_name"]
+__all__ = ["McapRecorder", "RecordedMessage", "Recording", "RecordingError",
+           "RecordingTransport", "read_recording", "ros2msg_definition", "schema_name"]
 
 _SEP = "=" * 80
 
 
 class RecordingError(ValueError):
-    """The recording file cannot be created (it exists, or its folder does not)."""
+    """The recording file cannot be created (it exists, or its folder does not), or read
+    (missing, not a regular file, corrupt)."""
 
 
 def _field_type(node: tuple[Any, Any]) -> tuple[str, list[str]]:
@@ -115,7 +128,7 @@ class McapRecorder:
         except OSError as err:
             raise RecordingError(f"cannot create {self.path}: {err.strerror}") from None
         self._writer = Writer(self._file, chunk_size=chunk_bytes,
-                              compression=CompressionType.ZSTD)
+                              compression=CompressionType.ZSTD, enable_data_crcs=True)
         self._writer.start(profile="ros2", library="articutool")
         self._lock = threading.Lock()
         self._schemas: dict[str, int] = {}
@@ -183,6 +196,131 @@ class McapRecorder:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+_MAGIC = b"\x89MCAP0\r\n"
+_FOOTER_BYTES = 1 + 8 + 8 + 8 + 4  # opcode, length, summary_start, summary_offset_start, crc
+_DATA_END_BYTES = 1 + 8 + 4  # opcode 0x0F, length 4, data section CRC
+_DATA_END_HEAD = b"\x0f" + (4).to_bytes(8, "little")
+# The largest chunk read back (its uncompressed size is a field of the file: a flipped bit
+# must not make the reader allocate gigabytes); ours are 64 KiB.
+_MAX_CHUNK_BYTES = 256 << 20
+
+
+@dataclass(frozen=True)
+class RecordedMessage:
+    """One recorded message: its topic, schema name, log time (ns) and CDR bytes."""
+
+    topic: str
+    schema: str
+    log_time_ns: int
+    data: bytes
+
+
+@dataclass
+class Recording:
+    """What :func:`read_recording` read: the messages in file order, the metadata, and
+    whether the file was complete (``cut`` says how far a cut one was read)."""
+
+    messages: list[RecordedMessage] = field(default_factory=list)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    complete: bool = False
+    cut: str = ""
+
+
+def read_recording(path: str | Path, topics: Callable[[str], bool] | None = None
+                   ) -> Recording:
+    """Read the MCAP recording ``path`` in file order (the messages on the topics that
+    ``topics`` accepts, default all), checking every CRC the file carries: the chunks', the
+    data section's and the summary's. A recording cut before its footer (a crash, ``kill
+    -9``) is read up to its last complete chunk, ``complete`` False and ``cut`` saying so;
+    anything else that does not read (not a regular file, another format, a CRC mismatch, a
+    record or chunk that does not parse) raises :class:`RecordingError` naming the file and
+    the byte where it failed."""
+    from mcap.exceptions import EndOfFile
+    from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Metadata, Schema
+    from mcap.stream_reader import StreamReader, breakup_chunk
+
+    from articutool.datafile import file_kind
+
+    p = Path(path)
+    try:
+        fd = os.open(p, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    except OSError as err:
+        raise RecordingError(f"recording {p}: cannot read it: {err.strerror}") from None
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode):
+        os.close(fd)
+        raise RecordingError(f"recording {p} is {file_kind(st.st_mode)}; a recording is a "
+                             "regular .mcap file")
+    with os.fdopen(fd, "rb") as f:
+        size = st.st_size
+        f.seek(max(0, size - len(_MAGIC)))
+        closed = f.read(len(_MAGIC)) == _MAGIC  # a normal close wrote the closing magic
+        f.seek(0)
+        out = Recording()
+        schemas: dict[int, str] = {}
+        channels: dict[int, tuple[str, str]] = {}
+        footer = None
+        reader = StreamReader(f, validate_crcs=True, emit_chunks=True,
+                              record_size_limit=max(size, 1))
+
+        def take(rec: Any) -> None:
+            if isinstance(rec, Schema):
+                schemas[rec.id] = rec.name
+            elif isinstance(rec, Channel):
+                channels[rec.id] = (rec.topic, schemas.get(rec.schema_id, ""))
+            elif isinstance(rec, Message):
+                if rec.channel_id not in channels:
+                    raise ValueError(f"a message on channel {rec.channel_id}, never declared")
+                topic, schema = channels[rec.channel_id]
+                if topics is None or topics(topic):
+                    out.messages.append(RecordedMessage(topic, schema, rec.log_time,
+                                                        bytes(rec.data)))
+
+        try:
+            for rec in reader.records:
+                if isinstance(rec, Chunk):
+                    if rec.uncompressed_size > _MAX_CHUNK_BYTES:
+                        raise ValueError(f"a chunk claims {rec.uncompressed_size} bytes")
+                    for inner in breakup_chunk(rec, validate_crc=True):
+                        take(inner)
+                elif isinstance(rec, Metadata):
+                    out.metadata[rec.name] = dict(rec.metadata)
+                elif isinstance(rec, Footer):
+                    footer = rec
+                elif not isinstance(rec, DataEnd):
+                    take(rec)
+        except EndOfFile:
+            if closed:  # a finished file that ends early inside: a length field is wrong
+                raise RecordingError(f"recording {p} is not a readable MCAP file: corrupt, a "
+                                     f"record runs past its end (near byte {f.tell()})"
+                                     ) from None
+            out.cut = (f"recording {p} was cut (no footer: the recorder was killed or crashed)"
+                       f"; read the {len(out.messages)} message(s) of its complete chunks in "
+                       "file order")
+            return out
+        except Exception as err:  # any failure to parse these bytes is corruption
+            raise RecordingError(f"recording {p} is not a readable MCAP file: corrupt near "
+                                 f"byte {f.tell()} ({type(err).__name__}: {err})") from None
+        if footer is None:
+            raise RecordingError(f"recording {p} is not a readable MCAP file: no footer")
+        # The records no CRC covers: the data section's end (whose CRC a flipped opcode or
+        # length would skip) must be where and what it is; the summary and footer must match
+        # the footer's CRC.
+        start = footer.summary_start or size - len(_MAGIC) - _FOOTER_BYTES
+        f.seek(start - _DATA_END_BYTES)
+        if f.read(_DATA_END_BYTES)[:9] != _DATA_END_HEAD:
+            raise RecordingError(f"recording {p} is not a readable MCAP file: corrupt, its "
+                                 f"data section does not end with a DataEnd record at byte "
+                                 f"{start - _DATA_END_BYTES}")
+        if footer.summary_crc != 0:
+            end = size - len(_MAGIC) - 4
+            if zlib.crc32(f.read(end - start)) != footer.summary_crc:
+                raise RecordingError(f"recording {p} is not a readable MCAP file: corrupt, its "
+                                     f"summary (bytes {start}-{end}) does not match its CRC")
+    out.complete = True
+    return out
 
 
 class RecordingTransport(Transport):

@@ -53,9 +53,11 @@ answered at once, so the stops waiting (served first) are one DISABLED and a can
 the running goal at most. Unsigned or replayed traffic on a paired tool is refused before
 it reaches a gate or a queue. Replies and publishes that follow a command are sent from a
 ``link-io`` thread, never from the thread that ran the command (a send can block on a
-congested or dead peer). The tool's loop drains it, one command per tick, when the API
-offers ``set_link_work`` (``ToolRuntime``: called once per tick, after the tick); an API
-without a loop of its own (a test double) gets a worker thread of this server instead.
+congested or dead peer). When the API offers ``set_link_work`` (a ``ToolRuntime`` served
+in its own process) its loop drains the inbox, one command per tick, after the tick; any
+other API gets a worker thread of this server, one command at a time: ``articutool tool``
+serves a ``LoopProxy`` (``tool/channel.py``) in its link process, which hands each command to
+the loop in the other process.
 
 Link-loss policy (``LinkConfig.link_loss_policy``) when no client heartbeat or request has
 arrived for ``client_timeout`` seconds: ``"continue"`` (default) lets a running primitive

@@ -232,6 +232,9 @@ class ZenohTransport(Transport):
             return self._verifier.verify(ep.name, payload, raw)
         except AuthError as err:
             return Sender(sender_of(raw).identity, False, "", str(err))
+        except Exception as err:  # any other failure is a refusal too: counted and answered
+            return Sender(None, False, "", "not a paired PC: the signature could not be "
+                          f"checked ({type(err).__name__})")
 
     def _too_big(self, ep: Endpoint, size: int, max_bytes: int | None) -> bool:
         if max_bytes is not None and size > max_bytes:

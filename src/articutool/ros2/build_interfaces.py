@@ -1,10 +1,14 @@
-"""Build and install the ``articutool_interfaces`` ROS 2 package into this Python environment.
+"""Build and install the ``articutool_interfaces`` ROS 2 package (and, where they are missing,
+the two interface packages of the trajectory path ADA uses) into this Python environment.
 
 ``make`` runs ``python -m articutool.ros2.build_interfaces`` after installing the ``ros`` extra:
 plain ``cmake`` with the rosidl and ament wheels from PyPI, installed into ``sys.prefix`` (laid
 out like a ROS install space), so ``import articutool_interfaces.srv`` works with no
 environment set-up. The package's ``.srv``/``.action`` files are the ones the link's CDR
 messages are parsed from (``articutool/link/articutool_interfaces``): one definition.
+``control_msgs`` and ``controller_manager_msgs`` are not on PyPI: their served types' field
+layout (``articutool/ros2/peer_interfaces``) is built the same way unless a real package is
+installed already.
 
 Two facts measured with these wheels (``docs/notes/2026-11-22-ros2-from-pypi.md``): their
 ``*__rosidl_generator_pyExport.cmake`` files name the wheel builder's Python and NumPy include
@@ -30,11 +34,13 @@ import sysconfig
 import tempfile
 from pathlib import Path
 
-__all__ = ["SOURCE", "fix_export_paths", "main", "skip_reason"]
+__all__ = ["PACKAGES", "SOURCE", "fix_export_paths", "main", "skip_reason"]
 
 SOURCE = Path(__file__).resolve().parent.parent / "link" / "articutool_interfaces"
+PEERS = Path(__file__).resolve().parent / "peer_interfaces"
+PACKAGES = (SOURCE, PEERS / "control_msgs", PEERS / "controller_manager_msgs")
 PREFIX = Path(sys.prefix)
-_STAMP = PREFIX / "share" / "articutool_interfaces" / ".articutool-source-sha256"
+_STAMP_NAME = ".articutool-source-sha256"
 # INTERFACE_INCLUDE_DIRECTORIES entries that point at the wheel builder's interpreter.
 _PY_INCLUDE = re.compile(r"[^;\"]*/include/python3\.\d+(?=[;\"])")
 _NP_INCLUDE = re.compile(r"[^;\"]*/numpy/_core/include(?=[;\"])")
@@ -74,56 +80,72 @@ def fix_export_paths(prefix: Path = PREFIX) -> list[Path]:
     return changed
 
 
-def _source_digest() -> str:
+def _source_digest(source: Path) -> str:
     h = hashlib.sha256()
-    for f in sorted(p for p in SOURCE.rglob("*") if p.is_file()):
-        h.update(str(f.relative_to(SOURCE)).encode() + b"\0" + f.read_bytes())
+    for f in sorted(p for p in source.rglob("*") if p.is_file()):
+        h.update(str(f.relative_to(source)).encode() + b"\0" + f.read_bytes())
     return h.hexdigest()
 
 
-def _importable() -> bool:
-    return subprocess.run([sys.executable, "-c", "import articutool_interfaces.srv, "
-                           "articutool_interfaces.action"], capture_output=True).returncode == 0
+def _importable(pkg: str) -> bool:
+    kinds = sorted({p.parent.name for p in (SOURCE.parent / pkg).glob("*/*.*")}
+                   | {d.name for d in (PEERS / pkg).glob("*") if d.is_dir()})
+    mods = ", ".join(f"{pkg}.{k}" for k in kinds if k in ("msg", "srv", "action")) or pkg
+    return subprocess.run([sys.executable, "-c", f"import {mods}"],
+                          capture_output=True).returncode == 0
 
 
-def main() -> int:
-    """Build and install unless up to date; print what happened."""
-    why = skip_reason()
-    if why:
-        print(f"articutool_interfaces: not built ({why}); `articutool ros2` and its tests "
-              "are unavailable, everything else works")
-        return 0
-    digest = _source_digest()
-    fixed = fix_export_paths()
-    if fixed:
-        print(f"articutool_interfaces: fixed the include paths in {len(fixed)} ROS 2 CMake "
-              "export files")
-    if _STAMP.is_file() and _STAMP.read_text() == digest and _importable():
-        print("articutool_interfaces: up to date")
-        return 0
+def _build(source: Path) -> int:
+    """Configure, build and install one package into the prefix; 0 or 1."""
     env = dict(os.environ, AMENT_PREFIX_PATH=str(PREFIX))
-    with tempfile.TemporaryDirectory(prefix="articutool-interfaces-") as build:
+    with tempfile.TemporaryDirectory(prefix=f"{source.name}-") as build:
         steps = [
-            ["cmake", "-S", str(SOURCE), "-B", build, f"-DCMAKE_PREFIX_PATH={PREFIX}",
+            ["cmake", "-S", str(source), "-B", build, f"-DCMAKE_PREFIX_PATH={PREFIX}",
              f"-DCMAKE_INSTALL_PREFIX={PREFIX}", f"-DPython3_EXECUTABLE={sys.executable}",
              "-DBUILD_TESTING=OFF", "-DCMAKE_BUILD_TYPE=Release"],
             ["cmake", "--build", build, "--parallel", "2"],
             ["cmake", "--install", build],
         ]
-        print(f"articutool_interfaces: building with cmake into {PREFIX}")
+        print(f"{source.name}: building with cmake into {PREFIX}")
         for cmd in steps:
             done = subprocess.run(cmd, env=env, capture_output=True, text=True)
             if done.returncode != 0:
                 print(done.stdout[-4000:], done.stderr[-4000:], sep="\n", file=sys.stderr)
-                print(f"articutool_interfaces: `{' '.join(cmd[:3])} …` failed "
+                print(f"{source.name}: `{' '.join(cmd[:3])} …` failed "
                       f"(exit {done.returncode})", file=sys.stderr)
                 return 1
-    if not _importable():
-        print("articutool_interfaces: installed but `import articutool_interfaces.srv` fails",
-              file=sys.stderr)
-        return 1
-    _STAMP.write_text(digest)
-    print("articutool_interfaces: built and installed")
+    return 0
+
+
+def main() -> int:
+    """Build and install each package unless up to date (or, for the peers, installed by
+    someone else); print what happened."""
+    why = skip_reason()
+    if why:
+        print(f"articutool_interfaces: not built ({why}); `articutool ros2` and its tests "
+              "are unavailable, everything else works")
+        return 0
+    fixed = fix_export_paths()
+    if fixed:
+        print(f"articutool_interfaces: fixed the include paths in {len(fixed)} ROS 2 CMake "
+              "export files")
+    for source in PACKAGES:
+        pkg = source.name
+        stamp = PREFIX / "share" / pkg / _STAMP_NAME
+        digest = _source_digest(source)
+        if source != SOURCE and not stamp.is_file() and _importable(pkg):
+            print(f"{pkg}: installed already (not ours); using it")
+            continue
+        if stamp.is_file() and stamp.read_text() == digest and _importable(pkg):
+            print(f"{pkg}: up to date")
+            continue
+        if _build(source):
+            return 1
+        if not _importable(pkg):
+            print(f"{pkg}: installed but its Python modules do not import", file=sys.stderr)
+            return 1
+        stamp.write_text(digest)
+        print(f"{pkg}: built and installed")
     return 0
 
 

@@ -2,11 +2,14 @@
 
 An item (a pecan piece, a water particle, a noodle strand) is, at each accounting step:
 
-- on a **surface** it touches — its scene object's ``place``: back in the ``container`` (bowl
-  or plate), on the ``table`` (a non-critical spill), or ``critical`` (the user, wheelchair,
-  floor); if it touches several, the least severe wins (an item on the bowl's rim that also
-  touches the table is still in the bowl);
-- on the **utensil** if it touches the utensil and no surface;
+- on a **surface** it touches and not on the utensil — its scene object's ``place``: back in
+  the ``container`` (bowl or plate), on the ``table`` (a non-critical spill), or ``critical``
+  (the user, wheelchair, floor); if it touches several, the least severe wins (an item on the
+  bowl's rim that also touches the table is still in the bowl);
+- on the **utensil** if it touches the utensil, whatever else it touches: an item the utensil
+  holds has not left it (a noodle strand hanging from the fork onto the plate is carried by
+  the fork, and its weight is shared as a scale under the fork would read it,
+  :meth:`articutool.sim.world.FeedingWorld.carried_g`);
 - otherwise what it rests on: through item-item contacts it takes the place of the items
   holding it. The places spread from every classified item at once, one contact hop at a
   time: an item takes the place of its nearest classified neighbours (fewest hops), and among
@@ -40,7 +43,13 @@ inherit it: their contacts are not recomputed while they sleep, and they cannot 
 - an item is **eaten** once, when it enters the mouth region or is on the utensil when the
   user takes the bite (pieces, particles and noodle strands alike); the world removes it,
   so it is never on the utensil, nor eaten, again. **Delivered** (:func:`delivered_g`) is
-  what is on the utensil at the end plus what was eaten during the interval.
+  what is on the utensil at the end plus what was eaten during the interval;
+- in **transport** (from the moment the loaded utensil starts to move towards the user: Exp.
+  2b and 2c, and a bite's ``resting``, ``staging`` and ``present`` stages) anything that
+  leaves the utensil is **spilled wherever it lands** (:func:`transport_spill`), a container
+  included: a loss into the bowl or the plate is reported apart (place ``container``) but is
+  a loss all the same. Only a shedding primitive, before transport and over the food's
+  container, **sheds** (what it moves into the container is shed, not spilled).
 """
 
 from __future__ import annotations
@@ -59,12 +68,14 @@ __all__ = [
     "EATEN",
     "PLACE_CODES",
     "TABLE",
+    "TRANSPORT_PLACES",
     "UTENSIL",
     "SpillEvent",
     "SpillTracker",
     "classify_items",
     "delivered_g",
     "spilled_by_place",
+    "transport_spill",
 ]
 
 AIRBORNE, UTENSIL, CONTAINER, TABLE, CRITICAL, EATEN = range(6)
@@ -124,9 +135,9 @@ def classify_items(
         low = np.full(n_items, len(surface_codes), dtype=np.int64)
         np.minimum.at(low, items[pick], surf[pick])
         where[on] = low[on]
-    if item_utensil.size:
-        free = codes[item_utensil] == AIRBORNE
-        codes[item_utensil[free]] = UTENSIL
+    if item_utensil.size:  # held by the utensil, whatever else it touches
+        codes[item_utensil] = UTENSIL
+        where[item_utensil] = -1
     keep = asleep | (previous == EATEN)
     codes[keep] = previous[keep]
     where[keep] = previous_where[keep]
@@ -222,3 +233,40 @@ def delivered_g(before: Mapping[str, float], after: Mapping[str, float]) -> floa
     """Delivered grams between two mass snapshots (``masses_g`` dicts): on the utensil at
     ``after`` plus what was eaten in between (see module doc)."""
     return float(after["utensil"] + after["eaten"] - before["eaten"])
+
+
+# Where a transported item that left the utensil ended, by severity (``transport_spill``).
+TRANSPORT_PLACES = ("airborne", "container", "table", "critical")
+_TRANSPORT_RANK = {AIRBORNE: 0, CONTAINER: 1, TABLE: 2, CRITICAL: 3}
+
+
+def transport_spill(start: NDArray[np.int64], now: NDArray[np.int64],
+                    item_g: NDArray[np.float64], events: Sequence[SpillEvent],
+                    since: int = 0) -> dict[str, float]:
+    """Grams spilled in a transport, by place (see module doc): every item that was on the
+    utensil when the transport began (``start``, the classes then: ``item_classes()``) and
+    is neither on it nor eaten now (``now``) is spilled at the worst place it reached —
+    where it is now, or a table or critical place it stayed on meanwhile (``events[since:]``)
+    — ``container`` included; ``airborne`` if it has not landed yet. Items not on the
+    utensil at the start count only through their spill events (food knocked from the
+    table to the floor), once each, at the worst place, as :func:`spilled_by_place`."""
+    start, now = np.asarray(start), np.asarray(now)
+    if start.shape != now.shape or start.shape != np.shape(item_g):
+        raise ValueError("start, now and item_g must have one entry per item")
+    worst: dict[int, int] = {}
+    carried = start == UTENSIL
+    for k in np.flatnonzero(carried & (now != UTENSIL) & (now != EATEN)):
+        worst[int(k)] = int(now[k]) if int(now[k]) in _TRANSPORT_RANK else AIRBORNE
+    first_before = {e.item for e in events[:since]}
+    for e in events[since:]:
+        code = PLACE_CODES[e.place]
+        if carried[e.item] and now[e.item] in (UTENSIL, EATEN):
+            continue  # it landed back on the utensil (or was eaten): not lost
+        if not carried[e.item] and e.item in first_before:
+            continue  # spilled before the transport
+        if e.item not in worst or _TRANSPORT_RANK[code] > _TRANSPORT_RANK[worst[e.item]]:
+            worst[e.item] = code
+    out = dict.fromkeys(TRANSPORT_PLACES, 0.0)
+    for k, code in worst.items():
+        out[CLASS_NAMES[code]] += float(item_g[k])
+    return out

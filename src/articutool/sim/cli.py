@@ -11,7 +11,6 @@ import argparse
 import json
 import math
 import sys
-from pathlib import Path
 
 __all__ = ["add_commands"]
 
@@ -35,22 +34,38 @@ def _world_args(args: argparse.Namespace) -> dict:
     return {"spec": spec, "params": params, "seed": args.seed}
 
 
+def _check_load(args: argparse.Namespace, kw: dict) -> None:
+    """``--load``: a mass the utensil can hold of the food, else exit 2."""
+    from articutool.cli_support import UsageError
+    from articutool.sim.world import capacity_bound_reason, utensil_capacity_bound_g
+
+    if args.load is None:
+        return
+    fp = kw["params"].food(args.food)
+    most = utensil_capacity_bound_g(kw["spec"], kw["params"], args.food, args.utensil)
+    if not (math.isfinite(args.load) and 0 < args.load <= most):
+        raise UsageError(f"--load must be a mass in (0, {most:.2f}] g, the most the "
+                         f"{args.utensil or fp.utensil} can hold of {args.food} "
+                         f"({capacity_bound_reason(fp)}); got {args.load}")
+
+
 def _write_mjcf(args: argparse.Namespace) -> int:
     """``--mjcf FILE``: write the world (food placed with the seed, the arm at Resting in the
     keyframe ``start``) for MuJoCo's viewer, and run nothing."""
     from articutool.arm.scene import Scene
     from articutool.cli_support import UsageError, new_output_file
     from articutool.sim.mjcf import build_mjcf, viewer_mjcf
+    from articutool.sim.world import load_supply_g
 
     out = new_output_file("--mjcf", args.mjcf, (".xml",))
     assert out is not None
     kw = _world_args(args)
-    if args.load is not None and not (math.isfinite(args.load) and 0 < args.load <= 100):
-        raise UsageError(f"--load must be a mass in (0, 100] g; got {args.load}")
+    _check_load(args, kw)
     spec, params = kw["spec"], kw["params"]
     utensil = args.utensil or params.food(args.food).utensil
+    supply = load_supply_g(params, args.food, args.load)
     try:
-        layout = build_mjcf(spec, Scene.load(), params, utensil, args.food, args.seed, args.load)
+        layout = build_mjcf(spec, Scene.load(), params, utensil, args.food, args.seed, supply)
     except ValueError as err:  # e.g. strands cannot be placed as a load
         raise UsageError(f"--load: {err}") from None
     text = viewer_mjcf(layout, spec.arm.configuration("Resting"))
@@ -65,7 +80,7 @@ def _write_mjcf(args: argparse.Namespace) -> int:
 
 
 def _cmd_sim(args: argparse.Namespace) -> int:
-    from articutool.cli_support import UsageError
+    from articutool.cli_support import UsageError, new_output_file
 
     if args.mjcf is not None:
         return _write_mjcf(args)
@@ -73,29 +88,11 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     from articutool.sim.scenes import ScriptError, run_script
     from articutool.sim.world import FeedingWorld, PhysicsResetError
 
-    for opt, path in (("--video", args.video), ("--snapshot", args.snapshot)):
-        if path is not None:
-            p = Path(path)
-            if p.exists():
-                raise UsageError(f"{opt}: {p} exists; choose a new file (nothing is "
-                                 "overwritten)")
-            if not p.parent.is_dir():
-                raise UsageError(f"{opt}: folder {p.parent} does not exist")
-    if args.video is not None and Path(args.video).suffix.lower() not in (".mp4", ".gif"):
-        raise UsageError("--video: the file must end in .mp4 or .gif")
-    if args.snapshot is not None and Path(args.snapshot).suffix.lower() != ".png":
-        raise UsageError("--snapshot: the file must end in .png")
-    if args.record is not None:
-        p = Path(args.record)
-        if p.suffix.lower() != ".npz":
-            raise UsageError("--record: the file must end in .npz")
-        if p.exists():
-            raise UsageError(f"--record: {p} exists; choose a new file (nothing is overwritten)")
-        if not p.parent.is_dir():
-            raise UsageError(f"--record: folder {p.parent} does not exist")
+    new_output_file("--video", args.video, (".mp4", ".gif"))
+    new_output_file("--snapshot", args.snapshot, (".png",))
+    new_output_file("--record", args.record, (".npz",))
     kw = _world_args(args)
-    if args.load is not None and not (math.isfinite(args.load) and 0 < args.load <= 100):
-        raise UsageError(f"--load must be a mass in (0, 100] g; got {args.load}")
+    _check_load(args, kw)
     if args.twirl_turns is not None:
         _check_twirl(args, kw)
     try:
@@ -178,16 +175,62 @@ def _check_twirl(args: argparse.Namespace, kw: dict) -> None:
                          + (" with --load" if args.load is not None else ""))
 
 
+def _liquid_load(args: argparse.Namespace, kw: dict, default: float | None) -> float | None:
+    """``--load`` of a liquid: a mass the level utensil holds (hydrostatics), else exit 2."""
+    from articutool.cli_support import UsageError
+    from articutool.sim.calibrate import max_liquid_load_g
+    from articutool.sim.params import Liquid
+
+    food = kw["params"].food(args.food)
+    load = args.load if args.load is not None else default
+    if load is None or not isinstance(food, Liquid):
+        return load
+    utensil = args.utensil or food.utensil
+    hi = max_liquid_load_g(food, kw["spec"].utensil(utensil))
+    if not (math.isfinite(load) and 0 < load <= hi):
+        raise UsageError(f"--load must be a mass in (0, {hi:.1f}] g (what the level {utensil} "
+                         f"holds of {args.food}); got {load}")
+    return load
+
+
 def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from articutool.cli_support import UsageError
     from articutool.sim.calibrate import run_calibration
+    from articutool.sim.params import Liquid
 
     kw = _world_args(args)
-    result = run_calibration(args.food, args.utensil, **kw)
+    if args.load is not None and not isinstance(kw["params"].food(args.food), Liquid):
+        raise UsageError(f"--load: the static-tilt test is for liquids; {args.food} is "
+                         f"{kw['params'].food(args.food).kind}")
+    load = _liquid_load(args, kw, None)
+    try:
+        result = run_calibration(args.food, args.utensil, load_g=load, **kw)
+    except ValueError as err:
+        raise UsageError(str(err)) from None
     if args.json:
         print(json.dumps(result, indent=2))
-    else:
-        for k, v in result.items():
-            print(f"{k:28s} {v}")
+        return 0
+    if "capstan_bar" in result:  # strands: the table of laws
+        from articutool.sim.strand_laws import table
+
+        print(table(result))
+        return 0
+    tilt = result.pop("static_tilt", None)
+    for k, v in result.items():
+        print(f"{k:28s} {v}")
+    if tilt is not None:
+        print(f"static tilt of {tilt['load_g']:g} g on the {tilt['utensil']} (held "
+              f"{tilt['hold_s']:g} s at each tilt; hydrostatics of the load that stayed):")
+        for d in ("tip", "side"):
+            t = tilt[d]
+            print(f"  {'over the tip' if d == 'tip' else 'sideways'}: {t['kept_g']:.2f} g "
+                  f"stayed when placed; onset {t['onset_deg']}° (hydrostatics "
+                  f"{t['hydrostatic_onset_deg']}°)")
+            print("    tilt °   spilled g   hydrostatics g")
+            for r in t["rows"]:
+                print(f"    {r['tilt_deg']:6.1f}   {r['spilled_g']:9.2f}   "
+                      f"{r['hydrostatic_g']:14.2f}")
+        print(f"  {tilt['cpu_s']} s CPU, {tilt['realtime_factor']}x real time")
     return 0
 
 
@@ -235,6 +278,11 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         "keyframe 'start' holds the arm at Resting; never overwrites")
     p.set_defaults(func=_cmd_sim)
     c = sub.add_parser("sim-calibrate", help="calibration experiments of a food model "
-                       "(angle of repose, what a level utensil holds)")
+                       "(angle of repose, what a level utensil holds; a liquid's static-tilt "
+                       "test against the dish's hydrostatics)")
     _common(c)
+    c.add_argument("--load", type=float, metavar="G", default=None,
+                   help="a liquid's static-tilt test with this load (default 8 g; at most "
+                        "what the level utensil holds): grams spilled per tilt beside "
+                        "hydrostatics")
     c.set_defaults(func=_cmd_calibrate)

@@ -106,9 +106,13 @@ def _plot(sim: Any, path: Path) -> None:
     ax2.set_ylabel("wrist joints (deg)")
     ax2.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
+    from articutool.datafile import publish_new
+
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:  # a new file: nothing replaced or written through a link
+        publish_new(path, lambda tmp: fig.savefig(tmp, dpi=110))
+    finally:
+        plt.close(fig)
 
 
 def _plot_path(arg: str, default: bool) -> Path:
@@ -134,7 +138,7 @@ def _plot_path(arg: str, default: bool) -> Path:
     if pick_free:
         output_dir("--plot", p.parent)
         stem, n = p.stem, 1
-        while p.exists():
+        while p.exists() or p.is_symlink():
             n += 1
             p = p.with_name(f"{stem}-{n}{p.suffix}")
     out = new_output_file("--plot", str(p), tuple("." + f for f in formats))

@@ -11,6 +11,7 @@ steps the physics and calls :meth:`FoodLedger.classify` every loop period.
 from __future__ import annotations
 
 import math
+from collections import deque
 
 import mujoco
 import numpy as np
@@ -35,10 +36,12 @@ class FoodLedger:
         scene: the scene (places' shapes, the mouth region).
         spill_dwell_s: ``world.spill_dwell_s`` of ``physics.toml``.
         period: the accounting step (s): the tool's loop period.
+        mouth: eat what enters the scene's ``mouth`` region (``False``: nothing is eaten
+            there; the experimenter weighs the utensil, Exp. 2b/2c).
     """
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, layout: WorldLayout,
-                 scene: Scene, spill_dwell_s: float, period: float) -> None:
+                 scene: Scene, spill_dwell_s: float, period: float, mouth: bool = True) -> None:
         self.model, self.data, self.layout, self.scene = model, data, layout, scene
         self.period = period
         m, lay = model, layout
@@ -66,6 +69,8 @@ class FoodLedger:
                 [m.body(f"{sname}/{i}").id for i in range(lay.strand_segments)], dtype=np.int64))
             item_body.append(m.body(f"{sname}/0").id)  # its root (free joint)
         self._geom_node = node
+        # Per geom: the food item it belongs to (>= 0), the utensil (-1), other (< -1).
+        self.geom_node = node
         self.item_body = np.array(item_body, dtype=np.int64)
         self.n_items = len(item_body)
         # Grams per item: a body's own mass (pieces vary in size), a strand's from the model.
@@ -79,8 +84,11 @@ class FoodLedger:
         self.where = np.full(self.n_items, -1, dtype=np.int64)
         self._spill = acc.SpillTracker(self.n_items, spill_dwell_s)
         self.spills: list[acc.SpillEvent] = []
+        # The utensil's vertical contact force from the food at each of the last ticks: a
+        # scale's reading is their mean (a 0.5 s window, like the F/T sensor's weighing).
+        self._force_z: deque[float] = deque(maxlen=max(1, round(0.5 / period)))
         self._mouth = next(((np.asarray(r.xyz), r.radius) for r in scene.regions
-                            if r.name == "mouth"), None)
+                            if r.name == "mouth"), None) if mouth else None
 
     def contacts(self) -> tuple[NDArray, NDArray, NDArray]:
         """The food's contacts now: (item-item pairs, items on the utensil, [item, surface])."""
@@ -100,12 +108,37 @@ class FoodLedger:
                                        np.column_stack([b[sb], _SURFACE0 - a[sb]])])
         return item_item, iu, item_surface
 
+    def carried_force_z(self) -> float:
+        """Mean of :meth:`utensil_force_z` over the last 0.5 s of accounting steps (N)."""
+        return float(np.mean(self._force_z)) if self._force_z else self.utensil_force_z()
+
+    def utensil_force_z(self) -> float:
+        """Vertical component (N, world z) of the total contact force the food's items put
+        on the utensil now (negative when they press down on it)."""
+        d, m = self.data, self.model
+        nc = d.ncon
+        if nc == 0 or self.n_items == 0:
+            return 0.0
+        nodes = self._geom_node[d.contact.geom[:nc]]
+        a, b = nodes[:, 0], nodes[:, 1]
+        f6 = np.zeros(6)
+        fz = 0.0
+        # MuJoCo's contact frame has its normal from geom1 to geom2; the force acts on geom2
+        # along it (and on geom1 against it).
+        for i in np.flatnonzero(((a >= 0) & (b == _UTENSIL_NODE))
+                                | ((b >= 0) & (a == _UTENSIL_NODE))):
+            mujoco.mj_contactForce(m, d, int(i), f6)
+            world = d.contact.frame[i].reshape(3, 3).T @ f6[:3]
+            fz += float(world[2]) if b[i] == _UTENSIL_NODE else -float(world[2])
+        return fz
+
     def classify(self, t: float) -> None:
         """One accounting step at simulation time ``t``: eat what is in the mouth, classify
         every item from the contacts, record the spills that reached their dwell time."""
         if self.n_items == 0:
             return
         self._eat()
+        self._force_z.append(self.utensil_force_z())
         ii, iu, isf = self.contacts()
         asleep = self.data.body_awake[self.item_body] == 0
         # A sleeping item has no contacts to classify it by, but it is at rest on something
@@ -116,6 +149,7 @@ class FoodLedger:
             prev[k], prev_where[k] = self._place_below(self.data.xpos[self.item_body[k]])
         codes, where = acc.classify_items(self.n_items, ii, iu, isf, self.surface_codes,
                                           prev, prev_where, asleep)
+        self._sleep_policy(codes)
         # An event each time an item has stayed on a spill place worse than any it reached
         # before for the dwell time (a drop that lands on the table and rolls onto the floor
         # is two events; the spilled mass counts it once, at the floor: acc.spilled_by_place).
@@ -124,6 +158,25 @@ class FoodLedger:
                 t=round(t0, 4), mass_g=float(self.item_g[k]), place=acc.CLASS_NAMES[code],
                 where=self.surface_names[w] if w >= 0 else "", item=k))
         self.codes, self.where = codes, where
+
+    def _sleep_policy(self, codes: NDArray[np.int64]) -> None:
+        """Food on the utensil may not sleep; food at rest on a place may again.
+
+        A piece resting in a still dish can lose its contact for a few steps and fall
+        asleep; a sleeping tree wakes only when an awake one touches it, so when the utensil
+        moves away the piece would hang in the air where the dish was. What the utensil
+        carries therefore stays awake until it lands in a container, on the table or the
+        floor (an item in the air keeps its policy: it is on its way from one to the other).
+        """
+        if not self.active.any():
+            return
+        m = self.model
+        trees = m.body_treeid[self.item_body]
+        carried = self.active & (codes == acc.UTENSIL)
+        landed = self.active & ((codes == acc.CONTAINER) | (codes == acc.TABLE)
+                                | (codes == acc.CRITICAL))
+        m.tree_sleep_policy[trees[carried]] = int(mujoco.mjtSleepPolicy.mjSLEEP_NEVER)
+        m.tree_sleep_policy[trees[landed]] = int(mujoco.mjtSleepPolicy.mjSLEEP_AUTO_ALLOWED)
 
     def _place_below(self, p: NDArray[np.float64]) -> tuple[int, int]:
         """(class, surface index) of the least severe place whose object holds point ``p``
@@ -186,9 +239,11 @@ class FoodLedger:
             d.qvel[va:va + 6] = 0.0
             self.codes[k] = acc.EATEN
 
-    def unpark(self, k: int, body: int, local: tuple[float, float, float]) -> None:
+    def unpark(self, k: int, body: int, local: tuple[float, float, float],
+               rotation: NDArray[np.float64] | None = None) -> None:
         """Give parked piece ``k`` its collisions and weight, at ``local`` in ``body``'s frame
-        with ``body``'s velocity and orientation (placing a load, thesis Exp. 2b/2c)."""
+        with ``body``'s velocity, and ``body``'s orientation or ``rotation`` (a world
+        rotation matrix) (placing a load, thesis Exp. 2b/2c)."""
         m, d = self.model, self.data
         R, p = d.xmat[body].reshape(3, 3), d.xpos[body]
         v = np.zeros(6)
@@ -203,7 +258,12 @@ class FoodLedger:
         j = m.body_jntadr[bid]
         qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
         d.qpos[qa:qa + 3] = p + R @ np.asarray(local)
-        d.qpos[qa + 3:qa + 7] = d.xquat[body]  # lying along the utensil
+        if rotation is None:
+            d.qpos[qa + 3:qa + 7] = d.xquat[body]  # lying along the utensil
+        else:
+            q = np.zeros(4)
+            mujoco.mju_mat2Quat(q, np.ascontiguousarray(rotation, dtype=float).reshape(9))
+            d.qpos[qa + 3:qa + 7] = q
         d.qvel[va:va + 3] = v[3:]
         d.qvel[va + 3:va + 6] = 0.0
         self.active[k] = True

@@ -11,8 +11,20 @@ primitives: a bowl is a floor disc plus a ring of wall boxes; a spoon is a floor
 ring of sloped wall boxes round an ellipse (a dish); a fork is a handle plus capsule tines.
 
 Collision filtering (``contype``/``conaffinity`` bits): static surfaces 1, food 2,
-utensil 4, robot links 8. Food collides with everything; the utensil with food and static
-surfaces (it scrapes the bowl); the robot links only with food; static never with static.
+utensil 4, robot links 8. Food collides with everything; the robot links only with food;
+static never with static. The utensil touches the static surfaces (it scrapes the bowl)
+through explicit ``<pair>``s.
+
+Contact parameters: every pair that holds a food item gets exactly the law ``physics.toml``
+states for that food and that partner (``FoodContacts``: food, utensil, container, surface).
+MuJoCo mixes two geoms' parameters (larger condim, larger friction, solmix-weighted solref)
+unless their ``priority`` differs, when the higher-priority geom's values are used whole;
+so the food's geoms carry the food–food law at priority 0, and every other geom (utensil,
+containers, surfaces, the arm's links) carries the food–partner law at priority 1. Food–food
+pairs are then one law on both sides, and each food–partner pair takes the partner's. The
+utensil–surface pairs hold no food and are explicit ``<pair>``s with ``[world]
+utensil_contact``, so what the partners carry for the food never reaches them. (Explicit pairs
+for every food pair would be one per item and geom — hundreds of thousands in a bowl.)
 """
 
 from __future__ import annotations
@@ -28,17 +40,19 @@ from articutool.arm.description import FT_SITE, IMU_SITE, add_robot, exact_xml, 
 from articutool.arm.scene import Box, Capsule, Cylinder, Halfspace, Scene, Sphere
 from articutool.food.dish import spoon_dish
 from articutool.rotations import rpy_matrix
-from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
+from articutool.sim.params import ContactParams, Granular, Liquid, PhysicsParams, Strands
 from articutool.sim.pieces import Capsule as PieceCapsules
 from articutool.sim.pieces import capsule_mass, draw_piece, footprint, pack_layer
-from articutool.spec import Spec
+from articutool.spec import Spec, UtensilSpec
 
-__all__ = ["FT_SITE", "IMU_SITE", "WorldLayout", "build_mjcf", "tip_site_name", "viewer_mjcf"]
+__all__ = ["FT_SITE", "IMU_SITE", "WorldLayout", "build_mjcf", "contact_attrs", "dish_walls",
+           "fork_strand_attrs", "strand_chain", "strand_geom_attrs", "strand_tack_attrs",
+           "tip_site_name", "viewer_mjcf"]
 
 _STATIC, _FOOD, _UTENSIL, _ROBOT = 1, 2, 4, 8
 _ALL = _STATIC | _FOOD | _UTENSIL | _ROBOT
 _WALL_BOXES = 24
-_DISH_WALLS = 16
+_DISH_WALLS = 32
 _FRAGMENT = "fragment:"
 
 
@@ -62,6 +76,7 @@ class WorldLayout:
     piece_size: float = 0.0  # lattice cell of one piece (m)
     food_contype: int = 0
     food_conaffinity: int = 0
+    static_geoms: list[str] = field(default_factory=list)
 
     @property
     def xml(self) -> str:
@@ -93,11 +108,30 @@ def _frame(z_dir: NDArray[np.float64], hint: NDArray[np.float64]) -> NDArray[np.
     return np.column_stack([x, np.cross(z, x), z])
 
 
-def _static_geoms(scene: Scene, friction: float, wall_factor: float,
+def contact_attrs(law: ContactParams | None, priority: int) -> str:
+    """A geom's contact attributes carrying ``law`` at ``priority`` (none without a law: the
+    geom then meets no food and MuJoCo's defaults never act)."""
+    if law is None:
+        return ""
+    return (f'priority="{priority}" condim="{law.condim}" friction="{_f(law.friction)}" '
+            f'solref="{_f(law.solref)}" solimp="{_f(law.solimp)}"')
+
+
+def _pair_attrs(law: ContactParams) -> str:
+    """An explicit pair's attributes (its friction has five values: both sliding directions,
+    torsional, both rolling directions)."""
+    sl, tor, roll = law.friction
+    return (f'condim="{law.condim}" friction="{_f((sl, sl, tor, roll, roll))}" '
+            f'solref="{_f(law.solref)}" solimp="{_f(law.solimp)}"')
+
+
+def _static_geoms(scene: Scene, food: Granular | Liquid | Strands | None, wall_factor: float,
                   layout: WorldLayout) -> list[str]:
     out = []
     for o in scene.objects:
-        cls = f'contype="{_STATIC}" conaffinity="0" friction="{friction} 0.005 0.0001"'
+        law = None if food is None else (food.contacts.container if o.place == "container"
+                                         else food.contacts.surface)
+        cls = f'contype="{_STATIC}" conaffinity="0" {contact_attrs(law, 1)}'
         rgba = {"container": "0.95 0.95 0.92 1", "table": "0.55 0.4 0.3 1",
                 "critical": "0.6 0.65 0.8 1"}.get(o.place or "", "0.7 0.7 0.7 1")
         pose = _pose_attr(o.xyz, o.rotation)
@@ -145,23 +179,87 @@ def _static_geoms(scene: Scene, friction: float, wall_factor: float,
         if o.place:
             for nm in names:
                 layout.places[nm] = o.place
+        layout.static_geoms += names
+    return out
+
+
+def dish_walls(u: UtensilSpec, n: int = _DISH_WALLS
+               ) -> list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]]:
+    """The spoon dish's sloped wall as ``n`` boxes (centre, rotation, half sizes; utensil
+    frame) whose inner faces lie on the ideal dish of :func:`spoon_dish`.
+
+    The ideal wall is ruled: the line from the floor ellipse's point at angle φ to the rim's.
+    Box k is the plate through the ruling at φ_k = 2πk/n, in the plane tangent to the wall
+    at the ruling's mid-height (the wall is not developable, so that plane meets the ideal
+    surface only there: it departs from it by < 0.1 mm along the ruling, tested), thick
+    outward only; its inner face spans exactly the floor's height to the rim's, with
+    horizontal bottom and top edges, and is as wide as the farthest point where it meets a
+    neighbour's plane at the rim plus 0.2 mm, so neighbouring plates overlap outside the
+    dish and leave no gap. With n divisible by 4 a plate is centred on the tip, the back and
+    both sides: the rim's lowest point when tilted is the ideal one.
+    """
+    zc, a, b, a0, b0, depth = spoon_dish(u)
+    th = u.physics.thickness
+    x0 = u.tip_x
+
+    def to_utensil(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        # Dish coordinates (along, across, up from the floor) → utensil frame.
+        return np.array([x0 + p[2], p[1], zc + p[0]])
+
+    def plate(phi: float) -> tuple[NDArray[np.float64], ...]:
+        c, s_ = math.cos(phi), math.sin(phi)
+        bottom = np.array([a0 * c, b0 * s_, 0.0])
+        top = np.array([a * c, b * s_, depth])
+        mid = (bottom + top) / 2
+        am, bm = (a0 + a) / 2, (b0 + b) / 2
+        t = np.array([-am * s_, bm * c, 0.0])
+        t /= np.linalg.norm(t)
+        normal = np.cross(top - bottom, t)  # outward (the ruling rises outward)
+        normal /= np.linalg.norm(normal)
+        if normal @ np.array([c, s_, 0.0]) < 0:
+            normal = -normal
+        slope = np.cross(normal, t)  # in the plate, perpendicular to its horizontal edges
+        if slope[2] < 0:
+            slope = -slope
+        return mid, t, normal, slope, top
+
+    plates = [plate(2 * math.pi * k / n) for k in range(n)]
+    out = []
+    for k, (mid, t, normal, slope, _) in enumerate(plates):
+        # Where this plate's top edge meets each neighbour's plane (both at the rim height).
+        reach = 0.0
+        for j in (k - 1, (k + 1) % n):
+            _, _, nj, _, topj = plates[j]
+            top_mid = mid + slope * ((depth - mid[2]) / slope[2])
+            # Solve for s: (top_mid + s·t − topj) · nj = 0.
+            denom = float(t @ nj)
+            if abs(denom) > 1e-12:
+                reach = max(reach, abs(float((topj - top_mid) @ nj) / denom))
+        half_w = reach + 2e-4
+        half_len = depth / slope[2] / 2
+        centre = mid + normal * th / 2
+        # The box's axes in the utensil frame (dish → utensil swaps along and up, a
+        # reflection; the width axis is flipped to keep the rotation proper — a box is
+        # symmetric).
+        P = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+        R = np.column_stack([P @ normal, -(P @ t), P @ slope])
+        out.append((to_utensil(centre), R, np.array([th / 2, half_w, half_len])))
     return out
 
 
 def _utensil_geoms(spec: Spec, utensil: str, layout: WorldLayout,
                    food: Granular | Liquid | Strands | None = None) -> list[str]:
     """Geoms of the utensil in the utensil body (origin at the utensil mount, roll-link axes:
-    x = up vector at zero angles, z = out along the roll axis). With strands, the utensil
-    carries the fork-strand adhesion (MuJoCo sums the two geoms' values per contact)."""
+    x = up vector at zero angles, z = out along the roll axis), carrying the food–utensil
+    contact law and, with strands, the fork-strand adhesion."""
     u = spec.utensil(utensil)
     ph = u.physics
     th = ph.thickness
-    sticky = ""
-    if isinstance(food, Strands) and food.adhesion_gap > 0:
-        sticky = f' adhesion="{max(food.fork_adhesion - food.cohesion / 2, 0.0):.6g}" ' \
-                 f'gap="{food.adhesion_gap:.6g}"'
-    cls = (f'contype="{_UTENSIL}" conaffinity="{_STATIC}" friction="0.5 0.005 0.0001" '
-           f'rgba="0.75 0.75 0.78 1"{sticky}')
+    if isinstance(food, Strands):
+        law = fork_strand_attrs(food)
+    else:
+        law = contact_attrs(food.contacts.utensil, 1) if food is not None else ""
+    cls = f'contype="{_UTENSIL}" conaffinity="0" {law} rgba="0.75 0.75 0.78 1"'
     out: list[str] = []
 
     def geom(name: str, body: str) -> None:
@@ -169,30 +267,13 @@ def _utensil_geoms(spec: Spec, utensil: str, layout: WorldLayout,
         out.append(f'<geom name="{name}" {body} {cls}/>')
 
     if ph.kind == "spoon":
-        zc, a, b, a0, b0, depth = spoon_dish(u)
+        zc, a, _, a0, b0, depth = spoon_dish(u)
         length = 2 * a
         x0 = u.tip_x  # the floor's inner surface
         geom("utensil/floor", f'type="box" size="{th / 2} {b0} {a0}" '
              f'pos="{x0 - th / 2} 0 {zc}"')
-        n = _DISH_WALLS
-        for k in range(n):
-            phi = 2 * math.pi * (k + 0.5) / n
-            # Mid-height point of the sloped wall, on the ellipse between floor and rim.
-            am, bm = (a0 + a) / 2, (b0 + b) / 2
-            p = np.array([x0 + depth / 2, bm * math.sin(phi), zc + am * math.cos(phi)])
-            # Outward horizontal normal of the ellipse (in the y-z plane) at phi.
-            nh = np.array([0.0, math.sin(phi) / bm, math.cos(phi) / am])
-            nh /= np.linalg.norm(nh)
-            tangent = np.cross(np.array([1.0, 0.0, 0.0]), nh)
-            run = np.array([a - a0, b - b0]).mean()
-            slope = np.array([depth, 0.0, 0.0]) + run * nh  # from floor edge up to rim
-            slope_len = float(np.linalg.norm(slope))
-            # Wall box: thin along its normal, long along the tangent and the slope.
-            R = np.column_stack([np.cross(tangent, slope / slope_len), tangent,
-                                 slope / slope_len])
-            seg = 2 * math.pi * math.hypot(am, bm) / math.sqrt(2) / n
-            geom(f"utensil/wall{k}", f'type="box" size="{th / 2} {0.6 * seg} '
-                 f'{slope_len / 2}" {_pose_attr(p, R)}')
+        for k, (c, R, half) in enumerate(dish_walls(u)):
+            geom(f"utensil/wall{k}", f'type="box" size="{_f(half)}" {_pose_attr(c, R)}')
         z_end = u.tip_z - length
         geom("utensil/handle", f'type="box" size="{th / 2} 0.004 {z_end / 2}" '
              f'pos="{x0 + depth / 2} 0 {z_end / 2}"')
@@ -233,15 +314,18 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
     floor_z = box.xyz[2] - box.length / 2 + box.container_wall
     cx, cy = box.xyz[0], box.xyz[1]
     out: list[str] = []
-    mass = food.piece_mass
+    radius, mass = 0.0, food.piece_mass
+    if isinstance(food, Liquid):  # a placed load has its own, finer particles (physics.toml)
+        radius = food.load_particle_radius if load_g is not None else food.particle_radius
+        mass = food.particle_mass(radius)
     layout.piece_mass = mass
     count = max(1, round((food.fill_g if load_g is None else load_g) / 1000.0 / mass))
-    fcls = f'contype="{_FOOD}" conaffinity="{_ALL}"'
+    fcls = f'contype="{_FOOD}" conaffinity="{_ALL}" {contact_attrs(food.contacts.food, 0)}'
     layout.food_contype, layout.food_conaffinity = _FOOD, _ALL
     if load_g is not None:
         if isinstance(food, Strands):
             raise ValueError("load_g: strands cannot be placed as a load; use a container fill")
-        fcls = 'contype="0" conaffinity="0"'
+        fcls = f'contype="0" conaffinity="0" {contact_attrs(food.contacts.food, 0)}'
         layout.parked = True
     if isinstance(food, Strands):
         return _strands(food, count, inner, floor_z, cx, cy, rng, layout)
@@ -268,11 +352,23 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
                 raise ValueError(f"food {food.container}: a piece does not fit in the bowl")
             pts += [(x, y, z) for x, y in layer]
             z += cell_z
-        size = f'type="capsule" friction="{_f(food.friction)}" condim="6"'
+        size = 'type="capsule"'
         rgba = "0.55 0.33 0.15 1"
     else:
-        cell = 2 * food.particle_radius * 1.02
-        size = f'type="sphere" size="{food.particle_radius}" condim="1"'
+        spread = food.load_radius_spread if load_g is not None else 0.0
+        radii_p = np.full(count, radius)
+        if spread > 0:  # radii drawn while the load stays within its mass (the count follows)
+            drawn: list[float] = []
+            total = 0.0
+            while True:
+                r_k = radius * (1.0 + spread * rng.uniform(-1.0, 1.0))
+                if total + food.particle_mass(r_k) > load_g / 1000.0 and drawn:
+                    break
+                drawn.append(r_k)
+                total += food.particle_mass(r_k)
+            radii_p, count = np.array(drawn), len(drawn)
+        cell = 2 * radius * (1.0 + spread) * 1.02
+        size = 'type="sphere"'
         rgba = "0.3 0.5 0.95 0.8"
         # Lattice inside the inner radius, layer by layer, with a small seeded jitter.
         pts = []
@@ -305,35 +401,83 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
             geoms = "".join(
                 f'<geom name="{name}{"" if i == 0 else f"_{i}"}" {size} size="{r:.9g}" '
                 f'fromto="{_f(np.r_[a, b])}" density="{food.density:.9g}" '
-                f'solref="{_f(food.solref)}" {fcls} rgba="{rgba}"/>'
+                f'{fcls} rgba="{rgba}"/>'
                 for i, (a, b, r) in enumerate(pieces[k]))
         else:
-            geoms = (f'<geom name="{name}" {size} mass="{mass:.9g}" '
-                     f'solref="{_f(food.solref)}" {fcls} rgba="{rgba}"/>')
+            rk = float(radii_p[k])
+            geoms = (f'<geom name="{name}" {size} size="{rk:.9g}" '
+                     f'mass="{food.particle_mass(rk):.9g}" {fcls} rgba="{rgba}"/>')
         out.append(f'<body name="{name}" pos="{_f(np.array([cx + x, cy + y, z]) + jitter)}" '
                    f'quat="{_f(q)}"{grav}><freejoint/>{geoms}</body>')
     return out
 
 
+def strand_tack_attrs(food: Strands, share: float) -> str:
+    """A geom's starch tack toward strands: ``share`` × the tack of one contact
+    (:attr:`Strands.tack_per_contact`) acting across the food's ``adhesion_gap``."""
+    if food.stickiness_pa <= 0:
+        return ""
+    return f' adhesion="{share * food.tack_per_contact:.6g}" gap="{food.adhesion_gap:.6g}"'
+
+
+def fork_strand_attrs(food: Strands, tack: bool = True) -> str:
+    """The utensil geoms' contact attributes in a strand world: the strands' law for the
+    utensil at priority 1 and the whole tack of one contact. MuJoCo takes a contact's
+    adhesion from the higher-priority geom alone, so the fork's tack is all a fork-strand
+    contact pulls with."""
+    return (contact_attrs(food.contacts.utensil, 1)
+            + (strand_tack_attrs(food, 1.0) if tack else ""))
+
+
+def strand_geom_attrs(food: Strands, tack: bool = True) -> str:
+    """A strand geom's contact attributes: the strand-strand law at priority 0 and half the
+    tack. MuJoCo sums the adhesion of two geoms of equal priority, so two strands pull with
+    the whole tack."""
+    return (contact_attrs(food.contacts.food, 0)
+            + (strand_tack_attrs(food, 0.5) if tack else ""))
+
+
+def strand_chain(food: Strands, name: str, pos: NDArray[np.float64] | tuple[float, ...],
+                 rotations: list[NDArray[np.float64]], geom_attrs: str,
+                 free: bool = True) -> list[str]:
+    """One strand: ``food.segments`` capsule bodies ``name/i`` of length ds = L/segments, body
+    0 at ``pos`` turned by ``rotations[0]`` (with a free joint, or fixed to its parent when
+    ``free`` is false), body i > 0 at the end of body i-1 turned by ``rotations[i]`` relative
+    to it, joined by a ball joint whose spring gives the rod's bending stiffness
+    (k = E·I/ds, :attr:`Strands.bend_stiffness`; its rest shape is the shape built) and whose
+    damping is k × ``bend_damping_s``. Each geom carries ``geom_attrs`` (collision bits and
+    contact law). The builder of the bowl's strands and of the calibration experiments."""
+    n = food.segments
+    ds = food.strand_length / n
+    k = food.bend_stiffness
+    out = []
+    for i in range(n):
+        if i == 0:
+            joint = "<freejoint/>" if free else ""
+            pose = _pose_attr(pos, rotations[0])
+        else:
+            joint = (f'<joint type="ball" stiffness="{k:.6g}" '
+                     f'damping="{k * food.bend_damping_s:.6g}"/>')
+            pose = _pose_attr((ds, 0.0, 0.0), rotations[i])
+        out.append(f'<body name="{name}/{i}" {pose}>{joint}'
+                   f'<geom name="{name}/{i}" type="capsule" size="{food.strand_radius}" '
+                   f'fromto="0 0 0 {ds} 0 0" mass="{food.piece_mass / n:.9g}" {geom_attrs} '
+                   f'rgba="0.95 0.85 0.45 1"/>')
+    out.append("</body>" * n)
+    return out
+
+
 def _strands(food: Strands, count: int, inner: float, floor_z: float, cx: float, cy: float,
              rng: np.random.Generator, layout: WorldLayout) -> list[str]:
-    """Strands as chains of ``food.segments`` capsule bodies joined by ball joints whose
-    springs give the rod's bending stiffness (k = E·I/ds), heaped in layers as spirals of
-    ``food.pile_radius`` round the container's centre. The rest shape is the laid shape
-    (cooked pasta relaxes to how it lies). Adjacent capsules do not collide (parent-child);
-    every other pair does, so a strand can lie on its own wrap."""
+    """Strands (:func:`strand_chain`) heaped in layers as spirals of ``food.pile_radius``
+    round the container's centre. The rest shape is the laid shape (cooked pasta relaxes to
+    how it lies). Adjacent capsules do not collide (parent-child); every other pair does, so
+    a strand can lie on its own wrap."""
     out = []
     r, n = food.strand_radius, food.segments
     ds = food.strand_length / n
-    mass = food.piece_mass / n
-    k_bend = food.bend_stiffness
-    # Twist has the segment's tiny axial inertia against the same spring: a floor on the
-    # inertia (armature) keeps the explicit spring at ω·dt ≤ 0.5 (a numerical choice).
-    armature = k_bend * (2.0 * layout.timestep) ** 2
     layout.strand_segments = n
-    # Cohesion: each strand geom carries half, so a strand-strand contact pulls with all of it.
-    sticky = (f' adhesion="{food.cohesion / 2:.6g}" gap="{food.adhesion_gap:.6g}"'
-              if food.cohesion > 0 else "")
+    attrs = f'contype="{_FOOD}" conaffinity="{_ALL}" {strand_geom_attrs(food)}'
     for k in range(count):
         rad0 = food.pile_radius * rng.uniform(0.5, 1.0)
         off = rng.uniform(-0.3, 0.3, 2) * food.pile_radius
@@ -341,28 +485,11 @@ def _strands(food: Strands, count: int, inner: float, floor_z: float, cx: float,
         z = floor_z + r + k * 2.2 * r + 0.002
         # A spiral laid segment by segment: its radius of curvature shrinks to half.
         p = np.array([cx + off[0] + rad0 * math.cos(a0), cy + off[1] + rad0 * math.sin(a0), z])
-        heading = a0 + math.pi / 2
+        turns = [a0 + math.pi / 2] + [ds / (rad0 * (1.0 - 0.5 * i / max(n - 1, 1)))
+                                      for i in range(1, n)]
         name = f"strand{k}"
         layout.food_strands.append(name)
-        for i in range(n):
-            rad = rad0 * (1.0 - 0.5 * i / max(n - 1, 1))
-            turn = ds / rad if i else 0.0
-            heading += turn
-            if i == 0:
-                pose = _pose_attr(p, rpy_matrix((0.0, 0.0, heading)))
-                joint = "<freejoint/>"
-            else:
-                pose = _pose_attr((ds, 0.0, 0.0), rpy_matrix((0.0, 0.0, turn)))
-                joint = (f'<joint type="ball" stiffness="{k_bend:.6g}" '
-                         f'damping="{k_bend * food.bend_damping_s:.6g}" '
-                         f'armature="{armature:.6g}"/>')
-            out.append(
-                f'<body name="{name}/{i}" {pose}>{joint}'
-                f'<geom name="{name}/{i}" type="capsule" size="{r}" fromto="0 0 0 {ds} 0 0" '
-                f'mass="{mass:.9g}" contype="{_FOOD}" conaffinity="{_ALL}" condim="4" '
-                f'friction="{_f(food.friction)}" solref="{_f(food.solref)}" '
-                f'rgba="0.95 0.85 0.45 1"{sticky}/>')
-        out.append("</body>" * n)
+        out += strand_chain(food, name, p, [rpy_matrix((0.0, 0.0, t)) for t in turns], attrs)
     return out
 
 
@@ -381,9 +508,10 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
     layout = WorldLayout(spec=mujoco.MjSpec(), arm_joints=arm.joint_names,
                          wrist_joints=list(w.joint_names))
     layout.timestep = wp.timestep
-    # The no-slip solver stops a loaded wrap creeping on soft contacts (strands only: it
-    # costs time, docs/notes/2026-11-22-simulation-prototypes.md).
-    noslip = food_p.noslip_iterations if isinstance(food_p, Strands) else 0
+    # The no-slip solver removes soft contacts' creep: a loaded wrap of strands slides off the
+    # tines, a heap of pieces flows below its angle of repose (physics.toml says why, per food;
+    # it costs time, docs/notes/2026-11-22-simulation-prototypes.md).
+    noslip = food_p.noslip_iterations if isinstance(food_p, Strands | Granular) else 0
     x: list[str] = [
         f'<mujoco model="{arm.model}_articutool_feeding">',
         '<compiler angle="radian" autolimits="true"/>',
@@ -399,7 +527,7 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
 
         '<camera name="overview" pos="1.6 -0.9 1.1" xyaxes="0.5 0.87 0 -0.4 0.23 0.89"/>',
     ]
-    x += _static_geoms(scene, wp.surface_friction, wp.collision_wall_factor, layout)
+    x += _static_geoms(scene, food_p, wp.collision_wall_factor, layout)
     # Cameras placed from the scene: a close view of each container, and one that follows
     # the utensil from beside the food's container (the first container if there is none).
     containers = [o for o in scene.objects
@@ -426,12 +554,19 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
     if food_p is not None:
         x += _food_bodies(food_p, scene, params, rng, layout, load_g)
     x.append("</worldbody>")
+    # The utensil against every static surface: explicit pairs with their own law.
+    geoms = _utensil_geoms(spec, utensil, layout, food_p)
+    x.append("<contact>")
+    law = _pair_attrs(wp.utensil_contact)
+    x += [f'<pair geom1="{g}" geom2="{sg}" {law}/>'
+          for g in layout.utensil_geoms for sg in layout.static_geoms]
+    x.append("</contact>")
     x.append("</mujoco>")
     world = mujoco.MjSpec.from_string("\n".join(x))
-    geoms = _utensil_geoms(spec, utensil, layout, food_p)
     add_robot(world.body(arm.base_frame), spec, utensil,
               lambda body: _attach_fragment(world, body, geoms))
-    _drive_robot(world, spec, params, layout)
+    _drive_robot(world, spec, params, layout,
+                 food_p.contacts.surface if food_p is not None else None)
     layout.spec = world
     return layout
 
@@ -462,18 +597,23 @@ def _attach_fragment(world: mujoco.MjSpec, body: mujoco.MjsBody, geoms: list[str
 
 
 def _drive_robot(world: mujoco.MjSpec, spec: Spec, params: PhysicsParams,
-                 layout: WorldLayout) -> None:
+                 layout: WorldLayout, food_law: ContactParams | None) -> None:
     """What the simulation adds to the robot's description: the servos (the arm's position
     and velocity loops, their armature; the wrist motors' torque, armature and friction),
     the arm's gravity compensation (the Jaco's controller carries its own links), the IMU and
-    F/T sensors, and the robot links' contact filter and colour."""
+    F/T sensors, and the robot links' contact filter, colour and ``food_law`` (the food's law
+    against a surface, at priority 1 as every partner of the food carries its law)."""
     arm, w = spec.arm, spec.wrist
     sp, wm = params.arm_servo, params.wrist_motor
-    robot = set(layout.utensil_geoms)
+    utensil = set(layout.utensil_geoms)
     for g in world.geoms:
-        if g.name not in robot and _in_robot(g.parent, arm.base_frame):
+        if g.name not in utensil and _in_robot(g.parent, arm.base_frame):
             g.contype, g.conaffinity = _ROBOT, 0
             g.rgba = [0.25, 0.25, 0.28, 1.0]
+            if food_law is not None:
+                g.priority, g.condim = 1, food_law.condim
+                g.friction, g.solref = list(food_law.friction), list(food_law.solref)
+                g.solimp = list(food_law.solimp)
     for i, j in enumerate(arm.joints):
         world.body(f"{arm.model}_link_{i + 1}").gravcomp = 1.0
         world.joint(j.name).armature = sp.armature

@@ -20,8 +20,11 @@ from articutool.datafile import format_validation_error, read_document
 from articutool.spec import NonNegative, Positive
 
 __all__ = [
+    "CONTACT_PARTNERS",
     "FOOD_KINDS",
+    "ContactParams",
     "Food",
+    "FoodContacts",
     "Granular",
     "Liquid",
     "PhysicsError",
@@ -31,6 +34,10 @@ __all__ = [
 ]
 
 FOOD_KINDS = ("granular", "liquid", "strands")
+# What a food item can touch, each with its own contact law (``FoodContacts``): another item
+# of the food, the utensil, its container (bowl, plate), any other surface (table, floor, the
+# user, the wheelchair, the arm's links).
+CONTACT_PARTNERS = ("food", "utensil", "container", "surface")
 
 
 class PhysicsError(ValueError):
@@ -39,6 +46,43 @@ class PhysicsError(ValueError):
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class ContactParams(_Strict):
+    """One contact law, as MuJoCo applies it to a pair of geoms: ``condim`` (1 frictionless,
+    3 sliding, 4 + torsional, 6 + rolling), ``friction`` (sliding, torsional m, rolling m),
+    ``solref`` (time constant s, damping ratio) and ``solimp`` (dmin, dmax, width m, midpoint,
+    power)."""
+
+    friction: tuple[NonNegative, NonNegative, NonNegative]
+    condim: Literal[1, 3, 4, 6]
+    solref: tuple[Positive, Positive]
+    solimp: tuple[float, float, float, float, float] = (0.9, 0.95, 0.001, 0.5, 2.0)
+
+    @model_validator(mode="after")
+    def _law(self) -> ContactParams:
+        dmin, dmax, width, mid, power = self.solimp
+        if not all(math.isfinite(v) for v in self.solimp):
+            raise ValueError(f"solimp must be finite; got {list(self.solimp)}")
+        if not (0 < dmin <= dmax < 1):
+            raise ValueError(f"solimp: 0 < dmin <= dmax < 1; got dmin {dmin}, dmax {dmax}")
+        if not (width > 0 and 0 < mid < 1 and power >= 1):
+            raise ValueError(f"solimp: width > 0 m, 0 < midpoint < 1, power >= 1; got "
+                             f"{width}, {mid}, {power}")
+        if self.condim > 1 and self.friction[0] <= 0:
+            raise ValueError(f"friction: condim {self.condim} needs a sliding friction > 0 "
+                             "(use condim 1 for a frictionless contact)")
+        return self
+
+
+class FoodContacts(_Strict):
+    """The contact law of a food against each partner (``CONTACT_PARTNERS``): the world gives
+    every such pair exactly these values (``articutool.sim.mjcf``)."""
+
+    food: ContactParams
+    utensil: ContactParams
+    container: ContactParams
+    surface: ContactParams
 
 
 class WorldParams(_Strict):
@@ -52,9 +96,10 @@ class WorldParams(_Strict):
     sleep: bool
     sleep_tolerance: Positive
     settle_s: NonNegative
-    surface_friction: Positive
     spill_dwell_s: NonNegative
     collision_wall_factor: Annotated[float, Field(ge=1, le=10)]
+    # The utensil against containers and surfaces (scraping the bowl): no food in the pair.
+    utensil_contact: ContactParams
 
 
 class ArmServoParams(_Strict):
@@ -88,8 +133,8 @@ class _FoodBase(_Strict):
     container: str = Field(min_length=1)
     utensil: str = Field(min_length=1)
     density: Positive
-    solref: tuple[Positive, Positive]
     fill_g: Positive
+    contacts: FoodContacts
 
 
 class Granular(_FoodBase):
@@ -101,7 +146,12 @@ class Granular(_FoodBase):
     half_width_m: tuple[Positive, Positive]
     half_length_ratio: Annotated[float, Field(ge=1, le=5)]
     piece_screen_m: tuple[Positive, Positive]
-    friction: tuple[Positive, NonNegative, NonNegative]
+    # The cited angle of repose of the food (degrees) that the pile test
+    # (``sim-calibrate``) is checked against; also bounds what a utensil can hold.
+    angle_of_repose_deg: Annotated[float, Field(gt=0, lt=90)]
+    # No-slip solver passes (MuJoCo ``noslip_iterations``): static friction without the
+    # soft contacts' creep (a resting heap must not flow).
+    noslip_iterations: Annotated[int, Field(ge=0, le=1000)] = 0
 
     @model_validator(mode="after")
     def _ranges(self) -> Granular:
@@ -125,19 +175,25 @@ class Liquid(_FoodBase):
     """Frictionless spheres standing in for a liquid (e.g. water)."""
 
     kind: Literal["liquid"]
-    particle_radius: Positive
+    particle_radius: Positive  # a container fill
+    load_particle_radius: Positive  # a load placed on the utensil
+    # A placed load's radii spread uniformly by ± this fraction (a disordered packing).
+    load_radius_spread: Annotated[float, Field(ge=0, lt=0.5)] = 0.0
     packing_fraction: Annotated[float, Field(gt=0, le=0.74)]
+
+    def particle_mass(self, radius: float) -> float:
+        """kg per particle of ``radius``: density × sphere volume / packing fraction."""
+        return self.density * 4.0 / 3.0 * math.pi * radius**3 / self.packing_fraction
 
     @property
     def piece_mass(self) -> float:
-        """kg per particle: density × sphere volume / packing fraction."""
-        v = 4.0 / 3.0 * math.pi * self.particle_radius**3
-        return self.density * v / self.packing_fraction
+        """kg per particle of a container fill."""
+        return self.particle_mass(self.particle_radius)
 
 
 class Strands(_FoodBase):
     """Elastic strands (e.g. noodles): chains of capsule bodies with ball-joint bending springs,
-    heaped in the container."""
+    heaped in the container (:func:`articutool.sim.mjcf.strand_chain`)."""
 
     kind: Literal["strands"]
     strand_radius: Positive
@@ -145,19 +201,19 @@ class Strands(_FoodBase):
     segments: Annotated[int, Field(ge=2, le=200)]
     young: Positive
     bend_damping_s: Positive
-    friction: tuple[Positive, NonNegative, NonNegative]
     pile_radius: Positive
     noslip_iterations: Annotated[int, Field(ge=0, le=1000)]
-    # Starch-film adhesion (N per contact; MuJoCo ``geom/adhesion``, which acts only across a
-    # ``gap``): fork-strand, and strand-strand cohesion. 0 = friction only.
-    fork_adhesion: NonNegative = 0.0
-    cohesion: NonNegative = 0.0
+    # Starch tack: the measured stickiness (N/m², pull-off force per area) over a contact band
+    # ``tack_width`` wide, acting across ``adhesion_gap`` (MuJoCo's contact adhesion acts only
+    # across a gap). 0 = friction only.
+    stickiness_pa: NonNegative = 0.0
+    tack_width: Positive = 0.001
     adhesion_gap: Annotated[float, Field(ge=0, le=0.002)] = 0.0
 
     @model_validator(mode="after")
     def _adhesion_needs_a_gap(self) -> Strands:
-        if (self.fork_adhesion or self.cohesion) and not self.adhesion_gap:
-            raise ValueError("adhesion_gap must be > 0 when fork_adhesion or cohesion is set "
+        if self.stickiness_pa and not self.adhesion_gap:
+            raise ValueError("adhesion_gap must be > 0 when stickiness_pa is set "
                              "(MuJoCo's contact adhesion acts only across the gap)")
         return self
 
@@ -167,10 +223,28 @@ class Strands(_FoodBase):
         return self.density * math.pi * self.strand_radius**2 * self.strand_length
 
     @property
+    def segment_length(self) -> float:
+        """m: one capsule's length, ds = L / segments."""
+        return self.strand_length / self.segments
+
+    @property
     def bend_stiffness(self) -> float:
         """N·m/rad of each joint: the rod's E·I over the segment length (I = π r⁴ / 4)."""
         inertia = math.pi * self.strand_radius**4 / 4.0
-        return self.young * inertia / (self.strand_length / self.segments)
+        return self.young * inertia / self.segment_length
+
+    @property
+    def tack_per_length(self) -> float:
+        """N/m: the pull-off force per metre of a strand lying on a surface, stickiness ×
+        contact band width."""
+        return self.stickiness_pa * self.tack_width
+
+    @property
+    def tack_per_contact(self) -> float:
+        """N: MuJoCo's adhesion of one contact point. A segment lying along a surface touches
+        it at two points (its capsule's two ends), so each carries the tack of half a
+        segment: stickiness × width × ds / 2."""
+        return self.tack_per_length * self.segment_length / 2.0
 
 
 Food = Annotated[Granular | Liquid | Strands, Field(discriminator="kind")]
@@ -184,7 +258,7 @@ def default_physics_path() -> Path:
 class PhysicsParams(_Strict):
     """The whole parameter file."""
 
-    version: Annotated[int, Field(ge=1, le=1)] = 1
+    version: Annotated[int, Field(ge=2, le=2)] = 2
     world: WorldParams
     arm_servo: ArmServoParams
     wrist_motor: WristMotorParams

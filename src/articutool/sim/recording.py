@@ -51,7 +51,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from articutool.datafile import parse_json
+from articutool.datafile import file_kind, parse_json
 
 if TYPE_CHECKING:
     from articutool.sim.world import FeedingWorld
@@ -251,7 +251,9 @@ class Recording:
         """Read and validate a recording; :class:`RecordingError` names what is wrong."""
         p = Path(path)
         if not p.is_file():
-            raise RecordingError(f"recording {p} does not exist (or is not a file)")
+            what = ("does not exist" if not p.exists() else
+                    f"is {file_kind(p.stat().st_mode)} (a regular .npz file is needed)")
+            raise RecordingError(f"recording {p} {what}")
         try:
             with np.load(p, allow_pickle=False) as z:
                 missing = [k for k in ("meta", "mjcf", *_ARRAYS) if k not in z.files]

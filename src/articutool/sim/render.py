@@ -9,6 +9,7 @@ installs them); without them :class:`RenderError` says so.
 from __future__ import annotations
 
 import copy
+from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
@@ -83,39 +84,50 @@ def render_frame(world: FeedingWorld, camera: str = "utensil", width: int = 640,
 
 
 def write_video(frames: list[NDArray[np.uint8]], path: str | Path, fps: float) -> Path:
-    """Write RGB frames as a video (format by suffix: ``.mp4`` via the ffmpeg bundled with
-    imageio-ffmpeg, ``.gif`` via Pillow); returns the path."""
+    """Write RGB frames as a new video file (format by suffix: ``.mp4`` via the ffmpeg
+    bundled with imageio-ffmpeg, ``.gif`` via Pillow); returns the path. Nothing at ``path``
+    is replaced or written through (:func:`articutool.datafile.publish_new`)."""
     p = Path(path)
     if not frames:
         raise RenderError("no frames were recorded")
     suffix = p.suffix.lower()
-    try:
+    if suffix not in (".gif", ".mp4"):
+        raise RenderError(f"video: unknown format {suffix!r}; use .mp4 or .gif")
+
+    def write(tmp: Path) -> None:
         if suffix == ".gif":
             from PIL import Image
 
             imgs = [Image.fromarray(f) for f in frames]
-            imgs[0].save(p, save_all=True, append_images=imgs[1:], loop=0,
+            imgs[0].save(tmp, save_all=True, append_images=imgs[1:], loop=0,
                          duration=int(1000 / fps))
-        elif suffix == ".mp4":
+        else:
             import imageio.v2 as imageio
 
-            with imageio.get_writer(p, fps=fps, codec="libx264", macro_block_size=8) as w:
+            with imageio.get_writer(tmp, fps=fps, codec="libx264", macro_block_size=8) as w:
                 for f in frames:
                     w.append_data(f)
-        else:
-            raise RenderError(f"video: unknown format {suffix!r}; use .mp4 or .gif")
-    except OSError as err:
-        raise RenderError(f"video: cannot write {p}: {err}") from None
-    return p
+
+    return _publish(p, write, "video")
+
+
+def _publish(p: Path, write: Callable[[Path], None], what: str) -> Path:
+    from articutool.datafile import ResultsError, publish_new
+
+    try:
+        return publish_new(p, write)
+    except (OSError, ResultsError) as err:
+        raise RenderError(f"{what}: cannot write {p}: {err}") from None
 
 
 def save_png(world: FeedingWorld, path: str | Path, camera: str = "utensil") -> Path:
-    """Write a PNG snapshot; returns its path."""
+    """Write a new PNG snapshot (never replacing a file or writing through a link); returns
+    its path."""
     from PIL import Image
 
-    p = Path(path)
-    Image.fromarray(render_frame(world, camera)).save(p)
-    return p
+    frame = render_frame(world, camera)
+    return _publish(Path(path), lambda tmp: Image.fromarray(frame).save(tmp, format="PNG"),
+                    "snapshot")
 
 
 class Recorder:

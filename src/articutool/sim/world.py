@@ -42,7 +42,13 @@ from numpy.typing import ArrayLike, NDArray
 from articutool.arm.scene import Scene
 from articutool.sim import accounting as acc
 from articutool.sim.ledger import FoodLedger
-from articutool.sim.loading import drop_points, pour_lattice
+from articutool.sim.loading import (
+    DEPOSIT_CLEARANCE_M,
+    deposit_spot,
+    dish_surface_height,
+    max_load_g,
+    pour_lattice,
+)
 from articutool.sim.mj_drivers import MjFTDriver, MjImuDriver, MjMotorDriver
 from articutool.sim.mjcf import (
     FT_SITE,
@@ -51,19 +57,54 @@ from articutool.sim.mjcf import (
     build_mjcf,
     tip_site_name,
 )
-from articutool.sim.params import Granular, PhysicsParams
-from articutool.sim.pieces import piece_extent
+from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
 from articutool.spec import Spec, load_spec
 from articutool.tool.drivers.motor_model import MotorPlant
 from articutool.tool.runtime import ToolRuntime
 from articutool.trajectory import JointTrajectory
 
-__all__ = ["FeedingWorld", "FoodReport", "PhysicsResetError", "smooth_joint_motion"]
+__all__ = ["FeedingWorld", "FoodReport", "PhysicsResetError", "capacity_bound_reason",
+           "smooth_joint_motion", "utensil_capacity_bound_g"]
 
 # MuJoCo's warnings on which mj_step resets mjData to the model's defaults (its "simulation is
 # unstable" reset: NaN, Inf or huge qpos/qvel/qacc). Everything after is not the run's physics.
 _RESET_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
                    mujoco.mjtWarning.mjWARN_BADQACC)
+
+
+# Pieces in a placed load's supply per gram of the load (place_load deposits until the utensil
+# holds the load; the rest stays parked). A numerical choice: at the capacity load a third of
+# the deposited pieces rolled off the heap in trials (seeds 0-4), so twice the load suffices.
+SUPPLY_FACTOR = 2.0
+
+
+def utensil_capacity_bound_g(spec: Spec, params: PhysicsParams, food: str,
+                             utensil: str | None = None) -> float:
+    """The most ``utensil`` (default: the food's) can hold of ``food`` (g): a liquid fills
+    its dish level to the rim, pieces the dish and a heap at their angle of repose
+    (:func:`articutool.sim.loading.max_load_g`)."""
+    fp = params.food(food)
+    u = spec.utensil(utensil or fp.utensil)
+    return max_load_g(u, fp.kind, fp.density,
+                      fp.angle_of_repose_deg if isinstance(fp, Granular) else None)
+
+
+def load_supply_g(params: PhysicsParams, food: str | None,
+                  load_g: float | None) -> float | None:
+    """What the world places to leave ``load_g`` of ``food`` on the utensil. A hand takes
+    pieces from a supply until the utensil holds the load: some roll off on the way
+    (:meth:`FeedingWorld.place_load`), so a granular supply holds more than the load."""
+    if load_g is not None and food is not None and isinstance(params.food(food), Granular):
+        return SUPPLY_FACTOR * load_g
+    return load_g
+
+
+def capacity_bound_reason(fp: Granular | Liquid | Strands) -> str:
+    """Why :func:`utensil_capacity_bound_g` is the bound, in words."""
+    if isinstance(fp, Liquid):
+        return "its dish filled level to the rim: a liquid without surface tension holds no more"
+    return (f"its dish and a heap at the pieces' {fp.angle_of_repose_deg:g}° angle of repose, "
+            "as solid kernel")
 
 
 class PhysicsResetError(RuntimeError):
@@ -144,6 +185,9 @@ class FeedingWorld:
         load_g: instead of filling the food's container, hold this many grams of it ready to
             be placed on the utensil with :meth:`place_load` (the thesis' Exp. 2b/2c protocol:
             a tared utensil loaded by hand).
+        mouth: food entering the scene's ``mouth`` region is eaten (a bite); ``False`` for
+            protocols in which nobody eats and the experimenter weighs the utensil at the
+            goal (Exp. 2b, 2c).
     """
 
     def __init__(
@@ -161,6 +205,7 @@ class FeedingWorld:
         gyro_bias: ArrayLike | None = None,
         settle: bool = True,
         load_g: float | None = None,
+        mouth: bool = True,
     ) -> None:
         self.spec = spec if spec is not None else load_spec()
         self.scene = scene if scene is not None else Scene.load()
@@ -176,8 +221,14 @@ class FeedingWorld:
             raise ValueError(f"load_g must be a finite mass > 0 g; got {load_g}")
         if load_g is not None and food is None:
             raise ValueError("load_g needs a food")
+        if load_g is not None and load_g > (most := self.capacity_bound_g(food or "")):
+            why = capacity_bound_reason(self.params.food(food or ""))
+            raise ValueError(f"load_g must be in (0, {most:.2f}] g: the most the "
+                             f"{self.utensil} can hold of {food} ({why}); got {load_g:g}")
+        self.load_g = load_g
         self.layout: WorldLayout = build_mjcf(self.spec, self.scene, self.params, self.utensil,
-                                              food, self.seed, load_g)
+                                              food, self.seed,
+                                              load_supply_g(self.params, food, load_g))
         self.model = self.layout.spec.compile()
         self.data = mujoco.MjData(self.model)
         m, d = self.model, self.data
@@ -206,7 +257,7 @@ class FeedingWorld:
         self._tq = self.spec.motors.stall_torque_nm
         self._vel_int = np.zeros(2)
         self.ledger = FoodLedger(m, d, self.layout, self.scene, self.params.world.spill_dwell_s,
-                                 self.spec.wrist.period)
+                                 self.spec.wrist.period, mouth=mouth)
 
         # --- timing
         self.dt = float(m.opt.timestep)
@@ -555,13 +606,15 @@ class FeedingWorld:
         return math.degrees(math.acos(min(1.0, max(-1.0, c)))) <= tol_deg
 
     def place_load(self, settle_s: float = 0.5) -> float:
-        """Put the parked load (``load_g``) on the utensil, at the utensil's velocity, then
-        run ``settle_s``; returns the mass on the utensil after that (g).
+        """Put the load (``load_g``) on the utensil the way a scoop leaves it
+        (:mod:`articutool.sim.loading`), at the utensil's velocity, then run ``settle_s``;
+        returns the mass on the utensil after that (g).
 
-        Rigid pieces are dropped one by one from just above the dish (or the tines), 0.2 s
-        apart, as a hand places them; what does not stay falls where physics takes it.
-        Particles are laid on a lattice filling the dish from its floor up (a liquid poured
-        in), so a load the spoon can hold stays.
+        Rigid pieces are deposited one at a time from the supply over the whole dish (a fork:
+        its tines), each let go just above what is under its spot, 0.3 s apart, while each
+        brings the mass on the utensil nearer the load (to within half a piece); what does
+        not stay falls where physics takes it. Particles fill the dish from its floor up (a
+        liquid poured in), so a load the spoon can hold stays.
         """
         if not self.layout.parked or self.ledger.active.any():
             raise RuntimeError("place_load needs a world built with load_g, not yet placed")
@@ -569,9 +622,7 @@ class FeedingWorld:
         body = self.model.body("utensil").id
         fp = self.params.food(self.food or "")
         if isinstance(fp, Granular):
-            for k, p in enumerate(drop_points(u, piece_extent(fp), self.n_items, self.seed)):
-                self.ledger.unpark(k, body, p)
-                self.run(0.2)
+            self._deposit(u, body, float(self.load_g or 0.0))
         else:
             pts = pour_lattice(u, self.layout.piece_size)
             if len(pts) < self.n_items:
@@ -583,6 +634,48 @@ class FeedingWorld:
             mujoco.mj_forward(self.model, self.data)
         self.run(settle_s)
         return self.masses_g()["utensil"]
+
+    def _deposit(self, u: Any, body: int, target_g: float) -> None:
+        """Deposit supply pieces over the dish while each brings the load on the utensil
+        nearer ``target_g`` (see :meth:`place_load`)."""
+        m, d = self.model, self.data
+        rng = np.random.default_rng(self.seed + 7)
+        # Rays down the dish's normal start 5 cm above its rim: above any heap it holds.
+        depth_m = u.physics.bowl[2] if u.physics.bowl is not None else 0.0
+        top = u.tip_x + depth_m + 0.05
+        gid = np.zeros(1, dtype=np.int32)
+        node = self.ledger.geom_node
+        for k in range(self.n_items):
+            # The next piece goes on only if the load comes nearer the target with it.
+            if self.masses_g()["utensil"] + self.ledger.item_g[k] / 2 > target_g:
+                break
+            bid = int(self.ledger.item_body[k])
+            g0, gn = m.body_geomadr[bid], m.body_geomnum[bid]
+            thick = float(max(m.geom_size[g0:g0 + gn, 0]))  # a flat piece's half thickness
+            reach = float(max(np.linalg.norm(m.geom_pos[g], ord=2) + m.geom_rbound[g]
+                              for g in range(g0, g0 + gn)))
+            y, z = deposit_spot(u, reach, rng)
+            R, p = d.xmat[body].reshape(3, 3), d.xpos[body]
+            start = p + R @ np.array([top, y, z])
+            hit = mujoco.mj_ray(m, d, start, -R[:, 0], None, 1, -1, gid)
+            # What is under the spot: a piece already there or the dish (else its surface).
+            if hit >= 0 and node[gid[0]] >= -1:
+                under = top - hit
+            else:
+                under = u.tip_x + min(dish_surface_height(u, y, z), depth_m)
+            local = (under + thick + DEPOSIT_CLEARANCE_M, y, z)
+            # Lying flat (the piece's own z along the dish's normal), turned at random about it.
+            yaw = float(rng.uniform(0.0, 2.0 * math.pi))
+            flat = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+            spin = np.array([[math.cos(yaw), -math.sin(yaw), 0.0],
+                             [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
+            self.ledger.unpark(k, body, local, R @ flat @ spin)
+            self.run(0.3)
+
+    def capacity_bound_g(self, food: str) -> float:
+        """The most this world's utensil can hold of ``food`` (g): a physical bound
+        (:func:`articutool.sim.loading.max_load_g`); loads above it are refused."""
+        return utensil_capacity_bound_g(self.spec, self.params, food, self.utensil)
 
     def max_load_g(self) -> float:
         """The most a liquid load :meth:`place_load` can pour onto this utensil (g); infinite
@@ -604,6 +697,25 @@ class FeedingWorld:
         down = R.T @ np.array([0.0, 0.0, -1.0])  # gravity direction in the sensor frame
         # The sensor reads the reaction on the utensil: extra weight pulls along −down.
         return float(-f @ down / self.spec.imu.gravity * 1000.0)
+
+    @property
+    def strands(self) -> bool:
+        """The food is strands (noodles): an item may hang from the utensil onto a surface."""
+        return self.food is not None and isinstance(self.params.food(self.food), Strands)
+
+    def utensil_mass_g(self) -> float:
+        """The mass on the utensil as an experimenter weighing it would find (g): the items on
+        it (:meth:`masses_g`), or for strands what the utensil bears of them
+        (:meth:`carried_g`)."""
+        return self.carried_g() if self.strands else self.masses_g()["utensil"]
+
+    def carried_g(self) -> float:
+        """What a scale under the utensil reads (g): the downward force the food's
+        contacts put on the utensil, over g — a strand hanging from the fork onto a surface
+        counts as much as the fork bears of it. The F/T sensor measures the same force plus
+        the utensil's own weight and inertia; this reads it without the sensor's noise, tare
+        or orientation limits; the mean over the last 0.5 s (meaningful at rest)."""
+        return self.ledger.carried_force_z() / -self.spec.imu.gravity * 1000.0
 
     def item_masses_g(self) -> NDArray[np.float64]:
         """Grams of each food item (pieces vary in size; particles and strands do not)."""

@@ -7,9 +7,16 @@ verifier's synchronised leveling trajectory) with ``q̇ = q̇_ref(t) + K (q_ref(
 position until then, as ROS trajectory controllers do.
 
 A trajectory is refused with a reason (:class:`~articutool.trajectory.TrajectoryError`) when
-its joints are not the wrist's, a waypoint or the interpolated spline leaves ``spec.wrist``
-limits or exceeds ``spec.wrist.max_velocity``, or a first point at t = 0 is farther than one
-tick's travel from the present joints. :class:`~articutool.tool.runtime.ToolRuntime` composes
+its joints are not the wrist's, its last point is later than ``spec.primitives.max_duration_s``
+(120 s) after its start, a waypoint or the interpolated spline leaves ``spec.wrist`` limits or
+exceeds ``spec.wrist.max_velocity``, or a first point at t = 0 is farther than one tick's
+travel from the present joints.
+
+The spline is checked at four samples per tick over the whole trajectory, so the length bound
+also bounds that check (at most 24 001 samples, about 1 MB, before any is taken): a wrist
+trajectory is a bounded motion like a primitive, which ends on its own if the PC is gone, and a
+span sent in the wrong unit (nanoseconds as seconds: 1e9 s) is refused with a message instead
+of asking for terabytes. :class:`~articutool.tool.runtime.ToolRuntime` composes
 a :class:`TrajectoryFollower`; it holds no lock of its own (the runtime's serialises it).
 """
 
@@ -37,6 +44,9 @@ class TrajectoryFollower:
         self._vmax = w.velocity_limits
         self._limits = w.limits
         self._gain = spec.primitives.position_gain
+        self.max_duration = spec.primitives.max_duration_s
+        # samples of the densest spline check (4 per tick over max_duration), plus the ends
+        self._max_samples = math.ceil(self.max_duration / (self.period / 4)) + 2
         # Trajectories prevalidate returned, by id while they live (the dataclass holds
         # arrays, so it cannot be hashed into a WeakSet).
         self._prechecked: dict[int, weakref.ref[JointTrajectory]] = {}
@@ -82,18 +92,26 @@ class TrajectoryFollower:
     def prevalidate(self, trajectory: JointTrajectory) -> JointTrajectory:
         """The checks that do not depend on the wrist's state; see
         :meth:`~articutool.tool.runtime.ToolRuntime.prevalidate_trajectory`."""
-        traj = self._checked_shape_and_limits(trajectory)
+        return self.adopt(self._checked_shape_and_limits(trajectory))
+
+    def adopt(self, traj: JointTrajectory) -> JointTrajectory:
+        """Remember ``traj`` as prevalidated (while it lives): :meth:`validated` then only
+        checks its start."""
         key = id(traj)
         self._prechecked[key] = weakref.ref(traj, lambda _r: self._prechecked.pop(key, None))
         return traj
+
+    def is_prechecked(self, traj: JointTrajectory) -> bool:
+        """Whether :meth:`prevalidate` returned ``traj`` (or it was adopted)."""
+        ref = self._prechecked.get(id(traj))
+        return ref is not None and ref() is traj
 
     def validated(
         self, trajectory: JointTrajectory, q_now: NDArray[np.float64]
     ) -> JointTrajectory:
         """``trajectory`` in the wrist's joint order, starting from ``q_now``: a first point
         after t = 0 gets the present joints prepended. Raises TrajectoryError, TypeError."""
-        ref = self._prechecked.get(id(trajectory))
-        if ref is not None and ref() is trajectory:  # names, limits checked in the link thread
+        if self.is_prechecked(trajectory):  # names, limits checked in the link thread
             traj = trajectory
         else:
             traj = self._checked_shape_and_limits(trajectory)
@@ -137,6 +155,9 @@ class TrajectoryFollower:
         """The spline between waypoints can overshoot; check it densely on [t0, t1] (4
         samples per tick, and every waypoint in the span)."""
         n = max(2, math.ceil((t1 - t0) / (self.period / 4)) + 1)
+        if n > self._max_samples:  # unreachable past _check_duration; never sample unbounded
+            raise TrajectoryError(f"{t1 - t0:g} s of spline to check: longer than "
+                                  f"{self.max_duration:g} s (spec.primitives.max_duration_s)")
         inside = traj.times[(traj.times >= t0) & (traj.times <= t1)]
         ts = np.unique(np.concatenate([np.linspace(t0, t1, n), inside]))
         pos, vel = traj.sample(ts)
@@ -149,6 +170,12 @@ class TrajectoryFollower:
         if sorted(trajectory.joint_names) != sorted(names):
             raise TrajectoryError(f"joint_names must be the wrist's {names}; "
                                   f"got {list(trajectory.joint_names)}")
+        end = float(trajectory.times[-1])
+        if end > self.max_duration:
+            raise TrajectoryError(
+                f"the last point's time_from_start is {end:g} s; a wrist trajectory ends at most "
+                f"{self.max_duration:g} s after its start (spec.primitives.max_duration_s): "
+                "split a longer motion, and send time_from_start in seconds")
         traj = trajectory.reordered(names)
         self._check_limits(traj.times, traj.positions, traj.velocities, "waypoint")
         self._check_spline(traj, float(traj.times[0]), float(traj.times[-1]))

@@ -353,7 +353,8 @@ class ToolRuntime:
         or negative starts at the next tick.
 
         Refused, with no motion, when a fault is set, before the first tick, or when the
-        trajectory is invalid: other joint names, a position outside ``spec.wrist`` limits or
+        trajectory is invalid: other joint names, a last point or a start more than
+        ``spec.primitives.max_duration_s`` away, a position outside ``spec.wrist`` limits or
         a velocity above ``spec.wrist.max_velocity`` (waypoints and the interpolated spline),
         or a first point at t = 0 farther than one tick's travel from the present joints
         (give it a later ``time_from_start`` and the runtime moves there smoothly).
@@ -370,6 +371,11 @@ class ToolRuntime:
                 delay = math.nan
             if not math.isfinite(delay):
                 return False, f"trajectory refused: start_delay must be finite; got {start_delay!r}"
+            if delay > self._follower.max_duration:
+                return False, (f"trajectory refused: it starts {delay:g} s from now, more than "
+                               f"{self._follower.max_duration:g} s "
+                               "(spec.primitives.max_duration_s): are the PC's and the tool's "
+                               "clocks synchronised?")
             try:
                 traj = self._follower.validated(trajectory, self._motor_state.position)
             except (TrajectoryError, ValueError, TypeError) as err:
@@ -434,7 +440,7 @@ class ToolRuntime:
                 last_wake = wake
                 self.tick()
                 work = self._link_work
-                if work is not None:  # at most one queued link command per tick
+                if work is not None:  # the link's bounded share of the tick
                     try:
                         work()
                     except Exception:  # never escapes the loop
@@ -452,9 +458,11 @@ class ToolRuntime:
                 self._stop_motors()
 
     def set_link_work(self, work: Callable[[], None] | None) -> None:
-        """Have :meth:`run` call ``work()`` once per tick, after the tick (the link server's
-        ``work_once``: at most one queued command, already decoded and validated, so the
-        network never adds more than one bounded call to a tick). None detaches it."""
+        """Have :meth:`run` call ``work()`` once per tick, after the tick: a link server's
+        ``work_once`` in this process (at most one queued command, already decoded and
+        validated) or the channel to a link process (``tool/channel.py``: at most four
+        commands and one report, without waiting). Either way the network adds a bounded
+        call to a tick. None detaches it."""
         self._link_work = work
 
     def tick(self, now: float | None = None, dt: float | None = None) -> ToolState:
@@ -585,13 +593,29 @@ class ToolRuntime:
         """The checks of :meth:`follow_trajectory` that do not depend on the wrist's state
         (joint names, waypoint limits, the interpolated spline's limits), without the lock.
 
-        The link server runs this in its own thread, so the loop thread, which runs the
-        queued :meth:`follow_trajectory`, only checks the start against the present joints
-        (cost independent of the trajectory's length: a 1 MB, 1700 s trajectory took 190 ms
-        to validate in full). Raises TrajectoryError (or TypeError) with the reason; returns
-        the trajectory in the wrist's joint order, marked as checked by this runtime.
+        The link server runs this in its own thread (in ``articutool tool``, its own
+        process), so the loop, which runs the queued :meth:`follow_trajectory`, only checks
+        the start against the present joints (cost independent of the trajectory's length:
+        a 1 MB trajectory takes up to 190 ms to validate in full). Raises TrajectoryError
+        (or TypeError) with the reason; returns the trajectory in the wrist's joint order,
+        marked as checked by this runtime.
         """
         return self._follower.prevalidate(trajectory)
+
+    def adopt_prevalidated(self, trajectory: JointTrajectory) -> JointTrajectory:
+        """``trajectory`` as :meth:`prevalidate_trajectory` returned it in the tool's link
+        process (the same spec, another process: it arrives as a new object), marked so that
+        :meth:`follow_trajectory` only checks its start. Its type, joint order and length are
+        checked again here (cheap); TrajectoryError otherwise."""
+        if not isinstance(trajectory, JointTrajectory):
+            raise TypeError(f"expected a JointTrajectory; got {type(trajectory).__name__}")
+        if tuple(trajectory.joint_names) != self.joint_names:
+            raise TrajectoryError(f"joint_names must be {list(self.joint_names)} in this "
+                                  f"order; got {list(trajectory.joint_names)}")
+        if float(trajectory.times[-1]) > self._follower.max_duration:
+            raise TrajectoryError(f"a trajectory ends at most {self._follower.max_duration:g} "
+                                  "s after its start (spec.primitives.max_duration_s)")
+        return self._follower.adopt(trajectory)
 
     # -- modes and faults --
     def _enter(self, mode: Mode) -> None:

@@ -2,12 +2,13 @@
 (thesis §3.1, §3.2).
 
 :class:`LoopStats` keeps the loop's timing (period mean and jitter by Welford's method, max,
-overruns, a tick's compute time). :class:`EnergyMeter` integrates the spec's power budget per
-mode (idle in DISABLED, leveling in LEVELING, peak — an upper bound — in PRIMITIVE and
-TRAJECTORY): the bank is assumed to hold ``battery_start_pct`` at start, since the 12 V supply
-is regulated and the voltage alone says little about the charge. :func:`build_state` is the
-pure assembly of one :class:`~articutool.tool.api.ToolState` (with its ``extra`` fields) from
-the parts :class:`~articutool.tool.runtime.ToolRuntime` composes.
+percentiles from a fixed histogram, overruns, a tick's compute time). :class:`EnergyMeter`
+integrates the spec's power budget per mode (idle in DISABLED, leveling in LEVELING, peak —
+an upper bound — in PRIMITIVE and TRAJECTORY): the bank is assumed to hold
+``battery_start_pct`` at start, since the 12 V supply is regulated and the voltage alone says
+little about the charge. :func:`build_state` is the pure assembly of one
+:class:`~articutool.tool.api.ToolState` (with its ``extra`` fields) from the parts
+:class:`~articutool.tool.runtime.ToolRuntime` composes.
 """
 
 from __future__ import annotations
@@ -29,8 +30,17 @@ __all__ = ["EnergyMeter", "LoopStats", "build_state"]
 
 
 class LoopStats:
-    """Loop timing: period mean and standard deviation (jitter, Welford), max, overruns, and
-    the compute time of a tick (mean, max)."""
+    """Loop timing: period mean and standard deviation (jitter, Welford), max, percentiles,
+    overruns, and the compute time of a tick (mean, max).
+
+    Percentiles come from a histogram of 0.1 ms bins up to 1 s (periods beyond it count in
+    the last bin): constant memory and an O(1) update, so the loop can keep it for as long
+    as it runs. A percentile is the upper edge of its bin (at most 0.1 ms high), capped at
+    the maximum seen.
+    """
+
+    BIN_S = 1e-4
+    BINS = 10_000
 
     def __init__(self) -> None:
         self.reset()
@@ -45,9 +55,11 @@ class LoopStats:
         self.ticks = 0
         self.compute_mean = math.nan
         self.compute_max = math.nan
+        self.hist = np.zeros(self.BINS, dtype=np.int64)
 
     def add_period(self, p: float) -> None:
         """Record one measured period (s)."""
+        self.hist[min(self.BINS - 1, max(0, int(p / self.BIN_S)))] += 1
         self.count += 1
         if self.count == 1:
             self.mean, self._m2, self.max = p, 0.0, p
@@ -65,6 +77,22 @@ class LoopStats:
             return
         self.compute_mean += (c - self.compute_mean) / self.ticks
         self.compute_max = max(self.compute_max, c)
+
+    def percentiles(self, *qs: float) -> tuple[float, ...]:
+        """The ``qs``-th percentiles (0–100) of the periods (s); NaN before the first."""
+        if self.count == 0:
+            return tuple(math.nan for _ in qs)
+        cum = np.cumsum(self.hist)
+        out = []
+        for q in qs:
+            i = int(np.searchsorted(cum, max(1, math.ceil(q / 100.0 * self.count))))
+            out.append(min((i + 1) * self.BIN_S, self.max))
+        return tuple(out)
+
+    def count_over(self, limit: float) -> int:
+        """How many periods were ``limit`` seconds or longer (to the bin, so it may also count
+        periods up to 0.1 ms shorter: it never misses one)."""
+        return int(self.hist[min(self.BINS - 1, int(limit / self.BIN_S)):].sum())
 
     @property
     def jitter(self) -> float:
@@ -132,6 +160,8 @@ def build_state(
     left = max(0.0, energy.start_wh - used)
     power = energy.power_w[mode]
     offsets = leveling.offsets_deg
+    p50, p99 = stats.percentiles(50.0, 99.0)
+    period = follower.period
     extra: dict[str, float] = {
         "tilt_deg": math.degrees(tilt),
         "imu_age_s": now - sensing.last_imu_stamp,
@@ -143,6 +173,10 @@ def build_state(
         "command_roll": float(command[1]),
         "singularity": abs(math.cos(pos[1])) if ms is not None else math.nan,
         "loop_period_max": stats.max,
+        "loop_period_p50": p50,
+        "loop_period_p99": p99,
+        "loop_periods_over_2x": float(stats.count_over(2.0 * period)),
+        "loop_period_count": float(stats.count),
         "tick_compute_mean_s": stats.compute_mean,
         "tick_compute_max_s": stats.compute_max,
         "faults_total": float(faults_total),

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from pathlib import Path
 
 __all__ = ["add_commands"]
 
@@ -48,7 +47,7 @@ def _print_food(rep: object) -> None:
 
 def _cmd_verify(args: argparse.Namespace) -> int:
     from articutool.arm.model import ArmModel
-    from articutool.cli_support import UsageError, spec_from_args
+    from articutool.cli_support import UsageError, new_output_file, spec_from_args
     from articutool.trajectory import JointTrajectory
     from articutool.verify.verifier import verify_trajectory
 
@@ -58,12 +57,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     if args.slosh_free and args.load is None:
         raise UsageError("--slosh-free needs --load FOOD:GRAMS")
     load = _load(args, spec) if args.load is not None else None
-    if args.wrist_out is not None:
-        out = Path(args.wrist_out)
-        if out.exists():
-            raise UsageError(f"--wrist-out {out} exists; refusing to overwrite it")
-        if not out.parent.is_dir():
-            raise UsageError(f"--wrist-out {out}: directory {out.parent} does not exist")
+    new_output_file("--wrist-out", args.wrist_out, (".json",))
     traj = JointTrajectory.load(args.trajectory)
     model = ArmModel(spec, utensil=args.utensil)
     rep = verify_trajectory(traj, model, spec, max_step_deg=args.max_step_deg,

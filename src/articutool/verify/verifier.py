@@ -146,16 +146,18 @@ def densify(
         travel = np.maximum(np.abs(np.diff(q, axis=0)),
                             np.maximum(np.abs(qd[:-1]), np.abs(qd[1:])) * np.diff(t)[:, None])
         step = np.maximum(_step_angles(R), travel.max(axis=1))
-        n_sub = np.ceil(step / max_step_rad * (1.0 + 1e-9)).astype(np.int64)
-        if (n_sub <= 1).all():
+        # Counted in floats: a tiny max_step_rad makes them overflow an integer (and wrap to
+        # "no subdivision needed"), which would pass a density never checked.
+        n_float = np.ceil(step / max_step_rad * (1.0 + 1e-9))
+        if (n_float <= 1).all():
             break
-        n_sub = np.maximum(n_sub, 1)
-        total = int(n_sub.sum()) + 1
-        if total > _MAX_SAMPLES:
+        total_float = float(np.maximum(n_float, 1).sum()) + 1
+        if not total_float <= _MAX_SAMPLES:
             raise TrajectoryError(
-                f"densifying to {np.degrees(max_step_rad):g}° steps needs {total} samples "
-                f"(limit {_MAX_SAMPLES}); use a larger max_step_deg"
+                f"max_step_deg: densifying to {np.degrees(max_step_rad):g}° steps needs "
+                f"{total_float:.3g} samples (limit {_MAX_SAMPLES}); use a larger max_step_deg"
             )
+        n_sub = np.maximum(n_float, 1).astype(np.int64)
         seg = np.repeat(np.arange(t.size - 1), n_sub)
         frac = (np.arange(seg.size) - np.repeat(np.cumsum(n_sub) - n_sub, n_sub)) / n_sub[seg]
         t_new = np.append(t[seg] + frac * (t[seg + 1] - t[seg]), t[-1])

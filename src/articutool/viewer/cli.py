@@ -98,6 +98,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
     if args.export is None and (args.camera is not None or args.fps is not None):
         raise UsageError("--camera and --fps apply only with --export")
     if args.export is not None:
+        from articutool.cli_support import new_output_file
         from articutool.sim.render import CAMERAS  # --export renders: it loads this anyway
         from articutool.viewer.export import MAX_FPS
 
@@ -106,6 +107,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
         if args.camera is not None and args.camera not in CAMERAS:
             raise UsageError(f"--camera must be one of {', '.join(CAMERAS)}; got "
                              f"{args.camera!r}")
+        new_output_file("--export", args.export, (".mp4", ".gif"))  # before any rendering
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UsageError(f"--duration must be a number of seconds > 0; got {args.duration}")
     spec = spec_from_args(args)
@@ -120,7 +122,10 @@ def _cmd_view(args: argparse.Namespace) -> int:
             raise UsageError("--export renders .npz recordings (the full MuJoCo state); an "
                              ".mcap recording holds joint states only")
         try:
-            motion = load_mcap_motion(args.recording, spec)
+            notes: list[str] = []
+            motion = load_mcap_motion(args.recording, spec, notes)
+            for note in notes:
+                print(f"note: {note}", file=sys.stderr, flush=True)
         except RecordingError as err:
             raise UsageError(f"--recording: {err}") from None
     elif args.recording is not None:

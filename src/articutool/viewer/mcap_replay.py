@@ -34,44 +34,45 @@ def _series(stamps: list[float], rows: list[NDArray[np.float64]]
     return t[keep], q[keep]
 
 
-def load_mcap_motion(path: str | Path, spec: Spec) -> JointTrajectory:
+def load_mcap_motion(path: str | Path, spec: Spec, notes: list[str] | None = None
+                     ) -> JointTrajectory:
     """The recorded motion as an 8-joint trajectory (arm 1..6, pitch, roll) from time 0.
 
-    Raises :class:`RecordingError` naming the problem (not an MCAP file, no wrist joint
-    states).
+    Read with :func:`articutool.link.recording.read_recording` (file order, every CRC
+    checked), then ordered by log time here: a recording cut by a crash or ``kill -9`` is
+    replayed up to its last complete chunk, and ``notes`` (when given) receives a line
+    saying so. Raises :class:`RecordingError` naming the problem (not a readable MCAP file,
+    corrupt, no wrist joint states).
     """
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
+    from articutool.link.recording import RecordingError as McapReadError
+    from articutool.link.recording import read_recording
 
     p = Path(path)
-    if not p.is_file():
-        raise RecordingError(f"recording {p} does not exist (or is not a file)")
     wrist_names = tuple(spec.wrist.joint_names)
     arm_names = tuple(spec.arm.joint_names)
+    try:
+        rec = read_recording(p, topics=lambda t: t == _ARM_TOPIC or t.endswith("/joint_states"))
+    except McapReadError as err:
+        raise RecordingError(str(err)) from None
+    if rec.cut and notes is not None:
+        notes.append(rec.cut)
     wt: list[float] = []
     wq: list[NDArray[np.float64]] = []
     at: list[float] = []
     aq: list[NDArray[np.float64]] = []
-    try:
-        with p.open("rb") as f:
-            for _, ch, msg in make_reader(f).iter_messages(log_time_order=True):
-                arm = ch.topic == _ARM_TOPIC
-                if not (arm or ch.topic.endswith("/joint_states")):
-                    continue
-                try:
-                    js = cdr.decode(msg.data, cdr.JOINT_STATE)
-                except cdr.LinkDecodeError:
-                    continue
-                names = tuple(str(n) for n in js.name)
-                want = arm_names if arm else wrist_names
-                if set(names) != set(want) or len(js.position) != len(names):
-                    continue
-                pos = dict(zip(names, np.asarray(js.position, dtype=float), strict=True))
-                (at if arm else wt).append(msg.log_time * 1e-9)
-                (aq if arm else wq).append(np.array([pos[n] for n in want]))
-    except (McapError, OSError, ValueError) as err:
-        raise RecordingError(f"recording {p} is not a readable MCAP file "
-                             f"({type(err).__name__}: {err})") from None
+    for msg in sorted(rec.messages, key=lambda x: x.log_time_ns):
+        arm = msg.topic == _ARM_TOPIC
+        try:
+            js = cdr.decode(msg.data, cdr.JOINT_STATE)
+        except cdr.LinkDecodeError:
+            continue
+        names = tuple(str(n) for n in js.name)
+        want = arm_names if arm else wrist_names
+        if set(names) != set(want) or len(js.position) != len(names):
+            continue
+        pos = dict(zip(names, np.asarray(js.position, dtype=float), strict=True))
+        (at if arm else wt).append(msg.log_time_ns * 1e-9)
+        (aq if arm else wq).append(np.array([pos[n] for n in want]))
     if len(wt) < 2:
         raise RecordingError(f"recording {p} holds fewer than two wrist joint states "
                              f"({'/'.join(wrist_names)}); nothing to replay")

@@ -66,6 +66,7 @@ def screenshot(url: str, width: int = 1280, height: int = 800, timeout_s: float 
         browser = p.chromium.launch(executable_path=exe, args=list(CHROMIUM_ARGS))
         try:
             page = browser.new_page(viewport={"width": width, "height": height})
+            page.set_default_timeout(timeout_s * 1000.0)  # every call, not playwright's 30 s
             page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
             page.on("pageerror", lambda e: errors.append(f"uncaught: {e}"))
             t0 = time.monotonic()

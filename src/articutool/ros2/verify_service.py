@@ -1,0 +1,159 @@
+"""Plan-then-verify as a ROS 2 service: ``VerifyTrajectory`` requests → the verifier → replies.
+
+:func:`answer` takes a request (any object with the ``VerifyTrajectory`` request's fields: an
+rclpy message or a test's stand-in) and returns the reply's fields as a dict; it never
+raises for a bad request. A request that cannot be verified as given — no points, unknown or
+missing arm joints, a NaN, times that do not increase, an unknown utensil, a step or wrist
+start out of range, a negative or non-finite load — is answered ``feasible=false``,
+``reason="bad_request"`` and a message naming the field, never assumed feasible.
+
+The verifier is :func:`articutool.verify.verify_trajectory` (dense sampling, arm position and
+velocity limits, leveling solutions, jumps, Eq. 4.7 rates). The load fields are read and
+checked; the food-aware verification that would judge them is not part of this build, so a
+request with a load is verified for the wrist and answered ``spill_checked=false`` with the
+message saying the load was not judged.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from typing import Any
+
+import numpy as np
+
+from articutool.trajectory import JointTrajectory, TrajectoryError
+
+__all__ = ["BadRequestError", "Verifier", "trajectory_from_ros"]
+
+
+class BadRequestError(ValueError):
+    """A request field that cannot be verified; the message names the field."""
+
+
+def _duration(d: Any) -> float:
+    return float(d.sec) + float(d.nanosec) * 1e-9
+
+
+def trajectory_from_ros(msg: Any, field: str = "trajectory") -> JointTrajectory:
+    """A ``trajectory_msgs/JointTrajectory`` (any object with its fields) → JointTrajectory.
+
+    Empty velocities become zeros. Raises :class:`BadRequestError` naming the field.
+    """
+    names = [str(n) for n in msg.joint_names]
+    points = list(msg.points)
+    if not points:
+        raise BadRequestError(f"{field}.points is empty: there is nothing to verify")
+    if not names:
+        raise BadRequestError(f"{field}.joint_names is empty")
+    n = len(names)
+    t, q, v = [], [], []
+    for i, p in enumerate(points):
+        pos = np.asarray(p.positions, dtype=np.float64)
+        vel = np.asarray(p.velocities, dtype=np.float64)
+        if pos.size != n:
+            raise BadRequestError(f"{field}.points[{i}].positions has {pos.size} values for "
+                             f"{n} joints")
+        if vel.size == 0:
+            vel = np.zeros(n)
+        elif vel.size != n:
+            raise BadRequestError(f"{field}.points[{i}].velocities has {vel.size} values for "
+                             f"{n} joints (give {n} or none)")
+        if not (np.isfinite(pos).all() and np.isfinite(vel).all()):
+            raise BadRequestError(f"{field}.points[{i}] holds a NaN or infinite value")
+        t.append(_duration(p.time_from_start))
+        q.append(pos)
+        v.append(vel)
+    try:
+        return JointTrajectory(tuple(names), np.array(t), np.array(q), np.array(v))
+    except TrajectoryError as err:
+        raise BadRequestError(f"{field}: {err}") from None
+
+
+class Verifier:
+    """Answers ``VerifyTrajectory`` requests with one spec; arm models are built once per
+    utensil (a Pinocchio model takes ~0.1 s) and shared by the calls."""
+
+    def __init__(self, spec: Any, default_utensil: str, wrist_joint_names: tuple[str, str]):
+        self.spec = spec
+        if default_utensil not in spec.utensils:
+            raise ValueError(f"utensil must be one of {sorted(spec.utensils)}; got "
+                             f"{default_utensil!r}")
+        self.default_utensil = default_utensil
+        self.wrist_joint_names = tuple(wrist_joint_names)
+        self._models: dict[str, Any] = {}
+        self._lock = threading.Lock()
+
+    def _model(self, utensil: str) -> Any:
+        from articutool.arm.model import ArmModel
+        with self._lock:
+            if utensil not in self._models:
+                self._models[utensil] = ArmModel(self.spec, utensil=utensil)
+            return self._models[utensil]
+
+    def _checked(self, req: Any, current_wrist: tuple[float, float] | None
+                 ) -> tuple[JointTrajectory, str, float, np.ndarray, str, float]:
+        utensil = str(req.utensil) or self.default_utensil
+        if utensil not in self.spec.utensils:
+            raise BadRequestError(f"utensil must be one of {sorted(self.spec.utensils)} (or empty "
+                             f"for {self.default_utensil!r}); got {utensil!r}")
+        step = float(req.max_step_deg)
+        if step == 0.0:
+            step = 1.0
+        if not (math.isfinite(step) and 0.0 < step <= 45.0):
+            raise BadRequestError(f"max_step_deg must be in (0, 45] degrees (0 for 1); got {step}")
+        start = np.asarray(req.wrist_start, dtype=np.float64)
+        if start.size == 0:
+            start = np.asarray(current_wrist if current_wrist is not None else (0.0, 0.0))
+        if start.shape != (2,) or not np.isfinite(start).all():
+            raise BadRequestError(f"wrist_start must be empty or two finite angles [pitch, roll] "
+                             f"(rad); got {list(start)}")
+        food, load = str(req.food), float(req.load_g)
+        if not (math.isfinite(load) and load >= 0.0):
+            raise BadRequestError(f"load_g must be a finite mass >= 0 (g); got {load}")
+        if load > 0.0 and not food:
+            raise BadRequestError("food must name the load's food when load_g > 0")
+        traj = trajectory_from_ros(req.trajectory)
+        arm = self.spec.arm.joint_names
+        missing = [n for n in arm if n not in traj.joint_names]
+        extra = [n for n in traj.joint_names if n not in arm]
+        if missing or extra:
+            raise BadRequestError(f"trajectory.joint_names must be the arm's {len(arm)} joints "
+                             f"{list(arm)} in any order; missing {missing}, unknown {extra}")
+        return traj, utensil, step, start, food, load
+
+    def answer(self, req: Any, current_wrist: tuple[float, float] | None = None
+               ) -> dict[str, Any]:
+        """The reply's fields for ``req`` (``wrist_trajectory`` as a JointTrajectory or
+        None); ``current_wrist`` is the tool's position, the default wrist start."""
+        from articutool.verify.verifier import verify_trajectory
+        try:
+            traj, utensil, step, start, food, load = self._checked(req, current_wrist)
+            rep = verify_trajectory(traj, self._model(utensil), self.spec, max_step_deg=step,
+                                    q_wrist_start=start)
+        except (BadRequestError, TrajectoryError) as err:
+            return _refusal(str(err))
+        message = rep.message
+        if load > 0.0:
+            message += (f"; load not judged: {load:g} g of {food} (food-aware verification "
+                        "is not available in this build)")
+        wt = rep.wrist_trajectory
+        if wt is not None:
+            wt = JointTrajectory(self.wrist_joint_names, wt.times, wt.positions, wt.velocities)
+        return {
+            "feasible": bool(rep.feasible), "reason": rep.reason, "message": message,
+            "first_failure_time": (-1.0 if rep.first_failure_time is None
+                                   else float(rep.first_failure_time)),
+            "velocity_margin": float(rep.velocity_margin),
+            "max_required_velocity": [float(x) for x in rep.max_required_velocity],
+            "samples_checked": int(rep.samples_checked),
+            "wrist_trajectory": wt, "spill_checked": False,
+            "predicted_spill_g": math.nan,
+        }
+
+
+def _refusal(message: str) -> dict[str, Any]:
+    return {"feasible": False, "reason": "bad_request", "message": message,
+            "first_failure_time": -1.0, "velocity_margin": math.nan,
+            "max_required_velocity": [], "samples_checked": 0, "wrist_trajectory": None,
+            "spill_checked": False, "predicted_spill_g": math.nan}

@@ -1,0 +1,118 @@
+"""What the noodle world costs, and where: the scripted twirl (``sim/scenes.py: skewer``) in a
+bowl of ``--fill-g`` grams, with the CPU time (of this process) and MuJoCo's sleeping state
+recorded every half simulated second: how many strands are awake, the awake degrees of
+freedom, contacts. The real-time factor is simulated s ÷ CPU s.
+
+MuJoCo puts islands to sleep (trees joined by contacts or constraints), not single trees: a
+nest whose strands touch is one island, so it sleeps whole while nothing touches it and wakes
+whole when the fork does. The record shows how much of each phase the nest is awake.
+
+    nice .venv/bin/python studies/noodle_cost.py --fill-g 20 \
+        --out studies/results/noodle_cost_20g.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from articutool.sim.accounting import UTENSIL
+from articutool.sim.params import PhysicsParams
+from articutool.sim.scenes import skewer
+from articutool.sim.world import FeedingWorld
+
+
+def measure(fill_g: float, seed: int, turns: float | None) -> dict[str, Any]:
+    """One scripted acquisition in a bowl of ``fill_g``; its cost, phase by phase."""
+    d = PhysicsParams.load().model_dump()
+    d["foods"]["noodles"]["fill_g"] = fill_g
+    params = PhysicsParams.from_dict(d)
+    c0 = time.process_time()
+    w = FeedingWorld("noodles", seed=seed, params=params)
+    built = time.process_time() - c0
+    m = w.model
+    trees = np.array([m.body_treeid[m.body(f"{s}/0").id] for s in w.layout.food_strands])
+    samples: list[dict[str, Any]] = []
+    phases: dict[str, dict[str, Any]] = {}
+
+    def sample(world: FeedingWorld) -> None:
+        if round(world.time / world.dt) % 25:
+            return
+        dd = world.data
+        samples.append({"t": round(world.time, 2), "cpu_s": round(time.process_time() - c0, 2),
+                        "strands_awake": int(np.sum(dd.tree_asleep[trees] < 0)),
+                        "dofs_awake": int(dd.nv_awake), "contacts": int(dd.ncon)})
+
+    def phase(name: str) -> None:
+        phases[name] = {"t": round(w.time, 2), "cpu_s": round(time.process_time() - c0, 1),
+                        "strands_on_fork": int(np.sum(w.item_classes() == UTENSIL))}
+
+    w.on_tick.append(sample)
+    t_start, c_start = w.time, time.process_time()
+    skewer(w, level=True, twirl_turns=turns, on_phase=phase)
+    cpu = time.process_time() - c_start
+    awake = [s for s in samples if s["strands_awake"]]
+    return {"fill_g": fill_g, "seed": seed, "strands": len(w.layout.food_strands),
+            "segments": w.layout.strand_segments, "bodies": int(m.nbody), "dofs": int(m.nv),
+            "build_and_settle_cpu_s": round(built, 1),
+            "script_sim_s": round(w.time - t_start, 2), "script_cpu_s": round(cpu, 1),
+            "realtime_factor": round((w.time - t_start) / cpu, 4),
+            "awake_share_of_time": round(len(awake) / max(len(samples), 1), 3),
+            "lifted_g": round(w.masses_g()["utensil"], 2), "phases": phases,
+            "warnings": {n: int(w.data.warning[int(x)].number)
+                         for n, x in mujoco.mjtWarning.__members__.items()
+                         if w.data.warning[int(x)].number},
+            "loadavg": os.getloadavg(), "samples": samples}
+
+
+def awake_cost(fill_g: float, seed: int, seconds: float) -> dict[str, Any]:
+    """The bowl of ``fill_g`` built and settled, then ``seconds`` with sleeping off (the whole
+    nest awake, as while the fork stirs it): CPU per simulated second."""
+    d = PhysicsParams.load().model_dump()
+    d["foods"]["noodles"]["fill_g"] = fill_g
+    c0 = time.process_time()
+    w = FeedingWorld("noodles", seed=seed, params=PhysicsParams.from_dict(d))
+    built = time.process_time() - c0
+    w.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    c1 = time.process_time()
+    w.run(seconds)
+    cpu = time.process_time() - c1
+    return {"fill_g": fill_g, "seed": seed, "strands": len(w.layout.food_strands),
+            "bodies": int(w.model.nbody), "dofs": int(w.model.nv),
+            "build_and_settle_cpu_s": round(built, 1), "awake_sim_s": seconds,
+            "awake_cpu_s": round(cpu, 1), "awake_realtime_factor": round(seconds / cpu, 4),
+            "contacts": int(w.data.ncon), "loadavg": os.getloadavg()}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--fill-g", type=float, default=20.0)
+    ap.add_argument("--seed", type=int, default=6000)
+    ap.add_argument("--turns", type=float, default=None)
+    ap.add_argument("--out", default=None)
+    ap.add_argument("--awake-s", type=float, default=None,
+                    help="instead of the script: this many seconds with the nest kept awake")
+    args = ap.parse_args(argv)
+    if not 0 < args.fill_g <= 250:
+        ap.error(f"--fill-g must be in (0, 250] g; got {args.fill_g}")
+    rec = (measure(args.fill_g, args.seed, args.turns) if args.awake_s is None
+           else awake_cost(args.fill_g, args.seed, args.awake_s))
+    text = json.dumps({"command": "studies/noodle_cost.py " + " ".join(
+        sys.argv[1:] if argv is None else argv), "mujoco": mujoco.__version__, **rec}, indent=1)
+    if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(text + "\n")
+    print(json.dumps({k: v for k, v in rec.items() if k != "samples"}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,39 @@
+"""The report's cross-checks: the water's static-tilt table and the slosh model's per-trial
+comparison, read from their JSON files in the results directory, "not yet measured" when a
+file is missing."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from articutool.experiments.report import cross_checks
+
+
+def test_missing_cross_checks_say_not_yet_measured_with_the_command(tmp_path: Path) -> None:
+    md = cross_checks(tmp_path)
+    assert md.count("Not yet measured") == 2
+    assert f"articutool sim-calibrate --food water --json > {tmp_path}" in md
+    assert "studies/transport_spill.py --out" in md
+
+
+def test_the_static_tilt_table_and_the_slosh_rows_are_read_from_their_files(
+        tmp_path: Path) -> None:
+    rows = [{"tilt_cmd_deg": 12.0, "tilt_deg": 12.1, "spilled_g": 0.4, "hydrostatic_g": 0.9}]
+    (tmp_path / "static_tilt_water.json").write_text(json.dumps({"static_tilt": {
+        "load_g": 8.0, "utensil": "soup_spoon", "hold_s": 3.0, "rate_rad_s": 0.15,
+        "tip": {"kept_g": 7.9, "rows": rows, "onset_deg": 12.1,
+                "hydrostatic_onset_deg": 10.5}}}))
+    (tmp_path / "slosh_crosscheck.json").write_text(json.dumps({"load_g": 8.0, "trials": [
+        {"goal": "centre", "condition": "locked", "scale": 1.0, "seed": 9700000,
+         "max_tilt_deg": 17.8, "predicted_spill_g": 2.78, "simulated_spill_g": 0.42}]}))
+    md = cross_checks(tmp_path)
+    assert "Not yet measured" not in md
+    assert "| 12.1 | 0.40 | 0.90 |" in md and "onset 12.1° in the world, 10.5°" in md
+    assert "| centre | locked | 1.00 | 9700000 | 17.8 | 2.78 | 0.42 |" in md
+
+
+def test_an_unreadable_cross_check_is_said_not_raised(tmp_path: Path) -> None:
+    (tmp_path / "slosh_crosscheck.json").write_text("{not json")
+    md = cross_checks(tmp_path)
+    assert "could not be read" in md

@@ -1,0 +1,113 @@
+"""The noodle model's mechanisms, each alone against its physical law (``articutool
+sim-calibrate --food noodles``): capstan, bending, tack, mass and diameter."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+pytest.importorskip("mujoco")
+
+from articutool.sim import strand_laws as sl
+from articutool.sim.params import PhysicsParams
+from articutool.spec import load_spec
+
+PARAMS = PhysicsParams.load()
+FOOD = PARAMS.food("noodles")
+
+
+def _fork_bar() -> float:
+    ph = load_spec().utensil("fork").physics
+    assert ph.tines and ph.tine_pitch and ph.tine_radius
+    return ((ph.tines - 1) * ph.tine_pitch + 2 * ph.tine_radius) / 2
+
+
+@settings(max_examples=10, deadline=None)
+@given(ei=st.floats(1e-7, 1e-4), q=st.floats(1e-3, 1.0), length=st.floats(0.005, 0.1))
+def test_the_elastica_tends_to_the_small_deflection_cantilever(ei: float, q: float,
+                                                                length: float) -> None:
+    if q * length**3 / ei > 50:
+        with pytest.raises(ValueError, match="q·L³"):
+            sl.cantilever_tip_deflection(ei, q, length)
+        return
+    small = q * length**4 / (8 * ei)
+    law = sl.cantilever_tip_deflection(ei, q, length)
+    assert 0 < law <= small * (1 + 1e-6)  # a large deflection falls less than the linear one
+    if small < 1e-3 * length:
+        assert law == pytest.approx(small, rel=2e-3)
+
+
+def test_the_elastica_never_falls_further_than_its_length() -> None:
+    assert sl.cantilever_tip_deflection(1.2e-6, 0.08, 0.09) < 0.09
+
+
+def test_the_strand_weighs_and_measures_a_cooked_strand() -> None:
+    assert FOOD.piece_mass * 1e3 == pytest.approx(sl.COOKED_STRAND_G, rel=sl.MASS_TOL)
+    assert sl.COOKED_DIAMETER_MM[0] <= 2e3 * FOOD.strand_radius <= sl.COOKED_DIAMETER_MM[1]
+
+
+def test_tack_per_contact_is_stickiness_times_band_over_two_points_a_segment() -> None:
+    assert FOOD.tack_per_length == pytest.approx(FOOD.stickiness_pa * FOOD.tack_width)
+    assert FOOD.tack_per_contact == pytest.approx(FOOD.tack_per_length
+                                                  * FOOD.segment_length / 2)
+    lo, hi = sl.STICKINESS_PA
+    assert lo <= FOOD.stickiness_pa <= hi
+
+
+def test_tack_on_the_forks_steel_pulls_off_at_the_cited_stickiness() -> None:
+    t = sl.tack_test(FOOD, PARAMS, "fork")
+    assert t["contacts_at_rest"] == 2 * 4  # two contact points a segment lying flat
+    assert abs(t["error"]) <= sl.TACK_TOL
+
+
+def test_a_cantilevered_strand_bends_as_the_elastica_of_its_modulus() -> None:
+    for k in (3, 5, 8):
+        b = sl.cantilever_test(FOOD, PARAMS, k)
+        assert abs(b["error"]) <= sl.BENDING_TOL, b
+
+
+def test_a_frictionless_bar_holds_no_load_ratio() -> None:
+    bar = _fork_bar()
+    r = sl.capstan_hold_ratio(FOOD, PARAMS, bar, sl._fork_attrs(FOOD, False, frictionless=True),
+                              0.05, hi=2.0, rel_tol=0.02)
+    assert r["effective"]["mu"] < 1e-3 and r["unstable_trials"] == 0
+    assert 0 < r["hold_ratio"] <= sl.FRICTIONLESS_MAX
+
+
+@pytest.mark.slow
+def test_a_strand_on_a_fork_wide_bar_holds_the_capstan_ratio() -> None:
+    bar = _fork_bar()
+    ei = FOOD.young * math.pi * FOOD.strand_radius**4 / 4
+    rc = bar + FOOD.strand_radius
+    hang = FOOD.piece_mass / FOOD.strand_length * sl.GRAVITY * (FOOD.strand_length
+                                                                 - math.pi * rc) / 2
+    r = sl.capstan_hold_ratio(FOOD, PARAMS, bar, sl._fork_attrs(FOOD, tack=False),
+                              10 * ei / rc**2 - hang)
+    assert r["effective"]["mu"] == pytest.approx(FOOD.friction[0])
+    assert r["law_e_mu_pi"] == pytest.approx(math.exp(FOOD.friction[0] * math.pi), rel=1e-3)
+    assert abs(r["hold_ratio"] / r["law_e_mu_pi"] - 1) <= sl.CAPSTAN_TOL
+
+
+@pytest.mark.slow
+def test_sim_calibrate_noodles_reports_every_law_and_they_pass() -> None:
+    r = subprocess.run([sys.executable, "-m", "articutool", "sim-calibrate", "--food", "noodles",
+                        "--json"], capture_output=True, text=True, timeout=1800)
+    assert r.returncode == 0, r.stderr
+    cal = json.loads(r.stdout)
+    for key in ("strand", "capstan_bar", "capstan_bar_frictionless", "capstan_tine",
+                "capstan_tine_frictionless", "cantilever", "tack"):
+        assert key in cal
+    assert cal["all_pass"] is True
+
+
+def test_sim_calibrate_strands_with_a_spoon_exits_2_naming_the_field() -> None:
+    r = subprocess.run([sys.executable, "-m", "articutool", "sim-calibrate", "--food", "noodles",
+                        "--utensil", "spoon"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2
+    assert "--utensil" in r.stderr and "Traceback" not in r.stderr
