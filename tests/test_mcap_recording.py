@@ -314,7 +314,7 @@ def test_an_experiment_trials_recording_holds_its_feeding_tree(tmp_path: Path) -
     assert p.returncode == 0, p.stderr[-2000:]
     replay = json.loads(p.stdout)
     rec = replay["record"]
-    for k in ("completed", "held_g", "delivered_g", "spilled_g", "shed_g", "masses_after_g"):
+    for k in ("completed", "held_g", "delivered_g", "spilled_g", "masses_after_g"):
         assert rec[k] == logged[k], (k, replay["replay"])
     with path.open("rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])

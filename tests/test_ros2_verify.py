@@ -114,10 +114,25 @@ def test_bad_requests_are_refused_naming_the_field(verifier: Verifier) -> None:
     assert "food" in _bad(verifier, food="", load_g=5.0)
 
 
-def test_a_load_is_read_and_said_unjudged(verifier: Verifier) -> None:
-    out = verifier.answer(_req(_example("transport_feasible.json"), food="water", load_g=8.0))
-    assert out["feasible"] and not out["spill_checked"] and math.isnan(out["predicted_spill_g"])
-    assert "load not judged: 8 g of water" in out["message"]
+def test_a_load_is_judged_as_the_verify_cli_judges_it(verifier: Verifier, spec: Any) -> None:
+    from articutool.arm.model import ArmModel
+    from articutool.food.loads import food_load
+    from articutool.sim.params import PhysicsParams
+    from articutool.trajectory import JointTrajectory
+    from articutool.verify.verifier import verify_trajectory
+
+    out = verifier.answer(_req(_example("transport_feasible.json"), food="water", load_g=8.0,
+                               utensil="soup_spoon"))
+    load = food_load("water", 8.0, PhysicsParams.load().food("water"))
+    rep = verify_trajectory(JointTrajectory.load(EXAMPLES / "transport_feasible.json"),
+                            ArmModel(spec, "soup_spoon"), spec, utensil="soup_spoon",
+                            load=load)
+    assert out["spill_checked"] and rep.food is not None
+    assert out["predicted_spill_g"] == rep.food.prediction.spilled_g
+    assert out["feasible"] == rep.feasible and out["reason"] == rep.reason
+    # A load the model cannot judge is refused naming the field, never verified without it.
+    assert "food" in _bad(verifier, food="soup", load_g=5.0)
+    assert "16.79" in _bad(verifier, food="water", load_g=30.0, utensil="soup_spoon")
 
 
 # ------------------------------------------------------------ two processes --

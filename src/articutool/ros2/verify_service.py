@@ -7,11 +7,13 @@ missing arm joints, a NaN, times that do not increase, an unknown utensil, a ste
 start out of range, a negative or non-finite load — is answered ``feasible=false``,
 ``reason="bad_request"`` and a message naming the field, never assumed feasible.
 
-The verifier is :func:`articutool.verify.verify_trajectory` (dense sampling, arm position and
-velocity limits, leveling solutions, jumps, Eq. 4.7 rates). The load fields are read and
-checked; the food-aware verification that would judge them is not part of this build, so a
-request with a load is verified for the wrist and answered ``spill_checked=false`` with the
-message saying the load was not judged.
+The verifier is :func:`articutool.verify.verifier.verify_trajectory` (dense sampling, arm
+position and velocity limits, leveling solutions, jumps, Eq. 4.7 rates). With a load
+(``food`` and ``load_g`` > 0) it also predicts what the load spills along the executed motion
+(the leveling wrist's trajectory it computed; :mod:`articutool.verify.food`): a transport
+predicted to spill is answered ``feasible=false``, ``reason="spill"``, with
+``spill_checked=true`` and ``predicted_spill_g``; a load the model cannot judge (an unknown
+food, more than the utensil holds) is a bad request naming the field.
 """
 
 from __future__ import annotations
@@ -29,6 +31,19 @@ __all__ = ["BadRequestError", "Verifier", "trajectory_from_ros"]
 
 class BadRequestError(ValueError):
     """A request field that cannot be verified; the message names the field."""
+
+
+def food_load(food: str, grams: float) -> Any:
+    """The request's load as the verifier models it, with the packaged food parameters
+    (:class:`~articutool.food.loads.LoadError` naming ``food`` for an unknown one)."""
+    from articutool.food.loads import LoadError
+    from articutool.food.loads import food_load as make_load
+    from articutool.sim.params import PhysicsParams
+
+    params = PhysicsParams.load()
+    if food not in params.foods:
+        raise LoadError(f"food must be one of {sorted(params.foods)}; got {food!r}")
+    return make_load(food, grams, params.food(food))
 
 
 def _duration(d: Any) -> float:
@@ -113,6 +128,8 @@ class Verifier:
             raise BadRequestError(f"load_g must be a finite mass >= 0 (g); got {load}")
         if load > 0.0 and not food:
             raise BadRequestError("food must name the load's food when load_g > 0")
+        if load > 0.0:
+            food_load(food, load)  # an unknown food is refused before any verification
         traj = trajectory_from_ros(req.trajectory)
         arm = self.spec.arm.joint_names
         missing = [n for n in arm if n not in traj.joint_names]
@@ -126,17 +143,17 @@ class Verifier:
                ) -> dict[str, Any]:
         """The reply's fields for ``req`` (``wrist_trajectory`` as a JointTrajectory or
         None); ``current_wrist`` is the tool's position, the default wrist start."""
+        from articutool.food.loads import LoadError
         from articutool.verify.verifier import verify_trajectory
         try:
             traj, utensil, step, start, food, load = self._checked(req, current_wrist)
             rep = verify_trajectory(traj, self._model(utensil), self.spec, max_step_deg=step,
-                                    q_wrist_start=start)
-        except (BadRequestError, TrajectoryError) as err:
+                                    q_wrist_start=start, utensil=utensil,
+                                    load=food_load(food, load) if load > 0.0 else None)
+        except (BadRequestError, TrajectoryError, LoadError) as err:
             return _refusal(str(err))
         message = rep.message
-        if load > 0.0:
-            message += (f"; load not judged: {load:g} g of {food} (food-aware verification "
-                        "is not available in this build)")
+        checked = rep.food is not None
         wt = rep.wrist_trajectory
         if wt is not None:
             wt = JointTrajectory(self.wrist_joint_names, wt.times, wt.positions, wt.velocities)
@@ -147,8 +164,9 @@ class Verifier:
             "velocity_margin": float(rep.velocity_margin),
             "max_required_velocity": [float(x) for x in rep.max_required_velocity],
             "samples_checked": int(rep.samples_checked),
-            "wrist_trajectory": wt, "spill_checked": False,
-            "predicted_spill_g": math.nan,
+            "wrist_trajectory": wt, "spill_checked": checked,
+            "predicted_spill_g": (float(rep.food.prediction.spilled_g) if checked
+                                  else math.nan),
         }
 
 

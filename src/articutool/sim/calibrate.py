@@ -36,15 +36,16 @@ import numpy as np
 from articutool.arm.scene import Cylinder, Scene
 from articutool.food.dish import spoon_dish
 from articutool.food.hydrostatics import SIDE, TIP, Hydrostatics, up_vector
+from articutool.sim.loading import max_load_g
 from articutool.sim.mjcf import contact_attrs
 from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
 from articutool.sim.pieces import draw_piece, footprint, pack_layer
 from articutool.sim.world import FeedingWorld, utensil_capacity_bound_g
-from articutool.spec import Spec, UtensilSpec
+from articutool.spec import Spec
 from articutool.tool.api import Mode
 
 __all__ = ["ONSET_G", "TILT_HOLD_S", "TILT_RATE", "TILT_STEPS_DEG", "angle_of_repose_deg",
-           "level_capacity_g", "max_liquid_load_g", "run_calibration", "static_tilt"]
+           "level_capacity_g", "run_calibration", "static_tilt"]
 
 # The static-tilt protocol (numerical choices of the test, not of the model): 1° steps where
 # the onsets lie, coarser beyond; the wrist turns at ≤ 0.15 rad/s (quasi-static: the liquid's
@@ -222,14 +223,6 @@ def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
     return out
 
 
-def max_liquid_load_g(food: Liquid, u: UtensilSpec) -> float:
-    """The most a liquid load may weigh on utensil ``u`` (g): what its level dish holds
-    (hydrostatics) — more cannot be placed on it as a load."""
-    if u.physics.kind != "spoon":
-        return 0.0
-    return float(Hydrostatics(spoon_dish(u)).level_capacity * food.density * 1000.0)
-
-
 def _tilt_for_spill(h: Hydrostatics, volume: float, direction: float, grams: float,
                     density: float) -> float:
     """The tilt (deg) at which the ideal liquid of ``volume`` has lost ``grams``."""
@@ -254,9 +247,9 @@ def static_tilt(food_name: str, spec: Spec, params: PhysicsParams, utensil: str 
                          f"{food.kind}")
     uname = utensil or food.utensil
     u = spec.utensil(uname)
-    hi = max_liquid_load_g(food, u)
+    hi = max_load_g(u, "liquid", food.density)
     if not (math.isfinite(load_g) and 0 < load_g <= hi):
-        raise ValueError(f"load_g must be in (0, {hi:.1f}] g (what the level {uname} holds); "
+        raise ValueError(f"load_g must be in (0, {hi:.2f}] g (what the level {uname} holds); "
                          f"got {load_g}")
     h = Hydrostatics(spoon_dish(u))
     out: dict = {"load_g": load_g, "utensil": uname, "steps_deg": list(steps_deg),

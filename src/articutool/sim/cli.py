@@ -176,20 +176,20 @@ def _check_twirl(args: argparse.Namespace, kw: dict) -> None:
 
 
 def _liquid_load(args: argparse.Namespace, kw: dict, default: float | None) -> float | None:
-    """``--load`` of a liquid: a mass the level utensil holds (hydrostatics), else exit 2."""
+    """``--load`` of a liquid: a mass the level utensil holds, else exit 2."""
     from articutool.cli_support import UsageError
-    from articutool.sim.calibrate import max_liquid_load_g
     from articutool.sim.params import Liquid
+    from articutool.sim.world import capacity_bound_reason, utensil_capacity_bound_g
 
     food = kw["params"].food(args.food)
     load = args.load if args.load is not None else default
     if load is None or not isinstance(food, Liquid):
         return load
-    utensil = args.utensil or food.utensil
-    hi = max_liquid_load_g(food, kw["spec"].utensil(utensil))
-    if not (math.isfinite(load) and 0 < load <= hi):
-        raise UsageError(f"--load must be a mass in (0, {hi:.1f}] g (what the level {utensil} "
-                         f"holds of {args.food}); got {load}")
+    most = utensil_capacity_bound_g(kw["spec"], kw["params"], args.food, args.utensil)
+    if not (math.isfinite(load) and 0 < load <= most):
+        raise UsageError(f"--load must be a mass in (0, {most:.2f}] g, the most the "
+                         f"{args.utensil or food.utensil} can hold of {args.food} "
+                         f"({capacity_bound_reason(food)}); got {load}")
     return load
 
 
