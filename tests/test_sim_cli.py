@@ -145,3 +145,7 @@ def test_sim_mjcf_never_overwrites_nor_writes_through_a_link(tmp_path: Path) -> 
     assert_refused(run_cli("sim", "--mjcf", str(link)), "--mjcf")
     assert not (tmp_path / "elsewhere.xml").exists()
     assert_refused(run_cli("sim", "--mjcf", str(tmp_path / "world.txt")), "--mjcf", ".xml")
+    # A load the utensil cannot hold is refused as `sim` refuses it, and nothing is written.
+    assert_refused(run_cli("sim", "--food", "pecans", "--load", "300", "--mjcf",
+                           str(tmp_path / "heap.xml")), "--load")
+    assert not (tmp_path / "heap.xml").exists()
