@@ -102,3 +102,50 @@ def test_a_small_pile_test_pours_a_heap_over_the_plate() -> None:
     assert r["angle_deg"] == pytest.approx(
         math.degrees(math.atan2(r["height_mm"] / 1e3, PLATE_RADIUS_M)))
     assert 5.0 < r["angle_deg"] < 60.0
+
+
+def test_sim_mjcf_writes_the_world_mujoco_reads_back_exactly(tmp_path: Path) -> None:
+    # The file is the world's model to the last bit (plus the keyframe 'start'), and its
+    # keyframe holds the arm at Resting.
+    import mujoco
+
+    from articutool.arm.scene import Scene
+    from articutool.sim.mjcf import build_mjcf
+    from articutool.sim.params import PhysicsParams
+    from articutool.spec import load_spec
+
+    out = tmp_path / "world.xml"
+    proc = run_cli("sim", "--food", "water", "--seed", "2", "--mjcf", str(out))
+    assert proc.returncode == 0, proc.stderr
+    assert "mujoco.viewer" in proc.stdout
+    m = mujoco.MjModel.from_xml_path(str(out))
+    spec = load_spec()
+    ref = build_mjcf(spec, Scene.load(), PhysicsParams.load(), "soup_spoon", "water", 2)
+    r = ref.spec.compile()
+    for field in ("body_pos", "body_quat", "body_mass", "geom_size", "geom_pos", "geom_quat",
+                  "geom_friction", "geom_solref", "geom_priority", "pair_friction",
+                  "jnt_range", "actuator_gainprm"):
+        assert np.array_equal(getattr(m, field), getattr(r, field)), field
+    assert m.opt.timestep == r.opt.timestep and m.nkey == 1 and r.nkey == 0
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, m.key("start").id)
+    q = spec.arm.configuration("Resting")
+    assert np.array_equal(d.qpos[:6], q)
+
+
+def test_sim_mjcf_never_overwrites_nor_writes_through_a_link(tmp_path: Path) -> None:
+    from conftest import assert_refused
+
+    kept = tmp_path / "mine.xml"
+    kept.write_text("<mujoco/>")
+    assert_refused(run_cli("sim", "--mjcf", str(kept)), "--mjcf", "exists")
+    assert kept.read_text() == "<mujoco/>"
+    link = tmp_path / "link.xml"
+    link.symlink_to(tmp_path / "elsewhere.xml")  # dangling: writing through it would create it
+    assert_refused(run_cli("sim", "--mjcf", str(link)), "--mjcf")
+    assert not (tmp_path / "elsewhere.xml").exists()
+    assert_refused(run_cli("sim", "--mjcf", str(tmp_path / "world.txt")), "--mjcf", ".xml")
+    # A load the utensil cannot hold is refused as `sim` refuses it, and nothing is written.
+    assert_refused(run_cli("sim", "--food", "pecans", "--load", "300", "--mjcf",
+                           str(tmp_path / "heap.xml")), "--load")
+    assert not (tmp_path / "heap.xml").exists()

@@ -1,67 +1,66 @@
-"""Kinova Jaco 2 (j2n6s200) + Articutool models built with Pinocchio from the hardware spec.
+"""Kinova Jaco 2 (j2n6s200) + Articutool models in Pinocchio, loaded from the robot's one
+description (:mod:`articutool.arm.description`: its MJCF, ``pinocchio.buildModelFromMJCF``).
 
-Kinematics (docs/hardware.md §1, §3):
+The chain, the frames (``atool_base`` = F0, ``utensil`` = the utensil mount, the tip frames
+``atool_tip_<name>``, whose y axis is the up vector of Eq. 4.1) and the collision capsules
+are the description's (docs/hardware.md §1, §3). ``dof=8`` gives q = [j1..j6, pitch, roll];
+``dof=6`` locks the wrist at zero (rigid tool). The planning model's roll range is
+``spec.wrist.roll_limits`` (one turn), not the motor's turn budget the description gives the
+joint; velocities are the spec's.
 
-* Jaco chain: for each joint of ``spec.arm.joints`` the placement ``SE3(rpy, xyz)`` in the
-  parent frame (URDF fixed-axis roll-pitch-yaw) followed by a revolute joint about local z;
-  the fixed end-effector frame ``spec.arm.ee_frame`` is ``SE3(ee_rpy, ee_xyz)`` on joint 6.
-  Continuous joints are plain revolute joints limited to the spec's ±2π.
-* Articutool: the tool base frame F0 (``atool_base``) is fixed to the end effector by
-  ``mount_xyz/mount_rpy``. The pitch joint turns about F0's −y axis through (0, 0, pitch_z),
-  the roll joint about +z, roll_dz further along z; the utensil mount is utensil_mount_dz
-  further. Each utensil's tip frame ``atool_tip_<name>`` sits at (tip_x, 0, mount + tip_z) in
-  the roll link, rotated by Rz(−π/2), so that its orientation in F0 is
-  ``R_y(−θp) R_z(θr) R_z(−π/2)`` = ``articutool.tool.kinematics.rotation`` and its y axis is
-  the up vector of Eq. 4.1.
-
-``dof=8`` gives q = [j1..j6, pitch, roll]; ``dof=6`` locks the wrist at zero (rigid tool).
-
-Collision: capsules (radii from ``spec.collision``) for the Jaco links, the wrist housing,
-the distal wrist link and the utensil, a cylinder for the arm base, checked by coal against
-each other (pairs at most one body apart along the chain, and ``spec.collision.excluded_pairs``,
-are skipped) and against every object of a :class:`~articutool.arm.scene.Scene`.
+Collision: the description's capsules (the selected utensil's: the planner's proxy from the
+mount to the tip) and base cylinder, checked by coal against each other (pairs at most one
+body apart along the chain, and ``spec.collision.excluded_pairs``, are skipped) and against
+every object of a :class:`~articutool.arm.scene.Scene`.
 
 An ``ArmModel`` owns one ``pinocchio.Data``: use one instance per thread.
 """
 
 from __future__ import annotations
 
+import tempfile
 from collections.abc import Sequence
+from pathlib import Path
 
 import coal
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
+from articutool.arm.description import (
+    TOOL_BASE_BODY,
+    UTENSIL_BODY,
+    exact_xml,
+    robot_spec,
+    tip_site_name,
+)
 from articutool.arm.scene import Scene
-from articutool.rotations import rpy_matrix
 from articutool.spec import Spec
 
-__all__ = ["DOFS", "TOOL_BASE_FRAME", "UTENSIL_MOUNT_FRAME", "ArmModel", "tip_frame_name"]
+__all__ = ["DOFS", "TOOL_BASE_FRAME", "UTENSIL_MOUNT_FRAME", "ArmModel", "load_robot",
+           "tip_frame_name"]
 
 DOFS = (6, 8)
-TOOL_BASE_FRAME = "atool_base"
-UTENSIL_MOUNT_FRAME = "atool_utensil_mount"
-_TIP_FRAME = "atool_tip_{}"
-_Z = np.array([0.0, 0.0, 1.0])
+TOOL_BASE_FRAME = TOOL_BASE_BODY
+UTENSIL_MOUNT_FRAME = UTENSIL_BODY  # the utensil body's origin is the utensil mount
 
 
 def tip_frame_name(utensil: str) -> str:
     """Name of the tip frame of ``utensil`` in the Pinocchio model."""
-    return _TIP_FRAME.format(utensil)
+    return tip_site_name(utensil)
 
 
-def _se3(xyz: Sequence[float], rpy: Sequence[float] = (0.0, 0.0, 0.0)) -> pin.SE3:
-    return pin.SE3(rpy_matrix(tuple(rpy)), np.asarray(xyz, dtype=float))
-
-
-def _segment(p0: ArrayLike, p1: ArrayLike) -> tuple[float, pin.SE3]:
-    """Length and placement of a z-axis primitive spanning p0 → p1 (its centre, z along it)."""
-    p0, p1 = np.asarray(p0, dtype=float), np.asarray(p1, dtype=float)
-    d = p1 - p0
-    length = float(np.linalg.norm(d))
-    R = pin.Quaternion.FromTwoVectors(_Z, d / length).matrix()
-    return length, pin.SE3(R, 0.5 * (p0 + p1))
+def load_robot(spec: Spec, utensil: str) -> tuple[pin.Model, pin.GeometryModel, dict[str, int]]:
+    """The 8-DOF Pinocchio model and collision geometry of the robot's description
+    (:func:`articutool.arm.description.robot_spec`) with ``utensil``, and each collision
+    geom's place along the chain. Pinocchio reads MJCF from a file: a temporary one."""
+    mj, chain = robot_spec(spec, utensil)
+    with tempfile.TemporaryDirectory(prefix="articutool-robot-") as d:
+        path = Path(d) / "robot.xml"
+        path.write_text(exact_xml(mj), encoding="utf-8")
+        model = pin.buildModelFromMJCF(str(path))
+        geoms = pin.buildGeomFromMJCF(model, str(path), pin.GeometryType.COLLISION)
+    return model, geoms, chain
 
 
 class ArmModel:
@@ -87,8 +86,19 @@ class ArmModel:
         self.dof = dof
         self.scene = scene if scene is not None else Scene.load()
 
-        full, geoms, segment = self._build_full()
-        wrist_ids = [full.getJointId(n) for n in spec.wrist.joint_names]
+        arm, w = spec.arm, spec.wrist
+        lo8 = np.concatenate([arm.lower, [w.pitch_limits[0], w.roll_limits[0]]])
+        hi8 = np.concatenate([arm.upper, [w.pitch_limits[1], w.roll_limits[1]]])
+        vel8 = np.concatenate([arm.max_velocity, w.velocity_limits])
+        full, geoms, segment = load_robot(spec, utensil)
+        full.lowerPositionLimit, full.upperPositionLimit = lo8, hi8
+        # Pinocchio keeps speed limits as magnitudes, the lower one too.
+        full.velocityLimit = full.lowerVelocityLimit = full.upperVelocityLimit = vel8
+        for o in self.scene.objects:
+            geoms.addGeometryObject(pin.GeometryObject(f"scene/{o.name}", 0, 0, pin.SE3(o.pose),
+                                                       o.geometry()))
+            segment[f"scene/{o.name}"] = -1
+        wrist_ids = [full.getJointId(n) for n in w.joint_names]
         if dof == 6:
             model, gmodel = pin.buildReducedModel(full, geoms, wrist_ids, pin.neutral(full))
         else:
@@ -113,103 +123,23 @@ class ArmModel:
 
         self.nq: int = model.nq
         self.joint_names: list[str] = list(model.names)[1:]
-        arm, w = spec.arm, spec.wrist
-        lo, hi, vel = arm.lower, arm.upper, arm.max_velocity
-        if dof == 8:
-            lo = np.concatenate([lo, [w.pitch_limits[0], w.roll_limits[0]]])
-            hi = np.concatenate([hi, [w.pitch_limits[1], w.roll_limits[1]]])
-            vel = np.concatenate([vel, w.velocity_limits])
-        self.lower: NDArray[np.float64] = lo
-        self.upper: NDArray[np.float64] = hi
-        self.velocity_limits: NDArray[np.float64] = vel
+        self.lower: NDArray[np.float64] = lo8[:dof]
+        self.upper: NDArray[np.float64] = hi8[:dof]
+        self.velocity_limits: NDArray[np.float64] = vel8[:dof]
 
         self._frames = {
             "ee": model.getFrameId(arm.ee_frame),
             "tool_base": model.getFrameId(TOOL_BASE_FRAME),
             "tip": model.getFrameId(tip_frame_name(utensil)),
         }
-        # Fixed rotations of the vectorised F0 chain (docs/hardware.md §1, §3).
-        self._joint_rot = np.stack([rpy_matrix(j.rpy) for j in arm.joints])
-        self._joint_xyz = np.array([j.xyz for j in arm.joints])
-        self._f0_in_link6 = rpy_matrix(arm.ee_rpy) @ rpy_matrix(w.mount_rpy)
-        self._f0_xyz_in_link6 = (np.asarray(arm.ee_xyz)
-                                 + rpy_matrix(arm.ee_rpy) @ np.asarray(w.mount_xyz))
-
-    # ------------------------------------------------------------------ building --
-    def _build_full(self) -> tuple[pin.Model, pin.GeometryModel, dict[str, int]]:
-        """The 8-DOF model, its collision geometry and each body's index along the chain."""
-        spec, arm, w, col = self.spec, self.spec.arm, self.spec.wrist, self.spec.collision
-        m = pin.Model()
-        m.name = f"{arm.model}_articutool"
-        g = pin.GeometryModel()
-        segment: dict[str, int] = {}
-        body_frame = {0: 0}  # joint id → frame id of the body it moves
-
-        def add_joint(parent: int, jm: object, place: pin.SE3, name: str, body: str,
-                      effort: float, vmax: float, lo: float, hi: float) -> int:
-            jid = m.addJoint(parent, jm, place, name, np.array([effort]), np.array([vmax]),
-                             np.array([lo]), np.array([hi]))
-            m.appendBodyToJoint(jid, pin.Inertia.Zero(), pin.SE3.Identity())
-            jf = m.addJointFrame(jid, body_frame[parent])
-            body_frame[jid] = m.addBodyFrame(body, jid, pin.SE3.Identity(), jf)
-            return jid
-
-        def add_frame(name: str, joint: int, place: pin.SE3) -> None:
-            m.addFrame(pin.Frame(name, joint, body_frame[joint], place, pin.FrameType.OP_FRAME))
-
-        def add_geom(name: str, joint: int, place: pin.SE3, shape: object, seg: int) -> None:
-            # The parent frame must be given for buildReducedModel to re-parent the object.
-            g.addGeometryObject(pin.GeometryObject(name, joint, body_frame[joint], place, shape))
-            segment[name] = seg
-
-        m.addFrame(pin.Frame(arm.base_frame, 0, 0, pin.SE3.Identity(), pin.FrameType.FIXED_JOINT))
-        h0 = arm.joints[0].xyz[2]
-        add_geom(arm.base_frame, 0, pin.SE3(np.eye(3), np.array([0.0, 0.0, h0 / 2])),
-                 coal.Cylinder(col.base_radius, h0), 0)
-
-        ee = _se3(arm.ee_xyz, arm.ee_rpy)
-        jid = 0
-        for i, j in enumerate(arm.joints):
-            link = f"{arm.model}_link_{i + 1}"
-            jid = add_joint(jid, pin.JointModelRZ(), _se3(j.xyz, j.rpy), j.name, link,
-                            j.effort, j.max_velocity, j.lower, j.upper)
-            # Capsule from this joint to the next one (the hand: to the end effector).
-            end = arm.joints[i + 1].xyz if i + 1 < len(arm.joints) else ee.translation
-            length, place = _segment(np.zeros(3), end)
-            add_geom(link, jid, place, coal.Capsule(col.link_radii[i], length), i + 1)
-        j6 = jid
-        add_frame(arm.ee_frame, j6, ee)
-
-        f0 = ee * _se3(w.mount_xyz, w.mount_rpy)
-        add_frame(TOOL_BASE_FRAME, j6, f0)
-        length, place = _segment(np.zeros(3), [0.0, 0.0, w.pitch_z])
-        add_geom("atool_body", j6, f0 * place, coal.Capsule(col.wrist_body_radius, length), 6)
-
-        # Rotation about F0's −y axis by θp is R_y(−θp) (thesis Eq. 4.1). The wrist motors'
-        # effort is not modelled (kinematic model): 1.0 is a placeholder.
-        pitch = add_joint(j6, pin.JointModelRevoluteUnaligned(0.0, -1.0, 0.0),
-                          f0 * _se3([0.0, 0.0, w.pitch_z]), w.joint_names[0], "atool_pitch_link",
-                          1.0, w.max_velocity[0], *w.pitch_limits)
-        roll = add_joint(pitch, pin.JointModelRZ(), _se3([0.0, 0.0, w.roll_dz]),
-                         w.joint_names[1], "atool_roll_link",
-                         1.0, w.max_velocity[1], *w.roll_limits)
-        mount = np.array([0.0, 0.0, w.utensil_mount_dz])
-        add_frame(UTENSIL_MOUNT_FRAME, roll, pin.SE3(np.eye(3), mount))
-        length, place = _segment([0.0, 0.0, -w.roll_dz], mount)
-        add_geom("atool_distal", roll, place, coal.Capsule(col.wrist_distal_radius, length), 7)
-
-        tip_rot = rpy_matrix((0.0, 0.0, -np.pi / 2))
-        for name, u in spec.utensils.items():
-            tip = mount + np.array([u.tip_x, 0.0, u.tip_z])
-            add_frame(tip_frame_name(name), roll, pin.SE3(tip_rot, tip))
-            if name == self.utensil:
-                length, place = _segment(mount, tip)
-                add_geom(f"utensil_{name}", roll, place,
-                         coal.Capsule(col.utensil_radius, length), 8)
-
-        for o in self.scene.objects:
-            add_geom(f"scene/{o.name}", 0, pin.SE3(o.pose), o.geometry(), -1)
-        return m, g, segment
+        # Fixed placements of the vectorised F0 chain: the joints' in their parents and F0's
+        # in link 6, as loaded.
+        placements = [full.jointPlacements[full.getJointId(j.name)] for j in arm.joints]
+        self._joint_rot = np.stack([p.rotation for p in placements])
+        self._joint_xyz = np.array([p.translation for p in placements])
+        f0 = full.frames[full.getFrameId(TOOL_BASE_FRAME)].placement
+        self._f0_in_link6 = f0.rotation.copy()
+        self._f0_xyz_in_link6 = f0.translation.copy()
 
     def _add_collision_pairs(self, segment: dict[str, int]) -> None:
         g = self.geometry_model

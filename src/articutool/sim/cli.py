@@ -34,8 +34,56 @@ def _world_args(args: argparse.Namespace) -> dict:
     return {"spec": spec, "params": params, "seed": args.seed}
 
 
+def _check_load(args: argparse.Namespace, kw: dict) -> None:
+    """``--load``: a mass the utensil can hold of the food, else exit 2."""
+    from articutool.cli_support import UsageError
+    from articutool.sim.world import capacity_bound_reason, utensil_capacity_bound_g
+
+    if args.load is None:
+        return
+    fp = kw["params"].food(args.food)
+    most = utensil_capacity_bound_g(kw["spec"], kw["params"], args.food, args.utensil)
+    if not (math.isfinite(args.load) and 0 < args.load <= most):
+        raise UsageError(f"--load must be a mass in (0, {most:.2f}] g, the most the "
+                         f"{args.utensil or fp.utensil} can hold of {args.food} "
+                         f"({capacity_bound_reason(fp)}); got {args.load}")
+
+
+def _write_mjcf(args: argparse.Namespace) -> int:
+    """``--mjcf FILE``: write the world (food placed with the seed, the arm at Resting in the
+    keyframe ``start``) for MuJoCo's viewer, and run nothing."""
+    from articutool.arm.scene import Scene
+    from articutool.cli_support import UsageError, new_output_file
+    from articutool.sim.mjcf import build_mjcf, viewer_mjcf
+    from articutool.sim.world import load_supply_g
+
+    out = new_output_file("--mjcf", args.mjcf, (".xml",))
+    assert out is not None
+    kw = _world_args(args)
+    _check_load(args, kw)
+    spec, params = kw["spec"], kw["params"]
+    utensil = args.utensil or params.food(args.food).utensil
+    supply = load_supply_g(params, args.food, args.load)
+    try:
+        layout = build_mjcf(spec, Scene.load(), params, utensil, args.food, args.seed, supply)
+    except ValueError as err:  # e.g. strands cannot be placed as a load
+        raise UsageError(f"--load: {err}") from None
+    text = viewer_mjcf(layout, spec.arm.configuration("Resting"))
+    try:
+        with out.open("x", encoding="utf-8") as f:  # never replaces a file or a link
+            f.write(text)
+    except OSError as err:
+        raise UsageError(f"--mjcf: cannot create {out}: {err.strerror}") from None
+    print(f"world: {out} ({args.food} on the {utensil}, seed {args.seed}); open it with "
+          f"`python -m mujoco.viewer --mjcf {out}` and load the keyframe 'start'")
+    return 0
+
+
 def _cmd_sim(args: argparse.Namespace) -> int:
     from articutool.cli_support import UsageError, new_output_file
+
+    if args.mjcf is not None:
+        return _write_mjcf(args)
     from articutool.sim.render import RenderError
     from articutool.sim.scenes import ScriptError, run_script
     from articutool.sim.world import FeedingWorld, PhysicsResetError
@@ -44,15 +92,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     new_output_file("--snapshot", args.snapshot, (".png",))
     new_output_file("--record", args.record, (".npz",))
     kw = _world_args(args)
-    if args.load is not None:
-        from articutool.sim.world import capacity_bound_reason, utensil_capacity_bound_g
-
-        fp = kw["params"].food(args.food)
-        most = utensil_capacity_bound_g(kw["spec"], kw["params"], args.food, args.utensil)
-        if not (math.isfinite(args.load) and 0 < args.load <= most):
-            raise UsageError(f"--load must be a mass in (0, {most:.2f}] g, the most the "
-                             f"{args.utensil or fp.utensil} can hold of {args.food} "
-                             f"({capacity_bound_reason(fp)}); got {args.load}")
+    _check_load(args, kw)
     if args.twirl_turns is not None:
         _check_twirl(args, kw)
     try:
@@ -232,6 +272,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--record", metavar="FILE", default=None,
                    help="record the run (.npz: joints, food, spills, tool telemetry) for "
                         "articutool view --recording; never overwrites")
+    p.add_argument("--mjcf", metavar="FILE", default=None,
+                   help="instead of running, write the world (.xml: robot, scene, the food as "
+                        "placed with --seed) for `python -m mujoco.viewer --mjcf FILE`; its "
+                        "keyframe 'start' holds the arm at Resting; never overwrites")
     p.set_defaults(func=_cmd_sim)
     c = sub.add_parser("sim-calibrate", help="calibration experiments of a food model "
                        "(angle of repose, what a level utensil holds; a liquid's static-tilt "

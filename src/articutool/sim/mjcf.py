@@ -1,10 +1,10 @@
-"""The feeding world as MJCF, built in code from the hardware spec, the scene and a food.
+"""The feeding world as a MuJoCo ``MjSpec``, built in code from the hardware spec, the scene
+and a food.
 
-Nothing here restates a dimension: the arm's joint table, the F0 mount, the wrist chain and
-the utensil tips come from :class:`~articutool.spec.Spec` (the same numbers the Pinocchio
-model in ``articutool.arm.model`` is built from, so the two agree — tested to < 0.1 mm); the
-obstacles come from the :class:`~articutool.arm.scene.Scene`; the food from
-:mod:`articutool.sim.params`.
+Nothing here restates a dimension: the robot is the one description
+(:mod:`articutool.arm.description`, which the Pinocchio model loads too), to which this adds
+what the simulation needs (servos, sensors, contact filtering); the obstacles come from the
+:class:`~articutool.arm.scene.Scene`; the food from :mod:`articutool.sim.params`.
 
 MuJoCo collides a mesh as its convex hull, so every concave thing is a compound of
 primitives: a bowl is a floor disc plus a ring of wall boxes; a spoon is a floor plate plus a
@@ -36,7 +36,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from articutool.arm.model import TOOL_BASE_FRAME, tip_frame_name
+from articutool.arm.description import FT_SITE, IMU_SITE, add_robot, exact_xml, tip_site_name
 from articutool.arm.scene import Box, Capsule, Cylinder, Halfspace, Scene, Sphere
 from articutool.food.dish import spoon_dish
 from articutool.rotations import rpy_matrix
@@ -47,26 +47,21 @@ from articutool.spec import Spec, UtensilSpec
 
 __all__ = ["FT_SITE", "IMU_SITE", "WorldLayout", "build_mjcf", "contact_attrs", "dish_walls",
            "fork_strand_attrs", "strand_chain", "strand_geom_attrs", "strand_tack_attrs",
-           "tip_site_name"]
+           "tip_site_name", "viewer_mjcf"]
 
-IMU_SITE = "imu"
-FT_SITE = "ft"
 _STATIC, _FOOD, _UTENSIL, _ROBOT = 1, 2, 4, 8
 _ALL = _STATIC | _FOOD | _UTENSIL | _ROBOT
 _WALL_BOXES = 24
 _DISH_WALLS = 32
-
-
-def tip_site_name(utensil: str) -> str:
-    """Site of the utensil tip (same name as the Pinocchio frame)."""
-    return tip_frame_name(utensil)
+_FRAGMENT = "fragment:"
 
 
 @dataclass
 class WorldLayout:
-    """What the builder put where: names the world looks up after compiling."""
+    """What the builder put where: the world's ``MjSpec`` and the names the world looks up
+    after compiling."""
 
-    xml: str
+    spec: mujoco.MjSpec
     arm_joints: list[str]
     wrist_joints: list[str]
     food_bodies: list[str] = field(default_factory=list)
@@ -82,6 +77,12 @@ class WorldLayout:
     food_contype: int = 0
     food_conaffinity: int = 0
     static_geoms: list[str] = field(default_factory=list)
+
+    @property
+    def xml(self) -> str:
+        """The world as MJCF text that reads back as the same model (``python -m
+        mujoco.viewer --mjcf FILE`` opens it)."""
+        return exact_xml(self.spec)
 
 
 def _f(v: float | NDArray[np.float64] | list[float] | tuple[float, ...]) -> str:
@@ -501,11 +502,11 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
     Joint qpos order: the six arm joints, pitch, roll, then the food's free joints.
     """
     spec.utensil(utensil)  # unknown utensils fail here, naming the allowed ones
-    arm, w, col = spec.arm, spec.wrist, spec.collision
-    wp, sp = params.world, params.arm_servo
+    arm, w, wp = spec.arm, spec.wrist, params.world
     food_p = params.food(food) if food is not None else None
     rng = np.random.default_rng(seed)
-    layout = WorldLayout(xml="", arm_joints=arm.joint_names, wrist_joints=list(w.joint_names))
+    layout = WorldLayout(spec=mujoco.MjSpec(), arm_joints=arm.joint_names,
+                         wrist_joints=list(w.joint_names))
     layout.timestep = wp.timestep
     # The no-slip solver removes soft contacts' creep: a loaded wrap of strands slides off the
     # tines, a heap of pieces flows below its angle of repose (physics.toml says why, per food;
@@ -547,81 +548,100 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
         x.append(f'<site name="region/{r.name}" pos="{_f(r.xyz)}" size="{r.radius}" '
                  'rgba="1 0.3 0.3 0.25"/>')
 
-    rcls = (f'contype="{_ROBOT}" conaffinity="0" rgba="0.25 0.25 0.28 1" '
-            f'{contact_attrs(food_p.contacts.surface if food_p else None, 1)}')
-    h0 = arm.joints[0].xyz[2]
-    x.append(f'<body name="{arm.base_frame}">')
-    x.append(f'<geom name="{arm.base_frame}" type="cylinder" size="{col.base_radius} {h0 / 2}" '
-             f'pos="0 0 {h0 / 2}" {rcls}/>')
-    ee_R, ee_p = rpy_matrix(arm.ee_rpy), np.asarray(arm.ee_xyz)
-    for i, j in enumerate(arm.joints):
-        link = f"{arm.model}_link_{i + 1}"
-        end = np.asarray(arm.joints[i + 1].xyz) if i + 1 < len(arm.joints) else ee_p
-        x.append(f'<body name="{link}" {_pose_attr(j.xyz, rpy_matrix(j.rpy))} gravcomp="1">')
-        x.append(f'<joint name="{j.name}" type="hinge" axis="0 0 1" range="{j.lower} {j.upper}" '
-                 f'armature="{sp.armature}" actuatorfrcrange="{-j.effort} {j.effort}"/>')
-        x.append(f'<geom name="{link}" type="capsule" size="{col.link_radii[i]}" '
-                 f'fromto="0 0 0 {_f(end)}" mass="{arm.link_masses[i]}" {rcls}/>')
-    # End effector, then F0 (the tool base) on it.
-    x.append(f'<body name="{arm.ee_frame}" {_pose_attr(ee_p, ee_R)}>')
-    x.append(f'<body name="{TOOL_BASE_FRAME}" '
-             f'{_pose_attr(w.mount_xyz, rpy_matrix(w.mount_rpy))}>')
-    x.append(f'<site name="{IMU_SITE}" size="0.004" rgba="0 1 0 1"/>')
-    x.append(f'<geom name="atool_body" type="capsule" size="{col.wrist_body_radius}" '
-             f'fromto="0 0 0 0 0 {w.pitch_z}" mass="{w.mass_kg - w.distal_mass_kg}" {rcls}/>')
-    wm = params.wrist_motor
-    tq = spec.motors.stall_torque_nm
-    x.append(f'<body name="atool_pitch_link" pos="0 0 {w.pitch_z}">')
-    x.append('<inertial pos="0 0 0" mass="0.005" diaginertia="1e-6 1e-6 1e-6"/>')
-    x.append(f'<joint name="{w.joint_names[0]}" type="hinge" axis="0 -1 0" '
-             f'range="{w.pitch_limits[0]} {w.pitch_limits[1]}" armature="{wm.armature}" '
-             f'frictionloss="{wm.frictionloss}" actuatorfrcrange="{-tq} {tq}"/>')
-    turns = w.roll_turn_budget * 2 * math.pi
-    x.append(f'<body name="atool_roll_link" pos="0 0 {w.roll_dz}">')
-    x.append(f'<joint name="{w.joint_names[1]}" type="hinge" axis="0 0 1" '
-             f'range="{-turns} {turns}" armature="{wm.armature}" '
-             f'frictionloss="{wm.frictionloss}" actuatorfrcrange="{-tq} {tq}"/>')
-    x.append(f'<geom name="atool_distal" type="capsule" size="{col.wrist_distal_radius}" '
-             f'fromto="0 0 {-w.roll_dz} 0 0 {w.utensil_mount_dz}" mass="{w.distal_mass_kg}" '
-             f'{rcls}/>')
-    # The F/T sensor sits between the roll output and the utensil: the utensil is its own
-    # body (welded), so the force/torque sensors at its origin measure what it carries.
-    u = spec.utensil(utensil)
-    x.append(f'<body name="utensil" pos="0 0 {w.utensil_mount_dz}">')
-    # (The "utensil" camera tracks this body.)
-    x.append(f'<inertial pos="0 0 {u.tip_z / 2}" mass="{u.physics.mass_kg}" '
-             f'diaginertia="{_f(np.array([1, 1, 0.02]) * u.physics.mass_kg * u.tip_z**2 / 12)}"/>')
-    x.append(f'<site name="{FT_SITE}" size="0.004" rgba="1 0 0 1"/>')
-    x += _utensil_geoms(spec, utensil, layout, food_p)
-    tip_R = rpy_matrix((0.0, 0.0, -math.pi / 2))
-    for name, us in spec.utensils.items():
-        x.append(f'<site name="{tip_site_name(name)}" '
-                 f'{_pose_attr((us.tip_x, 0.0, us.tip_z), tip_R)} size="0.002"/>')
-    x.append("</body>" * 5)  # utensil, roll, pitch, F0, end effector
-    x.append("</body>" * len(arm.joints))
-    x.append("</body>")  # arm base
+    # The robot's place in the world: its bodies come from the description (below), after the
+    # scene's and before the food's.
+    x.append(f'<body name="{arm.base_frame}"/>')
     if food_p is not None:
         x += _food_bodies(food_p, scene, params, rng, layout, load_g)
     x.append("</worldbody>")
     # The utensil against every static surface: explicit pairs with their own law.
+    geoms = _utensil_geoms(spec, utensil, layout, food_p)
     x.append("<contact>")
     law = _pair_attrs(wp.utensil_contact)
     x += [f'<pair geom1="{g}" geom2="{sg}" {law}/>'
           for g in layout.utensil_geoms for sg in layout.static_geoms]
     x.append("</contact>")
-    x.append("<actuator>")
-    for j in arm.joints:
-        x.append(f'<position name="{j.name}/pos" joint="{j.name}" kp="{sp.kp}"/>')
-        x.append(f'<velocity name="{j.name}/vel" joint="{j.name}" kv="{sp.kv}"/>')
-    for jn in w.joint_names:  # torque from the world's velocity PI (the XC430's own loop)
-        x.append(f'<motor name="{jn}/motor" joint="{jn}" ctrlrange="{-tq} {tq}"/>')
-    x.append("</actuator>")
-    x.append("<sensor>")
-    x.append(f'<accelerometer name="imu_accel" site="{IMU_SITE}"/>')
-    x.append(f'<gyro name="imu_gyro" site="{IMU_SITE}"/>')
-    x.append(f'<force name="ft_force" site="{FT_SITE}"/>')
-    x.append(f'<torque name="ft_torque" site="{FT_SITE}"/>')
-    x.append("</sensor>")
     x.append("</mujoco>")
-    layout.xml = "\n".join(x)
+    world = mujoco.MjSpec.from_string("\n".join(x))
+    add_robot(world.body(arm.base_frame), spec, utensil,
+              lambda body: _attach_fragment(world, body, geoms))
+    _drive_robot(world, spec, params, layout,
+                 food_p.contacts.surface if food_p is not None else None)
+    layout.spec = world
     return layout
+
+
+def viewer_mjcf(layout: WorldLayout, q_arm: NDArray[np.float64]) -> str:
+    """The world as MJCF for MuJoCo's own viewer (``python -m mujoco.viewer --mjcf FILE``),
+    with a keyframe ``start``: the arm at ``q_arm`` and its servos holding it there, the food
+    as placed (it settles when the simulation runs). The world's model is left as it is."""
+    s = layout.spec.copy()
+    m = s.compile()
+    qpos, ctrl = m.qpos0.copy(), np.zeros(m.nu)
+    for name, q in zip(layout.arm_joints, q_arm, strict=True):
+        qpos[m.joint(name).qposadr[0]] = q
+        ctrl[m.actuator(f"{name}/pos").id] = q
+    s.add_key(name="start", qpos=qpos, ctrl=ctrl)
+    return exact_xml(s)
+
+
+def _attach_fragment(world: mujoco.MjSpec, body: mujoco.MjsBody, geoms: list[str]) -> None:
+    """Add MJCF ``<geom>`` elements to ``body`` of ``world`` (the utensil's shape, written
+    as MJCF text), keeping their names."""
+    frag = mujoco.MjSpec.from_string(
+        '<mujoco><compiler angle="radian"/><worldbody>' + "".join(geoms)
+        + "</worldbody></mujoco>")
+    world.attach(frag, frame=body.add_frame(), prefix=_FRAGMENT)
+    for g in body.geoms:
+        g.name = g.name.removeprefix(_FRAGMENT)
+
+
+def _drive_robot(world: mujoco.MjSpec, spec: Spec, params: PhysicsParams,
+                 layout: WorldLayout, food_law: ContactParams | None) -> None:
+    """What the simulation adds to the robot's description: the servos (the arm's position
+    and velocity loops, their armature; the wrist motors' torque, armature and friction),
+    the arm's gravity compensation (the Jaco's controller carries its own links), the IMU and
+    F/T sensors, and the robot links' contact filter, colour and ``food_law`` (the food's law
+    against a surface, at priority 1 as every partner of the food carries its law)."""
+    arm, w = spec.arm, spec.wrist
+    sp, wm = params.arm_servo, params.wrist_motor
+    utensil = set(layout.utensil_geoms)
+    for g in world.geoms:
+        if g.name not in utensil and _in_robot(g.parent, arm.base_frame):
+            g.contype, g.conaffinity = _ROBOT, 0
+            g.rgba = [0.25, 0.25, 0.28, 1.0]
+            if food_law is not None:
+                g.priority, g.condim = 1, food_law.condim
+                g.friction, g.solref = list(food_law.friction), list(food_law.solref)
+                g.solimp = list(food_law.solimp)
+    for i, j in enumerate(arm.joints):
+        world.body(f"{arm.model}_link_{i + 1}").gravcomp = 1.0
+        world.joint(j.name).armature = sp.armature
+    for jn in w.joint_names:
+        jt = world.joint(jn)
+        jt.armature, jt.frictionloss = wm.armature, wm.frictionloss
+    tq = spec.motors.stall_torque_nm
+    joint = mujoco.mjtTrn.mjTRN_JOINT
+    for j in arm.joints:
+        world.add_actuator(name=f"{j.name}/pos", target=j.name, trntype=joint).set_to_position(
+            kp=sp.kp)
+        world.add_actuator(name=f"{j.name}/vel", target=j.name, trntype=joint).set_to_velocity(
+            kv=sp.kv)
+    for jn in w.joint_names:  # torque from the world's velocity PI (the XC430's own loop)
+        world.add_actuator(name=f"{jn}/motor", target=jn, trntype=joint,
+                           ctrlrange=[-tq, tq]).set_to_motor()
+    site = mujoco.mjtObj.mjOBJ_SITE
+    for name, kind, where in (("imu_accel", "ACCELEROMETER", IMU_SITE),
+                              ("imu_gyro", "GYRO", IMU_SITE), ("ft_force", "FORCE", FT_SITE),
+                              ("ft_torque", "TORQUE", FT_SITE)):
+        world.add_sensor(name=name, type=getattr(mujoco.mjtSensor, f"mjSENS_{kind}"),
+                         objtype=site, objname=where)
+
+
+def _in_robot(body: mujoco.MjsBody, root: str) -> bool:
+    while body is not None and body.name != "world":
+        if body.name == root:
+            return True
+        body = body.parent
+    return False
+

@@ -89,6 +89,16 @@ def utensil_capacity_bound_g(spec: Spec, params: PhysicsParams, food: str,
                       fp.angle_of_repose_deg if isinstance(fp, Granular) else None)
 
 
+def load_supply_g(params: PhysicsParams, food: str | None,
+                  load_g: float | None) -> float | None:
+    """What the world places to leave ``load_g`` of ``food`` on the utensil. A hand takes
+    pieces from a supply until the utensil holds the load: some roll off on the way
+    (:meth:`FeedingWorld.place_load`), so a granular supply holds more than the load."""
+    if load_g is not None and food is not None and isinstance(params.food(food), Granular):
+        return SUPPLY_FACTOR * load_g
+    return load_g
+
+
 def capacity_bound_reason(fp: Granular | Liquid | Strands) -> str:
     """Why :func:`utensil_capacity_bound_g` is the bound, in words."""
     if isinstance(fp, Liquid):
@@ -108,6 +118,13 @@ _SETTLED: dict[str, tuple[mujoco.MjData, NDArray[np.float64], float, int]] = {}
 _SETTLED_KEEP = 4
 
 _ZUP = np.array([0.0, 0.0, 1.0])
+
+
+def _model_bytes(m: mujoco.MjModel) -> bytes:
+    """The compiled model as MuJoCo saves it (every number and name): its identity."""
+    buf = np.empty(mujoco.mj_sizeModel(m), dtype=np.uint8)
+    mujoco.mj_saveModel(m, None, buf)
+    return buf.tobytes()
 
 
 @dataclass
@@ -209,14 +226,10 @@ class FeedingWorld:
             raise ValueError(f"load_g must be in (0, {most:.2f}] g: the most the "
                              f"{self.utensil} can hold of {food} ({why}); got {load_g:g}")
         self.load_g = load_g
-        supply = load_g
-        if load_g is not None and isinstance(self.params.food(food or ""), Granular):
-            # A hand takes pieces from a supply until the utensil holds the load: some roll
-            # off on the way (place_load), so the supply holds more than the load.
-            supply = SUPPLY_FACTOR * load_g
         self.layout: WorldLayout = build_mjcf(self.spec, self.scene, self.params, self.utensil,
-                                              food, self.seed, supply)
-        self.model = mujoco.MjModel.from_xml_string(self.layout.xml)
+                                              food, self.seed,
+                                              load_supply_g(self.params, food, load_g))
+        self.model = self.layout.spec.compile()
         self.data = mujoco.MjData(self.model)
         m, d = self.model, self.data
         rng = np.random.default_rng(self.seed + 1_000_003)
@@ -313,7 +326,7 @@ class FeedingWorld:
         the solver's warm start included) and the world's own servo state — bit-identical to
         settling it again (``tests/test_sim_speed.py``)."""
         m, d = self.model, self.data
-        h = hashlib.sha256(self.layout.xml.encode())
+        h = hashlib.sha256(_model_bytes(m))
         for a in (d.qpos, d.qvel, m.tree_sleep_policy,
                   np.array([seconds, self._kv, self._ki, self._tq])):
             h.update(np.ascontiguousarray(a).tobytes())

@@ -98,7 +98,7 @@ def model_for_view(spec: object, scene: object, utensil: str) -> tuple[mujoco.Mj
     from articutool.sim.params import PhysicsParams
 
     layout = build_mjcf(spec, scene, PhysicsParams.load(), utensil)  # type: ignore[arg-type]
-    return mujoco.MjModel.from_xml_string(layout.xml), spec.arm.base_frame  # type: ignore[attr-defined]
+    return layout.spec.compile(), spec.arm.base_frame  # type: ignore[attr-defined]
 
 
 class Poser:
