@@ -145,7 +145,54 @@ def summarize_exp2b(records: Sequence[dict[str, Any]], cfg: Any) -> dict[str, An
                    for s, v in rs.items()}
     out.update(spill_frequency_fisher=freq, per_goal=per_goal, transport=plan,
                spilled_by_place={f: {sys_: by_place(_where(ok, food=f, system=sys_))
-                                     for sys_ in systems} for f in cfg.exp2b.foods})
+                                     for sys_ in systems} for f in cfg.exp2b.foods},
+               variants=summarize_exp2b_variants(ok, cfg))
+    return out
+
+
+def summarize_exp2b_variants(records: Sequence[dict[str, Any]], cfg: Any
+                             ) -> dict[str, dict[str, Any]]:
+    """Per variant (this stack's systems beside the thesis') and food: its spills and
+    spilled mass against the thesis system it extends (same seeds and goals: Fisher and
+    Welch), its motion time beside that system's, and what its food checks did (retimed,
+    slosh-free, the speed scale kept)."""
+    out: dict[str, dict[str, Any]] = {}
+    for name, v in cfg.exp2b.variants.items():
+        per: dict[str, Any] = {}
+        for f in v.foods:
+            rs, base = _where(records, food=f, system=name), _where(records, food=f,
+                                                                     system=v.system)
+            if not rs:
+                continue
+            checks = [c for r in rs for c in (r.get("food_checks") or [])]
+            kept = [c for c in checks if c.get("executed", True) is not False]
+
+            def spills(xs: Sequence[dict[str, Any]]) -> int:
+                return sum(1 for r in xs if r["spilled_g"] > 1e-9)
+
+            per[f] = {
+                "base": v.system,
+                "spilled_g": describe([r["spilled_g"] for r in rs]).to_dict(),
+                "spills": _rate(spills(rs), len(rs)),
+                "base_spills": _rate(spills(base), len(base)),
+                "fisher_vs_base": (fisher(spills(rs), len(rs), spills(base), len(base))
+                                   .to_dict() if base else None),
+                "welch_vs_base": (welch([r["spilled_g"] for r in rs],
+                                        [r["spilled_g"] for r in base]).to_dict()
+                                  if base else None),
+                "completed": _rate(sum(1 for r in rs if r["completed"]), len(rs)),
+                "motion_time_s": describe([r["motion_time_s"] for r in rs]).to_dict(),
+                "base_motion_time_s": describe([r["motion_time_s"] for r in base]).to_dict(),
+                "checks": len(checks),
+                "retimed": sum(1 for c in kept if float(c.get("scale", 1.0)) < 1.0),
+                "slosh_free": sum(1 for c in kept if c.get("wrist") == "slosh_free"),
+                "scale": describe([float(c["scale"]) for c in kept if "scale" in c]).to_dict(),
+                "predicted_spill_g": describe([float(c["predicted_spill_g"]) for c in kept
+                                               if c.get("predicted_spill_g") is not None]
+                                              ).to_dict(),
+                "spilled_by_place": by_place(rs),
+            }
+        out[name] = per
     return out
 
 

@@ -363,7 +363,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from articutool.bench.cli import make_executor
 
     executor = make_executor(args)
+    load_before = os.getloadavg()
     summary_run = _run_with_progress(trials, log_path(out, exp), executor, exp)
+    load_after = os.getloadavg()
     if summary_run.interrupted:
         print(f"interrupted: {summary_run.ran} trial(s) finished now and are logged in "
               f"{log_path(out, exp)}, {len(trials) - summary_run.skipped - summary_run.ran} "
@@ -378,9 +380,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
         machine=_machine(), date=_dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         command="articutool " + " ".join(shlex.quote(a) for a in sys.argv[1:])
         if sys.argv[1:2] == ["experiment"] else f"articutool experiment {exp}",
-        data_hash=settings["data_hash"])
+        data_hash=settings["data_hash"],
+        # The machine's run-queue load averages (os.getloadavg: 1, 5, 15 min) as the run
+        # began and ended; the run's own workers are part of the second.
+        machine_load={"before": [round(x, 2) for x in load_before],
+                      "after": [round(x, 2) for x in load_after]})
     if summary_run.ran == 0 and old_summary is not None:  # nothing ran: keep when and how
-        for k in ("experiment_wall_time_s", "executor", "machine", "date", "command"):
+        for k in ("experiment_wall_time_s", "executor", "machine", "date", "command",
+                  "machine_load"):
             if k in old_summary["run"]:
                 summary["run"][k] = old_summary["run"][k]
     summary.update({k: v for k, v in extra.items() if k != "conditions"})

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
@@ -43,12 +43,44 @@ class Exp1(_Strict):
     timeout_s: Positive
 
 
+class Exp2bVariant(_Strict):
+    """A system of this stack beside the thesis' two: ``system`` (whose planner and tool
+    mode it keeps) with the food-aware check before the transport (retimed until predicted
+    spill-free, or re-planned) and the wrist leveling against ``leveling`` (``apparent``:
+    slosh-free), on ``foods``."""
+
+    system: Literal["articutool", "baseline"]
+    food_check: bool = True
+    leveling: Literal["gravity", "apparent"] = "gravity"
+    foods: Names
+
+    @model_validator(mode="after")
+    def _decoupled(self) -> Exp2bVariant:
+        if self.leveling == "apparent" and self.system != "articutool":
+            raise ValueError("leveling = 'apparent' needs the articutool system (the "
+                             "decoupled wrist)")
+        return self
+
+
 class Exp2b(_Strict):
-    """Exp. 2b (§5.2.2)."""
+    """Exp. 2b (§5.2.2): the thesis' ``systems`` and this stack's ``variants`` beside them
+    (each named; the name is the trial's ``system``)."""
 
     foods: Names
     systems: Names
     load_g: dict[str, Positive]
+    variants: dict[str, Exp2bVariant] = {}
+
+    @model_validator(mode="after")
+    def _names(self) -> Exp2b:
+        for name, v in self.variants.items():
+            if name in self.systems:
+                raise ValueError(f"variants.{name}: the name of a thesis system")
+            unknown = [f for f in v.foods if f not in self.foods]
+            if unknown:
+                raise ValueError(f"variants.{name}.foods: {unknown} not among foods "
+                                 f"{self.foods}")
+        return self
 
 
 class ShedPrimitive(_Strict):

@@ -61,7 +61,9 @@ def conditions(experiment: str, cfg: Any, *, goals: Sequence[str] = (),
     if experiment == "exp1":
         return [{"food": f, "system": s} for f in cfg.exp1.foods for s in cfg.exp1.systems]
     if experiment == "exp2b":
-        return [{"food": f, "system": s} for f in cfg.exp2b.foods for s in cfg.exp2b.systems]
+        thesis = [{"food": f, "system": s} for f in cfg.exp2b.foods for s in cfg.exp2b.systems]
+        return thesis + [{"food": f, "system": name}
+                         for name, v in cfg.exp2b.variants.items() for f in v.foods]
     if experiment == "exp2c":
         if load_g is None:
             raise ValueError("exp2c needs the load per food (the capacity)")

@@ -24,7 +24,7 @@ tree's state, so a recorded replay has the logged outcome). The capacity protoco
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -49,8 +49,10 @@ class _GoalArm(SimArm):
     """:class:`SimArm` with extra named goals (the scene's staging set)."""
 
     def __init__(self, world: FeedingWorld, goals: dict[str, Any],
-                 tolerance_deg: float | None = None, seed: int = 0) -> None:
-        super().__init__(world, tolerance_deg=tolerance_deg, seed=seed)
+                 tolerance_deg: float | None = None, seed: int = 0, load: Any = None,
+                 leveling: str = "gravity") -> None:
+        super().__init__(world, tolerance_deg=tolerance_deg, seed=seed, load=load,
+                         leveling=leveling)
         self.extra = {k: np.asarray(v, dtype=float) for k, v in goals.items()}
 
     def goal_configuration(self, goal: str) -> np.ndarray:
@@ -69,10 +71,12 @@ def _masses(world: FeedingWorld) -> dict[str, float]:
 
 
 def transport(world: FeedingWorld, arm: SimArm, goal: str, planner: str, *, attempts: int,
-              cfg: ExperimentsConfig, visitors: Visitors = ()) -> dict[str, Any]:
+              cfg: ExperimentsConfig, visitors: Visitors = (), food: bool = False
+              ) -> dict[str, Any]:
     """Run the feeding tree's transport subtree (plan → verify → execute, bounded attempts,
-    the tool's mode scoped) to ``goal``, with ``visitors`` on the tree; then hold still
-    ``settle_s``. Returns what the tree recorded and the tilt the utensil reached on the way."""
+    the tool's mode scoped; ``food``: the food-aware check of ``arm``'s load before
+    executing) to ``goal``, with ``visitors`` on the tree; then hold still ``settle_s``.
+    Returns what the tree recorded and the tilt the utensil reached on the way."""
     import py_trees
     from py_trees.common import Status
 
@@ -88,7 +92,7 @@ def transport(world: FeedingWorld, arm: SimArm, goal: str, planner: str, *, atte
     world.on_tick.append(watch)
     try:
         root = transport_tree(arm, world.tool, goal, planner, attempts=attempts,
-                              budget_s=s.plan_budget_s, clock=world.clock)
+                              budget_s=s.plan_budget_s, clock=world.clock, food=food)
         status, rec = run_tree(root, world.run, world.clock, timeout_s=s.tree_timeout_s,
                                visitors=visitors)
     finally:
@@ -103,7 +107,16 @@ def transport(world: FeedingWorld, arm: SimArm, goal: str, planner: str, *, atte
         "motion_time_s": _r(rec.motion_time_s),
         "failed_stage": rec.failed_stage,
         "max_tilt_deg": _r(max(tilts)) if tilts else None,
+        **({"food_checks": [_food_check_summary(c) for c in rec.food_checks]} if food else {}),
     }
+
+
+def _food_check_summary(check: Mapping[str, Any]) -> dict[str, Any]:
+    """What a food check decided, for the trial's record: the wrist it modelled, the speed
+    scale it kept and the spill it predicted (its full record stays in the bite's log)."""
+    keep = ("wrist", "scale", "predicted_spill_g", "planned_duration_s", "duration_s",
+            "min_margin_deg", "executed", "slosh_free_fallback")
+    return {k: check[k] for k in keep if k in check}
 
 
 def transport_outcome(world: FeedingWorld, start: np.ndarray, n_spills: int,
@@ -203,9 +216,12 @@ def exp2b_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
                 hook: Hook = None, visitors: Visitors = ()) -> dict[str, Any]:
     """Exp. 2b: load placed at the common start, carried to ``cond['goal']``."""
     from articutool.arm.scene import Scene
+    from articutool.feeding.sim_arm import world_load
     from articutool.tool.api import Mode
 
     food, system, goal = cond["food"], cond["system"], cond["goal"]
+    variant = cfg.exp2b.variants.get(system)
+    base = variant.system if variant is not None else system
     sset = Scene.load().staging_set
     if sset is None:
         raise ValueError("the scene has no [staging_set]")
@@ -214,9 +230,12 @@ def exp2b_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
     if hook:
         hook(w)
     goals = {g.name: g.q for g in sset.goals}
-    articutool = system == "articutool"
+    articutool = base == "articutool"
     tol = None if articutool else cfg.settings.arm_tolerance_deg
-    arm = _GoalArm(w, goals, tolerance_deg=tol, seed=seed)
+    checked = variant is not None and variant.food_check
+    arm = _GoalArm(w, goals, tolerance_deg=tol, seed=seed,
+                   load=(lambda: world_load(w)) if checked else None,
+                   leveling=variant.leveling if variant is not None else "gravity")
     try:
         if articutool:
             w.tool.set_mode(Mode.LEVELING)
@@ -225,7 +244,8 @@ def exp2b_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
         held = w.place_load(settle_s=cfg.settings.settle_s)
         before, n_spills, start = w.masses_g(), len(w.spills), w.item_classes()
         tr = transport(w, arm, goal, "decoupled" if articutool else "strict6",
-                       attempts=_plan_attempts(food, system), cfg=cfg, visitors=visitors)
+                       attempts=_plan_attempts(food, base), cfg=cfg, visitors=visitors,
+                       food=checked)
     finally:
         arm.close()
     return {"load_g": load, "held_g": _r(held), "planner": "decoupled" if articutool

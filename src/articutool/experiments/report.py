@@ -184,6 +184,11 @@ def _run_line(s: Mapping[str, Any]) -> str:
     if r.get("experiment_wall_time_s") is not None:
         parts.append(f"last invocation {r['experiment_wall_time_s']} s on "
                      f"{r.get('executor', '?')}")
+    ml = r.get("machine_load")
+    if ml:
+        parts.append("machine load (1/5/15-min averages) " + "/".join(
+            f"{x:g}" for x in ml["before"]) + " at the start, " + "/".join(
+            f"{x:g}" for x in ml["after"]) + " at the end")
     return "; ".join(parts)
 
 
@@ -337,7 +342,34 @@ def _sec_exp2b(s: Mapping[str, Any], cfg: Any) -> str:
             rows.append([f, sys_] + [f"{_msd(v)} (n={v['n']})" for v in pg.values()])
     goals = list(next(iter(s["per_goal"][cfg.exp2b.foods[0]].values())).keys()) if rows else []
     out += "\n\nSpilled per goal (g):\n\n" + _table(["food", "system", *goals], rows)
-    return out
+    return out + _sec_exp2b_variants(s, cfg)
+
+
+def _sec_exp2b_variants(s: Mapping[str, Any], cfg: Any) -> str:
+    """This stack's systems beside the thesis' two (same seeds and goals as the system each
+    extends)."""
+    rows = []
+    for name, per in (s.get("variants") or {}).items():
+        v = cfg.exp2b.variants[name]
+        what = ("food-aware check" if v.food_check else "no food check") + (
+            ", slosh-free leveling" if v.leveling == "apparent" else "")
+        for f, e in per.items():
+            rows.append([f, f"{name} ({v.system} + {what})",
+                         f"{e['spills']['k']}/{e['spills']['n']}",
+                         f"{e['base_spills']['k']}/{e['base_spills']['n']}",
+                         _msd(e["spilled_g"]), _p((e.get("fisher_vs_base") or {}).get("p")),
+                         f"{_msd(e['motion_time_s'], 1)} vs {_msd(e['base_motion_time_s'], 1)}",
+                         f"{e['retimed']}/{e['checks']}", f"{e['slosh_free']}/{e['checks']}",
+                         _places(e["spilled_by_place"])])
+    if not rows:
+        return ""
+    return ("\n\n**This stack's systems beside the thesis' two** (extra conditions on the same "
+            "seeds and goals as the thesis system each extends; the thesis' comparison above "
+            "is unchanged by them):\n\n"
+            + _table(["food", "system", "trials with spill", "same, its thesis system",
+                      "spilled (g), mean ± SD", "Fisher p vs its thesis system",
+                      "motion time (s), it vs its thesis system", "checks retimed",
+                      "checks slosh-free", "spilled by place"], rows))
 
 
 def _places(d: Mapping[str, Any] | None) -> str:
