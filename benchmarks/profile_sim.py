@@ -50,11 +50,9 @@ def _timers(world) -> dict[str, dict[str, float]]:
 
 
 def _run(food: str, seed: int, mj_cpu: list[float] | None = None):
-    from articutool.sim import world as world_mod
     from articutool.sim.scenes import acquire
     from articutool.sim.world import FeedingWorld
 
-    world_mod._SETTLED.clear()  # every run settles its pile (the first run of a seed)
     step = mujoco.mj_step
     if mj_cpu is not None:  # the CPU time inside mj_step (MuJoCo's timers are wall-clock)
         def timed(m, d, nstep=1):

@@ -1,7 +1,7 @@
 """Speed changes of the feeding world that must not change what it computes.
 
-A settled pile restored from the process's cache (``FeedingWorld._settle``) is the state a
-fresh settle makes, to the bit, and so is everything after it.
+A settled pile restored from a :class:`SettleCache` is the state a fresh settle makes, to the
+bit, and so is everything after it; a world built without a cache settles afresh.
 """
 
 from __future__ import annotations
@@ -13,8 +13,7 @@ import pytest
 
 mujoco = pytest.importorskip("mujoco")
 
-from articutool.sim import world as world_mod  # noqa: E402
-from articutool.sim.world import FeedingWorld  # noqa: E402
+from articutool.sim.world import FeedingWorld, SettleCache  # noqa: E402
 from articutool.tool.api import Mode  # noqa: E402
 
 
@@ -37,24 +36,40 @@ def _scene(w: FeedingWorld) -> tuple:
 
 @pytest.mark.parametrize("food,seed", [("pecans", 11), ("water", 12)])
 def test_a_restored_settle_is_bit_identical_to_a_fresh_one(food: str, seed: int) -> None:
-    world_mod._SETTLED.clear()
-    fresh = FeedingWorld(food, seed=seed)
-    restored = FeedingWorld(food, seed=seed)
+    cache = SettleCache()
+    fresh = FeedingWorld(food, seed=seed, settle_cache=cache)
+    restored = FeedingWorld(food, seed=seed, settle_cache=cache)
+    alone = FeedingWorld(food, seed=seed)  # no cache: settles afresh
     # The second world did not settle: it stepped only what follows the settle.
     assert restored._sim_stepped < fresh._sim_stepped - 0.9 * fresh.params.world.settle_s
-    assert _state(restored) == _state(fresh)
-    assert _scene(restored) == _scene(fresh)
+    assert alone._sim_stepped == pytest.approx(fresh._sim_stepped)
+    assert _state(restored) == _state(fresh) == _state(alone)
+    assert _scene(restored) == _scene(fresh) == _scene(alone)
 
 
 def test_another_seed_or_start_is_settled_afresh() -> None:
-    world_mod._SETTLED.clear()
-    a = FeedingWorld("pecans", seed=11)
-    b = FeedingWorld("pecans", seed=13)
-    c = FeedingWorld("pecans", seed=11, q_wrist=(0.1, 0.0))
+    cache = SettleCache()
+    a = FeedingWorld("pecans", seed=11, settle_cache=cache)
+    b = FeedingWorld("pecans", seed=13, settle_cache=cache)
+    c = FeedingWorld("pecans", seed=11, q_wrist=(0.1, 0.0), settle_cache=cache)
     settle = a.params.world.settle_s
     assert b._sim_stepped >= a._sim_stepped - 1e-9 and c._sim_stepped >= a._sim_stepped - 1e-9
     assert a._sim_stepped > settle
     assert _state(a) != _state(b) and _state(a) != _state(c)
+    assert len(cache) == 3
+
+
+def test_a_settle_cache_keeps_the_most_recently_used_states() -> None:
+    cache = SettleCache(keep=2)
+    state = (None, np.zeros(1), 0.0, 0)
+    for k in ("a", "b"):
+        cache.put(k, state)  # type: ignore[arg-type]
+    assert cache.take("a") is state
+    cache.put("a", state)  # type: ignore[arg-type]  # used last: "b" is now the oldest
+    cache.put("c", state)  # type: ignore[arg-type]
+    assert cache.take("b") is None and len(cache) == 2
+    with pytest.raises(ValueError, match="keep"):
+        SettleCache(keep=0)
 
 
 def _drive(w: FeedingWorld, stepwise: bool) -> bytes:

@@ -32,7 +32,7 @@ import numpy as np
 from articutool.experiments.config import ExperimentsConfig
 from articutool.feeding.sim_arm import SimArm
 from articutool.sim import accounting as acc
-from articutool.sim.world import FeedingWorld
+from articutool.sim.world import FeedingWorld, SettleCache
 
 if TYPE_CHECKING:
     import py_trees
@@ -142,7 +142,8 @@ def transport_outcome(world: FeedingWorld, start: np.ndarray, n_spills: int,
 
 
 def capacity_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
-                   hook: Hook = None, visitors: Visitors = ()) -> dict[str, Any]:
+                   hook: Hook = None, visitors: Visitors = (),
+               settled: SettleCache | None = None) -> dict[str, Any]:
     """One maximal scoop (thesis §5.2.3: an experimenter's repeated maximal manual scoops,
     their mean): the Articutool scoops through the full bowl along the capacity scoop's path
     (``[capacity.scoop]``: the food's own sweep made as deep and long as the bowl allows,
@@ -157,7 +158,7 @@ def capacity_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
     from articutool.sim.params import Liquid
 
     food = cond["food"]
-    setup = make_bite_world(food, "articutool", seed)
+    setup = make_bite_world(food, "articutool", seed, settle_cache=settled)
     setup.strategy = capacity_strategy(setup.strategy, cfg.capacity.scoop[food])
     w = setup.world
     if hook:
@@ -185,11 +186,11 @@ def capacity_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
         brim = (dish_volume_m3(u) * fp.density * 1000.0
                 - fp.particle_mass(fp.load_particle_radius) * 1000.0)
         b = FeedingWorld(food, w.utensil, spec=w.spec, scene=w.scene, seed=seed, load_g=brim,
-                         mouth=False)
+                         mouth=False, settle_cache=settled)
         if b.max_load_g() < brim:  # the pour's lattice holds less than the level volume
             brim = b.max_load_g() - 1e-6
             b = FeedingWorld(food, w.utensil, spec=w.spec, scene=w.scene, seed=seed,
-                             load_g=brim, mouth=False)
+                             load_g=brim, mouth=False, settle_cache=settled)
         b.tool.set_mode(Mode.LEVELING)
         b.run(1.0)
         b.place_load(settle_s=cfg.settings.settle_s)
@@ -213,7 +214,8 @@ def capacity_strategy(strategy: Any, scoop: Any) -> Any:
 
 
 def exp2b_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
-                hook: Hook = None, visitors: Visitors = ()) -> dict[str, Any]:
+                hook: Hook = None, visitors: Visitors = (),
+               settled: SettleCache | None = None) -> dict[str, Any]:
     """Exp. 2b: load placed at the common start, carried to ``cond['goal']``."""
     from articutool.arm.scene import Scene
     from articutool.feeding.sim_arm import world_load
@@ -226,7 +228,8 @@ def exp2b_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
     if sset is None:
         raise ValueError("the scene has no [staging_set]")
     load = cfg.exp2b.load_g[food]
-    w = FeedingWorld(food, seed=seed, load_g=load, q_arm=sset.start, mouth=False)
+    w = FeedingWorld(food, seed=seed, load_g=load, q_arm=sset.start, mouth=False,
+                     settle_cache=settled)
     if hook:
         hook(w)
     goals = {g.name: g.q for g in sset.goals}
@@ -266,7 +269,8 @@ def _plan_attempts(food: str, system: str) -> int:
 
 
 def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
-                hook: Hook = None, visitors: Visitors = ()) -> dict[str, Any]:
+                hook: Hook = None, visitors: Visitors = (),
+               settled: SettleCache | None = None) -> dict[str, Any]:
     """Exp. 2c: ``cond['load_g']`` placed at the shedding pose over the bowl, the shedding
     primitive there (``primitive``: the strategy's open-loop one; ``closed_loop``: the
     F/T-driven one of ``[exp2c.closed_loop]``) or not (``control``), then transport to
@@ -284,7 +288,7 @@ def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
     scene = Scene.load()
     q_shed = shed_configuration(spec, scene, strat.utensil)
     w = FeedingWorld(food, strat.utensil, spec=spec, scene=scene, seed=seed, load_g=load,
-                     q_arm=q_shed, mouth=False)
+                     q_arm=q_shed, mouth=False, settle_cache=settled)
     if hook:
         hook(w)
     arm = SimArm(w, seed=seed)
@@ -364,7 +368,8 @@ def json_safe(x: Any) -> Any:
 
 
 def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
-          stages: tuple[str, ...], timeout_s: float, visitors: Visitors) -> dict[str, Any]:
+          stages: tuple[str, ...], timeout_s: float, visitors: Visitors,
+          settled: SettleCache | None) -> dict[str, Any]:
     """One bite through the feeding tree (:func:`articutool.feeding.meal.run_bite`): the
     world, arm and strategy from :func:`~articutool.feeding.meal.make_bite_world` (the
     strategy drawn from the action library with the seed; ``cond["strategies"]``, when
@@ -373,7 +378,8 @@ def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
     from articutool.feeding.meal import make_bite_world, run_bite
 
     setup = make_bite_world(cond["food"], cond["system"], seed,
-                            strategies=cond.get("strategies"), physics=cond.get("physics"))
+                            strategies=cond.get("strategies"), physics=cond.get("physics"),
+                            settle_cache=settled)
     if hook:
         hook(setup.world)
     try:
@@ -394,23 +400,25 @@ def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
 
 
 def exp1_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
-               hook: Hook = None, visitors: Visitors = ()) -> dict[str, Any]:
+               hook: Hook = None, visitors: Visitors = (),
+               settled: SettleCache | None = None) -> dict[str, Any]:
     """Exp. 1 (§5.1): from AbovePlate, acquire with the system's strategy, move
     level-constrained to Resting; the mass on the utensil there (``mass_g``, ground truth;
     ``ft_mass_g`` as the F/T sensor weighs it when comparable)."""
     rec = _bite(cond, seed, cfg, hook, ("above", "acquire", "resting"), cfg.exp1.timeout_s,
-                visitors)
+                visitors, settled)
     rec["mass_g"] = rec["weighed_end_g"]  # as the experimenter weighs it (strands: borne)
     return rec
 
 
 def exp3_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
-               hook: Hook = None, visitors: Visitors = ()) -> dict[str, Any]:
+               hook: Hook = None, visitors: Visitors = (),
+               settled: SettleCache | None = None) -> dict[str, Any]:
     """Exp. 3 (§5.3): the whole bite — above the food, acquire, shed, Resting, Staging,
     present (the simulated user takes it). The outcome class is derived at analysis time,
     at the report's threshold (``outcome`` here is ``None``)."""
     return _bite(cond, seed, cfg, hook, ("above", "acquire", "shed", "resting", "staging",
-                                         "present"), cfg.exp3.timeout_s, visitors)
+                                         "present"), cfg.exp3.timeout_s, visitors, settled)
 
 
 BITE_PROTOCOLS = {"exp1": exp1_trial, "exp3": exp3_trial}

@@ -26,12 +26,15 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from articutool.bench.executors import Executor
 from articutool.bench.runner import read_log, run_logged
 from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import TrialSpec
+
+if TYPE_CHECKING:
+    from articutool.sim.world import SettleCache
 
 __all__ = [
     "RunError",
@@ -142,6 +145,17 @@ def _protocol(experiment: str) -> Callable[..., dict[str, Any]]:
     return table[experiment]
 
 
+@functools.cache
+def trial_settles() -> SettleCache:
+    """The settled worlds of this process's trials, owned by the runner (one per worker
+    process): an experiment's conditions share a repeat's seed (common random numbers,
+    :mod:`articutool.experiments.design`), so they share its settled food; a restored settle
+    is bit-identical to a fresh one (:class:`articutool.sim.world.SettleCache`)."""
+    from articutool.sim.world import SettleCache
+
+    return SettleCache(keep=4)
+
+
 def run_trial(spec: TrialSpec, hook: Any = None, config_path: str | None = None,
               visitors: Sequence[Any] = ()) -> dict[str, Any]:
     """Run one trial and return its record: the trial's identity, condition and seed, every
@@ -154,7 +168,8 @@ def run_trial(spec: TrialSpec, hook: Any = None, config_path: str | None = None,
     t0 = time.perf_counter()
     error = None
     try:
-        measured = fn(spec.cond, spec.seed, cfg, hook, visitors=visitors)
+        measured = fn(spec.cond, spec.seed, cfg, hook, visitors=visitors,
+                      settled=trial_settles())
     except Exception as err:  # a trial that crashes is reported, not silently dropped
         error = f"{type(err).__name__}: {err}"
         measured = {"traceback": traceback.format_exc(limit=6)}

@@ -38,7 +38,7 @@ from articutool.feeding.strategies import Strategy, StrategyLibrary
 from articutool.feeding.tree import BiteRecorder, safe_stop_reason, tick_until_done
 from articutool.sim import accounting as acc
 from articutool.sim.params import PhysicsParams
-from articutool.sim.world import FeedingWorld
+from articutool.sim.world import FeedingWorld, SettleCache
 from articutool.spec import Spec, load_spec
 from articutool.tool.api import Mode, ToolAPI
 
@@ -167,17 +167,20 @@ class MealSetup:
 
 def make_bite_world(food: str, system: str, seed: int = 0, *,
                     strategies: str | Path | None = None, load_g: float | None = None,
-                    physics: str | Path | None = None) -> MealSetup:
+                    physics: str | Path | None = None,
+                    settle_cache: SettleCache | None = None) -> MealSetup:
     """The world, the arm and the strategy for ``food`` with ``system`` (see module doc).
     ``load_g`` builds a world with a load to place by hand (Exp. 2b/2c) instead of a full
-    container; ``physics`` another physics parameter file (e.g. the thesis' 125 g of noodles).
+    container; ``physics`` another physics parameter file (e.g. the thesis' 125 g of noodles);
+    ``settle_cache`` restores an earlier world's settled food (:class:`~articutool.sim.world.
+    SettleCache`).
     Raises ``StrategyError`` / ``ValueError`` naming the field for bad input."""
     spec = load_spec()
     lib = StrategyLibrary.load(spec, strategies)
     name, strat = lib.choose(food, system, np.random.default_rng(seed))
     params = PhysicsParams.load(physics) if physics is not None else None
     world = FeedingWorld(food, strat.utensil, spec=spec, params=params, seed=seed,
-                         load_g=load_g)
+                         load_g=load_g, settle_cache=settle_cache)
     rigid = system == "baseline"
     arm = SimArm(world, tolerance_deg=strat.transport.tolerance_deg, seed=seed, rigid=rigid,
                  load=lambda: world_load(world), leveling=strat.transport.leveling)

@@ -63,8 +63,8 @@ from articutool.tool.drivers.motor_model import MotorPlant
 from articutool.tool.runtime import ToolRuntime
 from articutool.trajectory import JointTrajectory
 
-__all__ = ["FeedingWorld", "FoodReport", "PhysicsResetError", "capacity_bound_reason",
-           "smooth_joint_motion", "utensil_capacity_bound_g"]
+__all__ = ["FeedingWorld", "FoodReport", "PhysicsResetError", "SettleCache",
+           "capacity_bound_reason", "smooth_joint_motion", "utensil_capacity_bound_g"]
 
 # MuJoCo's warnings on which mj_step resets mjData to the model's defaults (its "simulation is
 # unstable" reset: NaN, Inf or huge qpos/qvel/qacc). Everything after is not the run's physics.
@@ -112,10 +112,42 @@ class PhysicsResetError(RuntimeError):
     food jumped back to the model's defaults, so the run's outcome is meaningless: it stops
     here and is never counted."""
 
-# Settled piles by (model, start state): restored instead of settled again (_settle). A few:
-# an experiment's conditions share a repeat's seed (common random numbers, experiments.design).
-_SETTLED: dict[str, tuple[mujoco.MjData, NDArray[np.float64], float, int]] = {}
-_SETTLED_KEEP = 4
+class SettleCache:
+    """Settled worlds by (model, start state), restored instead of settled again: the
+    same model and start state settle to the same state, so a copy of every byte of
+    ``mjData`` (sleep state, contacts and the solver's warm start included) and the world's
+    own servo state is the state a fresh settle makes, to the bit
+    (``tests/test_sim_speed.py``). Whoever runs many worlds owns one (the experiments'
+    runner, one per worker process: an experiment's conditions share a repeat's seed, so
+    they share its settled pile); a world built without one settles afresh.
+
+    It keeps the ``keep`` most recently used states (one is a full ``mjData``)."""
+
+    def __init__(self, keep: int = 4) -> None:
+        if keep < 1:
+            raise ValueError(f"keep must be >= 1; got {keep}")
+        self.keep = keep
+        self._states: dict[str, tuple[mujoco.MjData, NDArray[np.float64], float, int]] = {}
+
+    def __len__(self) -> int:
+        return len(self._states)
+
+    def clear(self) -> None:
+        """Forget every settled state."""
+        self._states.clear()
+
+    def take(self, key: str) -> tuple[mujoco.MjData, NDArray[np.float64], float, int] | None:
+        """The state settled under ``key`` (removed until :meth:`put` back), or None."""
+        return self._states.pop(key, None)
+
+    def put(self, key: str,
+            state: tuple[mujoco.MjData, NDArray[np.float64], float, int]) -> None:
+        """Keep ``state`` under ``key`` as the most recently used; forget the oldest beyond
+        ``keep``."""
+        self._states.pop(key, None)
+        self._states[key] = state
+        while len(self._states) > self.keep:
+            self._states.pop(next(iter(self._states)))
 
 _ZUP = np.array([0.0, 0.0, 1.0])
 
@@ -188,6 +220,9 @@ class FeedingWorld:
         mouth: food entering the scene's ``mouth`` region is eaten (a bite); ``False`` for
             protocols in which nobody eats and the experimenter weighs the utensil at the
             goal (Exp. 2b, 2c).
+        settle_cache: restores the settled state of an earlier world with the same model
+            and start state instead of settling again (bit-identical; :class:`SettleCache`);
+            ``None`` settles afresh.
     """
 
     def __init__(
@@ -206,6 +241,7 @@ class FeedingWorld:
         settle: bool = True,
         load_g: float | None = None,
         mouth: bool = True,
+        settle_cache: SettleCache | None = None,
     ) -> None:
         self.spec = spec if spec is not None else load_spec()
         self.scene = scene if scene is not None else Scene.load()
@@ -217,6 +253,7 @@ class FeedingWorld:
         if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
             raise ValueError(f"seed must be an integer >= 0; got {seed!r}")
         self.seed = int(seed)
+        self._settle_cache = settle_cache
         if load_g is not None and not (math.isfinite(load_g) and load_g > 0):
             raise ValueError(f"load_g must be a finite mass > 0 g; got {load_g}")
         if load_g is not None and food is None:
@@ -320,18 +357,19 @@ class FeedingWorld:
         self._classify()
 
     def _settle(self, seconds: float) -> None:
-        """Run ``seconds`` with the tool off, or restore the state that run left last time:
-        the same model and start state settle to the same state, so a settled pile is kept
-        (in this process) and copied in — every byte of ``mjData`` (sleep state, contacts and
-        the solver's warm start included) and the world's own servo state — bit-identical to
-        settling it again (``tests/test_sim_speed.py``)."""
+        """Run ``seconds`` with the tool off, or, with a :class:`SettleCache`, restore the
+        state that run left last time (bit-identical to settling again)."""
         m, d = self.model, self.data
+        cache = self._settle_cache
+        if cache is None:
+            self.run(seconds, tick=False)
+            return
         h = hashlib.sha256(_model_bytes(m))
         for a in (d.qpos, d.qvel, m.tree_sleep_policy,
                   np.array([seconds, self._kv, self._ki, self._tq])):
             h.update(np.ascontiguousarray(a).tobytes())
         key = h.hexdigest()
-        hit = _SETTLED.pop(key, None)
+        hit = cache.take(key)
         if hit is None:
             self.run(seconds, tick=False)
             snap = mujoco.MjData(m)
@@ -341,9 +379,7 @@ class FeedingWorld:
             snap, vel_int, err, n = hit
             mujoco.mj_copyData(d, m, snap)
             self._vel_int, self.arm_tracking_error, self._step_count = vel_int.copy(), err, n
-        _SETTLED[key] = hit  # most recent last
-        while len(_SETTLED) > _SETTLED_KEEP:
-            _SETTLED.pop(next(iter(_SETTLED)))
+        cache.put(key, hit)
 
     # ----------------------------------------------------------------- accessors --
     @property
