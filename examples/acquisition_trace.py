@@ -17,7 +17,7 @@ import argparse
 import numpy as np
 import py_trees
 
-from articutool.feeding.meal import container_floor, make_bite_world, run_bite
+from articutool.meal.bites import container_floor, make_bite_world, run_bite
 
 
 def main() -> None:

@@ -36,8 +36,8 @@ from typing import Any
 
 from articutool.experiments.stats import describe, welch
 from articutool.feeding.behaviours import Execute
-from articutool.feeding.meal import DEFAULT_SETTINGS, _tree, make_bite_world, run_bite
 from articutool.feeding.strategies import Strategy
+from articutool.meal.bites import DEFAULT_SETTINGS, _tree, make_bite_world, run_bite
 
 STAGES = ("above", "acquire", "shed", "resting")
 SYSTEMS = ("articutool", "baseline")
@@ -114,9 +114,9 @@ def turn(food: str) -> dict[str, Any]:
     from articutool.arm.model import ArmModel
     from articutool.arm.scene import SCOOP_HEADING, Scene
     from articutool.feeding.insertion import acquisition_waypoints, dish_outline
-    from articutool.feeding.meal import container_floor
-    from articutool.feeding.sim_arm import wrist_sweep
     from articutool.feeding.strategies import StrategyLibrary
+    from articutool.meal.bites import container_floor
+    from articutool.meal.sim_arm import wrist_sweep
     from articutool.sim.scenes import cartesian_path, first_ik
     from articutool.spec import load_spec
 

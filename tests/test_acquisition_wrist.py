@@ -101,7 +101,7 @@ def test_a_path_whose_wrist_does_not_move_leaves_the_tool_alone() -> None:
 @pytest.mark.slow
 def test_the_wrist_made_scoop_level_brings_water_up_through_the_tree() -> None:
     pytest.importorskip("mujoco")
-    from articutool.feeding.meal import DEFAULT_SETTINGS, _tree, make_bite_world, run_bite
+    from articutool.meal.bites import DEFAULT_SETTINGS, _tree, make_bite_world, run_bite
 
     # ~1 min of physics: dip tilted, the wrist levels in the water while the arm moves the
     # spoon along its heading, rise, shed over the bowl, transport to Resting.

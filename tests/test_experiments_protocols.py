@@ -183,7 +183,7 @@ def _dish_centre(model, q_arm, utensil_spec) -> np.ndarray:
 def test_the_shedding_pose_is_over_the_scenes_bowl_wherever_the_bowl_is(tmp_path) -> None:
     from articutool.arm.model import ArmModel
     from articutool.arm.scene import Scene
-    from articutool.feeding.meal import container_floor, shed_configuration
+    from articutool.meal.bites import container_floor, shed_configuration
     from articutool.spec import load_spec
     from articutool.tool.kinematics import tilt_from_vertical
 
@@ -232,7 +232,7 @@ def test_food_that_leaves_the_spoon_in_transport_and_lands_in_the_bowl_is_spille
     # pours into the bowl is a transport spill, reported apart (place "container").
     from articutool.arm.scene import Scene
     from articutool.experiments.protocols import transport_outcome
-    from articutool.feeding.meal import shed_configuration
+    from articutool.meal.bites import shed_configuration
     from articutool.sim.scenes import base_tilt_motion, load
     from articutool.sim.world import FeedingWorld
     from articutool.spec import load_spec

@@ -189,8 +189,8 @@ def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
     from types import SimpleNamespace
     from unittest import mock
 
-    import articutool.feeding.meal as meal
     import articutool.feeding.tree as tree
+    import articutool.meal.bites as meal
     from articutool.experiments import protocols
     from articutool.experiments.runner import run_trial
 

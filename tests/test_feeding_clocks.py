@@ -13,9 +13,9 @@ from py_trees.common import Status
 
 pytest.importorskip("mujoco")
 
-from articutool.feeding import sim_arm
-from articutool.feeding.sim_arm import SimArm
 from articutool.feeding.tree import run_tree, transport_tree
+from articutool.meal import sim_arm
+from articutool.meal.sim_arm import SimArm
 from articutool.sim.world import FeedingWorld
 from articutool.tool.api import Mode
 

@@ -31,7 +31,6 @@ from py_trees.common import Status
 pytest.importorskip("mujoco")
 
 from articutool.feeding.behaviours import JobResult
-from articutool.feeding.meal import BiteResult, MealSetup, make_bite_world, run_bite
 from articutool.link.auth import Sender
 from articutool.link.client import ArticutoolClient
 from articutool.link.config import load_config
@@ -39,6 +38,7 @@ from articutool.link.memory_transport import MemoryBus, MemoryTransport
 from articutool.link.pairing import pair
 from articutool.link.remote_tool import RemoteTool
 from articutool.link.server import ToolServer
+from articutool.meal.bites import BiteResult, MealSetup, make_bite_world, run_bite
 from articutool.tool.api import Mode
 
 STAGES = ("staging", "present", "return")

@@ -9,8 +9,8 @@ from py_trees.common import Status
 
 pytest.importorskip("mujoco")
 
-from articutool.feeding.sim_arm import SimArm
 from articutool.feeding.tree import run_tree, transport_tree
+from articutool.meal.sim_arm import SimArm
 from articutool.sim.world import FeedingWorld
 from articutool.tool.api import Mode
 
@@ -154,7 +154,7 @@ def test_a_bites_spill_counts_a_particle_that_goes_from_table_to_floor_once() ->
     # (seed 0), one of whose table spills is then moved off the table's edge.
     import mujoco
 
-    from articutool.feeding.meal import make_bite_world, run_bite
+    from articutool.meal.bites import make_bite_world, run_bite
 
     setup = make_bite_world("water", "articutool", seed=0, load_g=8.0)
     w = setup.world
@@ -185,7 +185,7 @@ def test_a_bites_spill_counts_a_particle_that_goes_from_table_to_floor_once() ->
 def test_the_bite_tree_sheds_over_the_bowl(food: str) -> None:
     # Every Articutool strategy's post-acquisition primitive runs after the lift out of the
     # bowl: the tip is then over the bowl (thesis §4.4: shed "harmlessly back into the bowl").
-    from articutool.feeding.meal import container_floor, make_bite_world, run_bite
+    from articutool.meal.bites import container_floor, make_bite_world, run_bite
 
     setup = make_bite_world(food, "articutool", seed=0)
     w = setup.world

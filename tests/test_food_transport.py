@@ -15,9 +15,9 @@ from py_trees.common import Status
 
 from articutool.arm.scene import Scene
 from articutool.feeding.behaviours import JobResult
-from articutool.feeding.sim_arm import FoodDecision, SimArm
 from articutool.feeding.tree import BiteRecorder, tick_until_done, transport_tree
 from articutool.food.loads import food_load
+from articutool.meal.sim_arm import FoodDecision, SimArm
 from articutool.planning.timing import time_parameterize
 from articutool.sim.params import PhysicsParams
 from articutool.tool.api import Mode

@@ -1,7 +1,7 @@
 """The import graph of ``src/articutool``: no import circles and no upward arrows. Imports go
-down the README's layers: spec/data → tool, arm → link, verify,
-planning → sim → feeding → experiments, viewer, CLIs. Parsed with ``ast`` (lazy imports
-inside functions count too)."""
+down the README's layers: spec/data → tool, arm, food → link, verify, planning → sim,
+feeding → meal → experiments, viewer, CLIs (the feeding task does not know the simulator;
+``meal`` joins them). Parsed with ``ast`` (lazy imports inside functions count too)."""
 
 import ast
 import subprocess
@@ -93,6 +93,10 @@ FIXED_ARROWS = [
     ("articutool.feeding", "articutool.experiments"),
     ("articutool.sim", "articutool.viewer"),
     ("articutool.feeding", "articutool.viewer"),
+    ("articutool.feeding", "articutool.sim"),
+    ("articutool.feeding", "articutool.meal"),
+    ("articutool.sim", "articutool.feeding"),
+    ("articutool.sim", "articutool.meal"),
 ]
 
 
@@ -141,8 +145,8 @@ def test_only_the_entry_point_imports_the_top_level_cli() -> None:
 def test_feeding_takes_the_staging_goal_and_the_scoop_heading_from_the_arm_layer() -> None:
     # not from the demo or the scripted scenes (sim/demo.py, sim/scenes.py)
     assert imports_from(GRAPH, "articutool.feeding", "articutool.sim.demo") == []
-    assert ("articutool.arm.ik" in GRAPH["articutool.feeding.sim_arm"]
+    assert ("articutool.arm.ik" in GRAPH["articutool.meal.sim_arm"]
             and "articutool.arm.ik" in GRAPH["articutool.sim.demo"])
-    for mod in ("articutool.feeding.meal", "articutool.feeding.cli"):
+    for mod in ("articutool.meal.bites", "articutool.meal.cli"):
         assert "articutool.sim.scenes" not in GRAPH[mod]
         assert "articutool.arm.scene" in GRAPH[mod]

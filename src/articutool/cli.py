@@ -38,7 +38,7 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "articutool.ros2.cli",
     "articutool.sim.demo",
     "articutool.sim.cli",
-    "articutool.feeding.cli",
+    "articutool.meal.cli",
     "articutool.bench.cli",
     "articutool.viewer.cli",
     "articutool.experiments.cli",

@@ -6,7 +6,7 @@ and verifier), and returns a flat dict of every measured quantity. Trials differ
 their seed (food placement, sensor noise and gyro bias, planner seed). A ``hook`` may be
 given the world before anything moves (video recording for ``--trial K --video``), and
 ``visitors`` (py_trees visitors) join every feeding tree a trial ticks, as ``articutool meal``
-passes them to :func:`~articutool.feeding.meal.run_bite`: the list is read when the tree is
+passes them to :func:`~articutool.meal.bites.run_bite`: the list is read when the tree is
 built, after the hook, so a hook may add to it (``--record``: the recording's
 :attr:`~articutool.sim.mcap_record.WorldMcapRecorder.tree_visitor`, which only reads the
 tree's state, so a recorded replay has the logged outcome). The capacity protocol runs no tree.
@@ -16,7 +16,7 @@ tree's state, so a recorded replay has the logged outcome). The capacity protoco
   the scene's ``[staging_set]`` (§5.2.2): the Articutool (decoupled + LEVELING) or the
   baseline (strict ±20°, wrist locked);
 - :func:`exp2c_trial` — the capacity load placed over the bowl (the thesis' "fixed Resting
-  configuration (over the bowl)", :func:`~articutool.feeding.meal.shed_configuration`), the
+  configuration (over the bowl)", :func:`~articutool.meal.bites.shed_configuration`), the
   shedding primitive there (or not: control), then carried to Staging by the Articutool
   (§5.2.3).
 """
@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from articutool.experiments.config import ExperimentsConfig
-from articutool.feeding.sim_arm import SimArm
+from articutool.meal.sim_arm import SimArm
 from articutool.sim import accounting as acc
 from articutool.sim.world import FeedingWorld, SettleCache
 
@@ -153,7 +153,7 @@ def capacity_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
     filling its dish to the rim — the most any scoop can leave in it without surface
     tension."""
     from articutool.feeding.bite import BiteSettings
-    from articutool.feeding.meal import make_bite_world, run_bite
+    from articutool.meal.bites import make_bite_world, run_bite
     from articutool.sim.loading import dish_volume_m3
     from articutool.sim.params import Liquid
 
@@ -218,7 +218,7 @@ def exp2b_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
                settled: SettleCache | None = None) -> dict[str, Any]:
     """Exp. 2b: load placed at the common start, carried to ``cond['goal']``."""
     from articutool.arm.scene import Scene
-    from articutool.feeding.sim_arm import world_load
+    from articutool.meal.sim_arm import world_load
     from articutool.tool.api import Mode
 
     food, system, goal = cond["food"], cond["system"], cond["goal"]
@@ -276,8 +276,8 @@ def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
     F/T-driven one of ``[exp2c.closed_loop]``) or not (``control``), then transport to
     Staging with the Articutool."""
     from articutool.arm.scene import Scene
-    from articutool.feeding.meal import shed_configuration
     from articutool.feeding.strategies import StrategyLibrary
+    from articutool.meal.bites import shed_configuration
     from articutool.spec import load_spec
     from articutool.tool.api import Mode
 
@@ -370,12 +370,12 @@ def json_safe(x: Any) -> Any:
 def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
           stages: tuple[str, ...], timeout_s: float, visitors: Visitors,
           settled: SettleCache | None) -> dict[str, Any]:
-    """One bite through the feeding tree (:func:`articutool.feeding.meal.run_bite`): the
-    world, arm and strategy from :func:`~articutool.feeding.meal.make_bite_world` (the
+    """One bite through the feeding tree (:func:`articutool.meal.bites.run_bite`): the
+    world, arm and strategy from :func:`~articutool.meal.bites.make_bite_world` (the
     strategy drawn from the action library with the seed; ``cond["strategies"]``, when
     given, is another action-library file), the given stages."""
     from articutool.feeding.bite import BiteSettings
-    from articutool.feeding.meal import make_bite_world, run_bite
+    from articutool.meal.bites import make_bite_world, run_bite
 
     setup = make_bite_world(cond["food"], cond["system"], seed,
                             strategies=cond.get("strategies"), physics=cond.get("physics"),

@@ -33,9 +33,9 @@ from articutool.feeding.behaviours import Attempts
 from articutool.feeding.bite import STAGES, BiteSettings, bite_tree
 from articutool.feeding.insertion import acquisition_waypoints, dish_outline
 from articutool.feeding.outcomes import classify_bite
-from articutool.feeding.sim_arm import SimArm, world_load
 from articutool.feeding.strategies import Strategy, StrategyLibrary
 from articutool.feeding.tree import BiteRecorder, safe_stop_reason, tick_until_done
+from articutool.meal.sim_arm import SimArm, world_load
 from articutool.sim import accounting as acc
 from articutool.sim.params import PhysicsParams
 from articutool.sim.world import FeedingWorld, SettleCache

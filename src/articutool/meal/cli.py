@@ -63,7 +63,7 @@ def _show_tree(args: argparse.Namespace, lib: Any, out: Path | None) -> int:
     from articutool.arm.scene import SCOOP_HEADING, Scene
     from articutool.feeding.bite import bite_tree
     from articutool.feeding.insertion import acquisition_waypoints, dish_outline
-    from articutool.feeding.meal import container_floor
+    from articutool.meal.bites import container_floor
     from articutool.sim.params import PhysicsParams
     from articutool.spec import load_spec
 
@@ -114,8 +114,8 @@ def _cmd_meal(args: argparse.Namespace) -> int:
         return _show_tree(args, lib, new_output_file("--show-tree", args.show_tree, _TREE_SUFFIXES))
     video = new_output_file("--video", args.video, (".mp4", ".gif"))
     record = new_output_file("--record", args.record, (".npz", ".mcap"))
-    from articutool.feeding.meal import make_bite_world, run_meal
-    from articutool.feeding.progress import TreeProgress
+    from articutool.meal.bites import make_bite_world, run_meal
+    from articutool.meal.progress import TreeProgress
 
     try:
         setup = make_bite_world(args.food, args.system, args.seed, strategies=args.strategies)
