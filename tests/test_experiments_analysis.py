@@ -135,6 +135,8 @@ def test_report_puts_ours_beside_the_thesis_and_lists_what_did_not_run(cfg, tmp_
         {"run": {"command": "articutool experiment exp2b --trials 2", "machine": {
             "host": "h", "cpus": 2}, "date": "2026-01-01"}}))
     (tmp_path / "exp2b" / "notes.md").write_text("Why: our water does not slosh.")
+    (tmp_path / "exp3").mkdir()  # not run, with the reason why
+    (tmp_path / "exp3" / "notes.md").write_text("Not run: a trial costs an hour of CPU.")
     md_path, html_path = report.write_report(tmp_path, cfg, thresholds_g=None,
                                              thresholds_source="none", threshold_g=None)
     md = md_path.read_text()
@@ -144,6 +146,7 @@ def test_report_puts_ours_beside_the_thesis_and_lists_what_did_not_run(cfg, tmp_
     assert "Why: our water does not slosh." in md
     assert "articutool experiment exp2b --trials 2" in md
     assert "Not run yet" in md and "exp1" in md.split("Not run yet")[1]
+    assert "Not run: a trial costs an hour of CPU." in md.split("Not run yet")[1]
     assert (tmp_path / "exp2b" / "exp2b.png").exists()
     assert "<img" in html_path.read_text()
 

@@ -605,8 +605,9 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
                  thresholds_source: str, threshold_g: float | None,
                  on_kept: Callable[[Path, Path], None] | None = None) -> tuple[Path, Path]:
     """Write ``out/report.md`` and ``out/report.html`` (figures in each experiment's
-    directory); experiments not yet run are listed as missing. ``out/<exp>/notes.md``, if
-    present, is included in the experiment's section: the physical reasons we believe explain
+    directory); experiments not yet run are listed as missing, with their ``notes.md`` (why
+    not) if present. ``out/<exp>/notes.md``, if present, is included in the experiment's
+    section: the physical reasons we believe explain
     where our numbers differ, written by whoever examined the run (trials, videos).
     A report there that is not as this command wrote it (edited) is kept beside it first
     (:func:`_write_generated`), and ``on_kept(report, copy)`` is told."""
@@ -657,6 +658,11 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
     if missing:
         parts.append("## Not run yet\n\n" + ", ".join(missing) + " (no trials or no "
                      "summary under this directory).\n")
+        for exp in missing:  # why not: the experiment's notes, when someone wrote them
+            npath = out / exp / "notes.md"
+            if npath.exists() or npath.is_symlink():
+                parts.append(f"**{TITLES.get(exp, exp)}.** "
+                             + read_text(npath, "notes", ResultsError).strip() + "\n")
     if machines:
         rows = [[e, m.get("host"), m.get("platform"), m.get("python"), m.get("cpus"),
                  m.get("load_avg"), d] for e, (m, d) in machines.items()]

@@ -88,6 +88,7 @@ apart each would have to reach into the others' state.
 
 from __future__ import annotations
 
+import enum
 import logging
 import math
 import threading
@@ -114,9 +115,23 @@ from articutool.tool.sensing import STALE_IMU_PERIODS, Sensing
 from articutool.tool.telemetry import EnergyMeter, LoopStats, build_state
 from articutool.trajectory import JointTrajectory, TrajectoryError
 
-__all__ = ["ToolRuntime"]
+__all__ = ["FaultKind", "ToolRuntime"]
 
 log = logging.getLogger(__name__)
+
+
+class FaultKind(enum.Enum):
+    """What put the tool in its safe state; it decides how the fault clears
+    (:meth:`ToolRuntime.clear_fault`): a cause that persists refuses the clear, a motor
+    hardware error needs a reboot, a joint-limit fault arms the envelope's recovery."""
+
+    EXCEPTION = "exception"  # the control loop or the state it publishes raised
+    MOTOR_READ = "motor_read"  # the motors did not answer or gave invalid joints
+    HARDWARE = "hardware"  # a motor reported a hardware error (overload, overheating, …)
+    LIMIT = "limit"  # the safety envelope: a joint or velocity limit
+    IMU_STALE = "imu_stale"  # no fresh IMU data while leveling
+    COMMAND = "command"  # the mode computed a non-finite joint command
+    MOTOR_STOP = "motor_stop"  # the motors did not confirm a stop
 
 
 class ToolRuntime:
@@ -174,7 +189,7 @@ class ToolRuntime:
 
         self._mode = Mode.DISABLED
         self._fault = ""
-        self._fault_kind = ""
+        self._fault_kind: FaultKind | None = None
         self._faults_total = 0
         self._stop_ok = True  # the last motors.stop() was confirmed
         self._stop_failures = 0
@@ -250,7 +265,7 @@ class ToolRuntime:
             if self._fault:
                 cause = self._fault_cause()
                 if cause:
-                    if self._fault_kind == "hardware":
+                    if self._fault_kind is FaultKind.HARDWARE:
                         cause += "; clear_fault reboots the motors (once the cause is gone)"
                     if mode is Mode.LEVELING:
                         return False, f"refused: fault persists: {cause}"
@@ -292,7 +307,7 @@ class ToolRuntime:
                 message = f"cleared fault: {self._fault}"
                 self._clear_fault()
                 return True, message
-            if self._fault_kind != "hardware":
+            if self._fault_kind is not FaultKind.HARDWARE:
                 return False, f"refused: fault persists: {cause}"
             ms = self._motor_state
             limit = self.spec.motors.reboot_below_c
@@ -489,13 +504,13 @@ class ToolRuntime:
                 self._step(now, dt)
             except Exception as exc:
                 log.exception("tool loop tick failed")
-                self._set_fault("exception", f"exception in control loop: "
+                self._set_fault(FaultKind.EXCEPTION, f"exception in control loop: "
                                 f"{type(exc).__name__}: {exc}")
             try:
                 self._snapshot = self._make_state(self._last_now or 0.0)
             except Exception as exc:  # telemetry must never take the loop down
                 log.exception("building the state snapshot failed")
-                self._set_fault("exception", f"exception building state: {exc}")
+                self._set_fault(FaultKind.EXCEPTION, f"exception building state: {exc}")
             self.stats.add_compute(time.perf_counter() - t_start)
             return self._snapshot if self._snapshot is not None else self.state()
 
@@ -511,13 +526,13 @@ class ToolRuntime:
             ms = self.motors.read()
         except Exception as exc:
             self._motor_read_ok = False
-            self._set_fault("motor_read", f"motor read failed: {type(exc).__name__}: {exc}")
+            self._set_fault(FaultKind.MOTOR_READ, f"motor read failed: {type(exc).__name__}: {exc}")
             return
         self._motor_read_ok = True
         self._motor_state = ms
         q = np.asarray(ms.position, dtype=np.float64)
         if q.shape != (2,) or not np.isfinite(q).all():
-            self._set_fault("motor_read", f"motor read gave invalid joints {q!r}")
+            self._set_fault(FaultKind.MOTOR_READ, f"motor read gave invalid joints {q!r}")
             return
 
         # 2. IMU → filter (every sample since the last tick, in order)
@@ -530,14 +545,14 @@ class ToolRuntime:
 
         # 4. safety
         if ms.has_hardware_error:
-            self._set_fault("hardware", f"motor hardware error: {ms.describe_errors()}")
+            self._set_fault(FaultKind.HARDWARE, f"motor hardware error: {ms.describe_errors()}")
             return
         outside, violation = self._envelope.check(q)
         if violation:
-            self._set_fault("limit", violation)
+            self._set_fault(FaultKind.LIMIT, violation)
             return
         if self._mode is Mode.LEVELING and not sensing.imu_fresh:
-            self._set_fault("imu_stale", sensing.stale_message(now))
+            self._set_fault(FaultKind.IMU_STALE, sensing.stale_message(now))
             return
 
         # 5. the mode's command
@@ -558,14 +573,14 @@ class ToolRuntime:
         # 6. last checks, then write
         cmd = np.asarray(cmd, dtype=np.float64)
         if cmd.shape != (2,) or not np.isfinite(cmd).all():
-            self._set_fault("command",
+            self._set_fault(FaultKind.COMMAND,
                             f"non-finite joint command {cmd!r} in mode {self._mode.name}")
             return
         cmd = np.clip(cmd, -self._vmax, self._vmax)
         if outside:  # recovering: only moves back towards the envelope are allowed
             violation = self._envelope.drives_further_out(q, cmd, outside)
             if violation:
-                self._set_fault("limit", f"{violation} and the {self._mode.name} command "
+                self._set_fault(FaultKind.LIMIT, f"{violation} and the {self._mode.name} command "
                                 "drives it further out")
                 return
         self.motors.set_velocity(cmd)
@@ -654,14 +669,14 @@ class ToolRuntime:
             if not self._in_stop_fault:  # _set_fault stops again: no recursion
                 self._in_stop_fault = True
                 try:
-                    self._set_fault("motor_stop", message)
+                    self._set_fault(FaultKind.MOTOR_STOP, message)
                 finally:
                     self._in_stop_fault = False
             return
         self._stop_ok = True
         self._command = np.zeros(2)
 
-    def _set_fault(self, kind: str, message: str) -> None:
+    def _set_fault(self, kind: FaultKind, message: str) -> None:
         """Safe state: stop, DISABLED, keep the first cause."""
         if not self._fault:
             self._faults_total += 1
@@ -677,23 +692,23 @@ class ToolRuntime:
         self._stop_motors()
 
     def _clear_fault(self) -> None:
-        if self._fault_kind == "limit" and self._motor_state is not None:
+        if self._fault_kind is FaultKind.LIMIT and self._motor_state is not None:
             q = np.asarray(self._motor_state.position, dtype=np.float64)
             self._envelope.arm_recovery(q)
         self._fault = ""
-        self._fault_kind = ""
+        self._fault_kind = None
 
     def _fault_cause(self) -> str:
         """Why the current fault cannot be cleared yet; empty when its cause is gone."""
         kind = self._fault_kind
         ms = self._motor_state
-        if kind == "motor_read" and not self._motor_read_ok:
+        if kind is FaultKind.MOTOR_READ and not self._motor_read_ok:
             return "the motors do not answer"
-        if kind == "hardware" and ms is not None and ms.has_hardware_error:
+        if kind is FaultKind.HARDWARE and ms is not None and ms.has_hardware_error:
             return f"motor hardware error: {ms.describe_errors()}"
-        if kind == "imu_stale" and not self._sensing.imu_fresh:
+        if kind is FaultKind.IMU_STALE and not self._sensing.imu_fresh:
             return "IMU data still stale"
-        if kind == "motor_stop" and not self._stop_ok:
+        if kind is FaultKind.MOTOR_STOP and not self._stop_ok:
             return "the motors do not confirm a stop"
         return ""
 
