@@ -36,6 +36,7 @@ __all__ = [
     "PrimitivesSpec",
     "Spec",
     "SpecError",
+    "StrictModel",
     "UtensilSpec",
     "WristSpec",
     "default_spec_path",
@@ -60,7 +61,11 @@ Unit = Annotated[float, AfterValidator(_finite), Field(ge=0, le=1)]
 Vec3 = tuple[Finite, Finite, Finite]
 
 
-class _Strict(BaseModel):
+class StrictModel(BaseModel):
+    """The base of every validated data file's models (the spec, the scene, the physics
+    parameters, the action library, the experiments): an unknown field is an error (a typo
+    never passes silently) and a loaded value never changes."""
+
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
@@ -69,7 +74,7 @@ def _check_interval(lo: float, hi: float, name: str) -> None:
         raise ValueError(f"{name}: lower ({lo}) must be below upper ({hi})")
 
 
-class ArmJointSpec(_Strict):
+class ArmJointSpec(StrictModel):
     """One Jaco joint as in Kinova's URDF: origin in the parent frame, rotation about local z."""
 
     name: str
@@ -88,7 +93,7 @@ class ArmJointSpec(_Strict):
         return self
 
 
-class PoseSpec(_Strict):
+class PoseSpec(StrictModel):
     """A pose in the arm base frame; quaternion order (w, x, y, z)."""
 
     position: Vec3
@@ -102,7 +107,7 @@ class PoseSpec(_Strict):
         return self
 
 
-class ArmSpec(_Strict):
+class ArmSpec(StrictModel):
     """Kinova Jaco 2 (j2n6s200): joint table, end-effector frame, named configurations."""
 
     model: str
@@ -150,7 +155,7 @@ class ArmSpec(_Strict):
         return np.array(self.configurations[name])
 
 
-class WristSpec(_Strict):
+class WristSpec(StrictModel):
     """The Articutool's 2-DOF pitch/roll wrist (joint order everywhere: [pitch, roll])."""
 
     joint_names: tuple[str, str]
@@ -199,7 +204,7 @@ class WristSpec(_Strict):
         return 1.0 / self.loop_rate_hz
 
 
-class UtensilShape(_Strict):
+class UtensilShape(StrictModel):
     """Physics shape of a utensil (``articutool.sim``), in the roll-link frame.
 
     ``kind = "spoon"``: a dish whose far end is the tip, ``bowl = [length, width, depth]``
@@ -227,7 +232,7 @@ class UtensilShape(_Strict):
         return self
 
 
-class UtensilSpec(_Strict):
+class UtensilSpec(StrictModel):
     """Utensil tip offset from the utensil mount, in the roll-link frame (x up at zero, z out)."""
 
     tip_x: Finite
@@ -235,7 +240,7 @@ class UtensilSpec(_Strict):
     physics: UtensilShape
 
 
-class CollisionSpec(_Strict):
+class CollisionSpec(StrictModel):
     """Collision primitives (approx.) for ``articutool.arm``: capsule radii and skipped pairs.
 
     ``link_radii[i]`` is the capsule radius of Jaco link i+1, which runs from joint i+1 to the
@@ -251,7 +256,7 @@ class CollisionSpec(_Strict):
     excluded_pairs: list[tuple[str, str]] = Field(default_factory=list)
 
 
-class ControllerSpec(_Strict):
+class ControllerSpec(StrictModel):
     """Leveling controller gains (thesis Alg. 1; docs/hardware.md §5)."""
 
     kp: NonNegative
@@ -267,7 +272,7 @@ class ControllerSpec(_Strict):
     stall_s: Positive  # ... for this long
 
 
-class PrimitivesSpec(_Strict):
+class PrimitivesSpec(StrictModel):
     """Closed-loop moves inside the primitives (thesis §4.4; docs/hardware.md §6)."""
 
     position_gain: Positive
@@ -287,7 +292,7 @@ class PrimitivesSpec(_Strict):
         return self
 
 
-class FilterSpec(_Strict):
+class FilterSpec(StrictModel):
     """Complementary filter parameters (Valenti et al. 2015; docs/hardware.md §4)."""
 
     gain_acc: Unit
@@ -296,7 +301,7 @@ class FilterSpec(_Strict):
     bias_estimation: bool
 
 
-class MotorSpec(_Strict):
+class MotorSpec(StrictModel):
     """Dynamixel bus and unit conversions."""
 
     model: str
@@ -328,7 +333,7 @@ class MotorSpec(_Strict):
         return self
 
 
-class ImuSpec(_Strict):
+class ImuSpec(StrictModel):
     """OpenLog Artemis IMU stream."""
 
     port: str
@@ -339,7 +344,7 @@ class ImuSpec(_Strict):
     accel_noise_ug_rthz: NonNegative
 
 
-class FTSpec(_Strict):
+class FTSpec(StrictModel):
     """Resense HEX21 force/torque stream."""
 
     port: str
@@ -350,7 +355,7 @@ class FTSpec(_Strict):
     torque_noise_nm: NonNegative
 
 
-class PlanningSpec(_Strict):
+class PlanningSpec(StrictModel):
     """Transport planning tolerances (thesis §5.2, Exp. 2a; docs/hardware.md §7)."""
 
     strict_tolerance_deg: Annotated[float, AfterValidator(_finite), Field(gt=0, lt=90)]
@@ -358,7 +363,7 @@ class PlanningSpec(_Strict):
     loose_pitch_deg: Annotated[float, AfterValidator(_finite), Field(gt=0, le=180)]
 
 
-class PowerSpec(_Strict):
+class PowerSpec(StrictModel):
     """Measured power budget (thesis §3.1)."""
 
     idle_w: Positive
@@ -367,7 +372,7 @@ class PowerSpec(_Strict):
     battery_wh: Positive
 
 
-class Spec(_Strict):
+class Spec(StrictModel):
     """The whole hardware spec."""
 
     version: Annotated[int, Field(ge=1, le=1)]

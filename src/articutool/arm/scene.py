@@ -33,7 +33,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from articutool.datafile import read_document
 from articutool.rotations import quaternion_to_matrix, rpy_matrix
-from articutool.spec import Finite, Positive, Vec3
+from articutool.spec import Finite, Positive, StrictModel, Vec3
 
 __all__ = [
     "SCOOP_HEADING",
@@ -65,9 +65,7 @@ class SceneError(ValueError):
     """A scene file is missing, malformed or holds an invalid object."""
 
 
-class _Object(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
+class _Object(StrictModel):
     name: Annotated[str, Field(min_length=1)]
     xyz: Vec3 = (0.0, 0.0, 0.0)
     rpy: Vec3 | None = None

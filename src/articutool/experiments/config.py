@@ -7,10 +7,10 @@ from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import Field, ValidationError, model_validator
 
 from articutool.datafile import format_validation_error, read_document
-from articutool.spec import Positive
+from articutool.spec import Positive, StrictModel
 
 __all__ = ["ExperimentsConfig", "ExperimentsConfigError", "default_experiments_path"]
 
@@ -21,11 +21,7 @@ class ExperimentsConfigError(ValueError):
     """The experiments file is missing, malformed or invalid."""
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-class Settings(_Strict):
+class Settings(StrictModel):
     """Shared by every experiment and both systems."""
 
     plan_budget_s: Positive
@@ -35,7 +31,7 @@ class Settings(_Strict):
     alpha: Annotated[float, Field(gt=0, lt=1)] = 0.05
 
 
-class Exp1(_Strict):
+class Exp1(StrictModel):
     """Exp. 1 (§5.1)."""
 
     foods: Names
@@ -43,7 +39,7 @@ class Exp1(_Strict):
     timeout_s: Positive
 
 
-class Exp2bVariant(_Strict):
+class Exp2bVariant(StrictModel):
     """A system of this stack beside the thesis' two: ``system`` (whose planner and tool
     mode it keeps) with the food-aware check before the transport (retimed until predicted
     spill-free, or re-planned) and the wrist leveling against ``leveling`` (``apparent``:
@@ -62,14 +58,14 @@ class Exp2bVariant(_Strict):
         return self
 
 
-class Exp2b(_Strict):
+class Exp2b(StrictModel):
     """Exp. 2b (§5.2.2): the thesis' ``systems`` and this stack's ``variants`` beside them
     (each named; the name is the trial's ``system``)."""
 
     foods: Names
     systems: Names
     load_g: dict[str, Positive]
-    variants: dict[str, Exp2bVariant] = {}
+    variants: dict[str, Exp2bVariant] = Field(default_factory=dict)
 
     @model_validator(mode="after")
     def _names(self) -> Exp2b:
@@ -83,7 +79,7 @@ class Exp2b(_Strict):
         return self
 
 
-class ShedPrimitive(_Strict):
+class ShedPrimitive(StrictModel):
     """A shedding primitive and its parameters (checked against the tool's registry)."""
 
     primitive: Annotated[str, Field(min_length=1)]
@@ -100,7 +96,7 @@ class ShedPrimitive(_Strict):
         return self
 
 
-class Exp2c(_Strict):
+class Exp2c(StrictModel):
     """Exp. 2c (§5.2.3): the strategy whose post-acquisition primitive is the open-loop test,
     and the closed-loop (F/T) primitive of the third condition (thesis §7.1.2)."""
 
@@ -109,7 +105,7 @@ class Exp2c(_Strict):
     closed_loop: dict[str, ShedPrimitive]
 
 
-class Scoop(_Strict):
+class Scoop(StrictModel):
     """The maximal scoop's path: the food's Articutool sweep (strategies.toml) with these
     insertion values (see the data file)."""
 
@@ -119,7 +115,7 @@ class Scoop(_Strict):
     sweep_to_deg: Annotated[float, Field(ge=0, le=90)]
 
 
-class Capacity(_Strict):
+class Capacity(StrictModel):
     """Our "maximum capacity" protocol (see the data file)."""
 
     foods: Names
@@ -133,7 +129,7 @@ class Capacity(_Strict):
         return self
 
 
-class Exp3(_Strict):
+class Exp3(StrictModel):
     """Exp. 3 (§5.3)."""
 
     food: Annotated[str, Field(min_length=1)]
@@ -141,7 +137,7 @@ class Exp3(_Strict):
     timeout_s: Positive
 
 
-class ExperimentsConfig(_Strict):
+class ExperimentsConfig(StrictModel):
     """The validated ``experiments.toml``."""
 
     version: Annotated[int, Field(ge=1, le=1)] = 1

@@ -19,10 +19,10 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import Field, ValidationError, model_validator
 
 from articutool.datafile import format_validation_error, read_document
-from articutool.spec import NonNegative, Positive, Spec
+from articutool.spec import NonNegative, Positive, Spec, StrictModel
 from articutool.tool.primitive_base import PrimitiveError
 from articutool.tool.primitives import make_primitive, primitive_names
 
@@ -44,11 +44,7 @@ class StrategyError(ValueError):
     """A strategy file is missing, malformed or holds an invalid strategy."""
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-class Stage(_Strict):
+class Stage(StrictModel):
     """One primitive slot: a registered primitive and its parameters, or ``NONE``."""
 
     primitive: Annotated[str, Field(min_length=1)]
@@ -71,14 +67,14 @@ class Stage(_Strict):
         return self.primitive == NONE
 
 
-class Approach(_Strict):
+class Approach(StrictModel):
     """Where the tip waits above the food."""
 
     height_m: Positive
     pitch_down_deg: Annotated[float, Field(ge=0, le=90)]
 
 
-class Insertion(_Strict):
+class Insertion(StrictModel):
     """How the utensil goes into the food."""
 
     # sweep: dip tilted, level in the food while moving drag_m (depth_m is then
@@ -122,7 +118,7 @@ class Insertion(_Strict):
         return self
 
 
-class Stages(_Strict):
+class Stages(StrictModel):
     """The three primitive stages (thesis §4.4)."""
 
     pre_move_into: Stage
@@ -130,7 +126,7 @@ class Stages(_Strict):
     post_acquisition: Stage
 
 
-class Transport(_Strict):
+class Transport(StrictModel):
     """Which planner carries the bite, its tolerance for the strict ones, and what the
     decoupled wrist levels against: ``gravity`` (the IMU loop, thesis Alg. 1) or ``apparent``
     (slosh-free: the dish square to g − a of the planned motion, a wrist trajectory the tool
@@ -153,14 +149,14 @@ class Transport(_Strict):
         return self
 
 
-class Attempts(_Strict):
+class Attempts(StrictModel):
     """Bounded retries."""
 
     plan: Annotated[int, Field(ge=1, le=20)]
     acquire: Annotated[int, Field(ge=1, le=10)]
 
 
-class Strategy(_Strict):
+class Strategy(StrictModel):
     """One way to take one bite of ``food`` with ``system``."""
 
     food: Annotated[str, Field(min_length=1)]
@@ -192,7 +188,7 @@ def default_strategies_path() -> Path:
     return Path(str(resources.files("articutool") / "data" / "strategies.toml"))
 
 
-class StrategyLibrary(_Strict):
+class StrategyLibrary(StrictModel):
     """The validated action library."""
 
     version: Annotated[int, Field(ge=1, le=1)] = 1

@@ -14,10 +14,10 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import Field, ValidationError, model_validator
 
 from articutool.datafile import format_validation_error, read_document
-from articutool.spec import NonNegative, Positive
+from articutool.spec import NonNegative, Positive, StrictModel
 
 __all__ = [
     "CONTACT_PARTNERS",
@@ -44,11 +44,7 @@ class PhysicsError(ValueError):
     """A physics parameter file is missing, malformed or holds an invalid value."""
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-class ContactParams(_Strict):
+class ContactParams(StrictModel):
     """One contact law, as MuJoCo applies it to a pair of geoms: ``condim`` (1 frictionless,
     3 sliding, 4 + torsional, 6 + rolling), ``friction`` (sliding, torsional m, rolling m),
     ``solref`` (time constant s, damping ratio) and ``solimp`` (dmin, dmax, width m, midpoint,
@@ -75,7 +71,7 @@ class ContactParams(_Strict):
         return self
 
 
-class FoodContacts(_Strict):
+class FoodContacts(StrictModel):
     """The contact law of a food against each partner (``CONTACT_PARTNERS``): the world gives
     every such pair exactly these values (``articutool.sim.mjcf``)."""
 
@@ -85,7 +81,7 @@ class FoodContacts(_Strict):
     surface: ContactParams
 
 
-class WorldParams(_Strict):
+class WorldParams(StrictModel):
     """Solver options (MuJoCo ``<option>``) and the settling time before a scene."""
 
     timestep: Annotated[float, Field(gt=0, le=0.01)]
@@ -102,7 +98,7 @@ class WorldParams(_Strict):
     utensil_contact: ContactParams
 
 
-class ArmServoParams(_Strict):
+class ArmServoParams(StrictModel):
     """PD gains with velocity feed-forward of the arm's joint servos."""
 
     kp: Positive
@@ -110,7 +106,7 @@ class ArmServoParams(_Strict):
     armature: NonNegative
 
 
-class WristMotorParams(_Strict):
+class WristMotorParams(StrictModel):
     """The XC430 velocity loop: reflected inertia, time constant, gearbox friction."""
 
     armature: Positive
@@ -129,7 +125,7 @@ class WristMotorParams(_Strict):
         return self.kv / self.integral_time_s
 
 
-class _FoodBase(_Strict):
+class _FoodBase(StrictModel):
     container: str = Field(min_length=1)
     utensil: str = Field(min_length=1)
     density: Positive
@@ -255,7 +251,7 @@ def default_physics_path() -> Path:
     return Path(str(resources.files("articutool") / "data" / "physics.toml"))
 
 
-class PhysicsParams(_Strict):
+class PhysicsParams(StrictModel):
     """The whole parameter file."""
 
     version: Annotated[int, Field(ge=2, le=2)] = 2
