@@ -20,6 +20,7 @@ from collections import OrderedDict
 
 from articutool.link.auth import Sender
 from articutool.link.config import LinkConfig
+from articutool.link.counters import LinkCounters
 from articutool.link.transport import Endpoint, RateGate, RefusalError
 
 __all__ = ["Admission"]
@@ -33,7 +34,7 @@ _EVERY = 1000
 class Admission:
     """The pairing check, the per-sender rate gates and the counted, throttled log."""
 
-    def __init__(self, cfg: LinkConfig, counters: dict[str, int],
+    def __init__(self, cfg: LinkConfig, counters: LinkCounters,
                  lock: threading.RLock) -> None:
         self.cfg = cfg
         self.counters = counters
@@ -44,9 +45,7 @@ class Admission:
         """Count one dropped, refused or malformed message under ``key`` and log it: the
         first few of each kind, then one in _EVERY with the count (a flood must not flood
         the log)."""
-        with self._lock:
-            self.counters[key] += 1
-            n = self.counters[key]
+        n = self.counters.bump(key)
         if n <= _LOGGED or n % _EVERY == 0:
             _log.warning(fmt + "; %d %s so far", *args, n, key)
 

@@ -24,6 +24,7 @@ from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.admission import Admission
 from articutool.link.auth import Sender
+from articutool.link.counters import LinkCounters
 from articutool.link.goals import Goal, GoalTable
 from articutool.link.inbox import CommandInbox
 from articutool.link.lease import CommandLease
@@ -43,7 +44,7 @@ class CommandHandlers:
     api: ToolAPI
     transport: Transport
     names: Names
-    counters: dict[str, int]
+    counters: LinkCounters
     lease: CommandLease
     goals: GoalTable
     admission: Admission
@@ -65,7 +66,7 @@ class CommandHandlers:
         with self._lock:
             refusal = self.lease.acquire(who, now, stop)
             if refusal:
-                self.counters["refused_lease"] += 1
+                self.counters.bump("refused_lease")
             return refusal
 
     def _refuse(self, respond: Responder, ep: Endpoint, msg: str) -> None:
@@ -88,7 +89,7 @@ class CommandHandlers:
             return bool(ok), str(msg)
         except Exception as err:
             with self._lock:
-                self.counters["handler_errors"] += 1
+                self.counters.bump("handler_errors")
             _log.exception("ToolAPI call failed")
             return False, f"tool error: {type(err).__name__}: {err}"
 
@@ -159,7 +160,7 @@ class CommandHandlers:
         with self._lock:
             before = self.lease.take_over(who, time.monotonic())
             if before not in (None, who):
-                self.counters["lease_takeovers"] += 1
+                self.counters.bump("lease_takeovers")
         _log.warning("AUDIT take-over: %s took the command lease from %s", who,
                      before or "nobody")
         self.lease.record("take_over", who, before)
@@ -306,14 +307,14 @@ class CommandHandlers:
                 traj = pre(traj)
             except (ValueError, TypeError) as err:  # TrajectoryError is a ValueError
                 with self._lock:
-                    self.counters["rejected_trajectories"] += 1
+                    self.counters.bump("rejected_trajectories")
                 _log.warning("trajectory from %s refused: %s", who, err)
                 return
         self._client_seen(who)
         refusal = self._lease(who)
         if refusal:
             with self._lock:
-                self.counters["rejected_trajectories"] += 1
+                self.counters.bump("rejected_trajectories")
             _log.warning("trajectory from %s %s", who, refusal)
             return
         # As ROS trajectory controllers: time 0 is header.stamp (wall clock, so the PC's and
@@ -325,11 +326,11 @@ class CommandHandlers:
             ok, msg = self._ask(self.api.follow_trajectory, traj, delay)
             if not ok:
                 with self._lock:
-                    self.counters["rejected_trajectories"] += 1
+                    self.counters.bump("rejected_trajectories")
                 _log.warning("trajectory refused: %s", msg)
         if not self.inbox.submit(work):
             with self._lock:
-                self.counters["rejected_trajectories"] += 1
+                self.counters.bump("rejected_trajectories")
 
     def _on_client_heartbeat(self, data: bytes, sender: Sender) -> None:
         ep = self.names.client_heartbeat

@@ -24,6 +24,7 @@ from collections.abc import Callable
 from functools import partial
 
 from articutool.link.auth import Sender
+from articutool.link.counters import LinkCounters
 from articutool.link.transport import Responder
 
 __all__ = ["CommandInbox"]
@@ -34,7 +35,7 @@ _log = logging.getLogger(__name__)
 class CommandInbox:
     """The queued commands and stops, the worker and ``link-io`` threads."""
 
-    def __init__(self, size: int, counters: dict[str, int], lock: threading.RLock,
+    def __init__(self, size: int, counters: LinkCounters, lock: threading.RLock,
                  stop: threading.Event) -> None:
         self.size = size
         self.counters = counters
@@ -80,7 +81,7 @@ class CommandInbox:
         """Queue a ToolAPI call for the loop; False (counted) when the inbox is full."""
         with self._lock:
             if len(self.commands) >= self.size:
-                self.counters["dropped_excess"] += 1
+                self.counters.bump("dropped_excess")
                 return False
             self.commands.append(work)
         with self._wake:
@@ -128,10 +129,10 @@ class CommandInbox:
         try:
             work()
             with self._lock:
-                self.counters["commands"] += 1
+                self.counters.bump("commands")
         except Exception:
             with self._lock:
-                self.counters["handler_errors"] += 1
+                self.counters.bump("handler_errors")
             _log.exception("link command failed")
 
     @staticmethod
@@ -168,5 +169,5 @@ class CommandInbox:
                 io()
             except Exception:
                 with self._lock:
-                    self.counters["handler_errors"] += 1
+                    self.counters.bump("handler_errors")
                 _log.exception("link reply/publish failed")

@@ -86,6 +86,7 @@ from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.admission import Admission
 from articutool.link.config import LinkConfig
+from articutool.link.counters import LinkCounters
 from articutool.link.goals import GoalTable
 from articutool.link.handlers import CommandHandlers
 from articutool.link.inbox import CommandInbox
@@ -116,11 +117,7 @@ class ToolServer(CommandHandlers):
         self.period = 1.0 / float(rate_hz)
         self.names = Names(self.cfg.namespace, self.cfg.tool_id)
         self.instance = uuid.uuid4().hex[:8]  # tells two tools claiming one identity apart
-        self.counters: dict[str, int] = {"decode_errors": 0, "handler_errors": 0,
-                                         "rejected_trajectories": 0, "link_losses": 0,
-                                         "ticks": 0, "refused_unpaired": 0, "refused_lease": 0,
-                                         "lease_takeovers": 0, "oversized": 0, "rate_limited": 0,
-                                         "dropped_excess": 0, "commands": 0}
+        self.counters = LinkCounters()
         self.lease = CommandLease(self.cfg.client_timeout, self.cfg.tool_id,
                                   self.cfg.audit_log)
         self._lock = threading.RLock()
@@ -206,7 +203,7 @@ class ToolServer(CommandHandlers):
                 self._note("decode_errors", "dropped a malformed payload (%s)", err)
             except Exception:
                 with self._lock:
-                    self.counters["handler_errors"] += 1
+                    self.counters.bump("handler_errors")
                 _log.exception("link handler failed")
         return wrapped
 
@@ -239,7 +236,7 @@ class ToolServer(CommandHandlers):
             last = self._last_client_rx
         alive = last is not None and now - last < self.cfg.client_timeout
         if self._client_alive and not alive:
-            self.counters["link_losses"] += 1
+            self.counters.bump("link_losses")
             _log.warning("no client heard for %.1f s (policy: %s)", self.cfg.client_timeout,
                          self.cfg.link_loss_policy)
             with self._lock:
@@ -253,12 +250,12 @@ class ToolServer(CommandHandlers):
     def tick(self) -> None:
         """One publishing step (the thread calls it at the loop rate; tests may call it)."""
         now, wall = time.monotonic(), time.time()
-        self.counters["ticks"] += 1
+        self.counters.bump("ticks")
         self._check_client(now)
         self._progress()
         state = self.api.state()
         with self._lock:
-            counters = dict(self.counters)
+            counters = self.counters.snapshot()
             holder = self.holder or ""
         self._pub("joint_states", m.joint_state_msg(state, wall), cdr.JOINT_STATE)
         self._pub("imu", m.imu_msg(state, wall), cdr.IMU)
@@ -278,7 +275,7 @@ class ToolServer(CommandHandlers):
                 self.tick()
             except Exception:  # a failing snapshot or publish must not end telemetry
                 with self._lock:
-                    self.counters["handler_errors"] += 1
+                    self.counters.bump("handler_errors")
                 _log.exception("link tick failed")
             next_t += self.period
             delay = next_t - time.monotonic()
