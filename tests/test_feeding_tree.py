@@ -474,3 +474,27 @@ def test_the_tick_driver_stops_a_tree_that_outlives_its_timeout() -> None:
     rec = BiteRecorder(clock)
     assert tick_until_done(tree, rec, step, clock, period_s=0.5, timeout_s=3.0) is None
     assert t[0] == pytest.approx(3.0) and root.status == Status.INVALID
+
+
+def test_the_food_check_before_a_transport_is_a_bite_setting_the_thesis_systems_turn_off(
+        ) -> None:
+    from articutool.experiments.config import ExperimentsConfig
+    from articutool.experiments.protocols import _thesis_bite
+    from articutool.feeding.behaviours import CheckFood
+    from articutool.feeding.bite import STAGES, BiteSettings, bite_tree
+    from articutool.feeding.insertion import acquisition_waypoints
+    from articutool.feeding.strategies import StrategyLibrary
+    from articutool.spec import load_spec
+
+    clock = Clock()
+    arm, tool = FakeArm(clock, [], []), FakeTool(clock)
+    strat = StrategyLibrary.load(load_spec()).strategies["noodles_twirl"]
+    wps = acquisition_waypoints(strat, [0.45, -0.45, 0.004], [0.0, -1.0, 0.0])
+
+    def checks(settings: BiteSettings) -> int:
+        root = bite_tree(arm, tool, strat, wps, clock, stages=STAGES, settings=settings)
+        return sum(isinstance(b, CheckFood) for b in root.iterate())
+
+    assert checks(BiteSettings()) == 2  # to Resting and to Staging
+    thesis = _thesis_bite(ExperimentsConfig.load())
+    assert not thesis.food_check and checks(thesis) == 0

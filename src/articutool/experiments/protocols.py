@@ -37,6 +37,8 @@ from articutool.sim.world import FeedingWorld, SettleCache
 if TYPE_CHECKING:
     import py_trees
 
+    from articutool.feeding.bite import BiteSettings
+
 __all__ = ["BITE_PROTOCOLS", "Hook", "capacity_strategy", "capacity_trial", "closed_loop_params",
            "closed_loop_target_g", "exp1_trial", "exp2b_trial", "exp2c_trial", "exp3_trial",
            "json_safe", "transport", "transport_outcome"]
@@ -60,6 +62,15 @@ class _GoalArm(SimArm):
         if goal in self.extra:
             return self.extra[goal]
         return super().goal_configuration(goal)
+
+
+def _thesis_bite(cfg: ExperimentsConfig) -> BiteSettings:
+    """The bite as the thesis' systems make it: the shared planning budget and no food check
+    before a transport (the food-aware check is this stack's, run beside them in Exp. 2b's
+    variants)."""
+    from articutool.feeding.bite import BiteSettings
+
+    return BiteSettings(budget_s=cfg.settings.plan_budget_s, food_check=False)
 
 
 def _r(x: float) -> float:
@@ -152,7 +163,6 @@ def capacity_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
     and by the F/T sensor). For a liquid, ``brim_g``: what the leveled spoon keeps of a pour
     filling its dish to the rim — the most any scoop can leave in it without surface
     tension."""
-    from articutool.feeding.bite import BiteSettings
     from articutool.meal.bites import make_bite_world, run_bite
     from articutool.sim.loading import dish_volume_m3
     from articutool.sim.params import Liquid
@@ -165,7 +175,7 @@ def capacity_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
         hook(w)
     try:
         r = run_bite(setup, stages=("above", "acquire"), timeout_s=cfg.exp1.timeout_s,
-                     settings=BiteSettings(budget_s=cfg.settings.plan_budget_s),
+                     settings=_thesis_bite(cfg),
                      visitors=visitors)
     finally:
         setup.arm.close()
@@ -374,7 +384,6 @@ def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
     world, arm and strategy from :func:`~articutool.meal.bites.make_bite_world` (the
     strategy drawn from the action library with the seed; ``cond["strategies"]``, when
     given, is another action-library file), the given stages."""
-    from articutool.feeding.bite import BiteSettings
     from articutool.meal.bites import make_bite_world, run_bite
 
     setup = make_bite_world(cond["food"], cond["system"], seed,
@@ -384,7 +393,7 @@ def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
         hook(setup.world)
     try:
         r = run_bite(setup, stages=stages, timeout_s=timeout_s,
-                     settings=BiteSettings(budget_s=cfg.settings.plan_budget_s),
+                     settings=_thesis_bite(cfg),
                      visitors=visitors)
     finally:
         setup.arm.close()

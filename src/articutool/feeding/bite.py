@@ -59,13 +59,17 @@ STAGES = ("above", "acquire", "shed", "resting", "staging", "present", "return")
 
 @dataclass(frozen=True)
 class BiteSettings:
-    """Timing of a bite (our choices; the thesis gives none)."""
+    """Timing of a bite (our choices; the thesis gives none), and whether the load is checked
+    before each transport (``food_check``: :class:`~articutool.feeding.behaviours.CheckFood`,
+    retimed until predicted spill-free, else re-planned; the thesis' systems carry without
+    it, so its experiments turn it off)."""
 
     budget_s: float = 10.0  # the planner's own budget per attempt (its wall time)
     level_s: float = 1.0  # tool-only leveling: the wrist settles well within 1 s (measured)
     lift_m: float = 0.10  # straight up out of the container after extraction
     present_s: float = 3.0  # the bite is held still at Staging for the user
     stale_s: float = 0.5  # the guard's limit on the tool state's age
+    food_check: bool = True  # check the load before each transport
 
 
 def _path(arm: ArmInterface, what: str, waypoints: Sequence[TipWaypoint],
@@ -123,7 +127,8 @@ def stage_tree(name: str, arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
         return seq("shed", memory=True, children=steps)
     if name in ("resting", "staging"):
         goal = name.capitalize()
-        return motion(arm, goal, planner, name=f"transport to {goal}", food=True, tool=tool,
+        return motion(arm, goal, planner, name=f"transport to {goal}",
+                      food=settings.food_check, tool=tool,
                       clock=clock, then=carry if wrist else None, **plan_kw)
     if name == "present":
         return Settle(tool, carry, settings.present_s, clock,
