@@ -274,7 +274,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         "articutool view --recording; never overwrites")
     p.add_argument("--mjcf", metavar="FILE", default=None,
                    help="instead of running, write the world (.xml: robot, scene, the food as "
-                        "placed with --seed) for `python -m mujoco.viewer --mjcf FILE`; its "
+                        "placed with --seed) for python -m mujoco.viewer --mjcf FILE; its "
                         "keyframe 'start' holds the arm at Resting; never overwrites")
     p.set_defaults(func=_cmd_sim)
     c = sub.add_parser("sim-calibrate", help="calibration experiments of a food model "
