@@ -41,19 +41,27 @@ def _check(args: argparse.Namespace) -> Any:
     if args.food not in foods:
         raise UsageError(f"--food: no {args.system} strategy for {args.food!r}; allowed: "
                          f"{', '.join(foods)}")
-    if args.show_tree is not False:  # the tree's shape does not depend on the threshold
-        return lib
-    if args.threshold is None:  # derived from our own data, as the thesis derived its own
-        from articutool.thresholds import DEFAULT_OUT, exp1_means
-
-        args.threshold = exp1_means().get(args.food)
-        if args.threshold is None:
-            raise UsageError(f"--threshold: no Exp. 1 result for {args.food} in {DEFAULT_OUT} "
-                             "to derive it from; run `articutool experiment exp1` or pass "
-                             "--threshold G")
-    if not (math.isfinite(args.threshold) and 0 <= args.threshold <= 100):
-        raise UsageError(f"--threshold must be a mass in [0, 100] g; got {args.threshold}")
     return lib
+
+
+def _threshold(args: argparse.Namespace) -> float:
+    """The meaningful-success threshold: ``--threshold``, else derived from our own Exp. 1
+    data, as the thesis derived its own (exit 2 when there is none). Read after every
+    argument is checked: the data are consulted only for a well-formed command."""
+    from articutool.cli_support import UsageError
+
+    if args.threshold is not None:
+        return float(args.threshold)
+    from articutool.thresholds import DEFAULT_OUT, exp1_means
+
+    threshold = exp1_means().get(args.food)
+    if threshold is None:
+        raise UsageError(f"--threshold: no Exp. 1 result for {args.food} in {DEFAULT_OUT} "
+                         "to derive it from; run `articutool experiment exp1` or pass "
+                         "--threshold G")
+    if not (math.isfinite(threshold) and 0 <= threshold <= 100):
+        raise UsageError(f"--threshold must be a mass in [0, 100] g; got {threshold}")
+    return threshold
 
 
 def _show_tree(args: argparse.Namespace, lib: Any, out: Path | None) -> int:
@@ -114,6 +122,7 @@ def _cmd_meal(args: argparse.Namespace) -> int:
         return _show_tree(args, lib, new_output_file("--show-tree", args.show_tree, _TREE_SUFFIXES))
     video = new_output_file("--video", args.video, (".mp4", ".gif"))
     record = new_output_file("--record", args.record, (".npz", ".mcap"))
+    args.threshold = _threshold(args)
     from articutool.meal.bites import make_bite_world, run_meal
     from articutool.meal.progress import TreeProgress
 
