@@ -129,7 +129,7 @@ def summarize_exp2b(records: Sequence[dict[str, Any]], cfg: Any) -> dict[str, An
     plan: dict[str, Any] = {}
     for f in cfg.exp2b.foods:
         rs = {s: _where(ok, food=f, system=s) for s in systems}
-        spill = {s: sum(1 for r in v if r["spilled_g"] > 1e-9) for s, v in rs.items()}
+        spill = {s: _spills(v) for s, v in rs.items()}
         if len(systems) == 2:
             a, b = systems
             freq[f] = fisher(spill[a], len(rs[a]), spill[b], len(rs[b])).to_dict()
@@ -150,6 +150,11 @@ def summarize_exp2b(records: Sequence[dict[str, Any]], cfg: Any) -> dict[str, An
     return out
 
 
+def _spills(records: Sequence[Mapping[str, Any]]) -> int:
+    """How many of ``records`` spilled anything in transport."""
+    return sum(1 for r in records if r["spilled_g"] > 1e-9)
+
+
 def summarize_exp2b_variants(records: Sequence[dict[str, Any]], cfg: Any
                              ) -> dict[str, dict[str, Any]]:
     """Per variant (this stack's systems beside the thesis') and food: its spills and
@@ -166,16 +171,12 @@ def summarize_exp2b_variants(records: Sequence[dict[str, Any]], cfg: Any
                 continue
             checks = [c for r in rs for c in (r.get("food_checks") or [])]
             kept = [c for c in checks if c.get("executed", True) is not False]
-
-            def spills(xs: Sequence[dict[str, Any]]) -> int:
-                return sum(1 for r in xs if r["spilled_g"] > 1e-9)
-
             per[f] = {
                 "base": v.system,
                 "spilled_g": describe([r["spilled_g"] for r in rs]).to_dict(),
-                "spills": _rate(spills(rs), len(rs)),
-                "base_spills": _rate(spills(base), len(base)),
-                "fisher_vs_base": (fisher(spills(rs), len(rs), spills(base), len(base))
+                "spills": _rate(_spills(rs), len(rs)),
+                "base_spills": _rate(_spills(base), len(base)),
+                "fisher_vs_base": (fisher(_spills(rs), len(rs), _spills(base), len(base))
                                    .to_dict() if base else None),
                 "welch_vs_base": (welch([r["spilled_g"] for r in rs],
                                         [r["spilled_g"] for r in base]).to_dict()

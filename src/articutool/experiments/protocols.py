@@ -154,7 +154,7 @@ def transport_outcome(world: FeedingWorld, start: np.ndarray, n_spills: int,
 
 def capacity_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
                    hook: Hook = None, visitors: Visitors = (),
-               settled: SettleCache | None = None) -> dict[str, Any]:
+                   settled: SettleCache | None = None) -> dict[str, Any]:
     """One maximal scoop (thesis §5.2.3: an experimenter's repeated maximal manual scoops,
     their mean): the Articutool scoops through the full bowl along the capacity scoop's path
     (``[capacity.scoop]``: the food's own sweep made as deep and long as the bowl allows,
@@ -225,7 +225,7 @@ def capacity_strategy(strategy: Any, scoop: Any) -> Any:
 
 def exp2b_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
                 hook: Hook = None, visitors: Visitors = (),
-               settled: SettleCache | None = None) -> dict[str, Any]:
+                settled: SettleCache | None = None) -> dict[str, Any]:
     """Exp. 2b: load placed at the common start, carried to ``cond['goal']``."""
     from articutool.arm.scene import Scene
     from articutool.meal.sim_arm import world_load
@@ -280,7 +280,7 @@ def _plan_attempts(food: str, system: str) -> int:
 
 def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
                 hook: Hook = None, visitors: Visitors = (),
-               settled: SettleCache | None = None) -> dict[str, Any]:
+                settled: SettleCache | None = None) -> dict[str, Any]:
     """Exp. 2c: ``cond['load_g']`` placed at the shedding pose over the bowl, the shedding
     primitive there (``primitive``: the strategy's open-loop one; ``closed_loop``: the
     F/T-driven one of ``[exp2c.closed_loop]``) or not (``control``), then transport to

@@ -33,7 +33,7 @@ class LinkCounters:
     def bump(self, name: str, n: int = 1) -> int:
         """Add ``n`` to counter ``name`` and return its new value (KeyError for a name that
         is not a counter)."""
-        if name.startswith("_") or name not in self._names():
+        if name not in _NAMES:
             raise KeyError(name)
         with self._lock:
             value = getattr(self, name) + n
@@ -41,18 +41,15 @@ class LinkCounters:
             return value
 
     def __getitem__(self, name: str) -> int:
-        if name.startswith("_") or name not in self._names():
+        if name not in _NAMES:
             raise KeyError(name)
         return int(getattr(self, name))
 
     def snapshot(self) -> dict[str, int]:
         """Every counter, read at one instant."""
         with self._lock:
-            return {k: int(getattr(self, k)) for k in self._names()}
-
-    @classmethod
-    def _names(cls) -> tuple[str, ...]:
-        return _NAMES
+            return {k: int(getattr(self, k)) for k in _NAMES}
 
 
-_NAMES = tuple(f.name for f in fields(LinkCounters) if not f.name.startswith("_"))
+# The counters' names in field order (the health message lists them so): every field but the lock.
+_NAMES = tuple(f.name for f in fields(LinkCounters) if f.name != "_lock")

@@ -88,8 +88,7 @@ class CommandHandlers:
             ok, msg = fn(*args)
             return bool(ok), str(msg)
         except Exception as err:
-            with self._lock:
-                self.counters.bump("handler_errors")
+            self.counters.bump("handler_errors")
             _log.exception("ToolAPI call failed")
             return False, f"tool error: {type(err).__name__}: {err}"
 
@@ -306,15 +305,13 @@ class CommandHandlers:
             try:
                 traj = pre(traj)
             except (ValueError, TypeError) as err:  # TrajectoryError is a ValueError
-                with self._lock:
-                    self.counters.bump("rejected_trajectories")
+                self.counters.bump("rejected_trajectories")
                 _log.warning("trajectory from %s refused: %s", who, err)
                 return
         self._client_seen(who)
         refusal = self._lease(who)
         if refusal:
-            with self._lock:
-                self.counters.bump("rejected_trajectories")
+            self.counters.bump("rejected_trajectories")
             _log.warning("trajectory from %s %s", who, refusal)
             return
         # As ROS trajectory controllers: time 0 is header.stamp (wall clock, so the PC's and
@@ -325,12 +322,10 @@ class CommandHandlers:
             delay = stamp - time.time() if stamp > 0 else 0.0
             ok, msg = self._ask(self.api.follow_trajectory, traj, delay)
             if not ok:
-                with self._lock:
-                    self.counters.bump("rejected_trajectories")
+                self.counters.bump("rejected_trajectories")
                 _log.warning("trajectory refused: %s", msg)
         if not self.inbox.submit(work):
-            with self._lock:
-                self.counters.bump("rejected_trajectories")
+            self.counters.bump("rejected_trajectories")
 
     def _on_client_heartbeat(self, data: bytes, sender: Sender) -> None:
         ep = self.names.client_heartbeat

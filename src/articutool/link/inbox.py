@@ -128,11 +128,9 @@ class CommandInbox:
         self._exec_ident = threading.get_ident()
         try:
             work()
-            with self._lock:
-                self.counters.bump("commands")
+            self.counters.bump("commands")
         except Exception:
-            with self._lock:
-                self.counters.bump("handler_errors")
+            self.counters.bump("handler_errors")
             _log.exception("link command failed")
 
     @staticmethod
@@ -168,6 +166,5 @@ class CommandInbox:
             try:
                 io()
             except Exception:
-                with self._lock:
-                    self.counters.bump("handler_errors")
+                self.counters.bump("handler_errors")
                 _log.exception("link reply/publish failed")

@@ -202,8 +202,7 @@ class ToolServer(CommandHandlers):
             except cdr.LinkDecodeError as err:
                 self._note("decode_errors", "dropped a malformed payload (%s)", err)
             except Exception:
-                with self._lock:
-                    self.counters.bump("handler_errors")
+                self.counters.bump("handler_errors")
                 _log.exception("link handler failed")
         return wrapped
 
@@ -274,8 +273,7 @@ class ToolServer(CommandHandlers):
             try:
                 self.tick()
             except Exception:  # a failing snapshot or publish must not end telemetry
-                with self._lock:
-                    self.counters.bump("handler_errors")
+                self.counters.bump("handler_errors")
                 _log.exception("link tick failed")
             next_t += self.period
             delay = next_t - time.monotonic()

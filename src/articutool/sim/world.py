@@ -132,10 +132,6 @@ class SettleCache:
     def __len__(self) -> int:
         return len(self._states)
 
-    def clear(self) -> None:
-        """Forget every settled state."""
-        self._states.clear()
-
     def take(self, key: str) -> tuple[mujoco.MjData, NDArray[np.float64], float, int] | None:
         """The state settled under ``key`` (removed until :meth:`put` back), or None."""
         return self._states.pop(key, None)
