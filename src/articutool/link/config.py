@@ -27,15 +27,18 @@ heartbeats); larger messages are dropped before decoding and counted.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 import os
 import re
 import sys
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
+
+from pydantic import Field, ValidationError, ValidationInfo, field_validator, model_validator
+
+from articutool.datafile import field_path
+from articutool.spec import StrictModel
 
 __all__ = ["DEFAULT_ENDPOINT", "MAX_DOMAIN_ID", "ConfigError", "LinkConfig", "add_config_args",
            "check_endpoint", "check_ros_environment", "config_from_args",
@@ -84,20 +87,16 @@ def check_endpoint(endpoint: object, field_name: str) -> str:
 # ('*', '**', '$*') or empty chunk can make the tool's names match another tool's.
 NAMESPACE_FORM = ("'/' or '/'-separated names of letters, digits and '_' (each starting with a "
                   "letter or '_'), e.g. '/articutool'")
-_NAMESPACE = re.compile(r"^/$|^(/[A-Za-z_][A-Za-z0-9_]*)+$")
+_NAMESPACE = r"^/$|^(/[A-Za-z_][A-Za-z0-9_]*)+$"
 
 
-# The longest each period may be (s): beyond these a value is a unit slip (ms written as s)
-# or a typo, and 1e308 s overflowed zenoh's retry period in milliseconds.
-_PERIODS_S = {"heartbeat_period": 10.0, "tool_timeout": 3600.0, "client_timeout": 3600.0,
-              "call_timeout": 3600.0, "reconnect_period": 60.0}
 # zenoh's own settings: '/'-separated names of letters, digits, '_' and '-' (e.g.
 # "transport/unicast/max_links"); a value is JSON (tables and lists at most this deep).
 _EXTRA_PATH = re.compile(r"^[A-Za-z0-9_-]+(/[A-Za-z0-9_-]+)*$")
 _EXTRA_DEPTH = 8
 
 
-def _check_extra(extra: object) -> None:
+def _check_extra(extra: object) -> dict:
     """``extra``: a table of zenoh config paths to JSON values (checked here for shape;
     zenoh says whether it accepts each when the session opens)."""
     if not isinstance(extra, dict):
@@ -125,44 +124,98 @@ def _check_extra(extra: object) -> None:
             raise ConfigError(f"extra: {path!r} is not a zenoh config path ('/'-separated "
                               "names of letters, digits, '_' and '-')")
         check(path, v, 1)
+    return extra
 
 
-@dataclass(frozen=True)
-class LinkConfig:
+def _number(x: float) -> str:
+    return str(int(x)) if float(x).is_integer() else f"{x:g}"
+
+
+def _within(default: Any, lo: float, hi: float, what: str, *, above: bool = False) -> Any:
+    """A strict field (no bool, string or float-for-int slips through) in [lo, hi], or in
+    (lo, hi] when ``above``; ``what`` says what it must be, ``{}`` standing for the range (the
+    refusal quotes it)."""
+    interval = f"{'(' if above else '['}{_number(lo)}, {_number(hi)}]"
+    low = {"gt": lo} if above else {"ge": lo}
+    return Field(default, strict=True, le=hi, description=what.format(interval), **low)
+
+
+def _seconds(default: float, most: float) -> Any:
+    """A period in (0, ``most``] s: beyond ``most`` a value is a unit slip (ms written as s)
+    or a typo, and 1e308 s overflowed zenoh's retry period in milliseconds."""
+    return _within(default, 0, most, "a number of seconds in {}", above=True)
+
+
+def _given(default: Any, allowed: str) -> Any:
+    """A strict field whose refusal says it must be ``allowed``."""
+    return Field(default, strict=True, description=allowed)
+
+
+_ENDPOINTS = f"a list of zenoh endpoints like '{DEFAULT_ENDPOINT}'"
+_NAMES = "a list of device names"
+_NAME = "a device name"  # refused by check_name, which names the form
+_PAIRED_FILE = "a readable file (from articutool pair)"
+_TLS = ("tls_root_ca", "tls_certificate", "tls_private_key")
+
+
+class LinkConfig(StrictModel):
     """Everything the tool server and the PC client need to find each other.
 
     ``listen``/``connect`` left as None take the role's loopback default (tool listens on
-    :data:`DEFAULT_ENDPOINT`, client connects to it).
+    :data:`DEFAULT_ENDPOINT`, client connects to it). Each field's description says what it
+    must be; an invalid value raises :class:`ConfigError` naming the field and that.
     """
 
-    mode: Literal["peer", "client"] = "peer"
-    listen: tuple[str, ...] | None = None
-    connect: tuple[str, ...] | None = None
-    multicast_scouting: bool = False
-    domain_id: int = 0
-    namespace: str = "/articutool"
-    type_hash_in_keys: bool = True
-    heartbeat_period: float = 0.1  # s, both directions
-    tool_timeout: float = 1.0  # s of silence after which the client reports the tool dead
-    client_timeout: float = 2.0  # s of silence after which the tool applies link_loss_policy
-    link_loss_policy: Literal["continue", "cancel"] = "continue"
-    call_timeout: float = 2.0  # s per service call
-    publish_rate_hz: float | None = None  # None: the spec's wrist loop rate
-    reconnect_period: float = 0.2  # s between Zenoh connection retries
-    extra: dict[str, Any] = field(default_factory=dict)  # raw zenoh json5 overrides
-    tool_id: str = "default"  # the tool's identity (key expressions, telemetry)
-    identity: str | None = None  # this device; None: the tool_id (tool), a random name (client)
-    tls_root_ca: str | None = None  # pairing CA certificate (PEM)
-    tls_certificate: str | None = None  # this device's certificate (PEM)
-    tls_private_key: str | None = None  # this device's key (PEM, mode 0600)
-    require_paired: bool | None = None  # tool: refuse unsigned commands (None: when paired)
-    peers: tuple[str, ...] | None = None  # tool: paired identities allowed (None: any of the CA)
-    auth_window: float = 30.0  # s: a signed message's timestamp may differ this much
-    max_trajectory_bytes: int = 1 << 20  # a JointTrajectory larger than this is dropped
-    max_request_bytes: int = 4096  # a service request or heartbeat larger than this is dropped
-    inbox_size: int = 16  # commands waiting for the loop; excess ones are refused and counted
-    max_rate_hz: float = 200.0  # tool: messages/s per sender and endpoint; stops are exempt
-    audit_log: str | None = None  # tool: JSON lines of lease transitions (take-overs…) appended
+    mode: Literal["peer", "client"] = Field("peer", description="'peer' or 'client'")
+    listen: tuple[str, ...] | None = Field(None, description=_ENDPOINTS)
+    connect: tuple[str, ...] | None = Field(None, description=_ENDPOINTS)
+    multicast_scouting: bool = _given(False, "true or false")
+    domain_id: int = _within(0, 0, MAX_DOMAIN_ID, "an integer in {}")
+    namespace: str = Field("/articutool", strict=True, pattern=_NAMESPACE,
+                           description=NAMESPACE_FORM)
+    type_hash_in_keys: bool = _given(True, "true or false")
+    heartbeat_period: float = _seconds(0.1, 10.0)  # both directions
+    # silence after which the client reports the tool dead
+    tool_timeout: float = _seconds(1.0, 3600.0)
+    # silence after which the tool applies link_loss_policy
+    client_timeout: float = _seconds(2.0, 3600.0)
+    link_loss_policy: Literal["continue", "cancel"] = Field(
+        "continue", description="'continue' or 'cancel'")
+    call_timeout: float = _seconds(2.0, 3600.0)  # per service call
+    # None: the spec's wrist loop rate
+    publish_rate_hz: float | None = _within(None, 0, 1000, "a rate in {} Hz", above=True)
+    reconnect_period: float = _seconds(0.2, 60.0)  # between Zenoh connection retries
+    extra: dict[str, Any] = Field(default_factory=dict,  # raw zenoh json5 overrides
+                                  description="a table of zenoh settings")
+    # the tool's identity (key expressions, telemetry)
+    tool_id: str = Field("default", description=_NAME)
+    # this device; None: the tool_id (tool), a random name (client)
+    identity: str | None = Field(None, description=_NAME)
+    tls_root_ca: str | None = _given(None, _PAIRED_FILE)  # pairing CA certificate (PEM)
+    tls_certificate: str | None = _given(None, _PAIRED_FILE)  # this device's certificate (PEM)
+    tls_private_key: str | None = _given(None, _PAIRED_FILE)  # this device's key (PEM, 0600)
+    # tool: refuse unsigned commands (None: when paired)
+    require_paired: bool | None = _given(None, "true or false")
+    # tool: paired identities allowed (None: any of the CA)
+    peers: tuple[str, ...] | None = Field(None, description=_NAMES)
+    # s: a signed message's timestamp may differ this much
+    auth_window: float = _within(30.0, 0, 3600, "in {} seconds", above=True)
+    # a JointTrajectory larger than this is dropped
+    max_trajectory_bytes: int = _within(1 << 20, 64, 1 << 30, "an integer in {}")
+    # a service request or heartbeat larger than this is dropped
+    max_request_bytes: int = _within(4096, 64, 1 << 20, "an integer in {}")
+    # commands waiting for the loop; excess ones are refused and counted
+    inbox_size: int = _within(16, 1, 4096, "an integer in {}")
+    # tool: messages/s per sender and endpoint; stops are exempt
+    max_rate_hz: float = _within(200.0, 1, 100_000, "in {} messages/s")
+    # tool: JSON lines of lease transitions (take-overs…) appended
+    audit_log: str | None = _given(None, "a file path")
+
+    def __init__(self, **values: Any) -> None:
+        try:
+            super().__init__(**values)
+        except ValidationError as err:
+            raise ConfigError("; ".join(_problems(err))) from None
 
     @property
     def paired(self) -> bool:
@@ -174,90 +227,62 @@ class LinkConfig:
         """Whether the tool refuses commands without a paired device's signature."""
         return self.paired if self.require_paired is None else bool(self.require_paired)
 
-    def __post_init__(self) -> None:
-        if self.mode not in ("peer", "client"):
-            raise ConfigError(f"mode must be 'peer' or 'client'; got {self.mode!r}")
-        if self.link_loss_policy not in ("continue", "cancel"):
-            raise ConfigError("link_loss_policy must be 'continue' or 'cancel'; "
-                              f"got {self.link_loss_policy!r}")
-        for name in ("listen", "connect"):
-            v = getattr(self, name)
-            if v is None:
-                continue
-            if isinstance(v, str) or not isinstance(v, list | tuple):
-                raise ConfigError(f"{name} must be a list of zenoh endpoints like "
-                                  f"'{DEFAULT_ENDPOINT}'; got {v!r}")
-            for i, e in enumerate(v):
-                check_endpoint(e, f"{name}[{i}]")
-            object.__setattr__(self, name, tuple(v))
-        if isinstance(self.domain_id, bool) or not isinstance(self.domain_id, int) \
-                or not 0 <= self.domain_id <= MAX_DOMAIN_ID:
-            raise ConfigError(f"domain_id must be an integer in [0, {MAX_DOMAIN_ID}]; got "
-                              f"{self.domain_id!r}")
-        for name in ("multicast_scouting", "type_hash_in_keys"):
-            if not isinstance(getattr(self, name), bool):
-                raise ConfigError(f"{name} must be true or false; got {getattr(self, name)!r}")
-        for name, most in _PERIODS_S.items():
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int | float) or not 0 < v <= most:
-                raise ConfigError(f"{name} must be a number of seconds in (0, {most:g}]; "
-                                  f"got {v!r}")
+    # A list's items are checked here, so only a list or tuple passes (not a string or set).
+    @field_validator("listen", "connect", mode="before")
+    @classmethod
+    def _endpoints(cls, v: object, info: ValidationInfo) -> object:
+        if v is None:
+            return v
+        if not isinstance(v, list | tuple):
+            raise ValueError(f"{info.field_name} must be {_ENDPOINTS}; got {v!r}")
+        return tuple(check_endpoint(e, f"{info.field_name}[{i}]") for i, e in enumerate(v))
+
+    @field_validator("peers", mode="before")
+    @classmethod
+    def _peer_names(cls, v: object) -> object:
+        from articutool.link.pairing import check_name
+
+        if v is None:
+            return v
+        if not isinstance(v, list | tuple):
+            raise ValueError(f"peers must be {_NAMES}; got {v!r}")
+        return tuple(check_name(p, f"peers[{i}]") for i, p in enumerate(v))
+
+    @field_validator("tool_id", "identity", mode="before")
+    @classmethod
+    def _name(cls, v: object, info: ValidationInfo) -> object:
+        from articutool.link.pairing import check_name
+
+        if v is None and info.field_name == "identity":
+            return v
+        return check_name(v, str(info.field_name))
+
+    @field_validator("extra", mode="before")
+    @classmethod
+    def _zenoh_settings(cls, v: object) -> object:
+        return _check_extra(v)
+
+    @field_validator(*_TLS)
+    @classmethod
+    def _readable(cls, v: str | None, info: ValidationInfo) -> str | None:
+        if v is not None and not Path(v).is_file():
+            raise ValueError(f"{info.field_name} must be {_PAIRED_FILE}; got {v!r}")
+        return v
+
+    @model_validator(mode="after")
+    def _consistent(self) -> LinkConfig:
         if self.heartbeat_period >= min(self.tool_timeout, self.client_timeout):
-            raise ConfigError("heartbeat_period must be shorter than tool_timeout and "
-                              f"client_timeout; got {self.heartbeat_period}")
-        if self.publish_rate_hz is not None and (
-                isinstance(self.publish_rate_hz, bool)
-                or not isinstance(self.publish_rate_hz, int | float)
-                or not 0 < self.publish_rate_hz <= 1000):
-            raise ConfigError(f"publish_rate_hz must be in (0, 1000]; got {self.publish_rate_hz!r}")
-        _check_extra(self.extra)
-        if not isinstance(self.namespace, str) or not _NAMESPACE.match(self.namespace):
-            raise ConfigError(f"namespace must be {NAMESPACE_FORM}; got {self.namespace!r}")
-        from articutool.link.pairing import NAME_FORM, check_name
-        for name in ("tool_id", "identity"):
-            v = getattr(self, name)
-            if v is not None:
-                try:
-                    check_name(v, name)
-                except ValueError:
-                    raise ConfigError(f"{name} must be {NAME_FORM}; got {v!r}") from None
-        tls = {n: getattr(self, n) for n in ("tls_root_ca", "tls_certificate", "tls_private_key")}
-        given = [n for n, v in tls.items() if v is not None]
-        if given and len(given) != 3:
-            missing = sorted(set(tls) - set(given))
-            raise ConfigError(f"{missing} must be set too: pairing needs tls_root_ca, "
-                              "tls_certificate and tls_private_key (from articutool pair)")
-        for n in given:
-            if not isinstance(tls[n], str) or not Path(tls[n]).is_file():
-                raise ConfigError(f"{n} must be a readable file (from articutool pair); "
-                                  f"got {tls[n]!r}")
-        if self.peers is not None:
-            if isinstance(self.peers, str) or not isinstance(self.peers, list | tuple):
-                raise ConfigError(f"peers must be a list of device names; got {self.peers!r}")
-            for i, p in enumerate(self.peers):
-                try:
-                    check_name(p, f"peers[{i}]")
-                except ValueError as err:
-                    raise ConfigError(str(err)) from None
-            object.__setattr__(self, "peers", tuple(self.peers))
-        if self.require_paired not in (None, True, False):
-            raise ConfigError(f"require_paired must be true or false; got {self.require_paired!r}")
+            raise ValueError("heartbeat_period must be shorter than tool_timeout and "
+                             f"client_timeout; got {self.heartbeat_period}")
+        given = [n for n in _TLS if getattr(self, n) is not None]
+        if given and len(given) != len(_TLS):
+            missing = sorted(set(_TLS) - set(given))
+            raise ValueError(f"{missing} must be set too: pairing needs tls_root_ca, "
+                             "tls_certificate and tls_private_key (from articutool pair)")
         if self.requires_pairing and not self.paired:
-            raise ConfigError("require_paired = true needs tls_root_ca, tls_certificate and "
-                              "tls_private_key (from articutool pair)")
-        if self.audit_log is not None and not isinstance(self.audit_log, str):
-            raise ConfigError(f"audit_log must be a file path; got {self.audit_log!r}")
-        v = self.max_rate_hz
-        if isinstance(v, bool) or not isinstance(v, int | float) or not 1 <= v <= 100_000:
-            raise ConfigError(f"max_rate_hz must be in [1, 100000] messages/s; got {v!r}")
-        v = self.auth_window
-        if isinstance(v, bool) or not isinstance(v, int | float) or not 0 < v <= 3600:
-            raise ConfigError(f"auth_window must be in (0, 3600] seconds; got {v!r}")
-        for name, lo, hi in (("max_trajectory_bytes", 64, 1 << 30),
-                             ("max_request_bytes", 64, 1 << 20), ("inbox_size", 1, 4096)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-                raise ConfigError(f"{name} must be an integer in [{lo}, {hi}]; got {v!r}")
+            raise ValueError("require_paired = true needs tls_root_ca, tls_certificate and "
+                             "tls_private_key (from articutool pair)")
+        return self
 
     def endpoints(self, role: Literal["tool", "client"]) -> tuple[tuple[str, ...], tuple[str, ...]]:
         """(listen, connect) for ``role``, with the loopback defaults filled in."""
@@ -269,7 +294,24 @@ class LinkConfig:
 
     def replace(self, **changes: Any) -> LinkConfig:
         """A copy with ``changes`` applied (validated)."""
-        return dataclasses.replace(self, **changes)
+        return LinkConfig(**{**dict(self), **changes})
+
+
+def _problems(err: ValidationError) -> list[str]:
+    """One sentence per problem, naming the field and what it must be (the field's
+    description) or, from the checks above, their own sentence."""
+    fields = LinkConfig.model_fields
+    unknown = [str(e["loc"][0]) for e in err.errors() if e["type"] == "extra_forbidden"]
+    out = [f"unknown setting(s) {unknown}; allowed: {sorted(fields)}"] if unknown else []
+    for e in err.errors():
+        if e["type"] == "extra_forbidden":
+            continue
+        if e["type"] == "value_error":
+            out.append(e["msg"].removeprefix("Value error, "))
+        else:
+            allowed = fields[str(e["loc"][0])].description
+            out.append(f"{field_path(e['loc'])} must be {allowed}; got {e['input']!r}")
+    return out
 
 
 def _from_mapping(data: Any, where: str) -> LinkConfig:
@@ -277,10 +319,6 @@ def _from_mapping(data: Any, where: str) -> LinkConfig:
         raise ConfigError(f"{where}: expected a table of link settings")
     if "link" in data and isinstance(data["link"], dict):
         data = data["link"]
-    names = {f.name for f in dataclasses.fields(LinkConfig)}
-    unknown = sorted(set(data) - names)
-    if unknown:
-        raise ConfigError(f"{where}: unknown setting(s) {unknown}; allowed: {sorted(names)}")
     try:
         return LinkConfig(**data)
     except ConfigError as err:
