@@ -211,7 +211,7 @@ def main(argv: list[str]) -> int:
         sys.stdin.read()
         stop.set()
     threading.Thread(target=watch_stdin, daemon=True).start()
-    serve_forever(tool, cfg, stop)
+    serve_forever(tool, cfg, stop, loop=tool if isinstance(tool, TickingTool) else None)
     print("CALLS " + ";".join(tool.calls), flush=True)
     return 0
 

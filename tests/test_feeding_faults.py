@@ -252,20 +252,6 @@ def paired(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return d
 
 
-class _Loopless:
-    """The world's runtime as the server sees it. The world ticks the runtime (never its
-    own run loop), so the server runs commands on its worker thread between the world's
-    steps, as for any ToolAPI without a loop (the runtime is thread-safe)."""
-
-    def __init__(self, runtime: object) -> None:
-        self._rt = runtime
-
-    def __getattr__(self, name: str) -> object:
-        if name == "set_link_work":  # no loop of its own here: the server's worker drains
-            raise AttributeError(name)
-        return getattr(self._rt, name)
-
-
 class _RealTimePace:
     """``world.on_tick``: each tool tick takes at least its period of wall time."""
 
@@ -377,7 +363,10 @@ class Linked:
         else:
             tool_side = _paired(self.bus, "wrist-1", "tool")
             links = [_paired(self.bus, pc, "pc") for pc in ("pc-1", "pc-2")]
-        self.server = ToolServer(_Loopless(w.tool), tool_side, cfg)
+        # The world ticks the runtime (never its own run loop), so it is no loop of the
+        # server's: the server's worker runs the commands between the world's steps (the
+        # runtime is thread-safe).
+        self.server = ToolServer(w.tool, tool_side, cfg)
         self.server.start()
         self.pc1, self.pc2 = (ArticutoolClient(c, link, sender=c.identity)
                               for c, link in zip(pcs, links, strict=True))

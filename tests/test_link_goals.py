@@ -105,7 +105,7 @@ class _RealTool:
         for th in self.threads:
             th.start()
         self.bus = MemoryBus()
-        self.server = ToolServer(self.rt, MemoryTransport(self.bus), CFG)
+        self.server = ToolServer(self.rt, MemoryTransport(self.bus), CFG, loop=self.rt)
         self.server.start()
 
     def _step(self) -> None:

@@ -51,7 +51,7 @@ def _tick(tool: LoopTool) -> None:
 def test_the_loop_runs_one_command_per_tick_stops_first_and_excess_is_refused() -> None:
     bus = MemoryBus()
     tool = LoopTool()
-    server = ToolServer(tool, MemoryTransport(bus, "tool"), CFG)
+    server = ToolServer(tool, MemoryTransport(bus, "tool"), CFG, loop=tool)
     server.start()
     client = ArticutoolClient(CFG, MemoryTransport(bus, "pc-1"), sender="pc-1")
     replies: list[tuple[bool, str]] = []
@@ -67,7 +67,7 @@ def test_the_loop_runs_one_command_per_tick_stops_first_and_excess_is_refused() 
         assert tool.calls == []  # nothing ran between ticks
         stop = threading.Thread(target=lambda: replies.append(client.set_mode("disabled")))
         stop.start()
-        assert wait_until(lambda: len(server._stops) == 1, 3.0)
+        assert wait_until(lambda: len(server.inbox.stops) == 1, 3.0)
         _tick(tool)  # the stop first, alone
         assert tool.calls == ["set_mode DISABLED"]
         _tick(tool)
@@ -288,7 +288,8 @@ def test_stops_are_never_refused_and_go_first_whatever_the_order(ops) -> None:  
     a stop, and every request is answered exactly once (equal stops joined, not dropped)."""
     tool = LoopTool()
     bus = MemoryBus()
-    server = ToolServer(tool, MemoryTransport(bus, "tool"), CFG.replace(inbox_size=2))
+    server = ToolServer(tool, MemoryTransport(bus, "tool"), CFG.replace(inbox_size=2),
+                        loop=tool)
     try:
         _play(server, tool, ops)
     finally:
@@ -313,7 +314,7 @@ def _play(server: ToolServer, tool: LoopTool, ops: list[tuple[str, str]]) -> Non
 
     for i, (op, who) in enumerate(ops):
         if op == "tick":
-            waiting = len(server._stops)
+            waiting = len(server.inbox.stops)
             calls = len(tool.calls)
             server.work_once()
             if waiting:  # a stop ran (a cancel may find nothing left to cancel), nothing else
@@ -321,20 +322,20 @@ def _play(server: ToolServer, tool: LoopTool, ops: list[tuple[str, str]]) -> Non
             continue
         if op == "disable":
             stops.add(i)
-            send(i, server._on_set_mode, n.set_orientation_control,
+            send(i, server.handlers.on_set_mode, n.set_orientation_control,
                  m.soc_request(Mode.DISABLED, 0.0, 0.0), who)
         elif op == "level":
-            send(i, server._on_set_mode, n.set_orientation_control,
+            send(i, server.handlers.on_set_mode, n.set_orientation_control,
                  m.soc_request(Mode.LEVELING, 1.0, 0.0), who)
         elif op in ("cancel_all", "cancel_other"):
             stops.add(i)
             gid = None if op == "cancel_all" else uuid.uuid4().bytes
-            send(i, server._on_cancel, n.cancel_goal, m.cancel_request(gid), who)
+            send(i, server.handlers.on_cancel, n.cancel_goal, m.cancel_request(gid), who)
         else:
-            send(i, server._on_send_goal, n.send_goal,
+            send(i, server.handlers.on_send_goal, n.send_goal,
                  m.send_goal_request(uuid.uuid4().bytes, "SLOW", []), who)
-        assert len(server._stops) <= 2
-    while server._stops or server._inbox:
+        assert len(server.inbox.stops) <= 2
+    while server.inbox.stops or server.inbox.commands:
         server.work_once()
     assert all(len(a) == 1 for a in answers.values()), answers
     for i in stops:

@@ -8,9 +8,12 @@ pass the rate limit and the lease and are never refused for room. The action's g
 the goal table (``link/goals.py``); a refused primitive is accepted then aborted, so the
 client can read why (ROS 2's SendGoal reply has no text).
 
-:class:`CommandHandlers` is a mixin of ``ToolServer`` (``link/server.py``): the handlers read
-and write the server's state under its lock, declared below; the server owns that state,
-the endpoints and the publishing loop.
+:class:`CommandHandlers` is an object ``ToolServer`` (``link/server.py``) owns and builds with
+the parts the handlers need: the API, the transport and names, and the server's counters,
+lease, goal table, admission, inbox and lock (held around the lease and goals). The server
+owns the endpoints and the publishing loop; it reads :attr:`CommandHandlers.last_client_rx`
+for the link-loss policy and, on its ticks, calls :meth:`~CommandHandlers.settle`,
+:meth:`~CommandHandlers.answer_waiters` and :meth:`~CommandHandlers.publish_status`.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ from articutool.link.goals import Goal, GoalTable
 from articutool.link.inbox import CommandInbox
 from articutool.link.lease import CommandLease
 from articutool.link.transport import Endpoint, Names, RefusalError, Responder, Transport
-from articutool.tool.api import Mode, PrimitiveStatus, ToolAPI
+from articutool.tool.api import Mode, PrimitiveStatus, ToolAPI, TrajectoryPrevalidation
 
 __all__ = ["CommandHandlers"]
 
@@ -38,26 +41,32 @@ _ZERO_ID = bytes(16)
 
 
 class CommandHandlers:
-    """The service and topic handlers of ``ToolServer`` and the goal results they answer."""
+    """The service and topic handlers a ``ToolServer`` serves and the goal results they
+    answer."""
 
-    # The server's state the handlers use (set by ToolServer.__init__).
-    api: ToolAPI
-    transport: Transport
-    names: Names
-    counters: LinkCounters
-    lease: CommandLease
-    goals: GoalTable
-    admission: Admission
-    inbox: CommandInbox
-    _lock: threading.RLock
-    _last_client_rx: float | None
+    def __init__(self, api: ToolAPI, transport: Transport, names: Names, *,
+                 counters: LinkCounters, lease: CommandLease, goals: GoalTable,
+                 admission: Admission, inbox: CommandInbox, lock: threading.RLock) -> None:
+        self.api = api
+        self.transport = transport
+        self.names = names
+        self.counters = counters
+        self.lease = lease
+        self.goals = goals
+        self.admission = admission
+        self.inbox = inbox
+        self._lock = lock
+        # an API with the state-independent trajectory checks runs them in the link thread
+        self._prevalidate = (api.prevalidate_trajectory
+                             if isinstance(api, TrajectoryPrevalidation) else None)
+        self.last_client_rx: float | None = None  # monotonic; read under the lock
 
     def _client_seen(self, who: str) -> None:
         """``who`` was heard. While a client holds the lease only it counts for the link-loss
         policy: observers chatting on must not hide that the commanding PC went silent."""
         with self._lock:
             if self.lease.holder is None or self.lease.holder == who:
-                self._last_client_rx = time.monotonic()
+                self.last_client_rx = time.monotonic()
 
     def _lease(self, who: str, stop: bool = False) -> str:
         """'' if ``who`` may command now, else the refusal naming the holder (counted);
@@ -99,7 +108,7 @@ class CommandHandlers:
             return ()
 
     # ---------------------------------------------------------------- handlers --
-    def _on_set_mode(self, data: bytes, respond: Responder, sender: Sender) -> None:
+    def on_set_mode(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.set_orientation_control
         who, refusal = self.admission.admit(sender, "set_orientation_control")
         if who is None:
@@ -129,7 +138,7 @@ class CommandHandlers:
             self._refuse(respond, ep, "refused: the tool's command inbox is full")
         return None
 
-    def _on_clear_fault(self, data: bytes, respond: Responder, sender: Sender) -> None:
+    def on_clear_fault(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.clear_fault
         who, refusal = self.admission.admit(sender, "clear_fault")
         if who is None:
@@ -148,7 +157,7 @@ class CommandHandlers:
             self._refuse(respond, ep, "refused: the tool's command inbox is full")
         return None
 
-    def _on_take_over(self, data: bytes, respond: Responder, sender: Sender) -> None:
+    def on_take_over(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.take_over
         who, refusal = self.admission.admit(sender, "take_over")
         if who is None:
@@ -167,7 +176,7 @@ class CommandHandlers:
                                                   f"{before or 'nobody'})"), ep.response_type))
         return None
 
-    def _on_release(self, data: bytes, respond: Responder, sender: Sender) -> None:
+    def on_release(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.release
         who, refusal = self.admission.admit(sender, "release")
         if who is None:
@@ -184,7 +193,7 @@ class CommandHandlers:
                          ep.response_type))
         return None
 
-    def _on_send_goal(self, data: bytes, respond: Responder, sender: Sender) -> None:
+    def on_send_goal(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.send_goal
         who, refusal = self.admission.admit(sender, "send_goal")
         if who is None:  # SendGoal's reply has no text: an error reply names the reason
@@ -221,7 +230,7 @@ class CommandHandlers:
             if gid in self.goals:  # a resent goal id is a protocol error: reject it
                 respond(cdr.encode(m.send_goal_response(False, now), ep.response_type))
                 return
-            ended = self._settle()  # the running goal may have ended since the last tick
+            ended = self.settle()  # the running goal may have ended since the last tick
             running = self.goals.active
             if running is not None:  # ours still runs: starting now could hide its result
                 ok, msg = False, (f"busy: primitive {running.name} is running (goal "
@@ -235,11 +244,11 @@ class CommandHandlers:
                 goal.result = m.PrimitiveResult(False, msg, self._joints_now(),
                                                 m.GoalStatus.ABORTED)
             self.goals.remember(goal)
-        self._answer(ended)
+        self.answer_waiters(ended)
         respond(cdr.encode(m.send_goal_response(True, now), ep.response_type))
-        self._publish_status()
+        self.publish_status()
 
-    def _on_get_result(self, data: bytes, respond: Responder, sender: Sender) -> None:
+    def on_get_result(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.get_result  # read-only: open to all, within each sender's rate
         self.admission.rate_limit(ep, sender)
         req = cdr.decode(data, ep.request_type)
@@ -253,7 +262,7 @@ class CommandHandlers:
                 False, "unknown goal id", (), m.GoalStatus.UNKNOWN)
         respond(cdr.encode(m.result_msg(result), ep.response_type))
 
-    def _on_cancel(self, data: bytes, respond: Responder, sender: Sender) -> None:
+    def on_cancel(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.cancel_goal
         who, refusal = self.admission.admit(sender, "cancel_goal")
         if who is None:  # CancelGoal's reply has no text: an error reply names the reason
@@ -288,22 +297,21 @@ class CommandHandlers:
                     out = (R.ERROR_NONE, [(goal.goal_id, goal.accepted_at)])
                 else:  # finished in between: the next tick reports its result
                     out = (R.ERROR_GOAL_TERMINATED, [])
-            self._publish_status()
+            self.publish_status()
             return out
         self.inbox.submit_stop(("cancel", goal.goal_id), run, answer)
         return None
 
-    def _on_trajectory(self, data: bytes, sender: Sender) -> None:
+    def on_trajectory(self, data: bytes, sender: Sender) -> None:
         ep = self.names.joint_trajectory
         who, _ = self.admission.admit(sender, "a trajectory")
         if who is None or not self.admission.within_rate(ep, sender):
             return
         message = cdr.decode(data, ep.type)  # in the link thread
         traj = m.trajectory_from_msg(message)
-        pre = getattr(self.api, "prevalidate_trajectory", None)
-        if callable(pre):  # the length-dependent checks here, not in the loop's tick
+        if self._prevalidate is not None:  # the length-dependent checks here, not in the tick
             try:
-                traj = pre(traj)
+                traj = self._prevalidate(traj)
             except (ValueError, TypeError) as err:  # TrajectoryError is a ValueError
                 self.counters.bump("rejected_trajectories")
                 _log.warning("trajectory from %s refused: %s", who, err)
@@ -327,7 +335,7 @@ class CommandHandlers:
         if not self.inbox.submit(work):
             self.counters.bump("rejected_trajectories")
 
-    def _on_client_heartbeat(self, data: bytes, sender: Sender) -> None:
+    def on_client_heartbeat(self, data: bytes, sender: Sender) -> None:
         ep = self.names.client_heartbeat
         who, _ = self.admission.admit(sender, "a client heartbeat")
         if who is None or not self.admission.within_rate(ep, sender):  # a forged heartbeat keeps
@@ -337,22 +345,23 @@ class CommandHandlers:
         with self._lock:
             self.lease.renew(who, time.monotonic())
 
-    def _settle(self) -> tuple[list[Responder], m.PrimitiveResult] | PrimitiveStatus | None:
+    def settle(self) -> tuple[list[Responder], m.PrimitiveResult] | PrimitiveStatus | None:
         """The active goal's progress (lock held): see :meth:`GoalTable.settle`; the waiters
-        of a goal that ended are answered outside the lock by :meth:`_answer`."""
+        of a goal that ended are answered outside the lock by :meth:`answer_waiters`."""
         return self.goals.settle(self.api.primitive_status)
 
-    def _answer(self, ended: object) -> None:
-        """Answer the get_result waiters of a goal :meth:`_settle` found ended."""
+    def answer_waiters(self, ended: object) -> None:
+        """Answer the get_result waiters of a goal :meth:`settle` found ended."""
         if not isinstance(ended, tuple):
             return
         waiters, result = ended
         payload = cdr.encode(m.result_msg(result), self.names.get_result.response_type)
         for respond in waiters:
             respond(payload)
-        self._publish_status()
+        self.publish_status()
 
-    def _publish_status(self) -> None:
+    def publish_status(self) -> None:
+        """Publish the action's goal statuses (from the ``link-io`` thread)."""
         with self._lock:
             goals = self.goals.statuses()
         payload = cdr.encode(m.status_array(goals), cdr.GOAL_STATUS_ARRAY)

@@ -5,11 +5,12 @@ The network cannot slow the loop, and no flood can hold back a stop. Commands wa
 bounded inbox (``inbox_size``; a full inbox refuses the command, ``dropped_excess``). Stops
 (DISABLED, a cancel) are never refused for room: a stop identical to one already waiting
 joins it and gets the same answer, so the stops waiting (served first) stay as few as their
-kinds. A loop in this process runs at most one queued call per tick
-(:meth:`CommandInbox.work_once`, via ``ToolRuntime.set_link_work``); any other API (the
-proxy of a loop in another process, a test double) gets a worker thread instead. Replies
-and publishes that follow a command are sent from a ``link-io`` thread, never from the thread
-that ran the command: a send can block on a congested or dead peer.
+kinds. A loop in this process given to the server (a ``LinkWorkLoop``: ``ToolRuntime``) runs
+at most one queued call per tick (:meth:`CommandInbox.work_once`, via its
+``set_link_work``); without one (the proxy of a loop in another process, a runtime the
+simulation ticks, a test double) a worker thread does. Replies and publishes that follow a
+command are sent from a ``link-io`` thread, never from the thread that ran the command: a
+send can block on a congested or dead peer.
 
 :class:`CommandInbox` shares the server's counters, lock and stop event; ``ToolServer``
 (``link/server.py``) composes it.

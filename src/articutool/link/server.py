@@ -53,11 +53,11 @@ answered at once, so the stops waiting (served first) are one DISABLED and a can
 the running goal at most. Unsigned or replayed traffic on a paired tool is refused before
 it reaches a gate or a queue. Replies and publishes that follow a command are sent from a
 ``link-io`` thread, never from the thread that ran the command (a send can block on a
-congested or dead peer). When the API offers ``set_link_work`` (a ``ToolRuntime`` served
-in its own process) its loop drains the inbox, one command per tick, after the tick; any
-other API gets a worker thread of this server, one command at a time: ``articutool tool``
-serves a ``LoopProxy`` (``tool/channel.py``) in its link process, which hands each command to
-the loop in the other process.
+congested or dead peer). Given a ``loop`` (a :class:`~articutool.tool.api.LinkWorkLoop`: a
+``ToolRuntime`` running its own loop in this process) the loop drains the inbox, one command
+per tick, after the tick; without one, a worker thread of this server does, one command at a
+time: ``articutool tool`` serves a ``LoopProxy`` (``tool/channel.py``) in its link process,
+which hands each command to the loop in the other process.
 
 Link-loss policy (``LinkConfig.link_loss_policy``) when no client heartbeat or request has
 arrived for ``client_timeout`` seconds: ``"continue"`` (default) lets a running primitive
@@ -68,7 +68,7 @@ PC (which moves the arm) is exactly the party that is gone. Trajectories are fin
 their end either way; leveling always continues (it is the point of the decoupling).
 
 Where it lives: this module is the lifecycle and the publishing loop; the command handlers are
-``link/handlers.py`` (a mixin of :class:`ToolServer`), and it composes ``link/admission.py``
+``link/handlers.py`` (an object :class:`ToolServer` owns), and it composes ``link/admission.py``
 (pairing check, per-sender rates, the throttled log), ``link/inbox.py`` (the command inbox,
 the stops, the ``link-io`` thread), ``link/lease.py`` and ``link/goals.py``.
 """
@@ -92,7 +92,7 @@ from articutool.link.handlers import CommandHandlers
 from articutool.link.inbox import CommandInbox
 from articutool.link.lease import CommandLease
 from articutool.link.transport import Handle, Names, RefusalError, Transport
-from articutool.tool.api import PrimitiveStatus, ToolAPI
+from articutool.tool.api import LinkWorkLoop, PrimitiveStatus, ToolAPI
 
 __all__ = ["ToolServer", "serve_forever"]
 
@@ -100,12 +100,13 @@ _log = logging.getLogger(__name__)
 _KEEP_GOALS = 32  # finished goals remembered for late get_result calls (GoalTable)
 
 
-class ToolServer(CommandHandlers):
+class ToolServer:
     """Serve ``api`` on ``transport``; :meth:`start` spawns the publishing thread. The
-    handlers are :class:`~articutool.link.handlers.CommandHandlers`."""
+    handlers are a :class:`~articutool.link.handlers.CommandHandlers` (``handlers``); a
+    ``loop`` runs the queued commands in its ticks (else a worker thread of this server)."""
 
     def __init__(self, api: ToolAPI, transport: Transport, config: LinkConfig | None = None,
-                 rate_hz: float | None = None) -> None:
+                 rate_hz: float | None = None, *, loop: LinkWorkLoop | None = None) -> None:
         self.api = api
         self.transport = transport
         self.cfg = config or LinkConfig()
@@ -124,11 +125,13 @@ class ToolServer(CommandHandlers):
         self._stop = threading.Event()
         self.admission = Admission(self.cfg, self.counters, self._lock)
         self.inbox = CommandInbox(self.cfg.inbox_size, self.counters, self._lock, self._stop)
-        # the inbox's containers under the server's older names (tests look into them)
-        self._inbox, self._stops = self.inbox.commands, self.inbox.stops
-        self._loop_drains = False
         self.goals = GoalTable(_KEEP_GOALS)
-        self._last_client_rx: float | None = None
+        self.handlers = CommandHandlers(api, transport, self.names, counters=self.counters,
+                                        lease=self.lease, goals=self.goals,
+                                        admission=self.admission, inbox=self.inbox,
+                                        lock=self._lock)
+        self._loop = loop
+        self._loop_drains = False
         self._client_alive = False
         self._handles: list[Handle] = []
         self._thread: threading.Thread | None = None
@@ -137,26 +140,25 @@ class ToolServer(CommandHandlers):
     # --------------------------------------------------------------- lifecycle --
     def start(self) -> None:
         """Declare the endpoints and start publishing."""
-        n, t, small = self.names, self.transport, self.cfg.max_request_bytes
+        n, t, small, h = self.names, self.transport, self.cfg.max_request_bytes, self.handlers
         t.on_drop = self._on_drop
-        services = ((n.set_orientation_control, self._on_set_mode),
-                    (n.clear_fault, self._on_clear_fault), (n.send_goal, self._on_send_goal),
-                    (n.get_result, self._on_get_result), (n.cancel_goal, self._on_cancel),
-                    (n.take_over, self._on_take_over), (n.release, self._on_release))
+        services = ((n.set_orientation_control, h.on_set_mode),
+                    (n.clear_fault, h.on_clear_fault), (n.send_goal, h.on_send_goal),
+                    (n.get_result, h.on_get_result), (n.cancel_goal, h.on_cancel),
+                    (n.take_over, h.on_take_over), (n.release, h.on_release))
         self._handles = [t.serve(ep, self._guarded(self.inbox.replies_off_loop(fn)),
                                  with_sender=True, max_bytes=small)
                          for ep, fn in services]
         self._handles += [
-            t.subscribe(n.joint_trajectory, self._guarded(self._on_trajectory), with_sender=True,
+            t.subscribe(n.joint_trajectory, self._guarded(h.on_trajectory), with_sender=True,
                         max_bytes=self.cfg.max_trajectory_bytes),
-            t.subscribe(n.client_heartbeat, self._guarded(self._on_client_heartbeat),
+            t.subscribe(n.client_heartbeat, self._guarded(h.on_client_heartbeat),
                         with_sender=True, max_bytes=small),
         ]
-        hook = getattr(self.api, "set_link_work", None)
         self._stop.clear()
         self.inbox.start_io()
-        if callable(hook):  # the tool's loop drains the inbox, one command per tick
-            hook(self.work_once)
+        if self._loop is not None:  # the tool's loop drains the inbox, one command per tick
+            self._loop.set_link_work(self.work_once)
             self._loop_drains = True
         else:
             self.inbox.start_worker()
@@ -165,8 +167,8 @@ class ToolServer(CommandHandlers):
 
     def stop(self) -> None:
         """Stop publishing and undeclare the endpoints (pending get_result calls time out)."""
-        if self._loop_drains:
-            self.api.set_link_work(None)  # type: ignore[attr-defined]
+        if self._loop is not None and self._loop_drains:
+            self._loop.set_link_work(None)
             self._loop_drains = False
         self._stop.set()
         self.inbox.join()
@@ -224,15 +226,15 @@ class ToolServer(CommandHandlers):
     def _progress(self) -> None:
         with self._lock:
             goal = self.goals.active
-            ended = self._settle()
+            ended = self.handlers.settle()
         if isinstance(ended, PrimitiveStatus) and goal is not None:
             self._pub("feedback", m.feedback_msg(goal.goal_id, ended), cdr.FEEDBACK_MESSAGE)
-        self._answer(ended)
+        self.handlers.answer_waiters(ended)
 
     def _check_client(self, now: float) -> None:
         with self._lock:
             self.lease.expire(now)  # also when nobody commands: telemetry names no stale holder
-            last = self._last_client_rx
+            last = self.handlers.last_client_rx
         alive = last is not None and now - last < self.cfg.client_timeout
         if self._client_alive and not alive:
             self.counters.bump("link_losses")
@@ -265,7 +267,7 @@ class ToolServer(CommandHandlers):
             self._next_beat = now + self.cfg.heartbeat_period
             self._pub("heartbeat", m.heartbeat_msg(wall, f"{self.cfg.tool_id}/{self.instance}"),
                       cdr.HEADER)
-            self._publish_status()
+            self.handlers.publish_status()
 
     def _run(self) -> None:
         next_t = time.monotonic()
@@ -283,10 +285,12 @@ class ToolServer(CommandHandlers):
 
 
 def serve_forever(api: ToolAPI, config: LinkConfig | None, stop_event: threading.Event,
-                  transport: Transport | None = None) -> ToolServer:
+                  transport: Transport | None = None, *,
+                  loop: LinkWorkLoop | None = None) -> ToolServer:
     """Serve ``api`` until ``stop_event`` is set, on ``transport`` or else on a Zenoh session
-    (tool role) opened here (LinkOpenError if it cannot be). A transport passed in is left
-    open for its owner to close; one opened here is closed.
+    (tool role) opened here (LinkOpenError if it cannot be); ``loop`` as for
+    :class:`ToolServer`. A transport passed in is left open for its owner to close; one
+    opened here is closed.
 
     Returns the (stopped) server, whose ``counters`` the caller may report.
     """
@@ -295,7 +299,7 @@ def serve_forever(api: ToolAPI, config: LinkConfig | None, stop_event: threading
     if transport is None:
         from articutool.link.zenoh_transport import ZenohTransport
         transport = ZenohTransport(cfg, "tool")
-    server = ToolServer(api, transport, cfg)
+    server = ToolServer(api, transport, cfg, loop=loop)
     server.start()
     try:
         stop_event.wait()

@@ -8,13 +8,15 @@ Joint order everywhere is [pitch, roll]; angles in radians unless a name says ``
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import IntEnum
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 from articutool.trajectory import JointTrajectory
 
-__all__ = ["ABORTED_BY_MODE_CHANGE", "Mode", "PrimitiveStatus", "ToolAPI", "ToolState"]
+__all__ = ["ABORTED_BY_MODE_CHANGE", "LinkWorkLoop", "Mode", "PrimitiveStatus", "ToolAPI",
+           "ToolState", "TrajectoryPrevalidation"]
 
 # How a primitive's result message starts when a mode change (a DISABLED from any client)
 # aborted it, followed by the mode's name: a caller that did not ask for it was stopped.
@@ -102,4 +104,24 @@ class ToolAPI(Protocol):
 
     def state(self) -> ToolState:
         """The latest state snapshot."""
+        ...
+
+
+@runtime_checkable
+class TrajectoryPrevalidation(Protocol):
+    """A ``ToolAPI`` that also offers the trajectory checks that do not depend on the wrist's
+    state (``ToolRuntime``, ``LoopProxy``): the link server runs them in its own thread, so
+    the loop's tick only checks a trajectory against the present joints."""
+
+    def prevalidate_trajectory(self, trajectory: JointTrajectory) -> JointTrajectory:
+        """``trajectory`` checked (ValueError naming the limit), ready to follow."""
+        ...
+
+
+class LinkWorkLoop(Protocol):
+    """A tool loop that runs a link's queued work once per tick, after the tick
+    (``ToolRuntime.run``): a link server given one hands it its ``work_once``."""
+
+    def set_link_work(self, work: Callable[[], None] | None) -> None:
+        """Have the loop call ``work()`` once per tick; None detaches it."""
         ...
