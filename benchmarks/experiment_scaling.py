@@ -95,7 +95,7 @@ def _capacity_first(trials: int, workers: int, root: Path) -> dict[str, Any]:
 
 def _one(experiment: str, specs: list[Any], kind: str, workers: int, root: Path
          ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    """Run ``specs`` on one configuration into a fresh ``root``; its row and records."""
+    """Run ``specs`` on one configuration into a fresh ``root``; its row and log lines."""
     from articutool.bench.cli import make_executor
     from articutool.experiments.runner import log_path, run_experiment
 
@@ -127,10 +127,10 @@ def _one(experiment: str, specs: list[Any], kind: str, workers: int, root: Path
     desc = executor.description + (f" (LocalCluster, {workers} worker process"
                                    f"{'es' * (workers > 1)})" if cluster else "")
     row.update(executor=desc, trials=len(res.records), ran=res.ran,
-               lost=len(res.lost), errors=sum(1 for r in res.records if r.get("error")),
+               lost=len(res.lost), errors=sum(1 for r in res.records if r.error),
                wall_clock_s=round(wall, 2),
-               trial_wall_sum_s=round(sum(r["wall_time_s"] for r in res.records), 2))
-    return row, res.records
+               trial_wall_sum_s=round(sum(r.wall_time_s for r in res.records), 2))
+    return row, [r.to_log() for r in res.records]
 
 
 def measure(experiment: str, trials: int, workers: Sequence[int], *, root: Path,

@@ -32,6 +32,7 @@ from typing import Any
 
 from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.protocols import exp1_trial
+from articutool.experiments.records import BiteCondition
 from articutool.experiments.stats import describe, welch
 from articutool.feeding.strategies import default_strategies_path
 from noodle_twirl import twirl_vs_still
@@ -73,8 +74,9 @@ def one(condition: str, seed: int, strategies: Path | None, cfg: ExperimentsConf
         ) -> dict[str, Any]:
     """One Exp. 1 trial (:func:`~articutool.experiments.protocols.exp1_trial`) for
     ``condition``, with ``strategies`` as its action library (None: the shipped one)."""
-    cond = {"food": "noodles", "system": CONDITIONS[condition][0], "strategies": strategies}
-    return {"condition": condition, "seed": seed, **exp1_trial(cond, seed, cfg)}
+    cond = BiteCondition(food="noodles", system=CONDITIONS[condition][0],
+                         strategies=None if strategies is None else str(strategies))
+    return {"condition": condition, "seed": seed, **exp1_trial(cond, seed, cfg).fields()}
 
 
 def summarise(runs: list[dict[str, Any]]) -> dict[str, Any]:

@@ -27,6 +27,7 @@ from pathlib import Path
 from articutool.experiments.config import ExperimentsConfig, ShedPrimitive
 from articutool.experiments.design import trial_seed
 from articutool.experiments.protocols import exp2c_trial, json_safe
+from articutool.experiments.records import Exp2cCondition
 from articutool.spec import load_spec
 
 TUNING_BASE_SEED = 9
@@ -68,15 +69,15 @@ def main(argv: list[str] | None = None) -> int:
         trials = []
         for r in range(a.seeds):
             seed = trial_seed(TUNING_BASE_SEED, r)
-            rec = exp2c_trial({"food": a.food, "condition": "closed_loop",
-                               "load_g": a.load_g}, seed, c)
-            ok = rec["completed"] and rec["spilled_g"] <= 1e-9
-            trials.append({"seed": seed, "meaningful": bool(ok and rec["delivered_g"]
+            rec = exp2c_trial(Exp2cCondition(food=a.food, condition="closed_loop",
+                                             load_g=a.load_g), seed, c)
+            ok = rec.completed and rec.spilled_g <= 1e-9
+            trials.append({"seed": seed, "meaningful": bool(ok and rec.delivered_g
                                                              > a.threshold_g),
-                           **{k: rec[k] for k in ("held_g", "after_primitive_g", "shed_g",
-                                                  "spilled_g", "delivered_g", "completed",
-                                                  "primitive_moved_g", "primitive_message",
-                                                  "realtime_factor")}})
+                           **{k: getattr(rec, k) for k in (
+                               "held_g", "after_primitive_g", "shed_g", "spilled_g",
+                               "delivered_g", "completed", "primitive_moved_g",
+                               "primitive_message", "realtime_factor")}})
         n_ok = sum(t["meaningful"] for t in trials)
         mean_del = sum(t["delivered_g"] for t in trials) / len(trials)
         rows.append({"primitive": name, "params": params, "meaningful": n_ok,

@@ -12,7 +12,9 @@ free_port``):
 - :func:`assert_refused` — bad input: exit 2, the named fields in stderr, no traceback;
 - :func:`wait_until` — poll a condition; the deadline only bounds a failing test;
 - :func:`drop_off_the_table` — move a food item that spilled on the table to just above the
-  floor beside it (water deposits where it lands, so a table-then-floor spill is staged).
+  floor beside it (water deposits where it lands, so a table-then-floor spill is staged);
+- :func:`trial_record` — an experiment's trial record built by hand (the fields a test names,
+  neutral values for the rest), validated as a trial log line is.
 """
 
 from __future__ import annotations
@@ -121,3 +123,29 @@ def drop_off_the_table(world) -> int:  # type: ignore[no-untyped-def]
     d.qpos[qa:qa + 3] = (-0.2, 0.0, world.scene.get("ground").xyz[2] + 0.05)
     d.qvel[va:va + 6] = 0.0
     return k
+
+
+_NEUTRAL: dict[object, object] = {float: 0.0, int: 0, bool: True, str: ""}
+_CONDITION = {"food": "pecans", "system": "articutool", "goal": "g", "condition": "control",
+              "load_g": 5.0}
+
+
+def trial_record(experiment: str, trial: int = 0, **fields: object):  # type: ignore[no-untyped-def]
+    """A :class:`~articutool.experiments.records.TrialRecord` of ``experiment`` with the
+    given condition and outcome ``fields`` (``error``: a trial that raised, no outcome); every
+    other required field is neutral (0, "", empty, completed)."""
+    import typing
+
+    from articutool.experiments.records import CONDITIONS, OUTCOMES, TrialRecord
+
+    line: dict[str, object] = {"experiment": experiment, "trial": trial, "repeat": 0,
+                               "seed": 0, "wall_time_s": 1.0, "pid": 1, "error": None}
+    for name, f in CONDITIONS[experiment].model_fields.items():
+        if f.is_required():
+            line[name] = _CONDITION[name]
+    if not fields.get("error"):
+        for name, f in OUTCOMES[experiment].model_fields.items():
+            if f.is_required() and name not in line:
+                kind = typing.get_origin(f.annotation) or f.annotation
+                line[name] = {dict: {}, list: []}.get(kind, _NEUTRAL.get(kind))
+    return TrialRecord.from_log({**line, **fields})

@@ -10,6 +10,7 @@ from articutool.experiments.analysis import summarize_exp2b
 from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import conditions
 from articutool.experiments.report import section
+from conftest import trial_record
 
 
 def _cfg(**variants: Any) -> ExperimentsConfig:
@@ -20,7 +21,7 @@ def _cfg(**variants: Any) -> ExperimentsConfig:
 
 def test_variants_are_conditions_after_the_thesis_systems() -> None:
     cfg = _cfg(checked={"system": "baseline", "foods": ["water"]})
-    conds = conditions("exp2b", cfg)
+    conds = [c.fields() for c in conditions("exp2b", cfg)]
     thesis = [{"food": f, "system": s} for f in cfg.exp2b.foods for s in cfg.exp2b.systems]
     assert conds == thesis + [{"food": "water", "system": "checked"}]
 
@@ -36,12 +37,12 @@ def test_a_wrong_variant_is_refused_naming_it(variants: dict, field: str) -> Non
         _cfg(**variants)
 
 
-def _rec(system: str, spilled: float, seed: int, checks: list[dict] | None = None) -> dict:
-    return {"experiment": "exp2b", "food": "water", "system": system, "goal": "g",
-            "seed": seed, "spilled_g": spilled, "completed": True, "planning_attempts": 1,
-            "max_tilt_deg": 5.0, "held_g": 7.0, "motion_time_s": 10.0 + spilled,
-            "spilled_by_place": {"table": spilled}, "error": None,
-            **({"food_checks": checks} if checks is not None else {})}
+def _rec(system: str, spilled: float, seed: int, checks: list[dict] | None = None) -> Any:
+    return trial_record("exp2b", food="water", system=system, goal="g", seed=seed,
+                        spilled_g=spilled, completed=True, planning_attempts=1,
+                        max_tilt_deg=5.0, held_g=7.0, motion_time_s=10.0 + spilled,
+                        spilled_by_place={"table": spilled},
+                        **({"food_checks": checks} if checks is not None else {}))
 
 
 def test_a_variant_is_summarised_against_its_thesis_system_and_reported_beside() -> None:

@@ -9,17 +9,27 @@ import pytest
 
 from articutool.experiments.analysis import classify, classify_exp2c, summarize
 from articutool.experiments.config import ExperimentsConfig
+from articutool.experiments.records import OUTCOMES, TrialRecord
+from conftest import trial_record
 
 PIECE = 0.9163  # one pecan piece (g)
 
 
 def rec(delivered: float, table: float = 0.0, critical: float = 0.0, shed: float = 0.0,
-        completed: bool = True, **extra) -> dict:
-    """A trial record as the protocols write it."""
-    return {"delivered_g": delivered, "spilled_by_place": {"table": table, "critical": critical},
-            "spilled_g": table + critical, "shed_g": shed, "completed": completed,
-            "held_g": delivered + table + critical + shed, "wall_time_s": 1.0, "seed": 0,
-            "error": None, **extra}
+        completed: bool = True, experiment: str = "exp2c", **extra) -> TrialRecord:
+    """A trial record of ``experiment`` as its protocol writes it (the masses it records)."""
+    masses = {"delivered_g": delivered, "spilled_by_place": {"table": table,
+                                                             "critical": critical},
+              "spilled_g": table + critical, "shed_g": shed, "completed": completed,
+              "held_g": delivered + table + critical + shed}
+    own = OUTCOMES[experiment].model_fields
+    return trial_record(experiment, **{k: v for k, v in masses.items() if k in own}, **extra)
+
+
+def bite(delivered: float, planning_attempts: int, **kw) -> TrialRecord:
+    """An Exp. 3 bite that planned ``planning_attempts`` times to Staging."""
+    return rec(delivered, experiment="exp3", planning_attempts=planning_attempts,
+               planning_attempts_by_goal={"Staging": planning_attempts}, **kw)
 
 
 @pytest.fixture(scope="module")
@@ -61,7 +71,7 @@ def test_exp2c_summary_counts_classes_and_tests_with_fisher(cfg) -> None:
         recs.append(rec(5.0, table=PIECE, food="pecans", condition="control", trial=k))
         recs.append(rec(5.0 if k else 1.0, shed=2.0, food="pecans", condition="primitive",
                         trial=k))
-    recs.append({**rec(5.0, food="pecans", condition="primitive"), "error": "boom"})
+    recs.append(trial_record("exp2c", food="pecans", condition="primitive", error="boom"))
     s = summarize("exp2c", recs, cfg, thresholds_g={"pecans": 1.83})
     f = s["foods"]["pecans"]
     assert f["control"]["counts"] == {"meaningful_success": 0, "trivial_success": 0,
@@ -83,10 +93,10 @@ def test_exp2c_without_thresholds_reports_only_spill(cfg) -> None:
 
 
 def test_exp3_summary_four_classes_and_planning_attempts(cfg) -> None:
-    recs = [rec(5.0, system="articutool", planning_attempts=1),
-            rec(2.0, system="articutool", planning_attempts=2),
-            rec(5.0, table=PIECE, system="baseline", planning_attempts=3),
-            rec(5.0, critical=PIECE, system="baseline", planning_attempts=2)]
+    recs = [bite(5.0, system="articutool", planning_attempts=1),
+            bite(2.0, system="articutool", planning_attempts=2),
+            bite(5.0, table=PIECE, system="baseline", planning_attempts=3),
+            bite(5.0, critical=PIECE, system="baseline", planning_attempts=2)]
     s = summarize("exp3", recs, cfg, threshold_g=3.0)
     a, b = s["systems"]["articutool"], s["systems"]["baseline"]
     assert s["threshold_g"] == 3.0
@@ -94,8 +104,8 @@ def test_exp3_summary_four_classes_and_planning_attempts(cfg) -> None:
     assert b["counts"]["table_spill"] == 1 and b["counts"]["user_spill"] == 1
     assert a["planning_attempts"]["mean"] == 1.5 and b["planning_attempts"]["mean"] == 2.5
     # Attempts count to Staging only: a bite that failed planning to Resting has none.
-    failed = rec(0.0, completed=False, system="articutool", planning_attempts=3,
-                 planning_attempts_by_goal={"Resting": 3})
+    failed = rec(0.0, completed=False, experiment="exp3", system="articutool",
+                 planning_attempts=3, planning_attempts_by_goal={"Resting": 3})
     s2 = summarize("exp3", [*recs, failed], cfg, threshold_g=3.0)
     assert s2["systems"]["articutool"]["planning_attempts"]["n"] == 2
     assert s2["systems"]["articutool"]["counts"]["failed"] == 1
@@ -105,10 +115,11 @@ def test_exp3_summary_four_classes_and_planning_attempts(cfg) -> None:
 
 
 def test_exp2b_summary_welch_on_spilled_mass(cfg) -> None:
-    recs = [rec(2.5, food="pecans", system="articutool", goal="centre", planning_attempts=1,
-                max_tilt_deg=3.0) for _ in range(4)]
-    recs += [rec(2.5 - x, table=x, food="pecans", system="baseline", goal="left",
-                 planning_attempts=1, max_tilt_deg=17.0) for x in (0.0, PIECE, PIECE, 0.0)]
+    recs = [rec(2.5, experiment="exp2b", food="pecans", system="articutool", goal="centre",
+                planning_attempts=1, max_tilt_deg=3.0) for _ in range(4)]
+    recs += [rec(2.5 - x, table=x, experiment="exp2b", food="pecans", system="baseline",
+                 goal="left", planning_attempts=1, max_tilt_deg=17.0)
+             for x in (0.0, PIECE, PIECE, 0.0)]
     s = summarize("exp2b", recs, cfg)
     e = s["spilled_g"]["pecans"]
     assert e["articutool"]["mean"] == 0.0 and e["baseline"]["mean"] == pytest.approx(PIECE / 2)
@@ -124,13 +135,13 @@ def test_report_puts_ours_beside_the_thesis_and_lists_what_did_not_run(cfg, tmp_
     from articutool.experiments import report
     from articutool.experiments.runner import log_path
 
-    recs = [{**rec(8.0 - x, critical=x, food="water", system=s, goal="centre",
-                   planning_attempts=1, max_tilt_deg=3.0), "experiment": "exp2b", "trial": k}
+    recs = [rec(8.0 - x, critical=x, experiment="exp2b", food="water", system=s,
+                goal="centre", planning_attempts=1, max_tilt_deg=3.0, trial=k)
             for k, (s, x) in enumerate([("articutool", 0.0), ("baseline", 0.42),
                                         ("articutool", 0.0), ("baseline", 0.0)])]
     log = log_path(tmp_path, "exp2b")
     log.parent.mkdir(parents=True)
-    log.write_text("".join(json.dumps(r) + "\n" for r in recs))
+    log.write_text("".join(json.dumps(r.to_log()) + "\n" for r in recs))
     (tmp_path / "exp2b" / "summary.json").write_text(json.dumps(
         {"run": {"command": "articutool experiment exp2b --trials 2", "machine": {
             "host": "h", "cpus": 2}, "date": "2026-01-01"}}))
@@ -156,17 +167,18 @@ def test_no_summary_reads_the_thesis_numbers(cfg) -> None:
     # threshold or statistic may change if they are removed.
     blind = cfg.model_copy(update={"thesis": {}})
     runs = {
-        "exp1": ([rec(0.0, food=f, system=s, mass_g=m) for f in ("pecans", "water", "noodles")
+        "exp1": ([rec(0.0, experiment="exp1", food=f, system=s, mass_g=m)
+                  for f in ("pecans", "water", "noodles")
                   for s, m in (("articutool", 1.8), ("articutool", 0.9), ("baseline", 0.9),
                                ("baseline", 0.0))], {}),
-        "exp2b": ([rec(2.5 - x, table=x, food=f, system=s, goal="left", planning_attempts=1,
-                       max_tilt_deg=5.0) for f in ("pecans", "water")
+        "exp2b": ([rec(2.5 - x, table=x, experiment="exp2b", food=f, system=s, goal="left",
+                       planning_attempts=1, max_tilt_deg=5.0) for f in ("pecans", "water")
                    for s, x in (("articutool", 0.0), ("baseline", PIECE))], {}),
         "exp2c": ([rec(d, table=t, food=f, condition=c) for f in ("pecans", "water")
                    for c, d, t in (("control", 5.0, PIECE), ("primitive", 2.0, 0.0))],
                   {"thresholds_g": {"pecans": 1.5, "water": 0.0}}),
-        "exp3": ([rec(d, system=s, planning_attempts=1) for s, d in (("articutool", 5.0),
-                                                                     ("baseline", 1.0))],
+        "exp3": ([bite(d, system=s, planning_attempts=1) for s, d in (("articutool", 5.0),
+                                                                      ("baseline", 1.0))],
                  {"threshold_g": 0.0}),
     }
     for exp, (recs, kw) in runs.items():
@@ -182,8 +194,8 @@ def test_report_recomputes_the_thesis_exp3_p_value_from_its_counts(cfg) -> None:
     r = report.thesis_exp3_no_spill(cfg.thesis["exp3"])
     assert r is not None and r.table == ((14, 6), (7, 13))
     assert r.p == pytest.approx(0.056, abs=5e-4)
-    recs = [rec(5.0, system="articutool", planning_attempts=1),
-            rec(5.0, table=PIECE, system="baseline", planning_attempts=3)]
+    recs = [bite(5.0, system="articutool", planning_attempts=1),
+            bite(5.0, table=PIECE, system="baseline", planning_attempts=3)]
     md = report.section("exp3", summarize("exp3", recs, cfg, threshold_g=3.0), cfg, None)
     assert "as printed: < 0.00012" in md
     assert ("recomputed here from the thesis' own counts (14/20 vs 7/20 trials without "

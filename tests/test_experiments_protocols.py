@@ -30,7 +30,7 @@ def _accounted(r: dict) -> float:
 
 def test_capacity_trial_scoops_the_full_bowl_and_weighs_what_the_level_spoon_holds() -> None:
     spec = make_trials("capacity", conditions("capacity", CFG), 1, 0)[0]  # pecans
-    r = run_trial(spec)
+    r = run_trial(spec).to_log()
     assert r["error"] is None, r.get("traceback")
     assert r["food"] == "pecans" and r["seed"] == 0 and r["completed"]
     assert r["tilt_deg"] < 3.0  # lifted level
@@ -46,7 +46,7 @@ def test_capacity_trial_of_water_also_fills_the_dish_to_the_brim() -> None:
     from articutool.spec import load_spec
 
     spec = make_trials("capacity", conditions("capacity", CFG), 1, 0)[1]
-    r = run_trial(spec)
+    r = run_trial(spec).to_log()
     assert r["error"] is None, r.get("traceback")
     assert r["food"] == "water" and r["completed"]
     level_g = dish_volume_m3(load_spec().utensil("soup_spoon")) * 1e6
@@ -57,9 +57,9 @@ def test_capacity_trial_of_water_also_fills_the_dish_to_the_brim() -> None:
 def test_exp2b_trial_baseline_water_to_a_goal_accounts_for_every_gram() -> None:
     goals = ["low_near"]
     trials = make_trials("exp2b", conditions("exp2b", CFG, goals=goals), 1, 0, goals=goals)
-    spec = next(t for t in trials if t.cond == {"food": "water", "system": "baseline",
+    spec = next(t for t in trials if t.condition.fields() == {"food": "water", "system": "baseline",
                                                 "goal": "low_near"})
-    r = run_trial(spec)
+    r = run_trial(spec).to_log()
     assert r["error"] is None, r.get("traceback")
     assert r["planner"] == "strict6" and r["tolerance_deg"] == CFG.settings.arm_tolerance_deg
     assert r["completed"] and r["planning_attempts"] >= 1 and r["motion_time_s"] > 0
@@ -73,14 +73,14 @@ def test_exp2b_trial_baseline_water_to_a_goal_accounts_for_every_gram() -> None:
 def test_exp2c_trial_tilt_primitive_then_transport_and_replay_is_identical() -> None:
     trials = make_trials("exp2c", conditions("exp2c", CFG, load_g={"pecans": 10.0,
                                                                    "water": 15.5}), 1, 0)
-    spec = next(t for t in trials if t.cond["food"] == "water"
-                and t.cond["condition"] == "primitive")
-    r = run_trial(spec)
+    spec = next(t for t in trials if t.condition.food == "water"
+                and t.condition.condition == "primitive")
+    r = run_trial(spec).to_log()
     assert r["error"] is None, r.get("traceback")
     assert r["primitive"] == "TILT" and r["primitive_ok"]
     assert r["completed"]
     assert _accounted(r) == pytest.approx(r["held_g"], abs=1e-3)
-    again = run_trial(spec)
+    again = run_trial(spec).to_log()
     for k in ("held_g", "delivered_g", "spilled_g", "shed_g", "after_primitive_g"):
         assert again[k] == r[k]
 
@@ -112,8 +112,9 @@ def test_cli_exp2b_one_trial_per_condition_then_report(tmp_path, capsys) -> None
 @pytest.mark.slow
 def test_exp1_trial_pecans_acquires_and_weighs_at_resting() -> None:
     trials = make_trials("exp1", conditions("exp1", CFG), 1, 0)
-    spec = next(t for t in trials if t.cond == {"food": "pecans", "system": "articutool"})
-    r = run_trial(spec)
+    spec = next(t for t in trials
+                if t.condition.fields() == {"food": "pecans", "system": "articutool"})
+    r = run_trial(spec).to_log()
     assert r["error"] is None, r.get("traceback")
     assert r["stages"] == ["above", "acquire", "resting"] and r["completed"]
     assert r["mass_g"] == pytest.approx(r["masses_end_g"]["utensil"])
@@ -124,7 +125,8 @@ def test_exp1_trial_pecans_acquires_and_weighs_at_resting() -> None:
 @pytest.mark.slow
 def test_exp3_trial_noodles_whole_bite_is_classified_from_its_masses_at_analysis() -> None:
     trials = make_trials("exp3", conditions("exp3", CFG), 1, 0)
-    r = run_trial(trials[0])
+    rec = run_trial(trials[0])
+    r = rec.to_log()
     assert r["error"] is None, r.get("traceback")
     assert r["stages"] == ["above", "acquire", "shed", "resting", "staging", "present"]
     assert r["completed"] and r["failed_stage"] == "", r
@@ -134,7 +136,7 @@ def test_exp3_trial_noodles_whole_bite_is_classified_from_its_masses_at_analysis
     spilled, d = r["spilled_by_place"], r["delivered_g"]
     assert r["spilled_g"] == pytest.approx(sum(spilled.values()))
     for threshold_g in (0.0, d, 3.0):
-        assert classify(r, threshold_g) == ("user_spill" if spilled["critical"] > 0 else
+        assert classify(rec, threshold_g) == ("user_spill" if spilled["critical"] > 0 else
                                             "table_spill" if spilled["table"] > 0 else
                                             "meaningful_success" if d > threshold_g else
                                             "trivial_success")
@@ -212,9 +214,9 @@ def test_exp2c_sheds_over_the_bowl_what_falls_is_shed_not_spilled() -> None:
     # and the floor (an earlier committed run).
     trials = make_trials("exp2c", conditions("exp2c", CFG, load_g={"pecans": 8.48,
                                                                    "water": 15.5}), 2, 0)
-    spec = next(t for t in trials if t.cond["food"] == "water"
-                and t.cond["condition"] == "closed_loop" and t.seed == 1)
-    r = run_trial(spec)
+    spec = next(t for t in trials if t.condition.food == "water"
+                and t.condition.condition == "closed_loop" and t.seed == 1)
+    r = run_trial(spec).to_log()
     assert r["error"] is None, r.get("traceback")
     assert r["primitive"] == "TILT_UNTIL_LOAD" and r["primitive_ok"] and r["completed"]
     moved = r["primitive_moved_g"]
@@ -256,9 +258,9 @@ def test_exp2b_has_no_mouth_the_load_at_the_centre_goal_is_weighed_not_eaten() -
     # eaten on arrival (4 of 20 trials per system). The experimenter weighs the utensil.
     goals = ["centre"]
     trials = make_trials("exp2b", conditions("exp2b", CFG, goals=goals), 1, 0, goals=goals)
-    spec = next(t for t in trials if t.cond["food"] == "pecans"
-                and t.cond["system"] == "articutool")
-    r = run_trial(spec)
+    spec = next(t for t in trials if t.condition.food == "pecans"
+                and t.condition.system == "articutool")
+    r = run_trial(spec).to_log()
     assert r["error"] is None, r.get("traceback")
     assert r["masses_after_g"]["eaten"] == 0.0
     assert r["delivered_g"] == pytest.approx(r["masses_after_g"]["utensil"], abs=1e-4)
@@ -270,8 +272,9 @@ def test_exp2c_closed_loop_target_is_derived_from_the_threshold_above_it() -> No
     from articutool.experiments.protocols import closed_loop_params, closed_loop_target_g
 
     assert closed_loop_target_g(8.65, 0.42, 0.09) == pytest.approx(8.65 + 0.42 + 0.27)
-    conds = conditions("exp2c", CFG, load_g={"pecans": 8.0, "water": 15.5},
-                       target_g={"water": 9.3})
+    conds = [c.fields() for c in conditions("exp2c", CFG, load_g={"pecans": 8.0,
+                                                                  "water": 15.5},
+                                            target_g={"water": 9.3})]
     closed = {c["food"]: c for c in conds if c["condition"] == "closed_loop"}
     assert closed["water"]["target_g"] == 9.3 and "target_g" not in closed["pecans"]
     assert "target_g" not in next(c for c in conds if c["condition"] == "control")

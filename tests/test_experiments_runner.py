@@ -42,10 +42,45 @@ def test_design_numbers_trials_trial_major_and_seeds_are_shared_by_conditions() 
     assert t6[: len(t4)] == t4  # more trials never renumber the ones run
     assert [t.trial for t in t4] == list(range(4 * len(conds)))
     assert {t.seed for t in t4 if t.repeat == 1} == {trial_seed(2, 1)} == {2001}
-    assert [t.cond["goal"] for t in t6 if t.cond["system"] == "baseline"
-            and t.cond["food"] == "water"] == ["a", "b", "c", "a", "b", "c"]
+    assert [t.condition.goal for t in t6 if t.condition.system == "baseline"
+            and t.condition.food == "water"] == ["a", "b", "c", "a", "b", "c"]
     with pytest.raises(ValueError, match="trials"):
         make_trials("exp2b", conds, 0, 0, goals=["a"])
+
+
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "experiments"
+
+
+@pytest.mark.parametrize("experiment", ["capacity", "exp1", "exp2b", "exp2c"])
+def test_every_committed_trial_reads_as_a_record_and_writes_back_its_own_line(
+        experiment: str) -> None:
+    from articutool.experiments.records import TrialRecord
+
+    lines = (RESULTS / experiment / "trials.jsonl").read_text().splitlines()
+    assert lines
+    for line in lines:
+        rec = TrialRecord.from_log(json.loads(line))
+        assert json.dumps(rec.to_log()) == line  # same fields, values and order
+        assert rec.experiment == experiment and rec.outcome is not None
+
+
+def test_a_logged_record_not_as_the_protocols_write_it_is_refused_naming_the_field(
+        tmp_path: Path) -> None:
+    from articutool.datafile import ResultsError
+
+    line = json.loads((RESULTS / "exp2b" / "trials.jsonl").read_text().splitlines()[0])
+    log = log_path(tmp_path, "exp2b")
+    log.parent.mkdir(parents=True)
+    for bad, field in (({**line, "spilled_g": "a lot"}, f"trial {line['trial']}:\n  spilled_g: "),
+                       ({k: v for k, v in line.items() if k != "held_g"}, "held_g: "),
+                       ({**line, "spiled_g": 0.0}, "spiled_g: ")):
+        log.write_text(json.dumps(bad) + "\n")
+        with pytest.raises(ResultsError, match=field):
+            read_trials(tmp_path, "exp2b")
+    failed = {**line, "error": "RuntimeError: boom"}  # a trial that raised has no outcome
+    log.write_text(json.dumps(failed) + "\n")
+    with pytest.raises(ResultsError, match="no outcome"):
+        read_trials(tmp_path, "exp2b")
 
 
 def test_pin_run_refuses_other_settings(tmp_path: Path) -> None:
@@ -114,7 +149,7 @@ def test_a_killed_run_resumes_and_loses_or_repeats_no_trial(tmp_path: Path) -> N
     summary = json.loads(r.stdout)
     assert summary["run"]["trials"] == 8
     assert summary["spilled_g"]["pecans"]["articutool"]["n"] == 2
-    assert read_trials(out, "exp2b")[0]["trial"] == 0
+    assert read_trials(out, "exp2b")[0].trial == 0
 
 
 @pytest.mark.parametrize("argv, field", [
@@ -214,5 +249,6 @@ def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
                        load_g={"pecans": 5.0, "water": 5.0})
     mine = [object()]
     rec = run_trial(make_trials(experiment, conds, 1, 0, goals=goals)[0], visitors=mine)
-    assert rec["error"] is not None and "_TreeReachedError" in rec["error"], rec
+    assert rec.error is not None and "_TreeReachedError" in rec.error, rec
+    assert rec.outcome is None and rec.traceback
     assert got == [mine] and got[0] is mine

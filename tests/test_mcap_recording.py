@@ -298,9 +298,9 @@ def test_an_experiment_trials_recording_holds_its_feeding_tree(tmp_path: Path) -
 
     trials = make_trials("exp2b", conditions("exp2b", ExperimentsConfig.load(),
                                              goals=["centre"]), 1, 0, goals=["centre"])
-    spec = next(t for t in trials if t.cond == {"food": "pecans", "system": "baseline",
-                                                "goal": "centre"})
-    logged = run_trial(spec)  # as a run logs it: no recorder
+    spec = next(t for t in trials if t.condition.fields() == {
+        "food": "pecans", "system": "baseline", "goal": "centre"})
+    logged = run_trial(spec).to_log()  # as a run logs it: no recorder
     assert logged["error"] is None, logged.get("traceback")
     out = tmp_path / "out"
     log = log_path(out, "exp2b")

@@ -41,9 +41,10 @@ def test_a_reset_trial_is_recorded_as_such_and_left_out_of_the_statistics(tmp_pa
         world.data.qvel[0] = np.nan
 
     bad = run_trial(trials[1], hook=blow_up)
-    assert good["error"] is None
-    assert bad["error"].startswith("PhysicsResetError: MuJoCo reset the simulation")
+    assert good.error is None
+    assert bad.error is not None
+    assert bad.error.startswith("PhysicsResetError: MuJoCo reset the simulation")
     s = summarize("exp2b", [good, bad], cfg)
     assert s["run"]["errors"] == 1 and s["run"]["physics_resets"] == 1
-    spilled = s["spilled_g"][bad["food"]]
-    assert spilled[bad["system"]]["n"] == 0 and spilled[good["system"]]["n"] == 1
+    spilled = s["spilled_g"][bad.condition.food]
+    assert spilled[bad.condition.system]["n"] == 0 and spilled[good.condition.system]["n"] == 1

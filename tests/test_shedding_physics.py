@@ -92,6 +92,7 @@ def test_a_heaped_load_spills_more_in_a_locked_carry_than_a_single_layer():
     # the dish — and with a heap above the rim, 8 g (the deposit's most, sim-calibrate).
     from articutool.arm.scene import Scene
     from articutool.experiments.protocols import exp2b_trial
+    from articutool.experiments.records import Exp2bCondition
 
     cfg = ExperimentsConfig.load()
     goals = [g.name for g in Scene.load().staging_set.goals]
@@ -99,10 +100,10 @@ def test_a_heaped_load_spills_more_in_a_locked_carry_than_a_single_layer():
     for load in (2.5, 8.0):
         c = cfg.model_copy(update={"exp2b": cfg.exp2b.model_copy(
             update={"load_g": {**cfg.exp2b.load_g, "pecans": load}})})
-        recs = [exp2b_trial({"food": "pecans", "system": "baseline", "goal": goals[s]}, s, c)
-                for s in (0, 1)]
-        assert all(r["completed"] for r in recs)
-        spilled[load] = sum(r["spilled_g"] for r in recs)
+        recs = [exp2b_trial(Exp2bCondition(food="pecans", system="baseline", goal=goals[s]),
+                            s, c) for s in (0, 1)]
+        assert all(r.completed for r in recs)
+        spilled[load] = sum(r.spilled_g for r in recs)
     print(f"\nlocked carry, seeds 0-1, spilled in all: {spilled}")
     assert spilled[8.0] > spilled[2.5]
 

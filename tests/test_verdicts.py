@@ -4,6 +4,7 @@ test, never from the thesis' numbers."""
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 from hypothesis import given
 from hypothesis import strategies as st
@@ -11,6 +12,7 @@ from hypothesis import strategies as st
 from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.stats import describe, welch
 from articutool.experiments.verdicts import verdicts
+from conftest import trial_record
 
 CFG = ExperimentsConfig.load()
 ALPHA = CFG.settings.alpha
@@ -68,9 +70,9 @@ def test_swapping_the_systems_swaps_reproduced_and_contradicted(a, b):
     assert other == swap.get(one, one)
 
 
-def _rec(trial: int, food_g: float, spilled: float, system: str = "articutool") -> dict:
-    return {"trial": trial, "food": "water", "system": system, "acquired_g": food_g,
-            "spilled_g": spilled}
+def _rec(trial: int, food_g: float, spilled: float, system: str = "articutool") -> Any:
+    return trial_record("exp1", trial, food="water", system=system, acquired_g=food_g,
+                        spilled_g=spilled)
 
 
 @given(st.permutations(list(range(7))))

@@ -12,12 +12,19 @@ numerical instability (``PhysicsResetError``) are counted apart.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from articutool.experiments.design import EXP2C_CONDITIONS
+from articutool.experiments.records import (
+    BiteOutcome,
+    CapacityOutcome,
+    Condition,
+    Outcome,
+    TrialRecord,
+)
 from articutool.experiments.stats import describe, fisher, proportion_ci, welch
 from articutool.feeding.outcomes import OUTCOMES, classify_bite
 
@@ -27,33 +34,43 @@ __all__ = ["EXP2C_CLASSES", "by_place", "classify_exp2c", "representative_trials
 EXP2C_CLASSES = ("meaningful_success", "trivial_success", "transport_failure", "failed")
 
 
-def _ok(records: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
-    return [r for r in records if not r.get("error")]
+def _ok(records: Iterable[TrialRecord]) -> list[TrialRecord]:
+    return [r for r in records if not r.error]
 
 
-def _where(records: Iterable[dict[str, Any]], **kv: Any) -> list[dict[str, Any]]:
-    return [r for r in records if all(r.get(k) == v for k, v in kv.items())]
+def _where(records: Iterable[TrialRecord], which: Callable[[Any], bool]
+           ) -> list[TrialRecord]:
+    """The ``records`` whose condition is ``which``."""
+    return [r for r in records if which(r.condition)]
 
 
-def _wall(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    w = [float(r["wall_time_s"]) for r in records if r.get("wall_time_s") is not None]
-    return {"trials": len(records), "errors": sum(1 for r in records if r.get("error")),
+def _out(rec: TrialRecord) -> Any:
+    """What a trial that did not raise measured (its experiment's outcome type)."""
+    assert rec.outcome is not None, "a trial that raised is left out of every statistic"
+    return rec.outcome
+
+
+def _wall(records: Sequence[TrialRecord]) -> dict[str, Any]:
+    w = [float(r.wall_time_s) for r in records]
+    return {"trials": len(records), "errors": sum(1 for r in records if r.error),
             # of the errors, the trials MuJoCo reset after an instability (never counted)
             "physics_resets": sum(1 for r in records
-                                  if str(r.get("error") or "").startswith("PhysicsResetError")),
+                                  if (r.error or "").startswith("PhysicsResetError")),
             "wall_time_per_trial_s": describe(w).to_dict() if w else None,
             "wall_time_total_s": round(sum(w), 1),
             # The code each trial ran (trials logged before it was recorded: "not recorded").
-            "sources": dict(Counter(str(r.get("source", "not recorded")) for r in records))}
+            "sources": dict(Counter("not recorded" if r.source is None else r.source
+                                    for r in records))}
 
 
-def classify(rec: Mapping[str, Any], threshold_g: float) -> str:
+def classify(rec: TrialRecord, threshold_g: float) -> str:
     """A record's Exp. 3 outcome class (:func:`classify_bite`) at ``threshold_g``."""
-    return classify_bite(float(rec["delivered_g"]), dict(rec["spilled_by_place"]),
-                         threshold_g, bool(rec["completed"]))
+    o = _out(rec)
+    return classify_bite(float(o.delivered_g), dict(o.spilled_by_place), threshold_g,
+                         bool(o.completed))
 
 
-def classify_exp2c(rec: Mapping[str, Any], threshold_g: float) -> str:
+def classify_exp2c(rec: TrialRecord, threshold_g: float) -> str:
     """Exp. 2c's class (§5.2.3): a table or user spill is a transport failure."""
     c = classify(rec, threshold_g)
     return "transport_failure" if c in ("table_spill", "user_spill") else c
@@ -73,21 +90,21 @@ def _rate(k: int, n: int) -> dict[str, Any]:
 
 
 # ------------------------------------------------------------------ per experiment --
-def summarize_capacity(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
+def summarize_capacity(records: Sequence[TrialRecord]) -> dict[str, Any]:
     """Per food, the maximal scoops' mass (completed scoops; a scoop whose tree failed is no
     maximal scoop) and, for a liquid, the brim test's; the capacity — Exp. 2c's load — is the
     mean maximal scoop, unless a liquid's scoops do not fill the dish to the brim: then the
     scoop was bounded by the pool it dipped in, not the spoon, and the capacity is the brim."""
     ok = _ok(records)
-    foods = list(dict.fromkeys(r["food"] for r in ok))
+    foods = list(dict.fromkeys(r.condition.food for r in ok))
     out: dict[str, Any] = {"foods": {}}
     for f in foods:
-        rs = _where(ok, food=f)
-        done = [r for r in rs if r.get("completed")]
-        scoop = describe([r["scoop_g"] for r in done]).to_dict()
-        entry: dict[str, Any] = {"utensil": rs[0]["utensil"], "scoop_g": scoop,
+        rs = [_out(r) for r in ok if r.condition.food == f]
+        done = [o for o in rs if o.completed]
+        scoop = describe([o.scoop_g for o in done]).to_dict()
+        entry: dict[str, Any] = {"utensil": rs[0].utensil, "scoop_g": scoop,
                                  "completed": _rate(len(done), len(rs))}
-        brims = [r["brim_g"] for r in rs if r.get("brim_g") is not None]
+        brims = [o.brim_g for o in rs if o.brim_g is not None]
         cap, source = scoop, "mean maximal scoop"
         if brims:
             entry["brim_g"] = describe(brims).to_dict()
@@ -99,14 +116,14 @@ def summarize_capacity(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def summarize_mass(records: Sequence[dict[str, Any]], foods: Sequence[str],
-                   systems: Sequence[str], field: str) -> dict[str, Any]:
-    """Per food: ``field`` per system (mean ± SD, 95 % CI), Welch of the first system
-    against the second, and how many trials had a non-zero value."""
+def summarize_mass(records: Sequence[TrialRecord], foods: Sequence[str],
+                   systems: Sequence[str], value: Callable[[Any], float]) -> dict[str, Any]:
+    """Per food: the outcomes' ``value`` per system (mean ± SD, 95 % CI), Welch of the first
+    system against the second, and how many trials had a non-zero value."""
     ok = _ok(records)
     out: dict[str, Any] = {}
     for f in foods:
-        per = {s: [float(r[field]) for r in _where(ok, food=f, system=s)] for s in systems}
+        per = {s: [float(value(_out(r))) for r in _where(ok, _is(f, s))] for s in systems}
         entry: dict[str, Any] = {s: {**describe(v).to_dict(),
                                      "nonzero": _rate(sum(1 for x in v if x > 1e-9), len(v))}
                                  for s, v in per.items()}
@@ -117,45 +134,52 @@ def summarize_mass(records: Sequence[dict[str, Any]], foods: Sequence[str],
     return out
 
 
-def summarize_exp2b(records: Sequence[dict[str, Any]], cfg: Any) -> dict[str, Any]:
+def _is(food: str, system: str) -> Callable[[Condition], bool]:
+    """Whether a condition is ``food`` by ``system``."""
+    return lambda c: c.food == food and c.system == system
+
+
+def summarize_exp2b(records: Sequence[TrialRecord], cfg: Any) -> dict[str, Any]:
     """Spilled mass per food and system (Welch), spill frequency (Fisher), per goal, and the
     planning and completion figures."""
     ok = _ok(records)
     systems = list(cfg.exp2b.systems)
     out: dict[str, Any] = {"spilled_g": summarize_mass(ok, cfg.exp2b.foods, systems,
-                                                       "spilled_g")}
+                                                       lambda o: o.spilled_g)}
     freq: dict[str, Any] = {}
     per_goal: dict[str, Any] = {}
     plan: dict[str, Any] = {}
     for f in cfg.exp2b.foods:
-        rs = {s: _where(ok, food=f, system=s) for s in systems}
+        rs = {s: _where(ok, _is(f, s)) for s in systems}
         spill = {s: _spills(v) for s, v in rs.items()}
         if len(systems) == 2:
             a, b = systems
             freq[f] = fisher(spill[a], len(rs[a]), spill[b], len(rs[b])).to_dict()
-        per_goal[f] = {s: {g: describe([r["spilled_g"] for r in v if r["goal"] == g]).to_dict()
-                           for g in dict.fromkeys(r["goal"] for r in v)} for s, v in rs.items()}
-        plan[f] = {s: {"completed": _rate(sum(1 for r in v if r["completed"]), len(v)),
-                       "planning_attempts": describe([r["planning_attempts"] for r in v]
+        per_goal[f] = {s: {g: describe([_out(r).spilled_g for r in v
+                                        if r.condition.goal == g]).to_dict()
+                           for g in dict.fromkeys(r.condition.goal for r in v)}
+                       for s, v in rs.items()}
+        outs = {s: [_out(r) for r in v] for s, v in rs.items()}
+        plan[f] = {s: {"completed": _rate(sum(1 for o in v if o.completed), len(v)),
+                       "planning_attempts": describe([o.planning_attempts for o in v]
                                                      ).to_dict(),
-                       "max_tilt_deg": describe([r["max_tilt_deg"] for r in v
-                                                 if r.get("max_tilt_deg") is not None]
-                                                ).to_dict(),
-                       "held_g": describe([r["held_g"] for r in v]).to_dict()}
-                   for s, v in rs.items()}
+                       "max_tilt_deg": describe([o.max_tilt_deg for o in v
+                                                 if o.max_tilt_deg is not None]).to_dict(),
+                       "held_g": describe([o.held_g for o in v]).to_dict()}
+                   for s, v in outs.items()}
     out.update(spill_frequency_fisher=freq, per_goal=per_goal, transport=plan,
-               spilled_by_place={f: {sys_: by_place(_where(ok, food=f, system=sys_))
+               spilled_by_place={f: {sys_: by_place(_where(ok, _is(f, sys_)))
                                      for sys_ in systems} for f in cfg.exp2b.foods},
                variants=summarize_exp2b_variants(ok, cfg))
     return out
 
 
-def _spills(records: Sequence[Mapping[str, Any]]) -> int:
+def _spills(records: Sequence[TrialRecord]) -> int:
     """How many of ``records`` spilled anything in transport."""
-    return sum(1 for r in records if r["spilled_g"] > 1e-9)
+    return sum(1 for r in records if _out(r).spilled_g > 1e-9)
 
 
-def summarize_exp2b_variants(records: Sequence[dict[str, Any]], cfg: Any
+def summarize_exp2b_variants(records: Sequence[TrialRecord], cfg: Any
                              ) -> dict[str, dict[str, Any]]:
     """Per variant (this stack's systems beside the thesis') and food: its spills and
     spilled mass against the thesis system it extends (same seeds and goals: Fisher and
@@ -165,31 +189,32 @@ def summarize_exp2b_variants(records: Sequence[dict[str, Any]], cfg: Any
     for name, v in cfg.exp2b.variants.items():
         per: dict[str, Any] = {}
         for f in v.foods:
-            rs, base = _where(records, food=f, system=name), _where(records, food=f,
-                                                                     system=v.system)
+            rs, base = _where(records, _is(f, name)), _where(records, _is(f, v.system))
             if not rs:
                 continue
-            checks = [c for r in rs for c in (r.get("food_checks") or [])]
-            kept = [c for c in checks if c.get("executed", True) is not False]
+            checks = [c for r in rs for c in (_out(r).food_checks or [])]
+            kept = [c for c in checks if c.executed is not False]
             per[f] = {
                 "base": v.system,
-                "spilled_g": describe([r["spilled_g"] for r in rs]).to_dict(),
+                "spilled_g": describe([_out(r).spilled_g for r in rs]).to_dict(),
                 "spills": _rate(_spills(rs), len(rs)),
                 "base_spills": _rate(_spills(base), len(base)),
                 "fisher_vs_base": (fisher(_spills(rs), len(rs), _spills(base), len(base))
                                    .to_dict() if base else None),
-                "welch_vs_base": (welch([r["spilled_g"] for r in rs],
-                                        [r["spilled_g"] for r in base]).to_dict()
+                "welch_vs_base": (welch([_out(r).spilled_g for r in rs],
+                                        [_out(r).spilled_g for r in base]).to_dict()
                                   if base else None),
-                "completed": _rate(sum(1 for r in rs if r["completed"]), len(rs)),
-                "motion_time_s": describe([r["motion_time_s"] for r in rs]).to_dict(),
-                "base_motion_time_s": describe([r["motion_time_s"] for r in base]).to_dict(),
+                "completed": _rate(sum(1 for r in rs if _out(r).completed), len(rs)),
+                "motion_time_s": describe([_out(r).motion_time_s for r in rs]).to_dict(),
+                "base_motion_time_s": describe([_out(r).motion_time_s for r in base]
+                                               ).to_dict(),
                 "checks": len(checks),
-                "retimed": sum(1 for c in kept if float(c.get("scale", 1.0)) < 1.0),
-                "slosh_free": sum(1 for c in kept if c.get("wrist") == "slosh_free"),
-                "scale": describe([float(c["scale"]) for c in kept if "scale" in c]).to_dict(),
-                "predicted_spill_g": describe([float(c["predicted_spill_g"]) for c in kept
-                                               if c.get("predicted_spill_g") is not None]
+                "retimed": sum(1 for c in kept if c.scale is not None and c.scale < 1.0),
+                "slosh_free": sum(1 for c in kept if c.wrist == "slosh_free"),
+                "scale": describe([float(c.scale) for c in kept if c.scale is not None]
+                                  ).to_dict(),
+                "predicted_spill_g": describe([float(c.predicted_spill_g) for c in kept
+                                               if c.predicted_spill_g is not None]
                                               ).to_dict(),
                 "spilled_by_place": by_place(rs),
             }
@@ -197,19 +222,19 @@ def summarize_exp2b_variants(records: Sequence[dict[str, Any]], cfg: Any
     return out
 
 
-def by_place(records: Sequence[Mapping[str, Any]]) -> dict[str, dict[str, float]]:
+def by_place(records: Sequence[TrialRecord]) -> dict[str, dict[str, float]]:
     """Grams spilled over ``records`` per place (a container and the air apart from the
     table and the user: accounting.transport_spill), and in how many trials."""
     out: dict[str, dict[str, float]] = {}
     for r in records:
-        for place, g in (r.get("spilled_by_place") or {}).items():
+        for place, g in _out(r).spilled_by_place.items():
             e = out.setdefault(place, {"g": 0.0, "trials": 0})
             e["g"] = round(e["g"] + float(g), 4)
             e["trials"] += int(float(g) > 1e-9)
     return out
 
 
-def summarize_exp2c(records: Sequence[dict[str, Any]], cfg: Any,
+def summarize_exp2c(records: Sequence[TrialRecord], cfg: Any,
                     thresholds_g: Mapping[str, float] | None) -> dict[str, Any]:
     """Outcome classes per food and condition at ``thresholds_g`` (per food); Fisher's exact
     test of meaningful success, each primitive condition against control and closed loop
@@ -221,12 +246,13 @@ def summarize_exp2c(records: Sequence[dict[str, Any]], cfg: Any,
     for f in cfg.exp2c.foods:
         entry: dict[str, Any] = {}
         for c in EXP2C_CONDITIONS:
-            rs = _where(ok, food=f, condition=c)
+            rs = _where(ok, _in(f, c))
+            outs = [_out(r) for r in rs]
             e: dict[str, Any] = {
-                "spill": _rate(sum(1 for r in rs if r["spilled_g"] > 1e-9), len(rs)),
-                "delivered_g": describe([r["delivered_g"] for r in rs]).to_dict(),
-                "held_g": describe([r["held_g"] for r in rs]).to_dict(),
-                "shed_g": describe([r["shed_g"] for r in rs]).to_dict(),
+                "spill": _rate(sum(1 for o in outs if o.spilled_g > 1e-9), len(rs)),
+                "delivered_g": describe([o.delivered_g for o in outs]).to_dict(),
+                "held_g": describe([o.held_g for o in outs]).to_dict(),
+                "shed_g": describe([o.shed_g for o in outs]).to_dict(),
                 "spilled_by_place": by_place(rs)}
             if thresholds_g and f in thresholds_g:
                 e.update(_counts([classify_exp2c(r, thresholds_g[f]) for r in rs],
@@ -241,30 +267,32 @@ def summarize_exp2c(records: Sequence[dict[str, Any]], cfg: Any,
                 entry["fisher_meaningful" + suffix] = fisher(
                     ta["counts"]["meaningful_success"], ta["n"],
                     tb["counts"]["meaningful_success"], tb["n"]).to_dict()
-            a_rs, b_rs = (_where(ok, food=f, condition=k) for k in (a, b))
+            a_rs, b_rs = (_where(ok, _in(f, k)) for k in (a, b))
             entry["fisher_no_spill" + suffix] = fisher(
-                sum(1 for r in a_rs if r["spilled_g"] <= 1e-9), len(a_rs),
-                sum(1 for r in b_rs if r["spilled_g"] <= 1e-9), len(b_rs)).to_dict()
+                sum(1 for r in a_rs if _out(r).spilled_g <= 1e-9), len(a_rs),
+                sum(1 for r in b_rs if _out(r).spilled_g <= 1e-9), len(b_rs)).to_dict()
         out["foods"][f] = entry
     return out
 
 
-def summarize_exp1(records: Sequence[dict[str, Any]], cfg: Any) -> dict[str, Any]:
+def _in(food: str, condition: str) -> Callable[[Condition], bool]:
+    """Whether a condition is Exp. 2c's ``condition`` with ``food``."""
+    return lambda c: c.food == food and c.condition == condition
+
+
+def summarize_exp1(records: Sequence[TrialRecord], cfg: Any) -> dict[str, Any]:
     """Mass on the utensil at Resting per food and system, Welch (§5.1)."""
     return {"acquired_g": summarize_mass(_ok(records), cfg.exp1.foods, cfg.exp1.systems,
-                                         "mass_g")}
+                                         lambda o: o.mass_g)}
 
 
-def staging_attempts(rec: Mapping[str, Any]) -> int | None:
+def staging_attempts(rec: TrialRecord) -> int | None:
     """Planning attempts to Staging (the thesis' count, §6.3), or None when the bite never
     planned to Staging (it failed before)."""
-    by = rec.get("planning_attempts_by_goal")
-    if by is not None:
-        return by.get("Staging")
-    return rec.get("planning_attempts") or None
+    return _out(rec).planning_attempts_by_goal.get("Staging")
 
 
-def summarize_exp3(records: Sequence[dict[str, Any]], cfg: Any,
+def summarize_exp3(records: Sequence[TrialRecord], cfg: Any,
                    threshold_g: float) -> dict[str, Any]:
     """The four outcome classes (and ``failed``) per system at ``threshold_g``; Fisher's
     exact test of meaningful success and of no spill; planning attempts (Welch)."""
@@ -273,12 +301,12 @@ def summarize_exp3(records: Sequence[dict[str, Any]], cfg: Any,
     out: dict[str, Any] = {"threshold_g": threshold_g, "systems": {}}
     att = {}
     for s in systems:
-        rs = _where(ok, system=s)
+        rs = [r for r in ok if r.condition.system == s]
         e = _counts([classify(r, threshold_g) for r in rs], OUTCOMES)
         att[s] = [a for a in map(staging_attempts, rs) if a]
         e["planning_attempts"] = describe(att[s]).to_dict()
-        e["delivered_g"] = describe([r["delivered_g"] for r in rs]).to_dict()
-        e["no_spill"] = _rate(sum(1 for r in rs if r["spilled_g"] <= 1e-9), len(rs))
+        e["delivered_g"] = describe([_out(r).delivered_g for r in rs]).to_dict()
+        e["no_spill"] = _rate(sum(1 for r in rs if _out(r).spilled_g <= 1e-9), len(rs))
         out["systems"][s] = e
     if len(systems) == 2:
         a, b = (out["systems"][s] for s in systems)
@@ -290,7 +318,7 @@ def summarize_exp3(records: Sequence[dict[str, Any]], cfg: Any,
     return out
 
 
-def summarize(experiment: str, records: Sequence[dict[str, Any]], cfg: Any, *,
+def summarize(experiment: str, records: Sequence[TrialRecord], cfg: Any, *,
               thresholds_g: Mapping[str, float] | None = None,
               threshold_g: float | None = None) -> dict[str, Any]:
     """The summary of ``experiment`` (see the per-experiment functions), with run figures."""
@@ -308,11 +336,10 @@ def summarize(experiment: str, records: Sequence[dict[str, Any]], cfg: Any, *,
         body = summarize_exp3(records, cfg, threshold_g)
     else:
         raise ValueError(f"unknown experiment {experiment!r}")
-    seeds = sorted({int(r["seed"]) for r in records})
+    seeds = sorted({r.seed for r in records})
     return {"experiment": experiment, **body, "run": {**_wall(records), "seeds": seeds},
-            "per_condition_n": dict(Counter(
-                "/".join(str(r.get(k)) for k in ("food", "system", "condition") if k in r)
-                for r in _ok(records)))}
+            "per_condition_n": dict(Counter("/".join(r.condition.group())
+                                            for r in _ok(records)))}
 
 
 def mean_or_none(values: Sequence[float]) -> float | None:
@@ -320,27 +347,32 @@ def mean_or_none(values: Sequence[float]) -> float | None:
     return float(np.mean(values)) if len(values) else None
 
 
-def representative_trials(records: Sequence[dict[str, Any]]) -> dict[str, dict[str, int]]:
+def _food_g(o: Outcome) -> float:
+    """The food a trial ends with: acquired (a bite), scooped (a capacity trial), else
+    delivered (a transport)."""
+    if isinstance(o, BiteOutcome):
+        return float(o.acquired_g)
+    if isinstance(o, CapacityOutcome):
+        return float(o.scoop_g)
+    return float(o.delivered_g)
+
+
+def representative_trials(records: Sequence[TrialRecord]) -> dict[str, dict[str, int]]:
     """Per condition (food + system or Exp. 2c condition), the trial numbers of a *typical*
     trial (its food mass — acquired, delivered or held — nearest the condition's median) and
     the *worst* (most spilled, then least food), for the report's replays. Ties go
     to the lowest trial number, so the choice does not depend on the log's order."""
-    groups: dict[str, list[dict[str, Any]]] = {}
+    groups: dict[str, list[TrialRecord]] = {}
     for r in _ok(records):
-        key = " ".join(str(r[k]) for k in ("food", "system", "condition") if k in r)
-        groups.setdefault(key, []).append(r)
+        groups.setdefault(" ".join(r.condition.group()), []).append(r)
 
-    def food_g(r: Mapping[str, Any]) -> float:
-        for k in ("acquired_g", "delivered_g", "scoop_g", "held_g"):
-            if r.get(k) is not None:
-                return float(r[k])
-        return 0.0
+    def food_g(r: TrialRecord) -> float:
+        return _food_g(_out(r))
 
     out = {}
     for key, rs in sorted(groups.items()):
         med = float(np.median([food_g(r) for r in rs]))
-        typical = min(rs, key=lambda r: (abs(food_g(r) - med), int(r["trial"])))
-        worst = min(rs, key=lambda r: (-float(r.get("spilled_g") or 0.0), food_g(r),
-                                       int(r["trial"])))
-        out[key] = {"typical": int(typical["trial"]), "worst": int(worst["trial"])}
+        typical = min(rs, key=lambda r: (abs(food_g(r) - med), r.trial))
+        worst = min(rs, key=lambda r: (-float(_out(r).spilled_g), food_g(r), r.trial))
+        out[key] = {"typical": typical.trial, "worst": worst.trial}
     return out

@@ -239,11 +239,11 @@ def trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
     foods = getattr(args, "foods", None)
     if foods:
         wanted = [f.strip() for f in foods.split(",") if f.strip()]
-        known = sorted({c["food"] for c in conds})
+        known = sorted({c.food for c in conds})
         if not wanted or any(f not in known for f in wanted):
             raise _usage(f"--foods must name foods of {exp} ({', '.join(known)}), "
                          f"comma-separated; got {foods!r}")
-        conds = [c for c in conds if c["food"] in wanted]
+        conds = [c for c in conds if c.food in wanted]
     physics = getattr(args, "physics", None)
     if physics is not None:
         from articutool.sim.params import PhysicsError, PhysicsParams
@@ -252,12 +252,13 @@ def trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
             params = PhysicsParams.load(physics)
         except PhysicsError as err:
             raise _usage(f"--physics: {err}") from None
-        missing = sorted({c["food"] for c in conds} - set(params.foods))
+        missing = sorted({c.food for c in conds} - set(params.foods))
         if missing:
             raise _usage(f"--physics {physics}: no parameters for {missing}")
-        conds = [{**c, "physics": str(Path(physics).resolve())} for c in conds]
+        conds = [c.model_copy(update={"physics": str(Path(physics).resolve())})
+                 for c in conds]
     return make_trials(exp, conds, args.trials, args.seed, goals=goals), {
-        "conditions": conds, **extra}
+        "conditions": [c.fields() for c in conds], **extra}
 
 
 def _machine() -> dict[str, Any]:
@@ -290,23 +291,27 @@ def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) ->
 
             rec_holder["mcap"] = WorldMcapRecorder(world, args.record, metadata={
                 "experiment": exp, "trial": spec.trial, "seed": spec.seed,
-                "condition": json.dumps(spec.cond, default=str)})
+                "condition": json.dumps(dict(sorted(spec.condition.fields().items())),
+                                        default=str)})
             visitors.append(rec_holder["mcap"].tree_visitor)
 
     try:
-        rec = run_trial(spec, hook if args.video or args.record else None, visitors=visitors)
+        record = run_trial(spec, hook if args.video or args.record else None,
+                           visitors=visitors)
     finally:
         if "mcap" in rec_holder:  # complete also when the trial failed or was interrupted
             rec_holder["mcap"].close()
-    logged = {r["trial"]: r for r in read_trials(out, exp)}.get(spec.trial)
-    if rec.get("error"):
-        print(f"error: trial {spec.trial} failed: {rec['error']}", file=sys.stderr)
+    found = {r.trial: r for r in read_trials(out, exp)}.get(spec.trial)
+    if record.error:
+        print(f"error: trial {spec.trial} failed: {record.error}", file=sys.stderr)
         return 1
     if args.video:
         rec_holder["r"].save(args.video)
-    if logged is None:
+    rec = record.to_log()  # compared as logged: field by field
+    if found is None:
         verdict = "no logged record to compare with"
     else:
+        logged = found.to_log()
         ignored = TIMING_FIELDS | BOOKKEEPING_FIELDS
         diff = sorted(k for k in rec if k not in ignored and logged.get(k) != rec[k])
         verdict = "reproduces the logged record" if not diff else (
@@ -327,7 +332,7 @@ def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) ->
             print(f"video {args.video}")
         if args.record:
             print(f"recording {args.record}")
-    return 0 if not rec.get("error") else 1
+    return 0
 
 
 def _cmd_run(args: argparse.Namespace) -> int:

@@ -11,7 +11,16 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, get_args
+
+from articutool.experiments.records import (
+    BiteCondition,
+    CapacityCondition,
+    Condition,
+    Exp2bCondition,
+    Exp2cArm,
+    Exp2cCondition,
+)
 
 __all__ = ["EXP2C_CONDITIONS", "EXPERIMENTS", "MAX_TRIALS", "TrialSpec", "conditions",
            "make_trials", "trial_seed"]
@@ -19,28 +28,23 @@ __all__ = ["EXP2C_CONDITIONS", "EXPERIMENTS", "MAX_TRIALS", "TrialSpec", "condit
 EXPERIMENTS = ("capacity", "exp1", "exp2b", "exp2c", "exp3")
 MAX_TRIALS = 1000  # per condition (the seed stride)
 # Exp. 2c: no primitive, the strategy's open-loop primitive, the closed-loop (F/T) one.
-EXP2C_CONDITIONS = ("control", "primitive", "closed_loop")
+EXP2C_CONDITIONS: tuple[Exp2cArm, ...] = get_args(Exp2cArm)
 
 
 @dataclass(frozen=True)
 class TrialSpec:
-    """One trial: experiment, index ``K``, repeat, seed, and its condition (sorted items)."""
+    """One trial: experiment, index ``K``, repeat, seed, and its condition."""
 
     experiment: str
     trial: int
     repeat: int
     seed: int
-    condition: tuple[tuple[str, Any], ...]
+    condition: Condition
 
     @property
     def key(self) -> tuple[str, int]:
         """Identity in the log: ``(experiment, trial)``."""
         return (self.experiment, self.trial)
-
-    @property
-    def cond(self) -> dict[str, Any]:
-        """The condition as a dict."""
-        return dict(self.condition)
 
 
 def trial_seed(base_seed: int, repeat: int) -> int:
@@ -50,38 +54,36 @@ def trial_seed(base_seed: int, repeat: int) -> int:
 
 def conditions(experiment: str, cfg: Any, *, goals: Sequence[str] = (),
                load_g: Mapping[str, float] | None = None,
-               target_g: Mapping[str, float] | None = None) -> list[dict[str, Any]]:
+               target_g: Mapping[str, float] | None = None) -> list[Condition]:
     """The conditions of ``experiment`` in a fixed order (``cfg``: the experiments config;
     ``goals``: the staging set's goal names for exp2b; ``load_g``: exp2c's load per food;
     ``target_g``: exp2c's closed-loop load target per food, derived from the food's
     meaningful-success threshold — :func:`articutool.experiments.protocols.
     closed_loop_target_g`)."""
     if experiment == "capacity":
-        return [{"food": f} for f in cfg.capacity.foods]
+        return [CapacityCondition(food=f) for f in cfg.capacity.foods]
     if experiment == "exp1":
-        return [{"food": f, "system": s} for f in cfg.exp1.foods for s in cfg.exp1.systems]
+        return [BiteCondition(food=f, system=s) for f in cfg.exp1.foods
+                for s in cfg.exp1.systems]
     if experiment == "exp2b":
-        thesis = [{"food": f, "system": s} for f in cfg.exp2b.foods for s in cfg.exp2b.systems]
-        return thesis + [{"food": f, "system": name}
+        thesis = [Exp2bCondition(food=f, system=s) for f in cfg.exp2b.foods
+                  for s in cfg.exp2b.systems]
+        return thesis + [Exp2bCondition(food=f, system=name)
                          for name, v in cfg.exp2b.variants.items() for f in v.foods]
     if experiment == "exp2c":
         if load_g is None:
             raise ValueError("exp2c needs the load per food (the capacity)")
-        out = []
-        for f in cfg.exp2c.foods:
-            for c in EXP2C_CONDITIONS:
-                cond: dict[str, Any] = {"food": f, "condition": c,
-                                        "load_g": round(float(load_g[f]), 2)}
-                if c == "closed_loop" and target_g is not None and f in target_g:
-                    cond["target_g"] = round(float(target_g[f]), 3)
-                out.append(cond)
-        return out
+        return [Exp2cCondition(food=f, condition=c, load_g=round(float(load_g[f]), 2),
+                               target_g=round(float(target_g[f]), 3)
+                               if c == "closed_loop" and target_g is not None
+                               and f in target_g else None)
+                for f in cfg.exp2c.foods for c in EXP2C_CONDITIONS]
     if experiment == "exp3":
-        return [{"food": cfg.exp3.food, "system": s} for s in cfg.exp3.systems]
+        return [BiteCondition(food=cfg.exp3.food, system=s) for s in cfg.exp3.systems]
     raise ValueError(f"experiment must be one of {EXPERIMENTS}; got {experiment!r}")
 
 
-def make_trials(experiment: str, conds: Sequence[dict[str, Any]], trials: int, seed: int,
+def make_trials(experiment: str, conds: Sequence[Condition], trials: int, seed: int,
                 *, goals: Sequence[str] = ()) -> list[TrialSpec]:
     """``trials`` repeats of every condition (see module doc). Exp. 2b spreads repeats over
     the ``goals`` in turn (repeat ``r`` → goal ``r mod len(goals)``: 20 trials = 4 per goal)."""
@@ -94,9 +96,7 @@ def make_trials(experiment: str, conds: Sequence[dict[str, Any]], trials: int, s
     out = []
     for r in range(trials):
         for c, cond in enumerate(conds):
-            full = dict(cond)
             if experiment == "exp2b":
-                full["goal"] = goals[r % len(goals)]
-            out.append(TrialSpec(experiment, r * len(conds) + c, r, trial_seed(seed, r),
-                                 tuple(sorted(full.items()))))
+                cond = cond.model_copy(update={"goal": goals[r % len(goals)]})
+            out.append(TrialSpec(experiment, r * len(conds) + c, r, trial_seed(seed, r), cond))
     return out

@@ -8,13 +8,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from articutool.datafile import save_figure
+from articutool.experiments.records import TrialRecord
 
 __all__ = ["mass_bars", "outcome_bars"]
 
@@ -33,11 +34,11 @@ def _plt() -> Any:
     return plt
 
 
-def mass_bars(records: Sequence[dict[str, Any]], summary: Mapping[str, Any],
-              foods: Sequence[str], systems: Sequence[str], field: str, ylabel: str,
-              title: str, path: str | Path) -> Path:
-    """Bars of the mean ``field`` per food and system with 95 % CI error bars, every trial a
-    dot, Welch's p above each food."""
+def mass_bars(records: Sequence[TrialRecord], summary: Mapping[str, Any],
+              foods: Sequence[str], systems: Sequence[str], value: Callable[[Any], float],
+              ylabel: str, title: str, path: str | Path) -> Path:
+    """Bars of the mean of the outcomes' ``value`` per food and system with 95 % CI error
+    bars, every trial a dot, Welch's p above each food."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(1.9 * len(foods) + 2.5, 4.2))
     width = 0.8 / len(systems)
@@ -53,8 +54,8 @@ def mass_bars(records: Sequence[dict[str, Any]], summary: Mapping[str, Any],
         ax.bar(x, means, width, yerr=[lo, hi], capsize=4, label=s,
                color=COLORS.get(s), alpha=0.85)
         for xi, f in zip(x, foods, strict=True):
-            v = [r[field] for r in records if r.get("food") == f and r.get("system") == s
-                 and not r.get("error")]
+            v = [value(r.outcome) for r in records if r.condition.food == f
+                 and r.condition.system == s and not r.error]
             jitter = np.linspace(-width / 4, width / 4, len(v)) if v else []
             ax.scatter(xi + np.asarray(jitter), v, s=10, color="k", zorder=3)
     top = ax.get_ylim()[1]

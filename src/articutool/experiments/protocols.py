@@ -2,7 +2,8 @@
 
 Each protocol takes a trial's condition, its seed and the settings, runs the world and the
 project's own code (the feeding tree's transport subtree, the tool's primitives, the planners
-and verifier), and returns a flat dict of every measured quantity. Trials differ only by
+and verifier), and returns every measured quantity as the experiment's outcome
+(:mod:`articutool.experiments.records`). Trials differ only by
 their seed (food placement, sensor noise and gyro bias, planner seed). A ``hook`` may be
 given the world before anything moves (video recording for ``--trial K --video``), and
 ``visitors`` (py_trees visitors) join every feeding tree a trial ticks, as ``articutool meal``
@@ -30,6 +31,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from articutool.experiments.config import ExperimentsConfig
+from articutool.experiments.records import (
+    BiteCondition,
+    BiteOutcome,
+    CapacityCondition,
+    CapacityOutcome,
+    Exp2bCondition,
+    Exp2bOutcome,
+    Exp2cCondition,
+    Exp2cOutcome,
+)
 from articutool.meal.sim_arm import SimArm
 from articutool.sim import accounting as acc
 from articutool.sim.world import FeedingWorld, SettleCache
@@ -152,9 +163,9 @@ def transport_outcome(world: FeedingWorld, start: np.ndarray, n_spills: int,
     }
 
 
-def capacity_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
+def capacity_trial(cond: CapacityCondition, seed: int, cfg: ExperimentsConfig,
                    hook: Hook = None, visitors: Visitors = (),
-                   settled: SettleCache | None = None) -> dict[str, Any]:
+                   settled: SettleCache | None = None) -> CapacityOutcome:
     """One maximal scoop (thesis §5.2.3: an experimenter's repeated maximal manual scoops,
     their mean): the Articutool scoops through the full bowl along the capacity scoop's path
     (``[capacity.scoop]``: the food's own sweep made as deep and long as the bowl allows,
@@ -167,7 +178,7 @@ def capacity_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
     from articutool.sim.loading import dish_volume_m3
     from articutool.sim.params import Liquid
 
-    food = cond["food"]
+    food = cond.food
     setup = make_bite_world(food, "articutool", seed, settle_cache=settled)
     setup.strategy = capacity_strategy(setup.strategy, cfg.capacity.scoop[food])
     w = setup.world
@@ -205,7 +216,7 @@ def capacity_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
         b.run(1.0)
         b.place_load(settle_s=cfg.settings.settle_s)
         out.update(brim_poured_g=_r(brim), brim_g=_r(b.masses_g()["utensil"]))
-    return out
+    return CapacityOutcome.model_validate(out)
 
 
 def capacity_strategy(strategy: Any, scoop: Any) -> Any:
@@ -223,15 +234,17 @@ def capacity_strategy(strategy: Any, scoop: Any) -> Any:
         "stages": Stages(pre_move_into=none, post_move_into=none, post_acquisition=none)})
 
 
-def exp2b_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
+def exp2b_trial(cond: Exp2bCondition, seed: int, cfg: ExperimentsConfig,
                 hook: Hook = None, visitors: Visitors = (),
-                settled: SettleCache | None = None) -> dict[str, Any]:
-    """Exp. 2b: load placed at the common start, carried to ``cond['goal']``."""
+                settled: SettleCache | None = None) -> Exp2bOutcome:
+    """Exp. 2b: load placed at the common start, carried to ``cond.goal``."""
     from articutool.arm.scene import Scene
     from articutool.meal.sim_arm import world_load
     from articutool.tool.api import Mode
 
-    food, system, goal = cond["food"], cond["system"], cond["goal"]
+    food, system, goal = cond.food, cond.system, cond.goal
+    if goal is None:
+        raise ValueError("an Exp. 2b trial needs its goal")
     variant = cfg.exp2b.variants.get(system)
     base = variant.system if variant is not None else system
     sset = Scene.load().staging_set
@@ -261,10 +274,11 @@ def exp2b_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
                        food=checked)
     finally:
         arm.close()
-    return {"load_g": load, "held_g": _r(held), "planner": "decoupled" if articutool
-            else "strict6", "tolerance_deg": tol, **tr,
-            **transport_outcome(w, start, n_spills, before), "weighed_g": _r(w.carried_g()),
-            "masses_after_g": _masses(w), "realtime_factor": _r(w.realtime_factor)}
+    return Exp2bOutcome.model_validate({
+        "load_g": load, "held_g": _r(held), "planner": "decoupled" if articutool
+        else "strict6", "tolerance_deg": tol, **tr,
+        **transport_outcome(w, start, n_spills, before), "weighed_g": _r(w.carried_g()),
+        "masses_after_g": _masses(w), "realtime_factor": _r(w.realtime_factor)})
 
 
 def _plan_attempts(food: str, system: str) -> int:
@@ -278,10 +292,10 @@ def _plan_attempts(food: str, system: str) -> int:
     return max(s.attempts.plan for s in found.values()) if found else 3
 
 
-def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
+def exp2c_trial(cond: Exp2cCondition, seed: int, cfg: ExperimentsConfig,
                 hook: Hook = None, visitors: Visitors = (),
-                settled: SettleCache | None = None) -> dict[str, Any]:
-    """Exp. 2c: ``cond['load_g']`` placed at the shedding pose over the bowl, the shedding
+                settled: SettleCache | None = None) -> Exp2cOutcome:
+    """Exp. 2c: ``cond.load_g`` placed at the shedding pose over the bowl, the shedding
     primitive there (``primitive``: the strategy's open-loop one; ``closed_loop``: the
     F/T-driven one of ``[exp2c.closed_loop]``) or not (``control``), then transport to
     Staging with the Articutool."""
@@ -291,7 +305,7 @@ def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
     from articutool.spec import load_spec
     from articutool.tool.api import Mode
 
-    food, arm_cond, load = cond["food"], cond["condition"], float(cond["load_g"])
+    food, arm_cond, load = cond.food, cond.condition, float(cond.load_g)
     spec = load_spec()
     strat = StrategyLibrary.load(spec).strategies[cfg.exp2c.strategy[food]]
     stage = strat.stages.post_acquisition
@@ -312,8 +326,8 @@ def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
         if arm_cond in ("primitive", "closed_loop"):
             shed = cfg.exp2c.closed_loop[food] if arm_cond == "closed_loop" else stage
             params = list(shed.params)
-            if arm_cond == "closed_loop" and cond.get("target_g") is not None:
-                params = closed_loop_params(shed.primitive, params, float(cond["target_g"]))
+            if arm_cond == "closed_loop" and cond.target_g is not None:
+                params = closed_loop_params(shed.primitive, params, float(cond.target_g))
             w.tool.set_mode(Mode.DISABLED)  # primitives are refused while leveling
             ok, msg = w.tool.start_primitive(shed.primitive, params)
             done = ok and w.run_until(lambda: w.tool.mode != Mode.PRIMITIVE, 60.0)
@@ -337,10 +351,11 @@ def exp2c_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
     for place, g in spills_primitive.items():  # a primitive's spill is a spill of the trial
         out["spilled_by_place"][place] = _r(out["spilled_by_place"][place] + g)
     out["spilled_g"] = _r(sum(out["spilled_by_place"].values()))
-    return {"load_g": load, "held_g": _r(held), **prim, "primitive_moved_g": by_primitive,
-            "after_primitive_g": _r(before["utensil"]), "shed_g": shed_g, **tr, **out,
-            "weighed_g": _r(w.carried_g()), "masses_after_g": _masses(w),
-            "realtime_factor": _r(w.realtime_factor)}
+    return Exp2cOutcome.model_validate({
+        "load_g": load, "held_g": _r(held), **prim, "primitive_moved_g": by_primitive,
+        "after_primitive_g": _r(before["utensil"]), "shed_g": shed_g, **tr, **out,
+        "weighed_g": _r(w.carried_g()), "masses_after_g": _masses(w),
+        "realtime_factor": _r(w.realtime_factor)})
 
 
 def closed_loop_target_g(threshold_g: float, item_g: float, noise_g: float) -> float:
@@ -377,18 +392,17 @@ def json_safe(x: Any) -> Any:
     return x
 
 
-def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
+def _bite(cond: BiteCondition, seed: int, cfg: ExperimentsConfig, hook: Hook,
           stages: tuple[str, ...], timeout_s: float, visitors: Visitors,
           settled: SettleCache | None) -> dict[str, Any]:
     """One bite through the feeding tree (:func:`articutool.meal.bites.run_bite`): the
     world, arm and strategy from :func:`~articutool.meal.bites.make_bite_world` (the
-    strategy drawn from the action library with the seed; ``cond["strategies"]``, when
+    strategy drawn from the action library with the seed; ``cond.strategies``, when
     given, is another action-library file), the given stages."""
     from articutool.meal.bites import make_bite_world, run_bite
 
-    setup = make_bite_world(cond["food"], cond["system"], seed,
-                            strategies=cond.get("strategies"), physics=cond.get("physics"),
-                            settle_cache=settled)
+    setup = make_bite_world(cond.food, cond.system, seed, strategies=cond.strategies,
+                            physics=cond.physics, settle_cache=settled)
     if hook:
         hook(setup.world)
     try:
@@ -408,26 +422,27 @@ def _bite(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig, hook: Hook,
                       "realtime_factor": _r(w.realtime_factor)})
 
 
-def exp1_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
+def exp1_trial(cond: BiteCondition, seed: int, cfg: ExperimentsConfig,
                hook: Hook = None, visitors: Visitors = (),
-               settled: SettleCache | None = None) -> dict[str, Any]:
+               settled: SettleCache | None = None) -> BiteOutcome:
     """Exp. 1 (§5.1): from AbovePlate, acquire with the system's strategy, move
     level-constrained to Resting; the mass on the utensil there (``mass_g``, ground truth;
     ``ft_mass_g`` as the F/T sensor weighs it when comparable)."""
     rec = _bite(cond, seed, cfg, hook, ("above", "acquire", "resting"), cfg.exp1.timeout_s,
                 visitors, settled)
     rec["mass_g"] = rec["weighed_end_g"]  # as the experimenter weighs it (strands: borne)
-    return rec
+    return BiteOutcome.model_validate(rec)
 
 
-def exp3_trial(cond: dict[str, Any], seed: int, cfg: ExperimentsConfig,
+def exp3_trial(cond: BiteCondition, seed: int, cfg: ExperimentsConfig,
                hook: Hook = None, visitors: Visitors = (),
-               settled: SettleCache | None = None) -> dict[str, Any]:
+               settled: SettleCache | None = None) -> BiteOutcome:
     """Exp. 3 (§5.3): the whole bite — above the food, acquire, shed, Resting, Staging,
     present (the simulated user takes it). The outcome class is derived at analysis time,
     at the report's threshold (``outcome`` here is ``None``)."""
-    return _bite(cond, seed, cfg, hook, ("above", "acquire", "shed", "resting", "staging",
-                                         "present"), cfg.exp3.timeout_s, visitors, settled)
+    return BiteOutcome.model_validate(_bite(
+        cond, seed, cfg, hook, ("above", "acquire", "shed", "resting", "staging", "present"),
+        cfg.exp3.timeout_s, visitors, settled))
 
 
 BITE_PROTOCOLS = {"exp1": exp1_trial, "exp3": exp3_trial}

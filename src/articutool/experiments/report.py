@@ -20,6 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from articutool.experiments.analysis import EXP2C_CLASSES, representative_trials, summarize
 from articutool.experiments.design import EXP2C_CONDITIONS
 from articutool.experiments.figures import mass_bars, outcome_bars
+from articutool.experiments.records import TrialRecord
 from articutool.experiments.stats import FisherResult, fisher
 from articutool.experiments.verdicts import code_versions, thesis_trials, verdicts
 from articutool.feeding.outcomes import OUTCOMES
@@ -138,20 +139,20 @@ def read_summary(path: Path) -> dict[str, Any] | None:
 
 
 # ------------------------------------------------------------------------ figures --
-def figure(exp: str, records: Sequence[dict[str, Any]], summary: Mapping[str, Any], cfg: Any,
+def figure(exp: str, records: Sequence[TrialRecord], summary: Mapping[str, Any], cfg: Any,
            directory: Path) -> Path | None:
     """Write the experiment's figure into ``directory``; None if there is nothing to draw."""
-    ok = [r for r in records if not r.get("error")]
+    ok = [r for r in records if not r.error]
     if not ok:
         return None
     if exp == "exp2b":
         return mass_bars(ok, summary["spilled_g"], cfg.exp2b.foods, cfg.exp2b.systems,
-                         "spilled_g", "spilled during transport (g), mean ± 95% CI",
+                         lambda o: o.spilled_g, "spilled during transport (g), mean ± 95% CI",
                          "Exp. 2b: spill carrying placed loads to five Staging goals "
                          "(cf. thesis Fig. 6.3)", directory / "exp2b.png")
     if exp == "exp1":
         return mass_bars(ok, summary["acquired_g"], cfg.exp1.foods, cfg.exp1.systems,
-                         "mass_g", "mass on the utensil at Resting (g), mean ± 95% CI",
+                         lambda o: o.mass_g, "mass on the utensil at Resting (g), mean ± 95% CI",
                          "Exp. 1: acquisition (cf. thesis Fig. 6.1)", directory / "exp1.png")
     if exp == "exp2c" and summary.get("thresholds_g"):
         groups = {f"{f}\n{c}": summary["foods"][f][c]["counts"]
@@ -574,7 +575,7 @@ def hypotheses_section(summaries: Mapping[str, Mapping[str, Any]], cfg: Any) -> 
     return md
 
 
-def replays(exp: str, records: Sequence[dict[str, Any]], summary: Mapping[str, Any],
+def replays(exp: str, records: Sequence[TrialRecord], summary: Mapping[str, Any],
             out: Path) -> str:
     """Per condition, a typical and the worst trial (:func:`representative_trials`) with the
     command that replays it with a video; a video already at that path is linked."""

@@ -8,8 +8,9 @@ pins what makes trials comparable (the base seed, the hash of every data file a 
 and the condition list); resuming with other settings is refused. Raising ``--trials`` adds
 trials to the same log.
 
-:func:`run_trial` is top-level and picklable: a worker process (or Dask worker) runs one
-trial from its :class:`~articutool.experiments.design.TrialSpec` alone.
+:func:`run_trial` runs one trial from its :class:`~articutool.experiments.design.TrialSpec`
+alone and returns its :class:`~articutool.experiments.records.TrialRecord`; :func:`log_trial`
+is its log line, top-level and picklable: what a worker process (or Dask worker) returns.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import subprocess
 import time
 import tomllib
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -32,6 +33,7 @@ from articutool.bench.executors import Executor
 from articutool.bench.runner import read_log, run_logged
 from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import TrialSpec
+from articutool.experiments.records import Outcome, TrialRecord
 
 if TYPE_CHECKING:
     from articutool.sim.world import SettleCache
@@ -41,6 +43,7 @@ __all__ = [
     "RunResult",
     "data_hash",
     "log_path",
+    "log_trial",
     "pin_run",
     "read_trials",
     "run_experiment",
@@ -65,10 +68,31 @@ def log_path(out: str | Path, experiment: str) -> Path:
     return Path(out) / experiment / LOG_NAME
 
 
-def read_trials(out: str | Path, experiment: str) -> list[dict[str, Any]]:
-    """Every logged trial of ``experiment`` under ``out`` (empty if none), by trial index."""
-    recs = read_log(log_path(out, experiment), key=trial_key).records
-    return sorted({trial_key(r): r for r in recs}.values(), key=lambda r: r["trial"])
+def read_trials(out: str | Path, experiment: str) -> list[TrialRecord]:
+    """Every logged trial of ``experiment`` under ``out`` (empty if none), by trial index; a
+    record not as the protocols write it raises :class:`~articutool.datafile.ResultsError`
+    naming the log, the trial and the field."""
+    path = log_path(out, experiment)
+    lines = read_log(path, key=trial_key).records
+    return _records({trial_key(r): r for r in lines}.values(), path)
+
+
+def _records(lines: Iterable[dict[str, Any]], path: Path) -> list[TrialRecord]:
+    """The log ``lines``' records (see :func:`read_trials`), by trial index."""
+    from pydantic import ValidationError
+
+    from articutool.datafile import ResultsError, format_validation_error
+
+    out = []
+    for line in lines:
+        try:
+            out.append(TrialRecord.from_log(line))
+        except ValidationError as err:
+            raise ResultsError(format_validation_error(
+                err, f"{path}: trial {line.get('trial')}:")) from None
+        except ValueError as err:
+            raise ResultsError(f"{path}: trial {line.get('trial')}: {err}") from None
+    return sorted(out, key=lambda r: r.trial)
 
 
 def data_hash(experiment: str, cfg: ExperimentsConfig) -> str:
@@ -131,10 +155,10 @@ def pin_run(path: Path, settings: dict[str, Any]) -> None:
                        "use the same settings to resume, or another --out")
 
 
-def _protocol(experiment: str) -> Callable[..., dict[str, Any]]:
+def _protocol(experiment: str) -> Callable[..., Outcome]:
     from articutool.experiments import protocols
 
-    table: dict[str, Callable[..., dict[str, Any]]] = {
+    table: dict[str, Callable[..., Outcome]] = {
         "capacity": protocols.capacity_trial,
         "exp2b": protocols.exp2b_trial,
         "exp2c": protocols.exp2c_trial,
@@ -157,26 +181,34 @@ def trial_settles() -> SettleCache:
 
 
 def run_trial(spec: TrialSpec, hook: Any = None, config_path: str | None = None,
-              visitors: Sequence[Any] = ()) -> dict[str, Any]:
+              visitors: Sequence[Any] = ()) -> TrialRecord:
     """Run one trial and return its record: the trial's identity, condition and seed, every
     quantity the protocol measured, the wall time, and ``error`` (the exception, if the
-    protocol raised one: the trial is then recorded as an error, not rerun). ``hook`` and
-    ``visitors`` (py_trees visitors for the trial's feeding trees, read after the hook ran)
-    go to the protocol (:mod:`articutool.experiments.protocols`)."""
+    protocol raised one: the trial is then recorded as an error, with its traceback and no
+    outcome, not rerun). ``hook`` and ``visitors`` (py_trees visitors for the trial's
+    feeding trees, read after the hook ran) go to the protocol
+    (:mod:`articutool.experiments.protocols`)."""
     cfg = ExperimentsConfig.load(config_path)
     fn = _protocol(spec.experiment)
     t0 = time.perf_counter()
-    error = None
+    failed: dict[str, Any] = {}
+    outcome = None
     try:
-        measured = fn(spec.cond, spec.seed, cfg, hook, visitors=visitors,
-                      settled=trial_settles())
+        outcome = fn(spec.condition, spec.seed, cfg, hook, visitors=visitors,
+                     settled=trial_settles())
     except Exception as err:  # a trial that crashes is reported, not silently dropped
-        error = f"{type(err).__name__}: {err}"
-        measured = {"traceback": traceback.format_exc(limit=6)}
-    return {"experiment": spec.experiment, "trial": spec.trial, "repeat": spec.repeat,
-            "seed": spec.seed, **spec.cond, **measured,
-            "wall_time_s": round(time.perf_counter() - t0, 3), "pid": os.getpid(),
-            "source": source_version(), "error": error}
+        failed = {"error": f"{type(err).__name__}: {err}",
+                  "traceback": traceback.format_exc(limit=6)}
+    return TrialRecord.model_validate({
+        "experiment": spec.experiment, "trial": spec.trial, "repeat": spec.repeat,
+        "seed": spec.seed, "condition": spec.condition, "outcome": outcome,
+        "wall_time_s": round(time.perf_counter() - t0, 3), "pid": os.getpid(),
+        "source": source_version(), "error": None, **failed})
+
+
+def log_trial(spec: TrialSpec) -> dict[str, Any]:
+    """Run one trial (:func:`run_trial`) and return its line of the trial log."""
+    return run_trial(spec).to_log()
 
 
 def run_experiment(trials: Sequence[TrialSpec], log: str | Path, executor: Executor, *,
@@ -184,17 +216,19 @@ def run_experiment(trials: Sequence[TrialSpec], log: str | Path, executor: Execu
                    on_start: Callable[[int, int], None] | None = None,
                    on_result: Callable[[dict[str, Any]], None] | None = None) -> RunResult:
     """Run the trials not yet in ``log`` on ``executor`` (the benchmark's
-    :func:`~articutool.bench.runner.run_logged`), appending each as it finishes; the result's
-    records are the requested trials' (old and new), by index.
+    :func:`~articutool.bench.runner.run_logged`), appending each line as it finishes (given
+    to ``on_result``); the result's records are the requested trials' (old and new), by
+    index (:func:`read_trials`).
 
-    ``worker`` (default :func:`run_trial`) must be picklable for process executors."""
+    ``worker`` (default :func:`log_trial`) returns a log line and must be picklable for
+    process executors."""
     t0 = time.perf_counter()
-    res = run_logged(trials, log, executor, worker or run_trial, trial_key, on_result,
+    res = run_logged(trials, log, executor, worker or log_trial, trial_key, on_result,
                      on_start)
     wanted = {t.key for t in trials}
-    res.records = sorted({trial_key(r): r for r in res.records
-                          if trial_key(r) in wanted}.values(), key=lambda r: r["trial"])
-    return RunResult(res.records, res.ran, res.skipped, res.torn, res.corrupt, res.lost,
+    records = _records({trial_key(r): r for r in res.records
+                        if trial_key(r) in wanted}.values(), Path(log))
+    return RunResult(records, res.ran, res.skipped, res.torn, res.corrupt, res.lost,
                      time.perf_counter() - t0, res.interrupted)
 
 
@@ -202,7 +236,7 @@ def run_experiment(trials: Sequence[TrialSpec], log: str | Path, executor: Execu
 class RunResult:
     """What :func:`run_experiment` did."""
 
-    records: list[dict[str, Any]]  # the requested trials' records (old and new), by index
+    records: list[TrialRecord]  # the requested trials' records (old and new), by index
     ran: int
     skipped: int
     torn: int  # torn last lines cut off
