@@ -91,9 +91,12 @@ def test_cli_exp2b_one_trial_per_condition_then_report(tmp_path, capsys) -> None
     assert cli.main(["experiment", "exp2b", "--trials", "1", "--workers", "1", "--out",
                      str(out), "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
-    assert s["run"]["trials"] == 4 and (out / "exp2b" / "exp2b.png").exists()
+    # The thesis' foods × systems, and each extra system on its foods (one trial each).
+    e = CFG.exp2b
+    n = len(e.foods) * len(e.systems) + sum(len(v.foods) for v in e.variants.values())
+    assert s["run"]["trials"] == n and (out / "exp2b" / "exp2b.png").exists()
     # Every trial records the code it ran; the summary counts trials per code version.
-    assert s["run"]["sources"] == {source_version(): 4}
+    assert s["run"]["sources"] == {source_version(): n}
     video = tmp_path / "t3.gif"
     # A fresh process, as a user runs it (MuJoCo picks its GL backend when first imported).
     r = subprocess.run([sys.executable, "-m", "articutool.cli", "experiment", "exp2b",
