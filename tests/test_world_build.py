@@ -6,9 +6,9 @@ import pytest
 
 pytest.importorskip("mujoco")
 
-from articutool.sim import accounting as acc  # noqa: E402
-from articutool.sim.build import build_parts  # noqa: E402
-from articutool.sim.world import REPORT_JSON_KEYS, FeedingWorld  # noqa: E402
+from articutool.sim import accounting as acc
+from articutool.sim.build import build_parts
+from articutool.sim.world import REPORT_JSON_KEYS, FeedingWorld
 
 
 def test_wiring_built_parts_steps_nothing() -> None:
