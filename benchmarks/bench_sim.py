@@ -61,7 +61,7 @@ def one(food: str, seed: int, variant: str) -> dict:
     params = _variant_params(variant)
     load = os.getloadavg()[0]
     c0, t0 = time.thread_time(), time.perf_counter()
-    w = FeedingWorld(food, seed=seed, params=params)
+    w = FeedingWorld.build(food, seed=seed, params=params)
     acquire(w, level=True)
     cpu, wall = time.thread_time() - c0, time.perf_counter() - t0
     outcome = w.masses_g()["utensil"]
@@ -70,7 +70,7 @@ def one(food: str, seed: int, variant: str) -> dict:
            "simulated_s": round(w.time, 2), "cpu_s": round(cpu, 2), "wall_s": round(wall, 2),
            "loadavg_1min_start": round(load, 2)}
     if food == "water":
-        w = FeedingWorld("water", seed=seed, params=params, load_g=8.0)
+        w = FeedingWorld.build("water", seed=seed, params=params, load_g=8.0)
         w.tool.set_mode(Mode.LEVELING)
         w.run(1.0)
         w.tool.set_mode(Mode.DISABLED)

@@ -42,7 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     from articutool.sim.scenes import skewer
     from articutool.sim.world import FeedingWorld
 
-    w = FeedingWorld("noodles", seed=args.seed)
+    w = FeedingWorld.build("noodles", seed=args.seed)
 
     def stop(phase: str) -> None:
         if phase == "in":

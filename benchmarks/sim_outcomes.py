@@ -51,7 +51,7 @@ def run(foods: list[str], seeds: list[int]) -> dict:
     for food in foods:
         for seed in seeds:
             c0, t0 = time.thread_time(), time.perf_counter()
-            w = FeedingWorld(food, seed=seed)
+            w = FeedingWorld.build(food, seed=seed)
             acquire(w, level=True)
             g = w.masses_g()
             spilled = acc.spilled_by_place(w.spills)

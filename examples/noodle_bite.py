@@ -28,7 +28,7 @@ def main() -> int:
     out = Path(args.out)
     if out.exists():
         ap.error(f"--out: {out} exists; choose a new file (nothing is overwritten)")
-    w = FeedingWorld("noodles", seed=args.seed)
+    w = FeedingWorld.build("noodles", seed=args.seed)
     skewer(w, level=True, twirl_turns=args.turns)
     save_png(w, out, "utensil_close")
     print(f"{out}: {w.masses_g()['utensil']:.2f} g on the fork")

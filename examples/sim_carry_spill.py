@@ -24,7 +24,7 @@ def main() -> None:
     for level in (True, False):
         rows = []
         for seed in range(args.seeds):
-            w = FeedingWorld(args.food, seed=seed, load_g=args.load)
+            w = FeedingWorld.build(args.food, seed=seed, load_g=args.load)
             load(w, level)
             held = w.masses_g()["utensil"]
             w.move_arm(base_tilt_motion(w, 40.0))

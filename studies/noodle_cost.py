@@ -36,7 +36,7 @@ def measure(fill_g: float, seed: int, turns: float | None) -> dict[str, Any]:
     d["foods"]["noodles"]["fill_g"] = fill_g
     params = PhysicsParams.from_dict(d)
     c0 = time.process_time()
-    w = FeedingWorld("noodles", seed=seed, params=params)
+    w = FeedingWorld.build("noodles", seed=seed, params=params)
     built = time.process_time() - c0
     m = w.model
     trees = np.array([m.body_treeid[m.body(f"{s}/0").id] for s in w.layout.food_strands])
@@ -79,7 +79,7 @@ def awake_cost(fill_g: float, seed: int, seconds: float) -> dict[str, Any]:
     d = PhysicsParams.load().model_dump()
     d["foods"]["noodles"]["fill_g"] = fill_g
     c0 = time.process_time()
-    w = FeedingWorld("noodles", seed=seed, params=PhysicsParams.from_dict(d))
+    w = FeedingWorld.build("noodles", seed=seed, params=PhysicsParams.from_dict(d))
     built = time.process_time() - c0
     w.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
     c1 = time.process_time()

@@ -54,7 +54,7 @@ def one_run(seed: int, turns: float, params: PhysicsParams | None = None,
     ``params``, ``prepare`` (called on the settled world) and ``skewer_kw``: a variant's
     physics, a change to the built world and the fork motion (studies/noodle_levers.py)."""
     t0 = time.perf_counter()
-    w = FeedingWorld("noodles", seed=seed, params=params)
+    w = FeedingWorld.build("noodles", seed=seed, params=params)
     if prepare is not None:
         prepare(w)
     touching: dict[str, int] = {}

@@ -41,7 +41,7 @@ def main(argv: list[str] | None = None) -> int:
         d["utensils"]["fork"]["tip_x"] = args.fork_offset
         spec = Spec.model_validate(d)
     t0 = time.perf_counter()
-    w = FeedingWorld("noodles", seed=args.seed, spec=spec)
+    w = FeedingWorld.build("noodles", seed=args.seed, spec=spec)
     log: dict[str, object] = dict(vars(args))
     during: list[int] = []
 

@@ -93,8 +93,8 @@ def _trial(goal: str, cond: str, scale: float, path: Any, seed: int, load_g: flo
     # No mouth region: the experimenter weighs the spoon at the goal, nobody eats from it.
     scene = Scene.load()
     scene = scene.model_copy(update={"regions": [r for r in scene.regions if r.name != "mouth"]})
-    w = FeedingWorld("water", "soup_spoon", seed=seed, load_g=load_g, q_arm=start, scene=scene,
-                     params=_params(physics, radius))
+    w = FeedingWorld.build("water", "soup_spoon", seed=seed, load_g=load_g, q_arm=start,
+                           scene=scene, params=_params(physics, radius))
     spec = w.spec
     model = ArmModel(spec, "soup_spoon", 8, w.scene)
     arm = time_parameterize(path.positions[:, :6], tuple(spec.arm.joint_names),

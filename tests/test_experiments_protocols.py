@@ -158,7 +158,7 @@ def test_a_particle_on_the_table_then_the_floor_is_spilled_once_in_a_record() ->
     from articutool.sim.world import FeedingWorld
     from conftest import drop_off_the_table
 
-    w = FeedingWorld("water", seed=0, load_g=8.0)
+    w = FeedingWorld.build("water", seed=0, load_g=8.0)
     w.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)  # moved by hand below
     load(w, level=False)
     before, n0, start = w.masses_g(), len(w.spills), w.item_classes()
@@ -243,7 +243,7 @@ def test_food_that_leaves_the_spoon_in_transport_and_lands_in_the_bowl_is_spille
     from articutool.spec import load_spec
 
     q = shed_configuration(load_spec(), Scene.load(), "soup_spoon")
-    w = FeedingWorld("water", seed=0, load_g=8.0, q_arm=q, mouth=False)
+    w = FeedingWorld.build("water", seed=0, load_g=8.0, q_arm=q, mouth=False)
     load(w, level=False)
     before, n0, start = w.masses_g(), len(w.spills), w.item_classes()
     w.move_arm(base_tilt_motion(w, 40.0))

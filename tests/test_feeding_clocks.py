@@ -28,7 +28,7 @@ LAG_WALL_S = 1.5
 
 def _transport(monkeypatch: pytest.MonkeyPatch, slow: bool, ahead: bool = False) -> dict:
     py_trees.blackboard.Blackboard.clear()
-    w = FeedingWorld("pecans", seed=0, load_g=4.0)
+    w = FeedingWorld.build("pecans", seed=0, load_g=4.0)
     w.tool.set_mode(Mode.LEVELING)
     w.run(1.0)
     w.place_load(1.0)
@@ -54,8 +54,8 @@ def _transport(monkeypatch: pytest.MonkeyPatch, slow: bool, ahead: bool = False)
     arm = SimArm(w)
     try:
         root = transport_tree(arm, w.tool, "Staging", "decoupled", attempts=3,
-                              budget_s=BUDGET_S, clock=w.clock)
-        status, rec = run_tree(root, w.run, w.clock, timeout_s=120.0)
+                              budget_s=BUDGET_S, clock=lambda: w.time)
+        status, rec = run_tree(root, w.run, lambda: w.time, timeout_s=120.0)
     finally:
         arm.close()
         monkeypatch.undo()

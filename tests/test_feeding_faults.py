@@ -115,7 +115,7 @@ def test_the_user_stopping_during_transport_stops_safely_and_delivers_nothing() 
     def request_stop() -> None:
         py_trees.blackboard.Blackboard.set("/bite/stop_requested", True)
 
-    fault = FaultAt("Execute to Staging", 1.0, setup.world.clock, request_stop)
+    fault = FaultAt("Execute to Staging", 1.0, lambda: setup.world.time, request_stop)
     r = _bite(setup, fault)
     assert fault.fired_at is not None
     _assert_stopped_safely(setup, r, "stop requested")
@@ -129,7 +129,7 @@ def test_the_user_stopping_during_transport_stops_safely_and_delivers_nothing() 
 def test_a_motor_overload_during_transport_faults_the_tool_and_stops_safely() -> None:
     setup, _ = _loaded()
     w = setup.world
-    fault = FaultAt("Execute to Staging", 1.0, w.clock,
+    fault = FaultAt("Execute to Staging", 1.0, lambda: w.time,
                     lambda: w.motors.inject_hardware_error(1))
     r = _bite(setup, fault)
     _assert_stopped_safely(setup, r, "tool fault: ")
@@ -144,7 +144,7 @@ def test_an_imu_that_freezes_while_leveling_faults_the_tool_and_stops_safely() -
     def freeze() -> None:
         w.imu.push = lambda *args: None  # the sensor stops delivering samples
 
-    fault = FaultAt("Execute to Staging", 1.0, w.clock, freeze)
+    fault = FaultAt("Execute to Staging", 1.0, lambda: w.time, freeze)
     r = _bite(setup, fault)
     _assert_stopped_safely(setup, r, "tool fault: ")
     assert "IMU" in w.tool.fault
@@ -216,7 +216,7 @@ def test_a_fault_during_the_shedding_primitive_answers_its_goal_and_stops_safely
         else:
             py_trees.blackboard.Blackboard.set("/bite/stop_requested", True)
 
-    at = FaultAt("post-acquisition: VIBRATE_ROLL", 0.3, w.clock, inject)
+    at = FaultAt("post-acquisition: VIBRATE_ROLL", 0.3, lambda: w.time, inject)
     try:
         r = run_bite(setup, stages=("above", "acquire", "shed", "resting"),
                      threshold_g=THRESHOLD_G, visitors=[at])
@@ -370,7 +370,7 @@ class Linked:
         self.server.start()
         self.pc1, self.pc2 = (ArticutoolClient(c, link, sender=c.identity)
                               for c, link in zip(pcs, links, strict=True))
-        self.tool = RemoteTool(self.pc1, w.clock)
+        self.tool = RemoteTool(self.pc1, lambda: w.time)
         w.on_tick.append(_RealTimePace(1.0 / setup.world.spec.wrist.loop_rate_hz))
         assert self.pc1.wait_for_tool(5.0) and self.pc2.wait_for_tool(5.0)
 
@@ -410,7 +410,7 @@ def test_a_second_paired_pcs_stop_during_transport_disables_the_tool_and_stops_t
     link = Linked(setup, paired, zenoh=zenoh)
     answers: list[tuple[bool, str]] = []
     try:
-        fault = FaultAt("Execute to Staging", 1.0, w.clock,
+        fault = FaultAt("Execute to Staging", 1.0, lambda: w.time,
                         lambda: answers.append(link.pc2.set_mode("disabled")))
         r = _linked_bite(setup, link, fault)
         assert fault.fired_at is not None
@@ -437,7 +437,7 @@ def test_a_link_loss_during_transport_stops_the_bite_the_tool_keeps_leveling_the
     w = setup.world
     link = Linked(setup, paired, zenoh=zenoh)
     try:
-        fault = FaultAt("Execute to Staging", 1.0, w.clock, lambda: link.tool_link(False))
+        fault = FaultAt("Execute to Staging", 1.0, lambda: w.time, lambda: link.tool_link(False))
         r = _linked_bite(setup, link, fault)
         assert fault.fired_at is not None
         # The PC's tree saw the silence and stopped; its DISABLED could not reach the tool.
@@ -481,7 +481,7 @@ def test_an_ft_spike_during_transport_changes_nothing_the_bite_completes() -> No
         sample(force, torque, stamp)
 
     w.ft.push = spiked  # type: ignore[method-assign]
-    fault = FaultAt("Execute to Staging", 1.0, w.clock, lambda: window.append(w.time))
+    fault = FaultAt("Execute to Staging", 1.0, lambda: w.time, lambda: window.append(w.time))
     r = _bite(setup, fault)
     assert fault.fired_at is not None
     assert max(seen) > 9.0  # the spike went through the driver into the tool's telemetry
@@ -504,7 +504,7 @@ def test_a_link_loss_during_the_shedding_primitive_follows_the_link_loss_policy(
     w = setup.world
     link = Linked(setup, paired, policy, client_timeout=0.25)
     try:
-        at = FaultAt("post-acquisition: VIBRATE_ROLL", 0.3, w.clock,
+        at = FaultAt("post-acquisition: VIBRATE_ROLL", 0.3, lambda: w.time,
                      lambda: link.tool_link(False))
         r = _linked_bite(setup, link, at, stages=("above", "acquire", "shed", "resting"))
         assert at.fired_at is not None
@@ -543,7 +543,7 @@ def test_a_link_blip_shorter_than_the_silence_bounds_leaves_the_bite_unharmed(
         timer.start()
 
     try:
-        fault = FaultAt("Execute to Staging", 1.0, w.clock, blip)
+        fault = FaultAt("Execute to Staging", 1.0, lambda: w.time, blip)
         r = _linked_bite(setup, link, fault)
         assert fault.fired_at is not None and not timer.is_alive()
         assert r.end_state == "completed" and r.completed and r.failed_stage == "", r
@@ -569,7 +569,7 @@ def test_a_second_paired_pcs_stop_during_the_shedding_primitive_stops_the_bite(
     link = Linked(setup, paired)
     answers: list[tuple[bool, str]] = []
     try:
-        at = FaultAt("post-acquisition: VIBRATE_ROLL", 0.3, w.clock,
+        at = FaultAt("post-acquisition: VIBRATE_ROLL", 0.3, lambda: w.time,
                      lambda: answers.append(link.pc2.set_mode("disabled")))
         r = _linked_bite(setup, link, at, stages=("above", "acquire", "shed", "resting"))
         assert answers and answers[0][0], answers
@@ -595,7 +595,7 @@ def test_the_mcap_recording_of_a_faulted_bite_has_every_stage_and_the_reason(
     setup, _ = _loaded()
     w = setup.world
     rec = WorldMcapRecorder(w, tmp_path / "bite.mcap", metadata={"food": "pecans"})
-    fault = FaultAt("Execute to Staging", 1.0, w.clock,
+    fault = FaultAt("Execute to Staging", 1.0, lambda: w.time,
                     lambda: w.motors.inject_hardware_error(1))
     try:
         r = _bite(setup, fault, rec.tree_visitor)

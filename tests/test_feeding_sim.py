@@ -17,7 +17,7 @@ from articutool.tool.api import Mode
 
 def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> None:
     py_trees.blackboard.Blackboard.clear()
-    w = FeedingWorld("pecans", seed=0, load_g=4.0)
+    w = FeedingWorld.build("pecans", seed=0, load_g=4.0)
     w.tool.set_mode(Mode.LEVELING)
     w.run(1.0)
     w.tare_ft(0.3)
@@ -28,8 +28,8 @@ def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> Non
     w.on_tick.append(lambda world: tilts.append(world.tilt_deg()))
     try:
         root = transport_tree(arm, w.tool, "Staging", "decoupled", attempts=3, budget_s=10.0,
-                              clock=w.clock)
-        status, rec = run_tree(root, w.run, w.clock, timeout_s=60.0)
+                              clock=lambda: w.time)
+        status, rec = run_tree(root, w.run, lambda: w.time, timeout_s=60.0)
     finally:
         arm.close()
     g = w.masses_g()
@@ -47,7 +47,7 @@ def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> Non
 
 def test_baseline_strict_transport_from_a_rigid_level_start() -> None:
     py_trees.blackboard.Blackboard.clear()
-    w = FeedingWorld("water", seed=0, load_g=8.0)  # the wrist stays locked (DISABLED)
+    w = FeedingWorld.build("water", seed=0, load_g=8.0)  # the wrist stays locked (DISABLED)
     arm = SimArm(w, tolerance_deg=20.0)
     try:
         w.move_arm(arm.rigid_level_configuration("Resting"))
@@ -58,8 +58,8 @@ def test_baseline_strict_transport_from_a_rigid_level_start() -> None:
         tilts = []
         w.on_tick.append(lambda world: tilts.append(world.tilt_deg()))
         root = transport_tree(arm, w.tool, "Staging", "strict6", attempts=3, budget_s=10.0,
-                              clock=w.clock)
-        status, rec = run_tree(root, w.run, w.clock, timeout_s=90.0)
+                              clock=lambda: w.time)
+        status, rec = run_tree(root, w.run, lambda: w.time, timeout_s=90.0)
     finally:
         arm.close()
     assert status == Status.SUCCESS, rec.failed_stage

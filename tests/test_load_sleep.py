@@ -20,7 +20,7 @@ from articutool.tool.api import Mode
 def test_a_placed_load_moves_with_the_spoon_and_never_hangs_where_it_was() -> None:
     sset = Scene.load().staging_set
     assert sset is not None
-    w = FeedingWorld("pecans", seed=0, load_g=2.5, q_arm=sset.start, mouth=False)
+    w = FeedingWorld.build("pecans", seed=0, load_g=2.5, q_arm=sset.start, mouth=False)
     w.tool.set_mode(Mode.LEVELING)
     w.run(1.0)
     w.tare_ft(0.3)

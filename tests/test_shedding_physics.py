@@ -61,7 +61,7 @@ def test_a_bowl_of_pieces_settles_without_throwing_any_out():
     from articutool.sim.world import FeedingWorld
 
     for seed in (0, 1):
-        w = FeedingWorld("pecans", seed=seed)
+        w = FeedingWorld.build("pecans", seed=seed)
         m = w.masses_g()
         assert m["container"] == pytest.approx(sum(m.values()))
         assert sum(x.number for x in w.data.warning) == 0
@@ -73,9 +73,9 @@ def test_pieces_vary_in_size_and_the_world_weighs_each_one():
     rng = np.random.default_rng(0)
     masses = [capsule_mass(draw_piece(PECANS, rng), PECANS.density) * 1e3 for _ in range(500)]
     assert np.percentile(masses, 90) > 3 * np.percentile(masses, 10)  # sizes vary
-    from articutool.sim.world import SUPPLY_FACTOR
+    from articutool.sim.placement import SUPPLY_FACTOR
 
-    w = FeedingWorld("pecans", seed=0, load_g=5.0)
+    w = FeedingWorld.build("pecans", seed=0, load_g=5.0)
     g = w.item_masses_g()
     assert len(set(np.round(g, 6))) > 1
     # The supply: pieces drawn until twice the load is reached (some roll off when placed).

@@ -22,7 +22,7 @@ _RESETS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
 
 def test_noodle_world_builds_as_jointed_chains_and_stays_stable() -> None:
     food = PhysicsParams.load().food("noodles")
-    w = FeedingWorld("noodles", seed=5000)
+    w = FeedingWorld.build("noodles", seed=5000)
     m, d = w.model, w.data
     n = len(w.layout.food_strands)
     assert n == round(food.fill_g / 1000 / food.piece_mass)
@@ -46,7 +46,7 @@ def test_noodle_world_builds_as_jointed_chains_and_stays_stable() -> None:
 
 
 def test_a_strand_collides_with_itself_but_not_across_a_joint() -> None:
-    w = FeedingWorld("noodles", seed=5000, settle=False)
+    w = FeedingWorld.build("noodles", seed=5000, settle=False)
     m = w.model
     a, b, c = (m.geom(f"strand0/{i}").id for i in (0, 1, 5))
     assert m.geom_contype[a] & m.geom_conaffinity[c]  # a wrap can rest on its own strand
@@ -77,7 +77,7 @@ def test_twirl_turns_range_is_the_cable_budget() -> None:
 def test_a_noodle_recording_holds_every_capsule_where_the_world_has_it(tmp_path) -> None:
     from articutool.sim.recording import Recorder, Recording
 
-    w = FeedingWorld("noodles", seed=5000, settle=False)
+    w = FeedingWorld.build("noodles", seed=5000, settle=False)
     rec = Recorder(w)
     w.run(0.1)
     rec.save(tmp_path / "n.npz")
@@ -98,7 +98,7 @@ def test_the_forks_acquisition_twirls_through_the_tool_runtime_and_lifts_strands
     from articutool.sim.accounting import UTENSIL
     from articutool.sim.scenes import skewer
 
-    w = FeedingWorld("noodles", seed=5000)  # a study seed (studies/noodle_twirl.py)
+    w = FeedingWorld.build("noodles", seed=5000)  # a study seed (studies/noodle_twirl.py)
     turns = max_twirl_turns(w.spec)
     roll: list[float] = []
     w.on_tick.append(lambda world: roll.append(float(world.wrist_q[1])))
@@ -169,7 +169,7 @@ def test_starch_tack_without_a_gap_is_refused_naming_the_field() -> None:
 def test_tack_is_the_force_of_fork_and_strand_contacts() -> None:
     food = PhysicsParams.load().food("noodles")
     assert food.stickiness_pa > 0  # the shipped strands stick
-    w = FeedingWorld("noodles", seed=5100, settle=False)
+    w = FeedingWorld.build("noodles", seed=5100, settle=False)
     m = w.model
     tine, s0, s1 = (m.geom(n).id for n in ("utensil/tine0", "strand0/3", "strand1/7"))
     # A fork-strand contact takes the fork's adhesion alone (the higher priority decides, as
@@ -182,8 +182,8 @@ def test_tack_is_the_force_of_fork_and_strand_contacts() -> None:
     # where a friction-only nest has none.
     w.run(0.3, tick=False)
     assert np.abs(w.data.qfrc_adhesion).max() > 0
-    plain = FeedingWorld("noodles", seed=5100, settle=False,
-                         params=_noodle_params(stickiness_pa=0.0))
+    plain = FeedingWorld.build("noodles", seed=5100, settle=False,
+                               params=_noodle_params(stickiness_pa=0.0))
     plain.run(0.3, tick=False)
     assert np.abs(plain.data.qfrc_adhesion).max() == 0
 
@@ -198,7 +198,7 @@ def test_a_twirl_before_insertion_frees_roll_budget_for_the_twirl_inside() -> No
         if name == "twirled":
             raise TwirledError
 
-    w = FeedingWorld(None, "fork", seed=1)  # the bowl without food: the fork's motion only
+    w = FeedingWorld.build(None, "fork", seed=1)  # the bowl without food: the fork's motion only
     roll: list[float] = []
     w.on_tick.append(lambda world: roll.append(float(world.wrist_q[1])))
     hi = max_twirl_turns(w.spec)

@@ -50,7 +50,7 @@ def test_tip_pose_in_mujoco_equals_pinocchio(utensil: str) -> None:
 def _leveled(food: str, load_g: float, seed: int = 0, level: bool = True) -> FeedingWorld:
     """A world whose tool leveled (then, unless ``level``, locked its wrist), tared its F/T
     sensor, and was loaded with ``load_g`` of ``food``."""
-    w = FeedingWorld(food, seed=seed, load_g=load_g)
+    w = FeedingWorld.build(food, seed=seed, load_g=load_g)
     load(w, level)
     return w
 
@@ -141,12 +141,13 @@ def test_same_seed_same_result() -> None:
         w = _leveled("water", 8.0, seed=3, level=False)
         w.move_arm(base_tilt_motion(w, 40.0))
         r = w.report()
-        return r.on_utensil_g, r.in_bowl_g, r.table_g, tuple(w.data.qpos.round(12))
+        return (r.masses_g["utensil"], r.masses_g["container"], r.masses_g["table"],
+                tuple(w.data.qpos.round(12)))
     assert run() == run()
 
 
 def test_food_that_enters_the_mouth_is_eaten() -> None:
-    w = FeedingWorld("pecans", seed=0, load_g=1.0)
+    w = FeedingWorld.build("pecans", seed=0, load_g=1.0)
     w.place_load(settle_s=0.2)
     mouth = w.scene.region("mouth")
     k = 0
@@ -156,12 +157,12 @@ def test_food_that_enters_the_mouth_is_eaten() -> None:
     w.data.qpos[qa:qa + 3] = mouth.xyz
     w.run(0.1)
     assert w.masses_g()["eaten"] == pytest.approx(w.item_masses_g()[k])
-    assert w.report().eaten_g > 0
+    assert w.report().masses_g["eaten"] > 0
 
 
 def test_bad_food_inputs_are_refused_naming_the_field(tmp_path) -> None:
     with pytest.raises(PhysicsError, match="food"):
-        FeedingWorld("caviar")
+        FeedingWorld.build("caviar")
     data = read_document(default_physics_path(), "physics", PhysicsError)
     bad = {k: dict(v) if isinstance(v, dict) else v for k, v in data.items()}
     bad["foods"] = {k: dict(v) for k, v in data["foods"].items()}
@@ -173,9 +174,9 @@ def test_bad_food_inputs_are_refused_naming_the_field(tmp_path) -> None:
     with pytest.raises(PhysicsError, match=r"foods\.pecans.*density"):
         PhysicsParams.from_dict(bad)
     with pytest.raises(ValueError, match="load_g"):
-        FeedingWorld("pecans", load_g=-1.0)
+        FeedingWorld.build("pecans", load_g=-1.0)
     with pytest.raises(ValueError, match="seed"):
-        FeedingWorld("pecans", seed=-1)
+        FeedingWorld.build("pecans", seed=-1)
 
 
 def test_classification_of_items_from_contacts() -> None:
@@ -237,7 +238,7 @@ def _drop(w: FeedingWorld, k: int, xyz: tuple[float, float, float]) -> None:
     ((0.28, 0.40, 0.90), "critical", "user_head"),  # 5 cm above the user's head
 ])
 def test_a_piece_that_lands_on_the_table_or_the_user_is_one_spill(xyz, place, where) -> None:
-    w = FeedingWorld("pecans", seed=0, load_g=0.9)  # one piece, parked
+    w = FeedingWorld.build("pecans", seed=0, load_g=0.9)  # one piece, parked
     t0 = w.time
     _drop(w, 0, xyz)
     w.run(2.0)
@@ -283,12 +284,12 @@ def _move_strand(w: FeedingWorld, s: int, centre: np.ndarray) -> None:
 
 
 def test_a_noodle_strand_on_the_fork_is_eaten_once_and_never_counted_again() -> None:
-    w = FeedingWorld("noodles", seed=0)
+    w = FeedingWorld.build("noodles", seed=0)
     w.tool.set_mode(Mode.LEVELING)
     w.run(1.0)
     # Lay strand 0's coil on the level fork's tines, 6 mm above them; it rests there.
     tip = w.tip_pose()[:3, 3]
-    along = tip - w.data.site_xpos[w._imu_site]
+    along = tip - w.data.site_xpos[w.index.imu_site]
     along /= np.linalg.norm(along)
     _move_strand(w, 0, tip - 0.012 * along + [0.0, 0.0, 0.006])
     w.run(1.0)

@@ -64,7 +64,7 @@ def test_the_collision_dish_is_the_ideal_dish(utensil: str, spec) -> None:
 
 
 def _placed(load_g: float, seed: int = 0) -> FeedingWorld:
-    w = FeedingWorld("water", seed=seed, load_g=load_g)
+    w = FeedingWorld.build("water", seed=seed, load_g=load_g)
     w.tool.set_mode(Mode.LEVELING)
     w.run(1.0)
     w.place_load(settle_s=1.0)

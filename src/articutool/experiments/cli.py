@@ -165,7 +165,7 @@ def _check_loads(loads: dict[str, float], cfg: Any, field: str) -> None:
     """Every load within what its food's Exp. 2c utensil can hold (exit 2 naming the range)."""
     from articutool.feeding.strategies import StrategyLibrary
     from articutool.sim.params import PhysicsParams
-    from articutool.sim.world import capacity_bound_reason, utensil_capacity_bound_g
+    from articutool.sim.placement import capacity_bound_reason, utensil_capacity_bound_g
     from articutool.spec import load_spec
 
     spec, params = load_spec(), PhysicsParams.load()

@@ -114,8 +114,8 @@ def transport(world: FeedingWorld, arm: SimArm, goal: str, planner: str, *, atte
     world.on_tick.append(watch)
     try:
         root = transport_tree(arm, world.tool, goal, planner, attempts=attempts,
-                              budget_s=s.plan_budget_s, clock=world.clock, food=food)
-        status, rec = run_tree(root, world.run, world.clock, timeout_s=s.tree_timeout_s,
+                              budget_s=s.plan_budget_s, clock=lambda: world.time, food=food)
+        status, rec = run_tree(root, world.run, lambda: world.time, timeout_s=s.tree_timeout_s,
                                visitors=visitors)
     finally:
         world.on_tick.remove(watch)
@@ -206,12 +206,12 @@ def capacity_trial(cond: CapacityCondition, seed: int, cfg: ExperimentsConfig,
         # The dish's level volume, less one of a load's particles: the pour's last must fit.
         brim = (dish_volume_m3(u) * fp.density * 1000.0
                 - fp.particle_mass(fp.load_particle_radius) * 1000.0)
-        b = FeedingWorld(food, w.utensil, spec=w.spec, scene=w.scene, seed=seed, load_g=brim,
-                         mouth=False, settle_cache=settled)
+        b = FeedingWorld.build(food, w.utensil, spec=w.spec, scene=w.scene, seed=seed,
+                               load_g=brim, mouth=False, settle_cache=settled)
         if b.max_load_g() < brim:  # the pour's lattice holds less than the level volume
             brim = b.max_load_g() - 1e-6
-            b = FeedingWorld(food, w.utensil, spec=w.spec, scene=w.scene, seed=seed,
-                             load_g=brim, mouth=False, settle_cache=settled)
+            b = FeedingWorld.build(food, w.utensil, spec=w.spec, scene=w.scene, seed=seed,
+                                   load_g=brim, mouth=False, settle_cache=settled)
         b.tool.set_mode(Mode.LEVELING)
         b.run(1.0)
         b.place_load(settle_s=cfg.settings.settle_s)
@@ -251,8 +251,8 @@ def exp2b_trial(cond: Exp2bCondition, seed: int, cfg: ExperimentsConfig,
     if sset is None:
         raise ValueError("the scene has no [staging_set]")
     load = cfg.exp2b.load_g[food]
-    w = FeedingWorld(food, seed=seed, load_g=load, q_arm=sset.start, mouth=False,
-                     settle_cache=settled)
+    w = FeedingWorld.build(food, seed=seed, load_g=load, q_arm=sset.start, mouth=False,
+                           settle_cache=settled)
     if hook:
         hook(w)
     goals = {g.name: g.q for g in sset.goals}
@@ -311,8 +311,8 @@ def exp2c_trial(cond: Exp2cCondition, seed: int, cfg: ExperimentsConfig,
     stage = strat.stages.post_acquisition
     scene = Scene.load()
     q_shed = shed_configuration(spec, scene, strat.utensil)
-    w = FeedingWorld(food, strat.utensil, spec=spec, scene=scene, seed=seed, load_g=load,
-                     q_arm=q_shed, mouth=False, settle_cache=settled)
+    w = FeedingWorld.build(food, strat.utensil, spec=spec, scene=scene, seed=seed, load_g=load,
+                           q_arm=q_shed, mouth=False, settle_cache=settled)
     if hook:
         hook(w)
     arm = SimArm(w, seed=seed)

@@ -179,8 +179,8 @@ def make_bite_world(food: str, system: str, seed: int = 0, *,
     lib = StrategyLibrary.load(spec, strategies)
     name, strat = lib.choose(food, system, np.random.default_rng(seed))
     params = PhysicsParams.load(physics) if physics is not None else None
-    world = FeedingWorld(food, strat.utensil, spec=spec, params=params, seed=seed,
-                         load_g=load_g, settle_cache=settle_cache)
+    world = FeedingWorld.build(food, strat.utensil, spec=spec, params=params, seed=seed,
+                               load_g=load_g, settle_cache=settle_cache)
     rigid = system == "baseline"
     arm = SimArm(world, tolerance_deg=strat.transport.tolerance_deg, seed=seed, rigid=rigid,
                  load=lambda: world_load(world), leveling=strat.transport.leveling)
@@ -243,7 +243,7 @@ def _tree(setup: MealSetup, stages: Sequence[str], settings: BiteSettings,
     wps = acquisition_waypoints(setup.strategy,
                                 container_floor(w.scene, w.layout.container or "bowl"),
                                 SCOOP_HEADING, dish_outline(w.spec, w.utensil))
-    return bite_tree(setup.arm, tool or w.tool, setup.strategy, wps, w.clock, stages=stages,
+    return bite_tree(setup.arm, tool or w.tool, setup.strategy, wps, lambda: w.time, stages=stages,
                      settings=settings)
 
 
@@ -264,7 +264,7 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
     if root is None:
         root = _tree(setup, stages, settings, tool)
     tree = py_trees.trees.BehaviourTree(root)
-    rec, ledger = BiteRecorder(w.clock), FoodLedger(w)
+    rec, ledger = BiteRecorder(lambda: w.time), FoodLedger(w)
     tree.visitors += [rec, ledger, *visitors]
     tree.setup()
     counters = [n for n in root.iterate() if isinstance(n, Attempts)]
@@ -273,7 +273,7 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
     t0, wall0, n_spills = w.time, time.perf_counter(), len(w.spills)
     before = w.masses_g()
     # simulated time, not counting the waits for plans
-    ended = tick_until_done(tree, rec, w.run, w.clock, period_s=0.1, timeout_s=timeout_s)
+    ended = tick_until_done(tree, rec, w.run, lambda: w.time, period_s=0.1, timeout_s=timeout_s)
     status = Status.FAILURE if ended is None else ended
     stopped = None if ended is None else safe_stop_reason(root)
     end_state = ("timed_out" if ended is None else "stopped" if stopped is not None else

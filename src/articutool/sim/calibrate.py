@@ -8,7 +8,7 @@ that adjusts parameters towards an outcome of the thesis.
   a heap over the plate, the surplus falls over its edge; the angle is ``atan(H / R)``
   (:func:`angle_of_repose_deg`), the mean of a few piles beside the cited measurement.
 - ``level_capacity_g`` (granular, liquid): what the level utensil holds when loaded with
-  the most it could hold (:func:`~articutool.sim.world.utensil_capacity_bound_g`) by the
+  the most it could hold (:func:`~articutool.sim.placement.utensil_capacity_bound_g`) by the
   world's own loading (pieces deposited over the dish; particles poured into it), after 1 s
   at rest.
 - ``bulk_density_g_per_ml`` (liquid): the mass of the settled fill over the volume it fills
@@ -40,7 +40,8 @@ from articutool.sim.loading import max_load_g
 from articutool.sim.mjcf import contact_attrs
 from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
 from articutool.sim.pieces import draw_piece, footprint, pack_layer
-from articutool.sim.world import FeedingWorld, utensil_capacity_bound_g
+from articutool.sim.placement import utensil_capacity_bound_g
+from articutool.sim.world import FeedingWorld
 from articutool.spec import Spec
 from articutool.tool.api import Mode
 
@@ -165,11 +166,11 @@ def level_capacity_g(food_name: str, spec: Spec, params: PhysicsParams, utensil:
     ``load_g``, or with as much as the loader can pour if that is less (a liquid heaped
     above the rim); if all of it stays, the capacity is at least that."""
     load_g = min(load_g, utensil_capacity_bound_g(spec, params, food_name, utensil))
-    world = FeedingWorld(food_name, utensil, spec=spec, params=params, seed=seed,
-                         load_g=load_g)
+    world = FeedingWorld.build(food_name, utensil, spec=spec, params=params, seed=seed,
+                               load_g=load_g)
     if world.max_load_g() < load_g:
-        world = FeedingWorld(food_name, utensil, spec=spec, params=params, seed=seed,
-                             load_g=world.max_load_g() - 1e-6)
+        world = FeedingWorld.build(food_name, utensil, spec=spec, params=params, seed=seed,
+                                   load_g=world.max_load_g() - 1e-6)
     world.tool.set_mode(Mode.LEVELING)
     world.run(1.0)
     world.place_load(settle_s=1.0)
@@ -207,7 +208,7 @@ def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
     if isinstance(food, Liquid):
         out["load_piece_mass_g"] = round(food.particle_mass(food.load_particle_radius) * 1e3, 5)
         box = Scene.load().get(food.container)
-        world = FeedingWorld(food_name, utensil, spec=spec, params=params, seed=seed)
+        world = FeedingWorld.build(food_name, utensil, spec=spec, params=params, seed=seed)
         assert isinstance(box, Cylinder) and box.container_wall is not None
         inner = box.radius - box.container_wall
         floor = box.xyz[2] - box.length / 2 + box.container_wall
@@ -257,8 +258,8 @@ def static_tilt(food_name: str, spec: Spec, params: PhysicsParams, utensil: str 
                  "hold_s": TILT_HOLD_S, "rate_rad_s": TILT_RATE, "onset_g": ONSET_G}
     cpu, sim = 0.0, 0.0
     for direction in directions:
-        world = FeedingWorld(food_name, uname, spec=spec, params=params, seed=seed,
-                             load_g=load_g)
+        world = FeedingWorld.build(food_name, uname, spec=spec, params=params, seed=seed,
+                                   load_g=load_g)
         world.tool.set_mode(Mode.LEVELING)
         world.run(1.0)
         world.place_load(settle_s=1.0)

@@ -37,7 +37,7 @@ def _world_args(args: argparse.Namespace) -> dict:
 def _check_load(args: argparse.Namespace, kw: dict) -> None:
     """``--load``: a mass the utensil can hold of the food, else exit 2."""
     from articutool.cli_support import UsageError
-    from articutool.sim.world import capacity_bound_reason, utensil_capacity_bound_g
+    from articutool.sim.placement import capacity_bound_reason, utensil_capacity_bound_g
 
     if args.load is None:
         return
@@ -55,7 +55,7 @@ def _write_mjcf(args: argparse.Namespace) -> int:
     from articutool.arm.scene import Scene
     from articutool.cli_support import UsageError, new_output_file
     from articutool.sim.mjcf import build_mjcf, viewer_mjcf
-    from articutool.sim.world import load_supply_g
+    from articutool.sim.placement import load_supply_g
 
     out = new_output_file("--mjcf", args.mjcf, (".xml",))
     assert out is not None
@@ -96,7 +96,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     if args.twirl_turns is not None:
         _check_twirl(args, kw)
     try:
-        world = FeedingWorld(args.food, args.utensil, load_g=args.load, **kw)
+        world = FeedingWorld.build(args.food, args.utensil, load_g=args.load, **kw)
     except ValueError as err:  # e.g. strands cannot be placed as a load
         raise UsageError(f"--load: {err}") from None
     recorder = None
@@ -140,10 +140,11 @@ def _cmd_sim(args: argparse.Namespace) -> int:
           f"{report.t:.1f} s simulated at {report.realtime_factor:.2f}x real time")
     ft = (" (F/T sensor: not comparable, turned away from its tare orientation)"
           if report.ft_mass_g is None else f" (F/T sensor: {report.ft_mass_g:.2f} g)")
-    print(f"  on the utensil {report.on_utensil_g:7.2f} g{ft}")
-    print(f"  in the bowl    {report.in_bowl_g:7.2f} g")
-    print(f"  on the table   {report.table_g:7.2f} g (non-critical spill)")
-    print(f"  critical       {report.critical_g:7.2f} g (user, wheelchair, floor)")
+    g = report.masses_g
+    print(f"  on the utensil {g['utensil']:7.2f} g{ft}")
+    print(f"  in the bowl    {g['container']:7.2f} g")
+    print(f"  on the table   {g['table']:7.2f} g (non-critical spill)")
+    print(f"  critical       {g['critical']:7.2f} g (user, wheelchair, floor)")
     for s in report.spills[:8]:
         print(f"  spill at {s.t:6.2f} s: {s.mass_g:.2f} g on {s.where} ({s.place})")
     if len(report.spills) > 8:
@@ -179,7 +180,7 @@ def _liquid_load(args: argparse.Namespace, kw: dict, default: float | None) -> f
     """``--load`` of a liquid: a mass the level utensil holds, else exit 2."""
     from articutool.cli_support import UsageError
     from articutool.sim.params import Liquid
-    from articutool.sim.world import capacity_bound_reason, utensil_capacity_bound_g
+    from articutool.sim.placement import capacity_bound_reason, utensil_capacity_bound_g
 
     food = kw["params"].food(args.food)
     load = args.load if args.load is not None else default

@@ -16,9 +16,11 @@ drivers and their kinematic twins (``articutool.tool.drivers.sim``):
   the roll output and the utensil (the HEX21's place): it feels the utensil, the food on it
   and every contact; plus white noise. Taring is the shared ``FTDriver`` logic.
 
-The world (:class:`articutool.sim.world.FeedingWorld`) owns them: it hands the motor driver a
-:class:`~articutool.tool.drivers.motor_model.MotorPlant` (its joint state and clock), applies
-``motors.model.velocity_targets`` to its servos before each physics step, calls
+The world (:class:`articutool.sim.world.FeedingWorld`) owns them. Its builder
+(:func:`articutool.sim.build.build_parts`) hands the motor driver a
+:class:`~articutool.tool.drivers.motor_model.MotorPlant` (the joint state and clock of the
+world's MuJoCo data); the world applies ``motors.model.velocity_targets`` to its servos before
+each physics step, calls
 ``motors.check_stops`` and pushes the sensors' samples (``push``) after it. The drivers
 never see the world.
 """

@@ -1,19 +1,21 @@
 """The feeding world: MuJoCo physics with the Articutool's own onboard software in the loop.
 
-:class:`FeedingWorld` builds the MJCF from the spec, the scene and a food
-(:mod:`articutool.sim.mjcf`), lets the food settle, then runs the unchanged
-:class:`~articutool.tool.runtime.ToolRuntime` on MuJoCo-backed drivers
-(:mod:`articutool.sim.mj_drivers`) at ``spec.wrist.loop_rate_hz`` in lockstep with the physics:
-each physics step applies the arm servos' references and the wrist motors' torques, steps,
-then emits IMU and F/T samples at their rates; every loop period the runtime ticks on the
-simulation clock. Commands reach the tool through ``world.tool``, the same ``ToolAPI`` the
-link serves. For speed the steps between two ticks run as one batch with the
-per-step Python cut to what depends on the step, and a settled pile is restored rather than
-settled again; both are bit-identical to stepping one at a time and settling afresh
-(``tests/test_sim_speed.py``; where the time goes: docs/simulation.md, *Speed*).
+:meth:`FeedingWorld.build` builds a world's parts from the spec, the scene and a food
+(:mod:`articutool.sim.build`: the MJCF, the model, the drivers, the tool), lets the food
+settle, then starts the unchanged :class:`~articutool.tool.runtime.ToolRuntime` on
+MuJoCo-backed drivers (:mod:`articutool.sim.mj_drivers`) at ``spec.wrist.loop_rate_hz`` in
+lockstep with the physics and tares the F/T sensor: each physics step applies the arm servos'
+references and the wrist motors' torques, steps, then emits IMU and F/T samples at their
+rates; every loop period the runtime ticks on the simulation clock (:attr:`FeedingWorld.time`).
+Commands reach the tool through ``world.tool``, the same ``ToolAPI`` the link serves. For
+speed the steps between two ticks run as one batch with the per-step Python cut to what
+depends on the step, and a settled pile is restored rather than settled again; both are
+bit-identical to stepping one at a time and settling afresh (``tests/test_sim_speed.py``;
+where the time goes: docs/simulation.md, *Speed*).
 
 One stepping loop — arm servos, the wrist's velocity loop, sensors, the tool's tick — and the
-arm-motion API around it; the food ledger and load placement live apart.
+arm-motion API around it; the food ledger, the weighing and the load placement are objects
+the world owns.
 
 The arm follows a :class:`~articutool.trajectory.JointTrajectory` with joint servos (PD with
 velocity feed-forward, torque-limited by the spec's efforts), so contacts see the real
@@ -22,8 +24,9 @@ velocity of the utensil — never a teleported body. The tracking error is recor
 The food ledger (:class:`~articutool.sim.ledger.FoodLedger`, rules in
 :mod:`articutool.sim.accounting`) runs every loop period: the mass on the utensil, in its
 container, on the table, on critical places, in the air, eaten; every spill with its time,
-mass and place. Food entering the scene's ``mouth`` region is eaten (removed). Placing a load
-by hand: :mod:`articutool.sim.loading`.
+mass and place. Food entering the scene's ``mouth`` region is eaten (removed). Weighing the
+utensil (the F/T sensor's tare and readings, a scale): :mod:`articutool.sim.weighing`.
+Placing a load by hand: :mod:`articutool.sim.placement`.
 """
 
 from __future__ import annotations
@@ -41,111 +44,31 @@ from numpy.typing import ArrayLike, NDArray
 
 from articutool.arm.scene import Scene
 from articutool.sim import accounting as acc
-from articutool.sim.ledger import FoodLedger
-from articutool.sim.loading import (
-    DEPOSIT_CLEARANCE_M,
-    deposit_spot,
-    dish_surface_height,
-    max_load_g,
-    pour_lattice,
-)
-from articutool.sim.mj_drivers import MjFTDriver, MjImuDriver, MjMotorDriver
-from articutool.sim.mjcf import (
-    FT_SITE,
-    IMU_SITE,
-    WorldLayout,
-    build_mjcf,
-    tip_site_name,
-)
-from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
-from articutool.spec import Spec, load_spec
-from articutool.tool.drivers.motor_model import MotorPlant
-from articutool.tool.runtime import ToolRuntime
+from articutool.sim.build import SettleCache, SettledState, WorldParts, build_parts
+from articutool.sim.params import PhysicsParams, Strands
+from articutool.sim.placement import LoadPlacement
+from articutool.sim.weighing import Weighing
+from articutool.spec import Spec
 from articutool.trajectory import JointTrajectory
 
-__all__ = ["FeedingWorld", "FoodReport", "PhysicsResetError", "SettleCache",
-           "capacity_bound_reason", "smooth_joint_motion", "utensil_capacity_bound_g"]
+__all__ = ["REPORT_JSON_KEYS", "FeedingWorld", "FoodReport", "PhysicsResetError", "SettleCache",
+           "smooth_joint_motion"]
 
 # MuJoCo's warnings on which mj_step resets mjData to the model's defaults (its "simulation is
 # unstable" reset: NaN, Inf or huge qpos/qvel/qacc). Everything after is not the run's physics.
 _RESET_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
                    mujoco.mjtWarning.mjWARN_BADQACC)
 
-
-# Pieces in a placed load's supply per gram of the load (place_load deposits until the utensil
-# holds the load; the rest stays parked). A numerical choice: at the capacity load a third of
-# the deposited pieces rolled off the heap in trials (seeds 0-4), so twice the load suffices.
-SUPPLY_FACTOR = 2.0
-
-
-def utensil_capacity_bound_g(spec: Spec, params: PhysicsParams, food: str,
-                             utensil: str | None = None) -> float:
-    """The most ``utensil`` (default: the food's) can hold of ``food`` (g): a liquid fills
-    its dish level to the rim, pieces the dish and a heap at their angle of repose
-    (:func:`articutool.sim.loading.max_load_g`)."""
-    fp = params.food(food)
-    u = spec.utensil(utensil or fp.utensil)
-    return max_load_g(u, fp.kind, fp.density,
-                      fp.angle_of_repose_deg if isinstance(fp, Granular) else None)
-
-
-def load_supply_g(params: PhysicsParams, food: str | None,
-                  load_g: float | None) -> float | None:
-    """What the world places to leave ``load_g`` of ``food`` on the utensil. A hand takes
-    pieces from a supply until the utensil holds the load: some roll off on the way
-    (:meth:`FeedingWorld.place_load`), so a granular supply holds more than the load."""
-    if load_g is not None and food is not None and isinstance(params.food(food), Granular):
-        return SUPPLY_FACTOR * load_g
-    return load_g
-
-
-def capacity_bound_reason(fp: Granular | Liquid | Strands) -> str:
-    """Why :func:`utensil_capacity_bound_g` is the bound, in words."""
-    if isinstance(fp, Liquid):
-        return "its dish filled level to the rim: a liquid without surface tension holds no more"
-    return (f"its dish and a heap at the pieces' {fp.angle_of_repose_deg:g}° angle of repose, "
-            "as solid kernel")
+# The keys of a food report's masses in its JSON form (``articutool sim --json``), by the
+# ledger's class names (:meth:`~articutool.sim.ledger.FoodLedger.masses_g`).
+REPORT_JSON_KEYS = {"utensil": "on_utensil_g", "container": "in_bowl_g", "table": "table_g",
+                    "critical": "critical_g", "airborne": "airborne_g", "eaten": "eaten_g"}
 
 
 class PhysicsResetError(RuntimeError):
     """MuJoCo reset the simulation after a numerical instability: the arm, the wrist and the
     food jumped back to the model's defaults, so the run's outcome is meaningless: it stops
     here and is never counted."""
-
-class SettleCache:
-    """Settled worlds by (model, start state), restored instead of settled again: the
-    same model and start state settle to the same state, so a copy of every byte of
-    ``mjData`` (sleep state, contacts and the solver's warm start included) and the world's
-    own servo state is the state a fresh settle makes, to the bit
-    (``tests/test_sim_speed.py``). Whoever runs many worlds owns one (the experiments'
-    runner, one per worker process: an experiment's conditions share a repeat's seed, so
-    they share its settled pile); a world built without one settles afresh.
-
-    It keeps the ``keep`` most recently used states (one is a full ``mjData``)."""
-
-    def __init__(self, keep: int = 4) -> None:
-        if keep < 1:
-            raise ValueError(f"keep must be >= 1; got {keep}")
-        self.keep = keep
-        self._states: dict[str, tuple[mujoco.MjData, NDArray[np.float64], float, int]] = {}
-
-    def __len__(self) -> int:
-        return len(self._states)
-
-    def take(self, key: str) -> tuple[mujoco.MjData, NDArray[np.float64], float, int] | None:
-        """The state settled under ``key`` (removed until :meth:`put` back), or None."""
-        return self._states.pop(key, None)
-
-    def put(self, key: str,
-            state: tuple[mujoco.MjData, NDArray[np.float64], float, int]) -> None:
-        """Keep ``state`` under ``key`` as the most recently used; forget the oldest beyond
-        ``keep``."""
-        self._states.pop(key, None)
-        self._states[key] = state
-        while len(self._states) > self.keep:
-            self._states.pop(next(iter(self._states)))
-
-_ZUP = np.array([0.0, 0.0, 1.0])
 
 
 def _model_bytes(m: mujoco.MjModel) -> bytes:
@@ -157,17 +80,14 @@ def _model_bytes(m: mujoco.MjModel) -> bytes:
 
 @dataclass
 class FoodReport:
-    """Where the food is (grams) at time ``t``, and every spill so far."""
+    """Where the food is at time ``t``, and every spill so far. ``masses_g``: grams per
+    class, keyed as the ledger's (:meth:`FeedingWorld.masses_g`: utensil, container, table,
+    critical, airborne, eaten)."""
 
     t: float
     food: str | None
     utensil: str
-    on_utensil_g: float
-    in_bowl_g: float  # back in its container (bowl or plate)
-    table_g: float  # non-critical spill
-    critical_g: float  # on the user, wheelchair or floor
-    airborne_g: float
-    eaten_g: float
+    masses_g: dict[str, float]
     total_g: float
     spills: list[acc.SpillEvent] = field(default_factory=list)
     ft_mass_g: float | None = None  # as the F/T sensor measures it (at rest, level)
@@ -175,10 +95,15 @@ class FoodReport:
     arm_tracking_error_rad: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (spills as a list of dicts)."""
+        """JSON-ready dict: the masses flat under :data:`REPORT_JSON_KEYS`, spills as a list
+        of dicts."""
         d = asdict(self)
-        d["spills"] = [asdict(s) for s in self.spills]
-        return d
+        masses = d.pop("masses_g")
+        out = {k: d.pop(k) for k in ("t", "food", "utensil")}
+        out.update({REPORT_JSON_KEYS[c]: masses[c] for c in REPORT_JSON_KEYS})
+        out.update(d)
+        out["spills"] = [asdict(s) for s in self.spills]
+        return out
 
 
 def smooth_joint_motion(q0: ArrayLike, q1: ArrayLike, max_velocity: ArrayLike,
@@ -198,31 +123,53 @@ def smooth_joint_motion(q0: ArrayLike, q1: ArrayLike, max_velocity: ArrayLike,
 
 
 class FeedingWorld:
-    """One simulated meal scene (see module doc).
+    """One simulated meal scene (see module doc); :meth:`build` makes one ready to run.
 
-    Args:
-        food: a food of ``physics.toml`` (``None``: no food).
-        utensil: which utensil the tool carries (default: the food's utensil).
-        spec, scene, params: hardware spec, scene and physics parameters (packaged defaults).
-        seed: food placement, sensor noise and gyro bias; same seed, same result.
-        q_arm: the arm's start configuration (default: the spec's ``Resting``).
-        q_wrist: the wrist's start angles [pitch, roll] (rad).
-        noise: sensor noise on (IMU, F/T); the gyro bias is on either way unless given.
-        gyro_bias: rad/s (3,); default drawn from ±1 °/s per axis with the seed.
-        settle: let the food settle for ``params.world.settle_s`` before the tool starts.
-        load_g: instead of filling the food's container, hold this many grams of it ready to
-            be placed on the utensil with :meth:`place_load` (the thesis' Exp. 2b/2c protocol:
-            a tared utensil loaded by hand).
-        mouth: food entering the scene's ``mouth`` region is eaten (a bite); ``False`` for
-            protocols in which nobody eats and the experimenter weighs the utensil at the
-            goal (Exp. 2b, 2c).
-        settle_cache: restores the settled state of an earlier world with the same model
-            and start state instead of settling again (bit-identical; :class:`SettleCache`);
-            ``None`` settles afresh.
+    The constructor wires parts already built (:func:`articutool.sim.build.build_parts`)
+    and steps nothing: its world has the food where the MJCF put it, the wrist servos
+    holding still and the tool not started.
     """
 
-    def __init__(
-        self,
+    def __init__(self, parts: WorldParts) -> None:
+        self.spec, self.scene, self.params = parts.spec, parts.scene, parts.params
+        self.food, self.utensil, self.seed, self.load_g = (parts.food, parts.utensil,
+                                                           parts.seed, parts.load_g)
+        self.layout, self.model, self.data = parts.layout, parts.model, parts.data
+        self.index = parts.index
+        self.wrist_range = parts.index.wrist_range
+        self.ledger = parts.ledger
+        self.motors, self.imu, self.ft, self.tool = parts.motors, parts.imu, parts.ft, parts.tool
+        wm = self.params.wrist_motor
+        self._kv, self._ki = wm.kv, wm.ki
+        self._tq = self.spec.motors.stall_torque_nm
+        self._vel_int = np.zeros(2)
+        self._hold_wrist = True  # the wrist servos hold still until the tool starts
+        self.dt = float(self.model.opt.timestep)
+        self._steps_per_tick = round(self.spec.wrist.period / self.dt)
+        self._imu_period = 1.0 / self.spec.imu.rate_hz
+        self._ft_period = 1.0 / self.spec.ft.rate_hz
+        self._next_imu = self._next_ft = math.inf  # no samples before the tool starts
+        self._step_count = 0
+        self._resets = 0  # MuJoCo's reset warnings seen so far (see PhysicsResetError)
+        # Called after every tool tick with the world (recorders, loggers); not timed.
+        self.on_tick: list[Callable[[FeedingWorld], None]] = []
+        self._cpu = 0.0
+        self._sim_stepped = 0.0
+        self._arm_ref = self.arm_q
+        self._arm_ref_v = np.zeros(6)
+        self._arm_traj: JointTrajectory | None = None
+        self._arm_t0 = 0.0
+        self.arm_tracking_error = 0.0
+        self.weighing = Weighing(self.spec, self.data, self.ft, self.index.ft_site, self.ledger,
+                                 self.strands, self.run, self.run_until)
+        self.placement = LoadPlacement(
+            self.model, self.data, self.layout, self.ledger, self.spec, self.utensil,
+            self.params.food(self.food) if self.food is not None else None, self.load_g,
+            self.seed, self.run)
+
+    @classmethod
+    def build(
+        cls,
         food: str | None = "pecans",
         utensil: str | None = None,
         *,
@@ -238,125 +185,47 @@ class FeedingWorld:
         load_g: float | None = None,
         mouth: bool = True,
         settle_cache: SettleCache | None = None,
-    ) -> None:
-        self.spec = spec if spec is not None else load_spec()
-        self.scene = scene if scene is not None else Scene.load()
-        self.params = params if params is not None else PhysicsParams.load()
-        if food is not None:
-            self.params.food(food)  # unknown food → PhysicsError naming the allowed ones
-        self.food = food
-        self.utensil = utensil or (self.params.food(food).utensil if food else "spoon")
-        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-            raise ValueError(f"seed must be an integer >= 0; got {seed!r}")
-        self.seed = int(seed)
-        self._settle_cache = settle_cache
-        if load_g is not None and not (math.isfinite(load_g) and load_g > 0):
-            raise ValueError(f"load_g must be a finite mass > 0 g; got {load_g}")
-        if load_g is not None and food is None:
-            raise ValueError("load_g needs a food")
-        if load_g is not None and load_g > (most := self.capacity_bound_g(food or "")):
-            why = capacity_bound_reason(self.params.food(food or ""))
-            raise ValueError(f"load_g must be in (0, {most:.2f}] g: the most the "
-                             f"{self.utensil} can hold of {food} ({why}); got {load_g:g}")
-        self.load_g = load_g
-        self.layout: WorldLayout = build_mjcf(self.spec, self.scene, self.params, self.utensil,
-                                              food, self.seed,
-                                              load_supply_g(self.params, food, load_g))
-        self.model = self.layout.spec.compile()
-        self.data = mujoco.MjData(self.model)
-        m, d = self.model, self.data
-        rng = np.random.default_rng(self.seed + 1_000_003)
+    ) -> FeedingWorld:
+        """A world ready to run: its parts built (:func:`~articutool.sim.build.build_parts`),
+        the food settled with the wrist held, the tool started and run 0.2 s, the F/T tared.
 
-        # --- indices
-        self._arm_q = np.array([m.joint(n).qposadr[0] for n in self.layout.arm_joints])
-        self._arm_v = np.array([m.joint(n).dofadr[0] for n in self.layout.arm_joints])
-        self._wr_q = np.array([m.joint(n).qposadr[0] for n in self.layout.wrist_joints])
-        self._wr_v = np.array([m.joint(n).dofadr[0] for n in self.layout.wrist_joints])
-        self._act_pos = np.array([m.actuator(f"{n}/pos").id for n in self.layout.arm_joints])
-        self._act_vel = np.array([m.actuator(f"{n}/vel").id for n in self.layout.arm_joints])
-        self._act_wr = np.array([m.actuator(f"{n}/motor").id
-                                 for n in self.layout.wrist_joints])
-        self.wrist_range = np.array([m.jnt_range[m.joint(n).id]
-                                     for n in self.layout.wrist_joints])
-        self._s_acc = m.sensor("imu_accel").adr[0]
-        self._s_gyro = m.sensor("imu_gyro").adr[0]
-        self._s_force = m.sensor("ft_force").adr[0]
-        self._s_torque = m.sensor("ft_torque").adr[0]
-        self._tip_site = m.site(tip_site_name(self.utensil)).id
-        self._ft_site = m.site(FT_SITE).id
-        self._imu_site = m.site(IMU_SITE).id
-        wm = self.params.wrist_motor
-        self._kv, self._ki = wm.kv, wm.ki
-        self._tq = self.spec.motors.stall_torque_nm
-        self._vel_int = np.zeros(2)
-        self.ledger = FoodLedger(m, d, self.layout, self.scene, self.params.world.spill_dwell_s,
-                                 self.spec.wrist.period, mouth=mouth)
+        Args:
+            food: a food of ``physics.toml`` (``None``: no food).
+            utensil: which utensil the tool carries (default: the food's utensil).
+            spec, scene, params: hardware spec, scene and physics parameters (packaged
+                defaults).
+            seed: food placement, sensor noise and gyro bias; same seed, same result.
+            q_arm: the arm's start configuration (default: the spec's ``Resting``).
+            q_wrist: the wrist's start angles [pitch, roll] (rad).
+            noise: sensor noise on (IMU, F/T); the gyro bias is on either way unless given.
+            gyro_bias: rad/s (3,); default drawn from ±1 °/s per axis with the seed.
+            settle: let the food settle for ``params.world.settle_s`` before the tool starts
+                (else 0.2 s, the servos only).
+            load_g: instead of filling the food's container, hold this many grams of it
+                ready to be placed on the utensil with :meth:`place_load` (the thesis' Exp.
+                2b/2c protocol: a tared utensil loaded by hand).
+            mouth: food entering the scene's ``mouth`` region is eaten (a bite); ``False``
+                for protocols in which nobody eats and the experimenter weighs the utensil at
+                the goal (Exp. 2b, 2c).
+            settle_cache: restores the settled state of an earlier world with the same model
+                and start state instead of settling again (bit-identical;
+                :class:`~articutool.sim.build.SettleCache`); ``None`` settles afresh.
+        """
+        world = cls(build_parts(food, utensil, spec=spec, scene=scene, params=params,
+                                seed=seed, q_arm=q_arm, q_wrist=q_wrist, noise=noise,
+                                gyro_bias=gyro_bias, load_g=load_g, mouth=mouth))
+        world._settle(world.params.world.settle_s if settle and food is not None else 0.2,
+                      settle_cache)
+        world._start_tool()
+        world.run(0.2)
+        world.tare_ft()
+        world.ledger.classify(world.time)
+        return world
 
-        # --- timing
-        self.dt = float(m.opt.timestep)
-        period = self.spec.wrist.period
-        self._steps_per_tick = round(period / self.dt)
-        if abs(self._steps_per_tick * self.dt - period) > 1e-9:
-            raise ValueError(f"world.timestep {self.dt} s must divide the loop period "
-                             f"{period} s")
-        self._imu_period = 1.0 / self.spec.imu.rate_hz
-        self._ft_period = 1.0 / self.spec.ft.rate_hz
-        self._step_count = 0
-        self._resets = 0  # MuJoCo's reset warnings seen so far (see PhysicsResetError)
-        # Called after every tool tick with the world (recorders, loggers); not timed.
-        self.on_tick: list[Callable[[FeedingWorld], None]] = []
-        self._cpu = 0.0
-        self._sim_stepped = 0.0
-
-        # --- start state
-        q0 = np.asarray(self.spec.arm.configuration("Resting") if q_arm is None else q_arm,
-                        dtype=float)
-        if q0.shape != (6,) or not np.isfinite(q0).all():
-            raise ValueError(f"q_arm must be 6 finite joint angles; got {q_arm!r}")
-        lo, hi = self.spec.arm.lower, self.spec.arm.upper
-        bad = np.flatnonzero((q0 < lo) | (q0 > hi))
-        if bad.size:
-            i = int(bad[0])
-            raise ValueError(f"q_arm[{i}] = {q0[i]:.4g} rad is outside the joint's range "
-                             f"[{lo[i]:.4g}, {hi[i]:.4g}]")
-        qw = np.asarray(q_wrist, dtype=float)
-        if qw.shape != (2,) or not np.isfinite(qw).all():
-            raise ValueError(f"q_wrist must be 2 finite angles [pitch, roll]; got {q_wrist!r}")
-        d.qpos[self._arm_q] = q0
-        d.qpos[self._wr_q] = qw
-        self._arm_ref = q0.copy()
-        self._arm_ref_v = np.zeros(6)
-        self._arm_traj: JointTrajectory | None = None
-        self._arm_t0 = 0.0
-        self.arm_tracking_error = 0.0
-        mujoco.mj_forward(m, d)
-
-        # --- the tool and its drivers
-        bias = (rng.uniform(-1.0, 1.0, 3) * math.radians(1.0) if gyro_bias is None
-                else np.asarray(gyro_bias, dtype=float))
-        plant = MotorPlant(position=lambda: self.wrist_q, velocity=lambda: self.wrist_qd,
-                           input_voltage=lambda: self.spec.motors.supply_v,
-                           temperature=lambda: 35.0, stamp=lambda: self.time)
-        self.motors = MjMotorDriver(self.spec, plant, self.wrist_range)
-        self.imu = MjImuDriver(self.spec, bias, noise, rng)
-        self.ft = MjFTDriver(self.spec, noise, rng)
-        self.tool = ToolRuntime(self.spec, self.motors, self.imu, self.ft, clock=self.clock)
-        # The servos (and the food, if any) settle with the wrist held; then the tool starts.
-        self._hold_wrist = True
-        self._settle(self.params.world.settle_s if settle and food is not None else 0.2)
-        self._hold_wrist = False
-        self._next_imu = self.time
-        self._next_ft = self.time
-        self.tool.open()
-        self.run(0.2)
-        self.tare_ft()
-        self._classify()
-
-    def _settle(self, seconds: float) -> None:
+    def _settle(self, seconds: float, cache: SettleCache | None) -> None:
         """Run ``seconds`` with the tool off, or, with a :class:`SettleCache`, restore the
         state that run left last time (bit-identical to settling again)."""
         m, d = self.model, self.data
-        cache = self._settle_cache
         if cache is None:
             self.run(seconds, tick=False)
             return
@@ -365,7 +234,7 @@ class FeedingWorld:
                   np.array([seconds, self._kv, self._ki, self._tq])):
             h.update(np.ascontiguousarray(a).tobytes())
         key = h.hexdigest()
-        hit = cache.take(key)
+        hit: SettledState | None = cache.take(key)
         if hit is None:
             self.run(seconds, tick=False)
             snap = mujoco.MjData(m)
@@ -377,30 +246,34 @@ class FeedingWorld:
             self._vel_int, self.arm_tracking_error, self._step_count = vel_int.copy(), err, n
         cache.put(key, hit)
 
+    def _start_tool(self) -> None:
+        """Release the wrist to the tool's motors, start the sensors' samples and open the
+        tool."""
+        self._hold_wrist = False
+        self._next_imu = self.time
+        self._next_ft = self.time
+        self.tool.open()
+
     # ----------------------------------------------------------------- accessors --
     @property
     def time(self) -> float:
-        """Simulation time (s)."""
-        return float(self.data.time)
-
-    def clock(self) -> float:
-        """The simulation clock (the tool runtime's clock)."""
+        """Simulation time (s): the tool runtime's clock."""
         return float(self.data.time)
 
     @property
     def wrist_q(self) -> NDArray[np.float64]:
         """Wrist joint angles [pitch, roll] (rad), ground truth."""
-        return self.data.qpos[self._wr_q].copy()
+        return self.data.qpos[self.index.wrist_q].copy()
 
     @property
     def wrist_qd(self) -> NDArray[np.float64]:
         """Wrist joint rates (rad/s), ground truth."""
-        return self.data.qvel[self._wr_v].copy()
+        return self.data.qvel[self.index.wrist_v].copy()
 
     @property
     def arm_q(self) -> NDArray[np.float64]:
         """Arm joint angles (rad), ground truth."""
-        return self.data.qpos[self._arm_q].copy()
+        return self.data.qpos[self.index.arm_q].copy()
 
     @property
     def q(self) -> NDArray[np.float64]:
@@ -410,8 +283,8 @@ class FeedingWorld:
     def tip_pose(self) -> NDArray[np.float64]:
         """(4, 4) pose of the utensil tip in the arm base (= world) frame."""
         T = np.eye(4)
-        T[:3, :3] = self.data.site_xmat[self._tip_site].reshape(3, 3)
-        T[:3, 3] = self.data.site_xpos[self._tip_site]
+        T[:3, :3] = self.data.site_xmat[self.index.tip_site].reshape(3, 3)
+        T[:3, 3] = self.data.site_xpos[self.index.tip_site]
         return T
 
     def tilt_deg(self) -> float:
@@ -424,7 +297,7 @@ class FeedingWorld:
         """Tilt of the tool base F0's x axis (the up vector at zero wrist angles), degrees."""
         from articutool.tool.kinematics import tilt_from_vertical
 
-        R = self.data.site_xmat[self._imu_site].reshape(3, 3)
+        R = self.data.site_xmat[self.index.imu_site].reshape(3, 3)
         return math.degrees(float(tilt_from_vertical(R[:, 0])))
 
     @property
@@ -472,8 +345,9 @@ class FeedingWorld:
         refs, refv = self._arm_references(n)
         seen = np.empty((n, 6))
         ctrl, qpos, qvel, sens = d.ctrl, d.qpos, d.qvel, d.sensordata
-        act_pos, act_vel, arm_q = self._act_pos, self._act_vel, self._arm_q
-        (w0, w1), (v0, v1) = self._act_wr, self._wr_v
+        ix = self.index
+        act_pos, act_vel, arm_q = ix.act_pos, ix.act_vel, ix.arm_q
+        (w0, w1), (v0, v1) = ix.act_wrist, ix.wrist_v
         kv, ki, tq = self._kv, self._ki, self._tq
         lim = tq / ki  # anti-windup: the integral never asks for more than the stall torque
         vi0, vi1 = float(self._vel_int[0]), float(self._vel_int[1])
@@ -482,7 +356,7 @@ class FeedingWorld:
         # Velocity mode: the goal does not depend on the angles, so it holds for the batch.
         fixed = None if hold or model.mode != "velocity" else model.velocity_targets(self.wrist_q)
         on0, on1 = (True, True) if hold else (bool(model.torque[0]), bool(model.torque[1]))
-        s_acc, s_gyro, s_f, s_t = self._s_acc, self._s_gyro, self._s_force, self._s_torque
+        s_acc, s_gyro, s_f, s_t = ix.s_acc, ix.s_gyro, ix.s_force, ix.s_torque
         for k in range(n):
             ctrl[act_pos] = refs[k]
             ctrl[act_vel] = refv[k]
@@ -518,7 +392,7 @@ class FeedingWorld:
         if ticked:
             self.tool.tick(self.time)
             self.motors.check_stops()
-            self._classify()
+            self.ledger.classify(self.time)
         self._cpu += time.thread_time() - c0
         self._sim_stepped += n * dt
         if ticked:
@@ -610,8 +484,10 @@ class FeedingWorld:
         """Every spill event so far (:mod:`articutool.sim.accounting`)."""
         return self.ledger.spills
 
-    def _classify(self) -> None:
-        self.ledger.classify(self.time)
+    @property
+    def strands(self) -> bool:
+        """The food is strands (noodles): an item may hang from the utensil onto a surface."""
+        return self.food is not None and isinstance(self.params.food(self.food), Strands)
 
     def eat_from_utensil(self) -> float:
         """The user takes the bite: what is on the utensil now — pieces, particles and
@@ -619,135 +495,6 @@ class FeedingWorld:
         Returns the grams eaten. (The simulated user does not bite or chew; the feeding tree
         presents the bite and this stands for the user taking it.)"""
         return self.ledger.eat_from_utensil()
-
-    def tare_ft(self, settle_s: float = 0.0) -> None:
-        """Tare the F/T sensor as a user would: after ``settle_s`` at rest, average its next
-        ``spec.ft.tare_samples`` samples (the utensil should be empty and still)."""
-        self.run(settle_s)
-        self.ft.tare()
-        self.run_until(lambda: not self.ft.tare_pending, 1.0)
-        self.ft.history.clear()  # samples before the new offset are not comparable
-        self._tare_R = self.data.site_xmat[self._ft_site].reshape(3, 3).copy()
-
-    def ft_comparable(self, tol_deg: float = 3.0) -> bool:
-        """True when gravity, seen from the sensor, is within ``tol_deg`` of where it was at
-        the last tare: only then does the tared force weigh the load (the utensil's own
-        weight was removed in that orientation; a turn about the vertical does not matter)."""
-        R = self.data.site_xmat[self._ft_site].reshape(3, 3)
-        c = float((self._tare_R.T @ _ZUP) @ (R.T @ _ZUP))
-        return math.degrees(math.acos(min(1.0, max(-1.0, c)))) <= tol_deg
-
-    def place_load(self, settle_s: float = 0.5) -> float:
-        """Put the load (``load_g``) on the utensil the way a scoop leaves it
-        (:mod:`articutool.sim.loading`), at the utensil's velocity, then run ``settle_s``;
-        returns the mass on the utensil after that (g).
-
-        Rigid pieces are deposited one at a time from the supply over the whole dish (a fork:
-        its tines), each let go just above what is under its spot, 0.3 s apart, while each
-        brings the mass on the utensil nearer the load (to within half a piece); what does
-        not stay falls where physics takes it. Particles fill the dish from its floor up (a
-        liquid poured in), so a load the spoon can hold stays.
-        """
-        if not self.layout.parked or self.ledger.active.any():
-            raise RuntimeError("place_load needs a world built with load_g, not yet placed")
-        u = self.spec.utensil(self.utensil)
-        body = self.model.body("utensil").id
-        fp = self.params.food(self.food or "")
-        if isinstance(fp, Granular):
-            self._deposit(u, body, float(self.load_g or 0.0))
-        else:
-            pts = pour_lattice(u, self.layout.piece_size)
-            if len(pts) < self.n_items:
-                raise ValueError(f"load_g: {self.n_items} particles do not fit on the "
-                                 f"{self.utensil} (at most {len(pts)}, "
-                                 f"{self.max_load_g():.1f} g); place less")
-            for k in range(self.n_items):
-                self.ledger.unpark(k, body, pts[k])
-            mujoco.mj_forward(self.model, self.data)
-        self.run(settle_s)
-        return self.masses_g()["utensil"]
-
-    def _deposit(self, u: Any, body: int, target_g: float) -> None:
-        """Deposit supply pieces over the dish while each brings the load on the utensil
-        nearer ``target_g`` (see :meth:`place_load`)."""
-        m, d = self.model, self.data
-        rng = np.random.default_rng(self.seed + 7)
-        # Rays down the dish's normal start 5 cm above its rim: above any heap it holds.
-        depth_m = u.physics.bowl[2] if u.physics.bowl is not None else 0.0
-        top = u.tip_x + depth_m + 0.05
-        gid = np.zeros(1, dtype=np.int32)
-        node = self.ledger.geom_node
-        for k in range(self.n_items):
-            # The next piece goes on only if the load comes nearer the target with it.
-            if self.masses_g()["utensil"] + self.ledger.item_g[k] / 2 > target_g:
-                break
-            bid = int(self.ledger.item_body[k])
-            g0, gn = m.body_geomadr[bid], m.body_geomnum[bid]
-            thick = float(max(m.geom_size[g0:g0 + gn, 0]))  # a flat piece's half thickness
-            reach = float(max(np.linalg.norm(m.geom_pos[g], ord=2) + m.geom_rbound[g]
-                              for g in range(g0, g0 + gn)))
-            y, z = deposit_spot(u, reach, rng)
-            R, p = d.xmat[body].reshape(3, 3), d.xpos[body]
-            start = p + R @ np.array([top, y, z])
-            hit = mujoco.mj_ray(m, d, start, -R[:, 0], None, 1, -1, gid)
-            # What is under the spot: a piece already there or the dish (else its surface).
-            if hit >= 0 and node[gid[0]] >= -1:
-                under = top - hit
-            else:
-                under = u.tip_x + min(dish_surface_height(u, y, z), depth_m)
-            local = (under + thick + DEPOSIT_CLEARANCE_M, y, z)
-            # Lying flat (the piece's own z along the dish's normal), turned at random about it.
-            yaw = float(rng.uniform(0.0, 2.0 * math.pi))
-            flat = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
-            spin = np.array([[math.cos(yaw), -math.sin(yaw), 0.0],
-                             [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
-            self.ledger.unpark(k, body, local, R @ flat @ spin)
-            self.run(0.3)
-
-    def capacity_bound_g(self, food: str) -> float:
-        """The most this world's utensil can hold of ``food`` (g): a physical bound
-        (:func:`articutool.sim.loading.max_load_g`); loads above it are refused."""
-        return utensil_capacity_bound_g(self.spec, self.params, food, self.utensil)
-
-    def max_load_g(self) -> float:
-        """The most a liquid load :meth:`place_load` can pour onto this utensil (g); infinite
-        for pieces (they are dropped one by one, what does not stay falls)."""
-        if isinstance(self.params.food(self.food or ""), Granular):
-            return math.inf
-        u = self.spec.utensil(self.utensil)
-        return len(pour_lattice(u, self.layout.piece_size)) * self.layout.piece_mass * 1000.0
-
-    def ft_mass_g(self, window_s: float = 1.0) -> float:
-        """Mass on the utensil (g) as the F/T sensor measures it: the mean tared force over
-        the last ``window_s`` projected on gravity in the sensor frame (meaningful at rest)."""
-        n = max(1, round(window_s * self.spec.ft.rate_hz))
-        hist = list(self.ft.history)[-n:]
-        if not hist:
-            return math.nan
-        f = np.mean([s.force for s in hist], axis=0)
-        R = self.data.site_xmat[self._ft_site].reshape(3, 3)
-        down = R.T @ np.array([0.0, 0.0, -1.0])  # gravity direction in the sensor frame
-        # The sensor reads the reaction on the utensil: extra weight pulls along −down.
-        return float(-f @ down / self.spec.imu.gravity * 1000.0)
-
-    @property
-    def strands(self) -> bool:
-        """The food is strands (noodles): an item may hang from the utensil onto a surface."""
-        return self.food is not None and isinstance(self.params.food(self.food), Strands)
-
-    def utensil_mass_g(self) -> float:
-        """The mass on the utensil as an experimenter weighing it would find (g): the items on
-        it (:meth:`masses_g`), or for strands what the utensil bears of them
-        (:meth:`carried_g`)."""
-        return self.carried_g() if self.strands else self.masses_g()["utensil"]
-
-    def carried_g(self) -> float:
-        """What a scale under the utensil reads (g): the downward force the food's
-        contacts put on the utensil, over g — a strand hanging from the fork onto a surface
-        counts as much as the fork bears of it. The F/T sensor measures the same force plus
-        the utensil's own weight and inertia; this reads it without the sensor's noise, tare
-        or orientation limits; the mean over the last 0.5 s (meaningful at rest)."""
-        return self.ledger.carried_force_z() / -self.spec.imu.gravity * 1000.0
 
     def item_masses_g(self) -> NDArray[np.float64]:
         """Grams of each food item (pieces vary in size; particles and strands do not)."""
@@ -762,14 +509,48 @@ class FeedingWorld:
         """Mass (g) per class: utensil, container, table, critical, airborne, eaten."""
         return self.ledger.masses_g()
 
+    # ---------------------------------- weighing and placing (the objects that do it) --
+    def tare_ft(self, settle_s: float = 0.0) -> None:
+        """Tare the F/T sensor after ``settle_s`` at rest (:meth:`Weighing.tare
+        <articutool.sim.weighing.Weighing.tare>`)."""
+        self.weighing.tare(settle_s)
+
+    def ft_comparable(self, tol_deg: float = 3.0) -> bool:
+        """Whether the F/T reading weighs the load now (:meth:`Weighing.comparable
+        <articutool.sim.weighing.Weighing.comparable>`)."""
+        return self.weighing.comparable(tol_deg)
+
+    def ft_mass_g(self, window_s: float = 1.0) -> float:
+        """Mass on the utensil (g) as the F/T sensor measures it (:meth:`Weighing.ft_mass_g
+        <articutool.sim.weighing.Weighing.ft_mass_g>`)."""
+        return self.weighing.ft_mass_g(window_s)
+
+    def carried_g(self) -> float:
+        """What a scale under the utensil reads (g) (:meth:`Weighing.carried_g
+        <articutool.sim.weighing.Weighing.carried_g>`)."""
+        return self.weighing.carried_g()
+
+    def utensil_mass_g(self) -> float:
+        """The mass on the utensil as an experimenter weighing it would find (g)
+        (:meth:`Weighing.utensil_mass_g <articutool.sim.weighing.Weighing.utensil_mass_g>`)."""
+        return self.weighing.utensil_mass_g()
+
+    def place_load(self, settle_s: float = 0.5) -> float:
+        """Put the load (``load_g``) on the utensil and run ``settle_s``; the grams on it then
+        (:meth:`LoadPlacement.place <articutool.sim.placement.LoadPlacement.place>`)."""
+        return self.placement.place(settle_s)
+
+    def max_load_g(self) -> float:
+        """The most a liquid load can be poured onto this utensil (g)
+        (:meth:`LoadPlacement.max_load_g <articutool.sim.placement.LoadPlacement.max_load_g>`)."""
+        return self.placement.max_load_g()
+
     def report(self, measure_ft: bool = False) -> FoodReport:
         """The food report now (``measure_ft``: include the F/T-measured mass, when the
         sensor is oriented as at its tare — see :meth:`ft_comparable`)."""
-        g = self.masses_g()
         return FoodReport(
             t=round(self.time, 4), food=self.food, utensil=self.utensil,
-            on_utensil_g=g["utensil"], in_bowl_g=g["container"], table_g=g["table"],
-            critical_g=g["critical"], airborne_g=g["airborne"], eaten_g=g["eaten"],
+            masses_g=self.masses_g(),
             total_g=float(self.ledger.item_g[self.ledger.active].sum()),
             spills=list(self.spills),
             ft_mass_g=self.ft_mass_g() if measure_ft and self.ft_comparable() else None,
