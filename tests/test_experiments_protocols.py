@@ -108,7 +108,7 @@ def test_cli_exp2b_one_trial_per_condition_then_report(tmp_path, capsys) -> None
     assert cli.main(["experiment", "report", "--out", str(out)]) == 0
     md = (out / "report.md").read_text()
     assert "Exp. 2b" in md and "1.31" in md and "Honesty rules" in md
-    assert f"code: {source_version()} (4 trials)" in md
+    assert f"code: {source_version()} ({n} trials)" in md
     assert "<table>" in (out / "report.html").read_text()
 
 
