@@ -13,6 +13,7 @@ from py_trees.common import Status
 
 pytest.importorskip("mujoco")
 
+from articutool.feeding.system import System
 from articutool.feeding.tree import run_tree, transport_tree
 from articutool.meal import sim_arm
 from articutool.meal.sim_arm import SimArm
@@ -53,9 +54,10 @@ def _transport(monkeypatch: pytest.MonkeyPatch, slow: bool, ahead: bool = False)
         monkeypatch.setattr(SimArm, "start_plan", start_plan_done)
     arm = SimArm(w)
     try:
-        root = transport_tree(arm, w.tool, "Staging", "decoupled", attempts=3,
+        root = transport_tree(arm, w.tool, "Staging", System.of("articutool"), attempts=3,
                               budget_s=BUDGET_S, clock=lambda: w.time)
-        status, rec = run_tree(root, w.run, lambda: w.time, timeout_s=120.0)
+        run = run_tree(root, w.run, lambda: w.time, timeout_s=120.0)
+        status, rec = run.status, run.record
     finally:
         arm.close()
         monkeypatch.undo()

@@ -9,6 +9,8 @@ from py_trees.common import Status
 
 pytest.importorskip("mujoco")
 
+from articutool.feeding.behaviours import BiteStage
+from articutool.feeding.system import System
 from articutool.feeding.tree import run_tree, transport_tree
 from articutool.meal.sim_arm import SimArm
 from articutool.sim.world import FeedingWorld
@@ -27,9 +29,10 @@ def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> Non
     tilts = []
     w.on_tick.append(lambda world: tilts.append(world.tilt_deg()))
     try:
-        root = transport_tree(arm, w.tool, "Staging", "decoupled", attempts=3, budget_s=10.0,
-                              clock=lambda: w.time)
-        status, rec = run_tree(root, w.run, lambda: w.time, timeout_s=60.0)
+        root = transport_tree(arm, w.tool, "Staging", System.of("articutool"), attempts=3,
+                              budget_s=10.0, clock=lambda: w.time)
+        run = run_tree(root, w.run, lambda: w.time, timeout_s=60.0)
+        status, rec = run.status, run.record
     finally:
         arm.close()
     g = w.masses_g()
@@ -57,9 +60,10 @@ def test_baseline_strict_transport_from_a_rigid_level_start() -> None:
         w.place_load(1.0)
         tilts = []
         w.on_tick.append(lambda world: tilts.append(world.tilt_deg()))
-        root = transport_tree(arm, w.tool, "Staging", "strict6", attempts=3, budget_s=10.0,
-                              clock=lambda: w.time)
-        status, rec = run_tree(root, w.run, lambda: w.time, timeout_s=90.0)
+        root = transport_tree(arm, w.tool, "Staging", System.of("baseline", tolerance_deg=20.0),
+                              attempts=3, budget_s=10.0, clock=lambda: w.time)
+        run = run_tree(root, w.run, lambda: w.time, timeout_s=90.0)
+        status, rec = run.status, run.record
     finally:
         arm.close()
     assert status == Status.SUCCESS, rec.failed_stage
@@ -195,7 +199,8 @@ def test_the_bite_tree_sheds_over_the_bowl(food: str) -> None:
 
     class AtShed(py_trees.visitors.VisitorBase):
         def run(self, b: py_trees.behaviour.Behaviour) -> None:
-            shedding = getattr(b, "bite_stage", None) == "shed" and b.status == Status.RUNNING
+            shedding = (isinstance(b, BiteStage) and b.stage == "shed"
+                        and b.status == Status.RUNNING)
             if shedding and not seen:
                 seen.append(w.tip_pose()[:3, 3].copy())
 

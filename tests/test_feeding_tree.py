@@ -9,6 +9,7 @@ import pytest
 from py_trees.common import Status
 
 from articutool.feeding.behaviours import JobResult, RunPrimitive, ToolModeScope
+from articutool.feeding.system import System
 from articutool.feeding.tree import (
     BiteRecorder,
     safe_stop_reason,
@@ -16,6 +17,8 @@ from articutool.feeding.tree import (
     transport_tree,
 )
 from articutool.tool.api import Mode, PrimitiveStatus, ToolState
+
+ARTICUTOOL, BASELINE = System.of("articutool"), System.of("baseline", tolerance_deg=20.0)
 
 
 class Clock:
@@ -135,6 +138,17 @@ class FakeTool:
         return True
 
 
+class FakeUser:
+    """Takes 2 g each bite, noting the tool's mode then."""
+
+    def __init__(self, tool: FakeTool | None = None) -> None:
+        self.tool, self.bites = tool, []
+
+    def take_bite(self) -> float:
+        self.bites.append(self.tool.mode if self.tool is not None else None)
+        return 2.0
+
+
 def _run(root, clock: Clock, max_ticks: int = 500, every=None):
     py_trees.blackboard.Blackboard.clear()
     tree = py_trees.trees.BehaviourTree(root)
@@ -158,7 +172,7 @@ def _bb_attempts() -> int:
 def test_success_path_plans_verifies_executes_and_restores_the_tool() -> None:
     clock = Clock()
     arm, tool = FakeArm(clock, [True], [True]), FakeTool(clock)
-    tree, rec = _run(transport_tree(arm, tool, "Staging", "decoupled", attempts=3,
+    tree, rec = _run(transport_tree(arm, tool, "Staging", ARTICUTOOL, attempts=3,
                                     budget_s=1.0, clock=clock), clock)
     assert tree.root.status == Status.SUCCESS
     assert arm.executed == ["traj1"] and _bb_attempts() == 1
@@ -171,7 +185,7 @@ def test_success_path_plans_verifies_executes_and_restores_the_tool() -> None:
 def test_planner_failure_then_success_counts_attempts() -> None:
     clock = Clock()
     arm, tool = FakeArm(clock, [False, True], [True]), FakeTool(clock)
-    tree, rec = _run(transport_tree(arm, tool, "Staging", "strict6", attempts=3, budget_s=1.0,
+    tree, rec = _run(transport_tree(arm, tool, "Staging", BASELINE, attempts=3, budget_s=1.0,
                                     clock=clock), clock)
     assert tree.root.status == Status.SUCCESS
     assert _bb_attempts() == 2 and arm.executed == ["traj2"]
@@ -181,12 +195,12 @@ def test_planner_failure_then_success_counts_attempts() -> None:
 def test_verifier_rejection_replans_and_exhausted_attempts_fail_in_words() -> None:
     clock = Clock()
     arm, tool = FakeArm(clock, [], [False, True]), FakeTool(clock)
-    tree, _ = _run(transport_tree(arm, tool, "Staging", "decoupled", attempts=3, budget_s=1.0,
+    tree, _ = _run(transport_tree(arm, tool, "Staging", ARTICUTOOL, attempts=3, budget_s=1.0,
                                   clock=clock), clock)
     assert tree.root.status == Status.SUCCESS and arm.started_plans == 2
     clock = Clock()
     arm, tool = FakeArm(clock, [], [False] * 5), FakeTool(clock)
-    tree, rec = _run(transport_tree(arm, tool, "Staging", "decoupled", attempts=3, budget_s=1.0,
+    tree, rec = _run(transport_tree(arm, tool, "Staging", ARTICUTOOL, attempts=3, budget_s=1.0,
                                     clock=clock), clock)
     assert tree.root.status == Status.FAILURE and arm.started_plans == 3
     assert arm.executed == []
@@ -199,7 +213,7 @@ def test_a_plan_slow_on_the_trees_clock_is_awaited_not_timed_out() -> None:
     machine while the world steps) with a 1 s budget is neither cancelled nor retried."""
     clock = Clock()
     arm, tool = FakeArm(clock, [], [], plan_s=10.0), FakeTool(clock)
-    tree, rec = _run(transport_tree(arm, tool, "Staging", "decoupled", attempts=2, budget_s=1.0,
+    tree, rec = _run(transport_tree(arm, tool, "Staging", ARTICUTOOL, attempts=2, budget_s=1.0,
                                     clock=clock), clock)
     assert tree.root.status == Status.SUCCESS
     assert arm.started_plans == 1 and not any(j.cancelled for j in arm.jobs)
@@ -216,7 +230,7 @@ def test_tool_fault_mid_transport_stops_safely() -> None:
         if k == 10:
             tool.fault = "motor hardware error: roll: OVERLOAD"
 
-    tree, _ = _run(transport_tree(arm, tool, "Staging", "decoupled", attempts=3, budget_s=1.0,
+    tree, _ = _run(transport_tree(arm, tool, "Staging", ARTICUTOOL, attempts=3, budget_s=1.0,
                                   clock=clock), clock, every=fault)
     assert tree.root.status == Status.SUCCESS  # the guard's branch: stopped safely
     assert arm.stopped >= 1 and arm.jobs[-1].cancelled
@@ -228,7 +242,7 @@ def test_the_guard_is_py_trees_eternal_guard_failing_while_safe_and_naming_the_s
     # checked before the task every tick, FAILURE while safe, SUCCESS with the reason after.
     clock = Clock()
     arm, tool = FakeArm(clock, [True], [True], motion_s=5.0), FakeTool(clock)
-    root = transport_tree(arm, tool, "Staging", "decoupled", attempts=3, budget_s=1.0,
+    root = transport_tree(arm, tool, "Staging", ARTICUTOOL, attempts=3, budget_s=1.0,
                           clock=clock)
     guard = root.children[0]
     assert isinstance(guard, py_trees.decorators.EternalGuard)
@@ -258,7 +272,7 @@ def test_preemption_at_any_tick_restores_the_tool_and_cancels_work(k: int) -> No
         if i == k:
             tool.stale = True  # the tool went silent: the guard preempts the task
 
-    _run(transport_tree(arm, tool, "Staging", "decoupled", attempts=3, budget_s=1.0,
+    _run(transport_tree(arm, tool, "Staging", ARTICUTOOL, attempts=3, budget_s=1.0,
                         clock=clock), clock, every=stop)
     assert tool.mode == Mode.DISABLED
     assert all(j.done() for j in arm.jobs)  # nothing left running
@@ -282,7 +296,7 @@ def test_primitive_is_cancelled_when_preempted_and_none_succeeds_at_once() -> No
 
 # ---- the whole bite (articutool.feeding.bite) -------------------------------------------
 
-def _bite(arm, tool, clock, system: str = "articutool", stages=None):
+def _bite(arm, tool, clock, system: str = "articutool", stages=None, user=None):
     from articutool.feeding.bite import STAGES, bite_tree
     from articutool.feeding.insertion import acquisition_waypoints
     from articutool.feeding.strategies import StrategyLibrary
@@ -291,27 +305,71 @@ def _bite(arm, tool, clock, system: str = "articutool", stages=None):
     lib = StrategyLibrary.load(load_spec())
     strat = lib.strategies["noodles_twirl" if system == "articutool" else "noodles_baseline"]
     wps = acquisition_waypoints(strat, [0.45, -0.45, 0.004], [0.0, -1.0, 0.0])
-    return bite_tree(arm, tool, strat, wps, clock, stages=stages or STAGES)
+    return bite_tree(arm, tool, strat, wps, clock, system=System.from_strategy(strat),
+                     user=user or FakeUser(), stages=stages or STAGES)
 
 
 def test_a_whole_bite_runs_its_stages_in_order_and_restores_the_tool() -> None:
+    from articutool.feeding.behaviours import BiteStage, Retreat
+    from articutool.feeding.bite import STAGES
+
     clock = Clock()
     arm, tool = FakeArm(clock, [], []), FakeTool(clock)
-    tree, rec = _run(_bite(arm, tool, clock), clock, max_ticks=2000)
+    user = FakeUser(tool)
+    root = _bite(arm, tool, clock, user=user)
+    assert [n.stage for n in root.iterate() if isinstance(n, BiteStage)] == list(STAGES)
+    assert sum(isinstance(n, Retreat) for n in root.iterate()) == 1
+    tree, rec = _run(root, clock, max_ticks=2000)
     assert tree.root.status == Status.SUCCESS, rec.record.failed_stage
     assert arm.executed == ["traj1", "path to above the food", "path into the food",
                             "path out of the food", "path lift", "traj2", "traj3", "traj4"]
     # Thesis §4.4: TWIRL_CW before insertion, TWIRL_CCW inside, NOODLE_SHED after leveling.
     assert tool.primitives == ["TWIRL_CW", "TWIRL_CCW", "NOODLE_SHED"]
     assert Mode.LEVELING in tool.modes and tool.mode == Mode.DISABLED
+    # The user takes the bite once, at the end of ``present``: still presented (LEVELING),
+    # whatever visitors watch the tree.
+    assert user.bites == [Mode.LEVELING]
+
+
+def test_the_user_takes_no_bite_from_a_bite_that_failed_before_it_was_presented() -> None:
+    clock = Clock()
+    arm, tool = FakeArm(clock, [False] * 10, []), FakeTool(clock)
+    user = FakeUser(tool)
+    tree, _ = _run(_bite(arm, tool, clock, stages=("staging", "present"), user=user), clock)
+    assert tree.root.status == Status.FAILURE and user.bites == []
 
 
 def test_the_baseline_never_levels_with_the_wrist_nor_runs_primitives() -> None:
     clock = Clock()
     arm, tool = FakeArm(clock, [], []), FakeTool(clock)
-    tree, rec = _run(_bite(arm, tool, clock, "baseline"), clock, max_ticks=2000)
+    user = FakeUser(tool)
+    tree, rec = _run(_bite(arm, tool, clock, "baseline", user=user), clock, max_ticks=2000)
     assert tree.root.status == Status.SUCCESS, rec.record.failed_stage
     assert tool.primitives == [] and Mode.LEVELING not in tool.modes
+    assert user.bites == [Mode.DISABLED]  # presented with the wrist locked
+
+
+def test_the_system_is_decided_once_from_its_name_or_strategy() -> None:
+    from articutool.feeding.strategies import StrategyLibrary
+    from articutool.feeding.system import DECOUPLED, LOOSE
+    from articutool.spec import load_spec
+
+    assert (ARTICUTOOL.wrist, ARTICUTOOL.carry) == (True, Mode.LEVELING)
+    assert ARTICUTOOL.transport == ARTICUTOOL.home == DECOUPLED and DECOUPLED.verified
+    assert not LOOSE.verified and LOOSE.name == DECOUPLED.name
+    assert (BASELINE.wrist, BASELINE.carry) == (False, Mode.DISABLED)
+    assert BASELINE.transport == BASELINE.home
+    assert (BASELINE.transport.name, BASELINE.transport.verified,
+            BASELINE.transport.tolerance_deg) == ("strict6", False, 20.0)
+    # The decoupled planner keeps no tolerance (its band is the spec's).
+    assert System.of("articutool", tolerance_deg=20.0) == ARTICUTOOL
+    for s in StrategyLibrary.load(load_spec()).strategies.values():
+        assert System.from_strategy(s) == (ARTICUTOOL if s.system == "articutool"
+                                           else BASELINE), s
+    with pytest.raises(ValueError, match="system: unknown system 'rigid'"):
+        System.of("rigid")
+    with pytest.raises(ValueError, match="planner: a baseline cannot use the decoupled"):
+        System.of("baseline", "decoupled")
 
 
 def test_a_failed_insertion_retreats_to_resting_and_names_the_stage() -> None:
@@ -373,7 +431,8 @@ def test_a_failed_acquisition_is_retried_up_to_the_strategy_s_limit() -> None:
     arm, tool = FakeArm(clock, [], []), FakeTool(clock)
     arm.fail_paths.add("out of the food")
     wps = acquisition_waypoints(s, [0.45, -0.45, 0.0], [0, -1, 0], outline)
-    root = bite_tree(arm, tool, s, wps, clock, stages=("acquire", "resting"))
+    root = bite_tree(arm, tool, s, wps, clock, system=ARTICUTOOL, user=FakeUser(),
+                     stages=("acquire", "resting"))
     tree, _ = _run(root, clock, max_ticks=2000)
     assert tree.root.status == Status.FAILURE
     assert arm.executed.count("path into the food") == 3  # three tries, then the retreat
@@ -393,19 +452,19 @@ def test_the_trees_timeout_does_not_count_the_wait_for_a_plan() -> None:
     def step(dt: float) -> None:
         clock.t += dt
 
-    status, rec = run_tree(transport_tree(arm, tool, "Staging", "decoupled", attempts=2,
-                                          budget_s=1.0, clock=clock), step, clock,
-                           timeout_s=20.0)
-    assert status == Status.SUCCESS and arm.executed == ["traj1"], rec.failures
-    assert rec.planning_wait_sim_s == pytest.approx(50.0, abs=0.11)
+    run = run_tree(transport_tree(arm, tool, "Staging", ARTICUTOOL, attempts=2,
+                                  budget_s=1.0, clock=clock), step, clock, timeout_s=20.0)
+    assert run.status == Status.SUCCESS and arm.executed == ["traj1"], run.record.failures
+    assert run.end == "completed"
+    assert run.record.planning_wait_sim_s == pytest.approx(50.0, abs=0.11)
     # Work that is not planning still times out: a motion longer than the timeout.
     py_trees.blackboard.Blackboard.clear()
     clock = Clock()
     arm, tool = FakeArm(clock, [], [], plan_s=0.2, motion_s=30.0), FakeTool(clock)
-    status, rec = run_tree(transport_tree(arm, tool, "Staging", "decoupled", attempts=2,
-                                          budget_s=1.0, clock=clock), step, clock,
-                           timeout_s=20.0)
-    assert status == Status.FAILURE and "did not finish within 20 s" in rec.failed_stage
+    run = run_tree(transport_tree(arm, tool, "Staging", ARTICUTOOL, attempts=2,
+                                  budget_s=1.0, clock=clock), step, clock, timeout_s=20.0)
+    assert run.status == Status.FAILURE and run.end == "timed_out"
+    assert "did not finish within 20 s" in run.record.failed_stage
     assert all(j.done() for j in arm.jobs)
 
 
@@ -423,10 +482,11 @@ def test_run_tree_reports_a_safe_stop_as_a_failure_naming_its_reason() -> None:
         if clock.t >= 1.0:
             tool.fault = "motor hardware error: roll: OVERLOAD"
 
-    status, rec = run_tree(transport_tree(arm, tool, "Staging", "decoupled", attempts=3,
-                                          budget_s=1.0, clock=clock), step, clock)
-    assert status == Status.FAILURE
-    assert rec.failed_stage == "Safe stop: tool fault: motor hardware error: roll: OVERLOAD"
+    run = run_tree(transport_tree(arm, tool, "Staging", ARTICUTOOL, attempts=3,
+                                  budget_s=1.0, clock=clock), step, clock)
+    assert run.status == Status.FAILURE and run.end == "stopped"
+    assert run.record.failed_stage == ("Safe stop: tool fault: motor hardware error: roll: "
+                                       "OVERLOAD")
     assert tool.mode == Mode.DISABLED and arm.stopped >= 1
 
 
@@ -492,7 +552,8 @@ def test_the_food_check_before_a_transport_is_a_bite_setting_the_thesis_systems_
     wps = acquisition_waypoints(strat, [0.45, -0.45, 0.004], [0.0, -1.0, 0.0])
 
     def checks(settings: BiteSettings) -> int:
-        root = bite_tree(arm, tool, strat, wps, clock, stages=STAGES, settings=settings)
+        root = bite_tree(arm, tool, strat, wps, clock, system=ARTICUTOOL, user=FakeUser(),
+                         stages=STAGES, settings=settings)
         return sum(isinstance(b, CheckFood) for b in root.iterate())
 
     assert checks(BiteSettings()) == 2  # to Resting and to Staging

@@ -15,6 +15,7 @@ from py_trees.common import Status
 
 from articutool.arm.scene import Scene
 from articutool.feeding.behaviours import JobResult
+from articutool.feeding.system import System
 from articutool.feeding.tree import BiteRecorder, tick_until_done, transport_tree
 from articutool.food.loads import food_load
 from articutool.meal.sim_arm import FoodDecision, SimArm
@@ -114,9 +115,10 @@ class CheckingArm(FakeArm):
         return self.sim.check_food(trajectory)
 
 
-def _run(arm: FakeArm, tool: FakeTool, clock: Clock, planner: str = "decoupled"):
+def _run(arm: FakeArm, tool: FakeTool, clock: Clock, system: str = "articutool"):
     py_trees.blackboard.Blackboard.clear()
-    root = transport_tree(arm, tool, "Staging", planner, attempts=len(arm.trajs) or 1,
+    root = transport_tree(arm, tool, "Staging", System.of(system, tolerance_deg=20.0),
+                          attempts=len(arm.trajs) or 1,
                           budget_s=1.0, clock=clock, food=True)
     tree = py_trees.trees.BehaviourTree(root)
     rec = BiteRecorder(clock)
@@ -153,7 +155,7 @@ def test_a_transport_that_cannot_be_made_spill_free_fails_the_attempt_with_the_r
     clock, tool = Clock(), FakeTool(Clock())
     tool.clock = clock
     arm = CheckingArm(clock, _sim_arm(_water(8.0), rigid=True), [FAST, FAST])
-    status, record = _run(arm, tool, clock, planner="strict6")
+    status, record = _run(arm, tool, clock, system="baseline")
     assert status == Status.FAILURE and arm.executed == []
     assert any("predicted to spill" in why for _, why in record.failures)
 

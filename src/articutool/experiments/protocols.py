@@ -49,6 +49,7 @@ if TYPE_CHECKING:
     import py_trees
 
     from articutool.feeding.bite import BiteSettings
+    from articutool.feeding.system import System
 
 __all__ = ["BITE_PROTOCOLS", "Hook", "capacity_strategy", "capacity_trial", "closed_loop_params",
            "closed_loop_target_g", "exp1_trial", "exp2b_trial", "exp2c_trial", "exp3_trial",
@@ -92,13 +93,14 @@ def _masses(world: FeedingWorld) -> dict[str, float]:
     return {k: _r(v) for k, v in world.masses_g().items()}
 
 
-def transport(world: FeedingWorld, arm: SimArm, goal: str, planner: str, *, attempts: int,
+def transport(world: FeedingWorld, arm: SimArm, goal: str, system: System, *, attempts: int,
               cfg: ExperimentsConfig, visitors: Visitors = (), food: bool = False
               ) -> dict[str, Any]:
-    """Run the feeding tree's transport subtree (plan → verify → execute, bounded attempts,
-    the tool's mode scoped; ``food``: the food-aware check of ``arm``'s load before
-    executing) to ``goal``, with ``visitors`` on the tree; then hold still ``settle_s``.
-    Returns what the tree recorded and the tilt the utensil reached on the way."""
+    """Run ``system``'s transport subtree of the feeding tree (plan → verify → execute,
+    bounded attempts, the tool's mode scoped; ``food``: the food-aware check of ``arm``'s
+    load before executing) to ``goal``, with ``visitors`` on the tree; then hold still
+    ``settle_s``. Returns what the tree recorded and the tilt the utensil reached on the
+    way."""
     import py_trees
     from py_trees.common import Status
 
@@ -113,16 +115,17 @@ def transport(world: FeedingWorld, arm: SimArm, goal: str, planner: str, *, atte
 
     world.on_tick.append(watch)
     try:
-        root = transport_tree(arm, world.tool, goal, planner, attempts=attempts,
+        root = transport_tree(arm, world.tool, goal, system, attempts=attempts,
                               budget_s=s.plan_budget_s, clock=lambda: world.time, food=food)
-        status, rec = run_tree(root, world.run, lambda: world.time, timeout_s=s.tree_timeout_s,
-                               visitors=visitors)
+        run = run_tree(root, world.run, lambda: world.time, timeout_s=s.tree_timeout_s,
+                       visitors=visitors)
     finally:
         world.on_tick.remove(watch)
     attempts_used = py_trees.blackboard.Blackboard.get(f"/bite/planning_attempts_{goal}")
     world.run(s.settle_s)
+    rec = run.record
     return {
-        "completed": status == Status.SUCCESS,
+        "completed": run.status == Status.SUCCESS,
         "planning_attempts": int(attempts_used or 0),
         "planning_wall_s": _r(rec.planning_wall_s),
         "planning_wait_sim_s": _r(rec.planning_wait_sim_s),
@@ -239,14 +242,18 @@ def exp2b_trial(cond: Exp2bCondition, seed: int, cfg: ExperimentsConfig,
                 settled: SettleCache | None = None) -> Exp2bOutcome:
     """Exp. 2b: load placed at the common start, carried to ``cond.goal``."""
     from articutool.arm.scene import Scene
+    from articutool.feeding.system import System
     from articutool.meal.sim_arm import world_load
     from articutool.tool.api import Mode
 
-    food, system, goal = cond.food, cond.system, cond.goal
+    food, name, goal = cond.food, cond.system, cond.goal
     if goal is None:
         raise ValueError("an Exp. 2b trial needs its goal")
-    variant = cfg.exp2b.variants.get(system)
-    base = variant.system if variant is not None else system
+    variant = cfg.exp2b.variants.get(name)
+    base = variant.system if variant is not None else name
+    # The thesis' systems: the Articutool's own planner, the baseline's strict6 at the
+    # experiments' tolerance.
+    system = System.of(base, tolerance_deg=cfg.settings.arm_tolerance_deg)
     sset = Scene.load().staging_set
     if sset is None:
         raise ValueError("the scene has no [staging_set]")
@@ -256,27 +263,25 @@ def exp2b_trial(cond: Exp2bCondition, seed: int, cfg: ExperimentsConfig,
     if hook:
         hook(w)
     goals = {g.name: g.q for g in sset.goals}
-    articutool = base == "articutool"
-    tol = None if articutool else cfg.settings.arm_tolerance_deg
+    tol = system.transport.tolerance_deg
     checked = variant is not None and variant.food_check
     arm = _GoalArm(w, goals, tolerance_deg=tol, seed=seed,
                    load=(lambda: world_load(w)) if checked else None,
                    leveling=variant.leveling if variant is not None else "gravity")
     try:
-        if articutool:
+        if system.wrist:
             w.tool.set_mode(Mode.LEVELING)
         w.run(1.0)
         w.tare_ft(0.3)
         held = w.place_load(settle_s=cfg.settings.settle_s)
         before, n_spills, start = w.masses_g(), len(w.spills), w.item_classes()
-        tr = transport(w, arm, goal, "decoupled" if articutool else "strict6",
-                       attempts=_plan_attempts(food, base), cfg=cfg, visitors=visitors,
-                       food=checked)
+        tr = transport(w, arm, goal, system, attempts=_plan_attempts(food, base), cfg=cfg,
+                       visitors=visitors, food=checked)
     finally:
         arm.close()
     return Exp2bOutcome.model_validate({
-        "load_g": load, "held_g": _r(held), "planner": "decoupled" if articutool
-        else "strict6", "tolerance_deg": tol, **tr,
+        "load_g": load, "held_g": _r(held), "planner": system.transport.name,
+        "tolerance_deg": tol, **tr,
         **transport_outcome(w, start, n_spills, before), "weighed_g": _r(w.carried_g()),
         "masses_after_g": _masses(w), "realtime_factor": _r(w.realtime_factor)})
 
@@ -301,6 +306,7 @@ def exp2c_trial(cond: Exp2cCondition, seed: int, cfg: ExperimentsConfig,
     Staging with the Articutool."""
     from articutool.arm.scene import Scene
     from articutool.feeding.strategies import StrategyLibrary
+    from articutool.feeding.system import System
     from articutool.meal.bites import shed_configuration
     from articutool.spec import load_spec
     from articutool.tool.api import Mode
@@ -338,7 +344,7 @@ def exp2c_trial(cond: Exp2cCondition, seed: int, cfg: ExperimentsConfig,
                     "primitive_message": msg if not ok else (st.message if st else "")}
         before, n_before, start = w.masses_g(), len(w.spills), w.item_classes()
         spills_primitive = acc.spilled_by_place(w.spills, n_loaded)
-        tr = transport(w, arm, "Staging", strat.transport.planner,
+        tr = transport(w, arm, "Staging", System.from_strategy(strat),
                        attempts=strat.attempts.plan, cfg=cfg, visitors=visitors)
     finally:
         arm.close()

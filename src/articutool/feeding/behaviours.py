@@ -1,9 +1,10 @@
 """py_trees behaviours of the feeding tree (thesis §3.2.1, §4.3), and the interfaces
 they talk to.
 
-The tree reaches the arm only through :class:`ArmInterface` and the tool only through
-:class:`~articutool.tool.api.ToolAPI`, so the same tree drives the physics world, a real arm
-driver or a ROS 2 bridge, and the in-process tool runtime or a client over Zenoh. Long actions
+The tree reaches the arm only through :class:`ArmInterface`, the tool only through
+:class:`~articutool.tool.api.ToolAPI` and the user only through :class:`User`, so the same
+tree drives the physics world, a real arm driver or a ROS 2 bridge, the in-process tool
+runtime or a client over Zenoh, and the simulated user or a real one. Long actions
 (planning, arm motions, primitives) are *jobs*: started in ``initialise``, polled in ``update``
 (never waited for), cancelled in ``terminate`` when preempted.
 
@@ -28,6 +29,7 @@ from articutool.tool.api import ABORTED_BY_MODE_CHANGE, Mode, ToolAPI
 __all__ = [
     "ArmInterface",
     "Attempts",
+    "BiteStage",
     "CheckFood",
     "Execute",
     "Job",
@@ -35,11 +37,14 @@ __all__ = [
     "Plan",
     "PlanLift",
     "PlanPath",
+    "Retreat",
     "RunPrimitive",
     "SafeStop",
     "SafetyGuard",
     "Settle",
+    "TakeBite",
     "ToolModeScope",
+    "User",
     "Verify",
 ]
 
@@ -109,6 +114,13 @@ class ArmInterface(Protocol):
 
     def stop(self) -> None:
         """Stop the arm now."""
+
+
+class User(Protocol):
+    """What the tree needs of the person it feeds (the simulated user in the physics world)."""
+
+    def take_bite(self) -> float:
+        """The user takes the bite presented to them off the utensil; returns its grams."""
 
 
 def _bb(b: py_trees.behaviour.Behaviour, *keys: tuple[str, Access]) -> Any:
@@ -235,6 +247,39 @@ class Settle(py_trees.behaviour.Behaviour):
         if not self._ok:
             return Status.FAILURE  # refused: the message says why
         return Status.RUNNING if self.clock() < self._until else Status.SUCCESS
+
+
+class TakeBite(py_trees.behaviour.Behaviour):
+    """The user takes the presented bite (:meth:`User.take_bite`), in the tick the
+    presentation ends; it succeeds with the grams taken as feedback."""
+
+    def __init__(self, user: User) -> None:
+        super().__init__("the user takes the bite")
+        self.user = user
+
+    def update(self) -> Status:
+        self.feedback_message = f"{self.user.take_bite():.2f} g taken"
+        return Status.SUCCESS
+
+
+class BiteStage(py_trees.composites.Sequence):
+    """One stage of a bite (``stage``: a name of :data:`articutool.feeding.bite.STAGES`),
+    the sequence of its steps; what watches the bite (telemetry, the food at each stage's
+    end, the progress display) finds the stages by this class."""
+
+    def __init__(self, stage: str, children: list[py_trees.behaviour.Behaviour],
+                 name: str | None = None) -> None:
+        super().__init__(name or stage, memory=True, children=children)
+        self.stage = stage
+
+
+class Retreat(py_trees.decorators.SuccessIsFailure):
+    """A failed bite's retreat: ``child`` takes the arm away, and the bite still fails
+    (py_trees' SuccessIsFailure); the telemetry keeps the failure that caused it."""
+
+    def __init__(self, child: py_trees.behaviour.Behaviour,
+                 name: str = "retreat (the bite failed)") -> None:
+        super().__init__(name=name, child=child)
 
 
 class Verify(py_trees.behaviour.Behaviour):

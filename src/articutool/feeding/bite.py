@@ -12,7 +12,9 @@ Stages, in order (:data:`STAGES`; a bite may run any ordered subset, e.g. Exp. 1
 - ``resting``: transport to Resting (plan → verify → check the food → execute, bounded
   attempts; the food check retimes a transport predicted to spill, or re-plans);
 - ``staging``: transport to Staging (the same; the thesis' planning attempts count here);
-- ``present``: hold the bite still at Staging for the user;
+- ``present``: hold the bite still at Staging for the user, who then takes it
+  (:class:`~articutool.feeding.behaviours.TakeBite`: the
+  :class:`~articutool.feeding.behaviours.User` interface);
 - ``return``:  move back to Resting.
 
 Shape::
@@ -21,13 +23,15 @@ Shape::
       EternalGuard "Unsafe?"             -> Safe stop (arm stopped, tool DISABLED)
       Selector "bite or retreat"         (memory)
         ToolModeScope <carry mode> (then DISABLED)
-          Sequence "bite steps"          one subtree per stage
-        SuccessIsFailure "retreat"       a failed bite moves to Resting and still fails
+          Sequence "bite steps"          one BiteStage per stage
+        Retreat                          a failed bite moves to Resting and still fails
           ToolModeScope ... move to Resting
 
-The carry mode is LEVELING for the Articutool and DISABLED (wrist locked) for the rigid
-6-DOF baseline; a primitive runs with the tool DISABLED first (the runtime refuses primitives
-while leveling) and the carry mode is restored after it, whatever happened.
+What differs between the systems comes from their
+:class:`~articutool.feeding.system.System`: the carry mode is LEVELING for the Articutool and
+DISABLED (wrist locked) for the rigid 6-DOF baseline, and the planners are the system's. A
+primitive runs with the tool DISABLED first (the runtime refuses primitives while leveling)
+and the carry mode is restored after it, whatever happened.
 """
 
 from __future__ import annotations
@@ -40,16 +44,21 @@ import py_trees
 from articutool.feeding.behaviours import (
     ArmInterface,
     Attempts,
+    BiteStage,
     Execute,
     PlanLift,
     PlanPath,
+    Retreat,
     RunPrimitive,
     Settle,
+    TakeBite,
     ToolModeScope,
+    User,
 )
 from articutool.feeding.insertion import TipWaypoint
 from articutool.feeding.strategies import Stage, Strategy
-from articutool.feeding.tree import guarded, motion
+from articutool.feeding.system import LOOSE, System
+from articutool.feeding.tree import guarded, motion, motion_steps
 from articutool.tool.api import Mode, ToolAPI
 
 __all__ = ["STAGES", "BiteSettings", "bite_tree", "stage_tree"]
@@ -90,21 +99,20 @@ def _primitive(tool: ToolAPI, stage: Stage, name: str, carry: Mode
 
 
 def stage_tree(name: str, arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
-               waypoints: dict[str, list[TipWaypoint]], clock: Callable[[], float],
-               settings: BiteSettings = BiteSettings()) -> py_trees.behaviour.Behaviour:
-    """The subtree of one stage (see the module doc); ``waypoints`` from
-    :func:`articutool.feeding.insertion.acquisition_waypoints`."""
-    wrist = strategy.system == "articutool"
-    carry = Mode.LEVELING if wrist else Mode.DISABLED
-    planner = strategy.transport.planner
+               waypoints: dict[str, list[TipWaypoint]], clock: Callable[[], float], *,
+               system: System, user: User, settings: BiteSettings = BiteSettings()
+               ) -> BiteStage:
+    """The subtree of one stage (see the module doc) for ``system``; ``waypoints`` from
+    :func:`articutool.feeding.insertion.acquisition_waypoints`; ``user`` takes the bite at
+    the end of ``present``."""
+    wrist, carry = system.wrist, system.carry
     plan_kw = {"attempts": strategy.attempts.plan, "budget_s": settings.budget_s}
     seq = py_trees.composites.Sequence
     st = strategy.stages
     if name == "above":
         # Empty utensil: the loose planner, no verification, the wrist holding (§4.3.1).
-        return seq("above", memory=True, children=[
-            motion(arm, "AbovePlate", "decoupled", verify=False, **plan_kw),
-            _path(arm, "to above the food", waypoints["above"])])
+        return BiteStage("above", [motion(arm, "AbovePlate", LOOSE, **plan_kw),
+                                   _path(arm, "to above the food", waypoints["above"])])
     if name == "acquire":
         steps = [_primitive(tool, st.pre_move_into, "pre-move-into", Mode.DISABLED),
                  _path(arm, "into the food", waypoints["into"],
@@ -118,46 +126,47 @@ def stage_tree(name: str, arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
             PlanLift(arm, settings.lift_m), Execute(arm, "lift")]))
         # Bounded retries of the whole acquisition (each from the above-food pose).
         n = strategy.attempts.acquire
-        return Attempts(seq("acquire steps", memory=True, children=steps), n,
-                        "acquisition_attempts", name=f"acquire (up to {n} attempts)")
+        return BiteStage("acquire", [Attempts(seq("acquire steps", memory=True, children=steps),
+                                              n, "acquisition_attempts")])
     if name == "shed":
         steps = [_primitive(tool, st.post_acquisition, "post-acquisition", carry)]
         if wrist:
             steps.append(Settle(tool, Mode.LEVELING, settings.level_s / 2, clock))
-        return seq("shed", memory=True, children=steps)
+        return BiteStage("shed", steps)
     if name in ("resting", "staging"):
         goal = name.capitalize()
-        return motion(arm, goal, planner, name=f"transport to {goal}",
-                      food=settings.food_check, tool=tool,
-                      clock=clock, then=carry if wrist else None, **plan_kw)
+        return BiteStage(name, motion_steps(arm, goal, system.transport,
+                                            food=settings.food_check, tool=tool, clock=clock,
+                                            then=carry if wrist else None, **plan_kw),
+                         name=f"transport to {goal}")
     if name == "present":
-        return Settle(tool, carry, settings.present_s, clock,
-                      name=f"present at Staging {settings.present_s:g} s ({carry.name})")
+        hold = Settle(tool, carry, settings.present_s, clock,
+                      name=f"hold {settings.present_s:g} s ({carry.name})")
+        return BiteStage("present", [hold, TakeBite(user)], name="present at Staging")
     if name == "return":
-        return motion(arm, "Resting", "decoupled" if wrist else planner,
-                      name="return to Resting", **plan_kw)
+        return BiteStage("return", motion_steps(arm, "Resting", system.home, **plan_kw),
+                         name="return to Resting")
     raise ValueError(f"stage: unknown stage {name!r}; known: {', '.join(STAGES)}")
 
 
 def bite_tree(arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
               waypoints: dict[str, list[TipWaypoint]], clock: Callable[[], float], *,
-              stages: Sequence[str] = STAGES, settings: BiteSettings = BiteSettings()
-              ) -> py_trees.behaviour.Behaviour:
-    """One bite (see the module doc): ``stages`` in :data:`STAGES` order."""
+              system: System, user: User, stages: Sequence[str] = STAGES,
+              settings: BiteSettings = BiteSettings()) -> py_trees.behaviour.Behaviour:
+    """One bite of ``strategy`` with ``system`` (see the module doc): ``stages`` in
+    :data:`STAGES` order; ``user`` takes the bite at the end of ``present``."""
     unknown = [s for s in stages if s not in STAGES]
     if unknown or not stages:
         raise ValueError(f"stages: unknown or empty {unknown}; known: {', '.join(STAGES)}")
     if list(stages) != sorted(stages, key=STAGES.index):
         raise ValueError(f"stages must be in the order {', '.join(STAGES)}")
-    carry = Mode.LEVELING if strategy.system == "articutool" else Mode.DISABLED
+    carry = system.carry
     # Before acquisition the utensil is empty: the wrist holds (DISABLED); the carry mode
     # starts with the tool-only leveling inside ``acquire``.
     first_mode = Mode.DISABLED if stages[0] in ("above", "acquire") else carry
-    subtrees = []
-    for s in stages:
-        sub = stage_tree(s, arm, tool, strategy, waypoints, clock, settings)
-        sub.bite_stage = s  # type: ignore[attr-defined]  # for visitors (telemetry, ledger)
-        subtrees.append(sub)
+    subtrees: list[py_trees.behaviour.Behaviour] = [
+        stage_tree(s, arm, tool, strategy, waypoints, clock, system=system, user=user,
+                   settings=settings) for s in stages]
     steps = py_trees.composites.Sequence("bite steps", memory=True, children=subtrees)
     # A failed bite retreats: up out of the container (if the lift fails, from where it is),
     # then to Resting; the bite still fails.
@@ -165,15 +174,11 @@ def bite_tree(arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
         name="up if possible", child=py_trees.composites.Sequence(
             "retreat lift", memory=True,
             children=[PlanLift(arm, settings.lift_m), Execute(arm, "retreat lift")]))
-    home = motion(arm, "Resting", strategy.transport.planner if carry is Mode.DISABLED
-                  else "decoupled", attempts=strategy.attempts.plan,
+    home = motion(arm, "Resting", system.home, attempts=strategy.attempts.plan,
                   budget_s=settings.budget_s)
-    retreat = py_trees.decorators.SuccessIsFailure(
-        name="retreat (the bite failed)",
-        child=ToolModeScope(py_trees.composites.Sequence("retreat", memory=True,
-                                                         children=[lift, home]),
-                            tool, carry, Mode.DISABLED))
-    retreat.is_retreat = True  # type: ignore[attr-defined]  # the recorder keeps the cause
+    retreat = Retreat(ToolModeScope(py_trees.composites.Sequence("retreat", memory=True,
+                                                                 children=[lift, home]),
+                                    tool, carry, Mode.DISABLED))
     body = py_trees.composites.Selector("bite or retreat", memory=True, children=[
         ToolModeScope(steps, tool, first_mode, Mode.DISABLED), retreat])
     return guarded(body, arm, tool, clock, settings.stale_s)

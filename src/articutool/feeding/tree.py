@@ -1,6 +1,6 @@
-"""Assembling the feeding tree: the transport subtree with plan → verify → execute,
-bounded attempts, the tool's mode scoped, a safety guard at the root, and a visitor that
-records the bite's telemetry.
+"""Assembling and running the feeding tree: the transport subtree with plan → verify →
+execute, bounded attempts, the tool's mode scoped, a safety guard at the root, a visitor that
+records the bite's telemetry, and the one runner that ticks a tree (:func:`run_tree`).
 
 Each attempt's budget is the planner's own (``budget_s`` of wall time inside ``plan()``, as
 OMPL counts it), never the simulated clock. While a plan is computed in its worker
@@ -12,13 +12,16 @@ Shape of :func:`transport_tree`::
 
     Selector "bite" (no memory: the guard is checked every tick)
       EternalGuard "Unsafe?"    -> Safe stop (py_trees' EternalGuard: checked every tick)
-      ToolModeScope LEVELING (then DISABLED)
+      ToolModeScope <carry mode> (then DISABLED)
         Sequence "transport"
           Attempts "up to N attempts"    (planning_attempts_<goal> on the blackboard)
             Sequence "plan+verify"  Plan (the planner's own budget) -> Verify
                                     [-> Check the food: retime until predicted spill-free]
           Execute motion            (a slosh-free wrist trajectory goes to the tool; then
                                      LEVELING again)
+
+The carry mode is the system's (:class:`~articutool.feeding.system.System`): LEVELING for the
+Articutool, DISABLED (wrist locked) for the rigid baseline.
 """
 
 from __future__ import annotations
@@ -37,15 +40,17 @@ from articutool.feeding.behaviours import (
     Execute,
     Plan,
     PlanPath,
+    Retreat,
     SafeStop,
     SafetyGuard,
     ToolModeScope,
     Verify,
 )
+from articutool.feeding.system import Planner, System
 from articutool.tool.api import Mode, ToolAPI
 
-__all__ = ["BiteRecorder", "ClockedTimeout", "guarded", "motion", "run_tree", "safe_stop_reason",
-           "tick_until_done", "transport_tree"]
+__all__ = ["BiteRecorder", "ClockedTimeout", "TreeRun", "guarded", "motion", "motion_steps",
+           "run_tree", "safe_stop_reason", "tick_until_done", "transport_tree"]
 
 
 class ClockedTimeout(py_trees.decorators.Timeout):
@@ -68,28 +73,37 @@ class ClockedTimeout(py_trees.decorators.Timeout):
         return self.decorated.status
 
 
-def motion(arm: ArmInterface, goal: str, planner: str, *, attempts: int, budget_s: float,
-           verify: bool | None = None, name: str | None = None, food: bool = False,
-           tool: ToolAPI | None = None, clock: Callable[[], float] | None = None,
-           then: Mode | None = None) -> py_trees.behaviour.Behaviour:
-    """Move the arm to a named goal: bounded attempts of (plan → verify → check the food),
-    then execute. Each plan gets ``budget_s`` of the planner's own wall time (see the module
-    doc). ``verify`` (default: for the decoupled planner) adds plan-then-verify (Alg. 2,
-    thesis §4.2); a strict plan's constraint is the planner's own. ``food`` adds the
-    food-aware check (:class:`CheckFood`: retimed until predicted spill-free, or re-planned);
-    with ``tool`` and ``clock`` a trajectory carrying the wrist's joints (slosh-free leveling)
-    sends them to the tool, whose mode is ``then`` afterwards. Attempts are counted on the
-    blackboard as ``planning_attempts_<goal>``."""
-    steps: list[py_trees.behaviour.Behaviour] = [Plan(arm, goal, planner, budget_s)]
-    if verify if verify is not None else planner == "decoupled":
+def motion_steps(arm: ArmInterface, goal: str, planner: Planner, *, attempts: int,
+                 budget_s: float, food: bool = False, tool: ToolAPI | None = None,
+                 clock: Callable[[], float] | None = None, then: Mode | None = None
+                 ) -> list[py_trees.behaviour.Behaviour]:
+    """The steps of :func:`motion`, for a sequence of the caller's (a bite's stage)."""
+    steps: list[py_trees.behaviour.Behaviour] = [Plan(arm, goal, planner.name, budget_s)]
+    if planner.verified:
         steps.append(Verify(arm))
     if food:
         steps.append(CheckFood(arm))
     plan_verify = py_trees.composites.Sequence("plan+verify", memory=True, children=steps)
     tries = Attempts(plan_verify, attempts, f"planning_attempts_{goal}")
+    return [tries, Execute(arm, f"to {goal}", tool, clock, then)]
+
+
+def motion(arm: ArmInterface, goal: str, planner: Planner, *, attempts: int, budget_s: float,
+           food: bool = False, tool: ToolAPI | None = None,
+           clock: Callable[[], float] | None = None, then: Mode | None = None
+           ) -> py_trees.behaviour.Behaviour:
+    """Move the arm to a named goal: bounded attempts of (plan → verify → check the food),
+    then execute. Each plan gets ``budget_s`` of the planner's own wall time (see the module
+    doc). A ``planner`` that is ``verified`` adds plan-then-verify (Alg. 2, thesis §4.2); a
+    strict plan's constraint is the planner's own. ``food`` adds the food-aware check
+    (:class:`CheckFood`: retimed until predicted spill-free, or re-planned); with ``tool``
+    and ``clock`` a trajectory carrying the wrist's joints (slosh-free leveling) sends them
+    to the tool, whose mode is ``then`` afterwards. Attempts are counted on the blackboard as
+    ``planning_attempts_<goal>``."""
     return py_trees.composites.Sequence(
-        name or f"move to {goal}", memory=True,
-        children=[tries, Execute(arm, f"to {goal}", tool, clock, then)])
+        f"move to {goal}", memory=True,
+        children=motion_steps(arm, goal, planner, attempts=attempts, budget_s=budget_s,
+                              food=food, tool=tool, clock=clock, then=then))
 
 
 def guarded(child: py_trees.behaviour.Behaviour, arm: ArmInterface, tool: ToolAPI,
@@ -112,16 +126,16 @@ def safe_stop_reason(root: py_trees.behaviour.Behaviour) -> str | None:
     return None
 
 
-def transport_tree(arm: ArmInterface, tool: ToolAPI, goal: str, planner: str, *,
+def transport_tree(arm: ArmInterface, tool: ToolAPI, goal: str, system: System, *,
                    attempts: int, budget_s: float, clock: Callable[[], float],
                    stale_s: float = 0.5, food: bool = False) -> py_trees.behaviour.Behaviour:
-    """The transport subtree (see the module doc): it runs alone as a tree. ``food`` checks
-    the load before executing (:func:`motion`)."""
-    # The decoupled arm needs the wrist leveling; a strict (baseline) plan keeps it locked.
-    mode = Mode.LEVELING if planner == "decoupled" else Mode.DISABLED
-    move = motion(arm, goal, planner, attempts=attempts, budget_s=budget_s, food=food,
-                  tool=tool, clock=clock, then=mode if mode == Mode.LEVELING else None)
-    return guarded(ToolModeScope(move, tool, mode, Mode.DISABLED), arm, tool, clock, stale_s)
+    """The transport subtree of ``system`` (see the module doc): it runs alone as a tree.
+    ``food`` checks the load before executing (:func:`motion`)."""
+    move = motion(arm, goal, system.transport, attempts=attempts, budget_s=budget_s,
+                  food=food, tool=tool, clock=clock,
+                  then=system.carry if system.wrist else None)
+    return guarded(ToolModeScope(move, tool, system.carry, Mode.DISABLED), arm, tool, clock,
+                   stale_s)
 
 
 @dataclass
@@ -135,7 +149,8 @@ class BiteRecord:
     motion_time_s: float = 0.0  # on the tree's clock
     # Every leaf failure in order (behaviour, reason).
     failures: list[tuple[str, str]] = field(default_factory=list)
-    # The failure that made the bite retreat (a retreat's own failures come after it).
+    # The failure that ended the bite: the one that made it retreat (a retreat's own
+    # failures come after it), or the guard's safe stop.
     cause: tuple[str, str] | None = None
     # Every food check before a transport (what was done — retimed, slosh-free — and the
     # prediction), in order.
@@ -143,8 +158,8 @@ class BiteRecord:
 
     @property
     def failed_stage(self) -> str:
-        """What failed and why, in words: the failure that made the bite retreat, else the
-        last leaf that failed (empty if none failed)."""
+        """What failed and why, in words: the failure that ended the bite, else the last
+        leaf that failed (empty if none failed)."""
         f = self.cause or (self.failures[-1] if self.failures else None)
         return f"{f[0]}: {f[1]}" if f else ""
 
@@ -215,23 +230,35 @@ class BiteRecorder(py_trees.visitors.VisitorBase):
 def _in_retreat(behaviour: py_trees.behaviour.Behaviour) -> bool:
     node: py_trees.behaviour.Behaviour | None = behaviour
     while node is not None:
-        if getattr(node, "is_retreat", False):
+        if isinstance(node, Retreat):
             return True
         node = node.parent
     return False
 
 
+@dataclass(frozen=True)
+class TreeRun:
+    """How a run of a tree ended (:func:`run_tree`)."""
+
+    status: Status  # SUCCESS only when the tree completed
+    # "completed"; "failed" (the tree failed); "stopped" (the guard's safe stop: a tool
+    # fault, stale tool state or a stop request); "timed_out" (the run's time limit)
+    end: str
+    record: BiteRecord
+
+
 def run_tree(root: py_trees.behaviour.Behaviour, step: Callable[[float], None],
              clock: Callable[[], float], *, period_s: float = 0.1,
              timeout_s: float = 120.0,
-             visitors: Sequence[py_trees.visitors.VisitorBase] = ()
-             ) -> tuple[Status, BiteRecord]:
-    """Tick ``root`` every ``period_s`` of ``clock`` until it ends or ``timeout_s`` passes
-    (not counting the waits for plans, :meth:`BiteRecorder.planning_wait_s`), calling
-    ``step(period_s)`` between ticks (the physics world's ``run``); returns the final status
-    and the telemetry. A timeout stops the tree (its clean-up runs); a safe stop by the guard
-    is a FAILURE whose recorded reason is the guard's. ``visitors`` join the tree's own (e.g.
-    a recording's :attr:`~articutool.sim.mcap_record.WorldMcapRecorder.tree_visitor`)."""
+             visitors: Sequence[py_trees.visitors.VisitorBase] = ()) -> TreeRun:
+    """The one runner of the feeding trees: tick ``root`` every ``period_s`` of ``clock``
+    until it ends or ``timeout_s`` passes (not counting the waits for plans,
+    :meth:`BiteRecorder.planning_wait_s`), calling ``step(period_s)`` between ticks (the
+    physics world's ``run``; :func:`tick_until_done`); returns how it ended and the
+    telemetry. A timeout stops the tree (its clean-up runs); a safe stop by the guard is a
+    FAILURE whose recorded cause is the guard's reason. ``visitors`` join the tree's own
+    (e.g. a bite's food ledger, or a recording's
+    :attr:`~articutool.sim.mcap_record.WorldMcapRecorder.tree_visitor`)."""
     tree = py_trees.trees.BehaviourTree(root)
     rec = BiteRecorder(clock)
     tree.visitors += [rec, *visitors]
@@ -239,12 +266,13 @@ def run_tree(root: py_trees.behaviour.Behaviour, step: Callable[[float], None],
     status = tick_until_done(tree, rec, step, clock, period_s=period_s, timeout_s=timeout_s)
     if status is None:
         rec.record.failures.append((root.name, f"did not finish within {timeout_s:g} s"))
-        return Status.FAILURE, rec.record
+        return TreeRun(Status.FAILURE, "timed_out", rec.record)
     stopped = safe_stop_reason(tree.root)
-    if stopped is None:
-        return status, rec.record
-    rec.record.failures.append(("Safe stop", stopped))
-    return Status.FAILURE, rec.record
+    if stopped is not None:
+        rec.record.failures.append(("Safe stop", stopped))
+        rec.record.cause = ("Safe stop", stopped)
+        return TreeRun(Status.FAILURE, "stopped", rec.record)
+    return TreeRun(status, "completed" if status == Status.SUCCESS else "failed", rec.record)
 
 
 def tick_until_done(tree: py_trees.trees.BehaviourTree, rec: BiteRecorder,

@@ -2,16 +2,18 @@
 tool's own runtime, with the food accounted by physics.
 
 :func:`make_bite_world` builds the world for a food and a system (the strategy, drawn from
-the action library with the seed, picks the utensil), puts the arm at Resting (the rigid
-baseline: the configuration that holds its locked utensil level there), levels the empty
-utensil and tares the F/T sensor. :func:`run_bite` ticks the bite tree
-(:mod:`articutool.feeding.bite`) at 10 Hz of simulated time while the world steps, and
-returns a :class:`BiteResult`: masses from the world's accounting at the end of each stage
-(a visitor, :class:`FoodLedger`), spills by place, planning attempts and times (the tree's
+the action library with the seed, picks the utensil; its
+:class:`~articutool.feeding.system.System` is decided once, here), puts the arm at Resting
+(the rigid baseline: the configuration that holds its locked utensil level there), levels the
+empty utensil and tares the F/T sensor. :func:`run_bite` runs the bite tree
+(:mod:`articutool.feeding.bite`) with the feeding tree's runner
+(:func:`~articutool.feeding.tree.run_tree`) at 10 Hz of simulated time while the world steps,
+and returns a :class:`BiteResult`: masses from the world's accounting at the end of each stage
+(a visitor, :class:`StageLedger`), spills by place, planning attempts and times (the tree's
 :class:`~articutool.feeding.tree.BiteRecorder`), and the outcome class
-(:func:`~articutool.feeding.outcomes.classify_bite`). After ``present`` the simulated user
-takes the bite (:meth:`FeedingWorld.eat_from_utensil`). :func:`run_meal` runs N bites with
-the same tree.
+(:func:`~articutool.feeding.outcomes.classify_bite`). At the end of ``present`` the simulated
+user (:class:`SimUser`) takes the bite (:meth:`FeedingWorld.eat_from_utensil`).
+:func:`run_meal` runs N bites with the same tree.
 """
 
 from __future__ import annotations
@@ -29,12 +31,13 @@ from numpy.typing import NDArray
 from py_trees.common import Status
 
 from articutool.arm.scene import SCOOP_HEADING, Cylinder, Scene
-from articutool.feeding.behaviours import Attempts
+from articutool.feeding.behaviours import Attempts, BiteStage, TakeBite
 from articutool.feeding.bite import STAGES, BiteSettings, bite_tree
 from articutool.feeding.insertion import acquisition_waypoints, dish_outline
 from articutool.feeding.outcomes import classify_bite
 from articutool.feeding.strategies import Strategy, StrategyLibrary
-from articutool.feeding.tree import BiteRecorder, safe_stop_reason, tick_until_done
+from articutool.feeding.system import System
+from articutool.feeding.tree import run_tree
 from articutool.meal.sim_arm import SimArm, world_load
 from articutool.sim import accounting as acc
 from articutool.sim.params import PhysicsParams
@@ -42,8 +45,8 @@ from articutool.sim.world import FeedingWorld, SettleCache
 from articutool.spec import Spec, load_spec
 from articutool.tool.api import Mode, ToolAPI
 
-__all__ = ["BiteResult", "FoodLedger", "MealSetup", "container_floor", "make_bite_world",
-           "run_bite", "run_meal", "shed_configuration"]
+__all__ = ["BiteResult", "MealSetup", "SimUser", "StageLedger", "container_floor",
+           "make_bite_world", "run_bite", "run_meal", "shed_configuration"]
 
 DEFAULT_SETTINGS = BiteSettings()
 
@@ -99,18 +102,32 @@ class BiteResult:
 TRANSPORT_STAGES = ("resting", "staging", "present")
 
 
-class FoodLedger(py_trees.visitors.VisitorBase):
-    """Visitor: the world's food masses when each stage subtree ends, the utensil's tilt
-    while transporting, where every item was when the transport began and when it ended
-    (:data:`TRANSPORT_STAGES`), and the user's bite when ``present`` succeeds."""
+class SimUser:
+    """The simulated user (:class:`~articutool.feeding.behaviours.User`): takes what is on
+    the utensil (:meth:`FeedingWorld.eat_from_utensil`)."""
+
+    def __init__(self, world: FeedingWorld) -> None:
+        self.world = world
+
+    def take_bite(self) -> float:
+        """The grams on the utensil, eaten."""
+        return self.world.eat_from_utensil()
+
+
+class StageLedger(py_trees.visitors.VisitorBase):
+    """Visitor (telemetry only): the world's food masses when each stage
+    (:class:`~articutool.feeding.behaviours.BiteStage`) ends — a stage that ends with the
+    user's bite, when the bite is offered (the step before
+    :class:`~articutool.feeding.behaviours.TakeBite` succeeded), with the F/T sensor's
+    reading —, the utensil's tilt while transporting, and where every item was when the
+    transport began and when it ended (:data:`TRANSPORT_STAGES`)."""
 
     def __init__(self, world: FeedingWorld) -> None:
         super().__init__(full=False)
         self.world = world
         self.after: dict[str, dict[str, float]] = {}
-        self.eaten_g = 0.0
         self.tilts: list[float] = []
-        self.presented = False  # ``present`` succeeded: the user was offered the bite
+        self.presented = False  # the bite was offered to the user
         self.last_stage = ""  # the stage ticked last
         # (item classes, spill events so far, masses) when the transport began / ended
         self.transport_start: tuple[np.ndarray, int, dict[str, float]] | None = None
@@ -128,9 +145,16 @@ class FoodLedger(py_trees.visitors.VisitorBase):
                                    n)
 
     def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
-        stage = getattr(behaviour, "bite_stage", None)
-        if stage is None:
+        offered = _bite_offered(behaviour)
+        if offered is not None and offered not in self.after:
+            self._ended(offered)  # before the user takes the bite
+            self.presented = True
+            self.after[offered]["ft"] = (self.world.ft_mass_g(0.5)
+                                         if self.world.ft_comparable() else float("nan"))
             return
+        if not isinstance(behaviour, BiteStage):
+            return
+        stage = behaviour.stage
         if behaviour.status != Status.INVALID:
             self.last_stage = stage
         if behaviour.status == Status.RUNNING and stage in TRANSPORT_STAGES:
@@ -141,17 +165,27 @@ class FoodLedger(py_trees.visitors.VisitorBase):
             if stage in ("resting", "staging"):
                 self.tilts.append(self.world.tilt_deg())
         if behaviour.status in (Status.SUCCESS, Status.FAILURE) and stage not in self.after:
-            self.after[stage] = self.world.masses_g()
-            # What a scale under the utensil reads (a hanging strand counts as borne).
-            self.after[stage]["carried"] = self.world.carried_g()
-            if stage in TRANSPORT_STAGES and self.transport_start is not None:
-                # Before the user eats: what is eaten is delivered, not lost.
-                self.transport_end = self.world.item_classes()
-            if stage == "present" and behaviour.status == Status.SUCCESS:
-                self.presented = True
-                self.after["present"]["ft"] = (self.world.ft_mass_g(0.5)
-                                               if self.world.ft_comparable() else float("nan"))
-                self.eaten_g += self.world.eat_from_utensil()
+            self._ended(stage)
+
+    def _ended(self, stage: str) -> None:
+        self.after[stage] = self.world.masses_g()
+        # What a scale under the utensil reads (a hanging strand counts as borne).
+        self.after[stage]["carried"] = self.world.carried_g()
+        if stage in TRANSPORT_STAGES and self.transport_start is not None:
+            # Before the user eats: what is eaten is delivered, not lost.
+            self.transport_end = self.world.item_classes()
+
+
+def _bite_offered(behaviour: py_trees.behaviour.Behaviour) -> str | None:
+    """The stage whose bite ``behaviour`` offers — it is the step right before the user's
+    bite (:class:`~articutool.feeding.behaviours.TakeBite`, which runs next, in the same tick)
+    and it succeeded — else None."""
+    stage = behaviour.parent
+    if behaviour.status != Status.SUCCESS or not isinstance(stage, BiteStage):
+        return None
+    k = stage.children.index(behaviour) + 1
+    offers = k < len(stage.children) and isinstance(stage.children[k], TakeBite)
+    return stage.stage if offers else None
 
 
 @dataclass
@@ -163,6 +197,7 @@ class MealSetup:
     strategy_name: str
     strategy: Strategy
     seed: int
+    system: System
 
 
 def make_bite_world(food: str, system: str, seed: int = 0, *,
@@ -178,21 +213,22 @@ def make_bite_world(food: str, system: str, seed: int = 0, *,
     spec = load_spec()
     lib = StrategyLibrary.load(spec, strategies)
     name, strat = lib.choose(food, system, np.random.default_rng(seed))
+    chosen = System.from_strategy(strat)
     params = PhysicsParams.load(physics) if physics is not None else None
     world = FeedingWorld.build(food, strat.utensil, spec=spec, params=params, seed=seed,
                                load_g=load_g, settle_cache=settle_cache)
-    rigid = system == "baseline"
-    arm = SimArm(world, tolerance_deg=strat.transport.tolerance_deg, seed=seed, rigid=rigid,
-                 load=lambda: world_load(world), leveling=strat.transport.leveling)
-    if rigid:
-        world.move_arm(arm.goal_configuration("Resting"))
-        world.run(0.5)
-    else:
+    arm = SimArm(world, tolerance_deg=strat.transport.tolerance_deg, seed=seed,
+                 rigid=not chosen.wrist, load=lambda: world_load(world),
+                 leveling=strat.transport.leveling)
+    if chosen.wrist:
         world.tool.set_mode(Mode.LEVELING)
         world.run(1.0)
         world.tool.set_mode(Mode.DISABLED)
+    else:
+        world.move_arm(arm.goal_configuration("Resting"))
+        world.run(0.5)
     world.tare_ft(0.3)  # level and empty, as one would before a meal
-    return MealSetup(world, arm, name, strat, seed)
+    return MealSetup(world, arm, name, strat, seed, chosen)
 
 
 def container_floor(scene: Scene, container: str) -> NDArray[np.float64]:
@@ -243,8 +279,8 @@ def _tree(setup: MealSetup, stages: Sequence[str], settings: BiteSettings,
     wps = acquisition_waypoints(setup.strategy,
                                 container_floor(w.scene, w.layout.container or "bowl"),
                                 SCOOP_HEADING, dish_outline(w.spec, w.utensil))
-    return bite_tree(setup.arm, tool or w.tool, setup.strategy, wps, lambda: w.time, stages=stages,
-                     settings=settings)
+    return bite_tree(setup.arm, tool or w.tool, setup.strategy, wps, lambda: w.time,
+                     system=setup.system, user=SimUser(w), stages=stages, settings=settings)
 
 
 def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
@@ -263,25 +299,18 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
     w = setup.world
     if root is None:
         root = _tree(setup, stages, settings, tool)
-    tree = py_trees.trees.BehaviourTree(root)
-    rec, ledger = BiteRecorder(lambda: w.time), FoodLedger(w)
-    tree.visitors += [rec, ledger, *visitors]
-    tree.setup()
+    ledger = StageLedger(w)
     counters = [n for n in root.iterate() if isinstance(n, Attempts)]
     for n in counters:  # the same tree runs every bite of a meal: count this bite's only
         n.bb.set(n.key, 0)
     t0, wall0, n_spills = w.time, time.perf_counter(), len(w.spills)
     before = w.masses_g()
     # simulated time, not counting the waits for plans
-    ended = tick_until_done(tree, rec, w.run, lambda: w.time, period_s=0.1, timeout_s=timeout_s)
-    status = Status.FAILURE if ended is None else ended
-    stopped = None if ended is None else safe_stop_reason(root)
-    end_state = ("timed_out" if ended is None else "stopped" if stopped is not None else
-                 "completed" if status == Status.SUCCESS else "retreated")
-    if ended is None:
-        rec.record.failures.append((root.name, f"did not finish within {timeout_s:g} s"))
-    if stopped is not None:
-        rec.record.cause = ("Safe stop", stopped)
+    run = run_tree(root, w.run, lambda: w.time, period_s=0.1, timeout_s=timeout_s,
+                   visitors=[ledger, *visitors])
+    rec = run.record
+    # A bite tree that fails has retreated to Resting (bite_tree's retreat).
+    end_state = "retreated" if run.end == "failed" else run.end
     # Spilled and delivered as everywhere (sim.accounting): each item once, at its worst place;
     # before the transport a spill is food on the table or the user, in transport anything
     # that left the utensil, wherever it landed (a container apart).
@@ -321,7 +350,7 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
     goal = "Staging" if "Staging" in attempts else (list(attempts)[-1] if attempts else "")
     ft = after.get("present", {}).get("ft")
     return BiteResult(
-        bite=bite, food=w.food or "", system=setup.strategy.system,
+        bite=bite, food=w.food or "", system=setup.system.name,
         strategy=setup.strategy_name, seed=setup.seed,
         outcome=(None if threshold_g is None
                  else classify_bite(delivered, spilled, threshold_g, completed)),
@@ -330,16 +359,16 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
         ft_delivered_g=None if ft is None or ft != ft else float(ft),
         planning_attempts=attempts.get(goal, 0), planning_attempts_by_goal=attempts,
         acquisition_attempts=counted.get("acquisition_attempts", 0),
-        planning_wall_s=rec.record.planning_wall_s,
-        planning_wait_sim_s=rec.record.planning_wait_sim_s,
-        motion_time_s=rec.record.motion_time_s,
+        planning_wall_s=rec.planning_wall_s,
+        planning_wait_sim_s=rec.planning_wait_sim_s,
+        motion_time_s=rec.motion_time_s,
         sim_time_s=w.time - t0, wall_time_s=time.perf_counter() - wall0,
-        failed_stage="" if completed else rec.record.failed_stage or "stopped",
+        failed_stage="" if completed else rec.failed_stage or "stopped",
         stages=list(stages), masses_after=after,
         transport_max_tilt_deg=max(ledger.tilts) if ledger.tilts else float("nan"),
         end_state=end_state, last_stage=ledger.last_stage,
-        food_checks=rec.record.food_checks,
-        predicted_spill_g=_predicted(rec.record.food_checks))
+        food_checks=rec.food_checks,
+        predicted_spill_g=_predicted(rec.food_checks))
 
 
 def _predicted(checks: list[dict[str, Any]]) -> float | None:

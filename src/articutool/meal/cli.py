@@ -71,6 +71,7 @@ def _show_tree(args: argparse.Namespace, lib: Any, out: Path | None) -> int:
     from articutool.arm.scene import SCOOP_HEADING, Scene
     from articutool.feeding.bite import bite_tree
     from articutool.feeding.insertion import acquisition_waypoints, dish_outline
+    from articutool.feeding.system import System
     from articutool.meal.bites import container_floor
     from articutool.sim.params import PhysicsParams
     from articutool.spec import load_spec
@@ -79,8 +80,9 @@ def _show_tree(args: argparse.Namespace, lib: Any, out: Path | None) -> int:
     container = PhysicsParams.load().food(args.food).container
     wps = acquisition_waypoints(strat, container_floor(Scene.load(), container), SCOOP_HEADING,
                                 dish_outline(load_spec(), strat.utensil))
-    # The tree's shape needs no arm or tool; nothing is ticked.
-    root = bite_tree(None, None, strat, wps, lambda: 0.0)  # type: ignore[arg-type]
+    # The tree's shape needs no arm, tool or user; nothing is ticked.
+    root = bite_tree(None, None, strat, wps, lambda: 0.0,  # type: ignore[arg-type]
+                     system=System.from_strategy(strat), user=None)  # type: ignore[arg-type]
     print(f"bite tree for {args.food} with {args.system} (strategy {name}):")
     print(py_trees.display.unicode_tree(root))
     if out is not None:

@@ -15,6 +15,8 @@ from rich.console import Console
 from rich.markup import escape
 from rich.text import Text
 
+from articutool.feeding.behaviours import Attempts, BiteStage
+
 __all__ = ["TreeProgress"]
 
 
@@ -54,9 +56,9 @@ class TreeProgress(py_trees.visitors.SnapshotVisitor):
             return
         tip = self.root.tip()
         path = _ancestry(tip)
-        where = " › ".join(n.name for n in path if getattr(n, "bite_stage", None) or n is tip)
+        where = " › ".join(n.name for n in path if isinstance(n, BiteStage) or n is tip)
         attempts = "".join(f" (attempt {n.bb.get(n.key)})" for n in path
-                           if hasattr(n, "key") and n.key.startswith("planning_attempts_"))
+                           if isinstance(n, Attempts) and n.key.startswith("planning_attempts_"))
         line = f"{where}{attempts}"
         if line != self.last:
             feedback = tip.feedback_message if tip is not None else ""
