@@ -1,14 +1,20 @@
-"""Where a noodle step's C time goes, and what each solver knob would buy (a measurement, not
-a change: the shipped parameters stay those of ``data/physics.toml``).
+"""Where a noodle step's C time goes, and what each solver knob would buy and cost in the
+capstan law (a measurement, not a change: the shipped parameters stay those of
+``data/physics.toml``).
 
-The fork's acquisition (``articutool sim --food noodles --script scoop``) is run up to the
-fork pressed into the nest and 0.5 s of its twirl (the whole nest awake, the costliest part of
-the scene); that state is kept. Then, for each setting, the kept state is restored
-(``mj_copyData``) and ``mj_step`` runs ``--steps`` steps in C with the controls held: the CPU
-time per step, MuJoCo's timers as shares of the step, contacts and constraint rows. Settings:
-the shipped one, no-slip off, no-slip 5 passes, the main solver's iterations halved, sleeping
-off. A faster setting here changes the physics (it is a different solver): it would have to be
-argued and its outcomes measured (benchmarks/sim_outcomes.py) by whoever owns the noodle model.
+The fork's acquisition (``articutool sim --food noodles --script scoop``) is run until the fork
+has pressed into the nest (more than ``--contacts`` contacts) for 0.3 s — the whole nest awake,
+the costliest state of the scene — and that state is kept. Then, for each setting, the kept
+state is restored (``mj_copyData``), the model's options are reset to the shipped ones and the
+setting applied, and ``mj_step`` runs ``--steps`` steps in C with the controls held: the CPU
+time per step (thread clock), MuJoCo's timers as shares of the step, contacts and constraint
+rows, the main solver's iterations, and whether MuJoCo reported an instability. For each
+setting the strand calibration's capstan test on the fork-wide bar runs with the same options
+(``sim/strand_laws.capstan_hold_ratio``; the law is e^(μπ), the tolerance ±20 %).
+
+Settings: the shipped one (CG, 30 iterations, 10 no-slip passes); no-slip off; no-slip off with
+MuJoCo's ``impratio`` (friction rows stiffer than normal rows by that ratio, MuJoCo's own
+remedy for slip with elliptic cones) at 100 and 300, with 30, 50 and 100 CG iterations.
 
     .venv/bin/python benchmarks/noodle_step_cost.py --out results/noodle_step_cost.json
 """
@@ -17,62 +23,97 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import os
+import math
 import sys
 import time
 
 import mujoco
 
-from bench_io import write_json
+from bench_io import machine, write_json
 
-_TIMERS = ("STEP", "POS_COLLISION", "COL_BROAD", "COL_NARROW", "POS_MAKE", "POS_PROJECT",
-           "CONSTRAINT", "ADVANCE", "POS_KINEMATICS", "POS_INERTIA", "VELOCITY")
+_TIMERS = ("POS_COLLISION", "POS_MAKE", "POS_PROJECT", "CONSTRAINT", "POS_INERTIA", "ADVANCE",
+           "VELOCITY")
+_OPTS = ("noslip_iterations", "iterations", "tolerance", "impratio")
+SETTINGS: dict[str, dict[str, float]] = {
+    "shipped": {},
+    "noslip_off": {"noslip_iterations": 0},
+    "noslip_off_impratio100_it30": {"noslip_iterations": 0, "impratio": 100},
+    "noslip_off_impratio100_it50": {"noslip_iterations": 0, "impratio": 100, "iterations": 50},
+    "noslip_off_impratio300_it100": {"noslip_iterations": 0, "impratio": 300, "iterations": 100},
+    "noslip_off_impratio300_it100_tol1e-8": {"noslip_iterations": 0, "impratio": 300,
+                                             "iterations": 100, "tolerance": 1e-8},
+}
 
 
 class _StopError(Exception):
     pass
 
 
+def _capstan(change: dict[str, float]) -> dict[str, float]:
+    """The calibration's capstan test on the fork-wide bar with these solver options."""
+    from articutool.sim import strand_laws as sl
+    from articutool.sim.params import PhysicsParams
+    from articutool.spec import load_spec
+
+    p = PhysicsParams.load()
+    world = {k: v for k, v in change.items() if k in ("iterations", "tolerance")}
+    p = p.model_copy(update={"world": p.world.model_copy(update=world)})
+    food = p.food("noodles")
+    if "noslip_iterations" in change:
+        food = food.model_copy(update={"noslip_iterations": int(change["noslip_iterations"])})
+    ph = load_spec().utensil("fork").physics
+    bar = ((ph.tines - 1) * ph.tine_pitch + 2 * ph.tine_radius) / 2
+    ei = food.young * math.pi * food.strand_radius**4 / 4
+    rc = bar + food.strand_radius
+    w_hang = food.piece_mass / food.strand_length * sl.GRAVITY * (food.strand_length
+                                                                  - math.pi * rc) / 2
+    load = max(10 * ei / rc**2 - w_hang, 0.0)
+    shipped_option = sl._option
+    imp = change.get("impratio", 1.0)
+    sl._option = lambda params, f: shipped_option(params, f).replace(
+        "/>", f' impratio="{imp}"/>')
+    try:
+        r = sl.capstan_hold_ratio(food, p, bar, sl._fork_attrs(food, tack=False), load)
+    finally:
+        sl._option = shipped_option
+    return {"hold_ratio": r["hold_ratio"], "law_e_mu_pi": r["law_e_mu_pi"],
+            "error": round(r["hold_ratio"] / r["law_e_mu_pi"] - 1, 3),
+            "passes_20pct": abs(r["hold_ratio"] / r["law_e_mu_pi"] - 1) <= 0.2,
+            "cpu_s": r["cpu_s"]}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--steps", type=int, default=250)
+    ap.add_argument("--steps", type=int, default=40)
+    ap.add_argument("--contacts", type=int, default=1000)
     ap.add_argument("--out", default="results/noodle_step_cost.json")
     args = ap.parse_args(argv)
     from articutool.sim.scenes import skewer
     from articutool.sim.world import FeedingWorld
 
+    info = machine()
     w = FeedingWorld.build("noodles", seed=args.seed)
+    pressed: list[float] = []
 
-    def stop(phase: str) -> None:
-        if phase == "in":
-            raise _StopError
+    def hook(world: FeedingWorld) -> None:
+        if world.data.ncon > args.contacts:
+            pressed.append(world.time)
+            if world.time - pressed[0] > 0.3:
+                raise _StopError
 
+    w.on_tick.append(hook)
     with contextlib.suppress(_StopError):
-        skewer(w, on_phase=stop)
-    ok, msg = w.tool.start_primitive("TWIRL_CW", [2.9, 3.0])
-    assert ok, msg
-    w.run(0.5)
+        skewer(w)
     m, kept = w.model, mujoco.MjData(w.model)
     mujoco.mj_copyData(kept, m, w.data)
-    base = {k: getattr(m.opt, k) for k in ("noslip_iterations", "iterations")}
-    settings = {"shipped": {}, "noslip_off": {"noslip_iterations": 0},
-                "noslip_5": {"noslip_iterations": 5},
-                "iterations_half": {"iterations": max(1, base["iterations"] // 2)},
-                "sleep_off": {"sleep": False}}
+    shipped = {k: getattr(m.opt, k) for k in _OPTS}
     rows = {}
-    for name, change in settings.items():
+    for name, change in SETTINGS.items():
         d = mujoco.MjData(m)
         mujoco.mj_copyData(d, m, kept)
-        for k, v in base.items():
+        for k, v in {**shipped, **change}.items():
             setattr(m.opt, k, v)
-        flag = int(mujoco.mjtEnableBit.mjENBL_SLEEP)
-        m.opt.enableflags |= flag
-        for k, v in change.items():
-            if k == "sleep":
-                m.opt.enableflags &= ~flag
-            else:
-                setattr(m.opt, k, v)
         for i in range(len(d.timer)):
             d.timer[i].duration, d.timer[i].number = 0.0, 0
         c = time.thread_time()
@@ -80,16 +121,22 @@ def main(argv: list[str] | None = None) -> int:
         cpu = time.thread_time() - c
         step_wall = d.timer[mujoco.mjtTimer.mjTIMER_STEP].duration
         rows[name] = {
-            "change": change, "cpu_ms_per_step": round(1e3 * cpu / args.steps, 3),
-            "realtime_factor_physics_only": round(args.steps * m.opt.timestep / cpu, 3),
+            "change": change, "cpu_ms_per_step": round(1e3 * cpu / args.steps, 1),
+            "realtime_factor_physics_only": round(args.steps * m.opt.timestep / cpu, 4),
             "timer_share_of_step": {t.lower(): round(
                 d.timer[getattr(mujoco.mjtTimer, f"mjTIMER_{t}")].duration / step_wall, 3)
                 for t in _TIMERS},
             "contacts": int(d.ncon), "constraint_rows": int(d.nefc),
-            "awake_dofs": int(d.nv_awake), "dofs": int(m.nv)}
+            "solver_iterations": int(d.solver_niter[0]),
+            "unstable": bool(d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number),
+            "capstan_bar": _capstan(change)}
         print(name, rows[name], flush=True)
-    out = {"seed": args.seed, "steps": args.steps, "state": "fork pressed in, 0.5 s of twirl",
-           "loadavg": os.getloadavg(), "mujoco": mujoco.__version__, "settings": rows}
+    for k, v in shipped.items():
+        setattr(m.opt, k, v)
+    out = {"seed": args.seed, "steps": args.steps,
+           "state": f"fork pressed into the nest (> {args.contacts} contacts for 0.3 s) at "
+                    f"t = {w.time:.2f} s", "dofs": int(m.nv), "machine": info,
+           "settings": rows}
     write_json(args.out, out)
     return 0
 
