@@ -17,6 +17,8 @@ MuJoCo's ``impratio`` (friction rows stiffer than normal rows by that ratio, MuJ
 remedy for slip with elliptic cones) at 100 and 300, with 30, 50 and 100 CG iterations.
 
     .venv/bin/python benchmarks/noodle_step_cost.py --out results/noodle_step_cost.json
+    .venv/bin/python benchmarks/noodle_step_cost.py --physics nest20.toml \\
+        --out results/noodle_step_cost_20g.json
 """
 
 from __future__ import annotations
@@ -87,13 +89,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--steps", type=int, default=40)
     ap.add_argument("--contacts", type=int, default=1000)
+    ap.add_argument("--physics", help="another physics file (e.g. a 20 g nest: fill_g = 20)")
     ap.add_argument("--out", default="results/noodle_step_cost.json")
     args = ap.parse_args(argv)
+    from articutool.sim.params import PhysicsParams
     from articutool.sim.scenes import skewer
     from articutool.sim.world import FeedingWorld
 
     info = machine()
-    w = FeedingWorld.build("noodles", seed=args.seed)
+    params = PhysicsParams.load(args.physics)
+    w = FeedingWorld.build("noodles", seed=args.seed, params=params)
     pressed: list[float] = []
 
     def hook(world: FeedingWorld) -> None:
@@ -134,6 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     for k, v in shipped.items():
         setattr(m.opt, k, v)
     out = {"seed": args.seed, "steps": args.steps,
+           "fill_g": params.food("noodles").fill_g,
            "state": f"fork pressed into the nest (> {args.contacts} contacts for 0.3 s) at "
                     f"t = {w.time:.2f} s", "dofs": int(m.nv), "machine": info,
            "settings": rows}
