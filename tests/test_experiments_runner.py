@@ -18,6 +18,7 @@ from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import conditions, make_trials, trial_seed
 from articutool.experiments.runner import (
     RunError,
+    data_hash,
     log_path,
     pin_run,
     read_trials,
@@ -252,3 +253,34 @@ def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
     assert rec.error is not None and "_TreeReachedError" in rec.error, rec
     assert rec.outcome is None and rec.traceback
     assert got == [mine] and got[0] is mine
+
+
+def test_the_data_hash_reads_only_the_runs_foods(tmp_path) -> None:
+    """Another food's model does not change a run's pin; its own does."""
+    import shutil
+    from importlib import resources
+
+    data = tmp_path / "data"
+    shutil.copytree(Path(str(resources.files("articutool") / "data")), data)
+    physics = data / "physics.toml"
+    text = physics.read_text()
+    assert "\nfill_g = 10.0\n" in text  # the noodles' nest
+    physics.write_text(text.replace("\nfill_g = 10.0\n", "\nfill_g = 125.0\n"))
+    cfg = ExperimentsConfig.load()
+    for foods in ({"pecans", "water"}, {"pecans"}):
+        assert data_hash("exp1", cfg, foods, data) == data_hash("exp1", cfg, foods)
+    assert data_hash("exp1", cfg, {"noodles"}, data) != data_hash("exp1", cfg, {"noodles"})
+    assert data_hash("exp1", cfg, {"pecans"}) != data_hash("exp1", cfg, {"water"})
+
+
+def test_the_committed_runs_are_pinned_to_todays_data() -> None:
+    """Every committed experiment's ``run.json`` pins the data it would read today, so its
+    command resumes (and a change to a food's model that would change its trials is seen)."""
+    root = Path(__file__).resolve().parents[1] / "results" / "experiments"
+    cfg = ExperimentsConfig.load()
+    runs = sorted(root.glob("*/run.json"))
+    assert runs
+    for p in runs:
+        run = json.loads(p.read_text())
+        foods = {c["food"] for c in run["conditions"]}
+        assert data_hash(run["experiment"], cfg, foods) == run["data_hash"], p

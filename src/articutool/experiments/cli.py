@@ -359,7 +359,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     d = output_dir("--out", out, ("run.json", "trials.jsonl", "summary.json", "notes.md",
                                   f"{exp}.png"), own=exp)
     old_summary = report.read_summary(d / "summary.json")  # unreadable: refused before a trial
-    settings = {"experiment": exp, "seed": args.seed, "data_hash": data_hash(exp, cfg),
+    foods = {c["food"] for c in extra["conditions"]}
+    settings = {"experiment": exp, "seed": args.seed, "data_hash": data_hash(exp, cfg, foods),
                 "conditions": extra["conditions"]}
     try:
         pin_run(d / "run.json", settings)

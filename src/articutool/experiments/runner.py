@@ -95,16 +95,21 @@ def _records(lines: Iterable[dict[str, Any]], path: Path) -> list[TrialRecord]:
     return sorted(out, key=lambda r: r.trial)
 
 
-def data_hash(experiment: str, cfg: ExperimentsConfig) -> str:
-    """Short SHA-256 over the data a trial of ``experiment`` reads: the packaged spec, scene,
-    physics and strategies files (their parsed content: comments do not count), and the
-    experiments file's shared settings and this experiment's own section (another
-    experiment's section does not matter)."""
+def data_hash(experiment: str, cfg: ExperimentsConfig, foods: Iterable[str],
+              data: Path | None = None) -> str:
+    """Short SHA-256 over the data a trial of ``experiment`` on ``foods`` reads: the spec,
+    scene, physics and strategies files of ``data`` (default: the packaged ones; their parsed
+    content: comments do not count) with only ``foods``' tables of the physics file, and the
+    experiments file's shared settings and this experiment's own section (another food's
+    model or another experiment's section does not matter)."""
     h = hashlib.sha256()
-    base = resources.files("articutool") / "data"
+    base = resources.files("articutool") / "data" if data is None else data
+    keep = set(foods)
     for name in ("hardware.toml", "scene.toml", "physics.toml", "strategies.toml"):
         h.update(name.encode())
         content = tomllib.loads((base / name).read_text(encoding="utf-8"))
+        if name == "physics.toml":
+            content["foods"] = {k: v for k, v in content["foods"].items() if k in keep}
         h.update(json.dumps(content, sort_keys=True).encode())
     own = cfg.model_dump(mode="json", include={"settings", experiment})
     h.update(json.dumps(own, sort_keys=True).encode())
