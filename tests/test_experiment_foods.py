@@ -22,10 +22,10 @@ def _trials(tmp_path: Path, foods: str | None) -> list:
 def test_foods_keeps_only_that_foods_conditions_with_the_full_runs_seeds(tmp_path) -> None:
     full = _trials(tmp_path, None)
     only = _trials(tmp_path, "noodles")
-    assert {t.cond["food"] for t in only} == {"noodles"}
+    assert {t.condition.food for t in only} == {"noodles"}
     assert len(only) == 3 * len(ExperimentsConfig.load().exp1.systems)
-    seeds = {(t.cond["system"], t.repeat): t.seed for t in full if t.cond["food"] == "noodles"}
-    assert all(seeds[(t.cond["system"], t.repeat)] == t.seed for t in only)
+    seeds = {(t.condition.system, t.repeat): t.seed for t in full if t.condition.food == "noodles"}
+    assert all(seeds[(t.condition.system, t.repeat)] == t.seed for t in only)
 
 
 @pytest.mark.parametrize("foods", ["soup", "noodles,soup", ",", ""])
@@ -52,7 +52,7 @@ def test_physics_file_is_carried_by_every_condition(tmp_path) -> None:
     f.write_text(default_physics_path().read_text().replace("fill_g = 20.0", "fill_g = 125.0"))
     args = argparse.Namespace(trials=1, seed=0, load_g=None, foods="noodles", physics=str(f))
     trials = trials_for("exp1", args, tmp_path, ExperimentsConfig.load())[0]
-    assert trials and all(t.cond["physics"] == str(f.resolve()) for t in trials)
+    assert trials and all(t.condition.physics == str(f.resolve()) for t in trials)
 
 
 def test_a_bad_physics_file_exits_2_naming_the_field(tmp_path) -> None:

@@ -20,6 +20,7 @@ from articutool.feeding.strategies import StrategyError, StrategyLibrary, defaul
 from articutool.sim.params import PhysicsParams
 from articutool.sim.pieces import capsule_mass, draw_piece, footprint, pack_layer, piece_extent
 from articutool.spec import load_spec
+from conftest import trial_record
 
 PECANS = PhysicsParams.load().food("pecans")
 
@@ -136,10 +137,9 @@ def test_exp2c_summary_tests_each_primitive_against_control_and_closed_against_o
     cfg = ExperimentsConfig.load()
 
     def rec(cond, delivered, spilled):
-        return {"experiment": "exp2c", "food": "pecans", "condition": cond, "error": None,
-                "seed": 0,
-                "completed": True, "delivered_g": delivered, "held_g": 8.0, "shed_g": 0.0,
-                "spilled_g": spilled, "spilled_by_place": {"table": spilled, "critical": 0.0}}
+        return trial_record("exp2c", food="pecans", condition=cond, completed=True,
+                            delivered_g=delivered, held_g=8.0, shed_g=0.0, spilled_g=spilled,
+                            spilled_by_place={"table": spilled, "critical": 0.0})
 
     recs = ([rec("control", 6.0, 0.5) for _ in range(10)]
             + [rec("primitive", 6.0, 0.5 if k < 5 else 0.0) for k in range(10)]
