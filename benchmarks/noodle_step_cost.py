@@ -16,7 +16,8 @@ Settings: the shipped one (CG, 30 iterations, 10 no-slip passes); no-slip off; n
 MuJoCo's ``impratio`` (friction rows stiffer than normal rows by that ratio, MuJoCo's own
 remedy for slip with elliptic cones) at 100 and 300, with 30, 50 and 100 CG iterations.
 
-    .venv/bin/python benchmarks/noodle_step_cost.py --out results/noodle_step_cost.json
+    .venv/bin/python benchmarks/noodle_step_cost.py --contacts 400 \\
+        --out results/noodle_step_cost.json
     .venv/bin/python benchmarks/noodle_step_cost.py --physics nest20.toml \\
         --out results/noodle_step_cost_20g.json
 """
