@@ -33,8 +33,9 @@ from articutool.sim.params import PhysicsParams
 from articutool.sim.scenes import max_twirl_turns
 from articutool.sim.world import FeedingWorld
 from articutool.spec import load_spec
-from noodle_twirl import STUDY_BASE_SEED, one_run, summarise, write_study
+from noodle_twirl import one_run, summarise, write_study
 
+CONFIRM_BASE_SEED = 5  # confirmation seeds 5000 + r, those of the first twirl study
 TUNING_SEED0 = 5100  # 5100 + r: never a confirmation seed (5000-5009, noodle_twirl.py)
 
 
@@ -130,7 +131,7 @@ def confirm(name: str, n_seeds: int, out_dir: Path) -> dict[str, Any]:
     params = lever.params()
     runs = json.loads(path.read_text())["runs"] if path.exists() else []
     for r in range(n_seeds):
-        seed = trial_seed(STUDY_BASE_SEED, r)
+        seed = trial_seed(CONFIRM_BASE_SEED, r)
         for t in (turns, 0.0):
             if not any(x["seed"] == seed and x["twirl_turns"] == t for x in runs):
                 runs.append(one_run(seed, t, params=params, prepare=lever.prepare,

@@ -6,11 +6,15 @@ mean ± SD per condition, a one-sided Mann–Whitney U test and Welch's t-test (
 the runs MuJoCo reset after an instability (detected from its warning counters; never counted)
 and the real-time factor (simulated s ÷ CPU s of the simulation thread) as JSON.
 
-Study seeds are ``trial_seed(5, r)`` = 5000 + r: not seeds of the shipped experiment runs
-(base seed 0). Runs are interleaved (twirl, still, next seed) and the JSON is rewritten after
-each, so a partial study is balanced; ``--resume`` keeps the runs already in ``--out``.
+Study seeds are ``trial_seed(B, r)`` = 1000·B + r with base seed B = 7 by default (7000–7009):
+not seeds of the shipped experiment runs (base seed 0), nor of any earlier noodle study
+(5000–5009, 5100–5102, 6000, 8000000–8000009). Runs are submitted interleaved (twirl, still,
+next seed) to ``--workers`` processes and the JSON is rewritten after each one finishes, so a
+partial study is nearly balanced;
+``--resume`` keeps the runs already in ``--out``.
 
-    nice .venv/bin/python studies/noodle_twirl.py --seeds 10 --out studies/results/noodle_twirl.json
+    PYTHONPATH=src nice .venv/bin/python studies/noodle_twirl.py --seeds 10 --workers 2 \
+        --out studies/results/noodle_twirl.json
 """
 
 from __future__ import annotations
@@ -18,9 +22,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
+import subprocess
 import sys
 import time
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +42,7 @@ from articutool.sim.scenes import max_twirl_turns, skewer
 from articutool.sim.world import FeedingWorld
 from articutool.spec import load_spec
 
-STUDY_BASE_SEED = 5
+STUDY_BASE_SEED = 7
 # MuJoCo resets the simulation (mj_resetData) after any of these, with a warning count.
 _RESET_WARNINGS = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC")
 
@@ -149,12 +156,24 @@ def table(summary: dict[str, Any]) -> str:
             f"F/T mass — {ps(summary.get('ft_mass', {}))}.")
 
 
+def _commit() -> str | None:
+    """The checked-out commit the study runs, or None outside a git work tree."""
+    try:
+        return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
+                              check=True, cwd=Path(__file__).parent).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return None
+
+
 def write_study(path: Path, runs: list[dict[str, Any]], turns: float,
                 argv: list[str] | None, script: str = "studies/noodle_twirl.py") -> None:
-    """The study's JSON: the command, MuJoCo's version, the summary and every run."""
-    out = {"issue": 26, "command": f"{script} " + " ".join(
-               sys.argv[1:] if argv is None else argv),
-           "mujoco": mujoco.__version__, "summary": summarise(runs, turns), "runs": runs}
+    """The study's JSON: the command, the commit, MuJoCo's version, the machine's load
+    (1-minute average when written), the summary and every run in seed order."""
+    runs = sorted(runs, key=lambda r: (r["seed"], -r["twirl_turns"]))
+    out = {"command": f"{script} " + " ".join(sys.argv[1:] if argv is None else argv),
+           "commit": _commit(), "mujoco": mujoco.__version__, "cpus": os.cpu_count(),
+           "load_1min": round(os.getloadavg()[0], 2),
+           "summary": summarise(runs, turns), "runs": runs}
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=2) + "\n")
 
@@ -163,8 +182,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--base-seed", type=int, default=STUDY_BASE_SEED,
-                    help=f"study seeds trial_seed(B, r) = 1000·B + r (default {STUDY_BASE_SEED}; "
-                         "6 = 6000-6009, held out from every earlier noodle study)")
+                    help=f"study seeds trial_seed(B, r) = 1000·B + r (default {STUDY_BASE_SEED})")
+    ap.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
     ap.add_argument("--turns", type=float, default=None,
                     help="twirl turns (default: the cable budget less 0.1 turn)")
     ap.add_argument("--out", default="studies/results/noodle_twirl.json")
@@ -183,17 +202,18 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--base-seed must be in [1, 9999]; got {args.base_seed}")
     if args.seeds < 2:
         ap.error(f"--seeds must be >= 2; got {args.seeds}")
+    if not 1 <= args.workers <= 64:
+        ap.error(f"--workers must be in [1, 64]; got {args.workers}")
     out_path = Path(args.out)
     runs: list[dict[str, Any]] = []
     if args.resume and out_path.exists():
         runs = json.loads(out_path.read_text())["runs"]
     done = {(r["seed"], r["twirl_turns"]) for r in runs}
-    for r in range(args.seeds):
-        seed = trial_seed(args.base_seed, r)
-        for t in (turns, 0.0):
-            if (seed, t) in done:
-                continue
-            runs.append(one_run(seed, t))
+    todo = [(trial_seed(args.base_seed, r), t) for r in range(args.seeds)
+            for t in (turns, 0.0) if (trial_seed(args.base_seed, r), t) not in done]
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        for fut in as_completed([pool.submit(one_run, seed, t) for seed, t in todo]):
+            runs.append(fut.result())
             print(json.dumps(runs[-1]), flush=True)
             write_study(out_path, runs, turns, argv)
     write_study(out_path, runs, turns, argv)  # with --resume: the summary by this code
