@@ -51,7 +51,7 @@ def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> Non
 def test_baseline_strict_transport_from_a_rigid_level_start() -> None:
     py_trees.blackboard.Blackboard.clear()
     w = FeedingWorld.build("water", seed=0, load_g=8.0)  # the wrist stays locked (DISABLED)
-    arm = SimArm(w, tolerance_deg=20.0)
+    arm = SimArm(w)
     try:
         w.move_arm(arm.rigid_level_configuration("Resting"))
         w.run(0.5)

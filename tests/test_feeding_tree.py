@@ -9,7 +9,7 @@ import pytest
 from py_trees.common import Status
 
 from articutool.feeding.behaviours import JobResult, RunPrimitive, ToolModeScope
-from articutool.feeding.system import System
+from articutool.feeding.system import Planner, System
 from articutool.feeding.tree import (
     BiteRecorder,
     safe_stop_reason,
@@ -56,7 +56,7 @@ class FakeArm:
         self.jobs: list[FakeJob] = []
         self.fail_paths: set[str] = set()
 
-    def start_plan(self, goal: str, planner: str, budget_s: float) -> FakeJob:
+    def start_plan(self, goal: str, planner: Planner, budget_s: float) -> FakeJob:
         self.started_plans += 1
         ok = self.plans.pop(0) if self.plans else True
         job = FakeJob(self.clock, self.plan_s,

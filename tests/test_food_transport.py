@@ -15,7 +15,7 @@ from py_trees.common import Status
 
 from articutool.arm.scene import Scene
 from articutool.feeding.behaviours import JobResult
-from articutool.feeding.system import System
+from articutool.feeding.system import Planner, System
 from articutool.feeding.tree import BiteRecorder, tick_until_done, transport_tree
 from articutool.food.loads import food_load
 from articutool.meal.sim_arm import FoodDecision, SimArm
@@ -107,7 +107,7 @@ class CheckingArm(FakeArm):
         super().__init__(clock, [True] * len(plans), [])
         self.sim, self.trajs = sim, list(plans)
 
-    def start_plan(self, goal: str, planner: str, budget_s: float) -> FakeJob:
+    def start_plan(self, goal: str, planner: Planner, budget_s: float) -> FakeJob:
         self.started_plans += 1
         return FakeJob(self.clock, self.plan_s, JobResult(True, "", self.trajs.pop(0)))
 

@@ -62,11 +62,9 @@ Visitors = Sequence["py_trees.visitors.VisitorBase"]
 class _GoalArm(SimArm):
     """:class:`SimArm` with extra named goals (the scene's staging set)."""
 
-    def __init__(self, world: FeedingWorld, goals: dict[str, Any],
-                 tolerance_deg: float | None = None, seed: int = 0, load: Any = None,
-                 leveling: str = "gravity") -> None:
-        super().__init__(world, tolerance_deg=tolerance_deg, seed=seed, load=load,
-                         leveling=leveling)
+    def __init__(self, world: FeedingWorld, goals: dict[str, Any], seed: int = 0,
+                 load: Any = None, leveling: str = "gravity") -> None:
+        super().__init__(world, seed=seed, load=load, leveling=leveling)
         self.extra = {k: np.asarray(v, dtype=float) for k, v in goals.items()}
 
     def goal_configuration(self, goal: str) -> np.ndarray:
@@ -265,7 +263,7 @@ def exp2b_trial(cond: Exp2bCondition, seed: int, cfg: ExperimentsConfig,
     goals = {g.name: g.q for g in sset.goals}
     tol = system.transport.tolerance_deg
     checked = variant is not None and variant.food_check
-    arm = _GoalArm(w, goals, tolerance_deg=tol, seed=seed,
+    arm = _GoalArm(w, goals, seed=seed,
                    load=(lambda: world_load(w)) if checked else None,
                    leveling=variant.leveling if variant is not None else "gravity")
     try:

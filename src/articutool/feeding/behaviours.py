@@ -24,6 +24,7 @@ import numpy as np
 import py_trees
 from py_trees.common import Access, Status
 
+from articutool.feeding.system import Planner
 from articutool.tool.api import ABORTED_BY_MODE_CHANGE, Mode, ToolAPI
 
 __all__ = [
@@ -86,10 +87,11 @@ class Job(Protocol):
 class ArmInterface(Protocol):
     """What the tree needs of the arm (the physics world's arm now; a driver later)."""
 
-    def start_plan(self, goal: str, planner: str, budget_s: float) -> Job:
-        """Plan from the present configuration to the named goal; value: the trajectory. The
-        job ends on its own: ``budget_s`` is the planner's wall time, however fast the
-        caller's clock runs meanwhile."""
+    def start_plan(self, goal: str, planner: Planner, budget_s: float) -> Job:
+        """Plan from the present configuration to the named goal with ``planner`` (its name
+        and, for a strict planner, its tolerance band); value: the trajectory. The job ends
+        on its own: ``budget_s`` is the planner's wall time, however fast the caller's clock
+        runs meanwhile."""
 
     def verify(self, trajectory: Any) -> JobResult:
         """Plan-then-verify (Alg. 2) for the tool that will follow it."""
@@ -191,7 +193,8 @@ class _PlanJob(_JobBehaviour):
 class Plan(_PlanJob):
     """Plan to ``goal`` with ``planner``; the trajectory goes on the blackboard."""
 
-    def __init__(self, arm: ArmInterface, goal: str, planner: str, budget_s: float) -> None:
+    def __init__(self, arm: ArmInterface, goal: str, planner: Planner,
+                 budget_s: float) -> None:
         super().__init__(f"Plan to {goal}")
         self.arm, self.goal, self.planner, self.budget_s = arm, goal, planner, budget_s
         self.what = f"plan to {goal}"

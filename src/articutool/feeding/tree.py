@@ -78,7 +78,7 @@ def motion_steps(arm: ArmInterface, goal: str, planner: Planner, *, attempts: in
                  clock: Callable[[], float] | None = None, then: Mode | None = None
                  ) -> list[py_trees.behaviour.Behaviour]:
     """The steps of :func:`motion`, for a sequence of the caller's (a bite's stage)."""
-    steps: list[py_trees.behaviour.Behaviour] = [Plan(arm, goal, planner.name, budget_s)]
+    steps: list[py_trees.behaviour.Behaviour] = [Plan(arm, goal, planner, budget_s)]
     if planner.verified:
         steps.append(Verify(arm))
     if food:

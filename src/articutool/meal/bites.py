@@ -217,8 +217,7 @@ def make_bite_world(food: str, system: str, seed: int = 0, *,
     params = PhysicsParams.load(physics) if physics is not None else None
     world = FeedingWorld.build(food, strat.utensil, spec=spec, params=params, seed=seed,
                                load_g=load_g, settle_cache=settle_cache)
-    arm = SimArm(world, tolerance_deg=strat.transport.tolerance_deg, seed=seed,
-                 rigid=not chosen.wrist, load=lambda: world_load(world),
+    arm = SimArm(world, seed=seed, rigid=not chosen.wrist, load=lambda: world_load(world),
                  leveling=strat.transport.leveling)
     if chosen.wrist:
         world.tool.set_mode(Mode.LEVELING)

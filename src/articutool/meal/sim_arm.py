@@ -33,6 +33,7 @@ from articutool.arm.model import ArmModel
 from articutool.arm.scene import SCOOP_HEADING
 from articutool.feeding.behaviours import JobResult
 from articutool.feeding.insertion import TipWaypoint
+from articutool.feeding.system import Planner
 from articutool.planning.api import plan
 from articutool.planning.types import PlanRequest, TransportTask
 from articutool.sim.scenes import (
@@ -242,13 +243,11 @@ class SimArm:
     against: ``"gravity"`` (its IMU loop) or ``"apparent"`` (slosh-free).
     """
 
-    def __init__(self, world: FeedingWorld, tolerance_deg: float | None = None,
-                 seed: int = 0, rigid: bool = False, load: Any = None,
+    def __init__(self, world: FeedingWorld, seed: int = 0, rigid: bool = False, load: Any = None,
                  leveling: str = "gravity") -> None:
         if leveling not in ("gravity", "apparent"):
             raise ValueError(f"leveling must be 'gravity' or 'apparent'; got {leveling!r}")
         self.world = world
-        self.tolerance_deg = tolerance_deg
         self.seed = seed
         self.rigid = rigid
         self.load = load
@@ -303,13 +302,13 @@ class SimArm:
         raise ValueError(f"goal: no collision-free level configuration at {goal!r} for the "
                          "locked wrist")
 
-    def start_plan(self, goal: str, planner: str, budget_s: float) -> _FutureJob:
-        """Plan from where the arm is to ``goal`` in a worker thread."""
+    def start_plan(self, goal: str, planner: Planner, budget_s: float) -> _FutureJob:
+        """Plan from where the arm is to ``goal`` with ``planner`` in a worker thread."""
         start = tuple(float(x) for x in self.world.arm_q)
         target = tuple(float(x) for x in self.goal_configuration(goal))
-        req = PlanRequest(system=planner, task=TransportTask(0, start, target),
+        req = PlanRequest(system=planner.name, task=TransportTask(0, start, target),
                           timeout_s=budget_s, seed=self.seed, utensil=self.world.utensil,
-                          tolerance_deg=self.tolerance_deg if planner != "decoupled" else None)
+                          tolerance_deg=planner.tolerance_deg)
         spec = self.world.spec
 
         def work() -> JobResult:
