@@ -14,7 +14,7 @@ import pytest
 from articutool.arm.model import ArmModel
 from articutool.bench.taskfile import load_task_set
 from articutool.planning.api import plan
-from articutool.planning.ompl_planner import _dense_times
+from articutool.planning.queries import dense_times
 from articutool.planning.types import PlanRequest, PlanResult
 
 TASKS = {t.task_id: t for t in load_task_set().tasks}
@@ -30,7 +30,7 @@ def _executed_collisions(executed: ArmModel, r: PlanResult
                          ) -> list[tuple[float, list[tuple[str, str]]]]:
     """Collisions of the 8-DOF tool along the arm trajectory with the verifier's wrist."""
     assert r.trajectory is not None and r.wrist_trajectory is not None
-    t = _dense_times(r.trajectory, 0.025)
+    t = dense_times(r.trajectory, 0.025)
     q = np.hstack([r.trajectory.sample(t)[0], r.wrist_trajectory.sample(t)[0]])
     return [(float(t[k]), executed.colliding_pairs(q[k]))
             for k in range(len(t)) if executed.in_collision(q[k])]

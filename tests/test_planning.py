@@ -20,8 +20,8 @@ from articutool.planning.constraints import (
     tip_tilt,
     tip_tilt_deg,
 )
-from articutool.planning.ompl_planner import _dense_times, plan_transport
-from articutool.planning.queries import level_configuration
+from articutool.planning.ompl_planner import plan_transport
+from articutool.planning.queries import dense_times, level_configuration
 from articutool.planning.timing import time_parameterize
 from articutool.planning.types import PHASES, PlanRequest, TransportTask
 from articutool.sim.transport import simulate_transport
@@ -184,7 +184,7 @@ def _tip_rotations(system: str, q: np.ndarray) -> np.ndarray:
 def _check_trajectory(traj, system: str, tol_deg: float) -> None:
     dof = 8 if system == "strict8" else 6
     m = ArmModel(SPEC, dof=dof)
-    t = _dense_times(traj, 0.01)
+    t = dense_times(traj, 0.01)
     q, qd = traj.sample(t)
     task_start = np.array(TASK.start + ((0.0, 0.0) if dof == 8 else ()))
     task_goal = np.array(TASK.goal + ((0.0, 0.0) if dof == 8 else ()))
@@ -223,7 +223,7 @@ def test_each_system_plans_a_level_transport(system: str) -> None:
     else:
         # The per-axis band allows up to 14.2° of true tilt; the planner reports that.
         assert r.verified is None and r.max_tilt_deg <= 14.3
-        q, _ = r.trajectory.sample(_dense_times(r.trajectory, 0.025))
+        q, _ = r.trajectory.sample(dense_times(r.trajectory, 0.025))
         tilt = tip_tilt_deg(_tip_rotations(system, q)).max()
         assert abs(r.max_tilt_deg - tilt) < 0.1
 

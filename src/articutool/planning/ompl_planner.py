@@ -81,7 +81,6 @@ from articutool.verify.verifier import verify_trajectory
 __all__ = ["METHODS", "PlannerSettings", "plan_transport"]
 
 METHODS = ("projection", "rejection")
-_dense_times = dense_times  # its name here before the queries moved out (tests import it)
 _TWO_PI = 2.0 * math.pi
 
 ou.setLogLevel(ou.LOG_NONE)  # OMPL's console chatter (reseeding notices) is not ours to show
