@@ -9,6 +9,15 @@ whole when the fork does. The record shows how much of each phase the nest is aw
 
     nice .venv/bin/python studies/noodle_cost.py --fill-g 20 \
         --out studies/results/noodle_cost_20g.json
+
+``--settle-s S --cpu-budget-s B`` instead runs the freshly laid bowl (no settle, the tool off)
+for S simulated seconds or B CPU seconds of this thread, whichever ends first, recording every
+0.02 simulated s the thread's CPU, contacts, constraint rows, awake degrees of freedom and
+MuJoCo's arena high-water mark, the JSON rewritten each time: the cost of a nest as it falls
+and heaps, the whole nest awake, measurable at the thesis' 125 g within a budget.
+
+    PYTHONPATH=src nice .venv/bin/python studies/noodle_cost.py --fill-g 125 --settle-s 0.6 \
+        --cpu-budget-s 900 --out studies/results/noodle_settle_125g.json
 """
 
 from __future__ import annotations
@@ -18,6 +27,7 @@ import json
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -25,9 +35,11 @@ import mujoco
 import numpy as np
 
 from articutool.sim.accounting import UTENSIL
+from articutool.sim.build import build_parts
 from articutool.sim.params import PhysicsParams
 from articutool.sim.scenes import skewer
 from articutool.sim.world import FeedingWorld
+from noodle_twirl import warnings_of
 
 
 def measure(fill_g: float, seed: int, turns: float | None) -> dict[str, Any]:
@@ -92,6 +104,37 @@ def awake_cost(fill_g: float, seed: int, seconds: float) -> dict[str, Any]:
             "contacts": int(w.data.ncon), "loadavg": os.getloadavg()}
 
 
+def settle_trace(fill_g: float, seed: int, seconds: float, cpu_budget_s: float,
+                 write: Callable[[dict[str, Any]], None]) -> dict[str, Any]:
+    """The bowl of ``fill_g`` laid and left to fall for ``seconds`` (tool off) or until
+    ``cpu_budget_s`` of this thread's CPU; ``write`` gets the record after each 0.02 s."""
+    d = PhysicsParams.load().model_dump()
+    d["foods"]["noodles"]["fill_g"] = fill_g
+    c0 = time.thread_time()
+    w = FeedingWorld(build_parts("noodles", seed=seed, params=PhysicsParams.from_dict(d)))
+    m = w.model
+    rec: dict[str, Any] = {
+        "fill_g": fill_g, "seed": seed, "strands": len(w.layout.food_strands),
+        "segments": w.layout.strand_segments, "bodies": int(m.nbody), "dofs": int(m.nv),
+        "arena_mb": round(m.narena / 2**20), "build_cpu_s": round(time.thread_time() - c0, 1),
+        "samples": []}
+    t0, c1 = w.time, time.thread_time()
+    while w.time - t0 < seconds - 1e-9 and time.thread_time() - c1 < cpu_budget_s:
+        w.run(0.02, tick=False)
+        dd, cpu = w.data, time.thread_time() - c1
+        rec["samples"].append({"t": round(w.time - t0, 3), "cpu_s": round(cpu, 1),
+                               "contacts": int(dd.ncon), "rows": int(dd.nefc),
+                               "dofs_awake": int(dd.nv_awake),
+                               "arena_used_mb": round(dd.maxuse_arena / 2**20, 1)})
+        rec.update(sim_s=round(w.time - t0, 3), cpu_s=round(cpu, 1),
+                   realtime_factor=round((w.time - t0) / cpu, 5),
+                   arena_max_used_mb=round(dd.maxuse_arena / 2**20, 1),
+                   warnings=warnings_of(dd),
+                   loadavg=os.getloadavg())
+        write(rec)
+    return rec
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--fill-g", type=float, default=20.0)
@@ -100,16 +143,31 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default=None)
     ap.add_argument("--awake-s", type=float, default=None,
                     help="instead of the script: this many seconds with the nest kept awake")
+    ap.add_argument("--settle-s", type=float, default=None,
+                    help="instead of the script: the laid bowl falling for this many seconds")
+    ap.add_argument("--cpu-budget-s", type=float, default=600.0,
+                    help="with --settle-s: stop after this much CPU (default 600 s)")
     args = ap.parse_args(argv)
     if not 0 < args.fill_g <= 250:
         ap.error(f"--fill-g must be in (0, 250] g; got {args.fill_g}")
-    rec = (measure(args.fill_g, args.seed, args.turns) if args.awake_s is None
-           else awake_cost(args.fill_g, args.seed, args.awake_s))
-    text = json.dumps({"command": "studies/noodle_cost.py " + " ".join(
-        sys.argv[1:] if argv is None else argv), "mujoco": mujoco.__version__, **rec}, indent=1)
-    if args.out:
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.out).write_text(text + "\n")
+    if args.settle_s is not None and not (0 < args.settle_s <= 10 and args.cpu_budget_s > 0):
+        ap.error("--settle-s must be in (0, 10] s and --cpu-budget-s > 0")
+
+    def write(rec: dict[str, Any]) -> None:
+        if args.out:
+            text = json.dumps({"command": "studies/noodle_cost.py " + " ".join(
+                sys.argv[1:] if argv is None else argv), "mujoco": mujoco.__version__, **rec},
+                indent=1)
+            Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+            Path(args.out).write_text(text + "\n")
+
+    if args.settle_s is not None:
+        rec = settle_trace(args.fill_g, args.seed, args.settle_s, args.cpu_budget_s, write)
+    elif args.awake_s is None:
+        rec = measure(args.fill_g, args.seed, args.turns)
+    else:
+        rec = awake_cost(args.fill_g, args.seed, args.awake_s)
+    write(rec)
     print(json.dumps({k: v for k, v in rec.items() if k != "samples"}))
     return 0
 

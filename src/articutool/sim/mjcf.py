@@ -493,6 +493,20 @@ def _strands(food: Strands, count: int, inner: float, floor_z: float, cx: float,
     return out
 
 
+# MuJoCo's arena holds a step's contacts, constraint rows and the solvers' scratch. It is
+# reserved, not touched: only what the steps use becomes resident. A strand's contact rows
+# couple through its whole chain (one kinematic tree), so a heap of strands needs far more per
+# contact than loose pieces do: 62 strands (125 g) overflow 256 MB while they settle (7 280
+# contacts, 16 146 rows), so the arena grows with the strands.
+ARENA_MIN_BYTES = 256 << 20
+ARENA_PER_STRAND_BYTES = 64 << 20
+
+
+def arena_bytes(strands: int) -> int:
+    """The arena MuJoCo reserves for a world with ``strands`` strands (see above)."""
+    return max(ARENA_MIN_BYTES, ARENA_PER_STRAND_BYTES * strands)
+
+
 def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
                food: str | None = None, seed: int = 0,
                load_g: float | None = None) -> WorldLayout:
@@ -520,7 +534,6 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
         f'noslip_iterations="{noslip}" '
         f'sleep_tolerance="{wp.sleep_tolerance}">'
         f'<flag sleep="{"enable" if wp.sleep else "disable"}"/></option>',
-        '<size memory="256M"/>',
         '<visual><global offwidth="1280" offheight="720"/><quality shadowsize="2048"/></visual>',
         '<worldbody>',
         '<light pos="0.3 -0.2 2.0" dir="0 0 -1" directional="true"/>',
@@ -563,6 +576,7 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
     x.append("</contact>")
     x.append("</mujoco>")
     world = mujoco.MjSpec.from_string("\n".join(x))
+    world.memory = arena_bytes(len(layout.food_strands))
     add_robot(world.body(arm.base_frame), spec, utensil,
               lambda body: _attach_fragment(world, body, geoms))
     _drive_robot(world, spec, params, layout,
