@@ -1,6 +1,6 @@
-"""The report's cross-checks: the water's static-tilt table and the slosh model's per-trial
-comparison, read from their JSON files in the results directory, "not yet measured" when a
-file is missing."""
+"""The report's cross-checks: the water's static-tilt table, the slosh model's per-trial
+comparison and the noodle mechanisms' table, read from their JSON files in the results
+directory, "not yet measured" when a file is missing."""
 
 from __future__ import annotations
 
@@ -12,9 +12,21 @@ from articutool.experiments.report import cross_checks
 
 def test_missing_cross_checks_say_not_yet_measured_with_the_command(tmp_path: Path) -> None:
     md = cross_checks(tmp_path)
-    assert md.count("Not yet measured") == 2
+    assert md.count("Not yet measured") == 3
     assert f"articutool sim-calibrate --food water --json > {tmp_path}" in md
     assert "studies/transport_spill.py --out" in md
+    assert f"articutool sim-calibrate --food noodles --json > {tmp_path}" in md
+
+
+def test_the_noodle_mechanisms_table_reads_the_calibration(tmp_path: Path) -> None:
+    calib = json.loads((Path(__file__).parents[1] / "results" / "noodles" /
+                        "calibration.json").read_text())
+    (tmp_path / "strand_laws_noodles.json").write_text(json.dumps(calib))
+    md = cross_checks(tmp_path)
+    assert "| capstan, fork-wide bar | 10.95 mm | hold ratio 5.42 | e^(μπ) = 6.59 | pass |" in md
+    assert "| capstan, frictionless bar | 10.95 mm | hold ratio 1.00 | e^(μπ) = 1.00 | pass |" in md
+    assert "capstan, one tine" in md and "| reported |" in md
+    assert "tack, on the fork" in md and "All pass: **True**" in md
 
 
 def test_the_static_tilt_table_and_the_slosh_rows_are_read_from_their_files(
@@ -28,7 +40,7 @@ def test_the_static_tilt_table_and_the_slosh_rows_are_read_from_their_files(
         {"goal": "centre", "condition": "locked", "scale": 1.0, "seed": 9700000,
          "max_tilt_deg": 17.8, "predicted_spill_g": 2.78, "simulated_spill_g": 0.42}]}))
     md = cross_checks(tmp_path)
-    assert "Not yet measured" not in md
+    assert md.count("Not yet measured") == 1  # only the noodles' table, not written here
     assert "| 12.1 | 0.40 | 0.90 |" in md and "onset 12.1° in the world, 10.5°" in md
     assert "| centre | locked | 1.00 | 9700000 | 17.8 | 2.78 | 0.42 |" in md
 
