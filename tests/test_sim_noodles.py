@@ -54,6 +54,23 @@ def test_a_strand_collides_with_itself_but_not_across_a_joint() -> None:
     assert not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_FILTERPARENT
 
 
+def test_the_thesis_bowl_reserves_the_arena_its_settling_heap_was_measured_to_use() -> None:
+    """MuJoCo aborts a step whose contacts outgrow its arena (the 125 g nest overflowed 256 MB
+    while it fell); the arena reserved for 125 g holds twice what the laid bowl's fall used
+    (studies/noodle_cost.py --settle-s, its JSON committed)."""
+    import json
+    from pathlib import Path
+
+    from articutool.sim.build import build_parts
+
+    trace = json.loads((Path(__file__).resolve().parents[1] / "studies" / "results" /
+                        "noodle_settle_125g.json").read_text())
+    params = _noodle_params(fill_g=125.0)
+    m = build_parts("noodles", seed=6000, params=params).model
+    assert trace["fill_g"] == 125.0 and trace["strands"] == 63
+    assert m.narena >= 2 * trace["arena_max_used_mb"] * 2**20
+
+
 @pytest.mark.parametrize("args", [["--twirl-turns", "5"], ["--twirl-turns", "-1"],
                                   ["--twirl-turns", "nan"], ["--twirl-turns", "two"],
                                   ["--utensil", "spoon", "--twirl-turns", "1"]])

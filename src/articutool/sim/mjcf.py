@@ -496,8 +496,9 @@ def _strands(food: Strands, count: int, inner: float, floor_z: float, cx: float,
 # MuJoCo's arena holds a step's contacts, constraint rows and the solvers' scratch. It is
 # reserved, not touched: only what the steps use becomes resident. A strand's contact rows
 # couple through its whole chain (one kinematic tree), so a heap of strands needs far more per
-# contact than loose pieces do: 62 strands (125 g) overflow 256 MB while they settle (7 280
-# contacts, 16 146 rows), so the arena grows with the strands.
+# contact than loose pieces do: 63 strands (125 g) overflow 256 MB while they fall and used
+# 778 MB (12 MB a strand; 11 000 contacts, 24 000 rows: studies/results/noodle_settle_125g.json),
+# so the arena grows with the strands, with room for a fork pressed into the heap.
 ARENA_MIN_BYTES = 256 << 20
 ARENA_PER_STRAND_BYTES = 64 << 20
 
