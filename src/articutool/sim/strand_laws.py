@@ -328,6 +328,15 @@ def tack_test(food: Strands, params: PhysicsParams, on: str = "fork", segments: 
             if food.tack_per_length > 0 else None}
 
 
+def fork_half_width(spec: Spec, utensil: str) -> float:
+    """Half the width across a fork's outer tines (m): the radius a wrap round the tines
+    winds on."""
+    ph = spec.utensil(utensil).physics
+    if not (ph.tines and ph.tine_pitch and ph.tine_radius):
+        raise ValueError(f"--utensil: {utensil!r} is not a fork (no tines)")
+    return ((ph.tines - 1) * ph.tine_pitch + 2 * ph.tine_radius) / 2
+
+
 def run_strand_calibration(food: Strands, params: PhysicsParams, spec: Spec,
                            utensil: str) -> dict[str, Any]:
     """Every strand calibration experiment, each beside its law and whether it passes."""
@@ -347,7 +356,7 @@ def run_strand_calibration(food: Strands, params: PhysicsParams, spec: Spec,
         "pass": abs(mass_g / COOKED_STRAND_G - 1) <= MASS_TOL
         and COOKED_DIAMETER_MM[0] <= dia <= COOKED_DIAMETER_MM[1]}
     # Capstan on a bar as wide as the fork, loads where bending is a tenth of the tension.
-    bar = ((ph.tines - 1) * ph.tine_pitch + 2 * ph.tine_radius) / 2
+    bar = fork_half_width(spec, utensil)
     ei = food.young * math.pi * food.strand_radius**4 / 4
     rc = bar + food.strand_radius
     w_hang = food.piece_mass / food.strand_length * GRAVITY * (food.strand_length
