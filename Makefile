@@ -99,6 +99,9 @@ experiments: $(VENV)/.installed
 	$(BIN)/articutool experiment exp1 --trials $(EXP_TRIALS) --out $(EXP_OUT) $(EXP_FLAGS)
 	$(BIN)/articutool experiment exp2c --trials $(EXP_TRIALS) --out $(EXP_OUT) $(EXP_FLAGS)
 	$(BIN)/articutool experiment exp3 --trials $(EXP_TRIALS) --out $(EXP_OUT) $(EXP_FLAGS)
+	$(BIN)/articutool sim-calibrate --food water --json > $(EXP_OUT)/static_tilt_water.json
+	$(BIN)/articutool sim-calibrate --food noodles --json > $(EXP_OUT)/strand_laws_noodles.json
+	$(BIN)/python studies/transport_spill.py --out $(EXP_OUT)/slosh_crosscheck.json
 	$(BIN)/articutool experiment report --out $(EXP_OUT)
 
 lint: $(VENV)/.installed

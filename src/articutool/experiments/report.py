@@ -332,7 +332,8 @@ def cross_checks(out: Path) -> str:
                 md += (f"Not yet measured: `{name}` is not in this results directory. Make "
                        f"it with `{cmd.format(out=out)}`.\n\n")
                 continue
-            md += render(d) + f"\n*Source:* `{name}`.\n\n"
+            md += render(d) + (f"\n*Source:* `{name}`, measured by "
+                               f"`{cmd.format(out=out)}`.\n\n")
         except (ResultsError, KeyError, TypeError, ValueError) as err:
             md += f"`{name}` could not be read ({type(err).__name__}: {err}).\n\n"
     return md
@@ -667,7 +668,8 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
              "(MS thesis, UW 2025), Ch. 5 (protocols) and Ch. 6 (results).\n",
              "## Regenerate\n",
              "Every experiment resumes from its trial log (`<exp>/trials.jsonl`); each section "
-             "below gives the exact command that made it. All five and this page:\n\n"
+             "below gives the exact command that made it, and each cross-check at the end the "
+             "command that measured it. All five, the cross-checks and this page:\n\n"
              "```sh\nmake experiments                 # 20 trials per condition, as the thesis\n"
              "EXP_TRIALS=5 make experiments    # a shorter run\n"
              "articutool experiment exp2b --trial K --video trial.mp4   # replay one trial\n```\n",
