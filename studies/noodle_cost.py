@@ -42,11 +42,16 @@ from articutool.sim.world import FeedingWorld
 from noodle_twirl import warnings_of
 
 
-def measure(fill_g: float, seed: int, turns: float | None) -> dict[str, Any]:
-    """One scripted acquisition in a bowl of ``fill_g``; its cost, phase by phase."""
+def nest_params(fill_g: float) -> PhysicsParams:
+    """The packaged physics with a noodle bowl of ``fill_g`` grams."""
     d = PhysicsParams.load().model_dump()
     d["foods"]["noodles"]["fill_g"] = fill_g
-    params = PhysicsParams.from_dict(d)
+    return PhysicsParams.from_dict(d)
+
+
+def measure(fill_g: float, seed: int, turns: float | None) -> dict[str, Any]:
+    """One scripted acquisition in a bowl of ``fill_g``; its cost, phase by phase."""
+    params = nest_params(fill_g)
     c0 = time.process_time()
     w = FeedingWorld.build("noodles", seed=seed, params=params)
     built = time.process_time() - c0
@@ -88,10 +93,8 @@ def measure(fill_g: float, seed: int, turns: float | None) -> dict[str, Any]:
 def awake_cost(fill_g: float, seed: int, seconds: float) -> dict[str, Any]:
     """The bowl of ``fill_g`` built and settled, then ``seconds`` with sleeping off (the whole
     nest awake, as while the fork stirs it): CPU per simulated second."""
-    d = PhysicsParams.load().model_dump()
-    d["foods"]["noodles"]["fill_g"] = fill_g
     c0 = time.process_time()
-    w = FeedingWorld.build("noodles", seed=seed, params=PhysicsParams.from_dict(d))
+    w = FeedingWorld.build("noodles", seed=seed, params=nest_params(fill_g))
     built = time.process_time() - c0
     w.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
     c1 = time.process_time()
@@ -108,10 +111,8 @@ def settle_trace(fill_g: float, seed: int, seconds: float, cpu_budget_s: float,
                  write: Callable[[dict[str, Any]], None]) -> dict[str, Any]:
     """The bowl of ``fill_g`` laid and left to fall for ``seconds`` (tool off) or until
     ``cpu_budget_s`` of this thread's CPU; ``write`` gets the record after each 0.02 s."""
-    d = PhysicsParams.load().model_dump()
-    d["foods"]["noodles"]["fill_g"] = fill_g
     c0 = time.thread_time()
-    w = FeedingWorld(build_parts("noodles", seed=seed, params=PhysicsParams.from_dict(d)))
+    w = FeedingWorld(build_parts("noodles", seed=seed, params=nest_params(fill_g)))
     m = w.model
     rec: dict[str, Any] = {
         "fill_g": fill_g, "seed": seed, "strands": len(w.layout.food_strands),

@@ -24,11 +24,10 @@ import numpy as np
 
 from articutool.arm.scene import SCOOP_HEADING, Cylinder
 from articutool.feeding.strategies import StrategyLibrary
+from articutool.sim.scenes import SKEWER_TIP_ABOVE_FLOOR_M
 from articutool.sim.strand_laws import fork_half_width
 from articutool.sim.world import FeedingWorld
 from articutool.spec import load_spec
-
-SCRIPTED_DEPTH_M = 0.002  # sim/scenes.py: skewer presses the tip to 2 mm above the floor
 
 
 def footprint(seed: int, offset_m: float, depth_m: float, radius_m: float) -> dict[str, Any]:
@@ -36,9 +35,9 @@ def footprint(seed: int, offset_m: float, depth_m: float, radius_m: float) -> di
     w = FeedingWorld.build("noodles", "fork", seed=seed)
     box = w.scene.get(w.layout.container or "bowl")
     assert isinstance(box, Cylinder) and box.container_wall is not None
-    floor = box.xyz[2] - box.length / 2 + box.container_wall
+    floor = float(box.inner_floor()[2])
     centre = np.asarray(box.xyz[:2], dtype=float)
-    points = {"scripted": (centre, SCRIPTED_DEPTH_M),
+    points = {"scripted": (centre, SKEWER_TIP_ABOVE_FLOOR_M),
               "tree": (centre + offset_m * SCOOP_HEADING[:2], depth_m)}
     out: dict[str, Any] = {"seed": seed, "strands": len(w.layout.food_strands)}
     top = 0.0
@@ -81,7 +80,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = [footprint(s, offset, depth, radius) for s in _seeds(args.seeds)]
     doc = {"command": "studies/noodle_footprint.py " + " ".join(
                sys.argv[1:] if argv is None else argv),
-           "tree_offset_m": offset, "tree_depth_m": depth, "scripted_depth_m": SCRIPTED_DEPTH_M,
+           "tree_offset_m": offset, "tree_depth_m": depth,
+           "scripted_depth_m": SKEWER_TIP_ABOVE_FLOOR_M,
            "fork_half_width_m": radius,
            "mean": {k: round(float(np.mean([r[k] for r in rows])), 2) for k in (
                "scripted_under", "scripted_above_tip", "tree_under", "tree_above_tip",

@@ -151,6 +151,15 @@ class Cylinder(_Object):
     def geometry(self) -> coal.CollisionGeometry:
         return coal.Cylinder(self.radius, self.length)
 
+    def inner_floor(self) -> NDArray[np.float64]:
+        """Centre of the open container's inner floor, in the scene's frame (the arm base);
+        ``ValueError`` for a solid cylinder."""
+        if self.container_wall is None:
+            raise ValueError(f"{self.name}: a solid cylinder (no container_wall) has no inner "
+                             "floor")
+        return np.array([self.xyz[0], self.xyz[1],
+                         self.xyz[2] - self.length / 2 + self.container_wall])
+
 
 class Halfspace(_Object):
     """Everything below the object's xy-plane (e.g. the ground); the free side is +z."""

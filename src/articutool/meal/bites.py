@@ -235,7 +235,7 @@ def container_floor(scene: Scene, container: str) -> NDArray[np.float64]:
     box = scene.get(container)
     if not isinstance(box, Cylinder) or box.container_wall is None:
         raise ValueError(f"container: {container!r} is not an open container of the scene")
-    return np.array([box.xyz[0], box.xyz[1], box.xyz[2] - box.length / 2 + box.container_wall])
+    return box.inner_floor()
 
 
 def shed_configuration(spec: Spec, scene: Scene, utensil: str, container: str = "bowl",

@@ -211,7 +211,7 @@ def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
         world = FeedingWorld.build(food_name, utensil, spec=spec, params=params, seed=seed)
         assert isinstance(box, Cylinder) and box.container_wall is not None
         inner = box.radius - box.container_wall
-        floor = box.xyz[2] - box.length / 2 + box.container_wall
+        floor = float(box.inner_floor()[2])
         z = np.array([world.data.xpos[b][2] for b in world.ledger.item_body])
         top = float(np.quantile(z, 0.95)) + food.particle_radius
         vol_ml = math.pi * inner**2 * (top - floor) * 1e6

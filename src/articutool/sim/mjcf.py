@@ -311,7 +311,7 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
                          "with container_wall (an open bowl)")
     layout.container = food.container
     inner = box.radius - box.container_wall
-    floor_z = box.xyz[2] - box.length / 2 + box.container_wall
+    floor_z = float(box.inner_floor()[2])
     cx, cy = box.xyz[0], box.xyz[1]
     out: list[str] = []
     radius, mass = 0.0, food.piece_mass

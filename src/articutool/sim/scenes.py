@@ -36,6 +36,7 @@ from articutool.trajectory import JointTrajectory
 
 __all__ = [
     "SCRIPTS",
+    "SKEWER_TIP_ABOVE_FLOOR_M",
     "ScriptError",
     "acquire",
     "cartesian_path",
@@ -50,6 +51,8 @@ __all__ = [
 
 SCRIPTS = ("scoop", "carry", "tilt")
 _Z = np.array([0.0, 0.0, 1.0])
+# The scripted skewer presses the fork until its tip is this far above the bowl's floor.
+SKEWER_TIP_ABOVE_FLOOR_M = 0.002
 
 
 class ScriptError(RuntimeError):
@@ -154,7 +157,7 @@ def scoop(world: FeedingWorld, level: bool = True) -> None:
         raise ScriptError("scoop needs the food's container (an open bowl)")
     model = ArmModel(world.spec, world.utensil, 8, world.scene)
     h = SCOOP_HEADING
-    c = np.array([box.xyz[0], box.xyz[1], box.xyz[2] - box.length / 2 + box.container_wall])
+    c = box.inner_floor()
     inner = box.radius - box.container_wall
     back = c - h * 0.55 * inner
     rad = math.radians
@@ -242,9 +245,10 @@ def skewer(world: FeedingWorld, level: bool = True, twirl_turns: float | None = 
         if not ok:
             raise ScriptError(f"the tool refused TWIRL_CCW: {msg}")
         world.run_until(lambda: world.tool.mode != Mode.PRIMITIVE, 30.0)
-    c = np.array([box.xyz[0], box.xyz[1], box.xyz[2] - box.length / 2 + box.container_wall])
+    c = box.inner_floor()
     a = math.radians(60.0)
-    pts = [(c + _Z * 0.12, a, 0.1), (c + _Z * 0.03, a, 0.05), (c + _Z * 0.002, a, 0.02)]
+    pts = [(c + _Z * 0.12, a, 0.1), (c + _Z * 0.03, a, 0.05),
+           (c + _Z * SKEWER_TIP_ABOVE_FLOOR_M, a, 0.02)]
     q0 = first_ik(model, np.concatenate([world.arm_q, _wrist(world)]), pts[0][0], a)
     world.move_arm(q0[:6])
     world.follow_arm(cartesian_path(model, q0, pts), settle_s=0.2)
