@@ -64,8 +64,7 @@ def _capstan(change: dict[str, float]) -> dict[str, float]:
     food = p.food("noodles")
     if "noslip_iterations" in change:
         food = food.model_copy(update={"noslip_iterations": int(change["noslip_iterations"])})
-    ph = load_spec().utensil("fork").physics
-    bar = ((ph.tines - 1) * ph.tine_pitch + 2 * ph.tine_radius) / 2
+    bar = sl.fork_half_width(load_spec(), "fork")
     ei = food.young * math.pi * food.strand_radius**4 / 4
     rc = bar + food.strand_radius
     w_hang = food.piece_mass / food.strand_length * sl.GRAVITY * (food.strand_length
