@@ -26,7 +26,6 @@ import hashlib
 import json
 import os
 import statistics
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -124,9 +123,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.cmd == "run":
         seeds = list(range(args.first_seed, args.first_seed + args.seeds))
         import articutool
+        from articutool.experiments.runner import source_version
         src = Path(articutool.__file__).resolve().parent
-        rev = subprocess.run(["git", "-C", str(src), "rev-parse", "--short", "HEAD"],
-                             capture_output=True, text=True).stdout.strip()
+        rev = source_version()
         doc = {"code": str(src), "git_head": rev, "loadavg_start": os.getloadavg(),
                "runs": run(args.foods.split(","), seeds), "loadavg_end": os.getloadavg()}
     else:

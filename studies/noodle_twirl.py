@@ -23,7 +23,6 @@ import argparse
 import json
 import math
 import os
-import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -36,6 +35,7 @@ import numpy as np
 from scipy import stats
 
 from articutool.experiments.design import trial_seed
+from articutool.experiments.runner import source_version
 from articutool.sim.accounting import UTENSIL
 from articutool.sim.params import PhysicsParams
 from articutool.sim.scenes import max_twirl_turns, skewer
@@ -156,22 +156,13 @@ def table(summary: dict[str, Any]) -> str:
             f"F/T mass — {ps(summary.get('ft_mass', {}))}.")
 
 
-def _commit() -> str | None:
-    """The checked-out commit the study runs, or None outside a git work tree."""
-    try:
-        return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
-                              check=True, cwd=Path(__file__).parent).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return None
-
-
 def write_study(path: Path, runs: list[dict[str, Any]], turns: float,
                 argv: list[str] | None, script: str = "studies/noodle_twirl.py") -> None:
     """The study's JSON: the command, the commit, MuJoCo's version, the machine's load
     (1-minute average when written), the summary and every run in seed order."""
     runs = sorted(runs, key=lambda r: (r["seed"], -r["twirl_turns"]))
     out = {"command": f"{script} " + " ".join(sys.argv[1:] if argv is None else argv),
-           "commit": _commit(), "mujoco": mujoco.__version__, "cpus": os.cpu_count(),
+           "commit": source_version(), "mujoco": mujoco.__version__, "cpus": os.cpu_count(),
            "load_1min": round(os.getloadavg()[0], 2),
            "summary": summarise(runs, turns), "runs": runs}
     path.parent.mkdir(parents=True, exist_ok=True)
