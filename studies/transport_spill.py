@@ -260,6 +260,7 @@ def main() -> None:
         plot(Path(args.plot), Path(args.figure))
         return
     from articutool.arm.scene import Scene
+    from articutool.experiments.runner import source_version
     from articutool.spec import load_spec
 
     spec = load_spec()
@@ -273,7 +274,8 @@ def main() -> None:
     doc.update({"water": args.water, "physics": args.physics or "packaged",
                 "particle_radius_override": args.particle_radius,
                 "load_g": args.load_g, "seed0": SEED0,
-                "command": " ".join(sys.argv), "loadavg_start": os.getloadavg()})
+                "command": " ".join(sys.argv), "source": source_version(),
+                "loadavg_start": os.getloadavg()})
     plans = _plans(goals, start, spec)
     for gi, g in enumerate(goals):
         for cond in args.conditions.split(","):
