@@ -125,8 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         import articutool
         from articutool.experiments.runner import source_version
         src = Path(articutool.__file__).resolve().parent
-        rev = source_version()
-        doc = {"code": str(src), "git_head": rev, "loadavg_start": os.getloadavg(),
+        doc = {"code": str(src), "git_head": source_version(), "loadavg_start": os.getloadavg(),
                "runs": run(args.foods.split(","), seeds), "loadavg_end": os.getloadavg()}
     else:
         a, b = (json.loads(Path(p).read_text()) for p in (args.before, args.after))

@@ -271,10 +271,15 @@ def main() -> None:
     doc: dict[str, Any] = json.loads(out.read_text()) if out.exists() else {}
     trials = doc.get("trials", [])
     done = {(t["goal"], t["condition"], t["scale"]) for t in trials}
+    source = source_version()
+    if trials and doc.get("source", source) != source:
+        # One file holds one code's trials: "source" names the code of every trial in it.
+        ap.exit(2, f"error: --out: {out} holds trials of code {doc['source']}; this is "
+                   f"{source}: write a new file\n")
     doc.update({"water": args.water, "physics": args.physics or "packaged",
                 "particle_radius_override": args.particle_radius,
                 "load_g": args.load_g, "seed0": SEED0,
-                "command": " ".join(sys.argv), "source": source_version(),
+                "command": " ".join(sys.argv), "source": source,
                 "loadavg_start": os.getloadavg()})
     plans = _plans(goals, start, spec)
     for gi, g in enumerate(goals):
