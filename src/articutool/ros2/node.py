@@ -75,7 +75,7 @@ class NodeSettings:
     joint_names: tuple[str, str] = ("atool_joint1", "atool_joint2")
     offset_units: str = "degrees"
     verifier: Any = None  # articutool.ros2.verify_service.Verifier, or None: no service
-    queue_depth: int = 1000  # DDS history of every service and action request queue
+    queue_depth: int = 10000  # DDS history of every service and action request queue
     max_goals: int = 4
 
 
