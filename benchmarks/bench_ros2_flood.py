@@ -24,8 +24,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
-import random
 import subprocess
 import sys
 import threading
@@ -35,8 +33,15 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).parent))
-from bench_ros2_stops import FLOODER, Client, _cpu_s  # noqa: E402
-from paired_tool import rss_mb, start_paired_tool  # noqa: E402
+from bench_ros2_stops import (  # noqa: E402
+    FLOODER,
+    Client,
+    _cpu_s,
+    start_graph,
+    stop_all,
+    write_result,
+)
+from paired_tool import rss_mb  # noqa: E402
 
 
 class _Peak:
@@ -116,38 +121,15 @@ def main() -> int:
     ap.add_argument("--node-log", default="", help="write the node's stderr here")
     ap.add_argument("--out", default="results/ros2_flood.json")
     args = ap.parse_args()
-    domain = random.Random(os.getpid()).randint(120, 220)
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"), ROS_DOMAIN_ID=str(domain),
-               ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
-    tool = start_paired_tool("ros2-flood-")
-    node = subprocess.Popen(
-        [sys.executable, "-m", "articutool", "ros2", "--link-config",
-         str(tool.folder / "pc-1" / "link.toml"), "--connect", tool.pc_config.connect[0],
-         "--tool-id", "wrist-1", "--wait", "60"],
-        env=env, text=True, stdout=subprocess.PIPE,
-        stderr=open(args.node_log, "w") if args.node_log else subprocess.DEVNULL)  # noqa: SIM115
-    assert node.stdout is not None
+    log = open(args.node_log, "w") if args.node_log else subprocess.DEVNULL  # noqa: SIM115
+    env, tool, node = start_graph("ros2-flood-", stderr=log)
     try:
-        line = node.stdout.readline()
-        if "serving" not in line:
-            raise SystemExit(f"node did not start: {line!r}")
         result = flood(args, env, node.pid)
     finally:
-        for p in (node, tool.proc):
-            p.send_signal(2)
-            try:
-                p.wait(30)
-            except subprocess.TimeoutExpired:
-                p.kill()
+        stop_all((node, tool.proc))
     print(json.dumps(result, indent=1), flush=True)
-    doc = {"machine": {"python": sys.version.split()[0], "platform": platform.platform(),
-                       "cpus": os.cpu_count()},
-           "clock": "round trips: wall clock (time.perf_counter) from send to reply; "
-                    "node_cpu_s: /proc user+system CPU time; RSS: /proc VmRSS",
-           "settings": vars(args), "result": result}
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(doc, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    write_result(args, "round trips: wall clock (time.perf_counter) from send to reply; "
+                       "node_cpu_s: /proc user+system CPU time; RSS: /proc VmRSS", result=result)
     return 0
 
 
