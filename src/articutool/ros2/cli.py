@@ -49,9 +49,10 @@ def add_commands(subparsers: Any) -> None:
     p.add_argument("--wait", type=_wait_seconds, default=10.0, metavar="S",
                    help="seconds to wait for the tool to be heard (default 10)")
     p.add_argument(ALLOW_FLAG, action="store_true", dest="allow_remote",
-                   help="serve even when DDS discovery reaches other hosts: then ANY process "
-                        "on the ROS 2 domain, on any host of the network, can command the "
-                        "wrist (DDS has no authentication here)")
+                   help="serve even when DDS discovery reaches other hosts, with DDS on every "
+                        "interface (without it DDS is bound to loopback and shared memory): "
+                        "then ANY process on the ROS 2 domain, on any host of the network, can "
+                        "command the wrist (DDS has no authentication here)")
     p.add_argument("--verify-only", action="store_true",
                    help="serve only /articutool/verify_trajectory (no tool, no link)")
     p.add_argument("--ros-args", nargs=argparse.REMAINDER, default=None, dest="ros_args",
