@@ -129,6 +129,11 @@ class _SummaryFile(_Open):
     goals: list[str] | None = None
 
 
+class _BenchRun(_Open):
+    timeout_s: Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
+    planner: str | None = None
+
+
 def read_summary(path: Path) -> dict[str, Any] | None:
     """An experiment's ``summary.json`` as this package writes it (``None`` if absent), for
     what a rerun and the report take from it (the run's machine, date, command, loads,
@@ -692,10 +697,10 @@ def read_exp2a(directory: Path) -> tuple[dict[str, Any] | None, list[dict[str, A
     from articutool.bench.runner import read_log
     from articutool.datafile import read_own_json
 
-    run = read_own_json(directory / "run.json", "Exp. 2a run settings")
-    if not isinstance(run, dict):
+    run = read_own_json(directory / "run.json", "Exp. 2a run settings", _BenchRun)
+    if run is None:
         return None, []
-    return run, read_log(directory / "results.jsonl").records
+    return run.model_dump(), read_log(directory / "results.jsonl").records
 
 
 def _sec_exp2a(s: Mapping[str, Any], run: Mapping[str, Any], cfg: Any, where: str) -> str:
