@@ -122,9 +122,9 @@ def _judge(comp: Mapping[str, Any] | None, pre: Any, thesis: float | None, direc
         if x is None:
             return "–"
         if unit == "×":
-            return f"{x:.2g}×" if x < 10 else f"{x:.0f}×"
+            return f"{x:.1f}×" if x < 10 else f"{x:.0f}×"
         if unit == "points":
-            return f"{100 * x:+.0f}" if sign else f"{100 * x:.0f}"
+            return f"{100 * x:+.1f}" if sign else f"{100 * x:.1f}"
         return f"{x:+.2f}" if sign else f"{x:.2f}"
 
     u = "" if unit in ("×", "") else f" {unit}"
