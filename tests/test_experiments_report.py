@@ -79,3 +79,11 @@ def test_an_unreadable_benchmark_folder_is_refused_naming_it(tmp_path: Path, bad
     (tmp_path / "run.json").write_text(bad)
     with pytest.raises(ResultsError, match=r"run\.json"):
         report.read_exp2a(tmp_path)
+
+
+def test_a_benchmark_folder_that_is_not_one_exits_2_naming_the_option(tmp_path, capsys) -> None:
+    import articutool.cli as cli
+
+    assert cli.main(["experiment", "report", "--out", str(tmp_path), "--exp2a",
+                     str(tmp_path / "missing")]) == 2
+    assert "--exp2a" in capsys.readouterr().err
