@@ -7,7 +7,7 @@ import math
 from typing import Any
 
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from articutool.experiments.analysis import compare_samples, summarize_exp2a
@@ -76,6 +76,7 @@ samples = st.lists(st.floats(0.0, 20.0, allow_nan=False), min_size=3, max_size=1
 diffs = st.floats(-30.0, 30.0, allow_nan=False)
 
 
+@settings(max_examples=40, deadline=None)  # each example bootstraps twice
 @given(samples, samples, diffs)
 def test_the_thesis_numbers_decide_only_the_size(a, b, diff):
     # Direction and significance are ours: another thesis difference can only move a claim
@@ -85,6 +86,7 @@ def test_the_thesis_numbers_decide_only_the_size(a, b, diff):
     assert one == other or {one, other} <= SIGNED
 
 
+@settings(max_examples=40, deadline=None)  # each example bootstraps twice
 @given(samples, samples, diffs)
 def test_swapping_the_systems_flips_the_sign_verdicts(a, b, diff):
     one, other = _one({"exp1": _exp1(a, b)}, _thesis(diff)), _one({"exp1": _exp1(b, a)},
