@@ -203,3 +203,53 @@ def test_report_recomputes_the_thesis_exp3_p_value_from_its_counts(cfg) -> None:
     # Without the thesis' counts nothing is made up: only the printed value stays.
     blind = {k: v for k, v in cfg.thesis["exp3"].items() if k != "baseline"}
     assert report.thesis_exp3_no_spill(blind) is None
+
+
+def test_every_comparison_the_verdicts_read_is_in_the_summaries(cfg) -> None:
+    recs = [rec(0.0, experiment="exp1", food=f, system=s, mass_g=m)
+            for f in cfg.exp1.foods for s, m in (("articutool", 2.0), ("articutool", 1.0),
+                                                 ("baseline", 1.0), ("baseline", 0.0))]
+    c = summarize("exp1", recs, cfg)["acquired_g"]["pecans"]["compare"]
+    assert set(c["p"]) == {"welch", "mann_whitney"}
+    assert c["effect"]["welch"]["estimate"] == pytest.approx(1.0)
+    assert set(c["effect"]) == {"welch", "bootstrap"}
+    bites = [bite(5.0, system="articutool", planning_attempts=1),
+             bite(0.0, system="baseline", planning_attempts=2)]
+    s = summarize("exp3", bites, cfg, threshold_g=3.0)
+    assert s["compare_meaningful"]["effect"]["newcombe"]["estimate"] == 1.0
+    assert {"compare_no_spill", "compare_planning_attempts"} <= set(s)
+
+
+def test_exp2b_spill_comparison_carries_the_spill_frequency_beside_the_masses(cfg) -> None:
+    recs = [rec(8.0 - x, critical=x, experiment="exp2b", food="water", system=s,
+                goal="centre", planning_attempts=1, max_tilt_deg=3.0)
+            for s, x in (("articutool", 0.0), ("articutool", 0.0), ("baseline", 0.1),
+                         ("baseline", 0.2))]
+    c = summarize("exp2b", recs, cfg)["spilled_g"]["water"]["compare"]
+    assert set(c["p"]) == {"welch", "mann_whitney", "fisher"}
+
+
+def test_the_food_aware_baselines_checks_of_another_wrist_are_counted(cfg) -> None:
+    # The committed run's defect: a leveling wrist modelled under the locked spoon.
+    def checked(wrist: str) -> TrialRecord:
+        return rec(8.0, experiment="exp2b", food="water", system="baseline_food_aware",
+                   goal="centre", planning_attempts=1, max_tilt_deg=17.0,
+                   food_checks=[{"wrist": wrist, "scale": 1.0}])
+
+    base = [rec(8.0, experiment="exp2b", food="water", system="baseline", goal="centre",
+                planning_attempts=1, max_tilt_deg=17.0)]
+    s = summarize("exp2b", [checked("leveling"), checked("locked"), *base], cfg)
+    v = s["variants"]["baseline_food_aware"]["water"]
+    assert v["checks"] == 2 and v["checks_of_carried_wrist"] == 1
+
+
+def test_our_bites_at_another_threshold(cfg) -> None:
+    from articutool.experiments.analysis import meaningful_at
+
+    bites = [bite(5.0, system="articutool", planning_attempts=1),
+             bite(2.0, system="articutool", planning_attempts=1),
+             bite(0.5, system="baseline", planning_attempts=1)]
+    at = meaningful_at(bites, cfg.exp3.systems, 3.0)
+    assert at["meaningful_success"] == {"articutool": 1, "baseline": 0}
+    assert at["n"] == {"articutool": 2, "baseline": 1} and "fisher" in at
+    assert meaningful_at(bites, cfg.exp3.systems, 0.4)["meaningful_success"]["baseline"] == 1

@@ -69,6 +69,63 @@ def test_exp2b_trial_baseline_water_to_a_goal_accounts_for_every_gram() -> None:
     json.dumps(r)  # a JSON record
 
 
+@pytest.mark.parametrize("name", [*CFG.exp2b.systems, *CFG.exp2b.variants])
+def test_each_exp2b_systems_food_check_models_the_wrist_it_carries(name: str) -> None:
+    # The baseline's arm is the locked spoon's, so its check predicts the locked carry
+    # (an arm built without it modelled a leveling wrist under a locked spoon).
+    from types import SimpleNamespace
+
+    from articutool.arm.scene import Scene
+    from articutool.experiments.protocols import exp2b_arm
+    from articutool.feeding.system import System
+    from articutool.food.loads import food_load
+    from articutool.planning.api import plan
+    from articutool.planning.types import PlanRequest, TransportTask
+    from articutool.sim.params import PhysicsParams
+    from articutool.spec import load_spec
+
+    spec, scene = load_spec(), Scene.load()
+    sset = scene.staging_set
+    world = SimpleNamespace(spec=spec, scene=scene, utensil="soup_spoon", wrist_q=np.zeros(2))
+    goals = {g.name: g.q for g in sset.goals}
+    arm = exp2b_arm(world, name, CFG, goals, seed=0)  # type: ignore[arg-type]
+    v = CFG.exp2b.variants.get(name)
+    system = System.of(v.system if v else name, tolerance_deg=CFG.settings.arm_tolerance_deg)
+    assert arm.rigid == (not system.wrist)
+    assert (arm.load is not None) == bool(v and v.food_check)
+    arm.load = food_load("water", 7.0, PhysicsParams.load().food("water"))
+    req = PlanRequest(system=system.transport.name, task=TransportTask(
+        0, tuple(sset.start), tuple(goals["right"])), timeout_s=10.0, seed=0,
+        utensil="soup_spoon", tolerance_deg=system.transport.tolerance_deg)
+    traj = plan(req, spec).trajectory
+    assert traj is not None
+    check = arm.check_food(traj).value
+    modelled = {t["wrist"] for t in check.record["tried"] if "wrist" in t} if check.record \
+        else set()
+    carried = {"leveling", "slosh_free"} if system.wrist else {"locked"}
+    assert modelled and modelled <= carried, (name, modelled)
+    arm.close()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("variant", [n for n, v in CFG.exp2b.variants.items() if v.food_check])
+def test_each_exp2b_food_check_models_the_wrist_the_trial_carries(variant: str) -> None:
+    # The check predicts the spill of the wrist the transport has: locked for the baseline,
+    # leveling (or slosh-free) for the Articutool.
+    from articutool.feeding.system import System
+
+    v = CFG.exp2b.variants[variant]
+    goals = ["right"]
+    trials = make_trials("exp2b", conditions("exp2b", CFG, goals=goals), 1, 0, goals=goals)
+    spec = next(t for t in trials if t.condition.system == variant)
+    r = run_trial(spec).to_log()
+    assert r["error"] is None, r.get("traceback")
+    wrists = {c["wrist"] for c in r["food_checks"]}
+    assert wrists, "the variant ran no food check"
+    carried = ({"leveling", "slosh_free"} if System.of(v.system).wrist else {"locked"})
+    assert wrists <= carried, (variant, wrists)
+
+
 @pytest.mark.slow
 def test_exp2c_trial_tilt_primitive_then_transport_and_replay_is_identical() -> None:
     trials = make_trials("exp2c", conditions("exp2c", CFG, load_g={"pecans": 10.0,

@@ -101,3 +101,73 @@ def test_wilson_interval_known_values() -> None:
     lo, hi = proportion_ci(14, 20)
     assert (lo, hi) == pytest.approx((0.4810, 0.8545), abs=1e-4)
     assert all(math.isnan(v) for v in proportion_ci(0, 0))
+
+
+# ------------------------------------------------------------ sizes of differences --
+def test_newcombe_matches_the_published_hybrid_score_intervals() -> None:
+    from articutool.experiments.stats import newcombe_ci
+
+    # Newcombe (1998), Stat. Med. 17:873, Table II, method 10: 56/70 − 48/80 and 9/10 − 3/10.
+    e = newcombe_ci(56, 70, 48, 80)
+    assert e.estimate == pytest.approx(0.2)
+    assert (e.ci_low, e.ci_high) == pytest.approx((0.0524, 0.3339), abs=1e-4)
+    e = newcombe_ci(9, 10, 3, 10)
+    assert (e.ci_low, e.ci_high) == pytest.approx((0.1705, 0.8090), abs=1e-4)
+    # At the floor and the ceiling it keeps width and stays inside [−1, 1].
+    e = newcombe_ci(0, 20, 20, 20)
+    assert e.ci_low == pytest.approx(-1.0) and -1.0 < e.ci_high < -0.5
+    same = newcombe_ci(20, 20, 20, 20)
+    assert same.ci_low < 0.0 < same.ci_high
+
+
+def test_welch_ci_is_scipys_interval_of_the_difference_of_means() -> None:
+    from articutool.experiments.stats import welch_ci
+
+    a, b = [3.0, 3.4, 2.8, 3.9, 3.1], [1.0, 1.6, 0.7, 1.1]
+    e = welch_ci(a, b)
+    ref = sst.ttest_ind(a, b, equal_var=False).confidence_interval()
+    assert e.estimate == pytest.approx(np.mean(a) - np.mean(b))
+    assert (e.ci_low, e.ci_high) == pytest.approx((ref.low, ref.high))
+    const = welch_ci([1.0, 1.0], [0.0, 0.0])
+    assert const.ci_low == const.ci_high == 1.0
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.floats(0, 10, allow_nan=False), min_size=3, max_size=15),
+       st.lists(st.floats(0, 10, allow_nan=False), min_size=3, max_size=15))
+def test_bootstrap_interval_holds_its_estimate_and_is_reproducible(a, b) -> None:
+    from articutool.experiments.stats import bootstrap_ci
+
+    e = bootstrap_ci(a, b)
+    assert e.estimate == pytest.approx(np.mean(a) - np.mean(b))
+    if math.isfinite(e.ci_low):
+        assert e.ci_low <= e.estimate + 1e-9 and e.estimate - 1e-9 <= e.ci_high
+    assert bootstrap_ci(a, b) == e  # a fixed seed: the same report from the same records
+
+
+def test_bootstrap_of_a_zero_inflated_spill_and_a_ratio_of_medians() -> None:
+    from articutool.experiments.stats import bootstrap_ci
+
+    spills = [0.0] * 9 + [0.02, 0.05, 0.01, 0.13, 0.03, 0.1, 0.04, 0.01, 2.6, 0.06, 0.02, 0.03]
+    e = bootstrap_ci([0.0] * 20, spills)
+    assert e.ci_high < 0.0 < -e.ci_low and "bootstrap" in e.method
+    r = bootstrap_ci([2.0, 4.0, 6.0, 8.0, 10.0], [1.0, 2.0, 3.0, 4.0, 5.0], "median ratio")
+    assert r.kind == "ratio" and r.estimate == pytest.approx(2.0)
+    assert r.ci_low <= 2.0 <= r.ci_high
+    with pytest.raises(ValueError, match="> 0"):
+        bootstrap_ci([0.0, 1.0], [1.0, 2.0], "median ratio")
+
+
+def test_rank_and_exact_tests_against_scipy_and_their_degenerate_cases() -> None:
+    from articutool.experiments.stats import boschloo, mann_whitney, wilcoxon_paired
+
+    a, b = [0.0] * 10 + [0.1, 0.4], [0.0] * 3 + [0.2, 0.5, 0.3, 0.9, 0.1, 0.6, 0.2, 0.4, 0.7]
+    assert mann_whitney(a, b) == pytest.approx(sst.mannwhitneyu(a, b).pvalue)
+    assert math.isnan(mann_whitney([0.0] * 4, [0.0] * 4))  # nothing to rank
+    assert boschloo(9, 10, 3, 10) == pytest.approx(
+        sst.boschloo_exact([[9, 3], [1, 7]]).pvalue)
+    assert boschloo(9, 10, 3, 10) <= fisher(9, 10, 3, 10).p  # Boschloo is at least as strong
+    assert math.isnan(boschloo(20, 20, 20, 20))
+    assert wilcoxon_paired([1.0, 2.0, 3.5, 4.0], [1.5, 2.5, 3.0, 5.0]) == pytest.approx(
+        sst.wilcoxon([1.0, 2.0, 3.5, 4.0], [1.5, 2.5, 3.0, 5.0]).pvalue)
+    assert math.isnan(wilcoxon_paired([1.0, 2.0], [1.0, 2.0]))

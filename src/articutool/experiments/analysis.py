@@ -25,11 +25,23 @@ from articutool.experiments.records import (
     Outcome,
     TrialRecord,
 )
-from articutool.experiments.stats import describe, fisher, proportion_ci, welch
+from articutool.experiments.stats import (
+    bootstrap_ci,
+    boschloo,
+    describe,
+    fisher,
+    mann_whitney,
+    newcombe_ci,
+    proportion_ci,
+    welch,
+    welch_ci,
+    wilcoxon_paired,
+)
 from articutool.feeding.outcomes import OUTCOMES, classify_bite
 
-__all__ = ["EXP2C_CLASSES", "by_place", "classify_exp2c", "representative_trials",
-           "staging_attempts", "summarize"]
+__all__ = ["EXP2C_CLASSES", "by_place", "carried_wrists", "classify_exp2c", "compare_counts",
+           "compare_samples", "meaningful_at", "representative_trials", "staging_attempts",
+           "summarize", "summarize_exp2a"]
 
 EXP2C_CLASSES = ("meaningful_success", "trivial_success", "transport_failure", "failed")
 
@@ -89,6 +101,30 @@ def _rate(k: int, n: int) -> dict[str, Any]:
             "ci95": [lo, hi] if n else None}
 
 
+def _pv(p: float) -> float | None:
+    return float(p) if np.isfinite(p) else None
+
+
+def compare_samples(a: Sequence[float], b: Sequence[float]) -> dict[str, Any]:
+    """Group a against group b, every way the report prints: the two-sided p of Welch's
+    t-test and of Mann–Whitney's U (``p``), and the difference of means a − b with Welch's
+    interval and with the bootstrap's (``effect``). Which of them decides a claim's verdict
+    is pre-registered (``experiments.toml [tests]``)."""
+    return {"n": [len(a), len(b)],
+            "p": {"welch": _pv(welch(a, b).p), "mann_whitney": _pv(mann_whitney(a, b))},
+            "effect": {"welch": welch_ci(a, b).to_dict(),
+                       "bootstrap": bootstrap_ci(a, b).to_dict()}}
+
+
+def compare_counts(a_k: int, a_n: int, b_k: int, b_n: int) -> dict[str, Any]:
+    """Rate a_k/a_n against b_k/b_n: Fisher's and Boschloo's exact tests (``p``) and the
+    difference of the rates with Newcombe's interval (``effect``)."""
+    return {"n": [a_n, b_n], "k": [a_k, b_k],
+            "p": {"fisher": _pv(fisher(a_k, a_n, b_k, b_n).p),
+                  "boschloo": _pv(boschloo(a_k, a_n, b_k, b_n))},
+            "effect": {"newcombe": newcombe_ci(a_k, a_n, b_k, b_n).to_dict()}}
+
+
 # ------------------------------------------------------------------ per experiment --
 def summarize_capacity(records: Sequence[TrialRecord]) -> dict[str, Any]:
     """Per food, the maximal scoops' mass (completed scoops; a scoop whose tree failed is no
@@ -130,6 +166,7 @@ def summarize_mass(records: Sequence[TrialRecord], foods: Sequence[str],
         if len(systems) == 2:
             a, b = (per[s] for s in systems)
             entry["welch"] = welch(a, b).to_dict()
+            entry["compare"] = compare_samples(a, b)
         out[f] = entry
     return out
 
@@ -155,6 +192,7 @@ def summarize_exp2b(records: Sequence[TrialRecord], cfg: Any) -> dict[str, Any]:
         if len(systems) == 2:
             a, b = systems
             freq[f] = fisher(spill[a], len(rs[a]), spill[b], len(rs[b])).to_dict()
+            out["spilled_g"][f]["compare"]["p"]["fisher"] = freq[f]["p"]  # spill frequency
         per_goal[f] = {s: {g: describe([_out(r).spilled_g for r in v
                                         if r.condition.goal == g]).to_dict()
                            for g in dict.fromkeys(r.condition.goal for r in v)}
@@ -194,6 +232,7 @@ def summarize_exp2b_variants(records: Sequence[TrialRecord], cfg: Any
                 continue
             checks = [c for r in rs for c in (_out(r).food_checks or [])]
             kept = [c for c in checks if c.executed is not False]
+            carried = carried_wrists(v.system)
             per[f] = {
                 "base": v.system,
                 "spilled_g": describe([_out(r).spilled_g for r in rs]).to_dict(),
@@ -209,6 +248,9 @@ def summarize_exp2b_variants(records: Sequence[TrialRecord], cfg: Any
                 "base_motion_time_s": describe([_out(r).motion_time_s for r in base]
                                                ).to_dict(),
                 "checks": len(checks),
+                # checks that modelled the wrist the transport carries (locked for the
+                # baseline): a check of another wrist predicts another transport
+                "checks_of_carried_wrist": sum(1 for c in checks if c.wrist in carried),
                 "retimed": sum(1 for c in kept if c.scale is not None and c.scale < 1.0),
                 "slosh_free": sum(1 for c in kept if c.wrist == "slosh_free"),
                 "scale": describe([float(c.scale) for c in kept if c.scale is not None]
@@ -220,6 +262,15 @@ def summarize_exp2b_variants(records: Sequence[TrialRecord], cfg: Any
             }
         out[name] = per
     return out
+
+
+def carried_wrists(system: str) -> frozenset[str]:
+    """The wrists a food check of ``system``'s transport may model: the locked spoon for the
+    baseline, leveling (or slosh-free) for the Articutool."""
+    from articutool.feeding.system import System
+
+    return (frozenset({"leveling", "slosh_free"}) if System.of(system).wrist
+            else frozenset({"locked"}))
 
 
 def by_place(records: Sequence[TrialRecord]) -> dict[str, dict[str, float]]:
@@ -264,9 +315,10 @@ def summarize_exp2c(records: Sequence[TrialRecord], cfg: Any,
                                "_closed_vs_open": ("closed_loop", "primitive")}.items():
             ta, tb = entry[a], entry[b]
             if thresholds_g and f in thresholds_g:
-                entry["fisher_meaningful" + suffix] = fisher(
-                    ta["counts"]["meaningful_success"], ta["n"],
-                    tb["counts"]["meaningful_success"], tb["n"]).to_dict()
+                counts = (ta["counts"]["meaningful_success"], ta["n"],
+                          tb["counts"]["meaningful_success"], tb["n"])
+                entry["fisher_meaningful" + suffix] = fisher(*counts).to_dict()
+                entry["compare_meaningful" + suffix] = compare_counts(*counts)
             a_rs, b_rs = (_where(ok, _in(f, k)) for k in (a, b))
             entry["fisher_no_spill" + suffix] = fisher(
                 sum(1 for r in a_rs if _out(r).spilled_g <= 1e-9), len(a_rs),
@@ -295,7 +347,8 @@ def staging_attempts(rec: TrialRecord) -> int | None:
 def summarize_exp3(records: Sequence[TrialRecord], cfg: Any,
                    threshold_g: float) -> dict[str, Any]:
     """The four outcome classes (and ``failed``) per system at ``threshold_g``; Fisher's
-    exact test of meaningful success and of no spill; planning attempts (Welch)."""
+    exact test of meaningful success and of no spill; planning attempts (Welch); every
+    comparison the verdicts read (``compare_*``)."""
     ok = _ok(records)
     systems = list(cfg.exp3.systems)
     out: dict[str, Any] = {"threshold_g": threshold_g, "systems": {}}
@@ -315,6 +368,74 @@ def summarize_exp3(records: Sequence[TrialRecord], cfg: Any,
         out["fisher_no_spill"] = fisher(a["no_spill"]["k"], a["n"], b["no_spill"]["k"],
                                         b["n"]).to_dict()
         out["welch_planning_attempts"] = welch(*(att[s] for s in systems)).to_dict()
+        out["compare_meaningful"] = compare_counts(a["counts"]["meaningful_success"], a["n"],
+                                                   b["counts"]["meaningful_success"], b["n"])
+        out["compare_no_spill"] = compare_counts(a["no_spill"]["k"], a["n"],
+                                                 b["no_spill"]["k"], b["n"])
+        out["compare_planning_attempts"] = compare_samples(*(att[s] for s in systems))
+    return out
+
+
+def meaningful_at(records: Sequence[TrialRecord], systems: Sequence[str],
+                  threshold_g: float) -> dict[str, Any]:
+    """Exp. 3's meaningful successes per system at another ``threshold_g`` (the report's
+    view of our bites at the thesis' own threshold), with Fisher's exact test of the
+    first two systems."""
+    ok = _ok(records)
+    ms = {s: sum(1 for r in ok if r.condition.system == s
+                 and classify(r, threshold_g) == "meaningful_success") for s in systems}
+    ns = {s: sum(1 for r in ok if r.condition.system == s) for s in systems}
+    out: dict[str, Any] = {"threshold_g": float(threshold_g), "meaningful_success": ms,
+                           "n": ns}
+    if len(systems) >= 2:
+        a, b = systems[:2]
+        out["fisher"] = fisher(ms[a], ns[a], ms[b], ns[b]).to_dict()
+    return out
+
+
+def summarize_exp2a(records: Sequence[Mapping[str, Any]], timeout_s: float,
+                    decoupled: str = "decoupled") -> dict[str, Any]:
+    """The transport planning benchmark (Exp. 2a, ``articutool bench transport``'s records),
+    ``decoupled`` against each strict system: tasks solved (Fisher, Boschloo; Newcombe's
+    interval of the difference) and planning time. Times: the ratio of the strict system's
+    median to the decoupled one's over the solved tasks (the thesis' medians), with the
+    bootstrap interval; Mann–Whitney, Welch and the Wilcoxon signed-rank test (tasks
+    paired) over every task, a failed plan counted as taking the whole ``timeout_s``."""
+    by: dict[str, dict[int, Mapping[str, Any]]] = {}
+    for r in records:
+        if r.get("tolerance_deg") is None:  # the benchmark's own ±10°, not a sweep
+            by.setdefault(str(r["system"]), {})[int(r["task_id"])] = r
+
+    def time(r: Mapping[str, Any]) -> float:
+        return float(r["planning_time_s"]) if r.get("success") else float(timeout_s)
+
+    def solved(rs: Iterable[Mapping[str, Any]]) -> list[float]:
+        return [float(r["planning_time_s"]) for r in rs if r.get("success")]
+
+    every = [t for rs in by.values() for t in solved(rs.values())]
+    out: dict[str, Any] = {"timeout_s": timeout_s, "systems": {}, "against": {},
+                           "max_solved_s": max(every) if every else None}
+    for name, rs in by.items():
+        t = solved(rs.values())
+        out["systems"][name] = {"tasks": len(rs), "solved": len(t),
+                                "median_s": float(np.median(t)) if t else None}
+    dec = by.get(decoupled, {})
+    for name, rs in by.items():
+        if name == decoupled or not dec:
+            continue
+        tasks = sorted(set(rs) & set(dec))
+        a = [time(rs[k]) for k in tasks]
+        d = [time(dec[k]) for k in tasks]
+        sa, sd = solved(rs[k] for k in tasks), solved(dec[k] for k in tasks)
+        times = {"n": [len(a), len(d)],
+                 "p": {"mann_whitney": _pv(mann_whitney(a, d)), "welch": _pv(welch(a, d).p),
+                       "wilcoxon": _pv(wilcoxon_paired(a, d)) if tasks else None},
+                 "effect": {"bootstrap": bootstrap_ci(sa, sd, "median ratio").to_dict()
+                            if sa and sd else None}}
+        out["against"][name] = {
+            "tasks": len(tasks),
+            "success": compare_counts(len(sd), len(tasks), len(sa), len(tasks)),
+            "time": times}
     return out
 
 

@@ -125,7 +125,8 @@ def _check_threshold_g(args: argparse.Namespace) -> None:
 
 def _exp3_threshold(args: argparse.Namespace, out: Path, cfg: Any) -> float:
     """Exp. 3's threshold: ``--threshold-g``, else our Exp. 1 Articutool mean for its food
-    (the thesis derived its 3.0 g from its own data; we do not borrow it)."""
+    (the rule the thesis used for Exp. 2c; its Exp. 3's 3.0 g came from the bimodal
+    distribution of its baseline's bites, §5.3, and the report classifies ours at it too)."""
     from articutool.thresholds import exp1_means
 
     if getattr(args, "threshold_g", None) is not None:
@@ -465,8 +466,11 @@ def _cmd_report(args: argparse.Namespace) -> int:
         print(f"note: {path} was not as `articutool experiment report` wrote it (edited?): "
               f"kept it as {copy}", file=sys.stderr)
 
+    exp2a = Path(args.exp2a) if args.exp2a is not None else out.parent / "exp2a"
+    if args.exp2a is not None and not exp2a.is_dir():
+        raise _usage(f"--exp2a {exp2a} is not a directory of `bench transport` results")
     md, html = report.write_report(out, cfg, thresholds_g=th, thresholds_source=src,
-                                   threshold_g=threshold, on_kept=kept)
+                                   threshold_g=threshold, on_kept=kept, exp2a=exp2a)
     print(f"wrote {md} and {html}")
     return 0
 
@@ -521,7 +525,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         if name == "exp3":
             p.add_argument("--threshold-g", type=float, default=None,
                            help="meaningful-success threshold (default: our Exp. 1 Articutool "
-                                "mean for the food; the thesis derived its 3.0 g likewise)")
+                                "mean for the food, the thesis' rule for Exp. 2c; the thesis' "
+                                "Exp. 3 took 3.0 g from its baseline's bimodal bites)")
         p.set_defaults(func=_cmd_run)
     p = esub.add_parser("report", help="one Markdown + HTML page with every experiment")
     p.add_argument("--out", metavar="DIR", default=DEFAULT_OUT,
@@ -530,4 +535,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    help="Exp. 2c thresholds (default: our Exp. 1 Articutool means)")
     p.add_argument("--threshold-g", type=float, default=None,
                    help="Exp. 3 threshold (default: our Exp. 1 Articutool mean)")
+    p.add_argument("--exp2a", metavar="DIR", default=None,
+                   help="the transport planning benchmark's results (`bench transport "
+                        "--out`; default: the exp2a folder beside --out)")
     p.set_defaults(func=_cmd_report)

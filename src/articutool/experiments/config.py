@@ -137,6 +137,46 @@ class Exp3(StrictModel):
     timeout_s: Positive
 
 
+# The tests a claim's verdict can be pre-registered with, and the intervals of the
+# difference each can be judged with: a continuous or count measure's tests with a mean's or
+# median's interval, a frequency's exact tests with a proportion's.
+SAMPLE_TESTS = ("welch", "mann_whitney", "wilcoxon")
+COUNT_TESTS = ("fisher", "boschloo")
+CLAIMS = ("exp1", "exp2a_success", "exp2a_time", "exp2b", "exp2c", "exp3_success",
+          "exp3_no_spill", "exp3_attempts")
+
+
+class PreRegistered(StrictModel):
+    """The test that decides one kind of claim and the interval of the difference the
+    thesis' difference is judged against, chosen from the measurement's type (``measure``)
+    with the reason (``why``)."""
+
+    measure: Annotated[str, Field(min_length=1)]
+    test: Literal["welch", "mann_whitney", "wilcoxon", "fisher", "boschloo"]
+    ci: Literal["welch", "bootstrap", "newcombe"]
+    why: Annotated[str, Field(min_length=1)]
+
+    @model_validator(mode="after")
+    def _matching(self) -> PreRegistered:
+        counts = self.test in COUNT_TESTS
+        if counts != (self.ci == "newcombe"):
+            raise ValueError(f"ci: {self.ci!r} does not fit the test {self.test!r} (a "
+                             "frequency's exact tests take 'newcombe'; a sample's tests "
+                             "'welch' or 'bootstrap')")
+        return self
+
+
+class Deviation(StrictModel):
+    """One place our protocol differs from the thesis': what the thesis did, what we do,
+    why. ``{name}`` in a text is a figure the report computes from the records (see
+    ``experiments/report.py`` ``deviation_facts``)."""
+
+    topic: Annotated[str, Field(min_length=1)]
+    thesis: Annotated[str, Field(min_length=1)]
+    ours: Annotated[str, Field(min_length=1)]
+    why: Annotated[str, Field(min_length=1)]
+
+
 class ExperimentsConfig(StrictModel):
     """The validated ``experiments.toml``."""
 
@@ -147,7 +187,18 @@ class ExperimentsConfig(StrictModel):
     exp2c: Exp2c
     capacity: Capacity
     exp3: Exp3
+    tests: dict[str, PreRegistered]
+    deviations: list[Deviation]
     thesis: dict[str, Any]
+
+    @model_validator(mode="after")
+    def _every_claim_preregistered(self) -> ExperimentsConfig:
+        missing = [c for c in CLAIMS if c not in self.tests]
+        unknown = sorted(set(self.tests) - set(CLAIMS))
+        if missing or unknown:
+            raise ValueError(f"tests: every claim needs its pre-registered test "
+                             f"({', '.join(CLAIMS)}); missing {missing}, unknown {unknown}")
+        return self
 
     @classmethod
     def load(cls, path: str | Path | None = None) -> ExperimentsConfig:

@@ -52,8 +52,8 @@ if TYPE_CHECKING:
     from articutool.feeding.system import System
 
 __all__ = ["BITE_PROTOCOLS", "Hook", "capacity_strategy", "capacity_trial", "closed_loop_params",
-           "closed_loop_target_g", "exp1_trial", "exp2b_trial", "exp2c_trial", "exp3_trial",
-           "json_safe", "transport", "transport_outcome"]
+           "closed_loop_target_g", "exp1_trial", "exp2b_arm", "exp2b_trial", "exp2c_trial",
+           "exp3_trial", "json_safe", "transport", "transport_outcome"]
 
 Hook = Callable[[FeedingWorld], None] | None
 Visitors = Sequence["py_trees.visitors.VisitorBase"]
@@ -63,8 +63,8 @@ class _GoalArm(SimArm):
     """:class:`SimArm` with extra named goals (the scene's staging set)."""
 
     def __init__(self, world: FeedingWorld, goals: dict[str, Any], seed: int = 0,
-                 load: Any = None, leveling: str = "gravity") -> None:
-        super().__init__(world, seed=seed, load=load, leveling=leveling)
+                 rigid: bool = False, load: Any = None, leveling: str = "gravity") -> None:
+        super().__init__(world, seed=seed, rigid=rigid, load=load, leveling=leveling)
         self.extra = {k: np.asarray(v, dtype=float) for k, v in goals.items()}
 
     def goal_configuration(self, goal: str) -> np.ndarray:
@@ -135,11 +135,16 @@ def transport(world: FeedingWorld, arm: SimArm, goal: str, system: System, *, at
 
 
 def _food_check_summary(check: Mapping[str, Any]) -> dict[str, Any]:
-    """What a food check decided, for the trial's record: the wrist it modelled, the speed
-    scale it kept and the spill it predicted (its full record stays in the bite's log)."""
+    """What a food check decided, for the trial's record: the wrist it modelled (for a plan
+    it refused, the wrist of its last try), the speed scale it kept and the spill it
+    predicted (its full record stays in the bite's log)."""
     keep = ("wrist", "scale", "predicted_spill_g", "planned_duration_s", "duration_s",
             "min_margin_deg", "executed", "slosh_free_fallback")
-    return {k: check[k] for k in keep if k in check}
+    out = {k: check[k] for k in keep if k in check}
+    modelled = [t["wrist"] for t in check.get("tried", ()) if "wrist" in t]
+    if "wrist" not in out and modelled:  # a refused plan: the wrist its last try modelled
+        out["wrist"] = modelled[-1]
+    return out
 
 
 def transport_outcome(world: FeedingWorld, start: np.ndarray, n_spills: int,
@@ -241,7 +246,6 @@ def exp2b_trial(cond: Exp2bCondition, seed: int, cfg: ExperimentsConfig,
     """Exp. 2b: load placed at the common start, carried to ``cond.goal``."""
     from articutool.arm.scene import Scene
     from articutool.feeding.system import System
-    from articutool.meal.sim_arm import world_load
     from articutool.tool.api import Mode
 
     food, name, goal = cond.food, cond.system, cond.goal
@@ -252,6 +256,7 @@ def exp2b_trial(cond: Exp2bCondition, seed: int, cfg: ExperimentsConfig,
     # The thesis' systems: the Articutool's own planner, the baseline's strict6 at the
     # experiments' tolerance.
     system = System.of(base, tolerance_deg=cfg.settings.arm_tolerance_deg)
+    checked = variant is not None and variant.food_check
     sset = Scene.load().staging_set
     if sset is None:
         raise ValueError("the scene has no [staging_set]")
@@ -260,12 +265,8 @@ def exp2b_trial(cond: Exp2bCondition, seed: int, cfg: ExperimentsConfig,
                            settle_cache=settled)
     if hook:
         hook(w)
-    goals = {g.name: g.q for g in sset.goals}
     tol = system.transport.tolerance_deg
-    checked = variant is not None and variant.food_check
-    arm = _GoalArm(w, goals, seed=seed,
-                   load=(lambda: world_load(w)) if checked else None,
-                   leveling=variant.leveling if variant is not None else "gravity")
+    arm = exp2b_arm(w, name, cfg, {g.name: g.q for g in sset.goals}, seed)
     try:
         if system.wrist:
             w.tool.set_mode(Mode.LEVELING)
@@ -282,6 +283,23 @@ def exp2b_trial(cond: Exp2bCondition, seed: int, cfg: ExperimentsConfig,
         "tolerance_deg": tol, **tr,
         **transport_outcome(w, start, n_spills, before), "weighed_g": _r(w.carried_g()),
         "masses_after_g": _masses(w), "realtime_factor": _r(w.realtime_factor)})
+
+
+def exp2b_arm(world: FeedingWorld, name: str, cfg: ExperimentsConfig,
+              goals: dict[str, Any], seed: int) -> SimArm:
+    """The arm of Exp. 2b's system ``name`` (a thesis system or a variant): its wrist as the
+    system carries the load (locked for the baseline, so a food check models the locked
+    spoon), the variant's food check of the world's load and its leveling, and the staging
+    set's ``goals``."""
+    from articutool.feeding.system import System
+    from articutool.meal.sim_arm import world_load
+
+    variant = cfg.exp2b.variants.get(name)
+    system = System.of(variant.system if variant is not None else name)
+    checked = variant is not None and variant.food_check
+    return _GoalArm(world, goals, seed=seed, rigid=not system.wrist,
+                    load=(lambda: world_load(world)) if checked else None,
+                    leveling=variant.leveling if variant is not None else "gravity")
 
 
 def _plan_attempts(food: str, system: str) -> int:

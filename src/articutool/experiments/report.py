@@ -17,16 +17,22 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from articutool.experiments.analysis import EXP2C_CLASSES, representative_trials, summarize
+from articutool.experiments.analysis import (
+    EXP2C_CLASSES,
+    meaningful_at,
+    representative_trials,
+    summarize,
+)
 from articutool.experiments.design import EXP2C_CONDITIONS
 from articutool.experiments.figures import mass_bars, outcome_bars
 from articutool.experiments.records import TrialRecord
 from articutool.experiments.stats import FisherResult, fisher
-from articutool.experiments.verdicts import code_versions, thesis_trials, verdicts
+from articutool.experiments.verdicts import TEST_NAMES, code_versions, thesis_trials, verdicts
 from articutool.feeding.outcomes import OUTCOMES
 from articutool.thresholds import Grams
 
-__all__ = ["CROSS_CHECKS", "HONESTY", "cross_checks", "differences", "figure", "read_summary",
+__all__ = ["CROSS_CHECKS", "HONESTY", "cross_checks", "deviation_facts", "deviations_section",
+           "differences", "figure", "hypotheses_section", "read_exp2a", "read_summary",
            "section", "thesis_exp3_no_spill", "write_report"]
 
 ORDER = ("exp1", "exp2b", "capacity", "exp2c", "exp3")
@@ -121,6 +127,11 @@ class _SummaryFile(_Open):
     load_g: dict[str, Grams] | None = None
     load_source: str | None = None
     goals: list[str] | None = None
+
+
+class _BenchRun(_Open):
+    timeout_s: Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
+    planner: str | None = None
 
 
 def read_summary(path: Path) -> dict[str, Any] | None:
@@ -251,14 +262,26 @@ def _sec_slosh(d: Mapping[str, Any]) -> str:
     """The slosh model's predicted spill beside the particle world's, per trial, on the
     Exp. 2b paths (``studies/transport_spill.py``'s JSON)."""
     rows = []
-    for t in d.get("trials", []):
+    trials = d.get("trials", [])
+    for t in trials:
         rows.append([t.get("goal", "–"), t.get("condition", t.get("wrist_used", "–")),
                      _f(t.get("scale")), t.get("seed", "–"), _f(t.get("max_tilt_deg"), 1),
-                     _f(t.get("predicted_spill_g")), _f(t.get("simulated_spill_g"))])
+                     _f(t.get("predicted_spill_g")), _f(t.get("lost_g"))])
     head = (f"{d.get('water', '')}\n\nLoad {d.get('load_g', '?')} g; command: "
-            f"`{d.get('command', '?')}`.\n\n")
+            f"`{d.get('command', '?')}`. Simulated is what left the spoon during the "
+            "transport (the study's `lost_g`), not what ran off while the load was placed.\n\n")
+    tail = ""
+    cut = (d.get("summary", {}).get("prediction") or {}).get("spill_threshold_g")
+    both = [t for t in trials if t.get("predicted_spill_g") is not None
+            and t.get("lost_g") is not None]
+    if cut is not None and both:
+        agree = sum((t["predicted_spill_g"] > cut) == (t["lost_g"] > cut) for t in both)
+        tail = (f"\nThe model and the particles agree on whether a transport spills (more "
+                f"than {cut:g} g) in {agree} of {len(both)} transports "
+                f"({100 * agree / len(both):.0f} %).\n")
     return head + _table(["goal", "wrist", "speed scale", "seed", "max tilt (°)",
-                          "predicted by the slosh model (g)", "simulated (g)"], rows) + "\n"
+                          "predicted by the slosh model (g)",
+                          "simulated, spilled in transport (g)"], rows) + "\n" + tail
 
 
 def _sec_strands(d: Mapping[str, Any]) -> str:
@@ -408,6 +431,7 @@ def _sec_exp2b_variants(s: Mapping[str, Any], cfg: Any) -> str:
                          _msd(e["spilled_g"]), _p((e.get("fisher_vs_base") or {}).get("p")),
                          f"{_msd(e['motion_time_s'], 1)} vs {_msd(e['base_motion_time_s'], 1)}",
                          f"{e['retimed']}/{e['checks']}", f"{e['slosh_free']}/{e['checks']}",
+                         f"{e.get('checks_of_carried_wrist', '–')}/{e['checks']}",
                          _places(e["spilled_by_place"])])
     if not rows:
         return ""
@@ -417,7 +441,11 @@ def _sec_exp2b_variants(s: Mapping[str, Any], cfg: Any) -> str:
             + _table(["food", "system", "trials with spill", "same, its thesis system",
                       "spilled (g), mean ± SD", "Fisher p vs its thesis system",
                       "motion time (s), it vs its thesis system", "checks retimed",
-                      "checks slosh-free", "spilled by place"], rows))
+                      "checks slosh-free", "checks of the wrist carried", "spilled by place"],
+                     rows)
+            + "\n\nA check of the wrist carried predicts the transport the trial makes (the "
+              "locked spoon for the baseline); a check of another wrist tests nothing about "
+              "this transport.")
 
 
 def _places(d: Mapping[str, Any] | None) -> str:
@@ -515,6 +543,14 @@ def _sec_exp3(s: Mapping[str, Any], cfg: Any) -> str:
     out = _table(["system", "n", *(k.replace("_", " ") for k in OUTCOMES),
                   "thesis (meaningful / trivial / table / user, of 20)",
                   "planning attempts to Staging", "thesis attempts", "delivered (g)"], rows)
+    at = s.get("at_thesis_threshold")
+    if at:
+        sy = list(at["meaningful_success"])
+        out += (f"\n\nAt the thesis' {at['threshold_g']:.1f} g (taken from the bimodal "
+                "distribution of its Exp. 3 baseline's bites, §5.3), our meaningful successes "
+                "are " + " vs ".join(f"{at['meaningful_success'][x]}/{at['n'][x]}" for x in sy)
+                + f" ({' vs '.join(sy)}; Fisher p {_p(at.get('fisher', {}).get('p'))}). Ours "
+                "below is the rule the thesis used for Exp. 2c (our Exp. 1 Articutool mean).")
     ours = (f"\n\nThreshold {s['threshold_g']:g} g. Ours: Fisher p, meaningful success: "
             f"{_p(s.get('fisher_meaningful', {}).get('p'))}; no spill: "
             f"{_p(s.get('fisher_no_spill', {}).get('p'))}; Welch p, planning attempts: "
@@ -596,21 +632,53 @@ def section(exp: str, summary: Mapping[str, Any], cfg: Any, figure_name: str | N
     return md
 
 
+_CLAIM_KINDS = {
+    "exp1": "Exp. 1 acquired mass (H1)", "exp2a_success": "Exp. 2a tasks solved (H2)",
+    "exp2a_time": "Exp. 2a planning time (H2)", "exp2b": "Exp. 2b spilled mass (H2)",
+    "exp2c": "Exp. 2c meaningful success (H2)", "exp3_success": "Exp. 3 meaningful success (H3)",
+    "exp3_no_spill": "Exp. 3 bites without spill (H3)",
+    "exp3_attempts": "Exp. 3 planning attempts (H3)"}
+_CI_METHODS = {"welch": "Welch's t interval of the difference of means",
+               "bootstrap": "bias-corrected and accelerated bootstrap (9 999 resamples, fixed "
+                            "seed)",
+               "newcombe": "Newcombe's hybrid score interval of the difference of rates, "
+                           "from the two Wilson intervals"}
+
+
 def hypotheses_section(summaries: Mapping[str, Mapping[str, Any]], cfg: Any) -> str:
-    """The per-hypothesis table (:func:`articutool.experiments.verdicts.verdicts`) and which
-    code every trial ran (``run.sources`` of each experiment)."""
+    """The per-hypothesis table (:func:`articutool.experiments.verdicts.verdicts`), the
+    pre-registered tests it used (``experiments.toml [tests]``) and which code every trial
+    ran (``run.sources`` of each experiment)."""
     alpha = cfg.settings.alpha
-    rows = [[v.hypothesis, v.figure, v.claim, v.thesis, v.ours, v.test, f"**{v.verdict}**"]
-            for v in verdicts(summaries, cfg.thesis, alpha)]
+    rows = [[v.hypothesis, v.figure, v.claim, v.thesis, v.ours, v.test, v.size, v.others,
+             f"**{v.verdict}**"]
+            for v in verdicts(summaries, cfg.thesis, alpha, cfg.tests)]
     md = ("## What the simulation shows, per hypothesis\n\n"
-          f"A claim is *reproduced* when our difference has the thesis' sign and our test gives "
-          f"p < {alpha:g}, *contradicted* when it is significant the other way, *not reproduced* "
-          "when our test does not separate the conditions, and *cannot test* when our "
-          "measurement cannot carry the claim (no food moved in either condition, or not run). "
-          "The thesis' numbers are printed beside ours, never used to decide. Why ours differ "
-          "is in each experiment's section below.\n\n"
-          + _table(["H", "figure", "claim", "thesis", "ours", "test", "verdict"], rows) + "\n")
-    versions = code_versions(summaries)
+          "Each claim is judged by the test pre-registered for its kind of measurement (the "
+          "table after this one) and by the 95 % interval of our difference. A claim is "
+          f"*reproduced* when our difference has the thesis' direction with p < {alpha:g} and "
+          "the thesis' difference lies inside our interval; *reproduced in sign only* when it "
+          "is significant in the thesis' direction but the interval excludes the thesis' "
+          "difference (or the thesis gives no number); *contradicted* when it is significant "
+          "the other way; *not reproduced* when the test does not separate the systems; "
+          "*cannot test* when our measurement cannot carry the claim (no food moved in either "
+          "condition, both at the same floor or ceiling, or not run). The thesis' numbers "
+          "decide only between *reproduced* and *reproduced in sign only*. The other tests "
+          "are printed beside the chosen one, never used to decide. Differences are the first "
+          "system's minus the second's (rates in percentage points), planning times the "
+          "strict system's median over the decoupled one's. Why ours differ is in each "
+          "experiment's section below.\n\n"
+          + _table(["H", "figure", "claim", "thesis", "ours", "pre-registered test (p)",
+                    "difference [95 % CI] beside the thesis'", "other tests (p)", "verdict"],
+                   rows) + "\n")
+    pre = [[_CLAIM_KINDS.get(k, k), t.measure, TEST_NAMES[t.test], _CI_METHODS[t.ci], t.why]
+           for k, t in cfg.tests.items()]
+    md += ("\n**Pre-registered tests** (`experiments.toml [tests]`, chosen from the type of "
+           "each measurement; chosen after the run at `68222c7` had been read, binding every "
+           "run after it):\n\n"
+           + _table(["claims", "measurement", "test (two-sided)", "interval of the difference",
+                     "why"], pre) + "\n")
+    versions = code_versions({k: v for k, v in summaries.items() if k != "exp2a"})
     every = {v for vs in versions.values() for v in vs}
     n = sum(sum(vs.values()) for vs in versions.values())
     if len(every) == 1:
@@ -620,6 +688,183 @@ def hypotheses_section(summaries: Mapping[str, Mapping[str, Any]], cfg: Any) -> 
             f"{exp}: " + ", ".join(f"{k} ({c})" for k, c in vs.items())
             for exp, vs in versions.items()) + ".\n")
     return md
+
+
+def read_exp2a(directory: Path) -> tuple[dict[str, Any] | None, list[dict[str, Any]]]:
+    """The transport benchmark's run settings (``run.json``) and records
+    (``results.jsonl``, :func:`articutool.bench.runner.read_log`) in ``directory``;
+    ``(None, [])`` when it holds none."""
+    from articutool.bench.runner import read_log
+    from articutool.datafile import read_own_json
+
+    run = read_own_json(directory / "run.json", "Exp. 2a run settings", _BenchRun)
+    if run is None:
+        return None, []
+    return run.model_dump(), read_log(directory / "results.jsonl").records
+
+
+def _sec_exp2a(s: Mapping[str, Any], run: Mapping[str, Any], cfg: Any, where: str) -> str:
+    """The planning benchmark beside the thesis' Fig. 6.2 (our records at ``where``)."""
+    th = cfg.thesis.get("exp2a", {})
+    rows = []
+    for name, v in s["systems"].items():
+        t = th.get(name, {})
+        med = v.get("median_s")
+        rows.append([name, f"{v['solved']}/{v['tasks']}",
+                     "–" if med is None else f"{med * 1e3:.1f} ms",
+                     f"{t['success']:g} %, median {t['median_s']:g} s" if t else "–"])
+    return ("## Exp. 2a — transport planning benchmark (H2, §5.2.1; cf. Fig. 6.2)\n\n"
+            + _table(["system", "solved", "median planning time (solved)",
+                      f"thesis ({th.get('timeout_s', '?'):g} s timeout)"], rows)
+            + f"\n\nOur records: `{where}` ({run.get('planner', '?')}, "
+              f"{s['timeout_s']:g} s per task; `articutool bench transport --out {where}`; "
+              "docs/planning.md). A failed plan counts as taking the whole timeout in the "
+              "rank tests.\n")
+
+
+def deviation_facts(summaries: Mapping[str, Mapping[str, Any]],
+                    records: Mapping[str, Sequence[TrialRecord]], out: Path, cfg: Any
+                    ) -> dict[str, str]:
+    """The figures the deviations table quotes (``{name}`` in ``experiments.toml
+    [[deviations]]``), computed from the records, the summaries, the cross-checks' JSON
+    and the physics file; a figure that cannot be formed is absent (shown as "–")."""
+    from articutool.experiments.stats import describe
+
+    f: dict[str, str] = {"plan_budget_s": f"{cfg.settings.plan_budget_s:g}"}
+
+    def msd(values: Sequence[float]) -> str:
+        d = describe(values)
+        return f"{d.mean:.2f} ± {d.sd:.2f} g" if d.n > 1 else f"{d.mean:.2f} g"
+
+    a2 = summaries.get("exp2a")
+    if a2:
+        f["exp2a_timeout_s"] = f"{a2['timeout_s']:g}"
+        f["exp2a_planner"] = str(a2.get("planner", "?"))
+        f["exp2a_tasks"] = str(max((v["tasks"] for v in a2["systems"].values()), default=0))
+        if a2.get("max_solved_s") is not None:
+            f["exp2a_max_solved_s"] = f"{a2['max_solved_s']:.1f}"
+        f["exp2a_unsolved"] = ", ".join(
+            f"{k} {v['tasks'] - v['solved']} of {v['tasks']}"
+            for k, v in a2["systems"].items()) or "–"
+    ok2b = [r for r in records.get("exp2b", ()) if not r.error and r.outcome is not None]
+    if ok2b:
+        f["exp2b_loads"] = ", ".join(f"{k} {g:g} g" for k, g in cfg.exp2b.load_g.items())
+        for food in cfg.exp2b.foods:
+            held = [float(r.outcome.held_g) for r in ok2b  # type: ignore[union-attr]
+                    if r.condition.food == food]
+            if held:
+                f[f"exp2b_{food}_held"] = msd(held)
+    c = summaries.get("exp2c")
+    if c:
+        if c.get("load_g"):
+            f["exp2c_loads"] = ", ".join(f"{k} {g:.2f} g" for k, g in c["load_g"].items())
+        f["exp2c_held"] = ", ".join(f"{k} {_msd(v['control']['held_g'])} g"
+                                    for k, v in c["foods"].items() if "control" in v)
+        if c.get("thresholds_g"):
+            f["exp2c_thresholds"] = ", ".join(f"{k} {g:.2f} g"
+                                              for k, g in c["thresholds_g"].items())
+        for food, key in (("pecans", "vibrate"), ("water", "tilt")):
+            prim = c["foods"].get(food, {}).get("primitive")
+            if prim:
+                f[f"exp2c_{key}_shed"] = f"{_msd(prim['shed_g'])} g"
+        for r in records.get("exp2c", ()):
+            o = r.outcome
+            params = getattr(o, "primitive_params", None)
+            if (o is None or r.condition.condition != "primitive" or not params):
+                continue
+            key = {"pecans": "exp2c_vibrate", "water": "exp2c_tilt"}.get(r.condition.food)
+            if key:
+                f.setdefault(key, "(" + ", ".join(f"{x:g}" for x in params) + ")")
+    e3 = summaries.get("exp3")
+    if e3:
+        f["exp3_threshold"] = f"{e3['threshold_g']:.2f} g"
+        at = e3.get("at_thesis_threshold")
+        if at:
+            f["exp3_at_thesis_threshold"] = " vs ".join(
+                f"{at['meaningful_success'][x]}/{at['n'][x]}" for x in at["meaningful_success"])
+        base = e3["systems"].get("baseline", {}).get("delivered_g")
+        if base and base.get("mean") is not None:
+            f["exp3_baseline_delivered"] = (f"{_msd(base)} g in {base['n']} bites")
+    r = thesis_exp3_no_spill(cfg.thesis.get("exp3", {}))
+    if r is not None:
+        f["thesis_exp3_no_spill_p"] = _p(r.p)
+    f.update(_crosscheck_facts(out))
+    f.update(_physics_facts())
+    return f
+
+
+def _crosscheck_facts(out: Path) -> dict[str, str]:
+    """The slosh-free speed-up (as a ratio of speed settings and of durations) and the
+    water's static-tilt onsets, from the cross-checks' JSON in ``out``."""
+    from articutool.datafile import ResultsError, read_own_json
+
+    f: dict[str, str] = {}
+    try:
+        sl = read_own_json(out / "slosh_crosscheck.json", "slosh cross-check")
+        st = read_own_json(out / "static_tilt_water.json", "static-tilt test")
+    except ResultsError:
+        return f
+    if isinstance(sl, dict):
+        summ = sl.get("summary", {})
+        fast = summ.get("fastest_spill_free_scale", {})
+        lev, sf = fast.get("leveling"), fast.get("slosh_free")
+        by = summ.get("by_condition_and_scale", {})
+        if lev and sf:
+            f["slosh_speedup_settings"] = f"{sf / lev:.2f}"
+            d_lev = by.get("leveling", {}).get(f"{float(lev)}", {}).get("mean_duration_s")
+            d_sf = by.get("slosh_free", {}).get(f"{float(sf)}", {}).get("mean_duration_s")
+            if d_lev and d_sf:
+                f["slosh_speedup_durations"] = f"{d_lev / d_sf:.2f}"
+    tip = (st.get("static_tilt", st) if isinstance(st, dict) else {}).get("tip") or {}
+    if tip.get("onset_deg") is not None:
+        f["water_onset_deg"] = f"{tip['onset_deg']:.1f}°"
+    if tip.get("hydrostatic_onset_deg") is not None:
+        f["water_onset_hydro_deg"] = f"{tip['hydrostatic_onset_deg']:.1f}°"
+    return f
+
+
+def _physics_facts() -> dict[str, str]:
+    """The noodle nest and the water model, from the physics file the world builds."""
+    from articutool.sim.params import PhysicsParams
+
+    f: dict[str, str] = {}
+    p = PhysicsParams.load()
+    try:
+        n = p.food("noodles")
+        f["noodle_fill_g"] = f"{n.fill_g:g} g"
+        f["noodle_strands"] = f"{n.fill_g / (n.piece_mass * 1e3):.0f}"
+    except (KeyError, AttributeError, TypeError, ValueError, ZeroDivisionError):
+        pass
+    try:
+        w = p.food("water")
+        spread = getattr(w, "load_radius_spread", 0.0)
+        f["water_model"] = (
+            f"frictionless particles, {w.particle_radius * 1e3:g} mm in radius "
+            f"({w.particle_mass(w.particle_radius) * 1e3:.2f} g each) in the bowl and "
+            f"{w.load_particle_radius * 1e3:g} mm"
+            + (f" ± {100 * spread:.0f} %" if spread else "")
+            + " in a load placed on a spoon; no surface tension and no meniscus")
+    except (KeyError, AttributeError, TypeError, ValueError):
+        pass
+    return f
+
+
+class _Facts(dict):  # type: ignore[type-arg]
+    def __missing__(self, key: str) -> str:
+        return "–"
+
+
+def deviations_section(cfg: Any, facts: Mapping[str, str]) -> str:
+    """The deviations table (``experiments.toml [[deviations]]``), its ``{name}`` figures
+    filled from ``facts`` (:func:`deviation_facts`)."""
+    known = _Facts(facts)
+    rows = [[d.topic, d.thesis.format_map(known), d.ours.format_map(known),
+             d.why.format_map(known)] for d in cfg.deviations]
+    return ("## Where our protocol differs from the thesis'\n\n"
+            "Every place the protocol differs, what the thesis did, what we do and why; the "
+            "figures are computed from this run's records and cross-checks "
+            "(`experiments.toml [[deviations]]`).\n\n"
+            + _table(["what", "thesis", "ours", "why"], rows) + "\n")
 
 
 def replays(exp: str, records: Sequence[TrialRecord], summary: Mapping[str, Any],
@@ -651,14 +896,17 @@ def replays(exp: str, records: Sequence[TrialRecord], summary: Mapping[str, Any]
 # ------------------------------------------------------------------------- report --
 def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | None,
                  thresholds_source: str, threshold_g: float | None,
-                 on_kept: Callable[[Path, Path], None] | None = None) -> tuple[Path, Path]:
+                 on_kept: Callable[[Path, Path], None] | None = None,
+                 exp2a: Path | None = None) -> tuple[Path, Path]:
     """Write ``out/report.md`` and ``out/report.html`` (figures in each experiment's
     directory); experiments not yet run are listed as missing, with their ``notes.md`` (why
     not) if present. ``out/<exp>/notes.md``, if present, is included in the experiment's
     section: the physical reasons we believe explain
     where our numbers differ, written by whoever examined the run (trials, videos).
     A report there that is not as this command wrote it (edited) is kept beside it first
-    (:func:`_write_generated`), and ``on_kept(report, copy)`` is told."""
+    (:func:`_write_generated`), and ``on_kept(report, copy)`` is told. ``exp2a`` is the
+    transport planning benchmark's folder (``bench transport --out``), whose claims join
+    the per-hypothesis table (absent or empty: listed as not run)."""
     from articutool.datafile import ResultsError, own_folder, read_text
     from articutool.experiments.runner import read_trials
 
@@ -674,12 +922,21 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
              "EXP_TRIALS=5 make experiments    # a shorter run\n"
              "articutool experiment exp2b --trial K --video trial.mp4   # replay one trial\n```\n",
              "## Honesty rules\n", HONESTY]
+    from articutool.experiments.analysis import summarize_exp2a
+
     missing = []
     machines = {}
     summaries: dict[str, Mapping[str, Any]] = {}
+    records: dict[str, Sequence[TrialRecord]] = {}
     at_verdicts = len(parts)
+    run2a, recs2a = read_exp2a(exp2a) if exp2a is not None else (None, [])
+    if run2a is not None and recs2a:
+        summaries["exp2a"] = {**summarize_exp2a(recs2a, float(run2a["timeout_s"])),
+                              "planner": run2a.get("planner")}
+        parts.append(_sec_exp2a(summaries["exp2a"], run2a, cfg, str(exp2a)))
     for exp in ORDER:
         recs = read_trials(out, exp)
+        records[exp] = recs
         old = read_summary(out / exp / "summary.json")
         if not recs or old is None:
             missing.append(exp)
@@ -692,6 +949,9 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
                 summary[k] = old[k]
         if exp == "exp2c":
             summary["thresholds_source"] = thresholds_source
+        theirs = cfg.thesis.get("exp3", {}).get("threshold_g")
+        if exp == "exp3" and theirs is not None:  # our bites at the thesis' threshold too
+            summary["at_thesis_threshold"] = meaningful_at(recs, cfg.exp3.systems, theirs)
         fig = figure(exp, recs, summary, cfg, own_folder(out, exp))
         rel = f"{exp}/{fig.name}" if fig else None
         npath = out / exp / "notes.md"
@@ -702,7 +962,8 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
         m = old["run"].get("machine")
         if m:
             machines[exp] = (m, old["run"].get("date"))
-    parts.insert(at_verdicts, hypotheses_section(summaries, cfg))
+    parts.insert(at_verdicts, hypotheses_section(summaries, cfg)
+                 + "\n" + deviations_section(cfg, deviation_facts(summaries, records, out, cfg)))
     parts.append(cross_checks(out))
     if missing:
         parts.append("## Not run yet\n\n" + ", ".join(missing) + " (no trials or no "

@@ -1,0 +1,89 @@
+"""The report's deviations table and the transport benchmark's claims: every figure the
+table quotes is computed from the records, and a benchmark folder beside the results joins
+the per-hypothesis table."""
+
+from __future__ import annotations
+
+import json
+import string
+from pathlib import Path
+
+import pytest
+
+from articutool.experiments import report
+from articutool.experiments.analysis import summarize, summarize_exp2a
+from articutool.experiments.config import ExperimentsConfig
+from articutool.experiments.runner import read_trials
+from articutool.thresholds import exp1_means
+
+CFG = ExperimentsConfig.load()
+RESULTS = Path(__file__).parents[1] / "results"
+
+
+def _figures() -> set[str]:
+    return {f for d in CFG.deviations for text in (d.thesis, d.ours, d.why)
+            for _, f, _, _ in string.Formatter().parse(text) if f}
+
+
+def test_every_figure_of_the_deviations_table_is_computed_from_the_committed_run() -> None:
+    out = RESULTS / "experiments"
+    recs = {e: read_trials(out, e) for e in report.ORDER}
+    means = exp1_means(out)
+    summaries = {e: summarize(e, r, CFG, thresholds_g={f: means[f] for f in CFG.exp2c.foods},
+                              threshold_g=means[CFG.exp3.food]) for e, r in recs.items()}
+    summaries["exp2c"]["load_g"] = report.read_summary(out / "exp2c" / "summary.json")["load_g"]
+    summaries["exp3"]["at_thesis_threshold"] = report.meaningful_at(
+        recs["exp3"], CFG.exp3.systems, CFG.thesis["exp3"]["threshold_g"])
+    run, bench = report.read_exp2a(RESULTS / "exp2a")
+    assert run is not None
+    summaries["exp2a"] = {**summarize_exp2a(bench, run["timeout_s"]), "planner": "rrtconnect"}
+    facts = report.deviation_facts(summaries, recs, out, CFG)
+    assert sorted(_figures() - set(facts)) == []
+    # The figures the review recomputed: the water held once placed, the speed-up both ways.
+    assert facts["exp2b_water_held"] == "7.07 ± 0.05 g"
+    assert (facts["slosh_speedup_settings"], facts["slosh_speedup_durations"]) == ("1.33", "1.23")
+    md = report.deviations_section(CFG, facts)
+    assert "{" not in md and md.count("\n| ") == len(CFG.deviations) + 1
+
+
+def test_a_figure_not_measured_shows_a_dash_not_a_stale_number() -> None:
+    md = report.deviations_section(CFG, {})
+    assert "{" not in md and "–" in md
+
+
+def test_the_benchmark_beside_the_results_joins_the_hypotheses(tmp_path: Path) -> None:
+    out = tmp_path / "experiments"
+    out.mkdir()
+    bench = tmp_path / "exp2a"
+    bench.mkdir()
+    (bench / "run.json").write_text(json.dumps({"timeout_s": 60.0, "planner": "rrtconnect"}))
+    lines = [{"system": s, "task_id": k, "seed": 0, "tolerance_deg": None, "success": True,
+              "planning_time_s": (0.01 if s == "decoupled" else 0.1) * (1 + 0.01 * k)}
+             for s in ("decoupled", "strict6") for k in range(12)]
+    (bench / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in lines))
+    md = report.write_report(out, CFG, thresholds_g=None, thresholds_source="none",
+                             threshold_g=None, exp2a=bench)[0].read_text()
+    assert "Exp. 2a — transport planning benchmark" in md
+    assert "the decoupled planner plans faster than strict6" in md
+    assert "| strict6 | 12/12 |" in md
+    assert "Where our protocol differs from the thesis'" in md
+    none = report.write_report(out, CFG, thresholds_g=None, thresholds_source="none",
+                               threshold_g=None, exp2a=tmp_path / "nothing")[0].read_text()
+    assert "| H2 | Fig. 6.2 | exp2a's claims |  | not run |" in none
+
+
+@pytest.mark.parametrize("bad", ["{not json", "[1, 2]"])
+def test_an_unreadable_benchmark_folder_is_refused_naming_it(tmp_path: Path, bad: str) -> None:
+    from articutool.datafile import ResultsError
+
+    (tmp_path / "run.json").write_text(bad)
+    with pytest.raises(ResultsError, match=r"run\.json"):
+        report.read_exp2a(tmp_path)
+
+
+def test_a_benchmark_folder_that_is_not_one_exits_2_naming_the_option(tmp_path, capsys) -> None:
+    import articutool.cli as cli
+
+    assert cli.main(["experiment", "report", "--out", str(tmp_path), "--exp2a",
+                     str(tmp_path / "missing")]) == 2
+    assert "--exp2a" in capsys.readouterr().err
