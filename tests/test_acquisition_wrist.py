@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-import py_trees
 import pytest
 from py_trees.common import Status
 
-from articutool.feeding.behaviours import Execute, JobResult
+from articutool.feeding.behaviours import Board, Execute, JobResult
 from articutool.tool.api import ToolState
 from articutool.trajectory import JointTrajectory
 
@@ -55,14 +54,14 @@ class _Tool:
 
 
 def _execute(tool: _Tool, wrist_moves: bool = True) -> tuple[Execute, _Arm, list[float]]:
-    py_trees.blackboard.Blackboard.clear()
     t = [0.0]
     arm = _Arm()
-    ex = Execute(arm, "sweep", tool, lambda: t[0])  # type: ignore[arg-type]
+    board = Board()
+    ex = Execute(arm, "sweep", tool, lambda: t[0], board=board)  # type: ignore[arg-type]
     pitch = np.linspace(0.0, -0.5 if wrist_moves else 0.0, 11)
     pos = np.column_stack([np.zeros((11, 6)), pitch, np.zeros(11)])
-    py_trees.blackboard.Blackboard.set("/bite/trajectory", JointTrajectory(
-        (*ARM, "p", "r"), np.linspace(0.0, 1.0, 11), pos, np.zeros((11, 8))))
+    board.trajectory = JointTrajectory(
+        (*ARM, "p", "r"), np.linspace(0.0, 1.0, 11), pos, np.zeros((11, 8)))
     return ex, arm, t
 
 
@@ -105,7 +104,6 @@ def test_the_wrist_made_scoop_level_brings_water_up_through_the_tree() -> None:
 
     # ~1 min of physics: dip tilted, the wrist levels in the water while the arm moves the
     # spoon along its heading, rise, shed over the bowl, transport to Resting.
-    py_trees.blackboard.Blackboard.clear()
     setup = make_bite_world("water", "articutool", seed=777001)  # not an experiment seed
     assert setup.strategy.insertion.motion == "sweep"
     stages = ("above", "acquire", "shed", "resting")

@@ -7,14 +7,13 @@ from __future__ import annotations
 
 import time
 
-import py_trees
 import pytest
 from py_trees.common import Status
 
 pytest.importorskip("mujoco")
 
 from articutool.feeding.system import System
-from articutool.feeding.tree import run_tree, transport_tree
+from articutool.feeding.tree import attempts_used, run_tree, transport_tree
 from articutool.meal import sim_arm
 from articutool.meal.sim_arm import SimArm
 from articutool.sim.world import FeedingWorld
@@ -28,7 +27,6 @@ LAG_WALL_S = 1.5
 
 
 def _transport(monkeypatch: pytest.MonkeyPatch, slow: bool, ahead: bool = False) -> dict:
-    py_trees.blackboard.Blackboard.clear()
     w = FeedingWorld.build("pecans", seed=0, load_g=4.0)
     w.tool.set_mode(Mode.LEVELING)
     w.run(1.0)
@@ -63,7 +61,7 @@ def _transport(monkeypatch: pytest.MonkeyPatch, slow: bool, ahead: bool = False)
         monkeypatch.undo()
     return {"status": status, "rec": rec, "masses": w.masses_g(), "before": before, "t": w.time,
             "qpos": w.data.qpos.copy(),
-            "attempts": py_trees.blackboard.Blackboard.get("/bite/planning_attempts_Staging")}
+            "attempts": attempts_used(root).get("planning_attempts_Staging")}
 
 
 def test_a_slower_planner_gives_the_same_attempts_and_outcome(

@@ -31,6 +31,7 @@ from py_trees.common import Status
 pytest.importorskip("mujoco")
 
 from articutool.feeding.behaviours import JobResult
+from articutool.feeding.tree import board_of
 from articutool.link.auth import Sender
 from articutool.link.client import ArticutoolClient
 from articutool.link.config import load_config
@@ -55,6 +56,7 @@ class FaultAt(py_trees.visitors.VisitorBase):
         self.name, self.after_s, self.clock, self.inject = name, after_s, clock, inject
         self.started: float | None = None
         self.fired_at: float | None = None
+        self.at: py_trees.behaviour.Behaviour | None = None  # the behaviour it fired in
 
     def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
         if behaviour.name != self.name or behaviour.status != Status.RUNNING:
@@ -62,12 +64,18 @@ class FaultAt(py_trees.visitors.VisitorBase):
         if self.started is None:
             self.started = self.clock()
         if self.fired_at is None and self.clock() - self.started >= self.after_s:
-            self.fired_at = self.clock()
+            self.fired_at, self.at = self.clock(), behaviour
             self.inject()
 
 
+def _root(node: py_trees.behaviour.Behaviour | None) -> py_trees.behaviour.Behaviour:
+    assert node is not None
+    while node.parent is not None:
+        node = node.parent
+    return node
+
+
 def _loaded(seed: int = 0) -> tuple[MealSetup, float]:
-    py_trees.blackboard.Blackboard.clear()
     setup = make_bite_world("pecans", "articutool", seed, load_g=4.0)
     held = setup.world.place_load(1.0)
     assert held > 0.5
@@ -113,7 +121,7 @@ def test_the_user_stopping_during_transport_stops_safely_and_delivers_nothing() 
     setup, held = _loaded()
 
     def request_stop() -> None:
-        py_trees.blackboard.Blackboard.set("/bite/stop_requested", True)
+        board_of(_root(fault.at)).stop_requested = True
 
     fault = FaultAt("Execute to Staging", 1.0, lambda: setup.world.time, request_stop)
     r = _bite(setup, fault)
@@ -206,7 +214,6 @@ def test_planning_failures_past_the_attempts_retreat_and_deliver_nothing() -> No
 def test_a_fault_during_the_shedding_primitive_answers_its_goal_and_stops_safely(
         fault: str) -> None:
     # The whole acquisition first (a full bowl), then the fault 0.3 s into VIBRATE_ROLL.
-    py_trees.blackboard.Blackboard.clear()
     setup = make_bite_world("pecans", "articutool", 0)
     w = setup.world
 
@@ -214,7 +221,7 @@ def test_a_fault_during_the_shedding_primitive_answers_its_goal_and_stops_safely
         if fault == "overload":
             w.motors.inject_hardware_error(1)
         else:
-            py_trees.blackboard.Blackboard.set("/bite/stop_requested", True)
+            board_of(_root(at.at)).stop_requested = True
 
     at = FaultAt("post-acquisition: VIBRATE_ROLL", 0.3, lambda: w.time, inject)
     try:
@@ -499,7 +506,6 @@ def test_a_link_loss_during_the_shedding_primitive_follows_the_link_loss_policy(
     # A real acquisition, then the tool's side of the link drops 0.3 s into the 1 s
     # VIBRATE_ROLL. The tool notices after client_timeout (0.25 s here, so that it is
     # before the primitive's end): "continue" lets the primitive finish, "cancel" aborts it.
-    py_trees.blackboard.Blackboard.clear()
     setup = make_bite_world("pecans", "articutool", 0)
     w = setup.world
     link = Linked(setup, paired, policy, client_timeout=0.25)
@@ -563,7 +569,6 @@ def test_a_second_paired_pcs_stop_during_the_shedding_primitive_stops_the_bite(
     # pc-2's DISABLED 0.3 s into pc-1's VIBRATE_ROLL (after a real acquisition) aborts the
     # primitive; the bite stops there (before: it retreated, putting the tool back to
     # LEVELING and moving the arm after another PC's stop).
-    py_trees.blackboard.Blackboard.clear()
     setup = make_bite_world("pecans", "articutool", 0)
     w = setup.world
     link = Linked(setup, paired)

@@ -11,14 +11,13 @@ pytest.importorskip("mujoco")
 
 from articutool.feeding.behaviours import BiteStage
 from articutool.feeding.system import System
-from articutool.feeding.tree import run_tree, transport_tree
+from articutool.feeding.tree import attempts_used, run_tree, transport_tree
 from articutool.meal.sim_arm import SimArm
 from articutool.sim.world import FeedingWorld
 from articutool.tool.api import Mode
 
 
 def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> None:
-    py_trees.blackboard.Blackboard.clear()
     w = FeedingWorld.build("pecans", seed=0, load_g=4.0)
     w.tool.set_mode(Mode.LEVELING)
     w.run(1.0)
@@ -37,7 +36,7 @@ def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> Non
         arm.close()
     g = w.masses_g()
     assert status == Status.SUCCESS, rec.failed_stage
-    assert py_trees.blackboard.Blackboard.get("/bite/planning_attempts_Staging") == 1
+    assert attempts_used(root) == {"planning_attempts_Staging": 1}
     assert rec.motion_time_s > 1.0
     # Every gram of the load is on the utensil, eaten or spilled on the way, once. (Seed 0's
     # loader leaves a 1.66 g half perched on the heap, and it falls off the level spoon under
@@ -49,7 +48,6 @@ def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> Non
 
 
 def test_baseline_strict_transport_from_a_rigid_level_start() -> None:
-    py_trees.blackboard.Blackboard.clear()
     w = FeedingWorld.build("water", seed=0, load_g=8.0)  # the wrist stays locked (DISABLED)
     arm = SimArm(w)
     try:

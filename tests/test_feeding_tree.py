@@ -2,16 +2,19 @@
 
 from __future__ import annotations
 
+import threading
 from types import SimpleNamespace
 
 import py_trees
 import pytest
 from py_trees.common import Status
 
-from articutool.feeding.behaviours import JobResult, RunPrimitive, ToolModeScope
+from articutool.feeding.behaviours import Board, JobResult, RunPrimitive, ToolModeScope
 from articutool.feeding.system import Planner, System
 from articutool.feeding.tree import (
     BiteRecorder,
+    attempts_used,
+    board_of,
     safe_stop_reason,
     tick_until_done,
     transport_tree,
@@ -150,7 +153,6 @@ class FakeUser:
 
 
 def _run(root, clock: Clock, max_ticks: int = 500, every=None):
-    py_trees.blackboard.Blackboard.clear()
     tree = py_trees.trees.BehaviourTree(root)
     rec = BiteRecorder(clock)
     tree.visitors.append(rec)
@@ -165,8 +167,8 @@ def _run(root, clock: Clock, max_ticks: int = 500, every=None):
     return tree, rec
 
 
-def _bb_attempts() -> int:
-    return py_trees.blackboard.Blackboard.get("/bite/planning_attempts_Staging")
+def _staging_attempts(root: py_trees.behaviour.Behaviour) -> int:
+    return attempts_used(root)["planning_attempts_Staging"]
 
 
 def test_success_path_plans_verifies_executes_and_restores_the_tool() -> None:
@@ -175,7 +177,7 @@ def test_success_path_plans_verifies_executes_and_restores_the_tool() -> None:
     tree, rec = _run(transport_tree(arm, tool, "Staging", ARTICUTOOL, attempts=3,
                                     budget_s=1.0, clock=clock), clock)
     assert tree.root.status == Status.SUCCESS
-    assert arm.executed == ["traj1"] and _bb_attempts() == 1
+    assert arm.executed == ["traj1"] and _staging_attempts(tree.root) == 1
     assert tool.modes == [Mode.LEVELING, Mode.DISABLED]  # scoped, then restored
     assert rec.record.planning_wall_s == pytest.approx(0.05)  # the planner's own time
     assert rec.record.planning_wait_sim_s == pytest.approx(0.2, abs=0.11)  # the tree's clock
@@ -188,7 +190,7 @@ def test_planner_failure_then_success_counts_attempts() -> None:
     tree, rec = _run(transport_tree(arm, tool, "Staging", BASELINE, attempts=3, budget_s=1.0,
                                     clock=clock), clock)
     assert tree.root.status == Status.SUCCESS
-    assert _bb_attempts() == 2 and arm.executed == ["traj2"]
+    assert _staging_attempts(tree.root) == 2 and arm.executed == ["traj2"]
     assert rec.record.failures[0][1] == "no plan to Staging: no path in budget"
 
 
@@ -217,7 +219,7 @@ def test_a_plan_slow_on_the_trees_clock_is_awaited_not_timed_out() -> None:
                                     clock=clock), clock)
     assert tree.root.status == Status.SUCCESS
     assert arm.started_plans == 1 and not any(j.cancelled for j in arm.jobs)
-    assert arm.executed == ["traj1"] and _bb_attempts() == 1
+    assert arm.executed == ["traj1"] and _staging_attempts(tree.root) == 1
     assert rec.record.planning_wall_s == pytest.approx(0.05)
     assert rec.record.planning_wait_sim_s == pytest.approx(10.0, abs=0.11)
 
@@ -281,15 +283,16 @@ def test_preemption_at_any_tick_restores_the_tool_and_cancels_work(k: int) -> No
 def test_primitive_is_cancelled_when_preempted_and_none_succeeds_at_once() -> None:
     clock = Clock()
     tool = FakeTool(clock)
-    py_trees.blackboard.Blackboard.clear()
-    prim = RunPrimitive(tool, "TWIRL_CW", [1.0, 3.0], "post_move_into")
-    scope = ToolModeScope(prim, tool, Mode.DISABLED, Mode.LEVELING)
+    board = Board()
+    prim = RunPrimitive(tool, "TWIRL_CW", [1.0, 3.0], "post_move_into", board=board)
+    scope = ToolModeScope(prim, tool, Mode.DISABLED, Mode.LEVELING, board=board)
     tree = py_trees.trees.BehaviourTree(scope)
     tree.tick()
     assert prim.status == Status.RUNNING
     tree.root.stop(Status.INVALID)  # preempted by a higher-priority branch
     assert tool.cancelled == 1 and tool.mode == Mode.LEVELING
-    none = py_trees.trees.BehaviourTree(RunPrimitive(tool, "NONE", [], "pre_move_into"))
+    none = py_trees.trees.BehaviourTree(RunPrimitive(tool, "NONE", [], "pre_move_into",
+                                                     board=board))
     none.tick()
     assert none.root.status == Status.SUCCESS
 
@@ -436,7 +439,7 @@ def test_a_failed_acquisition_is_retried_up_to_the_strategy_s_limit() -> None:
     tree, _ = _run(root, clock, max_ticks=2000)
     assert tree.root.status == Status.FAILURE
     assert arm.executed.count("path into the food") == 3  # three tries, then the retreat
-    assert py_trees.blackboard.Blackboard.get("/bite/acquisition_attempts") == 3
+    assert attempts_used(root)["acquisition_attempts"] == 3
 
 
 def test_the_trees_timeout_does_not_count_the_wait_for_a_plan() -> None:
@@ -445,7 +448,6 @@ def test_the_trees_timeout_does_not_count_the_wait_for_a_plan() -> None:
     (the plan itself ends within the planner's own budget)."""
     from articutool.feeding.tree import run_tree
 
-    py_trees.blackboard.Blackboard.clear()
     clock = Clock()
     arm, tool = FakeArm(clock, [], [], plan_s=50.0, motion_s=5.0), FakeTool(clock)
 
@@ -458,7 +460,6 @@ def test_the_trees_timeout_does_not_count_the_wait_for_a_plan() -> None:
     assert run.end == "completed"
     assert run.record.planning_wait_sim_s == pytest.approx(50.0, abs=0.11)
     # Work that is not planning still times out: a motion longer than the timeout.
-    py_trees.blackboard.Blackboard.clear()
     clock = Clock()
     arm, tool = FakeArm(clock, [], [], plan_s=0.2, motion_s=30.0), FakeTool(clock)
     run = run_tree(transport_tree(arm, tool, "Staging", ARTICUTOOL, attempts=2,
@@ -475,7 +476,6 @@ def test_run_tree_reports_a_safe_stop_as_a_failure_naming_its_reason() -> None:
 
     clock = Clock()
     arm, tool = FakeArm(clock, [True], [True], motion_s=5.0), FakeTool(clock)
-    py_trees.blackboard.Blackboard.clear()
 
     def step(dt: float) -> None:
         clock.t += dt
@@ -559,3 +559,49 @@ def test_the_food_check_before_a_transport_is_a_bite_setting_the_thesis_systems_
     assert checks(BiteSettings()) == 2  # to Resting and to Staging
     thesis = _thesis_bite(ExperimentsConfig.load())
     assert not thesis.food_check and checks(thesis) == 0
+
+
+def _lockstep_transport(plans: list[bool], stop_at: int | None,
+                        barrier: threading.Barrier | None, ticks: int = 60) -> tuple:
+    """A transport to Staging whose plans end as ``plans``, its stop requested at tick
+    ``stop_at``; with ``barrier``, each tick waits for the other thread's tree to tick too.
+    Returns what it ended as: status, attempts, executed plans, safe-stop reason."""
+    clock = Clock()
+    arm, tool = FakeArm(clock, plans, []), FakeTool(clock)
+    root = transport_tree(arm, tool, "Staging", BASELINE, attempts=3, budget_s=1.0,
+                          clock=clock)
+    tree = py_trees.trees.BehaviourTree(root)
+    tree.setup()
+    for k in range(ticks):
+        if barrier is not None:
+            barrier.wait()  # the other thread's tree ticks between two ticks of this one
+        if root.status in (Status.SUCCESS, Status.FAILURE):
+            continue
+        if k == stop_at:
+            board_of(root).stop_requested = True
+        tree.tick()
+        clock.t += 0.1
+    return root.status, attempts_used(root), arm.executed, safe_stop_reason(root)
+
+
+def test_two_trees_ticked_in_two_threads_share_no_state() -> None:
+    """Two trials in two threads of one process (a Dask worker's threads): their trees,
+    ticked alternately, keep their own attempt counts, plans and stop requests, and end as
+    the same trees run one after the other."""
+    cases = {"a": ([False, False, True], None), "b": ([True], 4)}
+    alone = {k: _lockstep_transport(plans, stop, None) for k, (plans, stop) in cases.items()}
+    assert alone["a"] == (Status.SUCCESS, {"planning_attempts_Staging": 3}, ["traj3"], None)
+    assert alone["b"][1:] == ({"planning_attempts_Staging": 1}, ["traj1"], "stop requested")
+    barrier = threading.Barrier(2, timeout=30.0)
+    threaded: dict[str, tuple] = {}
+
+    def run(k: str) -> None:
+        plans, stop = cases[k]
+        threaded[k] = _lockstep_transport(plans, stop, barrier)
+
+    threads = [threading.Thread(target=run, args=(k,)) for k in cases]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=60.0)
+    assert threaded == alone

@@ -116,7 +116,6 @@ class CheckingArm(FakeArm):
 
 
 def _run(arm: FakeArm, tool: FakeTool, clock: Clock, system: str = "articutool"):
-    py_trees.blackboard.Blackboard.clear()
     root = transport_tree(arm, tool, "Staging", System.of(system, tolerance_deg=20.0),
                           attempts=len(arm.trajs) or 1,
                           budget_s=1.0, clock=clock, food=True)

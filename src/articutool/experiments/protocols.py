@@ -99,12 +99,10 @@ def transport(world: FeedingWorld, arm: SimArm, goal: str, system: System, *, at
     load before executing) to ``goal``, with ``visitors`` on the tree; then hold still
     ``settle_s``. Returns what the tree recorded and the tilt the utensil reached on the
     way."""
-    import py_trees
     from py_trees.common import Status
 
-    from articutool.feeding.tree import run_tree, transport_tree
+    from articutool.feeding.tree import attempts_used, run_tree, transport_tree
 
-    py_trees.blackboard.Blackboard.clear()
     s = cfg.settings
     tilts: list[float] = []
 
@@ -119,12 +117,12 @@ def transport(world: FeedingWorld, arm: SimArm, goal: str, system: System, *, at
                        visitors=visitors)
     finally:
         world.on_tick.remove(watch)
-    attempts_used = py_trees.blackboard.Blackboard.get(f"/bite/planning_attempts_{goal}")
+    used = attempts_used(root).get(f"planning_attempts_{goal}", 0)
     world.run(s.settle_s)
     rec = run.record
     return {
         "completed": run.status == Status.SUCCESS,
-        "planning_attempts": int(attempts_used or 0),
+        "planning_attempts": used,
         "planning_wall_s": _r(rec.planning_wall_s),
         "planning_wait_sim_s": _r(rec.planning_wait_sim_s),
         "motion_time_s": _r(rec.motion_time_s),

@@ -8,9 +8,10 @@ runtime or a client over Zenoh, and the simulated user or a real one. Long actio
 (planning, arm motions, primitives) are *jobs*: started in ``initialise``, polled in ``update``
 (never waited for), cancelled in ``terminate`` when preempted.
 
-Blackboard (namespace ``/bite``): ``trajectory`` (the last plan, passed from planning to
-verification and execution), ``stop_requested`` (set by a caregiver or a UI), ``tool_mode``
-(the mode the tree last put the tool in, for the guard).
+What the behaviours of one tree share is that tree's own :class:`Board`, passed to each
+behaviour when the tree is built (never py_trees' process-global blackboard): two trees in two
+threads of one process, e.g. two trials in one Dask worker, share nothing. Attempt counts live
+on the :class:`Attempts` nodes themselves.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from typing import Any, Protocol
 
 import numpy as np
 import py_trees
-from py_trees.common import Access, Status
+from py_trees.common import Status
 
 from articutool.feeding.system import Planner
 from articutool.tool.api import ABORTED_BY_MODE_CHANGE, Mode, ToolAPI
@@ -31,6 +32,7 @@ __all__ = [
     "ArmInterface",
     "Attempts",
     "BiteStage",
+    "Board",
     "CheckFood",
     "Execute",
     "Job",
@@ -49,7 +51,17 @@ __all__ = [
     "Verify",
 ]
 
-NS = "/bite"
+
+@dataclass
+class Board:
+    """What the behaviours of one tree share: ``trajectory`` (the last plan, passed from
+    planning to verification and execution), ``tool_mode`` (the mode the tree last put the
+    tool in, for the guard), ``stop_requested`` (set by a caregiver or a UI: the guard stops
+    the bite in the next tick)."""
+
+    trajectory: Any = None
+    tool_mode: Mode | None = None
+    stop_requested: bool = False
 
 
 @dataclass(frozen=True)
@@ -125,13 +137,6 @@ class User(Protocol):
         """The user takes the bite presented to them off the utensil; returns its grams."""
 
 
-def _bb(b: py_trees.behaviour.Behaviour, *keys: tuple[str, Access]) -> Any:
-    client = b.attach_blackboard_client(name=b.name, namespace=NS)
-    for k, access in keys:
-        client.register_key(key=k, access=access)
-    return client
-
-
 class _JobBehaviour(py_trees.behaviour.Behaviour):
     """Start a job in ``initialise``, poll it, cancel it when preempted."""
 
@@ -173,29 +178,29 @@ class _JobBehaviour(py_trees.behaviour.Behaviour):
 
 
 class _PlanJob(_JobBehaviour):
-    """A planning job whose trajectory goes on the blackboard; a failure says what had no
+    """A planning job whose trajectory goes on the tree's board; a failure says what had no
     plan (``self.what``)."""
 
     what = ""
 
-    def __init__(self, name: str) -> None:
+    def __init__(self, name: str, board: Board) -> None:
         super().__init__(name)
-        self.bb = _bb(self, ("trajectory", Access.WRITE))
+        self.board = board
 
     def finished(self, r: JobResult) -> Status:
         if r.ok:
-            self.bb.trajectory = r.value
+            self.board.trajectory = r.value
             return Status.SUCCESS
         self.feedback_message = f"no {self.what}: {r.message}"
         return Status.FAILURE
 
 
 class Plan(_PlanJob):
-    """Plan to ``goal`` with ``planner``; the trajectory goes on the blackboard."""
+    """Plan to ``goal`` with ``planner``; the trajectory goes on the tree's board."""
 
     def __init__(self, arm: ArmInterface, goal: str, planner: Planner,
-                 budget_s: float) -> None:
-        super().__init__(f"Plan to {goal}")
+                 budget_s: float, *, board: Board) -> None:
+        super().__init__(f"Plan to {goal}", board)
         self.arm, self.goal, self.planner, self.budget_s = arm, goal, planner, budget_s
         self.what = f"plan to {goal}"
 
@@ -205,10 +210,10 @@ class Plan(_PlanJob):
 
 class PlanPath(_PlanJob):
     """Plan the tip's Cartesian path through ``waypoints``; the trajectory goes on the
-    blackboard (insertion and extraction, §4.3.1)."""
+    tree's board (insertion and extraction, §4.3.1)."""
 
-    def __init__(self, arm: ArmInterface, what: str, waypoints: Any) -> None:
-        super().__init__(f"Plan {what}")
+    def __init__(self, arm: ArmInterface, what: str, waypoints: Any, *, board: Board) -> None:
+        super().__init__(f"Plan {what}", board)
         self.arm, self.waypoints = arm, waypoints
         self.path, self.what = what, f"path {what}"
 
@@ -219,8 +224,8 @@ class PlanPath(_PlanJob):
 class PlanLift(PlanPath):
     """Plan lifting the tool base straight up (the utensil keeps its orientation)."""
 
-    def __init__(self, arm: ArmInterface, height_m: float) -> None:
-        super().__init__(arm, f"lift {height_m * 100:g} cm", None)
+    def __init__(self, arm: ArmInterface, height_m: float, *, board: Board) -> None:
+        super().__init__(arm, f"lift {height_m * 100:g} cm", None, board=board)
         self.height_m = height_m
 
     def start(self) -> Job:
@@ -232,19 +237,20 @@ class Settle(py_trees.behaviour.Behaviour):
     of §4.3.1: the wrist levels the utensil while the arm holds still)."""
 
     def __init__(self, tool: ToolAPI, mode: Mode, seconds: float,
-                 clock: Callable[[], float], name: str | None = None) -> None:
+                 clock: Callable[[], float], name: str | None = None, *,
+                 board: Board) -> None:
         super().__init__(name or f"{mode.name} {seconds:g} s")
         self.tool, self.mode, self.seconds, self.clock = tool, mode, seconds, clock
         self._until = 0.0
         self._ok = False
-        self.bb = _bb(self, ("tool_mode", Access.WRITE))
+        self.board = board
 
     def initialise(self) -> None:
         self._ok, msg = self.tool.set_mode(self.mode)
         self.feedback_message = msg
         self._until = self.clock() + self.seconds
         if self._ok:
-            self.bb.set("tool_mode", self.mode)
+            self.board.tool_mode = self.mode
 
     def update(self) -> Status:
         if not self._ok:
@@ -286,46 +292,44 @@ class Retreat(py_trees.decorators.SuccessIsFailure):
 
 
 class Verify(py_trees.behaviour.Behaviour):
-    """Plan-then-verify the trajectory on the blackboard (a rejection fails, so the
+    """Plan-then-verify the trajectory on the tree's board (a rejection fails, so the
     enclosing attempts re-plan)."""
 
-    def __init__(self, arm: ArmInterface) -> None:
+    def __init__(self, arm: ArmInterface, *, board: Board) -> None:
         super().__init__("Verify")
-        self.arm = arm
-        self.bb = _bb(self, ("trajectory", Access.READ))
+        self.arm, self.board = arm, board
 
     def update(self) -> Status:
-        r = self.arm.verify(self.bb.trajectory)
+        r = self.arm.verify(self.board.trajectory)
         self.feedback_message = r.message or ("feasible" if r.ok else "rejected")
         return Status.SUCCESS if r.ok else Status.FAILURE
 
 
 class CheckFood(py_trees.behaviour.Behaviour):
-    """Food-aware verification of the trajectory on the blackboard: the arm predicts what it
+    """Food-aware verification of the trajectory on the tree's board: the arm predicts what it
     does to the load and replaces it by one predicted not to spill (retimed, or slosh-free);
     a trajectory that cannot be made spill-free fails, so the enclosing attempts re-plan and
     the transport never executes a predicted spill. ``records`` keeps each check's record
     (what was done, the prediction) for the bite's telemetry."""
 
-    def __init__(self, arm: ArmInterface) -> None:
+    def __init__(self, arm: ArmInterface, *, board: Board) -> None:
         super().__init__("Check the food")
-        self.arm = arm
-        self.bb = _bb(self, ("trajectory", Access.WRITE))
+        self.arm, self.board = arm, board
         self.records: list[dict[str, Any]] = []
 
     def update(self) -> Status:
-        r = self.arm.check_food(self.bb.trajectory)
+        r = self.arm.check_food(self.board.trajectory)
         self.feedback_message = r.message
         if r.value is not None and getattr(r.value, "record", None) is not None:
             self.records.append(r.value.record)
         if not r.ok:
             return Status.FAILURE
-        self.bb.trajectory = r.value.trajectory
+        self.board.trajectory = r.value.trajectory
         return Status.SUCCESS
 
 
 class Execute(_JobBehaviour):
-    """Execute the trajectory on the blackboard. With ``tool`` and ``clock``, a trajectory
+    """Execute the trajectory on the tree's board. With ``tool`` and ``clock``, a trajectory
     that also moves the wrist's joints (a wrist-made sweep) sends them to the tool
     (TRAJECTORY mode) as the arm starts, and keeps the wrist's largest tracking error
     (``wrist_tracking_error``, rad, from the tool's measured joints). ``then``: the tool's
@@ -333,15 +337,16 @@ class Execute(_JobBehaviour):
     transport)."""
 
     def __init__(self, arm: ArmInterface, what: str = "motion", tool: ToolAPI | None = None,
-                 clock: Callable[[], float] | None = None, then: Mode | None = None) -> None:
+                 clock: Callable[[], float] | None = None, then: Mode | None = None, *,
+                 board: Board) -> None:
         super().__init__(f"Execute {what}")
         self.arm, self.tool, self.clock, self.then = arm, tool, clock, then
-        self.bb = _bb(self, ("trajectory", Access.READ), ("tool_mode", Access.WRITE))
+        self.board = board
         self.wrist_tracking_error = 0.0
         self._wrist: Any = None
 
     def start(self) -> Job:
-        traj = self.bb.trajectory
+        traj = self.board.trajectory
         self._wrist, self.wrist_tracking_error = None, 0.0
         if self.tool is not None and self.clock is not None:
             self._wrist = _wrist_part(traj, self.tool.state().joint_names)
@@ -366,7 +371,7 @@ class Execute(_JobBehaviour):
             if self.then is not None:
                 ok, msg = self.tool.set_mode(self.then)  # type: ignore[union-attr]
                 if ok:
-                    self.bb.set("tool_mode", self.then)
+                    self.board.tool_mode = self.then
                 else:
                     self.feedback_message += f"; {self.then.name} refused: {msg}"
                     return Status.FAILURE
@@ -408,11 +413,12 @@ class RunPrimitive(py_trees.behaviour.Behaviour):
     client) is a stop, not a failure to retry or retreat from: it stays RUNNING for the
     guard (:class:`SafetyGuard`) to stop the bite in the next tick."""
 
-    def __init__(self, tool: ToolAPI, primitive: str, params: list[float], stage: str) -> None:
+    def __init__(self, tool: ToolAPI, primitive: str, params: list[float], stage: str, *,
+                 board: Board) -> None:
         super().__init__(f"{stage}: {primitive}")
         self.tool, self.primitive, self.params = tool, primitive, list(params)
         self._running = False
-        self.bb = _bb(self, ("tool_mode", Access.WRITE))
+        self.board = board
 
     def initialise(self) -> None:
         self._running = False
@@ -422,7 +428,7 @@ class RunPrimitive(py_trees.behaviour.Behaviour):
         self.feedback_message = msg
         self._running = ok
         if ok:
-            self.bb.set("tool_mode", Mode.PRIMITIVE)
+            self.board.tool_mode = Mode.PRIMITIVE
 
     def update(self) -> Status:
         if self.primitive == "NONE":
@@ -436,14 +442,14 @@ class RunPrimitive(py_trees.behaviour.Behaviour):
         if st.message.startswith(ABORTED_BY_MODE_CHANGE):
             return Status.RUNNING  # stopped from elsewhere: the guard stops the bite
         self._running = False
-        self.bb.set("tool_mode", Mode.DISABLED)  # where a primitive leaves the tool
+        self.board.tool_mode = Mode.DISABLED  # where a primitive leaves the tool
         return Status.SUCCESS if st.success else Status.FAILURE
 
     def terminate(self, new_status: Status) -> None:
         if new_status == Status.INVALID and self._running:
             self.tool.cancel_primitive()
             self._running = False
-            self.bb.set("tool_mode", Mode.DISABLED)
+            self.board.tool_mode = Mode.DISABLED
 
 
 class ToolModeScope(py_trees.decorators.Decorator):
@@ -451,18 +457,18 @@ class ToolModeScope(py_trees.decorators.Decorator):
     happened — success, failure or preemption (``terminate`` always runs)."""
 
     def __init__(self, child: py_trees.behaviour.Behaviour, tool: ToolAPI, mode: Mode,
-                 restore: Mode) -> None:
+                 restore: Mode, *, board: Board) -> None:
         super().__init__(name=f"tool {mode.name} (then {restore.name})", child=child)
         self.tool, self.mode, self.restore = tool, mode, restore
         self._ok = False
-        self.bb = _bb(self, ("tool_mode", Access.WRITE))
+        self.board = board
 
     def initialise(self) -> None:
         ok, msg = self.tool.set_mode(self.mode)
         self._ok = ok
         self.feedback_message = msg
         if ok:
-            self.bb.set("tool_mode", self.mode)
+            self.board.tool_mode = self.mode
 
     def update(self) -> Status:
         if not self._ok:
@@ -471,7 +477,7 @@ class ToolModeScope(py_trees.decorators.Decorator):
 
     def terminate(self, new_status: Status) -> None:
         self.tool.set_mode(self.restore)
-        self.bb.set("tool_mode", self.restore)
+        self.board.tool_mode = self.restore
 
     def stop(self, new_status: Status = Status.INVALID) -> None:
         """Stop the child first, then restore: py_trees' Decorator.stop runs ``terminate``
@@ -483,20 +489,21 @@ class ToolModeScope(py_trees.decorators.Decorator):
 
 
 class Attempts(py_trees.decorators.Retry):
-    """py_trees' Retry, counting attempts on the blackboard (``<key>``), and not mistaking a
-    child left INVALID (e.g. by a timeout) for success (py_trees issue #434)."""
+    """py_trees' Retry, counting its attempts on itself (``count``: the attempt in progress,
+    or the attempts used once it ended; 0 before it first ran) under ``key`` (the name a
+    bite's record reports it by), and not mistaking a child left INVALID (e.g. by a
+    timeout) for success (py_trees issue #434)."""
 
     def __init__(self, child: py_trees.behaviour.Behaviour, num_attempts: int, key: str,
                  name: str | None = None) -> None:
         super().__init__(name=name or f"up to {num_attempts} attempts", child=child,
                          num_failures=num_attempts)
         self.key = key
-        self.bb = _bb(self, (key, Access.WRITE))
-        self.bb.set(key, 0)
+        self.count = 0
 
     def initialise(self) -> None:
         super().initialise()
-        self.bb.set(self.key, 1)
+        self.count = 1
 
     def update(self) -> Status:
         if self.decorated.status == Status.INVALID:
@@ -504,37 +511,37 @@ class Attempts(py_trees.decorators.Retry):
             if self.failures >= self.num_failures:
                 self.feedback_message = f"final failure after {self.failures} attempts"
                 return Status.FAILURE
-            self.bb.set(self.key, self.failures + 1)
+            self.count = self.failures + 1
             return Status.RUNNING
         status = super().update()
         if self.decorated.status == Status.FAILURE and status == Status.RUNNING:
-            self.bb.set(self.key, self.failures + 1)
+            self.count = self.failures + 1
         return status
 
 
 class SafetyGuard(py_trees.decorators.EternalGuard):
-    """The root safety guard: py_trees' EternalGuard, named ``Unsafe?``, around
-    :class:`SafeStop`. Every tick, before the bite's steps, its condition asks whether the bite
-    must stop: a tool fault, tool state older than ``stale_s``, a stop request on the
-    blackboard, or a stop from elsewhere (another paired PC, the tool's own console):
-    the tool DISABLED while the tree has it LEVELING — seen in two ticks running, since over a
-    link a snapshot taken just before the tree's own LEVELING was carried out can arrive after
-    it — or the tree's primitive aborted by a mode change. Then Safe stop runs and the guard
-    SUCCEEDS with the reason as its feedback; otherwise it FAILS ("safe"), no failure of the
-    bite, and the root selector goes on to the bite."""
+    """The root safety guard: py_trees' EternalGuard, named ``Unsafe?``, around :class:`SafeStop`.
+    Every tick, before the bite's steps, its condition asks whether the bite must stop: a tool
+    fault, tool state older than ``stale_s``, a stop request on the tree's board
+    (:attr:`Board.stop_requested`), or a stop from elsewhere (another paired PC, the tool's own
+    console): the tool DISABLED while the tree has it LEVELING — seen in two ticks running,
+    since over a link a snapshot taken just before the tree's own LEVELING was carried out can
+    arrive after it — or the tree's primitive aborted by a mode change. Then Safe stop runs and
+    the guard SUCCEEDS with the reason as its feedback; otherwise it FAILS ("safe"), no failure
+    of the bite, and the root selector goes on to the bite."""
 
     def __init__(self, arm: ArmInterface, tool: ToolAPI, clock: Callable[[], float],
-                 stale_s: float) -> None:
-        super().__init__("Unsafe?", SafeStop(arm, tool), condition=self._unsafe)
+                 stale_s: float, *, board: Board) -> None:
+        super().__init__("Unsafe?", SafeStop(arm, tool, board=board), condition=self._unsafe)
         self.tool, self.clock, self.stale_s = tool, clock, stale_s
-        self.bb = _bb(self, ("stop_requested", Access.READ), ("tool_mode", Access.READ))
+        self.board = board
         self._disabled_ticks = 0  # consecutive ticks the tool was DISABLED while LEVELING
         self._reason = ""
 
     def _unsafe(self) -> bool:
         st = self.tool.state()
-        stop = self.bb.exists("stop_requested") and bool(self.bb.stop_requested)
-        expected = self.bb.tool_mode if self.bb.exists("tool_mode") else None
+        stop = self.board.stop_requested
+        expected = self.board.tool_mode
         self._disabled_ticks = self._disabled_ticks + 1 if (
             expected == Mode.LEVELING and st.mode == Mode.DISABLED) else 0
         ps = self.tool.primitive_status() if expected == Mode.PRIMITIVE else None
@@ -562,14 +569,13 @@ class SafetyGuard(py_trees.decorators.EternalGuard):
 class SafeStop(py_trees.behaviour.Behaviour):
     """Stop the arm and put the tool in DISABLED (motors hold, nothing moves)."""
 
-    def __init__(self, arm: ArmInterface, tool: ToolAPI) -> None:
+    def __init__(self, arm: ArmInterface, tool: ToolAPI, *, board: Board) -> None:
         super().__init__("Safe stop")
-        self.arm, self.tool = arm, tool
-        self.bb = _bb(self, ("tool_mode", Access.WRITE))
+        self.arm, self.tool, self.board = arm, tool, board
 
     def update(self) -> Status:
         self.arm.stop()
         self.tool.set_mode(Mode.DISABLED)
-        self.bb.set("tool_mode", Mode.DISABLED)
+        self.board.tool_mode = Mode.DISABLED
         self.feedback_message = "arm stopped, tool DISABLED"
         return Status.SUCCESS

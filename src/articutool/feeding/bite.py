@@ -45,6 +45,7 @@ from articutool.feeding.behaviours import (
     ArmInterface,
     Attempts,
     BiteStage,
+    Board,
     Execute,
     PlanLift,
     PlanPath,
@@ -81,57 +82,60 @@ class BiteSettings:
     food_check: bool = True  # check the load before each transport
 
 
-def _path(arm: ArmInterface, what: str, waypoints: Sequence[TipWaypoint],
+def _path(arm: ArmInterface, what: str, waypoints: Sequence[TipWaypoint], board: Board,
           tool: ToolAPI | None = None, clock: Callable[[], float] | None = None
           ) -> py_trees.behaviour.Behaviour:
     # With the tool: a path whose segments the wrist makes sends it the wrist's part.
     return py_trees.composites.Sequence(
-        what, memory=True, children=[PlanPath(arm, what, list(waypoints)),
-                                     Execute(arm, what, tool, clock)])
+        what, memory=True, children=[PlanPath(arm, what, list(waypoints), board=board),
+                                     Execute(arm, what, tool, clock, board=board)])
 
 
-def _primitive(tool: ToolAPI, stage: Stage, name: str, carry: Mode
+def _primitive(tool: ToolAPI, stage: Stage, name: str, carry: Mode, board: Board
                ) -> py_trees.behaviour.Behaviour:
-    run = RunPrimitive(tool, stage.primitive, stage.params, name)
+    run = RunPrimitive(tool, stage.primitive, stage.params, name, board=board)
     if stage.is_none:
         return run
-    return ToolModeScope(run, tool, Mode.DISABLED, carry)
+    return ToolModeScope(run, tool, Mode.DISABLED, carry, board=board)
 
 
 def stage_tree(name: str, arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
                waypoints: dict[str, list[TipWaypoint]], clock: Callable[[], float], *,
-               system: System, user: User, settings: BiteSettings = BiteSettings()
-               ) -> BiteStage:
-    """The subtree of one stage (see the module doc) for ``system``; ``waypoints`` from
+               system: System, user: User, board: Board,
+               settings: BiteSettings = BiteSettings()) -> BiteStage:
+    """The subtree of one stage (see the module doc) for ``system``, its behaviours sharing
+    ``board`` (the tree's); ``waypoints`` from
     :func:`articutool.feeding.insertion.acquisition_waypoints`; ``user`` takes the bite at
     the end of ``present``."""
     wrist, carry = system.wrist, system.carry
-    plan_kw = {"attempts": strategy.attempts.plan, "budget_s": settings.budget_s}
+    plan_kw = {"attempts": strategy.attempts.plan, "budget_s": settings.budget_s,
+               "board": board}
     seq = py_trees.composites.Sequence
     st = strategy.stages
     if name == "above":
         # Empty utensil: the loose planner, no verification, the wrist holding (§4.3.1).
         return BiteStage("above", [motion(arm, "AbovePlate", LOOSE, **plan_kw),
-                                   _path(arm, "to above the food", waypoints["above"])])
+                                   _path(arm, "to above the food", waypoints["above"],
+                                         board)])
     if name == "acquire":
-        steps = [_primitive(tool, st.pre_move_into, "pre-move-into", Mode.DISABLED),
-                 _path(arm, "into the food", waypoints["into"],
+        steps = [_primitive(tool, st.pre_move_into, "pre-move-into", Mode.DISABLED, board),
+                 _path(arm, "into the food", waypoints["into"], board,
                        *((tool, clock) if wrist else (None, None))),
-                 _primitive(tool, st.post_move_into, "post-move-into", Mode.DISABLED),
-                 _path(arm, "out of the food", waypoints["out"],
+                 _primitive(tool, st.post_move_into, "post-move-into", Mode.DISABLED, board),
+                 _path(arm, "out of the food", waypoints["out"], board,
                        *((tool, clock) if wrist else (None, None)))]
         if wrist:
-            steps.append(Settle(tool, Mode.LEVELING, settings.level_s, clock))
+            steps.append(Settle(tool, Mode.LEVELING, settings.level_s, clock, board=board))
         steps.append(seq(f"lift {settings.lift_m * 100:g} cm", memory=True, children=[
-            PlanLift(arm, settings.lift_m), Execute(arm, "lift")]))
+            PlanLift(arm, settings.lift_m, board=board), Execute(arm, "lift", board=board)]))
         # Bounded retries of the whole acquisition (each from the above-food pose).
         n = strategy.attempts.acquire
         return BiteStage("acquire", [Attempts(seq("acquire steps", memory=True, children=steps),
                                               n, "acquisition_attempts")])
     if name == "shed":
-        steps = [_primitive(tool, st.post_acquisition, "post-acquisition", carry)]
+        steps = [_primitive(tool, st.post_acquisition, "post-acquisition", carry, board)]
         if wrist:
-            steps.append(Settle(tool, Mode.LEVELING, settings.level_s / 2, clock))
+            steps.append(Settle(tool, Mode.LEVELING, settings.level_s / 2, clock, board=board))
         return BiteStage("shed", steps)
     if name in ("resting", "staging"):
         goal = name.capitalize()
@@ -141,7 +145,7 @@ def stage_tree(name: str, arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
                          name=f"transport to {goal}")
     if name == "present":
         hold = Settle(tool, carry, settings.present_s, clock,
-                      name=f"hold {settings.present_s:g} s ({carry.name})")
+                      name=f"hold {settings.present_s:g} s ({carry.name})", board=board)
         return BiteStage("present", [hold, TakeBite(user)], name="present at Staging")
     if name == "return":
         return BiteStage("return", motion_steps(arm, "Resting", system.home, **plan_kw),
@@ -154,31 +158,34 @@ def bite_tree(arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
               system: System, user: User, stages: Sequence[str] = STAGES,
               settings: BiteSettings = BiteSettings()) -> py_trees.behaviour.Behaviour:
     """One bite of ``strategy`` with ``system`` (see the module doc): ``stages`` in
-    :data:`STAGES` order; ``user`` takes the bite at the end of ``present``."""
+    :data:`STAGES` order; ``user`` takes the bite at the end of ``present``. The tree's
+    behaviours share a :class:`~articutool.feeding.behaviours.Board` of its own
+    (:func:`~articutool.feeding.tree.board_of`)."""
     unknown = [s for s in stages if s not in STAGES]
     if unknown or not stages:
         raise ValueError(f"stages: unknown or empty {unknown}; known: {', '.join(STAGES)}")
     if list(stages) != sorted(stages, key=STAGES.index):
         raise ValueError(f"stages must be in the order {', '.join(STAGES)}")
-    carry = system.carry
+    carry, board = system.carry, Board()
     # Before acquisition the utensil is empty: the wrist holds (DISABLED); the carry mode
     # starts with the tool-only leveling inside ``acquire``.
     first_mode = Mode.DISABLED if stages[0] in ("above", "acquire") else carry
     subtrees: list[py_trees.behaviour.Behaviour] = [
         stage_tree(s, arm, tool, strategy, waypoints, clock, system=system, user=user,
-                   settings=settings) for s in stages]
+                   board=board, settings=settings) for s in stages]
     steps = py_trees.composites.Sequence("bite steps", memory=True, children=subtrees)
     # A failed bite retreats: up out of the container (if the lift fails, from where it is),
     # then to Resting; the bite still fails.
     lift = py_trees.decorators.FailureIsSuccess(
         name="up if possible", child=py_trees.composites.Sequence(
             "retreat lift", memory=True,
-            children=[PlanLift(arm, settings.lift_m), Execute(arm, "retreat lift")]))
+            children=[PlanLift(arm, settings.lift_m, board=board),
+                      Execute(arm, "retreat lift", board=board)]))
     home = motion(arm, "Resting", system.home, attempts=strategy.attempts.plan,
-                  budget_s=settings.budget_s)
+                  budget_s=settings.budget_s, board=board)
     retreat = Retreat(ToolModeScope(py_trees.composites.Sequence("retreat", memory=True,
                                                                  children=[lift, home]),
-                                    tool, carry, Mode.DISABLED))
+                                    tool, carry, Mode.DISABLED, board=board))
     body = py_trees.composites.Selector("bite or retreat", memory=True, children=[
-        ToolModeScope(steps, tool, first_mode, Mode.DISABLED), retreat])
-    return guarded(body, arm, tool, clock, settings.stale_s)
+        ToolModeScope(steps, tool, first_mode, Mode.DISABLED, board=board), retreat])
+    return guarded(body, arm, tool, clock, settings.stale_s, board=board)

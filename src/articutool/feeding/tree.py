@@ -14,11 +14,16 @@ Shape of :func:`transport_tree`::
       EternalGuard "Unsafe?"    -> Safe stop (py_trees' EternalGuard: checked every tick)
       ToolModeScope <carry mode> (then DISABLED)
         Sequence "transport"
-          Attempts "up to N attempts"    (planning_attempts_<goal> on the blackboard)
+          Attempts "up to N attempts"    (planning_attempts_<goal>, counted on the node)
             Sequence "plan+verify"  Plan (the planner's own budget) -> Verify
                                     [-> Check the food: retime until predicted spill-free]
           Execute motion            (a slosh-free wrist trajectory goes to the tool; then
                                      LEVELING again)
+
+The behaviours of a tree share that tree's :class:`~articutool.feeding.behaviours.Board`
+(the plan passed from planning to execution, the tool's mode for the guard, a stop request),
+created by the tree's builder; nothing is shared between trees, so trees run in threads of
+one process side by side.
 
 The carry mode is the system's (:class:`~articutool.feeding.system.System`): LEVELING for the
 Articutool, DISABLED (wrist locked) for the rigid baseline.
@@ -36,6 +41,7 @@ from py_trees.common import Status
 from articutool.feeding.behaviours import (
     ArmInterface,
     Attempts,
+    Board,
     CheckFood,
     Execute,
     Plan,
@@ -49,8 +55,9 @@ from articutool.feeding.behaviours import (
 from articutool.feeding.system import Planner, System
 from articutool.tool.api import Mode, ToolAPI
 
-__all__ = ["BiteRecorder", "ClockedTimeout", "TreeRun", "guarded", "motion", "motion_steps",
-           "run_tree", "safe_stop_reason", "tick_until_done", "transport_tree"]
+__all__ = ["BiteRecorder", "ClockedTimeout", "TreeRun", "attempts_used", "board_of", "guarded",
+           "motion", "motion_steps", "run_tree", "safe_stop_reason", "tick_until_done",
+           "transport_tree"]
 
 
 class ClockedTimeout(py_trees.decorators.Timeout):
@@ -74,22 +81,23 @@ class ClockedTimeout(py_trees.decorators.Timeout):
 
 
 def motion_steps(arm: ArmInterface, goal: str, planner: Planner, *, attempts: int,
-                 budget_s: float, food: bool = False, tool: ToolAPI | None = None,
-                 clock: Callable[[], float] | None = None, then: Mode | None = None
-                 ) -> list[py_trees.behaviour.Behaviour]:
+                 budget_s: float, board: Board, food: bool = False,
+                 tool: ToolAPI | None = None, clock: Callable[[], float] | None = None,
+                 then: Mode | None = None) -> list[py_trees.behaviour.Behaviour]:
     """The steps of :func:`motion`, for a sequence of the caller's (a bite's stage)."""
-    steps: list[py_trees.behaviour.Behaviour] = [Plan(arm, goal, planner, budget_s)]
+    steps: list[py_trees.behaviour.Behaviour] = [Plan(arm, goal, planner, budget_s,
+                                                      board=board)]
     if planner.verified:
-        steps.append(Verify(arm))
+        steps.append(Verify(arm, board=board))
     if food:
-        steps.append(CheckFood(arm))
+        steps.append(CheckFood(arm, board=board))
     plan_verify = py_trees.composites.Sequence("plan+verify", memory=True, children=steps)
     tries = Attempts(plan_verify, attempts, f"planning_attempts_{goal}")
-    return [tries, Execute(arm, f"to {goal}", tool, clock, then)]
+    return [tries, Execute(arm, f"to {goal}", tool, clock, then, board=board)]
 
 
 def motion(arm: ArmInterface, goal: str, planner: Planner, *, attempts: int, budget_s: float,
-           food: bool = False, tool: ToolAPI | None = None,
+           board: Board, food: bool = False, tool: ToolAPI | None = None,
            clock: Callable[[], float] | None = None, then: Mode | None = None
            ) -> py_trees.behaviour.Behaviour:
     """Move the arm to a named goal: bounded attempts of (plan → verify → check the food),
@@ -98,20 +106,44 @@ def motion(arm: ArmInterface, goal: str, planner: Planner, *, attempts: int, bud
     strict plan's constraint is the planner's own. ``food`` adds the food-aware check
     (:class:`CheckFood`: retimed until predicted spill-free, or re-planned); with ``tool``
     and ``clock`` a trajectory carrying the wrist's joints (slosh-free leveling) sends them
-    to the tool, whose mode is ``then`` afterwards. Attempts are counted on the blackboard as
+    to the tool, whose mode is ``then`` afterwards. The steps share ``board`` (the tree's);
+    attempts are counted on the :class:`~articutool.feeding.behaviours.Attempts` node, keyed
     ``planning_attempts_<goal>``."""
     return py_trees.composites.Sequence(
         f"move to {goal}", memory=True,
         children=motion_steps(arm, goal, planner, attempts=attempts, budget_s=budget_s,
-                              food=food, tool=tool, clock=clock, then=then))
+                              board=board, food=food, tool=tool, clock=clock, then=then))
 
 
 def guarded(child: py_trees.behaviour.Behaviour, arm: ArmInterface, tool: ToolAPI,
-            clock: Callable[[], float], stale_s: float = 0.5) -> py_trees.behaviour.Behaviour:
+            clock: Callable[[], float], stale_s: float = 0.5, *,
+            board: Board) -> py_trees.behaviour.Behaviour:
     """``child`` under the root safety guard: every tick, a tool fault, stale tool state or a
-    stop request preempts it and stops the arm with the tool DISABLED."""
-    guard = SafetyGuard(arm, tool, clock, stale_s)
+    stop request (on ``board``, the tree's) preempts it and stops the arm with the tool
+    DISABLED."""
+    guard = SafetyGuard(arm, tool, clock, stale_s, board=board)
     return py_trees.composites.Selector("bite", memory=False, children=[guard, child])
+
+
+def board_of(root: py_trees.behaviour.Behaviour) -> Board:
+    """The board of the tree under ``root`` (its safety guard's): where a caregiver or a UI
+    requests a stop (``board_of(root).stop_requested = True``)."""
+    for node in root.iterate():
+        if isinstance(node, SafetyGuard):
+            return node.board
+    raise ValueError(f"{root.name!r} has no safety guard (build it with guarded())")
+
+
+def attempts_used(root: py_trees.behaviour.Behaviour) -> dict[str, int]:
+    """The attempts each :class:`~articutool.feeding.behaviours.Attempts` node of the tree
+    under ``root`` used in its last run, by key (``planning_attempts_<goal>``,
+    ``acquisition_attempts``); of two nodes with one key (a stage's move to Resting and the
+    retreat's), the later in tree order that ran."""
+    used: dict[str, int] = {}
+    for node in root.iterate():
+        if isinstance(node, Attempts) and node.count > 0:
+            used[node.key] = node.count
+    return used
 
 
 def safe_stop_reason(root: py_trees.behaviour.Behaviour) -> str | None:
@@ -131,11 +163,12 @@ def transport_tree(arm: ArmInterface, tool: ToolAPI, goal: str, system: System, 
                    stale_s: float = 0.5, food: bool = False) -> py_trees.behaviour.Behaviour:
     """The transport subtree of ``system`` (see the module doc): it runs alone as a tree.
     ``food`` checks the load before executing (:func:`motion`)."""
+    board = Board()
     move = motion(arm, goal, system.transport, attempts=attempts, budget_s=budget_s,
-                  food=food, tool=tool, clock=clock,
+                  board=board, food=food, tool=tool, clock=clock,
                   then=system.carry if system.wrist else None)
-    return guarded(ToolModeScope(move, tool, system.carry, Mode.DISABLED), arm, tool, clock,
-                   stale_s)
+    return guarded(ToolModeScope(move, tool, system.carry, Mode.DISABLED, board=board), arm,
+                   tool, clock, stale_s, board=board)
 
 
 @dataclass

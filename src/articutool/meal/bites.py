@@ -37,7 +37,7 @@ from articutool.feeding.insertion import acquisition_waypoints, dish_outline
 from articutool.feeding.outcomes import classify_bite
 from articutool.feeding.strategies import Strategy, StrategyLibrary
 from articutool.feeding.system import System
-from articutool.feeding.tree import run_tree
+from articutool.feeding.tree import attempts_used, run_tree
 from articutool.meal.sim_arm import SimArm, world_load
 from articutool.sim import accounting as acc
 from articutool.sim.params import PhysicsParams
@@ -299,9 +299,9 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
     if root is None:
         root = _tree(setup, stages, settings, tool)
     ledger = StageLedger(w)
-    counters = [n for n in root.iterate() if isinstance(n, Attempts)]
-    for n in counters:  # the same tree runs every bite of a meal: count this bite's only
-        n.bb.set(n.key, 0)
+    for n in root.iterate():  # the same tree runs every bite of a meal: count this bite's only
+        if isinstance(n, Attempts):
+            n.count = 0
     t0, wall0, n_spills = w.time, time.perf_counter(), len(w.spills)
     before = w.masses_g()
     # simulated time, not counting the waits for plans
@@ -343,7 +343,7 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
     delivered = acc.delivered_g(before, end)
     # Attempts per goal, from this tree's own counters (zeroed before the bite; in tree
     # order, a retreat's last), also of a stage that failed and was stopped (INVALID since).
-    counted = {n.key: int(n.bb.get(n.key)) for n in counters if int(n.bb.get(n.key)) > 0}
+    counted = attempts_used(root)
     attempts = {k.removeprefix("planning_attempts_"): v for k, v in counted.items()
                 if k.startswith("planning_attempts_")}
     goal = "Staging" if "Staging" in attempts else (list(attempts)[-1] if attempts else "")

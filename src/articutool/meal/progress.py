@@ -57,7 +57,7 @@ class TreeProgress(py_trees.visitors.SnapshotVisitor):
         tip = self.root.tip()
         path = _ancestry(tip)
         where = " › ".join(n.name for n in path if isinstance(n, BiteStage) or n is tip)
-        attempts = "".join(f" (attempt {n.bb.get(n.key)})" for n in path
+        attempts = "".join(f" (attempt {n.count})" for n in path
                            if isinstance(n, Attempts) and n.key.startswith("planning_attempts_"))
         line = f"{where}{attempts}"
         if line != self.last:

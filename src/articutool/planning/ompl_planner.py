@@ -40,7 +40,10 @@ checks, the attempt loop and the re-plan on a rejection share them.
 
 Determinism: OMPL's global seed is reset (``ompl.util.RNG.setSeed``) before every attempt
 and all OMPL objects are built afterwards, so a (request, seed) pair replays the same plan
-(unless the wall-clock timeout cuts a search at a different point).
+(unless the wall-clock timeout cuts a search at a different point). That seed is one per
+process, so the plans of a process run one at a time (:data:`_SEEDED`): two plans in two
+threads (two trials in one Dask worker) would otherwise draw from each other's seed. A plan's
+wall budget starts once it holds the lock.
 """
 
 from __future__ import annotations
@@ -165,6 +168,7 @@ class _DeadzoneConstraint(ob.Constraint):
         out[:, :] = self.strict.deadzone_jacobian(R, Jw)
 
 
+_SEEDED = threading.Lock()  # OMPL's seed is process-global: one seeded plan at a time
 _models = threading.local()  # per thread: a model's data buffers are written by every query
 
 
@@ -484,10 +488,16 @@ def plan_transport(
     1.65 s) or ``"projection"`` (OMPL ProjectedStateSpace with the dead-zone constraint:
     strict6 40 % / 6.0 s, strict8 70 % / 1.5 s on the same tasks).
     """
-    t0 = time.perf_counter()
-    phases = _Phases()
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}; got {method!r}")
+    with _SEEDED:
+        return _plan_seeded(request, spec, method, settings)
+
+
+def _plan_seeded(request: PlanRequest, spec: Spec, method: str,
+                 settings: PlannerSettings | None) -> PlanResult:
+    t0 = time.perf_counter()
+    phases = _Phases()
     req = request
     deadline = t0 + req.timeout_s
     prob = _Problem(req, spec, settings or PlannerSettings(), method)

@@ -12,6 +12,7 @@ tool and tares the F/T sensor.
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 
 import mujoco
@@ -48,28 +49,33 @@ class SettleCache:
     runner, one per worker process: an experiment's conditions share a repeat's seed, so
     they share its settled pile); a world built without one settles afresh.
 
-    It keeps the ``keep`` most recently used states (one is a full ``mjData``)."""
+    It keeps the ``keep`` most recently used states (one is a full ``mjData``). The worlds
+    of several threads (trials in one Dask worker) may share it: a state taken is another
+    thread's no more until it is put back."""
 
     def __init__(self, keep: int = 4) -> None:
         if keep < 1:
             raise ValueError(f"keep must be >= 1; got {keep}")
         self.keep = keep
         self._states: dict[str, SettledState] = {}
+        self._lock = threading.Lock()
 
     def __len__(self) -> int:
         return len(self._states)
 
     def take(self, key: str) -> SettledState | None:
         """The state settled under ``key`` (removed until :meth:`put` back), or None."""
-        return self._states.pop(key, None)
+        with self._lock:
+            return self._states.pop(key, None)
 
     def put(self, key: str, state: SettledState) -> None:
         """Keep ``state`` under ``key`` as the most recently used; forget the oldest beyond
         ``keep``."""
-        self._states.pop(key, None)
-        self._states[key] = state
-        while len(self._states) > self.keep:
-            self._states.pop(next(iter(self._states)))
+        with self._lock:
+            self._states.pop(key, None)
+            self._states[key] = state
+            while len(self._states) > self.keep:
+                self._states.pop(next(iter(self._states)))
 
 
 @dataclass(frozen=True)
