@@ -4,12 +4,14 @@ the field, before any trial runs; the trial design is stable when trials are add
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import signal
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -17,7 +19,10 @@ import articutool.cli as cli
 from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import conditions, make_trials, trial_seed
 from articutool.experiments.runner import (
+    DataChecked,
+    DataMismatchError,
     RunError,
+    data_files,
     data_hash,
     log_path,
     pin_run,
@@ -286,3 +291,67 @@ def test_the_committed_runs_are_pinned_to_todays_data() -> None:
         run = json.loads(p.read_text())
         foods = {c["food"] for c in run["conditions"]}
         assert data_hash(run["experiment"], cfg, foods) == run["data_hash"], p
+
+
+class _Elsewhere:
+    """A worker on another machine, its articutool data in ``data``: runs the checked trial
+    function it is sent there, and reports what it raises as a worker failure."""
+
+    description = "elsewhere"
+
+    def __init__(self, data: Path) -> None:
+        self.data = data
+
+    def run(self, fn, items, stop=None):
+        assert isinstance(fn, DataChecked)  # what every executor is sent
+        for it in items:
+            try:
+                yield it, dataclasses.replace(fn, data=self.data)(it), None
+            except Exception as err:
+                yield it, None, err
+
+    def close(self) -> None:
+        pass
+
+
+def _data_copy(tmp_path: Path) -> Path:
+    import shutil
+    from importlib import resources
+
+    data = tmp_path / "data"
+    shutil.copytree(Path(str(resources.files("articutool") / "data")), data)
+    return data
+
+
+def test_a_worker_whose_data_differs_refuses_the_trial_naming_the_file(tmp_path) -> None:
+    data = _data_copy(tmp_path)
+    assert data_files(data) == data_files()  # a copy of the same files: the same hash
+    ran: list = []
+    ok = DataChecked(lambda spec: ran.append(spec) or {"trial": spec.trial}, data_files(), data)
+    spec = SimpleNamespace(trial=7)
+    assert ok(spec) == {"trial": 7} and ran == [spec]
+    physics = data / "physics.toml"
+    physics.write_text(physics.read_text() + "\n# edited on this worker\n")
+    (data / "strategies.toml").unlink()
+    with pytest.raises(DataMismatchError) as err:
+        dataclasses.replace(ok, data=data)(SimpleNamespace(trial=8))
+    msg = str(err.value)
+    assert "refused trial 8" in msg and "differ: physics.toml" in msg
+    assert "missing on the worker: strategies.toml" in msg and "same commit" in msg
+    assert ran == [spec]  # the refused trial did not run
+
+
+def test_a_run_on_a_worker_with_other_data_logs_nothing_and_says_why(tmp_path) -> None:
+    cfg = ExperimentsConfig.load()
+    goals = ["low_near"]
+    trials = make_trials("exp2b", conditions("exp2b", cfg, goals=goals), 1, 0,
+                         goals=goals)[:1]
+    data = _data_copy(tmp_path)
+    scene = data / "scene.toml"
+    scene.write_text(scene.read_text() + "\n# another commit\n")
+    log = log_path(tmp_path / "out", "exp2b")
+    res = run_experiment(trials, log, _Elsewhere(data))
+    assert res.ran == 0 and res.records == []
+    assert not log.exists() or _lines(log) == []
+    [(_, why)] = res.lost
+    assert why.startswith("DataMismatchError") and "differ: scene.toml" in why

@@ -416,6 +416,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if summary_run.lost:
         print(f"{len(summary_run.lost)} trial(s) did not finish (worker failure); run the "
               "same command again to resume them", file=sys.stderr)
+        for why in sorted({str(e) for _, e in summary_run.lost})[:3]:
+            print(f"  {why}", file=sys.stderr)
         return 1
     return 0
 

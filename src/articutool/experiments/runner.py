@@ -11,6 +11,10 @@ trials to the same log.
 :func:`run_trial` runs one trial from its :class:`~articutool.experiments.design.TrialSpec`
 alone and returns its :class:`~articutool.experiments.records.TrialRecord`; :func:`log_trial`
 is its log line, top-level and picklable: what a worker process (or Dask worker) returns.
+Every trial is sent with the hash of the client's data files (:func:`data_files`) and a
+worker whose own differ refuses it (:class:`DataChecked`): every worker of a cluster runs the
+same data. Trials share nothing through the process, so a Dask worker runs several at once
+in its threads.
 """
 
 from __future__ import annotations
@@ -39,8 +43,11 @@ if TYPE_CHECKING:
     from articutool.sim.world import SettleCache
 
 __all__ = [
+    "DataChecked",
+    "DataMismatchError",
     "RunError",
     "RunResult",
+    "data_files",
     "data_hash",
     "log_path",
     "log_trial",
@@ -56,6 +63,10 @@ LOG_NAME = "trials.jsonl"
 
 class RunError(ValueError):
     """A resume with other settings, or an unreadable ``run.json``."""
+
+
+class DataMismatchError(RuntimeError):
+    """A worker's data files are not the client's: the trial was refused, not run."""
 
 
 def trial_key(rec: dict[str, Any]) -> tuple[str, int]:
@@ -114,6 +125,45 @@ def data_hash(experiment: str, cfg: ExperimentsConfig, foods: Iterable[str],
     own = cfg.model_dump(mode="json", include={"settings", experiment})
     h.update(json.dumps(own, sort_keys=True).encode())
     return h.hexdigest()[:16]
+
+
+def data_files(data: Path | None = None) -> dict[str, str]:
+    """SHA-256 of every file of ``data`` (default: the packaged data directory,
+    ``articutool/data``), by name: the bytes a worker's trials read their spec, scene,
+    physics, strategies and experiments from."""
+    base = resources.files("articutool") / "data" if data is None else data
+    return {f.name: hashlib.sha256(f.read_bytes()).hexdigest()
+            for f in sorted(base.iterdir(), key=lambda f: f.name) if f.is_file()}
+
+
+@dataclass(frozen=True)
+class DataChecked:
+    """``worker`` (a trial's function) run only where the data files are ``expected`` (the
+    client's :func:`data_files`, sent with every task): a worker whose own differ (another
+    commit, an edited file) raises :class:`DataMismatchError` naming the files and runs
+    nothing. Top-level and picklable, as the executors need."""
+
+    worker: Callable[[TrialSpec], dict[str, Any]]
+    expected: dict[str, str]
+    data: Path | None = None  # the worker's data directory (default: the packaged one)
+
+    def __call__(self, spec: TrialSpec) -> dict[str, Any]:
+        own = data_files(self.data)
+        differ = sorted(n for n in self.expected.keys() & own.keys()
+                        if self.expected[n] != own[n])
+        missing = sorted(self.expected.keys() - own.keys())
+        extra = sorted(own.keys() - self.expected.keys())
+        if differ or missing or extra:
+            import socket
+
+            parts = ([f"differ: {', '.join(differ)}"] if differ else []) + (
+                [f"missing on the worker: {', '.join(missing)}"] if missing else []) + (
+                [f"only on the worker: {', '.join(extra)}"] if extra else [])
+            raise DataMismatchError(
+                f"worker {socket.gethostname()} (pid {os.getpid()}) refused trial "
+                f"{spec.trial}: its data files are not the client's ({'; '.join(parts)}); "
+                "install the same commit of articutool on every worker")
+        return self.worker(spec)
 
 
 @functools.cache
@@ -226,10 +276,12 @@ def run_experiment(trials: Sequence[TrialSpec], log: str | Path, executor: Execu
     index (:func:`read_trials`).
 
     ``worker`` (default :func:`log_trial`) returns a log line and must be picklable for
-    process executors."""
+    process executors; it runs checked (:class:`DataChecked`) against this process's data
+    files: a worker with others refuses the trial, which is then lost (not logged; its error
+    names the files)."""
     t0 = time.perf_counter()
-    res = run_logged(trials, log, executor, worker or log_trial, trial_key, on_result,
-                     on_start)
+    checked = DataChecked(worker or log_trial, data_files())
+    res = run_logged(trials, log, executor, checked, trial_key, on_result, on_start)
     wanted = {t.key for t in trials}
     records = _records({trial_key(r): r for r in res.records
                         if trial_key(r) in wanted}.values(), Path(log))
