@@ -355,3 +355,38 @@ def test_a_run_on_a_worker_with_other_data_logs_nothing_and_says_why(tmp_path) -
     assert not log.exists() or _lines(log) == []
     [(_, why)] = res.lost
     assert why.startswith("DataMismatchError") and "differ: scene.toml" in why
+
+
+@pytest.mark.slow  # four exp2b trials (two in this process, two in a Dask worker): ~2 min
+def test_two_trials_in_the_threads_of_one_dask_worker_give_their_outcomes_alone(
+        tmp_path, monkeypatch) -> None:
+    """A ``dask worker`` runs several tasks at once in its threads by default: two trials in
+    the two threads of one worker process give the records they give one after the other
+    in one process (every field but the timing and bookkeeping ones the replay check
+    ignores)."""
+    pytest.importorskip("distributed")
+    from distributed import Client, LocalCluster
+
+    from articutool.bench.executors import DaskExecutor
+    from articutool.experiments.cli import BOOKKEEPING_FIELDS, TIMING_FIELDS
+    from articutool.experiments.runner import log_trial
+
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes MUJOCO_LOG.TXT on a warning
+    cfg = ExperimentsConfig.load()
+    goals = ["low_near"]
+    trials = make_trials("exp2b", conditions("exp2b", cfg, goals=goals), 1, 0,
+                         goals=goals)[:2]  # pecans: Articutool, baseline (one seed)
+    ignored = TIMING_FIELDS | BOOKKEEPING_FIELDS
+
+    def outcomes(lines):
+        return {r["trial"]: {k: v for k, v in r.items() if k not in ignored} for r in lines}
+
+    alone = outcomes(log_trial(t) for t in trials)
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=True, host="127.0.0.1",
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        res = run_experiment(trials, log_path(tmp_path, "exp2b"), DaskExecutor(client=client))
+        assert res.lost == [] and res.ran == 2
+        pids = {r.pid for r in res.records}
+    assert len(pids) == 1  # one worker process ran both
+    assert all(r.error is None for r in res.records), [r.error for r in res.records]
+    assert outcomes(r.to_log() for r in res.records) == alone
