@@ -193,11 +193,10 @@ def _cmd_transport(args: argparse.Namespace) -> int:
                           f"logged in {log}; run the same command again to resume (no "
                           "report written)")
         return 130
-    if summary_run.torn:
-        err_console.print(f"ignored {summary_run.torn} torn last line in {log} (cut off)")
-    if summary_run.corrupt:
-        err_console.print(f"[yellow]warning:[/] ignored {summary_run.corrupt} unreadable "
-                          f"line(s) in {log}")
+    if summary_run.log is not None and not summary_run.log.clean:
+        err_console.print(f"warning: {summary_run.log.describe()}; the bad lines "
+                          "were ignored (a torn last line cut off): a trial one held ran again",
+                          markup=False, highlight=False)
     records = select(summary_run.records, trials)
 
     # ---- report ----
