@@ -477,7 +477,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
                                    threshold_g=threshold, on_kept=kept, on_log=checks.append)
     print(f"wrote {md} and {html}")
     for c in checks:
-        if not c.log.state.clean:
+        if c.short or not c.log.state.clean:
             print(f"warning: {c.log.state.describe()}", file=sys.stderr)
     short = [s for c in checks for s in c.shortfalls()]
     for s in short:
