@@ -18,10 +18,15 @@ summary and index. Every chunk, the data section and the summary carry CRC-32s.
 :func:`read_recording` reads a recording back the one way that works for both: in file
 order, streaming, every CRC checked. A reader that orders by log time first
 (``mcap``'s ``iter_messages`` default) buffers to the end and so yields nothing from a cut
-file; one that skips the CRCs accepts flipped bits in a chunk's bytes. A corrupt file
-(a CRC mismatch, a record that does not parse, a chunk that does not decompress) is refused
-naming where; a cut one (it ends before the footer, without MCAP's closing magic) is read up
-to its last complete chunk and said to be cut.
+file; one that skips the CRCs accepts flipped bits in a chunk's bytes, and one that reads
+only the records accepts a changed length that skips a chunk. So the whole file is checked:
+the magic at both ends, every record's length, the chunks' and the data section's CRCs
+(``mcap``'s stream reader), one DataEnd where the footer puts the summary, the summary and
+its offsets as the footer names them, the summary read from the footer by ``mcap``'s seeking
+reader matching the chunks, message indexes, schemas, channels and counts read, and the
+summary CRC. A corrupt file is refused naming what is wrong and where; a cut one (it ends
+before the footer, without MCAP's closing magic) is read up to its last complete chunk and
+said to be cut.
 """
 
 from __future__ import annotations
