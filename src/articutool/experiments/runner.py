@@ -91,7 +91,7 @@ def read_trial_log(out: str | Path, experiment: str) -> TrialLog:
 
 
 def _records(lines: Iterable[dict[str, Any]], path: Path) -> list[TrialRecord]:
-    """The log ``lines``' records (see :func:`read_trials`), by trial index."""
+    """The log ``lines``' records (see :func:`read_trial_log`), by trial index."""
     from pydantic import ValidationError
 
     from articutool.datafile import ResultsError, format_validation_error
