@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 export MPLBACKEND := Agg
 
-.PHONY: demo test test-slow bench bench-quick bench-full bench-sim bench-flood bench-stops bench-loop soak lint clean syspkgs experiments
+.PHONY: demo test test-slow bench bench-quick bench-full bench-sim bench-flood bench-stops bench-ros2-flood bench-loop soak lint clean syspkgs experiments
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -75,6 +75,10 @@ bench-flood: $(VENV)/.installed
 # A PC's stops under floods (unsigned, forged, replayed, another paired PC, all).
 bench-stops: $(VENV)/.installed
 	$(BIN)/python benchmarks/bench_link_stops.py --out results/link_stops.json
+
+# articutool ros2 under 1000 bad calls/s for 5 s and a burst of 600 cancels: every call answered?
+bench-ros2-flood: $(VENV)/.installed
+	$(BIN)/python benchmarks/bench_ros2_flood.py --out results/ros2_flood.json
 
 # The wrist's 50 Hz loop under 0/1/2/4 flooders of 2000 unsigned requests/s and a CPU hog, 10 min
 # each (about 42 min); the same without CAP_SYS_NICE, 2 min each.

@@ -196,6 +196,46 @@ def scenario(name: str, rate: float, client: Client, env: dict[str, str], node_p
     return out
 
 
+def start_graph(prefix: str, stderr: Any = subprocess.DEVNULL
+                ) -> tuple[dict[str, str], Any, subprocess.Popen[str]]:
+    """A random domain's environment (host-only), the paired tool (``start_paired_tool``) and
+    ``articutool ros2`` serving it, once it says so."""
+    domain = random.Random(os.getpid()).randint(120, 220)
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"), ROS_DOMAIN_ID=str(domain),
+               ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    tool = start_paired_tool(prefix)
+    node = subprocess.Popen(
+        [sys.executable, "-m", "articutool", "ros2", "--link-config",
+         str(tool.folder / "pc-1" / "link.toml"), "--connect", tool.pc_config.connect[0],
+         "--tool-id", "wrist-1", "--wait", "60"],
+        env=env, text=True, stdout=subprocess.PIPE, stderr=stderr)
+    assert node.stdout is not None
+    line = node.stdout.readline()
+    if "serving" not in line:
+        stop_all((node, tool.proc))
+        raise SystemExit(f"node did not start: {line!r}")
+    return env, tool, node
+
+
+def stop_all(procs: Any) -> None:
+    """SIGINT each process, then SIGKILL what has not ended within 30 s."""
+    for p in procs:
+        p.send_signal(2)
+        try:
+            p.wait(30)
+        except subprocess.TimeoutExpired:
+            p.kill()
+
+
+def write_result(args: argparse.Namespace, clock: str, **fields: Any) -> None:
+    """``args.out``: the machine, the clocks named, the settings and ``fields``, as JSON."""
+    doc = {"machine": {"python": sys.version.split()[0], "platform": platform.platform(),
+                       "cpus": os.cpu_count()}, "clock": clock, "settings": vars(args), **fields}
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(json.dumps(doc, indent=2) + "\n")
+    print(f"wrote {args.out}")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rate", type=float, default=1000.0)
@@ -206,38 +246,16 @@ def main() -> int:
     ap.add_argument("--deadline", type=float, default=15.0)
     ap.add_argument("--out", default="results/ros2_stops.json")
     args = ap.parse_args()
-    domain = random.Random(os.getpid()).randint(120, 220)
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"), ROS_DOMAIN_ID=str(domain),
-               ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
-    tool = start_paired_tool("ros2-stops-")
-    node = subprocess.Popen(
-        [sys.executable, "-m", "articutool", "ros2", "--link-config",
-         str(tool.folder / "pc-1" / "link.toml"), "--connect", tool.pc_config.connect[0],
-         "--tool-id", "wrist-1", "--wait", "60"],
-        env=env, text=True, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
-    assert node.stdout is not None
-    line = node.stdout.readline()
-    if "serving" not in line:
-        raise SystemExit(f"node did not start: {line!r}")
-    client = Client(domain)
+    env, tool, node = start_graph("ros2-stops-")
+    client = Client(int(env["ROS_DOMAIN_ID"]))
     try:
         runs = {"quiet": scenario("quiet", 0, client, env, node.pid, args),
                 "flood": scenario("flood", args.rate, client, env, node.pid, args)}
     finally:
         client.close()
-        for p in (node, tool.proc):
-            p.send_signal(2)
-            try:
-                p.wait(30)
-            except subprocess.TimeoutExpired:
-                p.kill()
-    doc = {"machine": {"python": sys.version.split()[0], "platform": platform.platform(),
-                       "cpus": os.cpu_count()},
-           "clock": "latency: wall clock (perf_counter) round trip; node_cpu_s: /proc CPU time",
-           "settings": vars(args), "runs": runs}
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(doc, indent=2) + "\n")
-    print(f"wrote {args.out}")
+        stop_all((node, tool.proc))
+    write_result(args, "latency: wall clock (perf_counter) round trip; node_cpu_s: /proc CPU "
+                       "time", runs=runs)
     return 0
 
 

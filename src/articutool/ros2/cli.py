@@ -1,12 +1,14 @@
 """``articutool ros2``: serve the Articutool on a ROS 2 graph (see :mod:`articutool.ros2.node`).
 
 Refuses to start (exit 2) unless DDS discovery stays on this host or the user passes
-``--allow-remote-ros-clients`` (:mod:`articutool.ros2.exposure`). Configured by flags and by
-ROS 2 parameters (:mod:`articutool.ros2.params`; ``--ros-args -p name:=value`` overrides a
-flag). Exit codes: 0 stopped by SIGINT/SIGTERM (any goal it forwarded cancelled, the command
-lease released), 1 the tool was not heard within the wait or rclpy/articutool_interfaces are
-not installed, 2 bad input (link config, endpoints, a parameter, discovery open without the
-flag).
+``--allow-remote-ros-clients`` (:mod:`articutool.ros2.exposure`); host-only, it binds DDS to
+loopback and shared memory and refuses to run (exit 2) if any socket of the process is bound
+to another address once its participant exists (:mod:`articutool.ros2.host_only`).
+Configured by flags and by ROS 2 parameters (:mod:`articutool.ros2.params`; ``--ros-args -p
+name:=value`` overrides a flag). Exit codes: 0 stopped by SIGINT/SIGTERM (any goal it
+forwarded cancelled, the command lease released), 1 the tool was not heard within the wait or
+rclpy/articutool_interfaces are not installed, 2 bad input (link config, endpoints, a
+parameter, discovery open without the flag, a socket bound beyond loopback when host-only).
 """
 
 from __future__ import annotations
@@ -48,9 +50,10 @@ def add_commands(subparsers: Any) -> None:
                    help=f"seconds to wait for the tool to be heard, in (0, {MAX_WAIT_S:g}] "
                         "(default 10)")
     p.add_argument(ALLOW_FLAG, action="store_true", dest="allow_remote",
-                   help="serve even when DDS discovery reaches other hosts: then ANY process "
-                        "on the ROS 2 domain, on any host of the network, can command the "
-                        "wrist (DDS has no authentication here)")
+                   help="serve even when DDS discovery reaches other hosts, with DDS on every "
+                        "interface (without it DDS is bound to loopback and shared memory): "
+                        "then ANY process on the ROS 2 domain, on any host of the network, can "
+                        "command the wrist (DDS has no authentication here)")
     p.add_argument("--verify-only", action="store_true",
                    help="serve only /articutool/verify_trajectory (no tool, no link)")
     p.add_argument("--ros-args", nargs=argparse.REMAINDER, default=None, dest="ros_args",
@@ -94,8 +97,8 @@ def _configure(args: argparse.Namespace, values: dict[str, Any], defaults: dict[
 def run(args: argparse.Namespace) -> int:
     """Handler of ``articutool ros2``."""
     from articutool.link.config import ConfigError, check_ros_environment, config_from_args
-    from articutool.ros2.build_interfaces import skip_reason
     from articutool.ros2.exposure import ALLOW_FLAG, discovery_scope
+    from articutool.ros2.host_only import apply_profile
     from articutool.ros2.names import check_namespace
 
     try:
@@ -114,17 +117,31 @@ def run(args: argparse.Namespace) -> int:
                     "host could command the wrist. Set ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST "
                     f"(or OFF) for this process, or pass {ALLOW_FLAG} to open it knowingly",
                     2)
+    # before rmw reads them: Fast DDS on loopback and shared memory only
+    profile = None if args.allow_remote else apply_profile(os.environ)
+    try:
+        return _run(args, cfg0, profile, scope.why)
+    finally:
+        if profile is not None:
+            profile.remove()
+
+
+def _run(args: argparse.Namespace, cfg0: Any, profile: Any, why: str) -> int:
+    from articutool.ros2.build_interfaces import skip_reason
+    from articutool.ros2.exposure import ALLOW_FLAG
+
     try:
         import articutool_interfaces.srv  # noqa: F401
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.signals import SignalHandlerOptions
     except ImportError as err:
-        why = skip_reason() or f"{err} (run `make` to build articutool_interfaces)"
-        return _err(f"ROS 2 is not available here: {why}", 1)
-    if not scope.host_only:
-        print(f"warning: {ALLOW_FLAG}: {scope.why}; any DDS participant that reaches this "
-              "host can command the wrist", file=sys.stderr, flush=True)
+        reason = skip_reason() or f"{err} (run `make` to build articutool_interfaces)"
+        return _err(f"ROS 2 is not available here: {reason}", 1)
+    if profile is None:
+        print(f"warning: {ALLOW_FLAG}: {why}; DDS listens on "
+              "every interface: any DDS participant that reaches this host (or names it as a "
+              "static peer) can command the wrist", file=sys.stderr, flush=True)
 
     stop = threading.Event()
     previous = {s: signal.signal(s, lambda *_: stop.set())
@@ -140,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
     client = ros = node = None
     executors: list[Any] = []
     try:
-        code, client, ros, node = _start(args, cfg0, ctx, stop)
+        code, client, ros, node = _start(args, cfg0, ctx, stop, profile)
         if code is not None:
             return code
         assert ros is not None
@@ -177,19 +194,36 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _spin(executor: Any, stop: threading.Event) -> None:
+    """Spin until ``stop``. An error raised out of one callback (measured: rclpy's action
+    server failing to expire goals under a flood of goals) is reported and spinning goes
+    on: it must not end the thread that serves the stops."""
+    from rclpy.executors import ExternalShutdownException, ShutdownException
+
+    seen: set[str] = set()
     while not stop.is_set():
-        executor.spin_once(timeout_sec=0.1)
+        try:
+            executor.spin_once(timeout_sec=0.1)
+        except (ExternalShutdownException, ShutdownException):
+            return
+        except Exception as err:
+            why = f"{type(err).__name__}: {err}"
+            if why not in seen:  # once per kind of error, not once per request
+                seen.add(why)
+                print(f"warning: a ROS 2 callback failed ({why}); serving on",
+                      file=sys.stderr, flush=True)
 
 
-def _start(args: argparse.Namespace, cfg0: Any, ctx: Any, stop: threading.Event
-           ) -> tuple[int | None, Any, Any, Any]:
-    """Declare the parameters, build the link client, wait for the tool and create the
-    ROS 2 node: (exit code or None, client, ArticutoolRos2Node, rclpy node)."""
+def _start(args: argparse.Namespace, cfg0: Any, ctx: Any, stop: threading.Event,
+           profile: Any) -> tuple[int | None, Any, Any, Any]:
+    """Create the rclpy node (its DDS participant: host-only, check its sockets before the
+    link opens any), declare the parameters, build the link client, wait for the tool and
+    create the ROS 2 node: (exit code or None, client, ArticutoolRos2Node, rclpy node)."""
     from rclpy.node import Node
 
     from articutool.link.client import ArticutoolClient, ToolConflictError
     from articutool.link.config import ConfigError
     from articutool.link.transport import LinkOpenError
+    from articutool.ros2.host_only import exposed_sockets
     from articutool.ros2.names import check_namespace
     from articutool.ros2.node import ArticutoolRos2Node, NodeSettings
     from articutool.ros2.params import ParamError, declare_all, unknown_overrides
@@ -197,6 +231,16 @@ def _start(args: argparse.Namespace, cfg0: Any, ctx: Any, stop: threading.Event
     from articutool.spec import load_spec
 
     node = Node("articutool_ros2", context=ctx)
+    # Every socket the process holds now is the participant's: the link is not open yet.
+    wide = [] if profile is None else exposed_sockets()
+    if profile is not None:
+        profile.remove()  # read by Fast DDS when the participant was made
+    if wide:
+        node.destroy_node()
+        return _err(f"refusing to run host-only: DDS socket(s) bound beyond loopback "
+                    f"({', '.join(map(str, wide))}), reachable from other hosts. The node's "
+                    "loopback-only Fast DDS profile was not applied as written (another RMW "
+                    "or DDS configuration in force?)", 2), None, None, None
     defaults = _defaults(args, cfg0)
     try:
         values = declare_all(node, defaults)

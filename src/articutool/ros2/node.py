@@ -49,6 +49,7 @@ import numpy as np
 from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.client import ArticutoolClient, LinkError, parse_mode
+from articutool.ros2.admission import mode_refusal, primitive_refusal
 from articutool.ros2.lanes import StopLane, WorkLane
 from articutool.ros2.names import resolve
 from articutool.tool.api import Mode
@@ -238,6 +239,10 @@ class ArticutoolRos2Node:
         except ValueError as err:
             response.success, response.message = False, str(err)
             return response
+        refusal = mode_refusal(mode, pitch, roll)  # as the tool would: no link round trip
+        if refusal is not None:
+            response.success, response.message = False, refusal
+            return response
         if mode == Mode.DISABLED:  # every DISABLED is a stop
             future = self._stops.submit(self._wake_main)
         else:
@@ -404,6 +409,13 @@ class ArticutoolRos2Node:
 
         with self._lock:
             fwd = self._running.setdefault(gid, _Forwarded())
+        refusal = primitive_refusal(goal.primitive_name)  # no thread, no link round trip
+        if refusal is not None:
+            fwd.done.set()
+            with self._lock:
+                self._running.pop(gid, None)
+            goal_handle.abort()
+            return A.Result(success=False, message=refusal, final_joint_values=[])
         if goal_handle.is_cancel_requested:  # cancelled before it was sent: never start it
             fwd.done.set()
             with self._lock:
