@@ -231,7 +231,7 @@ def test_bench_tolerances_must_be_degrees_in_range(tols, tmp_path):
 
 
 @pytest.mark.parametrize("args,words", [
-    (("--at", "-5"), ("--at", ">= 0")),
+    (("--at", "-5"), ("--at", "[0, 604800]")),
     (("--fps", "-1"), ("--fps", "--export")),
     (("--fps", "nan"), ("--fps", "--export")),
     (("--camera", "nowhere"), ("--camera", "--export")),
@@ -531,3 +531,29 @@ def test_careless_paths_are_refused_naming_the_file_and_what_it_is(args, words, 
     r = _cli(*(a.format(d=tmp_path) for a in args), timeout=60)
     assert_refused(r, *(w.format(d=tmp_path) for w in words))
     assert not (tmp_path / "nowhere").exists()
+
+
+# ------------------------------------------------------------- durations --
+@pytest.mark.parametrize("args,option,allowed", [
+    (("demo", "--timeout", "1e308"), "--timeout", "(0, 3600]"),
+    (("demo", "--timeout", "nan"), "--timeout", "(0, 3600]"),
+    (("demo", "--timeout=-inf"), "--timeout", "(0, 3600]"),
+    (("demo", "--timeout", "0"), "--timeout", "(0, 3600]"),
+    (("bench", "transport", "--timeout", "inf"), "--timeout", "(0, 3600]"),
+    (("view", "--timeout", "3601"), "--timeout", "(0, 3600]"),
+    (("view", "--duration", "1e308"), "--duration", "(0, 604800]"),
+    (("view", "--at", "nan"), "--at", "[0, 604800]"),
+    (("tool", "--duration=-1"), "--duration", "(0, 604800]"),
+    (("client", "--wait", "1e308", "state"), "--wait", "(0, 3600]"),
+    (("client", "--tool-timeout", "nan", "state"), "--tool-timeout", "(0, 3600]"),
+    (("client", "primitive", "TWIRL", "--timeout", "1e300"), "--timeout", "(0, 3600]"),
+    (("ros2", "--wait", "inf"), "--wait", "(0, 3600]"),
+    (("ros2", "--tool-timeout", "1e308"), "--tool-timeout", "(0, 3600]"),
+])
+def test_an_absurd_duration_is_refused_naming_the_option_and_its_range(args, option,
+                                                                      allowed):
+    r = _cli(*args, timeout=60)
+    value = next(a.partition("=")[2] or args[k + 1] for k, a in enumerate(args)
+                 if a.partition("=")[0] == option)
+    assert_refused(r, f"argument {option}", allowed, repr(value))
+    assert r.stdout == ""  # refused before any work

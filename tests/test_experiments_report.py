@@ -13,7 +13,7 @@ import pytest
 from articutool.experiments import report
 from articutool.experiments.analysis import summarize, summarize_exp2a
 from articutool.experiments.config import ExperimentsConfig
-from articutool.experiments.runner import read_trials
+from articutool.experiments.runner import read_trial_log
 from articutool.thresholds import exp1_means
 
 CFG = ExperimentsConfig.load()
@@ -27,7 +27,7 @@ def _figures() -> set[str]:
 
 def test_every_figure_of_the_deviations_table_is_computed_from_the_committed_run() -> None:
     out = RESULTS / "experiments"
-    recs = {e: read_trials(out, e) for e in report.ORDER}
+    recs = {e: read_trial_log(out, e).records for e in report.ORDER}
     means = exp1_means(out)
     summaries = {e: summarize(e, r, CFG, thresholds_g={f: means[f] for f in CFG.exp2c.foods},
                               threshold_g=means[CFG.exp3.food]) for e, r in recs.items()}

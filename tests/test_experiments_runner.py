@@ -26,7 +26,7 @@ from articutool.experiments.runner import (
     data_hash,
     log_path,
     pin_run,
-    read_trials,
+    read_trial_log,
     run_experiment,
 )
 from conftest import wait_until
@@ -82,11 +82,11 @@ def test_a_logged_record_not_as_the_protocols_write_it_is_refused_naming_the_fie
                        ({**line, "spiled_g": 0.0}, "spiled_g: ")):
         log.write_text(json.dumps(bad) + "\n")
         with pytest.raises(ResultsError, match=field):
-            read_trials(tmp_path, "exp2b")
+            read_trial_log(tmp_path, "exp2b")
     failed = {**line, "error": "RuntimeError: boom"}  # a trial that raised has no outcome
     log.write_text(json.dumps(failed) + "\n")
     with pytest.raises(ResultsError, match="no outcome"):
-        read_trials(tmp_path, "exp2b")
+        read_trial_log(tmp_path, "exp2b")
 
 
 def test_pin_run_refuses_other_settings(tmp_path: Path) -> None:
@@ -157,7 +157,7 @@ def test_a_killed_run_resumes_and_loses_or_repeats_no_trial(tmp_path: Path) -> N
     summary = json.loads(r.stdout)
     assert summary["run"]["trials"] == n
     assert summary["spilled_g"]["pecans"]["articutool"]["n"] == 2
-    assert read_trials(out, "exp2b")[0].trial == 0
+    assert read_trial_log(out, "exp2b").records[0].trial == 0
 
 
 @pytest.mark.parametrize("argv, field", [

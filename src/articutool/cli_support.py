@@ -9,17 +9,46 @@ the top-level :mod:`articutool.cli` that gathers them, so no layer imports the t
 from __future__ import annotations
 
 import argparse
+import math
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 from articutool.spec import Spec, load_spec
 
-__all__ = ["UsageError", "add_spec_option", "new_output_file", "output_dir",
-           "spec_from_args"]
+__all__ = ["MAX_RUN_S", "MAX_WAIT_S", "UsageError", "add_spec_option", "new_output_file",
+           "output_dir", "seconds", "spec_from_args"]
+
+# The longest wait, timeout or planning budget a command takes: an hour (the thesis' planning
+# budget was 1000 s); longer is a slip of units or a typo, not a wait (``demo --timeout 1e308``
+# gave up after 20 ms, saying "no path found within 1e+308 s").
+MAX_WAIT_S = 3600.0
+# The longest run a command is told to last (``tool --duration``, ``view --duration``): a week.
+MAX_RUN_S = 7 * 86400.0
 
 
 class UsageError(Exception):
     """Bad input from the user: printed as ``error: …`` with exit code 2."""
+
+
+def seconds(most: float, *, zero: bool = False) -> Callable[[str], float]:
+    """An argparse ``type`` for a duration option: a number of seconds in ``(0, most]``
+    (``[0, most]`` with ``zero``). Anything else — not a number, NaN, an infinity, negative,
+    beyond ``most`` — is refused by argparse with exit 2, naming the option and the range."""
+    lo = "[0" if zero else "(0"
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            v = math.nan
+        if not (math.isfinite(v) and (v >= 0 if zero else v > 0) and v <= most):
+            raise argparse.ArgumentTypeError(
+                f"must be a number of seconds in {lo}, {most:g}]; got {text!r}")
+        return v
+
+    parse.__name__ = "seconds"
+    return parse
 
 
 def add_spec_option(p: argparse.ArgumentParser) -> None:

@@ -83,7 +83,7 @@ _LINK_NICE = 10  # the link process's nice value then
 
 def add_commands(subparsers: argparse._SubParsersAction) -> None:
     """Register ``articutool tool``."""
-    from articutool.cli_support import add_spec_option
+    from articutool.cli_support import MAX_RUN_S, add_spec_option, seconds
 
     p = subparsers.add_parser(
         "tool", help="run the onboard tool loop (50 Hz) in the foreground",
@@ -91,8 +91,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     add_spec_option(p)
     p.add_argument("--driver", choices=("sim", "hardware"), default="sim",
                    help="simulated wrist (default) or the real motors, IMU and F/T sensor")
-    p.add_argument("--duration", type=float, default=None, metavar="S",
-                   help="stop after S seconds (default: run until Ctrl-C)")
+    p.add_argument("--duration", type=seconds(MAX_RUN_S), default=None, metavar="S",
+                   help=f"stop after S seconds, in (0, {MAX_RUN_S:g}] (default: run until "
+                        "Ctrl-C)")
     p.add_argument("--level", action=argparse.BooleanOptionalAction, default=None,
                    help="engage LEVELING once the IMU is ready (default: on with --driver sim, "
                         "off with --driver hardware)")
@@ -336,8 +337,6 @@ def _cmd_tool(args: argparse.Namespace) -> int:
     from articutool.cli_support import UsageError, new_output_file, spec_from_args
 
     spec = spec_from_args(args)
-    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
-        raise UsageError(f"--duration must be a number of seconds > 0; got {args.duration}")
     record = new_output_file("--record", args.record, (".mcap",))
     if record is not None and not args.serve:
         raise UsageError("--record records the link's messages: it needs --serve")
@@ -436,7 +435,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     parser = argparse.ArgumentParser(prog="articutool")
     add_commands(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(["tool", *(sys.argv[1:] if argv is None else argv)])
+    try:
+        args = parser.parse_args(["tool", *(sys.argv[1:] if argv is None else argv)])
+    except SystemExit as done:  # argparse refused the arguments (2) or printed --help (0)
+        return done.code if isinstance(done.code, int) else 2
     try:
         return int(args.func(args))
     except (SpecError, UsageError) as err:

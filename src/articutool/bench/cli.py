@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 import time
@@ -121,8 +120,6 @@ def _cmd_transport(args: argparse.Namespace) -> int:
 
     # ---- validate everything before any work ----
     check_workers(args.workers)
-    if not math.isfinite(args.timeout) or args.timeout <= 0:
-        raise _usage(f"--timeout must be a finite number of seconds > 0; got {args.timeout}")
     if args.limit is not None and args.limit < 1:
         raise _usage(f"--limit must be >= 1; got {args.limit}")
     out = Path(args.out)
@@ -196,11 +193,10 @@ def _cmd_transport(args: argparse.Namespace) -> int:
                           f"logged in {log}; run the same command again to resume (no "
                           "report written)")
         return 130
-    if summary_run.torn:
-        err_console.print(f"ignored {summary_run.torn} torn last line in {log} (cut off)")
-    if summary_run.corrupt:
-        err_console.print(f"[yellow]warning:[/] ignored {summary_run.corrupt} unreadable "
-                          f"line(s) in {log}")
+    if summary_run.log is not None and not summary_run.log.clean:
+        err_console.print(f"warning: {summary_run.log.describe()}; the bad lines "
+                          "were ignored (a torn last line cut off): a trial one held ran again",
+                          markup=False, highlight=False)
     records = select(summary_run.records, trials)
 
     # ---- report ----
@@ -257,7 +253,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``bench tasks`` and ``bench transport``."""
     from articutool.bench.executors import MAX_WORKERS
     from articutool.bench.runner import DEFAULT_TOLERANCES_DEG
-    from articutool.cli_support import add_spec_option
+    from articutool.cli_support import MAX_WAIT_S, add_spec_option, seconds
 
     bench = sub.add_parser("bench", help="Exp. 2a transport benchmark: tasks and runner")
     bsub = bench.add_subparsers(dest="bench_command", required=True, metavar="BENCH_COMMAND")
@@ -275,8 +271,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    help="task file (default: the packaged transport_tasks_v1.json)")
     p.add_argument("--systems", default="decoupled,strict6,strict8",
                    help="comma-separated systems (default: all three)")
-    p.add_argument("--timeout", type=float, default=30.0,
-                   help="planning timeout per trial, s (default 30; the thesis used 1000)")
+    p.add_argument("--timeout", type=seconds(MAX_WAIT_S), default=30.0, metavar="S",
+                   help=f"planning timeout per trial, in (0, {MAX_WAIT_S:g}] s (default 30; "
+                        "the thesis used 1000)")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help=f"local worker processes in [1, {MAX_WORKERS}] (default: CPU count)")
     p.add_argument("--out", metavar="DIR", default="bench-results",

@@ -169,58 +169,127 @@ def record_key(rec: dict[str, Any]) -> tuple[str, int, int, float | None]:
             None if tol is None else float(tol))
 
 
+# How many bad lines a log's description names one by one (the rest are counted).
+_NAMED_LINES = 8
+
+
 @dataclass
 class LogState:
-    """What :func:`read_log` found: valid records, a torn tail, unreadable middle lines."""
+    """What :func:`read_log` found: valid records, a torn tail, unreadable middle lines,
+    each bad line by its number (from 1) and why it is bad."""
 
     records: list[dict[str, Any]] = field(default_factory=list)
     torn: int = 0  # an incomplete last line (0 or 1)
     corrupt: int = 0  # complete lines that are not a valid record
     valid_bytes: int = 0  # length of the file up to the end of the last complete line
     key: Callable[[dict[str, Any]], Hashable] = field(default=record_key, repr=False)
+    path: Path | None = None
+    lines: int = 0  # lines read, the torn tail included
+    bad: list[tuple[int, str]] = field(default_factory=list)  # (line, why), the torn tail too
+    # (line, first line): a record whose trial an earlier line already holds (the last wins)
+    duplicates: list[tuple[int, int]] = field(default_factory=list)
 
     @property
     def done(self) -> set[Any]:
         """Keys of the finished trials."""
         return {self.key(r) for r in self.records}
 
+    @property
+    def clean(self) -> bool:
+        """No bad line and no duplicate trial."""
+        return not self.bad and not self.duplicates
+
+    def problems(self, most: int = _NAMED_LINES) -> list[str]:
+        """Every bad or duplicate line, ``line N: why``: the first ``most`` named, then how
+        many more."""
+        out = ([f"line {n}: {why}" for n, why in self.bad]
+               + [f"line {n}: the same trial as line {first} (the later line is used)"
+                  for n, first in self.duplicates])
+        return out if len(out) <= most else [*out[:most], f"and {len(out) - most} more"]
+
+    def describe(self) -> str:
+        """One line: the file, lines read, records accepted, and every bad or duplicate line
+        by number and reason (the first few named, the rest counted)."""
+        text = (f"{self.path}: {self.lines} line(s) read, {len(self.records)} record(s) "
+                "accepted")
+        if not self.clean:
+            text += (f", {len(self.bad)} bad line(s)"
+                     + (f" and {len(self.duplicates)} duplicate(s)" if self.duplicates else "")
+                     + " (" + "; ".join(self.problems()) + ")")
+        return text
+
 
 def read_log(path: str | Path,
              key: Callable[[dict[str, Any]], Hashable] = record_key) -> LogState:
     """Read a results log; a missing file is an empty log. ``key`` gives a record's trial
-    identity (a line it cannot key is corrupt, as is one holding NaN or Infinity, which the
-    runner never writes); other JSON-lines logs (the experiments) pass their own. The log is
+    identity (a line it cannot key is bad, as is an empty line or one holding NaN, Infinity
+    or a number too large for a float, which the runner never writes); other JSON-lines logs
+    (the experiments) pass their own. Every bad line is kept with its number and why
+    (:attr:`LogState.bad`), as is a trial logged twice (:attr:`LogState.duplicates`). The log is
     a run's own file (:func:`articutool.datafile.read_own_bytes`): a link, FIFO or folder in
     its place raises :class:`~articutool.datafile.ResultsError` — its last line is never cut
     from a file the run did not write."""
     from articutool.datafile import read_own_bytes
 
     p = Path(path)
-    state = LogState(key=key)
+    state = LogState(key=key, path=p)
     data = read_own_bytes(p, "results log", max_bytes=_MAX_LOG_BYTES)
     if data is None:
         return state
     end = data.rfind(b"\n") + 1  # everything after the last newline is a torn write
     state.valid_bytes = end
+    lines = data[:end].split(b"\n")[:-1]
+    state.lines = len(lines) + (end < len(data))
+    first: dict[Hashable, int] = {}
+    for n, line in enumerate(lines, 1):
+        why = _bad_line(line, key)
+        if isinstance(why, str):
+            state.corrupt += 1
+            state.bad.append((n, why))
+            continue
+        k = key(why)
+        if k in first:
+            state.duplicates.append((n, first[k]))
+        first.setdefault(k, n)
+        state.records.append(why)
     if end < len(data):
         state.torn = 1
-    for line in data[:end].splitlines():
-        if not line.strip():
-            continue
-        try:
-            rec = json.loads(line, parse_constant=_no_constant)
-            if not isinstance(rec, dict):  # JSON, but not a record ([1, 2], 42, null)
-                raise TypeError(rec)
-            key(rec)
-        except (ValueError, KeyError, TypeError, RecursionError):
-            state.corrupt += 1
-            continue
-        state.records.append(rec)
+        state.bad.append((state.lines, f"no newline at its end ({len(data) - end} bytes: a "
+                                       "write cut short; a resumed run cuts it off)"))
     return state
 
 
+def _bad_line(line: bytes, key: Callable[[dict[str, Any]], Hashable]) -> dict[str, Any] | str:
+    """The record of one log line, or why it is none."""
+    if not line.strip():
+        return "empty"
+    try:
+        rec = json.loads(line, parse_constant=_no_constant, parse_float=_finite_float)
+    except UnicodeDecodeError as err:
+        return f"not UTF-8 text (byte {err.start})"
+    except RecursionError:
+        return "nested too deeply"
+    except ValueError as err:
+        return f"not JSON ({str(err).split(':')[0]})" if isinstance(
+            err, json.JSONDecodeError) else str(err)
+    if not isinstance(rec, dict):  # JSON, but not a record ([1, 2], 42, null)
+        return f"not a record (a JSON {type(rec).__name__})"
+    try:
+        key(rec)
+    except (KeyError, TypeError, ValueError) as err:
+        return f"no trial identity ({type(err).__name__}: {err})"
+    return rec
+
+
 def _no_constant(name: str) -> Any:
-    raise ValueError(f"{name} is not a JSON number")
+    raise ValueError(f"{name} is not a JSON number (a bad record)")
+
+
+def _finite_float(text: str) -> float:
+    v = float(text)
+    if not math.isfinite(v):  # 1e400 parses as infinity
+        raise ValueError(f"{text} is too large for a float (a bad record)")
+    return v
 
 
 def append_record(fd: int, rec: dict[str, Any]) -> None:
@@ -281,6 +350,7 @@ class RunSummary:
     corrupt: int  # unreadable complete lines (ignored)
     lost: list[tuple[Any, str]]  # trials whose worker failed (not logged; rerun resumes)
     interrupted: bool = False  # SIGINT/SIGTERM stopped the run (the rest: a rerun resumes)
+    log: LogState | None = None  # the log as read before the run (its bad lines by number)
 
 
 @contextlib.contextmanager
@@ -356,7 +426,8 @@ def run_logged(
                     on_result(rec)
     finally:
         os.close(fd)
-    return RunSummary(records, ran, skipped, state.torn, state.corrupt, lost, stop.is_set())
+    return RunSummary(records, ran, skipped, state.torn, state.corrupt, lost, stop.is_set(),
+                      state)
 
 
 def run_trials(

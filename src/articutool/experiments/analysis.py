@@ -40,8 +40,8 @@ from articutool.experiments.stats import (
 from articutool.feeding.outcomes import OUTCOMES, classify_bite
 
 __all__ = ["EXP2C_CLASSES", "by_place", "carried_wrists", "classify_exp2c", "compare_counts",
-           "compare_samples", "meaningful_at", "representative_trials", "staging_attempts",
-           "summarize", "summarize_exp2a"]
+           "compare_samples", "completeness", "meaningful_at", "representative_trials",
+           "staging_attempts", "summarize", "summarize_exp2a"]
 
 EXP2C_CLASSES = ("meaningful_success", "trivial_success", "transport_failure", "failed")
 
@@ -461,6 +461,30 @@ def summarize(experiment: str, records: Sequence[TrialRecord], cfg: Any, *,
     return {"experiment": experiment, **body, "run": {**_wall(records), "seeds": seeds},
             "per_condition_n": dict(Counter("/".join(r.condition.group())
                                             for r in _ok(records)))}
+
+
+def completeness(records: Sequence[TrialRecord], per_condition: int,
+                 conditions: Sequence[Condition] | None = None) -> dict[str, dict[str, Any]]:
+    """Per condition (``food/system``, as ``per_condition_n``): how many of its first
+    ``per_condition`` repeats are logged (``found``, a trial that raised included) and, with
+    the run's ``conditions`` in their order (``run.json``: trial ``K = r · C + c``,
+    :mod:`~articutool.experiments.design`), the indices of the ``missing`` ones. Without them
+    the conditions are those the records hold (a condition with no record cannot be
+    named)."""
+    logged = {r.trial for r in records}
+    out: dict[str, dict[str, Any]] = {}
+    if conditions is not None:
+        n_cond = len(conditions)
+        for c, cond in enumerate(conditions):
+            want = [r * n_cond + c for r in range(per_condition)]
+            missing = [k for k in want if k not in logged]
+            out["/".join(cond.group())] = {"found": per_condition - len(missing),
+                                           "missing": missing}
+        return out
+    for r in records:
+        d = out.setdefault("/".join(r.condition.group()), {"found": 0, "missing": []})
+        d["found"] += r.repeat < per_condition
+    return out
 
 
 def mean_or_none(values: Sequence[float]) -> float | None:

@@ -271,7 +271,7 @@ def _machine() -> dict[str, Any]:
 
 
 def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) -> int:
-    from articutool.experiments.runner import read_trials, run_trial
+    from articutool.experiments.runner import read_trial_log, run_trial
 
     spec = next((t for t in trials if t.trial == args.trial), None)
     if spec is None:
@@ -302,7 +302,10 @@ def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) ->
     finally:
         if "mcap" in rec_holder:  # complete also when the trial failed or was interrupted
             rec_holder["mcap"].close()
-    found = {r.trial: r for r in read_trials(out, exp)}.get(spec.trial)
+    trial_log = read_trial_log(out, exp)
+    if not trial_log.state.clean:
+        print(f"warning: {trial_log.state.describe()}", file=sys.stderr)
+    found = {r.trial: r for r in trial_log.records}.get(spec.trial)
     if record.error:
         print(f"error: trial {spec.trial} failed: {record.error}", file=sys.stderr)
         return 1
@@ -449,6 +452,10 @@ def _run_with_progress(trials: list[Any], log: Path, executor: Any, exp: str) ->
         finally:
             executor.close()
         con.print(f"{exp}: ran {res.ran} trial(s) in {time.perf_counter() - t0:.1f} s")
+        if res.log is not None and not res.log.clean:
+            con.print(f"warning: {res.log.describe()}; the bad lines were ignored (a torn "
+                      "last line cut off): a trial one held ran again", markup=False,
+                      highlight=False)
     return res
 
 
@@ -471,9 +478,22 @@ def _cmd_report(args: argparse.Namespace) -> int:
     exp2a = Path(args.exp2a) if args.exp2a is not None else out.parent / "exp2a"
     if args.exp2a is not None and not exp2a.is_dir():
         raise _usage(f"--exp2a {exp2a} is not a directory of `bench transport` results")
+    checks: list[report.LogCheck] = []
     md, html = report.write_report(out, cfg, thresholds_g=th, thresholds_source=src,
-                                   threshold_g=threshold, on_kept=kept, exp2a=exp2a)
+                                   threshold_g=threshold, on_kept=kept, exp2a=exp2a,
+                                   on_log=checks.append)
     print(f"wrote {md} and {html}")
+    for c in checks:
+        if c.short or not c.log.state.clean:
+            print(f"warning: {c.log.state.describe()}", file=sys.stderr)
+    short = [s for c in checks for s in c.shortfalls()]
+    for s in short:
+        print(f"error: {s}", file=sys.stderr)
+    if short:
+        print("error: the report is over fewer trials than the runs promised (its page says "
+              "so); rerun the experiment with the same --trials to add the missing ones",
+              file=sys.stderr)
+        return 2
     return 0
 
 

@@ -12,13 +12,15 @@ import datetime as _dt
 import hashlib
 import os
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from articutool.experiments.analysis import (
     EXP2C_CLASSES,
+    completeness,
     meaningful_at,
     representative_trials,
     summarize,
@@ -31,9 +33,13 @@ from articutool.experiments.verdicts import TEST_NAMES, code_versions, thesis_tr
 from articutool.feeding.outcomes import OUTCOMES
 from articutool.thresholds import Grams
 
-__all__ = ["CROSS_CHECKS", "HONESTY", "cross_checks", "deviation_facts", "deviations_section",
-           "differences", "figure", "hypotheses_section", "read_exp2a", "read_summary",
-           "section", "thesis_exp3_no_spill", "write_report"]
+if TYPE_CHECKING:
+    from articutool.experiments.runner import TrialLog
+
+__all__ = ["CROSS_CHECKS", "HONESTY", "LogCheck", "check_log", "cross_checks",
+           "deviation_facts", "deviations_section", "differences", "figure",
+           "hypotheses_section", "read_exp2a", "read_summary", "section",
+           "thesis_exp3_no_spill", "write_report"]
 
 ORDER = ("exp1", "exp2b", "capacity", "exp2c", "exp3")
 TITLES = {
@@ -147,6 +153,101 @@ def read_summary(path: Path) -> dict[str, Any] | None:
     out = s.model_dump(exclude_unset=True)
     out["run"] = s.run.model_dump(exclude_unset=True)
     return out
+
+
+# ------------------------------------------------------------------- trial logs --
+@dataclass(frozen=True)
+class LogCheck:
+    """An experiment's trial log checked against what its run promised: ``log`` as read
+    (lines, records, bad lines), ``per_condition`` the trials per condition its last
+    finished run was asked for (``summary.json``; ``None`` when no run finished or it was
+    not recorded), and per condition the trials found and missing
+    (:func:`~articutool.experiments.analysis.completeness`)."""
+
+    experiment: str
+    log: TrialLog
+    per_condition: int | None
+    conditions: Mapping[str, Mapping[str, Any]]
+
+    @property
+    def short(self) -> dict[str, Mapping[str, Any]]:
+        """The conditions with fewer trials than promised."""
+        n = self.per_condition
+        return {k: v for k, v in self.conditions.items() if n is not None and v["found"] < n}
+
+    def shortfalls(self) -> list[str]:
+        """One sentence per condition short of its promised trials (empty when none)."""
+        out = []
+        for cond, v in self.short.items():
+            missing = v["missing"]
+            named = (f" (missing trial(s) {', '.join(map(str, missing[:10]))}"
+                     + (f" and {len(missing) - 10} more" if len(missing) > 10 else "") + ")"
+                     ) if missing else ""
+            out.append(f"{self.log.state.path}: condition {cond} has {v['found']} of the "
+                       f"{self.per_condition} trials its run promised{named}")
+        return out
+
+
+def check_log(out: Path, experiment: str, log: TrialLog,
+              summary: Mapping[str, Any] | None) -> LogCheck:
+    """``log`` checked against its run: the trials per condition its last finished run asked
+    for (``summary``'s ``run.trials_per_condition``), over the conditions ``run.json``
+    pinned, in its order, so a missing trial is named by index (without ``run.json``: the
+    conditions the records hold). A ``run.json`` not as a run writes it raises
+    :class:`~articutool.datafile.ResultsError` naming it."""
+    from pydantic import ValidationError
+
+    from articutool.datafile import ResultsError, format_validation_error, read_own_json
+    from articutool.experiments.records import CONDITIONS
+
+    n = (summary or {}).get("run", {}).get("trials_per_condition")
+    if not isinstance(n, int) or isinstance(n, bool) or n < 1:
+        return LogCheck(experiment, log, None, {})
+    path = out / experiment / "run.json"
+    pinned = read_own_json(path, "the run's settings")
+    conds = None
+    if pinned is not None:
+        try:
+            conds = [CONDITIONS[experiment].model_validate(c) for c in pinned["conditions"]]
+        except ValidationError as err:
+            raise ResultsError(format_validation_error(
+                err, f"the run's settings {path}: conditions:")) from None
+        except (KeyError, TypeError):
+            raise ResultsError(f"the run's settings {path} hold no list of conditions; it is "
+                               "not as a run writes it") from None
+    found = completeness(log.records, n, conds)
+    if conds is None:  # the conditions the last run summarised, also when no record is left
+        for cond in (summary or {}).get("per_condition_n") or {}:
+            found.setdefault(str(cond), {"found": 0, "missing": []})
+    return LogCheck(experiment, log, n, found)
+
+
+def _logs_section(checks: Sequence[LogCheck]) -> str:
+    """The page's account of every trial log read: lines, records, bad lines, and the
+    trials per condition promised and found."""
+    rows = []
+    for c in checks:
+        st = c.log.state
+        if not st.lines and st.path is not None and not st.path.exists():
+            continue
+        found = (", ".join(f"{k} {v['found']}" for k, v in c.conditions.items())
+                 if c.conditions else "–")
+        status = ("**short: " + "; ".join(f"{k} {v['found']} of {c.per_condition}"
+                                          for k, v in c.short.items()) + "**" if c.short
+                  else "no finished run" if c.per_condition is None else "complete")
+        rows.append([c.experiment, st.lines, len(st.records),
+                     "; ".join(st.problems()).replace("|", "\\|") or "none",
+                     c.per_condition or "–", found, status])
+    if not rows:
+        return ""
+    return ("## Trial logs\n\nWhat each `<exp>/trials.jsonl` held when this page was written: "
+            "lines read, records accepted, every bad line by number and why (a line that is "
+            "not a JSON record, holds NaN or an infinity, or is torn is not read), and the "
+            "trials per condition its last finished run asked for beside those found. A "
+            "condition short of its trials makes `articutool experiment report` exit 2.\n\n"
+            + _table(["experiment", "lines read", "records accepted", "bad lines",
+                      "trials per condition (promised)", "found per condition", "status"],
+                     rows) + "\n")
 
 
 # ------------------------------------------------------------------------ figures --
@@ -897,7 +998,8 @@ def replays(exp: str, records: Sequence[TrialRecord], summary: Mapping[str, Any]
 def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | None,
                  thresholds_source: str, threshold_g: float | None,
                  on_kept: Callable[[Path, Path], None] | None = None,
-                 exp2a: Path | None = None) -> tuple[Path, Path]:
+                 exp2a: Path | None = None,
+                 on_log: Callable[[LogCheck], None] | None = None) -> tuple[Path, Path]:
     """Write ``out/report.md`` and ``out/report.html`` (figures in each experiment's
     directory); experiments not yet run are listed as missing, with their ``notes.md`` (why
     not) if present. ``out/<exp>/notes.md``, if present, is included in the experiment's
@@ -906,9 +1008,12 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
     A report there that is not as this command wrote it (edited) is kept beside it first
     (:func:`_write_generated`), and ``on_kept(report, copy)`` is told. ``exp2a`` is the
     transport planning benchmark's folder (``bench transport --out``), whose claims join
-    the per-hypothesis table (absent or empty: listed as not run)."""
+    the per-hypothesis table (absent or empty: listed as not run). Every trial log read
+    is checked against its run (:func:`check_log`), shown in the page's "Trial logs" section
+    and given to ``on_log``; a log with bad lines or a condition short of its promised
+    trials is flagged at the top of the page."""
     from articutool.datafile import ResultsError, own_folder, read_text
-    from articutool.experiments.runner import read_trials
+    from articutool.experiments.runner import read_trial_log
 
     parts = ["# The thesis' physical experiments in simulation\n",
              f"Generated {_dt.datetime.now(_dt.UTC).isoformat(timespec='seconds')} by "
@@ -934,10 +1039,15 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
         summaries["exp2a"] = {**summarize_exp2a(recs2a, float(run2a["timeout_s"])),
                               "planner": run2a.get("planner")}
         parts.append(_sec_exp2a(summaries["exp2a"], run2a, cfg, str(exp2a)))
+    checks = []
     for exp in ORDER:
-        recs = read_trials(out, exp)
+        log = read_trial_log(out, exp)
+        recs = log.records
         records[exp] = recs
         old = read_summary(out / exp / "summary.json")
+        checks.append(check_log(out, exp, log, old))
+        if on_log is not None:
+            on_log(checks[-1])
         if not recs or old is None:
             missing.append(exp)
             continue
@@ -964,6 +1074,12 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
             machines[exp] = (m, old["run"].get("date"))
     parts.insert(at_verdicts, hypotheses_section(summaries, cfg)
                  + "\n" + deviations_section(cfg, deviation_facts(summaries, records, out, cfg)))
+    parts.insert(at_verdicts, _logs_section(checks))
+    flagged = [c.experiment for c in checks if c.short or not c.log.state.clean]
+    if flagged:
+        parts.insert(2, f"**Warning: the trial logs of {', '.join(flagged)} are damaged or "
+                        "short of the trials their runs promised; see Trial logs below. The "
+                        "numbers of this page are over the trials found.**\n")
     parts.append(cross_checks(out))
     if missing:
         parts.append("## Not run yet\n\n" + ", ".join(missing) + " (no trials or no "

@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from articutool.bench.executors import Executor
-from articutool.bench.runner import read_log, run_logged
+from articutool.bench.runner import LogState, read_log, run_logged
 from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import TrialSpec
 from articutool.experiments.records import Outcome, TrialRecord
@@ -47,12 +47,13 @@ __all__ = [
     "DataMismatchError",
     "RunError",
     "RunResult",
+    "TrialLog",
     "data_files",
     "data_hash",
     "log_path",
     "log_trial",
     "pin_run",
-    "read_trials",
+    "read_trial_log",
     "run_experiment",
     "run_trial",
     "source_version",
@@ -79,17 +80,29 @@ def log_path(out: str | Path, experiment: str) -> Path:
     return Path(out) / experiment / LOG_NAME
 
 
-def read_trials(out: str | Path, experiment: str) -> list[TrialRecord]:
-    """Every logged trial of ``experiment`` under ``out`` (empty if none), by trial index; a
+@dataclass
+class TrialLog:
+    """An experiment's trial log as read: its records by trial index, and what reading found
+    (``state``: lines read, bad lines by number and why, duplicate trials)."""
+
+    records: list[TrialRecord]
+    state: LogState
+
+
+def read_trial_log(out: str | Path, experiment: str) -> TrialLog:
+    """Every logged trial of ``experiment`` under ``out`` (empty if none), by trial index,
+    and the log's bad lines (:func:`~articutool.bench.runner.read_log`: a line that is not a
+    JSON record, holds NaN or an infinity, or is torn is counted and named, not read); a
     record not as the protocols write it raises :class:`~articutool.datafile.ResultsError`
-    naming the log, the trial and the field."""
+    naming the log, the trial and the field. The log is the run's own file: a link there is
+    refused, not followed."""
     path = log_path(out, experiment)
-    lines = read_log(path, key=trial_key).records
-    return _records({trial_key(r): r for r in lines}.values(), path)
+    state = read_log(path, key=trial_key)
+    return TrialLog(_records({trial_key(r): r for r in state.records}.values(), path), state)
 
 
 def _records(lines: Iterable[dict[str, Any]], path: Path) -> list[TrialRecord]:
-    """The log ``lines``' records (see :func:`read_trials`), by trial index."""
+    """The log ``lines``' records (see :func:`read_trial_log`), by trial index."""
     from pydantic import ValidationError
 
     from articutool.datafile import ResultsError, format_validation_error
@@ -273,7 +286,7 @@ def run_experiment(trials: Sequence[TrialSpec], log: str | Path, executor: Execu
     """Run the trials not yet in ``log`` on ``executor`` (the benchmark's
     :func:`~articutool.bench.runner.run_logged`), appending each line as it finishes (given
     to ``on_result``); the result's records are the requested trials' (old and new), by
-    index (:func:`read_trials`).
+    index (:func:`read_trial_log`), and ``log`` what reading the log found first.
 
     ``worker`` (default :func:`log_trial`) returns a log line and must be picklable for
     process executors; it runs checked (:class:`DataChecked`) against this process's data
@@ -286,7 +299,7 @@ def run_experiment(trials: Sequence[TrialSpec], log: str | Path, executor: Execu
     records = _records({trial_key(r): r for r in res.records
                         if trial_key(r) in wanted}.values(), Path(log))
     return RunResult(records, res.ran, res.skipped, res.torn, res.corrupt, res.lost,
-                     time.perf_counter() - t0, res.interrupted)
+                     time.perf_counter() - t0, res.interrupted, res.log)
 
 
 @dataclass
@@ -301,3 +314,4 @@ class RunResult:
     lost: list[tuple[Any, str]]  # trials whose worker failed (not logged; a rerun resumes)
     wall_time_s: float
     interrupted: bool = False  # SIGINT/SIGTERM stopped it (the finished trials are logged)
+    log: LogState | None = None  # the log as read before the run (its bad lines by number)

@@ -28,24 +28,6 @@ def _finite(s: str) -> float:
     return v
 
 
-def _seconds(s: str) -> float:
-    v = _finite(s)
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f"must be a number of seconds > 0: {s!r}")
-    return v
-
-
-_MAX_WAIT_S = 3600.0  # an hour: longer is a typo, not a wait (1e300 hung the client)
-
-
-def _wait_seconds(s: str) -> float:
-    v = _finite(s)
-    if not 0 < v <= _MAX_WAIT_S:
-        raise argparse.ArgumentTypeError(
-            f"must be a number of seconds in (0, {_MAX_WAIT_S:g}]: {s!r}")
-    return v
-
-
 def _add_pair(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "pair", help="create the certificates that let a tool and PCs trust each other",
@@ -95,14 +77,14 @@ def run_pair(args: argparse.Namespace) -> int:
 def add_commands(subparsers: Any) -> None:
     """Register ``client mode|primitive|state|take-over|release`` and ``pair``."""
     _add_pair(subparsers)
-    from articutool.cli_support import add_spec_option
+    from articutool.cli_support import MAX_WAIT_S, add_spec_option, seconds
     from articutool.link.config import add_config_args
 
     p = subparsers.add_parser("client", help="command an Articutool over the link (PC side)")
     add_config_args(p)
     add_spec_option(p)  # the wrist limits that bound the leveling offsets
-    p.add_argument("--wait", type=_wait_seconds, default=3.0, metavar="S",
-                   help=f"seconds to wait for the tool to be heard, in (0, {_MAX_WAIT_S:g}] "
+    p.add_argument("--wait", type=seconds(MAX_WAIT_S), default=3.0, metavar="S",
+                   help=f"seconds to wait for the tool to be heard, in (0, {MAX_WAIT_S:g}] "
                         "(default 3)")
     p.add_argument("--record", metavar="FILE.mcap", default=None,
                    help="record every message this client's link carries (ROS 2 CDR in "
@@ -118,8 +100,8 @@ def add_commands(subparsers: Any) -> None:
     pp.add_argument("name")
     pp.add_argument("params", nargs="*", type=_finite, metavar="P")
     pp.add_argument("--json", action="store_true", help="print the action result as JSON")
-    pp.add_argument("--timeout", type=_seconds, default=None, metavar="S",
-                    help="cancel the primitive after S seconds")
+    pp.add_argument("--timeout", type=seconds(MAX_WAIT_S), default=None, metavar="S",
+                    help=f"cancel the primitive after S seconds, in (0, {MAX_WAIT_S:g}]")
     sub.add_parser("clear-fault", help="clear the tool's fault (reboots the motors after a "
                    "hardware error once the cause is gone); then set a mode")
     sub.add_parser("take-over", help="take the command lease from the client holding it "

@@ -356,8 +356,11 @@ def add_config_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--zenoh-mode", choices=("peer", "client"), default=None,
                    help="zenoh session mode")
     p.add_argument("--domain-id", type=int, default=None, help="ROS domain id (default 0)")
-    p.add_argument("--tool-timeout", type=float, default=None, metavar="S",
-                   help="seconds of silence before the tool is reported dead")
+    from articutool.cli_support import MAX_WAIT_S, seconds
+
+    p.add_argument("--tool-timeout", type=seconds(MAX_WAIT_S), default=None, metavar="S",
+                   help=f"seconds of silence before the tool is reported dead, in (0, "
+                        f"{MAX_WAIT_S:g}]")
     p.add_argument("--tool-id", default=None, metavar="NAME",
                    help="the tool's identity (default: the config's, else 'default')")
 

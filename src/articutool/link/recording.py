@@ -18,10 +18,15 @@ summary and index. Every chunk, the data section and the summary carry CRC-32s.
 :func:`read_recording` reads a recording back the one way that works for both: in file
 order, streaming, every CRC checked. A reader that orders by log time first
 (``mcap``'s ``iter_messages`` default) buffers to the end and so yields nothing from a cut
-file; one that skips the CRCs accepts flipped bits in a chunk's bytes. A corrupt file
-(a CRC mismatch, a record that does not parse, a chunk that does not decompress) is refused
-naming where; a cut one (it ends before the footer, without MCAP's closing magic) is read up
-to its last complete chunk and said to be cut.
+file; one that skips the CRCs accepts flipped bits in a chunk's bytes, and one that reads
+only the records accepts a changed length that skips a chunk. So the whole file is checked:
+the magic at both ends, every record's length, the chunks' and the data section's CRCs
+(``mcap``'s stream reader), one DataEnd where the footer puts the summary, the summary and
+its offsets as the footer names them, the summary read from the footer by ``mcap``'s seeking
+reader matching the chunks, message indexes, schemas, channels and counts read, and the
+summary CRC. A corrupt file is refused naming what is wrong and where; a cut one (it ends
+before the footer, without MCAP's closing magic) is read up to its last complete chunk and
+said to be cut.
 """
 
 from __future__ import annotations
@@ -200,8 +205,6 @@ class McapRecorder:
 
 _MAGIC = b"\x89MCAP0\r\n"
 _FOOTER_BYTES = 1 + 8 + 8 + 8 + 4  # opcode, length, summary_start, summary_offset_start, crc
-_DATA_END_BYTES = 1 + 8 + 4  # opcode 0x0F, length 4, data section CRC
-_DATA_END_HEAD = b"\x0f" + (4).to_bytes(8, "little")
 # The largest chunk read back (its uncompressed size is a field of the file: a flipped bit
 # must not make the reader allocate gigabytes); ours are 64 KiB.
 _MAX_CHUNK_BYTES = 256 << 20
@@ -238,7 +241,18 @@ def read_recording(path: str | Path, topics: Callable[[str], bool] | None = None
     record or chunk that does not parse) raises :class:`RecordingError` naming the file and
     the byte where it failed."""
     from mcap.exceptions import EndOfFile
-    from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Metadata, Schema
+    from mcap.records import (
+        Attachment,
+        Channel,
+        Chunk,
+        DataEnd,
+        Footer,
+        Message,
+        MessageIndex,
+        Metadata,
+        Schema,
+        SummaryOffset,
+    )
     from mcap.stream_reader import StreamReader, breakup_chunk
 
     from articutool.datafile import file_kind
@@ -264,15 +278,21 @@ def read_recording(path: str | Path, topics: Callable[[str], bool] | None = None
         footer = None
         reader = StreamReader(f, validate_crcs=True, emit_chunks=True,
                               record_size_limit=max(size, 1))
+        layout: list[tuple[Any, int, int]] = []  # every record: (what, start, end)
+        kept = (DataEnd, Footer, MessageIndex, SummaryOffset)  # small: kept whole
+        counted = _Counted()
 
         def take(rec: Any) -> None:
             if isinstance(rec, Schema):
                 schemas[rec.id] = rec.name
+                counted.declared(rec)
             elif isinstance(rec, Channel):
                 channels[rec.id] = (rec.topic, schemas.get(rec.schema_id, ""))
+                counted.declared(rec)
             elif isinstance(rec, Message):
                 if rec.channel_id not in channels:
                     raise ValueError(f"a message on channel {rec.channel_id}, never declared")
+                counted.message(rec)
                 topic, schema = channels[rec.channel_id]
                 if topics is None or topics(topic):
                     out.messages.append(RecordedMessage(topic, schema, rec.log_time,
@@ -280,13 +300,23 @@ def read_recording(path: str | Path, topics: Callable[[str], bool] | None = None
 
         try:
             for rec in reader.records:
+                start = layout[-1][2] if layout else len(_MAGIC)
+                layout.append((rec if isinstance(rec, kept) else type(rec), start, f.tell()))
                 if isinstance(rec, Chunk):
+                    counted.chunks.append((rec.message_start_time, rec.message_end_time,
+                                           rec.compression, len(rec.data),
+                                           rec.uncompressed_size))
                     if rec.uncompressed_size > _MAX_CHUNK_BYTES:
                         raise ValueError(f"a chunk claims {rec.uncompressed_size} bytes")
                     for inner in breakup_chunk(rec, validate_crc=True):
                         take(inner)
                 elif isinstance(rec, Metadata):
                     out.metadata[rec.name] = dict(rec.metadata)
+                    counted.metadata += 1
+                elif isinstance(rec, DataEnd):
+                    counted.ended = True
+                elif isinstance(rec, Attachment):
+                    counted.attachments += 1
                 elif isinstance(rec, Footer):
                     footer = rec
                 elif not isinstance(rec, DataEnd):
@@ -305,22 +335,166 @@ def read_recording(path: str | Path, topics: Callable[[str], bool] | None = None
                                  f"byte {f.tell()} ({type(err).__name__}: {err})") from None
         if footer is None:
             raise RecordingError(f"recording {p} is not a readable MCAP file: no footer")
-        # The records no CRC covers: the data section's end (whose CRC a flipped opcode or
-        # length would skip) must be where and what it is; the summary and footer must match
-        # the footer's CRC.
-        start = footer.summary_start or size - len(_MAGIC) - _FOOTER_BYTES
-        f.seek(start - _DATA_END_BYTES)
-        if f.read(_DATA_END_BYTES)[:9] != _DATA_END_HEAD:
+        try:
+            _check_whole(f, size, layout, footer, counted)
+        except ValueError as err:
+            raise RecordingError(f"recording {p} is not a readable MCAP file: corrupt, {err}"
+                                 ) from None
+        except Exception as err:  # the summary, read from the footer, does not parse
             raise RecordingError(f"recording {p} is not a readable MCAP file: corrupt, its "
-                                 f"data section does not end with a DataEnd record at byte "
-                                 f"{start - _DATA_END_BYTES}")
-        if footer.summary_crc != 0:
-            end = size - len(_MAGIC) - 4
-            if zlib.crc32(f.read(end - start)) != footer.summary_crc:
-                raise RecordingError(f"recording {p} is not a readable MCAP file: corrupt, its "
-                                     f"summary (bytes {start}-{end}) does not match its CRC")
+                                 f"summary does not read from its footer ({type(err).__name__}"
+                                 f": {err})") from None
     out.complete = True
     return out
+
+
+@dataclass
+class _Counted:
+    """What the data section holds, counted as it is read: messages per channel, and the
+    earliest and latest log time."""
+
+    per_channel: dict[int, int] = field(default_factory=dict)
+    first_ns: int | None = None
+    last_ns: int | None = None
+    schemas: dict[int, Any] = field(default_factory=dict)  # the data section's, whole
+    channels: dict[int, Any] = field(default_factory=dict)
+    # each chunk's start and end time, compression, compressed and uncompressed size
+    chunks: list[tuple[int, int, str, int, int]] = field(default_factory=list)
+    metadata: int = 0
+    attachments: int = 0
+    ended: bool = False  # past the data section (the summary repeats schemas and channels)
+
+    def declared(self, rec: Any) -> None:
+        if not self.ended:
+            (self.schemas if hasattr(rec, "encoding") else self.channels)[rec.id] = rec
+
+    def message(self, rec: Any) -> None:
+        self.per_channel[rec.channel_id] = self.per_channel.get(rec.channel_id, 0) + 1
+        t = int(rec.log_time)
+        self.first_ns = t if self.first_ns is None else min(self.first_ns, t)
+        self.last_ns = t if self.last_ns is None else max(self.last_ns, t)
+
+
+def _check_whole(f: Any, size: int, layout: list[tuple[Any, int, int]], footer: Any,
+                 counted: _Counted) -> None:
+    """A whole recording's structure beyond what the records' own CRCs cover (``ValueError``
+    saying what is wrong): the file ends at its closing magic; every record's length field
+    is the length read; one DataEnd (whose CRC the
+    stream reader checked) ends the data section where the footer's ``summary_start`` says the
+    summary begins; the summary holds only summary records, the summary offsets start where
+    the footer says and each names a run of records of its kind; the summary as ``mcap``'s
+    seeking reader reads it from the footer (:meth:`mcap.reader.SeekingReader.get_summary`)
+    indexes exactly the chunks read, with their message indexes, and counts the messages,
+    channels and schemas read; and the summary and footer match the footer's CRC."""
+    from mcap.opcode import Opcode
+    from mcap.reader import SeekingReader
+    from mcap.records import (
+        AttachmentIndex,
+        Channel,
+        Chunk,
+        ChunkIndex,
+        DataEnd,
+        Footer,
+        MessageIndex,
+        MetadataIndex,
+        Schema,
+        Statistics,
+        SummaryOffset,
+    )
+
+    def kind(rec: Any) -> type:
+        return rec if isinstance(rec, type) else type(rec)
+
+    if f.tell() != size:
+        raise ValueError(f"{size - f.tell()} bytes follow its closing magic")
+    for rec, start, end in layout:  # a record read past or short of its length field
+        f.seek(start + 1)
+        length = int.from_bytes(f.read(8), "little")
+        if start + 9 + length != end:
+            raise ValueError(f"the {kind(rec).__name__} record at byte {start} says it is "
+                             f"{length} bytes long; it is {end - start - 9}")
+    ends = [k for k, (rec, _, _) in enumerate(layout) if kind(rec) is DataEnd]
+    if len(ends) != 1:
+        raise ValueError(f"its data section ends {len(ends)} times (a DataEnd record is "
+                         "missing or repeated: a length field was changed)")
+    data_end = layout[ends[0]][2]
+    summary = layout[ends[0] + 1:-1]
+    foot_start = layout[-1][1]
+    if kind(layout[-1][0]) is not Footer or foot_start != size - len(_MAGIC) - _FOOTER_BYTES:
+        raise ValueError("its footer is not where the file ends")
+    if footer.summary_start not in (0, data_end) or (footer.summary_start == 0
+                                                      and data_end != foot_start):
+        raise ValueError(f"its footer puts the summary at byte {footer.summary_start}; the "
+                         f"data section ends at byte {data_end}")
+    group = {Schema: Opcode.SCHEMA, Channel: Opcode.CHANNEL, Statistics: Opcode.STATISTICS,
+             ChunkIndex: Opcode.CHUNK_INDEX, AttachmentIndex: Opcode.ATTACHMENT_INDEX,
+             MetadataIndex: Opcode.METADATA_INDEX, SummaryOffset: Opcode.SUMMARY_OFFSET}
+    for rec, start, _ in summary:
+        if kind(rec) not in group:
+            raise ValueError(f"its summary holds a {kind(rec).__name__} record at byte {start}")
+    offsets = [(rec, start) for rec, start, _ in summary if kind(rec) is SummaryOffset]
+    if offsets:
+        first = offsets[0][1]
+        if footer.summary_offset_start != first or any(
+                kind(rec) is not SummaryOffset for rec, start, _ in summary if start >= first):
+            raise ValueError(f"its footer puts the summary offsets at byte "
+                             f"{footer.summary_offset_start}; they start at byte {first}")
+    elif footer.summary_offset_start != 0:
+        raise ValueError(f"its footer puts summary offsets at byte "
+                         f"{footer.summary_offset_start}; it has none")
+    starts = {start: (rec, end) for rec, start, end in summary}
+    for rec, at in offsets:
+        pos, stop = rec.group_start, rec.group_start + rec.group_length
+        while pos < stop and pos in starts and group.get(kind(starts[pos][0])) == rec.group_opcode:
+            pos = starts[pos][1]
+        if pos != stop:
+            raise ValueError(f"the summary offset at byte {at} names bytes "
+                             f"{rec.group_start}-{stop}, not a run of its records")
+    start = footer.summary_start or foot_start
+    if footer.summary_crc != 0:
+        f.seek(start)
+        end = size - len(_MAGIC) - 4
+        if zlib.crc32(f.read(end - start)) != footer.summary_crc:
+            raise ValueError(f"its summary (bytes {start}-{end}) does not match its CRC")
+    if footer.summary_start == 0:
+        return
+    f.seek(0)
+    read = SeekingReader(f, record_size_limit=max(size, 1)).get_summary()
+    if read is None:
+        raise ValueError("its footer, read from the end, names no summary")
+    chunks = [(start, end) for rec, start, end in layout if kind(rec) is Chunk]
+    idx = read.chunk_indexes
+    index_ends = [next((s for r, s, _ in layout[k + 1:] if kind(r) is not MessageIndex), 0)
+                  for k, (r, _, _) in enumerate(layout) if kind(r) is Chunk]
+    index_len = [layout_end - end for (_, end), layout_end in zip(chunks, index_ends,
+                                                                   strict=True)]
+    if idx and [(c.chunk_start_offset, c.chunk_start_offset + c.chunk_length,
+                 c.message_start_time, c.message_end_time, c.compression, c.compressed_size,
+                 c.uncompressed_size, c.message_index_length) for c in idx] != [
+            (*span, *meta, n) for span, meta, n in zip(chunks, counted.chunks, index_len,
+                                                       strict=True)]:
+        raise ValueError(f"its summary indexes {len(idx)} chunk(s) that are not the "
+                         f"{len(chunks)} chunk(s) it holds")
+    if (read.schemas and read.schemas != counted.schemas) or (
+            read.channels and read.channels != counted.channels):
+        raise ValueError("its summary's schemas or channels are not those of its data")
+    listed = sorted((off, ch) for c in idx for ch, off in c.message_index_offsets.items())
+    indexes = sorted((start, rec.channel_id) for rec, start, _ in layout[:ends[0]]
+                     if kind(rec) is MessageIndex)
+    if listed and listed != indexes:
+        raise ValueError("its summary's message index offsets are not where its message "
+                         "indexes are")
+    st = read.statistics
+    if st is not None and (
+            st.message_count != sum(counted.per_channel.values())
+            or dict(st.channel_message_counts) != counted.per_channel
+            or st.chunk_count != len(chunks) or st.channel_count != len(read.channels)
+            or st.schema_count != len(read.schemas) or st.metadata_count != counted.metadata
+            or st.attachment_count != counted.attachments
+            or (counted.first_ns is not None
+                and (st.message_start_time, st.message_end_time)
+                != (counted.first_ns, counted.last_ns))):
+        raise ValueError("its summary's statistics do not count what it holds")
 
 
 class RecordingTransport(Transport):

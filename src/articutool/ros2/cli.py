@@ -25,7 +25,7 @@ __all__ = ["add_commands", "run"]
 
 def add_commands(subparsers: Any) -> None:
     """Register ``articutool ros2``."""
-    from articutool.link.cli import _wait_seconds
+    from articutool.cli_support import MAX_WAIT_S, seconds
     from articutool.link.config import add_config_args
     from articutool.ros2.exposure import ALLOW_FLAG
 
@@ -46,8 +46,9 @@ def add_commands(subparsers: Any) -> None:
     add_config_args(p)
     p.add_argument("--ros-namespace", default="", metavar="NS",
                    help="put every ROS 2 name under /NS (default: the upstream names exactly)")
-    p.add_argument("--wait", type=_wait_seconds, default=10.0, metavar="S",
-                   help="seconds to wait for the tool to be heard (default 10)")
+    p.add_argument("--wait", type=seconds(MAX_WAIT_S), default=10.0, metavar="S",
+                   help=f"seconds to wait for the tool to be heard, in (0, {MAX_WAIT_S:g}] "
+                        "(default 10)")
     p.add_argument(ALLOW_FLAG, action="store_true", dest="allow_remote",
                    help="serve even when DDS discovery reaches other hosts, with DDS on every "
                         "interface (without it DDS is bound to loopback and shared memory): "

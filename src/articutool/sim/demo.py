@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import time
 from pathlib import Path
 from typing import Any
@@ -152,8 +151,6 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     spec = spec_from_args(args)
     if args.utensil not in spec.utensils:
         raise UsageError(f"--utensil must be one of {sorted(spec.utensils)}; got {args.utensil!r}")
-    if not (math.isfinite(args.timeout) and args.timeout > 0):
-        raise UsageError(f"--timeout must be a number of seconds > 0; got {args.timeout}")
     if args.seed < 0:
         raise UsageError(f"--seed must be an integer >= 0; got {args.seed}")
     plot = None if args.no_plot else _plot_path(args.plot or str(_DEFAULT_PLOT),
@@ -191,12 +188,13 @@ def _print(f: dict[str, Any]) -> None:
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``demo``."""
-    from articutool.cli_support import add_spec_option
+    from articutool.cli_support import MAX_WAIT_S, add_spec_option, seconds
 
     p = sub.add_parser("demo", help="plan, verify and execute one transport in simulation")
     p.add_argument("--utensil", default="spoon", help="utensil (default: spoon)")
     p.add_argument("--seed", type=int, default=0, help="planner and simulation seed")
-    p.add_argument("--timeout", type=float, default=10.0, help="planning budget (s)")
+    p.add_argument("--timeout", type=seconds(MAX_WAIT_S), default=10.0, metavar="S",
+                   help=f"planning budget in (0, {MAX_WAIT_S:g}] s (default 10)")
     p.add_argument("--plot", default=None,
                    help=f"where to save the plot: a new .png/.pdf/.svg file, or a directory to "
                         f"write {_DEFAULT_PLOT.name} (or -2, -3, … when taken) into (default: "

@@ -56,8 +56,6 @@ def _plan_from_task(args: argparse.Namespace, spec: Any) -> tuple[Any, str, str]
     if task is None:
         raise UsageError(f"--plan-task must be a task id of the task set ({min(ids)}–{max(ids)}"
                          f", {len(ids)} tasks); got {args.plan_task}")
-    if not (math.isfinite(args.timeout) and args.timeout > 0):
-        raise UsageError(f"--timeout must be a number of seconds > 0; got {args.timeout}")
     if args.seed < 0:
         raise UsageError(f"--seed must be an integer >= 0; got {args.seed}")
     print(f"planning task {task.task_id} with {args.system} (timeout {args.timeout:g} s) …",
@@ -89,8 +87,6 @@ def _cmd_view(args: argparse.Namespace) -> int:
         raise UsageError("give at most one of --plan, --plan-task, --recording")
     if args.export is not None and args.recording is None:
         raise UsageError("--export needs --recording FILE")
-    if args.at is not None and not (math.isfinite(args.at) and args.at >= 0):
-        raise UsageError(f"--at must be a time >= 0 s from the start; got {args.at}")
     if args.at is not None and args.plan is None and args.plan_task is None and (
             args.recording is None or args.export is not None):
         raise UsageError("--at applies to a plan or a recording shown in the viewer "
@@ -108,8 +104,6 @@ def _cmd_view(args: argparse.Namespace) -> int:
             raise UsageError(f"--camera must be one of {', '.join(CAMERAS)}; got "
                              f"{args.camera!r}")
         new_output_file("--export", args.export, (".mp4", ".gif"))  # before any rendering
-    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
-        raise UsageError(f"--duration must be a number of seconds > 0; got {args.duration}")
     spec = spec_from_args(args)
     if args.utensil not in spec.utensils:
         raise UsageError(f"--utensil must be one of {sorted(spec.utensils)}; got "
@@ -230,7 +224,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``view``."""
-    from articutool.cli_support import add_spec_option
+    from articutool.cli_support import MAX_RUN_S, MAX_WAIT_S, add_spec_option, seconds
 
     p = sub.add_parser("view", help="3-D web viewer of the scene, the robot's named "
                        "configurations, plans (--plan, --plan-task) and recorded runs "
@@ -247,8 +241,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    default="decoupled", help="planner for --plan-task (default: decoupled)")
     p.add_argument("--tasks", metavar="FILE", default=None,
                    help="task set for --plan-task (default: the packaged Exp. 2a set)")
-    p.add_argument("--timeout", type=float, default=30.0,
-                   help="planning budget for --plan-task, s (default 30)")
+    p.add_argument("--timeout", type=seconds(MAX_WAIT_S), default=30.0, metavar="S",
+                   help=f"planning budget for --plan-task, in (0, {MAX_WAIT_S:g}] s (default "
+                        "30)")
     p.add_argument("--seed", type=int, default=0, help="planner seed for --plan-task")
     p.add_argument("--wrist", choices=("leveling", "locked"), default="leveling",
                    help="for a 6-joint --plan: the wrist levels (verified, default) or is "
@@ -256,7 +251,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--color", choices=("auto", "margin", "tilt"), default="auto",
                    help="colour the tip path by the verifier's velocity margin or by the "
                         "tilt from vertical (auto: margin when verified)")
-    p.add_argument("--at", type=float, default=None, metavar="S",
+    p.add_argument("--at", type=seconds(MAX_RUN_S, zero=True), default=None, metavar="S",
                    help="start the time slider at S seconds (plan or recording time)")
     p.add_argument("--utensil", default="spoon", help="utensil on the wrist (default spoon)")
     p.add_argument("--scene", metavar="FILE", default=None,
@@ -264,8 +259,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--host", default="127.0.0.1",
                    help="address to listen on (default 127.0.0.1: this machine only)")
     p.add_argument("--port", type=int, default=8080, help="port (default 8080)")
-    p.add_argument("--duration", type=float, default=None, metavar="S",
-                   help="stop serving after S seconds (default: until Ctrl-C)")
+    p.add_argument("--duration", type=seconds(MAX_RUN_S), default=None, metavar="S",
+                   help=f"stop serving after S seconds, in (0, {MAX_RUN_S:g}] (default: until "
+                        "Ctrl-C)")
     p.add_argument("--export", metavar="VIDEO", default=None,
                    help="with --recording: render it to .mp4/.gif offscreen and exit "
                         "(no browser); never overwrites")
