@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 export MPLBACKEND := Agg
 
-.PHONY: demo test test-slow bench bench-quick bench-full bench-sim bench-flood bench-stops bench-ros2-flood bench-loop soak lint clean syspkgs experiments
+.PHONY: demo test test-slow test-no-avx512 bench bench-quick bench-full bench-sim bench-flood bench-stops bench-ros2-flood bench-loop soak lint clean syspkgs experiments
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -45,12 +45,31 @@ demo: $(VENV)/.installed
 	mkdir -p results/demo
 	$(BIN)/articutool meal --food $(DEMO_FOOD) --bites 1 --video results/demo/bite-$(DEMO_FOOD)-$$(date +%Y%m%d-%H%M%S).mp4
 
+# The tests run on every core (pytest-xdist; TEST_WORKERS=1 for one process): each module's
+# tests together on one worker, the tests marked `floods` one after another on one worker
+# (tests/conftest.py). Exit 5 (no test selected, e.g. PYTEST_ARGS=-k that matches none) passes.
+TEST_WORKERS ?= auto
+PYTEST = $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup $(PYTEST_ARGS)
 test: $(VENV)/.installed
 	$(BIN)/ruff check src tests benchmarks studies examples
-	$(BIN)/python -m pytest -m "not slow" -q
+	$(PYTEST) -m "not slow" || [ $$? -eq 5 ]
 
 test-slow: $(VENV)/.installed
-	$(BIN)/python -m pytest -m slow -q
+	$(PYTEST) -m slow || [ $$? -eq 5 ]
+
+# The physics tests with NumPy's AVX-512 kernels switched off, as a CPU without AVX-512 runs
+# them (NumPy 2.4's names for the AVX-512 family; it ignores names it does not dispatch on,
+# so the first line checks that each is a dispatch target and is off).
+NO_AVX512 := X86_V4 AVX512_ICL AVX512_SPR
+PHYSICS_TESTS := tests/test_viewer.py tests/test_sim_physics.py tests/test_load_sleep.py \
+  tests/test_sim_transport.py tests/test_shedding_physics.py
+test-no-avx512: $(VENV)/.installed
+	NPY_DISABLE_CPU_FEATURES="$(NO_AVX512)" $(BIN)/python -c 'from numpy._core._multiarray_umath \
+	  import __cpu_dispatch__ as d, __cpu_features__ as f; n = "$(NO_AVX512)".split(); \
+	  assert all(k in d and not f[k] for k in n), {k: (k in d, f.get(k)) for k in n}; \
+	  print("NumPy dispatches without", *n)'
+	NPY_DISABLE_CPU_FEATURES="$(NO_AVX512)" $(PYTEST) -m "not slow" $(PHYSICS_TESTS) \
+	  || [ $$? -eq 5 ]
 
 bench: $(VENV)/.installed
 	$(BIN)/python -m pytest benchmarks -q --benchmark-only --benchmark-json=results/benchmarks.json

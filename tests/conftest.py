@@ -7,6 +7,8 @@ Helpers, imported where a module-level helper or class needs them (``from confte
 free_port``):
 
 - :func:`free_port` — a loopback TCP port that nobody listens on now;
+- :func:`ros_domain_id` — a ROS 2 domain of this test process's own (pytest-xdist workers
+  never share one);
 - :func:`run_cli` — the ``articutool`` command as a user runs it, in its own process;
 - :func:`minimal_env` — the environment of a bare shell (no venv variables, no display);
 - :func:`assert_refused` — bad input: exit 2, the named fields in stderr, no traceback;
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 import functools
 import os
+import random
 import socket
 import subprocess
 import sys
@@ -46,6 +49,19 @@ def packaged_spec() -> Spec:
     return load_spec()
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Group the tests for pytest-xdist's ``--dist loadgroup`` (before it reads the groups):
+    the tests marked ``floods`` (link floods, a CPU hog beside the real-time loop: they must
+    not load the machine at the same time) in one group, run one after the other on one
+    worker; every other test with the rest of its module, so module fixtures are built once."""
+    if not config.pluginmanager.hasplugin("xdist"):
+        return
+    for item in items:
+        group = "floods" if item.get_closest_marker("floods") else item.nodeid.split("::")[0]
+        item.add_marker(pytest.mark.xdist_group(group))
+
+
 @pytest.fixture(scope="session")
 def spec() -> Spec:
     """The packaged hardware spec."""
@@ -66,6 +82,19 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+def ros_domain_id(salt: int = 0) -> int:
+    """A ROS 2 domain id for this test process: one of [120, 220] (away from the default 0),
+    drawn from the process id (another run on this host most likely draws another) among the
+    ids of this pytest-xdist worker alone (worker i of n: the ids ≡ i mod n), so nodes that
+    two workers start at once never see each other. ``salt`` 1, 2, … gives other ids of
+    the same worker."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
+    i = int(worker[2:]) if worker[2:].isdigit() else 0
+    n = max(1, int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")))
+    ids = range(120 + i % n, 221, n)
+    return ids[(random.Random(os.getpid()).randrange(len(ids)) + salt) % len(ids)]
 
 
 def minimal_env(**extra: str) -> dict[str, str]:
