@@ -21,6 +21,7 @@ free_port``):
 
 from __future__ import annotations
 
+import ast
 import functools
 import os
 import random
@@ -31,6 +32,7 @@ import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
+import hypothesis
 import pytest
 
 from articutool.spec import Spec, load_spec
@@ -49,17 +51,48 @@ def packaged_spec() -> Spec:
     return load_spec()
 
 
-@pytest.hookimpl(tryfirst=True)
-def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Group the tests for pytest-xdist's ``--dist loadgroup`` (before it reads the groups):
-    the tests marked ``floods`` (link floods, a CPU hog beside the real-time loop: they must
-    not load the machine at the same time) in one group, run one after the other on one
-    worker; every other test with the rest of its module, so module fixtures are built once."""
-    if not config.pluginmanager.hasplugin("xdist"):
-        return
-    for item in items:
-        group = "floods" if item.get_closest_marker("floods") else item.nodeid.split("::")[0]
-        item.add_marker(pytest.mark.xdist_group(group))
+# Hypothesis' per-example deadline (200 ms) is a wall-clock claim: no test asserts timing.
+hypothesis.settings.register_profile("articutool", deadline=None)
+hypothesis.settings.load_profile("articutool")
+
+
+FLOODS = "floods"
+
+
+@functools.cache
+def _flood_tests(module: str) -> frozenset[str]:
+    """The test functions of ``module`` (a path from the root) marked ``@pytest.mark.floods``,
+    read from its source (pytest-xdist's controller does not collect the tests)."""
+    path = ROOT / module
+    if path.suffix != ".py" or not path.is_file():
+        return frozenset()
+    tree = ast.parse(path.read_text(), module)
+    return frozenset(f.name for f in ast.walk(tree) if isinstance(f, ast.FunctionDef)
+                     and any(ast.unparse(d) == "pytest.mark.floods" for d in f.decorator_list))
+
+
+def pytest_xdist_make_scheduler(config: pytest.Config, log):  # type: ignore[no-untyped-def]
+    """``--dist loadgroup``: each module's tests together on one worker (module fixtures are
+    built once), the tests marked ``floods`` (link floods, a CPU hog beside the real-time
+    loop: two must not load the machine at once) one after another on one worker, sent
+    first (they are long). pytest-xdist's own loadgroup reads groups from the node ids, which
+    pytest 9.2 no longer lets a plugin change."""
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class ModulesAndFloods(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            module, _, rest = nodeid.partition("::")
+            name = rest.split("::")[-1].split("[")[0]
+            return FLOODS if name in _flood_tests(module) else module
+
+        def _assign_work_unit(self, node):  # type: ignore[no-untyped-def]
+            if FLOODS in self.workqueue:
+                self.workqueue.move_to_end(FLOODS, last=False)
+            super()._assign_work_unit(node)
+
+    return ModulesAndFloods(config, log)
 
 
 @pytest.fixture(scope="session")
