@@ -45,7 +45,7 @@ demo: $(VENV)/.installed
 	mkdir -p results/demo
 	$(BIN)/articutool meal --food $(DEMO_FOOD) --bites 1 --video results/demo/bite-$(DEMO_FOOD)-$$(date +%Y%m%d-%H%M%S).mp4
 
-# The tests run on every core (pytest-xdist; TEST_WORKERS=1 for one process): each module's
+# The tests run on every core (pytest-xdist; TEST_WORKERS=0 for one process): each module's
 # tests together on one worker, the tests marked `floods` one after another on one worker
 # (tests/conftest.py). Exit 5 (no test selected, e.g. PYTEST_ARGS=-k that matches none) passes.
 TEST_WORKERS ?= auto
