@@ -61,8 +61,9 @@ test-slow: $(VENV)/.installed
 # 2.4's names) and OpenBLAS on its AVX2 (Haswell) kernels; tests/avx2_paths.py first checks
 # that both took effect (NumPy ignores a name it does not dispatch on).
 AVX2_ONLY := NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR" OPENBLAS_CORETYPE=Haswell
+# The default tests of the food in MuJoCo: spills, sleeping loads, irregular pieces.
 PHYSICS_TESTS := tests/test_viewer.py tests/test_sim_physics.py tests/test_load_sleep.py \
-  tests/test_sim_transport.py tests/test_shedding_physics.py
+  tests/test_shedding_physics.py
 test-no-avx512: $(VENV)/.installed
 	$(AVX2_ONLY) $(BIN)/python tests/avx2_paths.py
 	$(AVX2_ONLY) $(PYTEST) -m "not slow" $(PHYSICS_TESTS) || [ $$? -eq 5 ]
