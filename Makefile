@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 export MPLBACKEND := Agg
 
-.PHONY: demo test test-slow bench bench-quick bench-full bench-sim bench-flood bench-stops bench-ros2-flood bench-loop soak lint clean syspkgs experiments
+.PHONY: demo test test-slow test-no-avx512 bench bench-quick bench-full bench-sim bench-flood bench-stops bench-ros2-flood bench-loop soak lint clean syspkgs experiments
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -45,12 +45,28 @@ demo: $(VENV)/.installed
 	mkdir -p results/demo
 	$(BIN)/articutool meal --food $(DEMO_FOOD) --bites 1 --video results/demo/bite-$(DEMO_FOOD)-$$(date +%Y%m%d-%H%M%S).mp4
 
+# The tests run on every core (pytest-xdist; TEST_WORKERS=0 for one process): each module's
+# tests together on one worker, the tests marked `floods` one after another on one worker
+# (tests/conftest.py). Exit 5 (no test selected, e.g. PYTEST_ARGS=-k that matches none) passes.
+TEST_WORKERS ?= auto
+PYTEST = $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup $(PYTEST_ARGS)
 test: $(VENV)/.installed
 	$(BIN)/ruff check src tests benchmarks studies examples
-	$(BIN)/python -m pytest -m "not slow" -q
+	$(PYTEST) -m "not slow" || [ $$? -eq 5 ]
 
 test-slow: $(VENV)/.installed
-	$(BIN)/python -m pytest -m slow -q
+	$(PYTEST) -m slow || [ $$? -eq 5 ]
+
+# The physics tests as a CPU without AVX-512 computes them: NumPy's AVX-512 loops off (NumPy
+# 2.4's names) and OpenBLAS on its AVX2 (Haswell) kernels; tests/avx2_paths.py first checks
+# that both took effect (NumPy ignores a name it does not dispatch on).
+AVX2_ONLY := NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR" OPENBLAS_CORETYPE=Haswell
+# The default tests of the food in MuJoCo: spills, sleeping loads, irregular pieces.
+PHYSICS_TESTS := tests/test_viewer.py tests/test_sim_physics.py tests/test_load_sleep.py \
+  tests/test_shedding_physics.py
+test-no-avx512: $(VENV)/.installed
+	$(AVX2_ONLY) $(BIN)/python tests/avx2_paths.py
+	$(AVX2_ONLY) $(PYTEST) -m "not slow" $(PHYSICS_TESTS) || [ $$? -eq 5 ]
 
 bench: $(VENV)/.installed
 	$(BIN)/python -m pytest benchmarks -q --benchmark-only --benchmark-json=results/benchmarks.json

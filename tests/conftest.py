@@ -7,6 +7,8 @@ Helpers, imported where a module-level helper or class needs them (``from confte
 free_port``):
 
 - :func:`free_port` — a loopback TCP port that nobody listens on now;
+- :func:`ros_domain_id` — a ROS 2 domain of this test process's own (pytest-xdist workers
+  never share one);
 - :func:`run_cli` — the ``articutool`` command as a user runs it, in its own process;
 - :func:`minimal_env` — the environment of a bare shell (no venv variables, no display);
 - :func:`assert_refused` — bad input: exit 2, the named fields in stderr, no traceback;
@@ -19,8 +21,10 @@ free_port``):
 
 from __future__ import annotations
 
+import ast
 import functools
 import os
+import random
 import socket
 import subprocess
 import sys
@@ -28,6 +32,7 @@ import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
+import hypothesis
 import pytest
 
 from articutool.spec import Spec, load_spec
@@ -44,6 +49,50 @@ def packaged_spec() -> Spec:
     """The packaged hardware spec, parsed once (for constants a module needs at import, such
     as a hypothesis strategy's bounds; tests take the ``spec`` fixture)."""
     return load_spec()
+
+
+# Hypothesis' per-example deadline (200 ms) is a wall-clock claim: no test asserts timing.
+hypothesis.settings.register_profile("articutool", deadline=None)
+hypothesis.settings.load_profile("articutool")
+
+
+FLOODS = "floods"
+
+
+@functools.cache
+def _flood_tests(module: str) -> frozenset[str]:
+    """The test functions of ``module`` (a path from the root) marked ``@pytest.mark.floods``,
+    read from its source (pytest-xdist's controller does not collect the tests)."""
+    path = ROOT / module
+    if path.suffix != ".py" or not path.is_file():
+        return frozenset()
+    tree = ast.parse(path.read_text(), module)
+    return frozenset(f.name for f in ast.walk(tree) if isinstance(f, ast.FunctionDef)
+                     and any(ast.unparse(d) == "pytest.mark.floods" for d in f.decorator_list))
+
+
+def pytest_xdist_make_scheduler(config: pytest.Config, log):  # type: ignore[no-untyped-def]
+    """``--dist loadgroup``: each module's tests together on one worker (module fixtures are
+    built once), the tests marked ``floods`` (link floods, a CPU hog beside the real-time
+    loop: two must not load the machine at once) one after another on one worker, sent
+    first (they are long). pytest-xdist's own loadgroup reads groups from the node ids, which
+    pytest 9.2 no longer lets a plugin change."""
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class ModulesAndFloods(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            module, _, rest = nodeid.partition("::")
+            name = rest.split("::")[-1].split("[")[0]
+            return FLOODS if name in _flood_tests(module) else module
+
+        def _assign_work_unit(self, node):  # type: ignore[no-untyped-def]
+            if FLOODS in self.workqueue:
+                self.workqueue.move_to_end(FLOODS, last=False)
+            super()._assign_work_unit(node)
+
+    return ModulesAndFloods(config, log)
 
 
 @pytest.fixture(scope="session")
@@ -66,6 +115,19 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+def ros_domain_id(salt: int = 0) -> int:
+    """A ROS 2 domain id for this test process: one of [120, 220] (away from the default 0),
+    drawn from the process id (another run on this host most likely draws another) among the
+    ids of this pytest-xdist worker alone (worker i of n: the ids ≡ i mod n), so nodes that
+    two workers start at once never see each other. ``salt`` 1, 2, … gives other ids of
+    the same worker."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
+    i = int(worker[2:]) if worker[2:].isdigit() else 0
+    n = max(1, int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")))
+    ids = range(120 + i % n, 221, n)
+    return ids[(random.Random(os.getpid()).randrange(len(ids)) + salt) % len(ids)]
 
 
 def minimal_env(**extra: str) -> dict[str, str]:
@@ -96,10 +158,17 @@ def assert_refused(proc: subprocess.CompletedProcess[str], *words: str) -> None:
         assert w in err, err
 
 
+# A shared machine under load (several sessions, both cores busy with the suite's workers)
+# runs a test's processes many times slower than an idle one: deadlines that only bound a
+# failing test are stretched by this factor.
+DEADLINE_SLACK = 6.0
+
+
 def wait_until(pred: Callable[[], object], timeout: float = 5.0, period: float = 0.01) -> bool:
-    """Poll ``pred`` every ``period`` s until it is true (True) or ``timeout`` s pass (False).
-    The timeout bounds a failing test on a loaded machine; no timing is asserted."""
-    end = time.monotonic() + timeout
+    """Poll ``pred`` every ``period`` s until it is true (True) or ``DEADLINE_SLACK`` ×
+    ``timeout`` s pass (False). The deadline bounds a failing test on a loaded machine; no
+    timing is asserted (a passing test returns as soon as ``pred`` holds)."""
+    end = time.monotonic() + DEADLINE_SLACK * timeout
     while time.monotonic() < end:
         if pred():
             return True

@@ -23,7 +23,8 @@ batches every 10 ms, round robin over the endpoints named):
   nested 4 000 deep, invalid UTF-8, wrong types), which the verifier must refuse like any
   unsigned message.
 
-Prints ``SENT <n> <seconds>`` on exit (stdin closed, or after ``--seconds``).
+Prints ``SENT <n> <seconds> ANSWERED <replies>`` on exit (stdin closed, or after
+``--seconds``; the replies to the last requests are awaited up to their 1 s timeout).
 """
 
 from __future__ import annotations
@@ -146,20 +147,24 @@ def main(argv: list[str]) -> int:
     threading.Thread(target=lambda: (sys.stdin.read(), stop.set()), daemon=True).start()
     end = time.monotonic() + a.seconds
     batch, sent, i = max(1, round(a.rate / 100)), 0, 0
+    answered = [0]  # replies, each a refusal or an answer (the handler's thread counts)
     next_t = t0 = time.monotonic()
     print("READY", flush=True)
     while not stop.is_set() and time.monotonic() < end:
         for _ in range(batch):
             key, payload, attach = plan[i % len(plan)]
             i += 1
-            session.get(key, handler=lambda _r: None, payload=payload, attachment=attach(),
-                        timeout=1.0)
+            session.get(key, handler=lambda _r: answered.__setitem__(0, answered[0] + 1),
+                        payload=payload, attachment=attach(), timeout=1.0)
             sent += 1
         next_t += 0.01
         stop.wait(max(0.0, next_t - time.monotonic()))
     elapsed = time.monotonic() - t0
+    late = time.monotonic() + 1.5  # past the requests' 1 s timeout
+    while answered[0] < sent and time.monotonic() < late:
+        time.sleep(0.05)
     session.close()
-    print(f"SENT {sent} {elapsed:.3f}", flush=True)
+    print(f"SENT {sent} {elapsed:.3f} ANSWERED {answered[0]}", flush=True)
     return 0
 
 

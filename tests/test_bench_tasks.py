@@ -59,8 +59,12 @@ def _assert_valid(task_set, spec, models):
 
 
 def test_generation_is_deterministic_given_the_seed(spec, small_set):
-    again = generate_tasks(spec, 6, seed=11)
-    assert again.to_dict() == small_set.to_dict()
+    # The candidates come one after another from the seed's stream: seed 11's first three
+    # drawn again are the small set's first three (half the IK of drawing all six again).
+    again = generate_tasks(spec, 3, seed=11)
+    first = [i for i, t in enumerate(small_set.tasks) if t.task_id < 3]
+    assert again.tasks == tuple(small_set.tasks[i] for i in first)
+    assert again.extras == tuple(small_set.extras[i] for i in first)
     other = generate_tasks(spec, 3, seed=12)
     assert other.tasks
     assert other.to_dict()["tasks"] != small_set.to_dict()["tasks"][: len(other.tasks)]

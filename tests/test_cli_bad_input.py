@@ -473,12 +473,10 @@ def test_the_installed_middleware_is_accepted():
     ("x" * 5000,),  # a name longer than any request the tool reads
 ])
 def test_an_oversized_primitive_request_is_refused_before_sending(args):
-    import time
-
-    t0 = time.monotonic()
-    r = _cli("client", "--wait", "30", "primitive", *args, timeout=60)
+    # Refused before waiting for a tool: told to wait an hour, it ends well before (the
+    # timeout only bounds a failing test).
+    r = _cli("client", "--wait", "3600", "primitive", *args, timeout=300)
     assert_refused(r, "max_request_bytes = 4096", "bytes")
-    assert time.monotonic() - t0 < 25  # refused, not waited for a tool or a reply
 
 
 def test_run_primitive_refuses_an_oversized_request_without_sending_it():

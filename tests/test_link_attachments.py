@@ -43,12 +43,14 @@ class FakeTool:
                                          stdout=subprocess.PIPE, stderr=err, text=True, env=env)
 
     def stop(self) -> str:
-        """Stop it; its log."""
+        """Stop it; its log (the API calls that reached it: ``calls``)."""
         try:
-            self.proc.communicate(input="", timeout=15)
+            out, _ = self.proc.communicate(input="", timeout=60)
         except subprocess.TimeoutExpired:
             self.proc.kill()
-            self.proc.communicate(timeout=5)
+            out, _ = self.proc.communicate(timeout=5)
+        line = next((ln for ln in out.splitlines() if ln.startswith("CALLS")), "CALLS ")
+        self.calls = [c for c in line[6:].split(";") if c]
         return self.log.read_text()
 
 
@@ -99,7 +101,7 @@ def test_each_malformed_attachment_is_answered_as_a_refusal_and_counted(
     cfg = load_config(paired / "pc-1" / "link.toml").replace(
         connect=(f"tls/127.0.0.1:{p}",), listen=(), **FAST)
     with ArticutoolClient(cfg) as pc:
-        assert pc.wait_for_tool(15.0)
+        assert pc.wait_for_tool(60.0)
         before = pc.latest_state()
         assert before is not None
         refused0 = before.extra.get("link_refused_unpaired", 0)
@@ -120,9 +122,13 @@ def test_each_malformed_attachment_is_answered_as_a_refusal_and_counted(
     assert "OverflowError" not in log and "RecursionError" not in log
 
 
+@pytest.mark.floods
 def test_a_flood_of_malformed_attachments_costs_no_traceback_and_every_one_is_counted(
         paired: Path, tool: tuple[FakeTool, int, int]) -> None:
-    """15 000 such messages once gave 3 746 tracebacks in the tool's log, none counted."""
+    """15 000 such messages once gave 3 746 tracebacks in the tool's log, none counted.
+    Whatever the load: every request answered was refused and counted, nothing is counted
+    that was not sent, and none reached the tool's API. (How much of a flood a loaded machine
+    serves is measured, not asserted: benchmarks/bench_link_flood.py.)"""
     t, p, q = tool
     cfg = load_config(paired / "pc-1" / "link.toml").replace(
         connect=(f"tls/127.0.0.1:{p}",), listen=(), **FAST)
@@ -133,16 +139,18 @@ def test_a_flood_of_malformed_attachments_costs_no_traceback_and_every_one_is_co
         env=dict(os.environ, PYTHONPATH=str(HERE.parent / "src")))
     flood.wait(timeout=60)  # it ends after --seconds (or when its stdin closes)
     out, _ = flood.communicate(timeout=10)
-    sent = int(next(ln.split()[1] for ln in out.splitlines() if ln.startswith("SENT")))
-    assert sent > 3000
+    _, sent, _, _, answered = next(ln for ln in out.splitlines() if ln.startswith("SENT")).split()
+    sent, answered = int(sent), int(answered)
+    assert answered > 0, out  # the flood reached the tool
     with ArticutoolClient(cfg) as pc:
-        assert pc.wait_for_tool(15.0)
+        assert pc.wait_for_tool(60.0)
         st = pc.latest_state()
         assert st is not None
         assert pc.set_mode("disabled")[0]
     counted = st.extra.get("link_refused_unpaired", 0)
-    assert counted >= 0.98 * sent, (counted, sent)
+    assert answered <= counted <= sent, (answered, counted, sent)
     log = t.stop()
+    assert t.calls == ["set_mode DISABLED"]  # the paired PC's stop alone reached the API
     assert log.count("Traceback") == 0, log[-3000:]
     assert log.count("refused_unpaired so far") <= 10 + sent // 1000  # the throttled log
 

@@ -58,6 +58,7 @@ def test_a_primitive_runs_to_its_result_and_a_refusal_names_the_tools_reason(
 def test_a_cancel_and_a_mode_change_reach_the_tool_and_state_is_fresh(
         real: tuple[_RealTool, RemoteTool]) -> None:
     rt, tool = real
+    t0 = time.monotonic()
     assert tool.start_primitive("TWIRL_CW", [3.0, 1.0])[0]
     assert wait_until(lambda: rt.rt.mode == Mode.PRIMITIVE)
     assert tool.cancel_primitive()
@@ -68,7 +69,8 @@ def test_a_cancel_and_a_mode_change_reach_the_tool_and_state_is_fresh(
     assert ok, msg
     assert wait_until(lambda: tool.state().mode == Mode.LEVELING)
     s = tool.state()
-    assert abs(s.stamp - time.monotonic()) < 0.5
+    # Stamped on this process's monotonic clock when it arrived: after the test began.
+    assert t0 <= s.stamp <= time.monotonic(), (t0, s.stamp)
 
 
 def test_over_a_link_that_carries_nothing_every_call_is_refused_and_the_goal_answered() -> None:

@@ -22,7 +22,6 @@ import contextlib
 import ipaddress
 import json
 import os
-import random
 import shutil
 import signal
 import socket
@@ -48,11 +47,11 @@ from articutool.ros2.host_only import (
     profile_xml,
 )
 from articutool.tool.api import Mode
-from conftest import free_port, wait_until
+from conftest import free_port, ros_domain_id, wait_until
 
 HERE = Path(__file__).resolve().parent
 SRC = HERE.parent / "src"
-DOMAIN = random.Random(os.getpid() + 58).randint(120, 220)
+DOMAIN = ros_domain_id(salt=3)
 NS = "{http://www.eprosima.com}"
 _why = "rclpy and the built articutool_interfaces (make; CPython 3.11 on x86_64 only)"
 

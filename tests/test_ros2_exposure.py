@@ -4,7 +4,6 @@ start, as a real process, unless discovery stays on the host or its own flag ope
 from __future__ import annotations
 
 import os
-import random
 import subprocess
 import sys
 from pathlib import Path
@@ -12,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from articutool.ros2.exposure import ALLOW_FLAG, discovery_scope
+from conftest import ros_domain_id
 
 SRC = Path(__file__).resolve().parent.parent / "src"
 
@@ -49,7 +49,7 @@ def _ros2(env: dict[str, str], *args: str) -> subprocess.Popen[str]:
     full = {k: v for k, v in os.environ.items()
             if not k.startswith(("ROS_", "FASTDDS_", "FASTRTPS_"))}
     full.update(env, PYTHONPATH=str(SRC),
-                ROS_DOMAIN_ID=str(random.Random(os.getpid()).randint(120, 220)))
+                ROS_DOMAIN_ID=str(ros_domain_id(salt=2)))
     return subprocess.Popen([sys.executable, "-m", "articutool", "ros2", *args], env=full,
                             text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
 

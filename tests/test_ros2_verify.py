@@ -8,7 +8,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import random
 import signal
 import subprocess
 import sys
@@ -21,6 +20,7 @@ import numpy as np
 import pytest
 
 from articutool.ros2.verify_service import Verifier
+from conftest import ros_domain_id
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 SRC = Path(__file__).resolve().parent.parent / "src"
@@ -146,7 +146,7 @@ def verify_node() -> Iterator[tuple[Any, Any, Any]]:
     from articutool_interfaces.srv import VerifyTrajectory
     from rclpy.executors import SingleThreadedExecutor
 
-    domain = random.Random(os.getpid() + 7).randint(120, 220)
+    domain = ros_domain_id(salt=1)
     env = dict(os.environ, PYTHONPATH=str(SRC), ROS_DOMAIN_ID=str(domain),
                ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     proc = subprocess.Popen([sys.executable, "-m", "articutool", "ros2", "--verify-only",

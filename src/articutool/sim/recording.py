@@ -35,8 +35,10 @@ key            shape / dtype    content
 ============== ================ ==========================================================
 
 Each spill (``meta.spills``) is the world's :class:`~articutool.sim.accounting.SpillEvent`
-(``t``, ``mass_g``, ``place``, ``where``, ``item``) plus ``xyz``, where that item was at the
-first recorded tick at or after the event.
+(``t``, ``mass_g``, ``place``, ``where``, ``item``; ``t`` is when the item first touched the
+spill place) plus ``counted_t``, the tick at which the accounting counted it (a frame is
+recorded at that tick, so its ``food_class`` is the class the accounting decided from), and
+``xyz``, where that item was then.
 """
 
 from __future__ import annotations
@@ -139,6 +141,7 @@ class Recorder:
         f["base_tilt_deg"].append(world.tool_base_tilt_deg())
         for s in world.spills[self._seen_spills:]:
             d = asdict(s)
+            d["counted_t"] = world.time
             d["xyz"] = self._item_xyz(xyz, s.item).tolist()
             self._spills.append(d)
         self._seen_spills = len(world.spills)
@@ -232,7 +235,8 @@ class Recording:
 
     @property
     def spills(self) -> list[dict[str, Any]]:
-        """Spill events (``t``, ``mass_g``, ``place``, ``where``, ``item``, ``xyz``)."""
+        """Spill events (``t``, ``mass_g``, ``place``, ``where``, ``item``, ``counted_t``,
+        ``xyz``)."""
         return list(self.meta["spills"])
 
     def point_class(self, frame: int) -> NDArray[np.int8]:
