@@ -15,7 +15,8 @@ from typing import Protocol, runtime_checkable
 
 from articutool.trajectory import JointTrajectory
 
-__all__ = ["ABORTED_BY_MODE_CHANGE", "IDENTITY_XYZW", "LinkWorkLoop", "Mode", "PrimitiveStatus", "ToolAPI",
+__all__ = ["ABORTED_BY_MODE_CHANGE", "IDENTITY_XYZW", "SERVICE_MODES", "LinkWorkLoop", "Mode",
+           "PrimitiveStatus", "ToolAPI",
            "ToolState", "TrajectoryPrevalidation"]
 
 # How a primitive's result message starts when a mode change (a DISABLED from any client)
@@ -36,6 +37,9 @@ class Mode(IntEnum):
 
 #: The identity quaternion [x, y, z, w]: ``target_orientation_robot_base`` when unused.
 IDENTITY_XYZW = (0.0, 0.0, 0.0, 1.0)
+
+#: The modes ``SetOrientationControl`` (``set_mode``) enters.
+SERVICE_MODES = (Mode.DISABLED, Mode.LEVELING, Mode.FULL_ORIENTATION)
 
 
 @dataclass(frozen=True)

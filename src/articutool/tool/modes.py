@@ -7,14 +7,14 @@ utensil orientation given in a gravity-aligned robot base (:func:`attitude_targe
 degrees of freedom gravity fixes; the heading follows the arm) with an
 :class:`~articutool.tool.controller.AttitudeController` in the same :class:`Leveling` shell, so
 it has leveling's safety envelope, faults and stall report; a target no configuration within
-the wrist's reach holds is refused with the nearest reachable one. :class:`Leveling` is LEVELING's part of the
-runtime: the pitch/roll offsets (degrees, within ``spec.wrist`` limits), the refusal to start
-when the nearest level configuration lies beyond the cable's roll budget, and each tick's
-command from :class:`~articutool.tool.controller.LevelingController` with the bias-corrected
-gyro fed forward (Eq. 4.5) unless ``rate_feedforward=False``. A stall (the controller at
-rest short of level) is no fault: the tool keeps leveling and :attr:`Leveling.stall_target`
-holds the nearest reachable level configuration (NaN when none is reachable), which
-telemetry reports. :class:`~articutool.tool.runtime.ToolRuntime` composes it.
+the wrist's reach holds is refused with the nearest reachable one. :class:`Leveling` is
+LEVELING's part of the runtime: the pitch/roll offsets (degrees, within ``spec.wrist`` limits),
+the refusal to start when the nearest level configuration lies beyond the cable's roll budget,
+and each tick's command from :class:`~articutool.tool.controller.LevelingController` with the
+bias-corrected gyro fed forward (Eq. 4.5) unless ``rate_feedforward=False``. A stall (the
+controller at rest short of level) is no fault: the tool keeps leveling and
+:attr:`Leveling.stall_target` holds the nearest reachable level configuration (NaN when none is
+reachable), which telemetry reports. :class:`~articutool.tool.runtime.ToolRuntime` composes it.
 """
 
 from __future__ import annotations
@@ -26,9 +26,9 @@ import numbers
 import numpy as np
 from numpy.typing import NDArray
 
+from articutool.rotations import quaternion_to_matrix
 from articutool.spec import Spec
 from articutool.tool.api import Mode
-from articutool.rotations import quaternion_to_matrix
 from articutool.tool.controller import AttitudeController, LevelingController
 from articutool.tool.kinematics import rotation
 
