@@ -209,7 +209,7 @@ def joint_state_msg(state: ToolState, t: float) -> Any:
                effort=np.zeros(0, dtype=np.float64))
 
 
-def imu_msg(state: ToolState, t: float, frame_id: str = "articutool_imu") -> Any:
+def imu_msg(state: ToolState, t: float, frame_id: str = "atool_imu_frame") -> Any:
     """``sensor_msgs/Imu`` carrying the filtered orientation (covariances unknown → 0)."""
     w, x, y, z = state.orientation_wxyz
     return msg(IMU, header=header(t, frame_id),
