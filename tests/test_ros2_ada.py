@@ -98,8 +98,11 @@ class Ada:
                                 f"tls/127.0.0.1:{port}", stdin=subprocess.DEVNULL,
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         self.log = folder / "node.log"
+        # Every behaviour-facing parameter at its default; the link's timeouts widened for a
+        # loaded test machine (a 2 s reply bound failed here at load ~15).
         self.node_proc = _start_node(folder / "pc_1" / "link.toml", port, self.log,
-                                     "-p", "wait_s:=30")  # every other parameter: default
+                                     "-p", "wait_s:=30", "-p", "call_timeout_s:=10.0",
+                                     "-p", "tool_timeout_s:=10.0")
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx, domain_id=DOMAIN)
         self.node = rclpy.create_node("ada_like_client", context=self.ctx)
@@ -408,3 +411,14 @@ def test_joint_states_and_imu_topics_are_where_ada_and_moveit_read_them(ada: Ada
                             raw.linear_acceleration.z) < 10.6  # gravity, at rest
     q = cal.orientation
     assert math.isclose(q.w**2 + q.x**2 + q.y**2 + q.z**2, 1.0, rel_tol=1e-6)
+
+
+def test_the_rclpy_facts_behind_adas_bugs() -> None:
+    """docs/ros2.md: ADA's ExecuteNamedPrimitive.terminate reads ClientGoalHandle.is_active,
+    which rclpy's client goal handle lacks, and ExecuteArticutoolTrajectory.terminate calls
+    GoalStatus(status), a message constructor that takes keywords only."""
+    from rclpy.action.client import ClientGoalHandle
+    from rclpy.action.client import GoalStatus as ClientModuleGoalStatus
+    assert not hasattr(ClientGoalHandle, "is_active")
+    with pytest.raises(TypeError):
+        ClientModuleGoalStatus(GoalStatus.STATUS_EXECUTING)
