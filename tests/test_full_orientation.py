@@ -145,3 +145,33 @@ def test_full_orientation_keeps_levelings_rules_primitives_refused_stale_imu_fau
     run_loop(sim, rt, 0.2)
     ok, msg = rt.set_mode(Mode.DISABLED)
     assert ok and rt.mode is Mode.DISABLED
+
+
+def test_a_base_motion_taking_the_target_out_of_reach_clips_it_and_reports_the_stall():
+    """Rolling the base until the pitch axis is vertical leaves no configuration that holds
+    this target (its vertical has a component along the tip's roll axis): the wrist comes to
+    rest at the nearest reachable attitude, without chatter or fault, and says it stalled."""
+    sim, rt = make()
+
+    def motion(t):  # the base rolls −90° about world x between t = 3 and 6 s
+        s = min(max((t - 3.0) / 3.0, 0.0), 1.0)
+        rate = -math.pi / 2 * math.pi / 6 * math.sin(math.pi * s) if 0 < s < 1 else 0.0
+        angle = -math.pi / 2 * (1 - math.cos(math.pi * s)) / 2
+        return axis_angle_rotation([1.0, 0.0, 0.0], angle) @ R0, np.array([rate, 0, 0]), \
+            np.zeros(3)
+    sim.set_base_motion(motion)
+    run_loop(sim, rt, 1.0)
+    target = R0 @ rotation([0.3, 0.5])
+    assert rt.set_mode(Mode.FULL_ORIENTATION, target_xyzw=_xyzw(target))[0]
+    run_loop(sim, rt, 8.0)
+    states = []
+    for _ in range(round(2.0 / DT)):
+        sim.step(DT)
+        states.append(rt.tick(sim.time, DT))
+    g = target.T @ Z  # the best any configuration can do: |v_y| = 1 > ρ = |g_xy| in F0
+    best = math.degrees(math.pi / 2 - math.asin(math.hypot(g[0], g[1])))
+    assert _attitude_error_deg(sim, target) == pytest.approx(best, abs=0.5)
+    assert all(s.mode is Mode.FULL_ORIENTATION and not s.fault for s in states)
+    assert states[-1].extra["leveling_stalled"] == 1.0
+    commands = np.array([[s.extra["command_pitch"], s.extra["command_roll"]] for s in states])
+    assert np.abs(commands).max() < 0.05  # at rest: no chatter

@@ -412,8 +412,8 @@ class AttitudeController(LevelingController):
     yaw unobserved) and follows the arm. Two joints control exactly those two: the same PID,
     gyro feed-forward, predictive limits, roll window and stall report as leveling, with the
     joint rates from the pseudo-inverse of :func:`~articutool.tool.kinematics.attitude_jacobian`
-    and the pitch command damped where the pitch column vanishes (the pointed vector along
-    the pitch axis). Leveling is the case ``g = ŷ``. Offsets are not used (zero).
+    and the command damped along its weakest direction (leveling's pitch damping, where that
+    direction is pitch). Leveling is the case ``g = ŷ``. Offsets are not used (zero).
     """
 
     def __init__(self, *args: object, **kwargs: object) -> None:
@@ -439,12 +439,25 @@ class AttitudeController(LevelingController):
 
     def _rates(self, qv: NDArray[np.float64], omega_local: NDArray[np.float64],
                pointing: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``J⁺ (ω × a)``, its component along the weakest joint direction damped as
+        leveling damps pitch: by ``(σ_min / damping_threshold) ** damping_power`` where the
+        smallest singular value ``σ_min`` is below the threshold. The weak direction is where
+        the two joints move the vector almost alike (both columns nearly parallel, as at the
+        nearest attitude to an unreachable target) or one barely moves it; undamped, the
+        pseudo-inverse turns a small error there into full-speed chatter."""
         J = attitude_jacobian(qv, self._g)
-        return np.linalg.pinv(J, rcond=self.rcond) @ np.cross(omega_local, pointing)
+        U, S, Vt = np.linalg.svd(J, full_matrices=False)
+        v = np.cross(omega_local, pointing)
+        keep = S > self.rcond * S[0]
+        coeff = np.divide(U.T @ v, S, out=np.zeros(2), where=keep)
+        smin = float(S[-1])
+        if smin < self.damping_threshold:
+            coeff[-1] *= (smin / self.damping_threshold) ** self.damping_power
+        return Vt.T @ coeff
 
     @staticmethod
     def _pitch_measure(qv: NDArray[np.float64], pointing: NDArray[np.float64]) -> float:
-        return math.hypot(float(pointing[0]), float(pointing[2]))  # |ŷ × a|
+        return 1.0  # the damping is in _rates, along the weakest direction
 
     def _nearest(self, v: NDArray[np.float64], limits: NDArray[np.float64],  # type: ignore[override]
                  q_ref: NDArray[np.float64]) -> tuple[NDArray[np.float64], np.bool_]:
