@@ -446,14 +446,14 @@ class AttitudeController(LevelingController):
         nearest attitude to an unreachable target) or one barely moves it; undamped, the
         pseudo-inverse turns a small error there into full-speed chatter."""
         J = attitude_jacobian(qv, self._g)
-        U, S, Vt = np.linalg.svd(J, full_matrices=False)
+        u, sv, vt = np.linalg.svd(J, full_matrices=False)
         v = np.cross(omega_local, pointing)
-        keep = S > self.rcond * S[0]
-        coeff = np.divide(U.T @ v, S, out=np.zeros(2), where=keep)
-        smin = float(S[-1])
+        keep = sv > self.rcond * sv[0]
+        coeff = np.divide(u.T @ v, sv, out=np.zeros(2), where=keep)
+        smin = float(sv[-1])
         if smin < self.damping_threshold:
             coeff[-1] *= (smin / self.damping_threshold) ** self.damping_power
-        return Vt.T @ coeff
+        return vt.T @ coeff
 
     @staticmethod
     def _pitch_measure(qv: NDArray[np.float64], pointing: NDArray[np.float64]) -> float:

@@ -97,6 +97,7 @@ class Leveling:
     def __init__(self, spec: Spec, controller: LevelingController, rate_feedforward: bool) -> None:
         self.controller = controller
         self.roll_turn_budget = spec.wrist.roll_turn_budget
+        self.pitch_limits = (float(spec.wrist.pitch_limits[0]), float(spec.wrist.pitch_limits[1]))
         self.rate_feedforward = bool(rate_feedforward)
         self.offsets_deg = (0.0, 0.0)
         # While stalled: the nearest reachable level configuration (NaN: none); else None.
@@ -145,7 +146,7 @@ class Leveling:
 
         ctrl = self.controller
         g = ctrl.target_vector  # type: ignore[attr-defined]
-        lo, hi = float(ctrl._lo[0]), float(ctrl._hi[0])
+        lo, hi = self.pitch_limits
 
         def miss(q: NDArray[np.float64]) -> float:  # 1 − cos(angle to the vertical)
             return float(1.0 - (R @ rotation(q) @ g)[2])
