@@ -18,10 +18,8 @@ Skipped where rclpy or the built interface packages are unavailable (``make``).
 from __future__ import annotations
 
 import math
-import signal
 import subprocess
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -57,7 +55,7 @@ from rclpy.qos import (  # noqa: E402
 from sensor_msgs.msg import Imu, JointState  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
-from test_ros2_node import DOMAIN, _articutool, _start_node  # noqa: E402
+from test_ros2_node import DOMAIN, Graph, _articutool, _start_node  # noqa: E402
 
 TOOL = "wrist_ada"
 JOINTS = ["atool_joint1", "atool_joint2"]
@@ -87,8 +85,9 @@ REGISTRY = {
 }
 
 
-class Ada:
-    """The graph: the tool, the node with its defaults, and this process's plain client."""
+class Ada(Graph):
+    """The graph: the tool, the node with its defaults, and this process's plain client with
+    ADA's calls (``Graph``'s plumbing: ``wait``, ``spin_until``, ``close``)."""
 
     def __init__(self, folder: Path) -> None:
         pair(folder, TOOL, ["pc_1"])
@@ -133,20 +132,6 @@ class Ada:
                                               history=HistoryPolicy.KEEP_LAST, depth=1))
         self.calibration = self.node.create_client(TriggerCalibration, CALIBRATION_NAME)
         self.spin_until(lambda: self.soc.service_is_ready() and len(self.got["health"]) > 0, 30)
-
-    # -- plumbing --
-    def spin_until(self, cond: Callable[[], bool], timeout: float) -> bool:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.02)
-            if cond():
-                return True
-        return False
-
-    def wait(self, future: Any, timeout: float = 30.0) -> Any:
-        self.executor.spin_until_future_complete(future, timeout_sec=timeout)
-        assert future.done(), "no answer in time"
-        return future.result()
 
     def health(self) -> dict[str, str]:
         h = self.got["health"]
@@ -235,18 +220,6 @@ class Ada:
         assert self.calibration.wait_for_service(timeout_sec=CALIBRATION_WAIT_S)
         return self.wait(self.calibration.call_async(TriggerCalibration.Request()),
                          CALIBRATION_CALL_S)
-
-    def close(self) -> None:
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.ctx)
-        for p in (self.node_proc, self.tool):
-            if p.poll() is None:
-                p.send_signal(signal.SIGINT)
-                try:
-                    p.wait(20)
-                except subprocess.TimeoutExpired:
-                    p.kill()
-                    p.wait()
 
 
 @pytest.fixture(scope="module")
