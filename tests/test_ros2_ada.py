@@ -335,9 +335,10 @@ def test_adas_cancels_stop_the_wrist(ada: Ada) -> None:
     q0 = ada.settle()
     _, res = ada.execute_articutool_trajectory(_moveit_trajectory(q0, [0.5, 1.5], 6.0),
                                                   cancel_after_s=1.0)
-    assert res.status == GoalStatus.STATUS_CANCELED
+    assert res.status == GoalStatus.STATUS_CANCELED, res.result.error_string
     q1 = ada.settle(0.5)
-    np.testing.assert_allclose(ada.settle(1.0), q1, atol=1e-3)  # stopped short of the end
+    np.testing.assert_allclose(ada.settle(1.0), q1, atol=1e-3,  # stopped short of the end
+                               err_msg=f"{res.result.error_string}; {ada.health()}")
     assert abs(q1[1] - 1.5) > 0.3
 
 
@@ -395,3 +396,19 @@ def test_the_rclpy_facts_behind_adas_bugs() -> None:
     assert not hasattr(ClientGoalHandle, "is_active")
     with pytest.raises(TypeError):
         ClientModuleGoalStatus(GoalStatus.STATUS_EXECUTING)
+
+
+@pytest.mark.parametrize("republish", [True, False])
+def test_the_joint_state_republisher_is_behind_its_parameter(republish: bool) -> None:
+    from types import SimpleNamespace
+
+    from articutool.ros2 import wrist_topics
+    from articutool.ros2.names import resolve
+    topics: list[str] = []
+    node = SimpleNamespace(create_publisher=lambda cls, topic, qos: topics.append(topic))
+    client = SimpleNamespace(names=SimpleNamespace(imu="imu", joint_states="js"),
+                             transport=SimpleNamespace(subscribe=lambda ep, cb: ep))
+    wrist_topics.setup(node, client, resolve(""), ("a", "b"), republish, {})
+    assert ("/joint_states" in topics) is republish
+    assert {"/articutool/imu_data", "/articutool/imu_data_and_orientation_calibrated"} <= set(
+        topics)

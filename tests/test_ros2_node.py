@@ -476,6 +476,7 @@ def test_sigterm_stops_an_idle_node(graph: Graph) -> None:
     (["--ros-args", "-p", "joint_names:=[a]"], "joint_names"),
     (["--ros-args", "-p", "namespace:=a b"], "namespace"),
     (["--ros-args", "-p", "utensil:=ladle"], "utensil"),
+    (["--ros-args", "-p", "republish_joint_states:=maybe"], "republish_joint_states"),
     (["--ros-args", "-p", "tool_idd:=x"], "tool_idd"),
     (["--connect", "tcp/nowhere"], "connect"),
     (["--wait", "-1"], "--wait"),
