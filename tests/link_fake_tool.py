@@ -48,7 +48,8 @@ class FakeTool:
         self.calls: list[str] = []
 
     def set_mode(self, mode: Mode, pitch_offset_deg: float = 0.0,
-                 roll_offset_deg: float = 0.0) -> tuple[bool, str]:
+                 roll_offset_deg: float = 0.0,
+                 target_xyzw: tuple[float, ...] = (0.0, 0.0, 0.0, 1.0)) -> tuple[bool, str]:
         with self._lock:
             self.calls.append(f"set_mode {mode.name}")
             if abs(pitch_offset_deg) > 90 or abs(roll_offset_deg) > 90:

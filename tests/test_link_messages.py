@@ -212,6 +212,16 @@ def test_bad_request_values_are_refused_before_sending() -> None:
         m.soc_request(Mode.PRIMITIVE, 0, 0)
     with pytest.raises(ValueError, match="pitch_offset"):
         m.soc_request(Mode.LEVELING, float("nan"), 0)
+    with pytest.raises(ValueError, match="target_orientation_robot_base"):
+        m.soc_request(Mode.FULL_ORIENTATION, 0, 0, (math.nan, 0.0, 0.0, 1.0))
+
+
+def test_full_orientation_carries_its_target_as_the_wire_mode_2() -> None:
+    req = m.soc_request(Mode.FULL_ORIENTATION, 0, 0, (0.1, 0.2, 0.3, 0.9))
+    back = cdr.decode(cdr.encode(req, f"{cdr.SET_ORIENTATION_CONTROL}_Request"),
+                      f"{cdr.SET_ORIENTATION_CONTROL}_Request")
+    t = back.target_orientation_robot_base
+    assert back.control_mode == 2 and (t.x, t.y, t.z, t.w) == (0.1, 0.2, 0.3, 0.9)
 
 
 def test_key_expressions_follow_rmw_zenoh() -> None:

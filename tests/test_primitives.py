@@ -178,6 +178,41 @@ def test_noodle_shed_pitches_up_vibrates_and_returns(lag, q0):
 
 
 @pytest.mark.parametrize("lag", LAGS)
+@pytest.mark.parametrize("angle_deg", [40.0, -65.0])
+def test_deposit_bite_rolls_by_degrees_pauses_then_returns_to_the_start(lag, angle_deg):
+    speed, pause, q0 = 1.5, 0.6, (0.1, 2 * math.pi + 0.2)  # after a twirl: returns to the start
+    r = run("DEPOSIT_BITE", [angle_deg, speed, pause], q0, lag)
+    assert_well_behaved(r)
+    out = np.abs(r.qs[:, 1] - (q0[1] + math.radians(angle_deg))) <= 2 * TOL
+    assert out.sum() * DT >= pause  # paused there for at least the pause
+    np.testing.assert_allclose(r.qs[-1], q0, atol=2 * TOL)  # back to the start, not to 0
+    assert np.abs(r.cmds[:, 1]).max() == pytest.approx(speed)
+
+
+@pytest.mark.parametrize("lag", LAGS)
+@pytest.mark.parametrize("q0", [(0.2, 0.3), (-0.3, 2.9)])
+def test_settle_toss_tilts_the_tip_up_flicks_past_the_start_and_returns(lag, q0):
+    tilt_deg, tilt_speed, flick_speed = 25.0, 1.0, 3.0
+    r = run("SETTLE_TOSS", [tilt_deg, tilt_speed, flick_speed], q0, lag)
+    assert_well_behaved(r)
+    i = int(np.argmax(np.abs(r.qs[:, 0] - q0[0])))
+    assert abs(r.qs[i, 0] - q0[0]) == pytest.approx(math.radians(tilt_deg), abs=3 * TOL)
+    assert rotation(r.qs[i])[:, 2] @ up_vector(q0) > 0  # the tip went up
+    sign = math.copysign(1.0, r.qs[i, 0] - q0[0])
+    past = -sign * (r.qs[i:, 0] - q0[0])  # beyond the start on the flick side
+    assert past.max() >= SPEC.primitives.settle_toss_overshoot_rad - TOL
+    assert np.abs(r.cmds[:, 0]).max() == pytest.approx(flick_speed)  # the flick at full speed
+    np.testing.assert_allclose(r.qs[-1], q0, atol=2 * TOL)
+    assert np.abs(r.qs[:, 1] - q0[1]).max() < 2 * TOL  # roll held throughout
+
+
+def test_settle_toss_whose_flick_would_pass_the_pitch_limit_is_refused():
+    q0 = (PITCH_HI - 0.05, 0.0)  # the flick goes +pitch at roll 0: no room past the start
+    with pytest.raises(PrimitiveError, match="settle_toss_overshoot_rad"):
+        make_primitive("SETTLE_TOSS", [10.0, 1.0, 2.0], SPEC, q0)
+
+
+@pytest.mark.parametrize("lag", LAGS)
 @pytest.mark.parametrize("q0", [(0.7, -9.0), (-1.2, 2.0), (0.0, 0.0)])
 def test_homing_brings_both_joints_to_zero(lag, q0):
     r = run("HOMING", [2.0], q0, lag)
@@ -294,6 +329,10 @@ def test_noodle_shed_beyond_the_pitch_limit_is_refused():
 def test_registry_lists_the_thesis_primitives_and_unknown_names_list_them():
     for name in ("TWIRL_CW", "TWIRL_CCW", "VIBRATE_ROLL", "TILT", "NOODLE_SHED", "HOMING"):
         assert name in primitive_names()
+    # the upstream tool's whole registry (articutool_control/orientation_control.py)
+    upstream = {"TWIRL_CW", "TWIRL_CCW", "VIBRATE_ROLL", "DEPOSIT_BITE", "SETTLE_TOSS",
+                "NOODLE_SHED", "HOMING"}
+    assert upstream <= set(primitive_names())
     with pytest.raises(PrimitiveError, match=r"unknown primitive 'SPIN'.*HOMING.*TWIRL_CW"):
         make_primitive("SPIN", [1.0], SPEC, [0.0, 0.0])
 
@@ -340,9 +379,12 @@ GOOD = {
     "TILT": [0.5, 1.0, 1.0],
     "NOODLE_SHED": [30.0, 1.0, 0.5, 5.0, 5.0, 1.0],
     "HOMING": [1.0],
+    "DEPOSIT_BITE": [45.0, 1.0, 0.5],
+    "SETTLE_TOSS": [20.0, 1.0, 3.0],
 }
 # Per parameter: values that must be refused (beyond the NaN/inf every parameter refuses).
 V_ROLL, V_MIN = float(VMAX[1]), float(VMAX.min())
+P_MAX_HOLD = SPEC.primitives.max_hold_s
 BAD = {
     "TWIRL_CW": {"rotations": [0.0, -1.0], "speed_rad_s": [0.0, -1.0, V_ROLL * 1.01]},
     "TWIRL_CCW": {"rotations": [0.0, -2.0], "speed_rad_s": [0.0, V_ROLL + 1]},
@@ -365,6 +407,16 @@ BAD = {
         "vibrate_duration_s": [-1.0],
     },
     "HOMING": {"speed_rad_s": [0.0, -1.0, V_MIN + 0.1]},
+    "DEPOSIT_BITE": {
+        "roll_angle_deg": [181.0, -200.0],
+        "roll_speed_rad_s": [0.0, -1.0, V_ROLL * 2],
+        "pause_s": [-1.0, P_MAX_HOLD + 1],
+    },
+    "SETTLE_TOSS": {
+        "tilt_angle_deg": [0.0, -10.0, 95.0],
+        "tilt_speed_rad_s": [0.0, -1.0, float(VMAX[0]) + 0.5],
+        "flick_speed_rad_s": [0.0, float(VMAX[0]) + 0.5],
+    },
 }
 
 
@@ -433,6 +485,7 @@ P = SPEC.primitives
 @pytest.mark.parametrize(("name", "params", "pname", "key"), [
     ("VIBRATE_ROLL", [5.0, 0.1, 1e9], "duration_s", "max_vibrate_s"),
     ("TILT", [0.5, 1.0, 1e9], "hold_s", "max_hold_s"),
+    ("DEPOSIT_BITE", [30.0, 1.0, 1e9], "pause_s", "max_hold_s"),
     ("NOODLE_SHED", [20.0, 1.0, 1e9, 5.0, 3.0, 1.0], "delay_s", "max_hold_s"),
     ("NOODLE_SHED", [20.0, 1.0, 1.0, 5.0, 3.0, 1e9], "vibrate_duration_s", "max_vibrate_s"),
 ])

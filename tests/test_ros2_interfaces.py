@@ -96,6 +96,24 @@ def test_the_hash_comparison_sees_a_missing_field() -> None:
     assert changed[cdr.ACTION] == cdr.type_hash(cdr.ACTION)
 
 
+def test_the_full_orientation_constant_changes_no_hash() -> None:
+    """ADA checks SetOrientationControl.Request.MODE_FULL_ORIENTATION (2), which upstream
+    removed: ours defines it, upstream's current text lacks it, and the RIHS01 hash of the
+    service, its request and response is the same either way (constants are not hashed)."""
+    ours = cdr.package_texts()
+    rel = "srv/SetOrientationControl.srv"
+    assert "uint8 MODE_FULL_ORIENTATION=2" in ours[rel]
+    upstream = cdr.package_texts(UPSTREAM)
+    assert "MODE_FULL_ORIENTATION" not in upstream[rel]
+    a, b = cdr.interface_hashes(ours), cdr.interface_hashes(upstream)
+    name = cdr.SET_ORIENTATION_CONTROL  # its hash covers the request and response types
+    assert a[name] == b[name] == cdr.type_hash(name)
+    without = dict(ours, **{rel: ours[rel].replace("uint8 MODE_FULL_ORIENTATION=2\n", "")})
+    assert cdr.interface_hashes(without)[name] == a[name]
+    from articutool_interfaces.srv import SetOrientationControl
+    assert SetOrientationControl.Request.MODE_FULL_ORIENTATION == 2  # the built package has it
+
+
 INSTALLED = sorted((Path(sys.prefix) / "share" / "articutool_interfaces").glob("*/*.json"))
 
 

@@ -498,6 +498,7 @@ def test_sigterm_stops_an_idle_node(graph: Graph) -> None:
     (["--ros-args", "-p", "joint_names:=[a]"], "joint_names"),
     (["--ros-args", "-p", "namespace:=a b"], "namespace"),
     (["--ros-args", "-p", "utensil:=ladle"], "utensil"),
+    (["--ros-args", "-p", "republish_joint_states:=maybe"], "republish_joint_states"),
     (["--ros-args", "-p", "tool_idd:=x"], "tool_idd"),
     (["--connect", "tcp/nowhere"], "connect"),
     (["--wait", "-1"], "--wait"),
@@ -607,7 +608,8 @@ class _RecordingClient(_ResultBeforeCancelReply):
         super().__init__()
         self.modes: list[tuple[int, float, float]] = []
 
-    def set_mode(self, mode: int, pitch: float = 0.0, roll: float = 0.0) -> tuple[bool, str]:
+    def set_mode(self, mode: int, pitch: float = 0.0, roll: float = 0.0,
+                 target: tuple[float, ...] = (0.0, 0.0, 0.0, 1.0)) -> tuple[bool, str]:
         self.modes.append((int(mode), pitch, roll))
         return True, "LEVELING"
 
@@ -619,8 +621,8 @@ class _RecordingClient(_ResultBeforeCancelReply):
                                                      ("radians", 10.0)])
 def test_offset_units_read_what_ada_sends(units: str, expected_deg: float) -> None:
     """ADA's CallSetOrientationControl sends math.radians(pitch_offset_deg). Read as degrees
-    (the upstream node's reading, the default) a 10° request levels 0.17° off; with
-    offset_units=radians it levels the 10° ADA meant."""
+    (the upstream .srv's unit) a 10° request levels 0.17° off; with offset_units=radians (the
+    default) it levels the 10° ADA meant."""
     from rclpy.executors import MultiThreadedExecutor
 
     from articutool.ros2.node import ArticutoolRos2Node, NodeSettings
@@ -650,6 +652,7 @@ def test_offset_units_read_what_ada_sends(units: str, expected_deg: float) -> No
         assert mode == 1
         assert pitch == pytest.approx(expected_deg, rel=1e-5)
         assert roll == pytest.approx(-expected_deg / 2, rel=1e-5)
+        assert NodeSettings().offset_units == "radians"  # ADA's unit is the default
     finally:
         server_exec.shutdown(timeout_sec=2.0)
         server.destroy()

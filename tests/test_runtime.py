@@ -242,6 +242,28 @@ def test_primitive_runs_to_completion_then_disables():
     assert rt.mode is Mode.DISABLED and np.abs(sim.qd).max() < 1e-3
 
 
+@pytest.mark.parametrize(("name", "params"), [("DEPOSIT_BITE", [60.0, 2.0, 0.5]),
+                                             ("SETTLE_TOSS", [25.0, 1.0, 3.0])])
+def test_upstreams_deposit_bite_and_settle_toss_run_on_the_simulated_wrist(name, params):
+    sim, rt, _ = ready()
+    q0 = sim.q.copy()
+    ok, msg = rt.start_primitive(name, params)
+    assert ok, msg
+    peak = np.zeros(2)
+    for _ in range(round(8.0 / DT)):
+        sim.step(DT)
+        rt.tick(sim.time, DT)
+        peak = np.maximum(peak, np.abs(sim.q - q0))
+        if rt.mode is Mode.DISABLED:
+            break
+    st = rt.primitive_status()
+    assert st.done and st.success, st.message
+    moved = 1 if name == "DEPOSIT_BITE" else 0  # roll out and back; pitch tilt and flick
+    assert peak[moved] == pytest.approx(math.radians(params[0]), abs=0.05)
+    np.testing.assert_allclose(sim.q, q0, atol=0.03)  # back at the start
+    assert not rt.fault
+
+
 @pytest.mark.parametrize("change", ["leveling", "disabled", "trajectory"])
 def test_mode_change_aborts_a_running_primitive(change):
     sim, rt, _ = ready()

@@ -282,6 +282,7 @@ class PrimitivesSpec(StrictModel):
     max_hold_s: Positive  # longest wait inside a primitive (TILT hold, NOODLE_SHED delay)
     max_vibrate_s: Positive  # longest vibration (VIBRATE_ROLL, NOODLE_SHED)
     max_duration_s: Positive  # longest nominal duration of a whole primitive
+    settle_toss_overshoot_rad: Positive  # how far SETTLE_TOSS's flick passes the start pitch
 
     @model_validator(mode="after")
     def _bounded(self) -> PrimitivesSpec:

@@ -29,7 +29,7 @@ from articutool.link.transport import (
     Names,
     Transport,
 )
-from articutool.tool.api import Mode, PrimitiveStatus, ToolState
+from articutool.tool.api import IDENTITY_XYZW, SERVICE_MODES, Mode, PrimitiveStatus, ToolState
 from articutool.trajectory import JointTrajectory
 
 __all__ = ["ArticutoolClient", "LinkError", "ToolConflictError", "ToolRefusedError",
@@ -56,14 +56,16 @@ class ToolConflictError(LinkError):
 
 
 def parse_mode(mode: Mode | str | int) -> Mode:
-    """'leveling' / 'disabled' / Mode / 0|1 → Mode (only the two service modes)."""
+    """'leveling' / 'disabled' / Mode / 0|1|2 → Mode (the service modes; FULL_ORIENTATION,
+    which needs a target, by number or Mode only)."""
     if isinstance(mode, str):
         key = mode.strip().upper()
         if key not in ("LEVELING", "DISABLED"):
             raise ValueError(f"mode must be 'leveling' or 'disabled'; got {mode!r}")
         return Mode[key]
-    if mode not in (Mode.DISABLED, Mode.LEVELING):
-        raise ValueError(f"mode must be DISABLED (0) or LEVELING (1); got {mode!r}")
+    if mode not in SERVICE_MODES:
+        raise ValueError("mode must be DISABLED (0), LEVELING (1) or FULL_ORIENTATION (2); "
+                         f"got {mode!r}")
     return Mode(mode)
 
 
@@ -304,12 +306,16 @@ class ArticutoolClient:
 
     # ---------------------------------------------------------------- commands --
     def set_mode(self, mode: Mode | str | int, pitch_offset_deg: float = 0.0,
-                 roll_offset_deg: float = 0.0) -> tuple[bool, str]:
+                 roll_offset_deg: float = 0.0,
+                 target_xyzw: tuple[float, float, float, float] = IDENTITY_XYZW
+                 ) -> tuple[bool, str]:
         """Call ``set_orientation_control``; returns the tool's (success, message).
+        ``target_xyzw`` is FULL_ORIENTATION's target, [x, y, z, w] in the robot base.
 
         Raises ValueError on bad input (nothing is sent) and ToolSilentError without reply.
         """
-        req = m.soc_request(parse_mode(mode), float(pitch_offset_deg), float(roll_offset_deg))
+        req = m.soc_request(parse_mode(mode), float(pitch_offset_deg), float(roll_offset_deg),
+                            target_xyzw)
         resp = self._call(self.names.set_orientation_control, req)
         return bool(resp.success), str(resp.message)
 

@@ -32,7 +32,13 @@ from articutool.link.goals import Goal, GoalTable
 from articutool.link.inbox import CommandInbox
 from articutool.link.lease import CommandLease
 from articutool.link.transport import Endpoint, Names, RefusalError, Responder, Transport
-from articutool.tool.api import Mode, PrimitiveStatus, ToolAPI, TrajectoryPrevalidation
+from articutool.tool.api import (
+    SERVICE_MODES,
+    Mode,
+    PrimitiveStatus,
+    ToolAPI,
+    TrajectoryPrevalidation,
+)
 
 __all__ = ["CommandHandlers"]
 
@@ -121,13 +127,18 @@ class CommandHandlers:
         refusal = self._lease(who, stop=stop)
         if refusal:
             return self._refuse(respond, ep, refusal)
-        if req.control_mode not in (Mode.DISABLED, Mode.LEVELING):
+        if req.control_mode not in SERVICE_MODES:
             return self._refuse(respond, ep, (
-                f"control_mode must be {Mode.DISABLED.value} (DISABLED) or "
-                f"{Mode.LEVELING.value} (LEVELING); got {req.control_mode}"))
+                f"control_mode must be {Mode.DISABLED.value} (DISABLED), "
+                f"{Mode.LEVELING.value} (LEVELING) or {Mode.FULL_ORIENTATION.value} "
+                f"(FULL_ORIENTATION); got {req.control_mode}"))
         pitch, roll = float(req.pitch_offset), float(req.roll_offset)
+        t = req.target_orientation_robot_base
+        target = (float(t.x), float(t.y), float(t.z), float(t.w))
 
         def run() -> tuple[bool, str]:
+            if req.control_mode == Mode.FULL_ORIENTATION:
+                return self._ask(self.api.set_mode, Mode.FULL_ORIENTATION, 0.0, 0.0, target)
             return self._ask(self.api.set_mode, Mode(req.control_mode), pitch, roll)
 
         def answer(result: object) -> None:

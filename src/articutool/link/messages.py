@@ -40,7 +40,7 @@ from articutool.link.cdr import (
     LinkDecodeError,
     msg,
 )
-from articutool.tool.api import Mode, PrimitiveStatus, ToolState
+from articutool.tool.api import IDENTITY_XYZW, SERVICE_MODES, Mode, PrimitiveStatus, ToolState
 from articutool.trajectory import JointTrajectory, TrajectoryError
 
 __all__ = ["GoalStatus", "PrimitiveResult", "goal_uuid", "stamp_to_time", "time_to_stamp"]
@@ -110,18 +110,23 @@ def _f32(values: Any) -> Any:
 
 
 # ------------------------------------------------------------- service/action --
-def soc_request(mode: Mode, pitch_offset_deg: float, roll_offset_deg: float) -> Any:
-    """``SetOrientationControl`` request (only DISABLED and LEVELING exist on the wire; the
-    unused ``target_orientation_robot_base`` is the identity)."""
-    if mode not in (Mode.DISABLED, Mode.LEVELING):
-        raise ValueError(f"control_mode must be DISABLED (0) or LEVELING (1); got {mode!r}")
+def soc_request(mode: Mode, pitch_offset_deg: float, roll_offset_deg: float,
+                target_xyzw: tuple[float, float, float, float] = IDENTITY_XYZW) -> Any:
+    """``SetOrientationControl`` request: DISABLED, LEVELING (offsets in degrees) or
+    FULL_ORIENTATION (``target_orientation_robot_base`` = ``target_xyzw``, [x, y, z, w])."""
+    if mode not in SERVICE_MODES:
+        raise ValueError("control_mode must be DISABLED (0), LEVELING (1) or FULL_ORIENTATION "
+                         f"(2); got {mode!r}")
     for name, v in (("pitch_offset", pitch_offset_deg), ("roll_offset", roll_offset_deg)):
         if not math.isfinite(v):
             raise ValueError(f"{name} must be a finite number of degrees; got {v}")
+    x, y, z, w = (float(v) for v in target_xyzw)
+    if not all(math.isfinite(v) for v in (x, y, z, w)):
+        raise ValueError(f"target_orientation_robot_base must be finite; got {target_xyzw}")
     return msg(f"{SET_ORIENTATION_CONTROL}_Request", control_mode=int(mode),
                pitch_offset=float(pitch_offset_deg), roll_offset=float(roll_offset_deg),
-               target_orientation_robot_base=msg("geometry_msgs/msg/Quaternion", x=0.0,
-                                                 y=0.0, z=0.0, w=1.0))
+               target_orientation_robot_base=msg("geometry_msgs/msg/Quaternion", x=x, y=y,
+                                                 z=z, w=w))
 
 
 def soc_response(success: bool, message: str) -> Any:
@@ -204,7 +209,7 @@ def joint_state_msg(state: ToolState, t: float) -> Any:
                effort=np.zeros(0, dtype=np.float64))
 
 
-def imu_msg(state: ToolState, t: float, frame_id: str = "articutool_imu") -> Any:
+def imu_msg(state: ToolState, t: float, frame_id: str = "atool_imu_frame") -> Any:
     """``sensor_msgs/Imu`` carrying the filtered orientation (covariances unknown → 0)."""
     w, x, y, z = state.orientation_wxyz
     return msg(IMU, header=header(t, frame_id),

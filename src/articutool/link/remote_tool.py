@@ -25,7 +25,7 @@ from collections.abc import Callable
 from dataclasses import replace
 
 from articutool.link.client import ArticutoolClient, LinkError
-from articutool.tool.api import Mode, PrimitiveStatus, ToolState
+from articutool.tool.api import IDENTITY_XYZW, Mode, PrimitiveStatus, ToolState
 from articutool.trajectory import JointTrajectory
 
 __all__ = ["RemoteTool"]
@@ -50,11 +50,13 @@ class RemoteTool:
         self._thread: threading.Thread | None = None
 
     def set_mode(self, mode: Mode, pitch_offset_deg: float = 0.0,
-                 roll_offset_deg: float = 0.0) -> tuple[bool, str]:
+                 roll_offset_deg: float = 0.0,
+                 target_xyzw: tuple[float, float, float, float] = IDENTITY_XYZW
+                 ) -> tuple[bool, str]:
         """The tool's answer, ``(False, the link's reason)``, or ``(False, why)`` for a mode
         the service does not carry (as the runtime refuses it)."""
         try:
-            return self.client.set_mode(mode, pitch_offset_deg, roll_offset_deg)
+            return self.client.set_mode(mode, pitch_offset_deg, roll_offset_deg, target_xyzw)
         except LinkError as err:
             return False, f"link: {err}"
         except ValueError as err:

@@ -41,7 +41,8 @@ def add_commands(subparsers: Any) -> None:
                     "the node starts only when ROS_AUTOMATIC_DISCOVERY_RANGE is LOCALHOST or "
                     f"OFF, or with {ALLOW_FLAG}. Parameters (--ros-args -p NAME:=VALUE): "
                     "tool_id, link_config, namespace, wait_s, call_timeout_s, tool_timeout_s, "
-                    "joint_names, offset_units, utensil. SIGINT/SIGTERM cancel running goals "
+                    "joint_names, offset_units (default radians, what ADA sends), "
+                    "republish_joint_states, utensil. SIGINT/SIGTERM cancel running goals "
                     "and stop.")
     add_config_args(p)
     p.add_argument("--ros-namespace", default="", metavar="NS",
@@ -72,8 +73,8 @@ def _defaults(args: argparse.Namespace, cfg: Any) -> dict[str, Any]:
             "namespace": args.ros_namespace, "wait_s": float(args.wait),
             "call_timeout_s": float(cfg.call_timeout),
             "tool_timeout_s": float(cfg.tool_timeout),
-            "joint_names": ["atool_joint1", "atool_joint2"], "offset_units": "degrees",
-            "utensil": "spoon"}
+            "joint_names": ["atool_joint1", "atool_joint2"], "offset_units": "radians",
+            "republish_joint_states": True, "utensil": "spoon"}
 
 
 def _configure(args: argparse.Namespace, values: dict[str, Any], defaults: dict[str, Any]
@@ -248,7 +249,7 @@ def _start(args: argparse.Namespace, cfg0: Any, ctx: Any, stop: threading.Event,
         if unknown:
             raise ParamError(f"unknown parameter(s) {unknown}; known: tool_id, link_config, "
                              "namespace, wait_s, call_timeout_s, tool_timeout_s, joint_names, "
-                             "offset_units, utensil")
+                             "offset_units, republish_joint_states, utensil")
         check_namespace(values["namespace"], "parameter namespace")
         cfg = _configure(args, values, defaults)
         spec = load_spec()
@@ -257,7 +258,8 @@ def _start(args: argparse.Namespace, cfg0: Any, ctx: Any, stop: threading.Event,
         node.destroy_node()
         return _err(str(err), 2), None, None, None
     settings = NodeSettings(namespace=values["namespace"], joint_names=values["joint_names"],
-                            offset_units=values["offset_units"], verifier=verifier)
+                            offset_units=values["offset_units"], verifier=verifier,
+                            republish_joint_states=values["republish_joint_states"])
     if args.verify_only:
         return None, None, ArticutoolRos2Node(None, settings, context=ctx, node=node), node
     try:

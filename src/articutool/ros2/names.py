@@ -54,6 +54,19 @@ ENDPOINTS: dict[str, Endpoint] = {
     "imu": Endpoint(
         "articutool/imu_data_and_orientation", "publishes", "sensor_msgs/msg/Imu",
         "upstream orientation filters (read by the upstream controller)"),
+    "imu_raw": Endpoint(
+        "articutool/imu_data", "publishes", "sensor_msgs/msg/Imu",
+        "upstream articutool_imu driver (the filters' input)"),
+    "imu_calibrated": Endpoint(
+        "articutool/imu_data_and_orientation_calibrated", "publishes", "sensor_msgs/msg/Imu",
+        "upstream orientation_calibration_service (read by the upstream controller)"),
+    "robot_joint_states": Endpoint(
+        "joint_states", "publishes", "sensor_msgs/msg/JointState",
+        "ADA GetJointStates, MoveIt; upstream joint_state_republisher"),
+    "list_controllers": Endpoint(
+        "articutool/controller_manager/list_controllers", "service",
+        "controller_manager_msgs/srv/ListControllers",
+        "MoveIt's Ros2ControlManager (remapped there upstream); upstream controller_manager"),
     "follow_joint_trajectory": Endpoint(
         "articutool/joint_trajectory_controller/follow_joint_trajectory", "action",
         "control_msgs/action/FollowJointTrajectory",

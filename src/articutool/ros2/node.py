@@ -8,10 +8,11 @@ while the wrist itself trusts only the paired PC: every command is forwarded by 
 the replies are the tool's own. Names: :mod:`articutool.ros2.names` (upstream names exactly
 with an empty namespace).
 
-- ``SetOrientationControl`` on ADA's name and on the upstream node's: offsets in degrees as
-  the upstream node reads them, or radians with ``offset_units="radians"`` (ADA's
-  ``CallSetOrientationControl`` sends ``math.radians`` of its inputs); the unused quaternion
-  is ignored. DISABLED is a stop (below).
+- ``SetOrientationControl`` on ADA's name and on the upstream node's: offsets in radians by
+  default, what ADA's ``CallSetOrientationControl`` sends (``math.radians`` of its inputs), or
+  in degrees as the upstream ``.srv`` says with ``offset_units="degrees"``; the unit in force
+  is logged at start. MODE_FULL_ORIENTATION (2) forwards ``target_orientation_robot_base``;
+  the other modes ignore it. DISABLED is a stop (below).
 - ``articutool/stop`` (``std_srvs/Trigger``): DISABLED on the tool, which aborts any
   primitive or trajectory. Stops and the primitive action (its cancels are stops) live on a
   second node with its own executor thread; stop requests from every source share one stop
@@ -28,7 +29,9 @@ with an empty namespace).
   ``is_yaw_calibrated: false`` (latched).
 - Telemetry: joint states under the ROS 2 joint names (``joint_names``, upstream's
   ``atool_joint1``/``atool_joint2`` by default, for [pitch, roll]), IMU, health and battery
-  as the tool sent them (well-formed messages only).
+  as the tool sent them (well-formed messages only); ``/joint_states`` and upstream's raw and
+  calibrated IMU topics: :mod:`articutool.ros2.wrist_topics`.
+- ``switch_controller`` and ``list_controllers``: :mod:`articutool.ros2.controllers`.
 - ``VerifyTrajectory``: :mod:`articutool.ros2.verify_service`, on its own lane.
 
 Callbacks never raise into the executor: a request the client refuses (bad numbers, a silent
@@ -49,7 +52,9 @@ import numpy as np
 from articutool.link import cdr
 from articutool.link import messages as m
 from articutool.link.client import ArticutoolClient, LinkError, parse_mode
+from articutool.ros2 import wrist_topics
 from articutool.ros2.admission import mode_refusal, primitive_refusal
+from articutool.ros2.controllers import ControllerBook
 from articutool.ros2.lanes import StopLane, WorkLane
 from articutool.ros2.names import resolve
 from articutool.tool.api import Mode
@@ -57,10 +62,6 @@ from articutool.tool.api import Mode
 __all__ = ["ArticutoolRos2Node", "NodeSettings"]
 
 _log = logging.getLogger(__name__)
-
-# The upstream tool's ros2_control controllers (articutool_moveit/config/controllers.yaml).
-CONTROLLERS = ("velocity_controller", "joint_trajectory_controller", "joint_state_broadcaster")
-STRICT = 2  # controller_manager_msgs/srv/SwitchController strictness
 
 CALIBRATION_MESSAGE = (
     "nothing to calibrate: this wrist levels against gravity alone (its controller is "
@@ -74,7 +75,8 @@ class NodeSettings:
 
     namespace: str = ""
     joint_names: tuple[str, str] = ("atool_joint1", "atool_joint2")
-    offset_units: str = "degrees"
+    offset_units: str = "radians"  # ADA's; the upstream .srv says degrees
+    republish_joint_states: bool = True
     verifier: Any = None  # articutool.ros2.verify_service.Verifier, or None: no service
     queue_depth: int = 1000  # DDS history of every service and action request queue
     max_goals: int = 4
@@ -109,6 +111,10 @@ class ArticutoolRos2Node:
                              f"{s.offset_units!r}")
         self.names = resolve(s.namespace)
         self.node = node if node is not None else Node("articutool_ros2", context=context)
+        self.node.get_logger().info(
+            f"SetOrientationControl offsets are read in {s.offset_units.upper()} "
+            f"(offset_units={s.offset_units}; ADA's CallSetOrientationControl sends radians, "
+            "the upstream .srv says degrees)")
         self._qos = QoSProfile(depth=s.queue_depth)
         self.counters = {"forwarded": 0, "dropped": 0, "trajectories": 0, "busy": 0,
                          "stops": 0}
@@ -204,6 +210,8 @@ class ArticutoolRos2Node:
             pub = self.node.create_publisher(cls, n[key], qos)
             self._forward.append(c.transport.subscribe(ep, self._forwarder(pub, ep.type,
                                                                            convert)))
+        self._forward += wrist_topics.setup(self.node, c, n, self.settings.joint_names,
+                                            self.settings.republish_joint_states, self.counters)
 
     # ------------------------------------------------------------------ telemetry --
     def _rename_joints(self, msg: Any) -> bytes:
@@ -234,8 +242,10 @@ class ArticutoolRos2Node:
         pitch, roll = float(request.pitch_offset) * scale, float(request.roll_offset) * scale
         assert self.client is not None
         client = self.client
+        t = request.target_orientation_robot_base
+        target = (float(t.x), float(t.y), float(t.z), float(t.w))
         try:  # refused here, as the link client would, without waiting for a lane
-            m.soc_request(parse_mode(mode), pitch, roll)
+            m.soc_request(parse_mode(mode), pitch, roll, target)
         except ValueError as err:
             response.success, response.message = False, str(err)
             return response
@@ -246,7 +256,7 @@ class ArticutoolRos2Node:
         if mode == Mode.DISABLED:  # every DISABLED is a stop
             future = self._stops.submit(self._wake_main)
         else:
-            future = self._submit(lambda: client.set_mode(mode, pitch, roll))
+            future = self._submit(lambda: client.set_mode(mode, pitch, roll, target))
         ok, msg = await self._outcome(future, "set_orientation_control")
         response.success, response.message = ok, msg
         return response
@@ -462,7 +472,7 @@ class ArticutoolRos2Node:
         interface packages are installed (``make`` builds them where they are not)."""
         try:
             from control_msgs.action import FollowJointTrajectory
-            from controller_manager_msgs.srv import SwitchController
+            from controller_manager_msgs.srv import ListControllers, SwitchController
         except ImportError as err:
             self.node.get_logger().warning(f"trajectory path not served: {err}")
             return
@@ -476,23 +486,31 @@ class ArticutoolRos2Node:
             handle_accepted_callback=self._on_accepted, cancel_callback=self._on_cancel_fjt,
             goal_service_qos_profile=q, result_service_qos_profile=q,
             cancel_service_qos_profile=q, callback_group=self._safety_group)
+        self._controllers = ControllerBook(self.settings.joint_names)
         self.node.create_service(SwitchController, n["switch_controller"],
                                  self._on_switch_controller, qos_profile=q,
+                                 callback_group=self._group)
+        self.node.create_service(ListControllers, n["list_controllers"],
+                                 self._on_list_controllers, qos_profile=q,
                                  callback_group=self._group)
 
     def _on_switch_controller(self, request: Any, response: Any) -> Any:
         """The wrist picks its control law per command (a trajectory, a primitive, a mode), so
-        there is nothing to switch: known controller names are accepted as they are, an
-        unknown one fails a STRICT request (ros2_control's meaning of strictness)."""
-        names = [*request.activate_controllers, *request.deactivate_controllers,
-                 *getattr(request, "start_controllers", []),
-                 *getattr(request, "stop_controllers", [])]
-        unknown = sorted({str(c) for c in names} - set(CONTROLLERS))
-        response.ok = not (unknown and int(request.strictness) == STRICT)
+        a switch changes only what ``list_controllers`` answers, with ros2_control's
+        strictness (:class:`~articutool.ros2.controllers.ControllerBook`)."""
+        activate = [str(c) for c in (*request.activate_controllers,
+                                     *getattr(request, "start_controllers", []))]
+        deactivate = [str(c) for c in (*request.deactivate_controllers,
+                                       *getattr(request, "stop_controllers", []))]
+        response.ok, text = self._controllers.switch(activate, deactivate,
+                                                     int(request.strictness))
         if hasattr(response, "message"):
-            response.message = (f"unknown controllers {unknown}; known: {list(CONTROLLERS)}"
-                                if unknown else "nothing to switch: the wrist picks its control "
-                                "law per command")
+            response.message = text
+        return response
+
+    def _on_list_controllers(self, _request: Any, response: Any) -> Any:
+        from controller_manager_msgs.msg import ControllerState
+        response.controller = [ControllerState(**c) for c in self._controllers.listed()]
         return response
 
     def _on_cancel_fjt(self, goal_handle: Any) -> Any:

@@ -22,7 +22,7 @@ class ParamError(ValueError):
 
 @dataclass(frozen=True)
 class Param:
-    """One parameter: name, type ('string', 'double', 'string_array'), description and,
+    """One parameter: name, type ('string', 'double', 'string_array', 'bool'), description and,
     for numbers, the allowed closed range; ``choices`` for strings."""
 
     name: str
@@ -45,8 +45,11 @@ PARAMS = (
           0.05, 60.0),
     Param("joint_names", "string_array",
           "ROS 2 names of the wrist joints [pitch, roll] in joint states and trajectories"),
-    Param("offset_units", "string", "unit of SetOrientationControl's offsets on the wire",
+    Param("offset_units", "string", "unit of SetOrientationControl's offsets on the wire "
+          "(radians: what ADA's CallSetOrientationControl sends; degrees: the upstream .srv)",
           choices=("degrees", "radians")),
+    Param("republish_joint_states", "bool",
+          "also publish the wrist's joint states on joint_states (upstream's republisher)"),
     Param("utensil", "string", "utensil VerifyTrajectory assumes when a request names none"),
 )
 
@@ -63,7 +66,8 @@ def declare_all(node: Any, defaults: dict[str, Any]) -> dict[str, Any]:
 
     kinds = {"string": ParameterType.PARAMETER_STRING,
              "double": ParameterType.PARAMETER_DOUBLE,
-             "string_array": ParameterType.PARAMETER_STRING_ARRAY}
+             "string_array": ParameterType.PARAMETER_STRING_ARRAY,
+             "bool": ParameterType.PARAMETER_BOOL}
     _integers_as_doubles(node)
     out: dict[str, Any] = {}
     for p in PARAMS:
@@ -75,6 +79,7 @@ def declare_all(node: Any, defaults: dict[str, Any]) -> dict[str, Any]:
                                                             step=0.0)]
         allowed = (f"a number in [{p.low:g}, {p.high:g}]" if p.type == "double"
                    else "a list of 2 strings" if p.type == "string_array"
+                   else "true or false" if p.type == "bool"
                    else f"one of {list(p.choices)}" if p.choices else "a string")
         try:
             value = node.declare_parameter(p.name, defaults[p.name], desc).value

@@ -15,7 +15,8 @@ from typing import Protocol, runtime_checkable
 
 from articutool.trajectory import JointTrajectory
 
-__all__ = ["ABORTED_BY_MODE_CHANGE", "LinkWorkLoop", "Mode", "PrimitiveStatus", "ToolAPI",
+__all__ = ["ABORTED_BY_MODE_CHANGE", "IDENTITY_XYZW", "SERVICE_MODES", "LinkWorkLoop", "Mode",
+           "PrimitiveStatus", "ToolAPI",
            "ToolState", "TrajectoryPrevalidation"]
 
 # How a primitive's result message starts when a mode change (a DISABLED from any client)
@@ -24,12 +25,21 @@ ABORTED_BY_MODE_CHANGE = "aborted by mode change to "
 
 
 class Mode(IntEnum):
-    """Control modes; DISABLED and LEVELING match ``SetOrientationControl`` constants."""
+    """Control modes; DISABLED, LEVELING and FULL_ORIENTATION are the ``SetOrientationControl``
+    constants (``MODE_DISABLED``, ``MODE_LEVELING``, ``MODE_FULL_ORIENTATION``)."""
 
     DISABLED = 0
     LEVELING = 1
-    PRIMITIVE = 2
-    TRAJECTORY = 3
+    FULL_ORIENTATION = 2
+    PRIMITIVE = 3
+    TRAJECTORY = 4
+
+
+#: The identity quaternion [x, y, z, w]: ``target_orientation_robot_base`` when unused.
+IDENTITY_XYZW = (0.0, 0.0, 0.0, 1.0)
+
+#: The modes ``SetOrientationControl`` (``set_mode``) enters.
+SERVICE_MODES = (Mode.DISABLED, Mode.LEVELING, Mode.FULL_ORIENTATION)
 
 
 @dataclass(frozen=True)
@@ -70,9 +80,12 @@ class ToolAPI(Protocol):
     """What the PC can ask of the tool (thesis §3.2.2: service, action, trajectories)."""
 
     def set_mode(
-        self, mode: Mode, pitch_offset_deg: float = 0.0, roll_offset_deg: float = 0.0
+        self, mode: Mode, pitch_offset_deg: float = 0.0, roll_offset_deg: float = 0.0,
+        target_xyzw: tuple[float, float, float, float] = IDENTITY_XYZW,
     ) -> tuple[bool, str]:
-        """Switch mode (DISABLED or LEVELING with offsets); aborts a running primitive."""
+        """Switch mode (DISABLED, LEVELING with offsets, or FULL_ORIENTATION holding the
+        utensil at ``target_xyzw``, [x, y, z, w] in a gravity-aligned robot base); aborts a
+        running primitive."""
         ...
 
     def clear_fault(self) -> tuple[bool, str]:

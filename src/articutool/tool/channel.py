@@ -42,7 +42,7 @@ from dataclasses import replace
 from typing import Any
 
 from articutool.spec import Spec
-from articutool.tool.api import Mode, PrimitiveStatus, ToolState
+from articutool.tool.api import IDENTITY_XYZW, Mode, PrimitiveStatus, ToolState
 from articutool.tool.following import TrajectoryFollower
 from articutool.trajectory import JointTrajectory
 
@@ -329,9 +329,12 @@ class LoopProxy:
 
     # -- ToolAPI --
     def set_mode(self, mode: Mode | int, pitch_offset_deg: float = 0.0,
-                 roll_offset_deg: float = 0.0) -> tuple[bool, str]:
+                 roll_offset_deg: float = 0.0,
+                 target_xyzw: tuple[float, float, float, float] = IDENTITY_XYZW
+                 ) -> tuple[bool, str]:
         """The loop's ``set_mode``."""
-        return self._command("set_mode", mode, pitch_offset_deg, roll_offset_deg)
+        return self._command("set_mode", mode, pitch_offset_deg, roll_offset_deg,
+                             tuple(target_xyzw))
 
     def clear_fault(self) -> tuple[bool, str]:
         """The loop's ``clear_fault``."""

@@ -67,12 +67,15 @@ from numpy.typing import ArrayLike, NDArray
 from articutool.spec import Spec
 from articutool.tool.kinematics import (
     TWO_PI,
+    attitude_jacobian,
     joint_rates_for_rotation,
+    nearest_attitude_solution,
     nearest_leveling_solution,
+    rotation,
     up_vector,
 )
 
-__all__ = ["LevelingController"]
+__all__ = ["AttitudeController", "LevelingController"]
 
 _Z = np.array([0.0, 0.0, 1.0])
 _X = np.array([1.0, 0.0, 0.0])
@@ -242,7 +245,7 @@ class LevelingController:
         half = 0.5 * (self._roll_limits[1] - self._roll_limits[0])
         lim = np.array([[self._lo[0] - o[0], self._hi[0] - o[0]],
                         [qm[1] - half - o[1], qm[1] + half - o[1]]])
-        sol, found = nearest_leveling_solution(R.T @ _Z, lim, qm - o)
+        sol, found = self._nearest(R.T @ _Z, lim, qm - o)
         return sol + o if bool(found) else None
 
     def engage(self, R_world_tool_base: ArrayLike, q: ArrayLike) -> None:
@@ -287,7 +290,7 @@ class LevelingController:
         """World axis-angle error (3,) taking the (offset) up vector to +z (Alg. 1 l. 8–10)."""
         R = _rotation_matrix(R_world_tool_base, "R_world_tool_base")
         qv = self._joints(q)
-        return self._error(R @ up_vector(qv - self._offsets))[0]
+        return self._error(R @ self._pointing(qv - self._offsets))[0]
 
     @staticmethod
     def _joints(q: ArrayLike) -> NDArray[np.float64]:
@@ -308,6 +311,30 @@ class LevelingController:
         if y2 > 0.0:
             return np.zeros(3), 0.0
         return _X * math.pi, math.pi  # upside down: any horizontal axis will do
+
+    # ------------------------------------------- what is pointed up (hooks) --
+    # Leveling points the tip's up vector (Eq. 4.1) at world +z; AttitudeController
+    # overrides these four to point another tip-frame vector there.
+    @staticmethod
+    def _pointing(qv: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The tip vector driven to world +z, in F0."""
+        return up_vector(qv)
+
+    def _rates(self, qv: NDArray[np.float64], omega_local: NDArray[np.float64],
+               pointing: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Joint rates that turn :meth:`_pointing` by ``omega_local`` (F0)."""
+        return joint_rates_for_rotation(qv, omega_local, self.rcond)
+
+    @staticmethod
+    def _pitch_measure(qv: NDArray[np.float64], pointing: NDArray[np.float64]) -> float:
+        """How much pitch still moves the pointed vector: |pitch column| (``|cos θr|``)."""
+        return abs(math.cos(float(qv[1])))
+
+    @staticmethod
+    def _nearest(v: NDArray[np.float64], limits: NDArray[np.float64],
+                 q_ref: NDArray[np.float64]) -> tuple[NDArray[np.float64], np.bool_]:
+        """The configuration within ``limits`` nearest ``q_ref`` pointing along ``v`` (F0)."""
+        return nearest_leveling_solution(v, limits, q_ref)
 
     # ---------------------------------------------------------------- update --
     def update(
@@ -335,7 +362,7 @@ class LevelingController:
                 raise ValueError(f"base_rate must be 3 finite rates (rad/s); got {base_rate!r}")
 
         qv = qm - self._offsets  # the virtual wrist that is levelled
-        y_local = up_vector(qv)
+        y_local = self._pointing(qv)
         err, angle = self._error(R @ y_local)
         self._error_angle = angle
         if angle < self.deadband:
@@ -356,9 +383,9 @@ class LevelingController:
         omega_local = R.T @ omega_world
         if ff is not None:
             omega_local -= ff  # Eq. 4.5: cancel the base's own rotation
-        qdot = joint_rates_for_rotation(qv, omega_local, self.rcond)
+        qdot = self._rates(qv, omega_local, y_local)
 
-        c = abs(math.cos(float(qv[1])))
+        c = self._pitch_measure(qv, y_local)
         if c < self.damping_threshold:
             qdot[0] *= (c / self.damping_threshold) ** self.damping_power
 
@@ -373,3 +400,65 @@ class LevelingController:
         idle = math.hypot(float(qdot[0]), float(qdot[1])) < self.kp * self.deadband
         self._stall_time = self._stall_time + dt if angle > self.stall_angle and idle else 0.0
         return qdot
+
+
+class AttitudeController(LevelingController):
+    """Hold a commanded utensil attitude against gravity: Alg. 1 with the tip-frame vector
+    ``g`` (the world vertical as the target orientation sees it) in place of the up vector.
+
+    A target orientation ``R_base←tip`` given in a gravity-aligned base (z up) fixes two of
+    the tip's three degrees of freedom through gravity, ``g = R⊤ ẑ``; the third, the heading
+    about the vertical, needs a heading reference the wrist does not have (its filter leaves
+    yaw unobserved) and follows the arm. Two joints control exactly those two: the same PID,
+    gyro feed-forward, predictive limits, roll window and stall report as leveling, with the
+    joint rates from the pseudo-inverse of :func:`~articutool.tool.kinematics.attitude_jacobian`
+    and the command damped along its weakest direction (leveling's pitch damping, where that
+    direction is pitch). Leveling is the case ``g = ŷ``. Offsets are not used (zero).
+    """
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+        self._g = np.array([0.0, 1.0, 0.0])
+
+    @property
+    def target_vector(self) -> NDArray[np.float64]:
+        """The tip-frame vector held vertical (unit), a copy."""
+        return self._g.copy()
+
+    def set_target(self, g: ArrayLike) -> None:
+        """Hold the tip-frame vector ``g`` vertical; resets the PID."""
+        v = np.asarray(g, dtype=np.float64)
+        n = float(np.linalg.norm(v)) if v.shape == (3,) and np.isfinite(v).all() else 0.0
+        if n < 1e-9:
+            raise ValueError(f"target vector must be 3 finite numbers, not all zero; got {g!r}")
+        self._g = v / n
+        self.reset()
+
+    def _pointing(self, qv: NDArray[np.float64]) -> NDArray[np.float64]:  # type: ignore[override]
+        return rotation(qv) @ self._g
+
+    def _rates(self, qv: NDArray[np.float64], omega_local: NDArray[np.float64],
+               pointing: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``J⁺ (ω × a)``, its component along the weakest joint direction damped as
+        leveling damps pitch: by ``(σ_min / damping_threshold) ** damping_power`` where the
+        smallest singular value ``σ_min`` is below the threshold. The weak direction is where
+        the two joints move the vector almost alike (both columns nearly parallel, as at the
+        nearest attitude to an unreachable target) or one barely moves it; undamped, the
+        pseudo-inverse turns a small error there into full-speed chatter."""
+        J = attitude_jacobian(qv, self._g)
+        u, sv, vt = np.linalg.svd(J, full_matrices=False)
+        v = np.cross(omega_local, pointing)
+        keep = sv > self.rcond * sv[0]
+        coeff = np.divide(u.T @ v, sv, out=np.zeros(2), where=keep)
+        smin = float(sv[-1])
+        if smin < self.damping_threshold:
+            coeff[-1] *= (smin / self.damping_threshold) ** self.damping_power
+        return vt.T @ coeff
+
+    @staticmethod
+    def _pitch_measure(qv: NDArray[np.float64], pointing: NDArray[np.float64]) -> float:
+        return 1.0  # the damping is in _rates, along the weakest direction
+
+    def _nearest(self, v: NDArray[np.float64], limits: NDArray[np.float64],  # type: ignore[override]
+                 q_ref: NDArray[np.float64]) -> tuple[NDArray[np.float64], np.bool_]:
+        return nearest_attitude_solution(self._g, v, limits, q_ref)

@@ -19,10 +19,13 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "IKSolutions",
+    "attitude_jacobian",
+    "attitude_solutions",
     "jacobian",
     "jacobian_pinv",
     "joint_rates_for_rotation",
     "leveling_solutions",
+    "nearest_attitude_solution",
     "nearest_leveling_solution",
     "rotation",
     "singularity_measure",
@@ -196,12 +199,19 @@ def leveling_solutions(v: ArrayLike, limits: ArrayLike) -> IKSolutions:
         ],
         axis=-2,
     )  # (..., 2 branches, 2)
+    return _within_limits(base, np.ones(base.shape[:-1], dtype=bool), lim)
+
+
+def _within_limits(base: NDArray[np.float64], ok: NDArray[np.bool_],
+                   lim: NDArray[np.float64]) -> IKSolutions:
+    """The branch solutions ``base`` (..., B, 2), valid where ``ok`` (..., B), plus whole turns
+    of either joint, marked valid where inside ``lim``."""
     sp = _turn_shifts(*lim[0])
     sr = _turn_shifts(*lim[1])
     shifts = np.stack(np.meshgrid(sp, sr, indexing="ij"), axis=-1).reshape(-1, 2)  # (S, 2)
-    q = (base[..., :, None, :] + shifts).reshape(*u.shape[:-1], -1, 2)  # (..., 2S, 2)
+    q = (base[..., :, None, :] + shifts).reshape(*base.shape[:-2], -1, 2)  # (..., B·S, 2)
     inside = (q >= lim[:, 0] - _LIMIT_TOL) & (q <= lim[:, 1] + _LIMIT_TOL)
-    valid = inside.all(axis=-1)
+    valid = inside.all(axis=-1) & np.repeat(ok, len(shifts), axis=-1)
     q = np.clip(q, lim[:, 0], lim[:, 1])
     return IKSolutions(q, valid)
 
@@ -214,7 +224,11 @@ def nearest_leveling_solution(
     Returns ``(q, found)`` with shapes (..., 2) and (...); where nothing is valid, ``q`` is
     ``q_ref`` and ``found`` is False.
     """
-    sols = leveling_solutions(v, limits)
+    return _nearest(leveling_solutions(v, limits), q_ref)
+
+
+def _nearest(sols: IKSolutions, q_ref: ArrayLike
+             ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     q_ref = np.broadcast_to(_as_q(q_ref, "q_ref"), sols.q.shape[:-2] + (2,))
     d = np.linalg.norm(sols.q - q_ref[..., None, :], axis=-1)
     d = np.where(sols.valid, d, np.inf)
@@ -222,3 +236,63 @@ def nearest_leveling_solution(
     q = np.take_along_axis(sols.q, idx[..., None, None], axis=-2)[..., 0, :]
     found = sols.valid.any(axis=-1)
     return np.where(found[..., None], q, q_ref), found
+
+
+def _unit(v: ArrayLike, name: str) -> NDArray[np.float64]:
+    a = _as_vec3(v, name)
+    n = np.linalg.norm(a, axis=-1, keepdims=True)
+    if (n <= 1e-12).any():
+        raise ValueError(f"{name} must be a non-zero vector")
+    return a / n
+
+
+def attitude_solutions(g: ArrayLike, v: ArrayLike, limits: ArrayLike) -> IKSolutions:
+    """Every wrist configuration inside ``limits`` whose tip turns the tip-frame vector ``g``
+    (3,) onto the F0 vector ``v`` (..., 3): ``rotation(q) @ g ∥ v``. Leveling is ``g = ŷ``.
+
+    With ``h = R_z(−π/2) g``, roll must give ``R_z(θr) h`` the y component of ``v``:
+    ``ρ sin(θr + φ) = v_y`` (``ρ = |h_xy|``, ``φ = atan2(h_y, h_x)``), two branches; pitch
+    then turns the x–z part onto ``v``'s. No solution exists where ``|v_y| > ρ``: those rows
+    are invalid. Where ``ρ`` is 0 roll is arbitrary (roll 0 is returned); where the turned
+    vector lies along the pitch axis, pitch is (pitch 0).
+    """
+    gu = _unit(g, "g")
+    if gu.shape != (3,):
+        raise ValueError(f"g must be one vector of shape (3,); got {gu.shape}")
+    u = _unit(v, "v")
+    lim = _as_limits(limits)
+    hx, hy, hz = gu[1], -gu[0], gu[2]  # R_z(−π/2) g
+    rho = float(np.hypot(hx, hy))
+    phi = float(np.arctan2(hy, hx))
+    vy = u[..., 1]
+    ok = np.abs(vy) <= rho + 1e-12
+    a = np.arcsin(np.clip(vy / rho, -1.0, 1.0)) if rho > 1e-12 else np.zeros_like(vy)
+    branches = []
+    for r in (a - phi, np.pi - a - phi):
+        wx = hx * np.cos(r) - hy * np.sin(r)
+        p = np.arctan2(u[..., 2], u[..., 0]) - np.arctan2(hz, wx)
+        p = np.where(np.hypot(wx, hz) < 1e-9, 0.0, p)  # along the pitch axis: any pitch
+        branches.append(np.stack([wrap_angle(p), wrap_angle(r)], axis=-1))
+    base = np.stack(branches, axis=-2)  # (..., 2 branches, 2)
+    return _within_limits(base, np.stack([ok, ok], axis=-1), lim)
+
+
+def nearest_attitude_solution(
+    g: ArrayLike, v: ArrayLike, limits: ArrayLike, q_ref: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """The valid :func:`attitude_solutions` row closest (joint space) to ``q_ref``; as
+    :func:`nearest_leveling_solution`."""
+    return _nearest(attitude_solutions(g, v, limits), q_ref)
+
+
+def attitude_jacobian(q: ArrayLike, g: ArrayLike) -> NDArray[np.float64]:
+    """``∂(rotation(q) g)/∂[θp, θr]`` (3, 2): the pitch axis is −F0 y, the roll axis
+    ``R_y(−θp) ẑ``; each column is the axis × the turned vector (Eq. 4.4 for ``g = ŷ``)."""
+    qq = _as_q(q)
+    if qq.shape != (2,):
+        raise ValueError(f"q must be one configuration [pitch, roll]; got shape {qq.shape}")
+    a = rotation(qq) @ _as_vec3(g, "g")
+    cp, sp = np.cos(qq[0]), np.sin(qq[0])
+    col_p = np.array([-a[2], 0.0, a[0]])  # −ŷ × a
+    col_r = np.cross(np.array([-sp, 0.0, cp]), a)
+    return np.stack([col_p, col_r], axis=-1)

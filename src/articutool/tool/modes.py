@@ -1,14 +1,20 @@
-"""The runtime's mode requests and its LEVELING mode (thesis §4.2, §4.4, Alg. 1).
+"""The runtime's mode requests and its LEVELING and FULL_ORIENTATION modes (thesis §4.2, §4.4,
+Alg. 1).
 
-``set_mode`` takes DISABLED or LEVELING (PRIMITIVE and TRAJECTORY have their own calls):
-:func:`requested_mode` says which, or why not. :class:`Leveling` is LEVELING's part of the
-runtime: the pitch/roll offsets (degrees, within ``spec.wrist`` limits), the refusal to start
-when the nearest level configuration lies beyond the cable's roll budget, and each tick's
-command from :class:`~articutool.tool.controller.LevelingController` with the bias-corrected
-gyro fed forward (Eq. 4.5) unless ``rate_feedforward=False``. A stall (the controller at
-rest short of level) is no fault: the tool keeps leveling and :attr:`Leveling.stall_target`
-holds the nearest reachable level configuration (NaN when none is reachable), which
-telemetry reports. :class:`~articutool.tool.runtime.ToolRuntime` composes it.
+``set_mode`` takes DISABLED, LEVELING or FULL_ORIENTATION (PRIMITIVE and TRAJECTORY have their
+own calls): :func:`requested_mode` says which, or why not. FULL_ORIENTATION holds a target
+utensil orientation given in a gravity-aligned robot base (:func:`attitude_target`: the two
+degrees of freedom gravity fixes; the heading follows the arm) with an
+:class:`~articutool.tool.controller.AttitudeController` in the same :class:`Leveling` shell, so
+it has leveling's safety envelope, faults and stall report; a target no configuration within
+the wrist's reach holds is refused with the nearest reachable one. :class:`Leveling` is
+LEVELING's part of the runtime: the pitch/roll offsets (degrees, within ``spec.wrist`` limits),
+the refusal to start when the nearest level configuration lies beyond the cable's roll budget,
+and each tick's command from :class:`~articutool.tool.controller.LevelingController` with the
+bias-corrected gyro fed forward (Eq. 4.5) unless ``rate_feedforward=False``. A stall (the
+controller at rest short of level) is no fault: the tool keeps leveling and
+:attr:`Leveling.stall_target` holds the nearest reachable level configuration (NaN when none is
+reachable), which telemetry reports. :class:`~articutool.tool.runtime.ToolRuntime` composes it.
 """
 
 from __future__ import annotations
@@ -20,11 +26,13 @@ import numbers
 import numpy as np
 from numpy.typing import NDArray
 
+from articutool.rotations import quaternion_to_matrix
 from articutool.spec import Spec
 from articutool.tool.api import Mode
-from articutool.tool.controller import LevelingController
+from articutool.tool.controller import AttitudeController, LevelingController
+from articutool.tool.kinematics import rotation
 
-__all__ = ["Leveling", "check_offsets", "requested_mode"]
+__all__ = ["Leveling", "attitude_target", "check_offsets", "requested_mode"]
 
 log = logging.getLogger(__name__)
 
@@ -32,12 +40,14 @@ _TWO_PI = 2.0 * math.pi
 
 
 def requested_mode(mode: Mode | int) -> Mode:
-    """The mode a ``set_mode`` call asks for: DISABLED or LEVELING; ValueError otherwise."""
+    """The mode a ``set_mode`` call asks for: DISABLED, LEVELING or FULL_ORIENTATION;
+    ValueError otherwise."""
     try:
         mode = Mode(int(mode))
     except (TypeError, ValueError):
-        raise ValueError(f"mode must be {int(Mode.DISABLED)} (DISABLED) or "
-                         f"{int(Mode.LEVELING)} (LEVELING); got {mode!r}") from None
+        raise ValueError(f"mode must be {int(Mode.DISABLED)} (DISABLED), "
+                         f"{int(Mode.LEVELING)} (LEVELING) or {int(Mode.FULL_ORIENTATION)} "
+                         f"(FULL_ORIENTATION); got {mode!r}") from None
     if mode is Mode.PRIMITIVE:
         raise ValueError("mode PRIMITIVE is entered with start_primitive, not set_mode")
     if mode is Mode.TRAJECTORY:
@@ -63,12 +73,31 @@ def check_offsets(
     return out[0], out[1]
 
 
+def attitude_target(xyzw: object) -> NDArray[np.float64]:
+    """The tip-frame vector FULL_ORIENTATION holds vertical for the target orientation
+    ``xyzw`` ([x, y, z, w] of ``R_base←tip`` in a gravity-aligned base, z up): ``R⊤ ẑ``.
+    A non-unit quaternion is normalised; ValueError naming the field for a zero, non-finite
+    or malformed one."""
+    try:
+        q = np.asarray([float(v) for v in xyzw], dtype=np.float64)  # type: ignore[attr-defined]
+    except (TypeError, ValueError):
+        q = np.full(1, np.nan)
+    n = float(np.linalg.norm(q)) if q.shape == (4,) and np.isfinite(q).all() else 0.0
+    if n < 1e-6:
+        raise ValueError("target_orientation_robot_base must be a quaternion [x, y, z, w] of "
+                         f"finite numbers, not all zero; got {xyzw!r}")
+    x, y, z, w = q / n
+    return quaternion_to_matrix([w, x, y, z])[2]  # the third row: R⊤ ẑ
+
+
 class Leveling:
-    """LEVELING: the controller, its offsets and the stall report."""
+    """LEVELING (or, with an :class:`AttitudeController`, FULL_ORIENTATION): the controller,
+    its offsets and the stall report."""
 
     def __init__(self, spec: Spec, controller: LevelingController, rate_feedforward: bool) -> None:
         self.controller = controller
         self.roll_turn_budget = spec.wrist.roll_turn_budget
+        self.pitch_limits = (float(spec.wrist.pitch_limits[0]), float(spec.wrist.pitch_limits[1]))
         self.rate_feedforward = bool(rate_feedforward)
         self.offsets_deg = (0.0, 0.0)
         # While stalled: the nearest reachable level configuration (NaN: none); else None.
@@ -99,11 +128,42 @@ class Leveling:
         target = self.controller.nearest_level(R, q)
         b = self.roll_turn_budget
         tol = self.controller.deadband  # pinned that close to the budget is level enough
+        if target is None and isinstance(self.controller, AttitudeController):
+            return self.unreachable(R)  # "" when within the deadband of the target
         if target is None or abs(target[1]) <= b * _TWO_PI + tol:
             return ""
         return (f"refused: leveling from roll {q[1] / _TWO_PI:+.2f} turns needs roll "
                 f"{target[1] / _TWO_PI:+.2f} turns, beyond the cable budget of ±{b:g} turns "
                 "(spec.wrist.roll_turn_budget); unwind first (HOMING or TWIRL)")
+
+    def unreachable(self, R: NDArray[np.float64]) -> str:
+        """Why FULL_ORIENTATION refuses its target under the base orientation ``R`` when no
+        configuration within the pitch limits holds it exactly: the nearest reachable
+        attitude (the least angle between the held vector and the vertical, pitch within its
+        limits, any roll) is more than the deadband from it. "" when within the deadband
+        (held as near as the limits allow)."""
+        from scipy.optimize import minimize
+
+        ctrl = self.controller
+        g = ctrl.target_vector  # type: ignore[attr-defined]
+        lo, hi = self.pitch_limits
+
+        def miss(q: NDArray[np.float64]) -> float:  # 1 − cos(angle to the vertical)
+            return float(1.0 - (R @ rotation(q) @ g)[2])
+
+        P, Q = np.meshgrid(np.linspace(lo, hi, 19), np.linspace(-math.pi, math.pi, 37),
+                           indexing="ij")
+        grid = np.stack([P.ravel(), Q.ravel()], axis=-1)
+        a = np.einsum("ij,njk,k->ni", R, rotation(grid), g)
+        start = grid[int(np.argmin(-a[:, 2]))]
+        best = minimize(miss, start, method="L-BFGS-B", bounds=[(lo, hi), (None, None)])
+        angle = math.acos(min(1.0, max(-1.0, 1.0 - float(best.fun))))
+        if angle <= ctrl.deadband:
+            return ""
+        return ("refused: target orientation out of reach: no wrist configuration within the "
+                "pitch limits (spec.wrist.pitch_limits) holds it under the present base "
+                f"orientation; the nearest reachable attitude is {math.degrees(angle):.1f}° "
+                "from it; nothing moved (refused, not clipped)")
 
     def command(self, R: NDArray[np.float64], q: NDArray[np.float64],
                 gyro_corrected: NDArray[np.float64], dt: float) -> NDArray[np.float64]:

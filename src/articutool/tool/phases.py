@@ -18,8 +18,8 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["TWO_PI", "Hold", "Move", "Phase", "PhaseHost", "Vibrate", "VibrateUntilStable",
-           "Weigh"]
+__all__ = ["TWO_PI", "Hold", "Move", "Phase", "PhaseHost", "Sweep", "Vibrate",
+           "VibrateUntilStable", "Weigh"]
 
 TWO_PI = 2.0 * math.pi
 
@@ -73,6 +73,30 @@ class Move(Phase):
         if moving.any():
             frac = float(np.clip(1.0 - np.max(np.abs(err[moving]) / self._dist[moving]), 0, 1))
         return prim.track(err, self.speed), frac, False
+
+
+class Sweep(Phase):
+    """Joint ``joint`` at a constant ``speed`` from ``start`` towards and past ``target`` (a
+    flick: no slowing down before it), ending once the measured joint has reached it; the
+    other joint held at ``target``."""
+
+    def __init__(self, label: str, start: ArrayLike, target: ArrayLike, speed: ArrayLike,
+                 joint: int) -> None:
+        start, target = np.asarray(start, float), np.asarray(target, float)
+        self.joint = int(joint)
+        dist = abs(float(target[self.joint] - start[self.joint]))
+        super().__init__(label, target, speed, dist / float(np.asarray(speed)[self.joint]))
+        self.direction = math.copysign(1.0, float(target[self.joint] - start[self.joint]))
+        self._dist = dist
+
+    def step(self, prim, t, q, dt):
+        j = self.joint
+        left = self.direction * (self.target[j] - q[j])
+        if left <= 0.0:
+            return np.zeros(2), 1.0, True
+        cmd = prim.track(self.target - q, self.speed)
+        cmd[j] = self.direction * self.speed[j]
+        return cmd, float(np.clip(1.0 - left / max(self._dist, 1e-12), 0.0, 1.0)), False
 
 
 class Hold(Phase):

@@ -14,6 +14,12 @@ Primitives (parameters in order; angles in rad unless ``_deg``):
   vibrate_amplitude_deg, vibrate_duration_s): pitch up, wait, vibrate roll, pitch (and roll)
   back to the start.
 - ``HOMING`` (speed_rad_s): both joints to zero.
+- ``DEPOSIT_BITE`` (roll_angle_deg, roll_speed_rad_s, pause_s): roll by the angle from the
+  start, pause, roll back to the start (upstream's registry; TILT in degrees).
+- ``SETTLE_TOSS`` (tilt_angle_deg, tilt_speed_rad_s, flick_speed_rad_s): pitch the tip up by
+  the angle at the tilt speed, flick it forward at the flick speed until it has passed the
+  start pitch by ``spec.primitives.settle_toss_overshoot_rad``, return to the start at the
+  tilt speed (upstream's registry: settles food in the spoon).
 - ``VIBRATE_ROLL_UNTIL_STABLE`` (frequency_hz, amplitude_rad, max_duration_s, window_s,
   stable_g): VIBRATE_ROLL that ends when two consecutive windows (whole vibration periods)
   weigh the load, by the F/T sensor, within stable_g; at most max_duration_s (closed loop,
@@ -26,7 +32,12 @@ Conventions. CW is +roll: clockwise seen from the wrist looking along the utensi
 right-hand rule), the way a screw turns going in. TILT's target is relative to the roll at the
 start (the levelled tool), and "back" is that start roll. NOODLE_SHED's "pitch up" raises the
 utensil tip towards the tool's up vector (Eq. 4.1): pitch moves by −pitch_up when |θr| < π/2
-at the start (since ∂(tip·up)/∂θp = −cos θr), by +pitch_up otherwise.
+at the start (since ∂(tip·up)/∂θp = −cos θr), by +pitch_up otherwise; SETTLE_TOSS's tilt is
+the same "tip up" (upstream: "tilt back", −pitch at roll 0) and its flick the other way.
+DEPOSIT_BITE and SETTLE_TOSS take upstream's parameters in upstream's units and meanings
+(``personalrobotics/articutool_ros2``, ``articutool_control/primitives.py``); both return to
+the start (upstream's DEPOSIT_BITE rolls back to roll 0, the same after a HOMING, but after a
+twirl it would unwind whole turns the caller did not ask for).
 
 Closed loop. Moves and returns are position-controlled on the measured joints: velocity =
 ``spec.primitives.position_gain`` × error, capped at the primitive's speed, done within
@@ -72,6 +83,7 @@ from articutool.tool.phases import (
     TWO_PI,
     Hold,
     Phase,
+    Sweep,
     Vibrate,
     VibrateUntilStable,
     Weigh,
@@ -79,8 +91,10 @@ from articutool.tool.phases import (
 from articutool.tool.primitive_base import Primitive, PrimitiveError
 
 __all__ = [
+    "DepositBite",
     "Homing",
     "NoodleShed",
+    "SettleToss",
     "Tilt",
     "TiltUntilLoad",
     "TwirlCCW",
@@ -237,24 +251,82 @@ class Tilt(Primitive):
     parameter_names = ("target_roll_rad", "velocity_rad_s", "hold_s")
 
     def _plan(self, target: float, velocity: float, hold: float) -> list[Phase]:
-        lo, hi = self.spec.wrist.roll_limits
-        self._require(
-            "target_roll_rad",
-            target,
-            lo,
-            hi,
-            unit="rad",
-            why="relative to the start roll, spec.wrist.roll_limits",
-        )
-        self._speed("velocity_rad_s", velocity, 1)
-        self._max_duration("hold_s", hold, "max_hold_s")
+        return _roll_out_and_back(self, ("target_roll_rad", "velocity_rad_s", "hold_s"),
+                                  target, "rad", 1.0, velocity, hold, ("tilt", "hold"))
+
+
+def _roll_out_and_back(prim: Primitive, names: tuple[str, str, str], angle: float, unit: str,
+                       scale: float, velocity: float, hold: float,
+                       labels: tuple[str, str]) -> list[Phase]:
+    """Roll by ``angle`` × ``scale`` rad from the start, hold ``hold`` s, roll back (TILT,
+    DEPOSIT_BITE); ``names`` are the three parameters' names for the refusals."""
+    lo, hi = prim.spec.wrist.roll_limits
+    prim._require(names[0], angle, lo / scale, hi / scale, unit=unit,
+                  why="relative to the start roll, spec.wrist.roll_limits")
+    prim._speed(names[1], velocity, 1)
+    prim._max_duration(names[2], hold, "max_hold_s")
+    q0 = prim.q_start
+    tilted = q0 + [0.0, angle * scale]
+    prim._roll_in_budget(names[0], float(tilted[1]))
+    return [
+        prim.move(labels[0], q0, tilted, velocity),
+        Hold(labels[1], tilted, [velocity, velocity], hold),
+        prim.move("return", tilted, q0, velocity),
+    ]
+
+
+@register_primitive
+class DepositBite(Primitive):
+    """Roll by ``roll_angle_deg`` from the start, pause ``pause_s``, roll back to the start
+    (upstream's DEPOSIT_BITE: parameters [roll_angle_deg, roll_speed_rps, pause_sec])."""
+
+    name = "DEPOSIT_BITE"
+    parameter_names = ("roll_angle_deg", "roll_speed_rad_s", "pause_s")
+
+    def _plan(self, angle_deg: float, speed: float, pause: float) -> list[Phase]:
+        return _roll_out_and_back(self, self.parameter_names, angle_deg, "deg",  # type: ignore[arg-type]
+                                  math.pi / 180.0, speed, pause, ("deposit", "pause"))
+
+
+def _tip_up_sign(q0: ArrayLike) -> float:
+    """The pitch direction that raises the utensil tip (see the module docstring)."""
+    return -1.0 if math.cos(float(np.asarray(q0)[1])) >= 0.0 else 1.0
+
+
+@register_primitive
+class SettleToss(Primitive):
+    """Tilt the tip up, flick it forward past the start, return (upstream's SETTLE_TOSS:
+    parameters [tilt_angle_deg, tilt_speed_rps, flick_speed_rps])."""
+
+    name = "SETTLE_TOSS"
+    parameter_names = ("tilt_angle_deg", "tilt_speed_rad_s", "flick_speed_rad_s")
+
+    def _plan(self, tilt_deg: float, tilt_speed: float, flick_speed: float) -> list[Phase]:
         q0 = self.q_start
-        tilted = q0 + [0.0, target]
-        self._roll_in_budget("target_roll_rad", float(tilted[1]))
+        lo, hi = self.spec.wrist.pitch_limits
+        sign = _tip_up_sign(q0)
+        over = self.spec.primitives.settle_toss_overshoot_rad
+        room = (q0[0] - lo) if sign < 0 else (hi - q0[0])
+        deg = math.degrees
+        why = (f"from pitch {deg(q0[0]):.1f}° within spec.wrist.pitch_limits "
+               f"[{deg(lo):.1f}°, {deg(hi):.1f}°]")
+        self._require("tilt_angle_deg", tilt_deg, 0.0, max(deg(room), 0.0), lo_open=True,
+                      unit="deg", why=why)
+        past = q0[0] - sign * over
+        if not lo <= past <= hi:
+            raise PrimitiveError(
+                f"{self.name}: the flick passes the start pitch {deg(q0[0]):.1f}° by "
+                f"{deg(over):.1f}° (spec.primitives.settle_toss_overshoot_rad), beyond "
+                f"spec.wrist.pitch_limits [{deg(lo):.1f}°, {deg(hi):.1f}°]; start nearer level")
+        self._speed("tilt_speed_rad_s", tilt_speed, 0)
+        self._speed("flick_speed_rad_s", flick_speed, 0)
+        up = q0 + [sign * math.radians(tilt_deg), 0.0]
+        flick = q0 + [-sign * over, 0.0]
+        hold = float(self.vmax[1])  # roll is held at the start
         return [
-            self.move("tilt", q0, tilted, velocity),
-            Hold("hold", tilted, [velocity, velocity], hold),
-            self.move("return", tilted, q0, velocity),
+            self.move("tilt back", q0, up, [tilt_speed, hold]),
+            Sweep("flick", up, flick, [flick_speed, hold], joint=0),
+            self.move("return", flick, q0, [tilt_speed, hold]),
         ]
 
 
@@ -283,7 +355,7 @@ class NoodleShed(Primitive):
     ) -> list[Phase]:
         q0 = self.q_start
         lo, hi = self.spec.wrist.pitch_limits
-        sign = -1.0 if math.cos(q0[1]) >= 0.0 else 1.0  # see the module docstring
+        sign = _tip_up_sign(q0)
         room = (q0[0] - lo) if sign < 0 else (hi - q0[0])
         deg = math.degrees
         why = f"from pitch {deg(q0[0]):.1f}° within spec.wrist.pitch_limits "

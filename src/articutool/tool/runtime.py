@@ -17,6 +17,14 @@ Modes (``Mode``):
   leveling, and ``extra`` reports ``leveling_stalled`` = 1 with the tilt and the nearest
   reachable level configuration (``leveling_target_pitch``/``_roll``, rad; NaN when none is
   reachable), so the PC sees it.
+- ``FULL_ORIENTATION``: the same loop holding a target utensil orientation given as a
+  quaternion in a gravity-aligned robot base (:func:`~articutool.tool.modes.attitude_target`:
+  the two degrees of freedom gravity fixes; the heading about the vertical follows the arm,
+  the wrist having no heading reference) with an
+  :class:`~articutool.tool.controller.AttitudeController`: leveling's envelope, IMU check,
+  faults and stall report. A target no configuration within the pitch limits holds is refused
+  (nothing moves); one the base's motion takes out of reach is held as near as the limits
+  allow and reported stalled, like leveling.
 - ``PRIMITIVE``: a primitive from :func:`~articutool.tool.primitives.make_primitive`; when it
   finishes the runtime returns to ``DISABLED`` and keeps its result.
 - ``TRAJECTORY``: follows a wrist :class:`~articutool.trajectory.JointTrajectory` (e.g. the
@@ -101,14 +109,20 @@ from numpy.typing import NDArray
 
 from articutool.rotations import quaternion_to_matrix
 from articutool.spec import Spec
-from articutool.tool.api import ABORTED_BY_MODE_CHANGE, Mode, PrimitiveStatus, ToolState
-from articutool.tool.controller import LevelingController
+from articutool.tool.api import (
+    ABORTED_BY_MODE_CHANGE,
+    IDENTITY_XYZW,
+    Mode,
+    PrimitiveStatus,
+    ToolState,
+)
+from articutool.tool.controller import AttitudeController, LevelingController
 from articutool.tool.drivers.base import FTDriver, ImuDriver, MotorDriver, MotorState
 from articutool.tool.envelope import SafetyEnvelope
 from articutool.tool.filter import ComplementaryFilter
 from articutool.tool.following import TrajectoryFollower
 from articutool.tool.kinematics import tilt_from_vertical, up_vector
-from articutool.tool.modes import Leveling, check_offsets, requested_mode
+from articutool.tool.modes import Leveling, attitude_target, check_offsets, requested_mode
 from articutool.tool.primitive_base import Primitive, PrimitiveError
 from articutool.tool.primitives import make_primitive
 from articutool.tool.sensing import STALE_IMU_PERIODS, Sensing
@@ -181,6 +195,8 @@ class ToolRuntime:
         self._envelope = SafetyEnvelope(spec)
         self._sensing = Sensing(spec, imu, ft, self.filter)
         self._leveling = Leveling(spec, self.controller, rate_feedforward)
+        self._attitude = Leveling(spec, AttitudeController.from_spec(spec, R_base_imu=R_base_imu),
+                                  rate_feedforward)
         self._follower = TrajectoryFollower(spec)
         self._lock = threading.RLock()
         self._link_work: Callable[[], None] | None = None
@@ -246,20 +262,28 @@ class ToolRuntime:
 
     # ------------------------------------------------------------------- ToolAPI --
     def set_mode(
-        self, mode: Mode | int, pitch_offset_deg: float = 0.0, roll_offset_deg: float = 0.0
+        self, mode: Mode | int, pitch_offset_deg: float = 0.0, roll_offset_deg: float = 0.0,
+        target_xyzw: tuple[float, float, float, float] = IDENTITY_XYZW,
     ) -> tuple[bool, str]:
-        """Switch to DISABLED or LEVELING (offsets in degrees); aborts a running primitive.
+        """Switch to DISABLED, LEVELING (offsets in degrees) or FULL_ORIENTATION (the utensil
+        held at ``target_xyzw``, [x, y, z, w] in a gravity-aligned robot base); aborts a
+        running primitive.
 
-        Refused, with no change, for other modes, bad offsets, a persisting fault (except
-        DISABLED) or, for LEVELING, no fresh IMU data or joint state.
+        Refused, with no change, for other modes, bad offsets or target, a persisting fault
+        (except DISABLED) or, for LEVELING and FULL_ORIENTATION, no fresh IMU data or joint
+        state; FULL_ORIENTATION also for a target out of the wrist's reach.
         """
         offsets = (0.0, 0.0)
+        g = None
         try:
             mode = requested_mode(mode)
             if mode is Mode.LEVELING:
                 offsets = check_offsets(pitch_offset_deg, roll_offset_deg, self._limits)
+            if mode is Mode.FULL_ORIENTATION:
+                g = attitude_target(target_xyzw)
         except ValueError as err:
             return False, str(err)
+        steering = mode in (Mode.LEVELING, Mode.FULL_ORIENTATION)
         with self._lock:
             note = ""
             if self._fault:
@@ -267,13 +291,13 @@ class ToolRuntime:
                 if cause:
                     if self._fault_kind is FaultKind.HARDWARE:
                         cause += "; clear_fault reboots the motors (once the cause is gone)"
-                    if mode is Mode.LEVELING:
+                    if steering:
                         return False, f"refused: fault persists: {cause}"
                     self._enter(Mode.DISABLED)
                     return True, f"DISABLED; fault persists: {cause}"
                 note = f" (cleared fault: {self._fault})"
                 self._clear_fault()
-            if mode is Mode.LEVELING:
+            if steering:
                 if self._motor_state is None:
                     return False, "refused: no joint state yet (the loop has not run)"
                 if not self._sensing.imu_fresh or not self.filter.initialized:
@@ -282,6 +306,18 @@ class ToolRuntime:
                 q = np.asarray(self._motor_state.position, dtype=np.float64)
                 R = self.controller.tool_base_orientation(
                     quaternion_to_matrix(self.filter.orientation))
+                if mode is Mode.FULL_ORIENTATION:
+                    att = self._attitude
+                    previous = att.controller.target_vector  # type: ignore[attr-defined]
+                    att.controller.set_target(g)  # type: ignore[attr-defined]
+                    refusal = att.engage(R, q, (0.0, 0.0))
+                    if refusal:
+                        att.controller.set_target(previous)  # type: ignore[attr-defined]
+                        return False, refusal
+                    self._enter(Mode.FULL_ORIENTATION)
+                    return True, ("FULL_ORIENTATION holding the target's attitude against "
+                                  "gravity (the heading about the vertical follows the arm: "
+                                  f"no heading reference on the wrist){note}")
                 refusal = self._leveling.engage(R, q, offsets)
                 if refusal:
                     return False, refusal
@@ -326,8 +362,9 @@ class ToolRuntime:
             if self._fault:
                 return False, (f"refused: fault active ({self._fault}); "
                                "clear it first (set_mode; clear_fault for a hardware error)")
-            if self._mode is Mode.LEVELING:
-                return False, "refused while leveling; set_mode(DISABLED) first"
+            if self._mode in (Mode.LEVELING, Mode.FULL_ORIENTATION):
+                return False, (f"refused while {self._mode.name.lower().replace('_', ' ')}; "
+                               "set_mode(DISABLED) first")
             if self._primitive is not None:
                 return False, f"refused: primitive {self._primitive.name} is running"
             if self._motor_state is None:
@@ -551,7 +588,7 @@ class ToolRuntime:
         if violation:
             self._set_fault(FaultKind.LIMIT, violation)
             return
-        if self._mode is Mode.LEVELING and not sensing.imu_fresh:
+        if self._mode in (Mode.LEVELING, Mode.FULL_ORIENTATION) and not sensing.imu_fresh:
             self._set_fault(FaultKind.IMU_STALE, sensing.stale_message(now))
             return
 
@@ -559,10 +596,10 @@ class ToolRuntime:
         if self._mode is Mode.DISABLED:
             self._stop_motors()
             return
-        if self._mode is Mode.LEVELING:
+        if self._mode in (Mode.LEVELING, Mode.FULL_ORIENTATION):
             R = self.controller.tool_base_orientation(
                 quaternion_to_matrix(self.filter.orientation))
-            cmd = self._leveling.command(R, q, sensing.gyro_corrected, dt)
+            cmd = self._steering().command(R, q, sensing.gyro_corrected, dt)
         elif self._mode is Mode.PRIMITIVE:
             cmd = self._primitive_command(q, dt)
             if cmd is None:  # finished: back to DISABLED
@@ -646,6 +683,10 @@ class ToolRuntime:
             self.controller.reset()
         self._mode = mode
 
+    def _steering(self) -> Leveling:
+        """The orientation mode's part (LEVELING's, or FULL_ORIENTATION's)."""
+        return self._attitude if self._mode is Mode.FULL_ORIENTATION else self._leveling
+
     def _abort_primitive(self, message: str) -> None:
         prim = self._primitive
         if prim is None:
@@ -719,4 +760,4 @@ class ToolRuntime:
             motor_state=self._motor_state, sensing=self._sensing, filt=self.filter,
             tilt=self._tilt, command=self._command, stats=self.stats,
             faults_total=self._faults_total, stop_failures=self._stop_failures,
-            energy=self._energy, leveling=self._leveling, follower=self._follower)
+            energy=self._energy, leveling=self._steering(), follower=self._follower)

@@ -112,6 +112,7 @@ class EnergyMeter:
         self.power_w = {
             Mode.DISABLED: p.idle_w,
             Mode.LEVELING: p.leveling_w,
+            Mode.FULL_ORIENTATION: p.leveling_w,
             Mode.PRIMITIVE: p.peak_w,
             Mode.TRAJECTORY: p.peak_w,
         }
@@ -190,7 +191,7 @@ def build_state(
     }
     if ms is not None:
         extra["motor_temperature"] = float(ms.temperature)
-    if mode is Mode.LEVELING:
+    if mode in (Mode.LEVELING, Mode.FULL_ORIENTATION):
         stall = leveling.stall_target
         extra["leveling_stalled"] = 0.0 if stall is None else 1.0
         if stall is not None:
