@@ -19,10 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from articutool.arm.model import ArmModel
+from articutool.food.definitions import load_food_definitions
 from articutool.food.dish import spoon_dish
 from articutool.food.loads import food_load
 from articutool.food.slosh import STANDARD_GRAVITY, SloshModel
-from articutool.sim.params import PhysicsParams
 from articutool.spec import load_spec
 from articutool.trajectory import JointTrajectory
 from articutool.verify.verifier import verify_trajectory
@@ -50,7 +50,7 @@ def main() -> None:
     spec = load_spec()
     model = ArmModel(spec, "soup_spoon")
     traj = JointTrajectory.load(EXAMPLES / "transport_feasible.json")
-    water = food_load("water", 8.0, PhysicsParams.load().food("water"))
+    water = food_load(load_food_definitions()["water"], 8.0)
 
     # The slosh model alone: a 10 s transport's apparent gravity sampled at 100 Hz.
     slosh = SloshModel(spoon_dish(spec.utensil("soup_spoon")), 8e-6)

@@ -107,7 +107,7 @@ def _trial(goal: str, cond: str, scale: float, path: Any, seed: int, load_g: flo
     w.tool.set_mode(wrist_mode)
     w.run(1.0)
     held = w.place_load(settle_s=1.0)
-    load = food_load("water", held, w.params.food("water"))
+    load = food_load(w.params.definition("water"), held)
     before, n_spills = w.masses_g(), len(w.spills)
     executed, wrist_pred, used = arm, None, cond
     if cond == "locked":

@@ -78,10 +78,10 @@ def test_each_exp2b_systems_food_check_models_the_wrist_it_carries(name: str) ->
     from articutool.arm.scene import Scene
     from articutool.experiments.protocols import exp2b_arm
     from articutool.feeding.system import System
+    from articutool.food.definitions import load_food_definitions
     from articutool.food.loads import food_load
     from articutool.planning.api import plan
     from articutool.planning.types import PlanRequest, TransportTask
-    from articutool.sim.params import PhysicsParams
     from articutool.spec import load_spec
 
     spec, scene = load_spec(), Scene.load()
@@ -93,7 +93,7 @@ def test_each_exp2b_systems_food_check_models_the_wrist_it_carries(name: str) ->
     system = System.of(v.system if v else name, tolerance_deg=CFG.settings.arm_tolerance_deg)
     assert arm.rigid == (not system.wrist)
     assert (arm.load is not None) == bool(v and v.food_check)
-    arm.load = food_load("water", 7.0, PhysicsParams.load().food("water"))
+    arm.load = food_load(load_food_definitions()["water"], 7.0)
     req = PlanRequest(system=system.transport.name, task=TransportTask(
         0, tuple(sset.start), tuple(goals["right"])), timeout_s=10.0, seed=0,
         utensil="soup_spoon", tolerance_deg=system.transport.tolerance_deg)

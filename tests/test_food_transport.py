@@ -17,10 +17,10 @@ from articutool.arm.scene import Scene
 from articutool.feeding.behaviours import JobResult
 from articutool.feeding.system import Planner, System
 from articutool.feeding.tree import BiteRecorder, tick_until_done, transport_tree
+from articutool.food.definitions import load_food_definitions
 from articutool.food.loads import food_load
 from articutool.meal.sim_arm import FoodDecision, SimArm
 from articutool.planning.timing import time_parameterize
-from articutool.sim.params import PhysicsParams
 from articutool.tool.api import Mode
 from articutool.trajectory import JointTrajectory
 from articutool.verify.food import food_check
@@ -30,14 +30,14 @@ from test_feeding_tree import Clock, FakeArm, FakeJob, FakeTool
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 SPEC = packaged_spec()
-PHYS = PhysicsParams.load()
+FOODS = load_food_definitions()
 PATH = JointTrajectory.load(EXAMPLES / "transport_feasible.json")
 FAST = time_parameterize(PATH.positions, PATH.joint_names, SPEC.arm.max_velocity,
                          SPEC.arm.max_acceleration)
 
 
 def _water(g: float):
-    return food_load("water", g, PHYS.food("water"))
+    return food_load(FOODS["water"], g)
 
 
 def _sim_arm(load, rigid: bool = False, leveling: str = "gravity") -> SimArm:

@@ -1,7 +1,8 @@
-"""The import graph of ``src/articutool``: no import circles and no upward arrows. Imports go
-down the README's layers: spec/data → tool, arm, food → link, verify, planning → sim,
-feeding → meal → experiments, viewer, CLIs (the feeding task does not know the simulator;
-``meal`` joins them). Parsed with ``ast`` (lazy imports inside functions count too)."""
+"""The import graph of ``src/articutool``: no import circles and no upward arrows. The layer
+order is declared once (``LAYERS``) and every module belongs to one layer; imports go only
+down, never up and never sideways to another package of the same layer unless the pair is
+declared in ``SIBLINGS`` with its reason. Parsed with ``ast`` (lazy imports inside functions
+count too)."""
 
 import ast
 import subprocess
@@ -87,17 +88,65 @@ FIXED_CIRCLES = [
     {"articutool.planning.api", "articutool.planning.ompl_planner"},
     {"articutool.sim.world", "articutool.sim.mj_drivers"},
 ]
-FIXED_ARROWS = [
-    ("articutool.spec", "articutool.tool"),
-    ("articutool.tool", "articutool.link"),
-    ("articutool.feeding", "articutool.experiments"),
-    ("articutool.sim", "articutool.viewer"),
-    ("articutool.feeding", "articutool.viewer"),
-    ("articutool.feeding", "articutool.sim"),
-    ("articutool.feeding", "articutool.meal"),
-    ("articutool.sim", "articutool.feeding"),
-    ("articutool.sim", "articutool.meal"),
-]
+# The layers, bottom first: a top-level module or package of ``articutool`` (its first name
+# after ``articutool.``; "" is the package itself) imports only from lower layers.
+LAYERS: tuple[tuple[str, ...], ...] = (
+    # spec and data: the hardware spec, data files, units, frames, trajectories, shared types
+    ("", "spec", "datafile", "dynamixel_units", "rotations", "trajectory", "api_types",
+     "thresholds", "cli_support"),
+    # the tool's onboard software, the arm's model, the food as values and pure physics
+    ("tool", "arm", "food"),
+    # the PC–tool link, plan-then-verify, the planners
+    ("link", "verify", "planning"),
+    # the physics world, the feeding task, the ROS 2 node, the Exp. 2a benchmark
+    ("sim", "feeding", "ros2", "bench"),
+    # the meal: the feeding task run in the physics world
+    ("meal",),
+    # the experiments, the viewer, the command lines
+    ("experiments", "viewer", "cli", "onboard", "onboard_link", "__main__"),
+)
+# Imports between packages of one layer that are allowed, each with its reason; any other
+# arrow across a layer is refused (feeding, ros2 and bench never see sim, nor sim them).
+SIBLINGS: dict[tuple[str, str], str] = {
+    ("spec", "datafile"): "the spec is a validated data file",
+    ("spec", "dynamixel_units"): "the spec checks the motor registers' units",
+    ("trajectory", "datafile"): "a trajectory file is read as a data file",
+    ("thresholds", "datafile"): "the thresholds are read from a results file",
+    ("cli_support", "spec"): "every command line loads the spec it is given",
+    ("cli_support", "datafile"): "command lines refuse bad files as the data files do",
+    ("planning", "verify"): "plan-then-verify: the planner checks its own output",
+    ("__main__", "cli"): "the entry point runs the top-level command line",
+    ("onboard", "onboard_link"): "the onboard command line serves the link's process",
+}
+
+
+def package(mod: str) -> str:
+    """``articutool.sim.world`` → ``sim``; the package itself → ``""``."""
+    return mod.split(".")[1] if "." in mod else ""
+
+
+def layer_of(pkg: str) -> int:
+    for i, names in enumerate(LAYERS):
+        if pkg in names:
+            return i
+    raise KeyError(f"articutool.{pkg} is in no layer of LAYERS")
+
+
+def layer_violations(graph: dict[str, set[str]]) -> list[str]:
+    """Every arrow that goes up a layer, or across one without a declared reason."""
+    bad = []
+    for a, deps in sorted(graph.items()):
+        for b in sorted(deps):
+            pa, pb = package(a), package(b)
+            if pa == pb:
+                continue
+            la, lb = layer_of(pa), layer_of(pb)
+            if lb > la:
+                bad.append(f"{a} -> {b}: up from layer {la} ({pa}) to {lb} ({pb})")
+            elif lb == la and (pa, pb) not in SIBLINGS:
+                bad.append(f"{a} -> {b}: across layer {la} ({pa} and {pb}), not a declared "
+                           "sibling import")
+    return bad
 
 
 def test_the_graph_sees_imports() -> None:
@@ -116,9 +165,48 @@ def test_the_import_graph_has_no_circle_at_all() -> None:
     assert circles(GRAPH) == []
 
 
-def test_no_fixed_upward_arrow_returns() -> None:
-    for src, dst in FIXED_ARROWS:
-        assert imports_from(GRAPH, src, dst) == []
+def undeclared(graph: dict[str, set[str]]) -> list[str]:
+    """A message for each top-level module or package in no layer."""
+    declared = {p for names in LAYERS for p in names}
+    return [f"articutool.{p} is in no layer: add it to LAYERS in tests/test_layers.py (and "
+            "the layers of docs/architecture.md)" for p in sorted({package(m) for m in graph})
+            if p not in declared]
+
+
+def test_every_module_is_in_a_declared_layer() -> None:
+    declared = [p for names in LAYERS for p in names]
+    assert len(set(declared)) == len(declared), "a package in two layers"
+    assert undeclared(GRAPH) == []
+    # a new top-level module fails with its name
+    assert undeclared({"articutool.newthing.core": set()}) == [
+        "articutool.newthing is in no layer: add it to LAYERS in tests/test_layers.py (and the "
+        "layers of docs/architecture.md)"]
+
+
+def test_imports_only_go_down_the_declared_layers() -> None:
+    assert layer_violations(GRAPH) == []
+
+
+def test_every_declared_sibling_import_exists() -> None:
+    # a reason kept for an arrow that no longer exists is stale
+    used = {(package(a), package(b)) for a, deps in GRAPH.items() for b in deps}
+    assert sorted(set(SIBLINGS) - used) == []
+
+
+def test_the_layer_check_sees_an_upward_and_a_sideways_arrow() -> None:
+    # guards the check: the two arrows the verifier and the ROS 2 service once had
+    planted = {"articutool.verify.cli": {"articutool.sim.params"},
+               "articutool.ros2.verify_service": {"articutool.sim.params"},
+               "articutool.sim.params": set()}
+    bad = layer_violations(planted)
+    assert len(bad) == 2 and "across layer 3 (ros2 and sim)" in bad[0]
+    assert "up from layer 2 (verify) to 3 (sim)" in bad[1]
+
+
+def test_the_planners_verifier_ros2_food_and_feeding_do_not_import_the_simulation() -> None:
+    for src in ("verify", "planning", "ros2", "food", "feeding"):
+        for dst in ("sim", "meal", "experiments"):
+            assert imports_from(GRAPH, f"articutool.{src}", f"articutool.{dst}") == []
 
 
 def test_validating_the_spec_does_not_import_the_motor_sdk() -> None:

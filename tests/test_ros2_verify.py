@@ -116,14 +116,14 @@ def test_bad_requests_are_refused_naming_the_field(verifier: Verifier) -> None:
 
 def test_a_load_is_judged_as_the_verify_cli_judges_it(verifier: Verifier, spec: Any) -> None:
     from articutool.arm.model import ArmModel
+    from articutool.food.definitions import load_food_definitions
     from articutool.food.loads import food_load
-    from articutool.sim.params import PhysicsParams
     from articutool.trajectory import JointTrajectory
     from articutool.verify.verifier import verify_trajectory
 
     out = verifier.answer(_req(_example("transport_feasible.json"), food="water", load_g=8.0,
                                utensil="soup_spoon"))
-    load = food_load("water", 8.0, PhysicsParams.load().food("water"))
+    load = food_load(load_food_definitions()["water"], 8.0)
     rep = verify_trajectory(JointTrajectory.load(EXAMPLES / "transport_feasible.json"),
                             ArmModel(spec, "soup_spoon"), spec, utensil="soup_spoon",
                             load=load)

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from articutool.arm.model import ArmModel
+from articutool.food.definitions import load_food_definitions
 from articutool.food.loads import LoadError, food_load, parse_load
 from articutool.planning.timing import time_parameterize
-from articutool.sim.params import PhysicsParams
 from articutool.tool.following import TrajectoryFollower
 from articutool.trajectory import JointTrajectory
 from articutool.verify.food import dish_poses, food_check, slosh_free_wrist, spill_model
@@ -21,8 +21,8 @@ from conftest import assert_refused, packaged_spec, run_cli
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 SPEC = packaged_spec()
 MODEL = ArmModel(SPEC, "soup_spoon")
-PHYS = PhysicsParams.load()
-WATER = food_load("water", 8.0, PHYS.food("water"))
+FOODS = load_food_definitions()
+WATER = food_load(FOODS["water"], 8.0)
 PATH = JointTrajectory.load(EXAMPLES / "transport_feasible.json")
 
 
@@ -105,7 +105,7 @@ def test_the_locked_wrist_tilts_with_the_arm() -> None:
 
 
 def test_a_spill_makes_the_trajectory_infeasible() -> None:
-    heavy = food_load("water", 16.5, PHYS.food("water"))
+    heavy = food_load(FOODS["water"], 16.5)
     rep = verify_trajectory(_timed(1.0), MODEL, SPEC, load=heavy)
     assert not rep.feasible and rep.reason == "spill"
     assert rep.food.prediction.spilled_g > 0 and rep.first_failure_time is not None
@@ -113,11 +113,11 @@ def test_a_spill_makes_the_trajectory_infeasible() -> None:
 
 
 def test_pieces_hold_until_the_repose_slope() -> None:
-    pecans = food_load("pecans", 3.0, PHYS.food("pecans"))
+    pecans = food_load(FOODS["pecans"], 3.0)
     m = spill_model(SPEC, "spoon", pecans)
     onset = math.degrees(float(m.onset_tilt(0.0)))
     assert onset > pecans.repose_deg  # below the rim it must lean past the repose slope
-    full = food_load("pecans", m.max_volume * m.density * 1e3 * 0.999, PHYS.food("pecans"))
+    full = food_load(FOODS["pecans"], m.max_volume * m.density * 1e3 * 0.999)
     assert math.degrees(float(spill_model(SPEC, "spoon", full).onset_tilt(0.0))) < 0.2
 
 
@@ -130,11 +130,11 @@ def test_malformed_loads(text: str, match: str) -> None:
 
 def test_loads_that_cannot_be_modelled() -> None:
     with pytest.raises(LoadError, match=r"\[0, 16.79\] g"):
-        spill_model(SPEC, "soup_spoon", food_load("water", 17.0, PHYS.food("water")))
+        spill_model(SPEC, "soup_spoon", food_load(FOODS["water"], 17.0))
     with pytest.raises(LoadError, match="≥ 0"):
-        food_load("water", -0.1, PHYS.food("water"))
+        food_load(FOODS["water"], -0.1)
     with pytest.raises(LoadError, match="strands"):
-        food_load("noodles", 3.0, PHYS.food("noodles"))
+        food_load(FOODS["noodles"], 3.0)
     with pytest.raises(LoadError, match="no dish"):
         spill_model(SPEC, "fork", WATER)
 

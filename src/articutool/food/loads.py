@@ -1,10 +1,11 @@
 """A load on the utensil as the planner models it: which food, how many grams, and the
 physical values its model needs; checked against what the utensil can hold.
 
-:func:`food_load` builds one from a food's entry of the physics parameters (the same
-``data/physics.toml`` the physics world reads, passed in by the caller so this module needs
-no file): a liquid's density and viscosity, a granular food's kernel density, angle of repose
-and the packing of its pieces. :func:`load_model` gives the model that predicts its spill:
+:func:`food_load` builds one from a food's resolved definition
+(:class:`~articutool.food.definitions.FoodDefinition`, read once from ``data/physics.toml``
+by :func:`~articutool.food.definitions.load_food_definitions`): a liquid's density and
+viscosity, a granular food's kernel density, angle of repose and the packing of its pieces.
+:func:`load_model` gives the model that predicts its spill:
 :class:`~articutool.food.slosh.SloshModel` for a liquid, :class:`~articutool.food.pile.PileModel`
 for pieces. Anything it cannot model — an unknown or unmodelled food, a fork, a negative, NaN
 or too large load — is a :class:`LoadError` naming the field and the allowed range.
@@ -18,6 +19,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
 
+from articutool.food.definitions import FoodDefinition
 from articutool.food.dish import Dish
 from articutool.food.pile import PileModel
 from articutool.food.slosh import WATER_KINEMATIC_VISCOSITY, SloshModel
@@ -84,32 +86,27 @@ def parse_load(text: str) -> tuple[str, float]:
     return food, g
 
 
-def food_load(name: str, grams: float, food: Any) -> FoodLoad:
-    """The load ``grams`` of the food ``name`` whose physics-parameter entry is ``food`` (an
-    object with ``kind`` and ``density``, as :class:`articutool.sim.params.PhysicsParams`'
-    foods; a granular one carries its cited ``angle_of_repose_deg``). Strands are not modelled
-    (a :class:`LoadError`)."""
+def food_load(food: FoodDefinition, grams: float) -> FoodLoad:
+    """The load ``grams`` of ``food``. Strands are not modelled (a :class:`LoadError`)."""
     g = float(grams)
     if not math.isfinite(g) or g < 0:
         raise LoadError(f"--load grams must be a finite number ≥ 0; got {grams!r}")
-    kind = getattr(food, "kind", None)
-    if kind == "liquid":
-        return FoodLoad(name, "liquid", g, float(food.density),
-                        float(getattr(food, "viscosity", WATER_KINEMATIC_VISCOSITY)))
-    if kind == "granular":
-        return FoodLoad(name, "granular", g, float(food.density) * PIECE_PACKING,
-                        repose_deg=float(food.angle_of_repose_deg))
-    raise LoadError(f"--load food {name!r} is {kind or 'unknown'}: its spill is not modelled "
+    if food.kind == "liquid":
+        return FoodLoad(food.name, "liquid", g, food.density, food.viscosity)
+    if food.kind == "granular":
+        return FoodLoad(food.name, "granular", g, food.density * PIECE_PACKING,
+                        repose_deg=food.repose_deg)
+    raise LoadError(f"--load food {food.name!r} is {food.kind}: its spill is not modelled "
                     "(a liquid or granular food is)")
 
 
-def named_load(name: str, grams: float, foods: Mapping[str, Any],
+def named_load(name: str, grams: float, foods: Mapping[str, FoodDefinition],
                field: str = "--load food") -> FoodLoad:
-    """:func:`food_load` of the food ``name`` among ``foods`` (the physics parameters' foods
-    by name); an unknown name is a :class:`LoadError` naming ``field`` and the known ones."""
+    """:func:`food_load` of the food ``name`` among ``foods`` (the definitions by name); an
+    unknown name is a :class:`LoadError` naming ``field`` and the known ones."""
     if name not in foods:
         raise LoadError(f"{field} must be one of {sorted(foods)}; got {name!r}")
-    return food_load(name, grams, foods[name])
+    return food_load(foods[name], grams)
 
 
 @lru_cache(maxsize=64)

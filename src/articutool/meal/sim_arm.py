@@ -217,7 +217,7 @@ def world_load(world: FeedingWorld) -> Any:
         return None
     grams = world.masses_g()["utensil"]
     try:
-        return food_load(world.food, round(grams, 3), world.params.food(world.food))
+        return food_load(world.params.definition(world.food), round(grams, 3))
     except LoadError:
         return None
 

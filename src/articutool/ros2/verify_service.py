@@ -20,10 +20,13 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
+from articutool.food.definitions import FoodDefinition, load_food_definitions
+from articutool.food.loads import FoodLoad, LoadError, named_load
 from articutool.trajectory import JointTrajectory, TrajectoryError
 
 __all__ = ["BadRequestError", "Verifier", "trajectory_from_ros"]
@@ -31,15 +34,6 @@ __all__ = ["BadRequestError", "Verifier", "trajectory_from_ros"]
 
 class BadRequestError(ValueError):
     """A request field that cannot be verified; the message names the field."""
-
-
-def food_load(food: str, grams: float) -> Any:
-    """The request's load as the verifier models it, with the packaged food parameters
-    (:class:`~articutool.food.loads.LoadError` naming ``food`` for an unknown one)."""
-    from articutool.food.loads import named_load
-    from articutool.sim.params import PhysicsParams
-
-    return named_load(food, grams, PhysicsParams.load().foods, "food")
 
 
 def _duration(d: Any) -> float:
@@ -82,11 +76,14 @@ def trajectory_from_ros(msg: Any, field: str = "trajectory") -> JointTrajectory:
 
 
 class Verifier:
-    """Answers ``VerifyTrajectory`` requests with one spec; arm models are built once per
+    """Answers ``VerifyTrajectory`` requests with one spec and the foods' definitions
+    (``foods``; default: the packaged ones, read once); arm models are built once per
     utensil (a Pinocchio model takes ~0.1 s) and shared by the calls."""
 
-    def __init__(self, spec: Any, default_utensil: str, wrist_joint_names: tuple[str, str]):
+    def __init__(self, spec: Any, default_utensil: str, wrist_joint_names: tuple[str, str],
+                 foods: Mapping[str, FoodDefinition] | None = None):
         self.spec = spec
+        self.foods = dict(foods) if foods is not None else load_food_definitions()
         if default_utensil not in spec.utensils:
             raise ValueError(f"utensil must be one of {sorted(spec.utensils)}; got "
                              f"{default_utensil!r}")
@@ -103,7 +100,7 @@ class Verifier:
             return self._models[utensil]
 
     def _checked(self, req: Any, current_wrist: tuple[float, float] | None
-                 ) -> tuple[JointTrajectory, str, float, np.ndarray, str, float]:
+                 ) -> tuple[JointTrajectory, str, float, np.ndarray, FoodLoad | None]:
         utensil = str(req.utensil) or self.default_utensil
         if utensil not in self.spec.utensils:
             raise BadRequestError(f"utensil must be one of {sorted(self.spec.utensils)} (or empty "
@@ -124,8 +121,8 @@ class Verifier:
             raise BadRequestError(f"load_g must be a finite mass >= 0 (g); got {load}")
         if load > 0.0 and not food:
             raise BadRequestError("food must name the load's food when load_g > 0")
-        if load > 0.0:
-            food_load(food, load)  # an unknown food is refused before any verification
+        # an unknown food is refused before any verification
+        food_load = named_load(food, load, self.foods, "food") if load > 0.0 else None
         traj = trajectory_from_ros(req.trajectory)
         arm = self.spec.arm.joint_names
         missing = [n for n in arm if n not in traj.joint_names]
@@ -133,19 +130,17 @@ class Verifier:
         if missing or extra:
             raise BadRequestError(f"trajectory.joint_names must be the arm's {len(arm)} joints "
                              f"{list(arm)} in any order; missing {missing}, unknown {extra}")
-        return traj, utensil, step, start, food, load
+        return traj, utensil, step, start, food_load
 
     def answer(self, req: Any, current_wrist: tuple[float, float] | None = None
                ) -> dict[str, Any]:
         """The reply's fields for ``req`` (``wrist_trajectory`` as a JointTrajectory or
         None); ``current_wrist`` is the tool's position, the default wrist start."""
-        from articutool.food.loads import LoadError
         from articutool.verify.verifier import verify_trajectory
         try:
-            traj, utensil, step, start, food, load = self._checked(req, current_wrist)
+            traj, utensil, step, start, food_load = self._checked(req, current_wrist)
             rep = verify_trajectory(traj, self._model(utensil), self.spec, max_step_deg=step,
-                                    q_wrist_start=start, utensil=utensil,
-                                    load=food_load(food, load) if load > 0.0 else None)
+                                    q_wrist_start=start, utensil=utensil, load=food_load)
         except (BadRequestError, TrajectoryError, LoadError) as err:
             return _refusal(str(err))
         message = rep.message

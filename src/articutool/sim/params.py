@@ -9,7 +9,6 @@ refused with its field named (``PhysicsError``).
 from __future__ import annotations
 
 import math
-from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -17,6 +16,7 @@ import numpy as np
 from pydantic import Field, ValidationError, model_validator
 
 from articutool.datafile import format_validation_error, read_document
+from articutool.food.definitions import FoodDefinition, default_physics_path, food_definition
 from articutool.spec import NonNegative, Positive, StrictModel
 
 __all__ = [
@@ -246,11 +246,6 @@ class Strands(_FoodBase):
 Food = Annotated[Granular | Liquid | Strands, Field(discriminator="kind")]
 
 
-def default_physics_path() -> Path:
-    """Path of the physics parameters shipped with the package."""
-    return Path(str(resources.files("articutool") / "data" / "physics.toml"))
-
-
 class PhysicsParams(StrictModel):
     """The whole parameter file."""
 
@@ -272,6 +267,10 @@ class PhysicsParams(StrictModel):
         if name not in self.foods:
             raise PhysicsError(f"food: unknown food {name!r}; allowed: {sorted(self.foods)}")
         return self.foods[name]
+
+    def definition(self, name: str) -> FoodDefinition:
+        """The named food as a planner reads it (:mod:`articutool.food.definitions`)."""
+        return food_definition(name, self.food(name).model_dump())
 
     @classmethod
     def from_dict(cls, data: Any, source: str = "<dict>") -> PhysicsParams:

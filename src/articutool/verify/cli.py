@@ -12,17 +12,17 @@ __all__ = ["add_commands"]
 def _load(args: argparse.Namespace, spec: object) -> object:
     """The ``--load FOOD:GRAMS`` as a FoodLoad checked against the utensil (UsageError)."""
     from articutool.cli_support import UsageError
+    from articutool.food.definitions import FoodError, load_food_definitions
     from articutool.food.loads import LoadError, named_load, parse_load
-    from articutool.sim.params import PhysicsError, PhysicsParams
     from articutool.verify.food import spill_model
 
     try:
         food, grams = parse_load(args.load)
         try:
-            params = PhysicsParams.load(args.physics)
-        except PhysicsError as err:
+            foods = load_food_definitions(args.physics)
+        except FoodError as err:
             raise UsageError(f"--physics: {err}") from None
-        load = named_load(food, grams, params.foods)
+        load = named_load(food, grams, foods)
         spill_model(spec, args.utensil, load)  # type: ignore[arg-type]
     except LoadError as err:
         raise UsageError(str(err)) from None
