@@ -119,13 +119,10 @@ def contact_attrs(law: ContactParams | None, priority: int) -> str:
 
 
 def food_solver_attrs(food: Granular | Liquid | Strands | None) -> str:
-    """The ``<option>`` attributes a food sets: its no-slip passes (strands, pieces) and the
-    friction rows' impedance ratio (pieces); MuJoCo's defaults for any other world."""
+    """The ``<option>`` attributes a food sets: its no-slip passes (strands, pieces; none for
+    any other world)."""
     noslip = food.noslip_iterations if isinstance(food, Strands | Granular) else 0
-    out = f'noslip_iterations="{noslip}"'
-    if isinstance(food, Granular) and food.impratio != 1.0:
-        out += f' impratio="{food.impratio}"'
-    return out
+    return f'noslip_iterations="{noslip}"'
 
 
 def _pair_attrs(law: ContactParams) -> str:

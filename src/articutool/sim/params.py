@@ -145,12 +145,10 @@ class Granular(_FoodBase):
     # The cited angle of repose of the food (degrees) that the pile test
     # (``sim-calibrate``) is checked against; also bounds what a utensil can hold.
     angle_of_repose_deg: Annotated[float, Field(gt=0, lt=90)]
-    # Static friction without the soft contacts' creep (a resting heap must not flow): the
-    # no-slip solver's passes (MuJoCo ``noslip_iterations``) and the friction rows' stiffness
-    # against the normal rows' (MuJoCo ``impratio``, elliptic cones); the creep law of
-    # ``sim-calibrate`` (:func:`articutool.sim.calibrate.creep_mm`) checks what they give.
+    # No-slip solver passes (MuJoCo ``noslip_iterations``): static friction without the
+    # soft contacts' creep (a resting heap must not flow); the creep law of ``sim-calibrate``
+    # (:func:`articutool.sim.calibrate.creep_mm`) checks what they give.
     noslip_iterations: Annotated[int, Field(ge=0, le=1000)] = 0
-    impratio: Annotated[float, Field(ge=1, le=1000)] = 1.0
 
     @model_validator(mode="after")
     def _ranges(self) -> Granular:
