@@ -42,13 +42,16 @@ def test_soft_contacts_alone_let_the_half_creep(params: PhysicsParams) -> None:
 
 
 def test_the_flank_angle_is_the_slope_of_the_surface_envelope() -> None:
-    # Points under a 30° cone of a 40 mm apex: the envelope of each ring is its inner edge.
+    # Points under a 30° cone of a 40 mm apex, every 1 mm of radius (none on a ring's edge):
+    # the envelope of each ring is its innermost point.
     h0, t = 0.04, math.tan(math.radians(30.0))
-    pts = [(r, h0 - r * t - dz) for r in (x * 1e-3 for x in range(0, 50))
+    pts = [(r, h0 - r * t - dz) for r in ((x + 0.5) * 1e-3 for x in range(0, 50))
            for dz in (0.0, 0.003)]
     assert flank_angle_deg(pts) == pytest.approx(30.0, abs=0.01)
-    # One piece standing on the apex moves the apex height, not the flank.
-    assert flank_angle_deg([*pts, (0.001, h0 + 0.01)]) < 33.0
+    # A piece standing 10 mm proud on the apex moves the flank's line (one ring of ten) less
+    # than it moves the apex height's angle over the same base.
+    apex = math.degrees(math.atan((h0 + 0.01) / 0.05) - math.atan(h0 / 0.05))
+    assert 0.0 < flank_angle_deg([*pts, (0.001, h0 + 0.01)]) - 30.0 < apex
     assert flank_angle_deg([(0.01, 0.01)]) == 0.0
     assert FLANK_BIN_M < PLATE_RADIUS_M
 
