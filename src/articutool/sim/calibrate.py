@@ -71,9 +71,9 @@ LIFT_SPEED_M_S = 0.01
 # smallest piece: every ring of the flank holds a piece's top).
 FLANK_BIN_M = 0.005
 # The cited measurement the pile test is checked against (degrees; physics.toml cites it), and
-# the tolerance the check allows (our heap is three to four pieces wide: one piece more or
-# less on the apex moves the angle by 2-4°).
-REPOSE_TOLERANCE_DEG = 4.0
+# the tolerance the check allows: ±3° (the cited kernels' own spread across six plate
+# materials is 25.7-27.8°; one piece more or less on our heap's apex moves it by 1-3°).
+REPOSE_TOLERANCE_DEG = 3.0
 # Piles per calibration (seeds seed, seed + 1, …): their mean is compared with the citation.
 REPOSE_SEEDS = 3
 # The creep law of static friction: a piece resting on a slope below its friction angle
@@ -273,6 +273,8 @@ def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
             angle_of_repose_within_tolerance=(
                 "yes" if abs(mean - food.angle_of_repose_deg) <= REPOSE_TOLERANCE_DEG
                 else "no"),
+            angle_of_repose_flank_piles_deg=", ".join(f"{p['flank_angle_deg']:.1f}"
+                                                      for p in piles),
             angle_of_repose_cpu_s=round(sum(p["cpu_s"] for p in piles), 1))
     if isinstance(food, Granular | Liquid):
         held, loaded = level_capacity_g(food_name, spec, params, utensil, seed)
