@@ -64,6 +64,6 @@ def test_the_pile_test_reruns_bit_identically(params: PhysicsParams) -> None:
 
 
 def test_above_its_friction_angle_the_half_slides(params: PhysicsParams) -> None:
-    # The no-slip pass holds static friction without changing the Coulomb coefficient: at 25°
+    # The no-slip passes hold static friction without changing the Coulomb coefficient: at 25°
     # (atan 0.45 = 24.2°) the half slides off (325 mm in 1 s, measured).
     assert creep_mm(params.food("pecans"), params, 25.0, hold_s=1.0) > 10.0
