@@ -17,6 +17,9 @@ skewer, lift, level; ~19-25 s simulated) for one seed, reporting
 - for water also ``realtime_factor_load``: the same clock for that placed load's world (the
   fine particles of a hand-placed load: placing, settling and the carry, a transport).
 
+Beside the pecans' runs, the law their speed settings must keep: the creep of a resting half on
+a 10-20° steel slope (``laws.pecans``; :func:`articutool.sim.calibrate.creep_mm`).
+
 ``--code NAME=SRC`` (repeatable) runs the same seeds on several copies of the source
 (``git archive <rev> src | tar -x -C /tmp/old``), interleaved seed by seed so that the
 machine's load falls on both alike: before/after side by side in one run. ``--variants``
@@ -84,6 +87,18 @@ def one(food: str, seed: int, variant: str) -> dict:
     return row
 
 
+def _creep_law() -> dict:
+    """The law the pecan model's speed settings must keep: a half resting on a steel slope
+    creeps less than ``CREEP_LIMIT_MM`` in ``CREEP_HOLD_S`` (``sim-calibrate`` checks it too)."""
+    from articutool.sim.calibrate import CREEP_HOLD_S, CREEP_LIMIT_MM, CREEP_SLOPES_DEG, creep_mm
+    from articutool.sim.params import PhysicsParams
+
+    params = PhysicsParams.load()
+    creep = [round(creep_mm(params.food("pecans"), params, a), 4) for a in CREEP_SLOPES_DEG]
+    return {"slopes_deg": list(CREEP_SLOPES_DEG), "hold_s": CREEP_HOLD_S, "creep_mm": creep,
+            "limit_mm": CREEP_LIMIT_MM, "holds": max(creep) < CREEP_LIMIT_MM}
+
+
 def _child(src: str, food: str, seed: int, variant: str) -> dict:
     env = dict(os.environ, PYTHONPATH=str(Path(src).resolve()), MUJOCO_GL="egl")
     out = subprocess.run([sys.executable, __file__, "--one", food, str(seed), variant],
@@ -140,6 +155,9 @@ def main(argv: list[str] | None = None) -> int:
             for name, rs in rows.items():
                 res = out["results"].setdefault(food, {}).setdefault(variant, {})
                 res[name] = _summary(rs, food)
+    if "pecans" in args.foods.split(","):
+        out["laws"] = {"pecans": _creep_law()}
+        print("pecans creep law", out["laws"]["pecans"], flush=True)
     out["machine"]["loadavg_end"] = os.getloadavg()
     write_json(args.out, out)
     return 0

@@ -77,7 +77,7 @@ def test_sim_video_renders_headless(tmp_path: Path) -> None:
     assert mp4.stat().st_size > 10_000
 
 
-@pytest.mark.slow  # three piles of 110 pieces with the no-slip solver: ~4 min CPU
+@pytest.mark.slow  # three piles of 110 pieces with the no-slip solver: minutes of CPU
 def test_sim_calibrate_measures_the_pecan_model(capsys: pytest.CaptureFixture[str]) -> None:
     from articutool.sim.params import PhysicsParams
 
@@ -93,6 +93,9 @@ def test_sim_calibrate_measures_the_pecan_model(capsys: pytest.CaptureFixture[st
     within = off <= out["angle_of_repose_tolerance_deg"]
     assert out["angle_of_repose_within_tolerance"] == ("yes" if within else "no"), out
     assert 5.0 < out["angle_of_repose_deg"] < 60.0
+    assert len(out["angle_of_repose_flank_piles_deg"].split(", ")) == 3
+    # Static friction holds a resting half on the steel slopes (the creep law).
+    assert out["creep_within_law"] == "yes", out["creep_mm"]
     assert out["level_capacity_g"] > 0
 
 

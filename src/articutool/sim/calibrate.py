@@ -26,6 +26,7 @@ that adjusts parameters towards an outcome of the thesis.
 
 from __future__ import annotations
 
+import hashlib
 import math
 import time
 from typing import Any
@@ -37,7 +38,7 @@ from articutool.arm.scene import Cylinder, Scene
 from articutool.food.dish import spoon_dish
 from articutool.food.hydrostatics import SIDE, TIP, Hydrostatics, up_vector
 from articutool.sim.loading import max_load_g
-from articutool.sim.mjcf import contact_attrs
+from articutool.sim.mjcf import contact_attrs, food_solver_attrs
 from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
 from articutool.sim.pieces import draw_piece, footprint, pack_layer
 from articutool.sim.placement import utensil_capacity_bound_g
@@ -45,7 +46,8 @@ from articutool.sim.world import FeedingWorld
 from articutool.spec import Spec
 from articutool.tool.api import Mode
 
-__all__ = ["ONSET_G", "TILT_HOLD_S", "TILT_RATE", "TILT_STEPS_DEG", "angle_of_repose_deg",
+__all__ = ["CREEP_HOLD_S", "CREEP_LIMIT_MM", "CREEP_SLOPES_DEG", "ONSET_G", "TILT_HOLD_S",
+           "TILT_RATE", "TILT_STEPS_DEG", "angle_of_repose_deg", "creep_mm",
            "level_capacity_g", "run_calibration", "static_tilt"]
 
 # The static-tilt protocol (numerical choices of the test, not of the model): 1° steps where
@@ -65,12 +67,22 @@ PILE_PIECES = 110
 TUBE_RADIUS_M = 0.035
 PLATE_RADIUS_M = 0.05
 LIFT_SPEED_M_S = 0.01
+# The heap's surface is read in rings of this width about the plate's axis (half the
+# smallest piece: every ring of the flank holds a piece's top).
+FLANK_BIN_M = 0.005
 # The cited measurement the pile test is checked against (degrees; physics.toml cites it), and
-# the tolerance the check allows (our heap is three to four pieces wide: one piece more or
-# less on the apex moves the angle by 2-4°).
-REPOSE_TOLERANCE_DEG = 4.0
+# the tolerance the check allows: ±3° (the cited kernels' own spread across six plate
+# materials is 25.7-27.8°; one piece more or less on our heap's apex moves it by 1-3°).
+REPOSE_TOLERANCE_DEG = 3.0
 # Piles per calibration (seeds seed, seed + 1, …): their mean is compared with the citation.
 REPOSE_SEEDS = 3
+# The creep law of static friction: a piece resting on a slope below its friction angle
+# stays where it is. Checked on a stainless-steel plane at 10, 15 and 20° (the friction angle
+# of μ 0.45 is 24.2°), held 3 s; a creep below 0.1 mm (1 % of the smallest piece) counts as
+# none (numerical choices of the test).
+CREEP_SLOPES_DEG = (10.0, 15.0, 20.0)
+CREEP_HOLD_S = 3.0
+CREEP_LIMIT_MM = 0.1
 
 
 def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = PILE_PIECES,
@@ -84,7 +96,6 @@ def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = PILE_PIE
     piece–piece and piece–plate laws of ``physics.toml``, the same solver and no-slip passes.
     Returns the angle, ``H`` (mm), the pieces left on the plate and the CPU time (s)."""
     rng = np.random.default_rng(seed)
-    w = params.world
     pieces = [draw_piece(food, rng) for _ in range(n)]
     radii = [footprint(c) for c in pieces]
     z0 = 0.05  # the plate's top, above the ground
@@ -119,10 +130,7 @@ def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = PILE_PIE
         f'{(TUBE_RADIUS_M + t / 2) * math.sin(2 * math.pi * k / nw)} {z0 + height / 2 + 5e-4}" '
         f'euler="0 0 {2 * math.pi * k / nw}" {plate_law} contype="1" conaffinity="0"/>'
         for k in range(nw))
-    noslip = getattr(food, "noslip_iterations", 0)
-    xml = (f'<mujoco><compiler angle="radian"/><option timestep="{w.timestep}" '
-           f'solver="{w.solver}" iterations="{w.iterations}" tolerance="{w.tolerance}" '
-           f'cone="{w.cone}" integrator="implicitfast" noslip_iterations="{noslip}"/>'
+    xml = (f'<mujoco><compiler angle="radian"/>{_granular_option(food, params)}'
            '<worldbody><geom type="plane" size="1 1 0.1" contype="1" conaffinity="0"/>'
            f'<geom type="cylinder" size="{PLATE_RADIUS_M} {z0 / 2}" pos="0 0 {z0 / 2}" '
            f'{plate_law} contype="1" conaffinity="0"/>'
@@ -148,16 +156,77 @@ def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = PILE_PIE
     hold((height + 0.01) / LIFT_SPEED_M_S, LIFT_SPEED_M_S)
     hold(1.5, 0.0)
     cpu = time.process_time() - c0
-    tops, on = [], []
+    tops, on, surface = [], [], []
     for b in range(2, m.nbody):  # body 1 is the tube
         g = range(m.body_geomadr[b], m.body_geomadr[b] + m.body_geomnum[b])
-        tops.append(max(d.geom_xpos[i, 2] + m.geom_size[i, 0]
-                        + abs(d.geom_xmat[i, 8]) * m.geom_size[i, 1] for i in g))
-        on.append(math.hypot(*d.xpos[b, :2]) < PLATE_RADIUS_M and d.xpos[b, 2] > z0)
+        # Each capsule's highest point: the end of its axis that stands higher, plus its radius.
+        ends = [d.geom_xpos[i] + s * m.geom_size[i, 1] * d.geom_xmat[i].reshape(3, 3)[:, 2]
+                for i in g for s in (-1.0, 1.0)]
+        radius = [m.geom_size[i, 0] for i in g for _ in (0, 1)]
+        k = int(np.argmax([e[2] + r for e, r in zip(ends, radius, strict=True)]))
+        tops.append(float(ends[k][2] + radius[k]))
+        over = math.hypot(*d.xpos[b, :2]) < PLATE_RADIUS_M and d.xpos[b, 2] > z0
+        on.append(over)
+        if over:
+            surface += [(math.hypot(*e[:2]), float(e[2] + r) - z0)
+                        for e, r in zip(ends, radius, strict=True)]
     on_plate = np.array(on)
     h = float(np.max(np.array(tops)[on_plate])) - z0 if on_plate.any() else 0.0
     return {"angle_deg": math.degrees(math.atan2(h, PLATE_RADIUS_M)), "height_mm": h * 1e3,
-            "pieces_on_plate": int(on_plate.sum()), "cpu_s": cpu}
+            "flank_angle_deg": flank_angle_deg(surface), "pieces_on_plate": int(on_plate.sum()),
+            "state_sha256": hashlib.sha256(np.concatenate([d.qpos, d.qvel]).tobytes())
+            .hexdigest(), "cpu_s": cpu}
+
+
+def flank_angle_deg(points: list[tuple[float, float]], bin_m: float = FLANK_BIN_M) -> float:
+    """The slope (degrees) of a heap's free surface: ``points`` are (distance from the axis,
+    height above the base) of the pieces' highest points; the surface is their upper envelope,
+    the highest point in each ring ``bin_m`` wide out to the plate's edge, and the angle is
+    that of the least-squares line through the envelope (0 for fewer than two rings)."""
+    rings: dict[int, float] = {}
+    for r, z in points:
+        if r < PLATE_RADIUS_M:
+            k = int(r // bin_m)
+            rings[k] = max(rings.get(k, -math.inf), z)
+    if len(rings) < 2:
+        return 0.0
+    ks = sorted(rings)
+    slope = np.polyfit([(k + 0.5) * bin_m for k in ks], [rings[k] for k in ks], 1)[0]
+    return math.degrees(math.atan(max(-float(slope), 0.0)))
+
+
+def _granular_option(food: Granular, params: PhysicsParams) -> str:
+    """The feeding world's solver options for a granular food (no sleeping: a test scene)."""
+    w = params.world
+    return (f'<option timestep="{w.timestep}" solver="{w.solver}" iterations="{w.iterations}" '
+            f'tolerance="{w.tolerance}" cone="{w.cone}" integrator="implicitfast" '
+            f'{food_solver_attrs(food)}/>')
+
+
+def creep_mm(food: Granular, params: PhysicsParams, slope_deg: float,
+             hold_s: float = CREEP_HOLD_S) -> float:
+    """How far (mm) a pecan half of the middle width creeps in ``hold_s`` lying on a plane of
+    the utensil's material (stainless steel) tilted by ``slope_deg``: the piece is set down
+    flat, left 0.2 s to take its weight, then the travel of its centre is measured. Below
+    the friction angle (atan μ) static friction holds it still (Coulomb); soft contacts let
+    it creep. Contacts and solver as in the feeding world."""
+    w = float(np.mean(food.half_width_m))
+    r, half = w / 4.0, max(food.half_length_ratio * w / 2.0 - w / 4.0, 0.0)
+    a = math.radians(slope_deg)
+    piece_law = contact_attrs(food.contacts.food, 0)
+    geoms = "".join(f'<geom type="capsule" size="{r}" fromto="{-half} {y} 0 {half} {y} 0" '
+                    f'density="{food.density}" {piece_law}/>' for y in (-r, r))
+    xml = (f'<mujoco><compiler angle="radian"/>{_granular_option(food, params)}<worldbody>'
+           f'<body euler="0 {a} 0"><geom type="box" size="0.1 0.1 0.01" pos="0 0 -0.01" '
+           f'{contact_attrs(food.contacts.utensil, 1)}/></body>'
+           f'<body pos="0 0 {r * math.cos(a)}" euler="0 {a} 0"><freejoint/>{geoms}</body>'
+           '</worldbody></mujoco>')
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    mujoco.mj_step(m, d, round(0.2 / m.opt.timestep))
+    x0 = d.qpos[:3].copy()
+    mujoco.mj_step(m, d, round(hold_s / m.opt.timestep))
+    return float(np.linalg.norm(d.qpos[:3] - x0)) * 1e3
 
 
 def level_capacity_g(food_name: str, spec: Spec, params: PhysicsParams, utensil: str | None,
@@ -186,6 +255,12 @@ def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
     out: dict[str, Any] = {"food": food_name, "kind": food.kind,
                            "piece_mass_g": round(food.piece_mass * 1000.0, 4)}
     if isinstance(food, Granular):
+        creep = [creep_mm(food, params, a) for a in CREEP_SLOPES_DEG]
+        out.update(
+            creep_slopes_deg=", ".join(f"{a:g}" for a in CREEP_SLOPES_DEG),
+            creep_mm=", ".join(f"{c:.4f}" for c in creep),
+            creep_hold_s=CREEP_HOLD_S, creep_limit_mm=CREEP_LIMIT_MM,
+            creep_within_law="yes" if max(creep) < CREEP_LIMIT_MM else "no")
         piles = [angle_of_repose_deg(food, params, seed=seed + k) for k in range(REPOSE_SEEDS)]
         angles = [p["angle_deg"] for p in piles]
         mean = float(np.mean(angles))
@@ -198,6 +273,8 @@ def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
             angle_of_repose_within_tolerance=(
                 "yes" if abs(mean - food.angle_of_repose_deg) <= REPOSE_TOLERANCE_DEG
                 else "no"),
+            angle_of_repose_flank_piles_deg=", ".join(f"{p['flank_angle_deg']:.1f}"
+                                                      for p in piles),
             angle_of_repose_cpu_s=round(sum(p["cpu_s"] for p in piles), 1))
     if isinstance(food, Granular | Liquid):
         held, loaded = level_capacity_g(food_name, spec, params, utensil, seed)

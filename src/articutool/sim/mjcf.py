@@ -46,6 +46,7 @@ from articutool.sim.pieces import capsule_mass, draw_piece, footprint, pack_laye
 from articutool.spec import Spec, UtensilSpec
 
 __all__ = ["FT_SITE", "IMU_SITE", "WorldLayout", "build_mjcf", "contact_attrs", "dish_walls",
+           "food_solver_attrs",
            "fork_strand_attrs", "strand_chain", "strand_geom_attrs", "strand_tack_attrs",
            "tip_site_name", "viewer_mjcf"]
 
@@ -115,6 +116,13 @@ def contact_attrs(law: ContactParams | None, priority: int) -> str:
         return ""
     return (f'priority="{priority}" condim="{law.condim}" friction="{_f(law.friction)}" '
             f'solref="{_f(law.solref)}" solimp="{_f(law.solimp)}"')
+
+
+def food_solver_attrs(food: Granular | Liquid | Strands | None) -> str:
+    """The ``<option>`` attributes a food sets: its no-slip passes (strands, pieces; none for
+    any other world)."""
+    noslip = food.noslip_iterations if isinstance(food, Strands | Granular) else 0
+    return f'noslip_iterations="{noslip}"'
 
 
 def _pair_attrs(law: ContactParams) -> str:
@@ -526,13 +534,12 @@ def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
     # The no-slip solver removes soft contacts' creep: a loaded wrap of strands slides off the
     # tines, a heap of pieces flows below its angle of repose (physics.toml says why, per food;
     # it costs time, docs/notes/2026-11-22-simulation-prototypes.md).
-    noslip = food_p.noslip_iterations if isinstance(food_p, Strands | Granular) else 0
     x: list[str] = [
         f'<mujoco model="{arm.model}_articutool_feeding">',
         '<compiler angle="radian" autolimits="true"/>',
         f'<option timestep="{wp.timestep}" solver="{wp.solver}" iterations="{wp.iterations}" '
         f'tolerance="{wp.tolerance}" cone="{wp.cone}" integrator="implicitfast" '
-        f'noslip_iterations="{noslip}" '
+        f'{food_solver_attrs(food_p)} '
         f'sleep_tolerance="{wp.sleep_tolerance}">'
         f'<flag sleep="{"enable" if wp.sleep else "disable"}"/></option>',
         '<visual><global offwidth="1280" offheight="720"/><quality shadowsize="2048"/></visual>',

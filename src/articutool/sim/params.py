@@ -146,7 +146,8 @@ class Granular(_FoodBase):
     # (``sim-calibrate``) is checked against; also bounds what a utensil can hold.
     angle_of_repose_deg: Annotated[float, Field(gt=0, lt=90)]
     # No-slip solver passes (MuJoCo ``noslip_iterations``): static friction without the
-    # soft contacts' creep (a resting heap must not flow).
+    # soft contacts' creep (a resting heap must not flow); the creep law of ``sim-calibrate``
+    # (:func:`articutool.sim.calibrate.creep_mm`) checks what they give.
     noslip_iterations: Annotated[int, Field(ge=0, le=1000)] = 0
 
     @model_validator(mode="after")

@@ -1,0 +1,82 @@
+"""What an awake pecan bowl's step costs under each static-friction setting, beside the creep law
+(a measurement, not a change: the shipped parameters stay those of ``data/physics.toml``).
+
+The 125 g bowl is built and settled as a bite's world is (``FeedingWorld.build("pecans")``),
+then sleeping is switched off so every piece is awake (the bowl while the spoon is in it: the
+costly part of a bite; a resting bowl sleeps). For each setting the settled state is restored
+(``mj_copyData``), the options reset to the shipped ones and the setting applied, 5 steps taken,
+then ``--steps`` steps timed on the thread's CPU clock: CPU ms a step, contacts, the main
+solver's iterations, and the largest piece speed at the end (a pile that keeps moving faster
+than ``sleep_tolerance`` never sleeps). Beside each setting, the creep law of
+``sim-calibrate`` (:func:`articutool.sim.calibrate.creep_mm`: a half on 10-20° steel, 3 s).
+
+    .venv/bin/python benchmarks/pecan_step_cost.py --out results/pecan_step_cost.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+import mujoco
+import numpy as np
+
+from bench_io import machine, write_json
+
+SETTINGS: dict[str, dict[str, float]] = {
+    "no-slip 10 passes": {"noslip_iterations": 10},
+    "no-slip 2 passes": {"noslip_iterations": 2},
+    "no-slip 1 pass": {"noslip_iterations": 1},
+    "no no-slip": {"noslip_iterations": 0},
+}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--steps", type=int, default=100)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--out", default="results/pecan_step_cost.json")
+    args = ap.parse_args(argv)
+    from articutool.sim.calibrate import CREEP_SLOPES_DEG, creep_mm
+    from articutool.sim.world import FeedingWorld
+
+    w = FeedingWorld.build("pecans", seed=args.seed)
+    m, d, params = w.model, w.data, w.params
+    food = params.food("pecans")
+    m.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    kept = mujoco.MjData(m)
+    mujoco.mj_copyData(kept, m, d)
+    shipped = {"noslip_iterations": m.opt.noslip_iterations}
+    lin = np.concatenate([m.body_dofadr[b] + np.arange(3) for b in w.ledger.item_body])
+    rows = {}
+    for name, setting in SETTINGS.items():
+        for k, v in {**shipped, **setting}.items():
+            setattr(m.opt, k, v)
+        mujoco.mj_copyData(d, m, kept)
+        mujoco.mj_step(m, d, 5)
+        ncon = niter = 0
+        c0 = time.thread_time()
+        for _ in range(args.steps):
+            mujoco.mj_step(m, d)
+            ncon += d.ncon
+            niter += int(d.solver_niter[0])
+        cpu = time.thread_time() - c0
+        law = food.model_copy(update={"noslip_iterations": int(setting["noslip_iterations"])})
+        rows[name] = {
+            "cpu_ms_per_step": round(cpu / args.steps * 1e3, 2),
+            "contacts": ncon // args.steps, "solver_iterations": round(niter / args.steps, 1),
+            "max_piece_speed_m_s": round(float(np.max(np.linalg.norm(
+                d.qvel[lin].reshape(-1, 3), axis=1))), 4),
+            "creep_mm": [round(creep_mm(law, params, a), 4) for a in CREEP_SLOPES_DEG]}
+        print(name, rows[name], flush=True)
+    write_json(args.out, {"machine": {**machine(), "loadavg_end": os.getloadavg()},
+                          "seed": args.seed, "steps": args.steps,
+                          "sleep_tolerance_m_s": params.world.sleep_tolerance,
+                          "creep_slopes_deg": list(CREEP_SLOPES_DEG), "settings": rows})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,69 @@
+"""The pecan model's mechanisms against their laws: static friction holds a resting piece
+(creep), the pile test's heap and how its angle is read, and the test's reruns."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+pytest.importorskip("mujoco")
+
+from articutool.sim.calibrate import (
+    CREEP_LIMIT_MM,
+    CREEP_SLOPES_DEG,
+    FLANK_BIN_M,
+    PLATE_RADIUS_M,
+    angle_of_repose_deg,
+    creep_mm,
+    flank_angle_deg,
+)
+from articutool.sim.params import PhysicsParams
+
+
+@pytest.fixture(scope="module")
+def params() -> PhysicsParams:
+    return PhysicsParams.load()
+
+
+def test_a_pecan_half_rests_on_a_steel_slope_below_its_friction_angle(
+        params: PhysicsParams) -> None:
+    food = params.food("pecans")
+    assert math.degrees(math.atan(food.contacts.utensil.friction[0])) > max(CREEP_SLOPES_DEG)
+    for slope in CREEP_SLOPES_DEG:
+        assert creep_mm(food, params, slope) < CREEP_LIMIT_MM, slope
+
+
+def test_soft_contacts_alone_let_the_half_creep(params: PhysicsParams) -> None:
+    # The law tells the two apart: MuJoCo's soft friction without the no-slip pass creeps
+    # (0.27-0.53 mm at 10-20°, measured).
+    soft = params.food("pecans").model_copy(update={"noslip_iterations": 0})
+    assert max(creep_mm(soft, params, s) for s in CREEP_SLOPES_DEG) > CREEP_LIMIT_MM
+
+
+def test_the_flank_angle_is_the_slope_of_the_surface_envelope() -> None:
+    # Points under a 30° cone of a 40 mm apex, every 1 mm of radius (none on a ring's edge):
+    # the envelope of each ring is its innermost point.
+    h0, t = 0.04, math.tan(math.radians(30.0))
+    pts = [(r, h0 - r * t - dz) for r in ((x + 0.5) * 1e-3 for x in range(0, 50))
+           for dz in (0.0, 0.003)]
+    assert flank_angle_deg(pts) == pytest.approx(30.0, abs=0.01)
+    # A piece standing 10 mm proud on the apex moves the flank's line (one ring of ten) less
+    # than it moves the apex height's angle over the same base.
+    apex = math.degrees(math.atan((h0 + 0.01) / 0.05) - math.atan(h0 / 0.05))
+    assert 0.0 < flank_angle_deg([*pts, (0.001, h0 + 0.01)]) - 30.0 < apex
+    assert flank_angle_deg([(0.01, 0.01)]) == 0.0
+    assert FLANK_BIN_M < PLATE_RADIUS_M
+
+
+def test_the_pile_test_reruns_bit_identically(params: PhysicsParams) -> None:
+    food = params.food("pecans")
+    a, b = (angle_of_repose_deg(food, params, n=12, seed=1) for _ in range(2))
+    assert a["state_sha256"] == b["state_sha256"]
+    assert a["angle_deg"] == b["angle_deg"] and a["flank_angle_deg"] == b["flank_angle_deg"]
+
+
+def test_above_its_friction_angle_the_half_slides(params: PhysicsParams) -> None:
+    # The no-slip passes hold static friction without changing the Coulomb coefficient: at 25°
+    # (atan 0.45 = 24.2°) the half slides off (325 mm in 1 s, measured).
+    assert creep_mm(params.food("pecans"), params, 25.0, hold_s=1.0) > 10.0
