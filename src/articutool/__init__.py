@@ -12,6 +12,6 @@ import os
 # before any articutool module can import mujoco, unless the caller chose a backend.
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 __all__ = ["__version__"]
