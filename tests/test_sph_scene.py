@@ -15,6 +15,7 @@ from articutool.sim.sph_scene import (
     FluidBlock,
     SphLiquid,
     SphSettings,
+    box_mesh,
     momentum_balance_force,
     momentum_balance_torque,
     rotating_frame_acceleration,
@@ -29,16 +30,6 @@ vec3 = arrays(np.float64, 3, elements=finite)
 
 def particles(n: int) -> st.SearchStrategy[np.ndarray]:
     return arrays(np.float64, (n, 3), elements=finite)
-
-
-def box_mesh(lo: tuple[float, float, float], hi: tuple[float, float, float]
-             ) -> tuple[np.ndarray, np.ndarray]:
-    """A closed box, outward normals."""
-    v = np.array([[hi[0] if i & 1 else lo[0], hi[1] if i & 2 else lo[1],
-                   hi[2] if i & 4 else lo[2]] for i in range(8)])
-    f = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
-                  [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]])
-    return v, f
 
 
 BOX = box_mesh((-0.01, -0.01, 0.0), (0.01, 0.01, 0.03))

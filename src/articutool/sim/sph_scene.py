@@ -83,6 +83,7 @@ __all__ = [
     "FluidBlock",
     "SphLiquid",
     "SphSettings",
+    "box_mesh",
     "momentum_balance_force",
     "momentum_balance_torque",
     "rotating_frame_acceleration",
@@ -134,6 +135,21 @@ class Boundary:
         lines = [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in self.vertices]
         lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in self.faces]
         path.write_text("\n".join(lines) + "\n")
+
+
+def box_mesh(lower: ArrayLike, upper: ArrayLike) -> tuple[NDArray[np.float64],
+                                                          NDArray[np.int64]]:
+    """A closed axis-aligned box from ``lower`` to ``upper`` (m): 8 vertices, 12 triangles,
+    normals outward."""
+    lo, hi = _vec3(lower, "lower"), _vec3(upper, "upper")
+    if not np.all(hi > lo):
+        raise ValueError(f"a box needs upper > lower on every axis; got {lo}, {hi}")
+    v = np.array([[hi[0] if i & 1 else lo[0], hi[1] if i & 2 else lo[1],
+                   hi[2] if i & 4 else lo[2]] for i in range(8)])
+    f = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+                  [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]],
+                 dtype=np.int64)
+    return v, f
 
 
 @dataclass(frozen=True)
