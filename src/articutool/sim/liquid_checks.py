@@ -14,6 +14,7 @@ took (``time.process_time``).
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 import tomllib
@@ -21,16 +22,29 @@ from importlib import resources
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
+from articutool.food.dish import spoon_dish
+from articutool.food.dish_fill import dish_pour
+from articutool.food.dish_mesh import dish_boundary_mesh
+from articutool.food.slosh import SloshModel
 from articutool.sim.sph_library import library_version
-from articutool.sim.sph_scene import FluidBlock, SphLiquid, SphSettings, box_mesh
-from articutool.sim.sph_scene import Boundary as SphBoundary
+from articutool.sim.sph_scene import (
+    Boundary,
+    FluidBlock,
+    FluidParticles,
+    SphLiquid,
+    SphSettings,
+    box_mesh,
+)
+from articutool.spec import UtensilSpec, load_spec
 
-__all__ = ["dam_break_check", "martin_moyce_1952"]
+__all__ = ["dam_break_check", "martin_moyce_1952", "oscillation", "slosh_mode_check"]
 
 G0 = 9.80665  # m/s²
 DAM_BREAK_TOLERANCE = 0.10  # the front within 10 % of the measured one ...
 DAM_BREAK_Z_LIMIT = 3.0  # ... up to Z = 3
+SLOSH_TOLERANCE = 0.10  # the slosh frequency within 10 % of the linear model's
 
 
 def _backend() -> dict[str, str]:
@@ -72,13 +86,13 @@ def dam_break_check(radius: float = 0.05715 / 40, *, width: float = 0.05715,
     t_scale = 1.0 / math.sqrt(2.0 * G0 / a_eff)  # t = T · t_scale
     t_star: list[float] = []
     z_star: list[float] = []
-    with SphLiquid([SphBoundary("tank", *box)], [block], settings,
+    with SphLiquid([Boundary("tank", *box)], [block], settings,
                    (0.0, 0.0, -G0)) as liq:
         n = liq.n_particles
         k = 0
         while True:
             T = k * sample_t_star
-            if T > t_star_end + 1e-9:
+            if t_star_end + 1e-9 < T:
                 break
             if T > 0:
                 liq.step_to(T * t_scale)
@@ -120,3 +134,88 @@ def dam_break_check(radius: float = 0.05715 / 40, *, width: float = 0.05715,
         "pass": bool(rel.size > 0 and worst <= DAM_BREAK_TOLERANCE),
         "cpu_s": round(time.process_time() - t_cpu, 2),
     }
+
+
+def oscillation(t: ArrayLike, y: ArrayLike, rest: float | None = None) -> dict[str, float]:
+    """Frequency (Hz) and damping of a decaying oscillation sampled at ``t`` about ``rest``
+    (default: the samples' mean): the mean period between the crossings of ``rest`` (linear
+    interpolation), and the logarithmic
+    decrement of its successive extrema (half-periods apart: ``δ = 2·mean ln|A_k/A_{k+1}|``),
+    as the damping ratio ``ζ = δ / √(4π² + δ²)``. NaN where there are too few crossings."""
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    y = y - (y.mean() if rest is None else rest)
+    s = np.signbit(y)
+    k = np.flatnonzero(s[1:] != s[:-1])
+    tz = t[k] - y[k] * (t[k + 1] - t[k]) / (y[k + 1] - y[k])
+    if len(tz) < 3:
+        return {"frequency_hz": math.nan, "damping_ratio": math.nan, "cycles": 0.0}
+    half = float(np.mean(np.diff(tz)))
+    peaks = np.array([np.abs(y[(t >= a) & (t <= b)]).max() for a, b in itertools.pairwise(tz)])
+    ok = peaks > 0
+    logs = np.diff(np.log(peaks[ok])) if ok.sum() >= 2 else np.array([math.nan])
+    delta = float(-2.0 * np.mean(logs))
+    return {"frequency_hz": 1.0 / (2.0 * half),
+            "damping_ratio": delta / math.sqrt(4.0 * math.pi ** 2 + delta ** 2),
+            "cycles": (len(tz) - 1) / 2.0}
+
+
+def slosh_mode_check(radius: float = 0.001, *, grams: float = 8.0,
+                     utensil: UtensilSpec | None = None, settle_s: float = 0.6,
+                     pulse_g: float = 0.2, pulse_s: float = 0.04, record_s: float = 2.0,
+                     sample_s: float = 0.004) -> dict[str, Any]:
+    """The load's first slosh mode along and across the dish against
+    :class:`articutool.food.slosh.SloshModel`'s linear model, and its damping.
+
+    ``grams`` of water are poured into the soup spoon's dish (:func:`dish_pour`; the dish's
+    closed shell :func:`dish_boundary_mesh` as the boundary, the utensil's frame, the dish
+    level), settle ``settle_s``, then feel a lateral apparent-gravity pulse of ``pulse_g``·g
+    for ``pulse_s`` towards the tip and the side at once (the two modes are orthogonal by the
+    dish's symmetry); the liquid's centre of mass along z and along y then rings at each mode's
+    frequency, read over ``record_s`` (:func:`oscillation`). Passes when both frequencies are
+    within 10 % of the model's."""
+    t_cpu = time.process_time()
+    u = utensil if utensil is not None else load_spec().utensil("soup_spoon")
+    dish = spoon_dish(u)
+    settings = SphSettings(particle_radius=radius, boundary_viscosity=1.0e-6)
+    count = round(grams * 1e-3 / settings.particle_mass)
+    x = dish_pour(dish, u.tip_x, radius, count)
+    shell = dish_boundary_mesh(dish, u.tip_x, u.physics.thickness)
+    g_level = np.array([-G0, 0.0, 0.0])  # dish level: gravity along −x, the dish normal
+    kick = pulse_g * G0 / math.sqrt(2.0)
+    ts: list[float] = []
+    com: list[NDArray[np.float64]] = []
+    with SphLiquid([Boundary("dish", *shell)], [FluidParticles(x)], settings, g_level) as liq:
+        n = liq.n_particles
+        liq.step_to(settle_s)
+        rest = liq.positions().mean(axis=0)
+        liq.set_gravity(g_level + [0.0, kick, kick])
+        liq.step_to(settle_s + pulse_s)
+        liq.set_gravity(g_level)
+        t0 = liq.time
+        while liq.time < t0 + record_s:
+            liq.step_to(liq.time + sample_s)
+            ts.append(liq.time - t0)
+            com.append(liq.positions().mean(axis=0))
+        kept = liq.n_particles
+    c = np.array(com)
+    model = SloshModel(dish, count * settings.particle_mass / settings.density0)
+    laws = {m.axis: m for m in model.modes or ()}
+    result: dict[str, Any] = {"check": "slosh_modes", **_backend(), "particle_radius_m": radius,
+                              "particles": n, "grams": round(n * settings.particle_mass * 1e3, 4),
+                              "particles_kept": kept}
+    ok = True
+    for axis, col in (("along", 2), ("across", 1)):
+        osc = oscillation(ts, c[:, col], float(rest[col]))
+        law = laws[axis]
+        err = abs(osc["frequency_hz"] - law.frequency_hz) / law.frequency_hz
+        passed = bool(math.isfinite(err) and err <= SLOSH_TOLERANCE)
+        ok &= passed
+        result[axis] = {"measured_hz": round(osc["frequency_hz"], 4),
+                        "law_hz": round(law.frequency_hz, 4), "rel_error": round(err, 4),
+                        "measured_damping_ratio": round(osc["damping_ratio"], 4),
+                        "law_damping_ratio": round(law.zeta, 4),
+                        "cycles": osc["cycles"], "pass": passed}
+    result.update({"tolerance": SLOSH_TOLERANCE, "pass": ok,
+                   "cpu_s": round(time.process_time() - t_cpu, 2)})
+    return result

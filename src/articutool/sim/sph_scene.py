@@ -1,7 +1,8 @@
 """A liquid simulated by SPlisHSPlasH (``pysplishsplash`` 2.19): a thin, typed wrapper.
 
 **Contract.** :class:`SphLiquid` builds one SPlisHSPlasH scene from closed triangle meshes
-(:class:`Boundary`, given as arrays) and boxes of liquid (:class:`FluidBlock`), with the
+(:class:`Boundary`, given as arrays) and liquid given as boxes (:class:`FluidBlock`) or as
+particle positions (:class:`FluidParticles`), all one fluid (water's material), with the
 solver settings of :class:`SphSettings` (DFSPH pressure solver, Akinci et al. 2012 boundary
 particles, the standard SPH viscosity with water's kinematic viscosity, CFL time steps capped
 at ``max_dt``). Units are SI; the frame is whatever frame the caller gives the meshes, the
@@ -81,6 +82,7 @@ from articutool.sim.sph_library import library_version, load_splishsplash
 __all__ = [
     "Boundary",
     "FluidBlock",
+    "FluidParticles",
     "SphLiquid",
     "SphSettings",
     "box_mesh",
@@ -171,6 +173,29 @@ class FluidBlock:
 
 
 @dataclass(frozen=True)
+class FluidParticles:
+    """Liquid particles at given positions (m, (N, 3), at rest), e.g. a load placed in a
+    dish: each stands for a cube of side ``2r`` of liquid (keep the centres about ``2r`` apart
+    and ``2r`` off the boundaries). Passed to the library as a Partio ASCII (PDA) file."""
+
+    positions: NDArray[np.float64] = field(repr=False)
+
+    def __post_init__(self) -> None:
+        x = np.asarray(self.positions, dtype=float)
+        if x.ndim != 2 or x.shape[1] != 3 or len(x) < 1 or not np.all(np.isfinite(x)):
+            raise ValueError(f"fluid particles must be (N >= 1, 3) finite positions; got "
+                             f"shape {x.shape}")
+        object.__setattr__(self, "positions", x)
+
+    def write_pda(self, path: Path) -> None:
+        """The positions as a Partio ASCII particle file."""
+        head = ("ATTRIBUTES\nposition\nTYPES\nV\n"
+                f"NUMBER_OF_PARTICLES: {len(self.positions)}\nBEGIN DATA\n")
+        body = "\n".join(f"{x:.9g} {y:.9g} {z:.9g}" for x, y, z in self.positions)
+        path.write_text(head + body + "\n")
+
+
+@dataclass(frozen=True)
 class SphSettings:
     """Solver settings (SI). ``max_density_error_pct``: DFSPH's tolerated mean density error
     (percent); ``max_divergence_error_pct``: its divergence solver's. ``viscosity``: kinematic
@@ -208,8 +233,9 @@ class SphSettings:
 
 
 def _scene_json(boundaries: Sequence[Boundary], files: Sequence[Path],
-                fluids: Sequence[FluidBlock], s: SphSettings,
-                gravity: NDArray[np.float64]) -> dict[str, Any]:
+                fluids: Sequence[FluidBlock | FluidParticles], particle_files: Sequence[Path],
+                s: SphSettings, gravity: NDArray[np.float64]) -> dict[str, Any]:
+    blocks = [f for f in fluids if isinstance(f, FluidBlock)]
     return {
         "Configuration": {
             "particleRadius": s.particle_radius,
@@ -263,7 +289,15 @@ def _scene_json(boundaries: Sequence[Boundary], files: Sequence[Path],
             "end": [float(x) + s.particle_radius for x in f.upper],
             "translation": [0.0, 0.0, 0.0],
             "scale": [1.0, 1.0, 1.0],
-        } for f in fluids],
+        } for f in blocks],
+        "FluidModels": [{
+            "id": "Fluid",
+            "particleFile": str(path),
+            "translation": [0.0, 0.0, 0.0],
+            "rotationAxis": [1.0, 0.0, 0.0],
+            "rotationAngle": 0.0,
+            "scale": [1.0, 1.0, 1.0],
+        } for path in particle_files],
     }
 
 
@@ -315,7 +349,8 @@ class SphLiquid:
     """A SPlisHSPlasH liquid (see the module doc for the contract). Close it (or use it as a
     context manager) to free the library's scene and the temporary files."""
 
-    def __init__(self, boundaries: Sequence[Boundary], fluids: Sequence[FluidBlock],
+    def __init__(self, boundaries: Sequence[Boundary],
+                 fluids: Sequence[FluidBlock | FluidParticles],
                  settings: SphSettings, gravity: ArrayLike = (0.0, 0.0, -9.80665), *,
                  extra_acceleration: ExtraAcceleration | None = None) -> None:
         if _OPEN:
@@ -327,6 +362,8 @@ class SphLiquid:
         if not fluids:
             raise ValueError("a liquid needs at least one fluid block")
         for f in fluids:
+            if isinstance(f, FluidParticles):
+                continue
             counts = np.round((np.asarray(f.upper) - np.asarray(f.lower))
                               / (2.0 * settings.particle_radius))
             if np.any(counts < 2):
@@ -344,8 +381,15 @@ class SphLiquid:
                 path = self._dir / f"boundary{i}.obj"
                 b.write_obj(path)
                 files.append(path)
+            particle_files = []
+            for i, f in enumerate(fluids):
+                if isinstance(f, FluidParticles):
+                    path = self._dir / f"fluid{i}.pda"
+                    f.write_pda(path)
+                    particle_files.append(path)
             scene_file = self._dir / "scene.json"
-            scene_file.write_text(json.dumps(_scene_json(boundaries, files, fluids, settings,
+            scene_file.write_text(json.dumps(_scene_json(boundaries, files, fluids,
+                                                         particle_files, settings,
                                                          self._gravity), indent=1))
             self._log = self._dir / "splishsplash.log"
             self._base = self._sph.Exec.SimulatorBase()
