@@ -13,6 +13,7 @@ from hypothesis.extra.numpy import arrays
 from articutool.sim.sph_scene import (
     Boundary,
     FluidBlock,
+    FluidParticles,
     SphLiquid,
     SphSettings,
     box_mesh,
@@ -186,3 +187,23 @@ def test_removed_particles_leave_the_simulation_and_the_rest_keep_their_ids() ->
         liq.step_to(0.2)
         x = liq.positions()
         assert np.all(np.abs(x) < 0.03)  # no parked particle came back, none escaped
+
+
+def test_the_box_mesh_is_closed_with_outward_normals() -> None:
+    from articutool.food.dish_mesh import mesh_volume
+
+    v, f = box_mesh((0.0, -1.0, 2.0), (1.0, 2.0, 4.0))
+    assert mesh_volume(v, f) == pytest.approx(1.0 * 3.0 * 2.0)
+    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    assert np.all(counts == 2)  # every edge shared by exactly two triangles
+
+
+def test_liquid_given_as_positions_starts_there() -> None:
+    g = np.mgrid[-3:4, -3:4, 0:3].reshape(3, -1).T * 2 * R + np.array([0.0, 0.0, 2 * R])
+    with SphLiquid([Boundary("box", *BOX)], [FluidParticles(g)], SphSettings(particle_radius=R),
+                   G) as liq:
+        assert liq.n_particles == len(g)
+        x = liq.positions()[np.argsort(liq.particle_ids())]
+        # one first step (≤ 2 ms) has passed: each particle moved a fraction of its radius
+        assert np.abs(x - g).max() < 0.3 * R
