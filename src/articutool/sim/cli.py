@@ -11,11 +11,15 @@ import argparse
 import json
 import math
 import sys
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from articutool.sim.params import PhysicsParams
 
 __all__ = ["add_commands"]
 
 
-def _world_args(args: argparse.Namespace) -> dict:
+def _world_args(args: argparse.Namespace) -> dict[str, Any]:
     from articutool.cli_support import UsageError, spec_from_args
     from articutool.sim.params import PhysicsError, PhysicsParams
 
@@ -31,7 +35,44 @@ def _world_args(args: argparse.Namespace) -> dict:
                          f"{sorted(spec.utensils)}")
     if args.seed < 0:
         raise UsageError(f"--seed must be an integer >= 0; got {args.seed}")
-    return {"spec": spec, "params": params, "seed": args.seed}
+    return {"spec": spec, "params": _liquid_options(args, params), "seed": args.seed}
+
+
+def _liquid_options(args: argparse.Namespace, params: PhysicsParams) -> PhysicsParams:
+    """``--liquid`` and ``--liquid-radius`` applied to a liquid food's parameters (exit 2
+    outside the validated radii or for a food that is no liquid); the liquid solver loaded
+    when a liquid load will use it (exit 2 with the loader's message when it cannot be)."""
+    from articutool.cli_support import UsageError
+    from articutool.sim.params import SPH_RADIUS_RANGE_M, Liquid
+    from articutool.sim.sph_library import LiquidLibraryError, load_splishsplash
+
+    fp = params.food(args.food)
+    update: dict = {}
+    for opt, key, value in (("--liquid", "load_model", args.liquid),
+                            ("--liquid-radius", "sph_particle_radius", args.liquid_radius)):
+        if value is None:
+            continue
+        if not isinstance(fp, Liquid):
+            raise UsageError(f"{opt}: {args.food} is {fp.kind}, not a liquid")
+        update[key] = value
+    if args.liquid_radius is not None:
+        lo, hi = SPH_RADIUS_RANGE_M
+        r = args.liquid_radius
+        if not (math.isfinite(r) and lo * 1e3 - 1e-9 <= r <= hi * 1e3 + 1e-9):
+            raise UsageError(f"--liquid-radius must be in [{lo * 1e3:g}, {hi * 1e3:g}] mm "
+                             f"(the SPH particle radii the static-tilt checks validated); "
+                             f"got {r:g}")
+        update["sph_particle_radius"] = r / 1e3
+    if update:
+        assert isinstance(fp, Liquid)
+        fp = fp.model_copy(update=update)
+        params = params.model_copy(update={"foods": {**params.foods, args.food: fp}})
+    if isinstance(fp, Liquid) and fp.sph_load:
+        try:
+            load_splishsplash()
+        except LiquidLibraryError as err:
+            raise UsageError(str(err)) from None
+    return params
 
 
 def _check_load(args: argparse.Namespace, kw: dict) -> None:
@@ -246,6 +287,13 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--physics", metavar="FILE", default=None,
                    help="physics parameters TOML (default: the packaged physics.toml)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument("--liquid", choices=("sph", "spheres"), default=None,
+                   help="a liquid load placed on the utensil: sph (SPlisHSPlasH in the loop, "
+                        "the default of physics.toml) or spheres (MuJoCo spheres, for "
+                        "comparison)")
+    p.add_argument("--liquid-radius", type=float, metavar="MM", default=None,
+                   help="the SPH particle radius (mm), within the validated 0.75-1.0 mm "
+                        "(default: physics.toml's)")
     add_spec_option(p)
 
 
