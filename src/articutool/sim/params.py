@@ -208,6 +208,12 @@ class Liquid(_FoodBase):
         """kg per SPH particle: ρ0 · (2r)³ (SPlisHSPlasH's own particle mass)."""
         return self.density * (2.0 * self.sph_particle_radius) ** 3
 
+    @property
+    def load_item_mass(self) -> float:
+        """kg of one item of a placed load: an SPH particle, or a load sphere."""
+        return (self.sph_particle_mass() if self.sph_load
+                else self.particle_mass(self.load_particle_radius))
+
     def particle_mass(self, radius: float) -> float:
         """kg per particle of ``radius``: density × sphere volume / packing fraction."""
         return self.density * 4.0 / 3.0 * math.pi * radius**3 / self.packing_fraction
