@@ -258,8 +258,11 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         print(table(result))
         return 0
     tilt = result.pop("static_tilt", None)
+    liquid = result.pop("liquid", None)
     for k, v in result.items():
         print(f"{k:28s} {v}")
+    if liquid is not None:
+        _print_liquid(liquid)
     if tilt is not None:
         print(f"static tilt of {tilt['load_g']:g} g on the {tilt['utensil']} (held "
               f"{tilt['hold_s']:g} s at each tilt; hydrostatics of the load that stayed):")
@@ -274,6 +277,24 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
                       f"{r['hydrostatic_g']:14.2f}")
         print(f"  {tilt['cpu_s']} s CPU, {tilt['realtime_factor']}x real time")
     return 0
+
+
+def _print_liquid(liquid: dict[str, Any]) -> None:
+    """The SPH liquid's checks, each beside its law."""
+    print(f"liquid: {liquid['backend']} {liquid['version']}, particle radius "
+          f"{liquid['particle_radius_mm']:g} mm")
+    for t in liquid["static_tilt"]:
+        o = t["onset"]
+        holds = ", ".join(f"{h['tilt_deg']:g}° {h['spilled_g']:.2f} g ({h['hydrostatic_g']:.2f})"
+                          for h in t["holds"])
+        print(f"  static tilt {t['load_g']:g} g {t['direction']:4s} r {t['particle_radius_mm']:g}"
+              f" mm: onset {o['measured_deg']}° ({o['law_deg']}°); {holds}: "
+              f"{'passes' if t['passes'] else 'FAILS'}")
+    w = liquid["weighing"]
+    print(f"  weighing: F/T {w['ft_sensor_g']} g, scale {w['scale_g']} g for {w['held_g']} g: "
+          f"{'passes' if w['passes'] else 'FAILS'}")
+    for d in liquid["dynamic"]:
+        print(f"  {d.get('check', '?')}: {'passes' if d.get('passes') else 'FAILS'}")
 
 
 def _common(p: argparse.ArgumentParser) -> None:
