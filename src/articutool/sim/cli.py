@@ -293,8 +293,10 @@ def _print_liquid(liquid: dict[str, Any]) -> None:
     w = liquid["weighing"]
     print(f"  weighing: F/T {w['ft_sensor_g']} g, scale {w['scale_g']} g for {w['held_g']} g: "
           f"{'passes' if w['passes'] else 'FAILS'}")
+    from articutool.sim.liquid_tilt import check_passes
+
     for d in liquid["dynamic"]:
-        print(f"  {d.get('check', '?')}: {'passes' if d.get('passes') else 'FAILS'}")
+        print(f"  {d.get('check', '?')}: {'passes' if check_passes(d) else 'FAILS'}")
 
 
 def _common(p: argparse.ArgumentParser) -> None:

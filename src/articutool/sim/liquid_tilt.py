@@ -37,7 +37,8 @@ from articutool.sim.sph_scene import Boundary, FluidParticles, SphLiquid, SphSet
 from articutool.spec import Spec
 
 __all__ = ["GRAMS_TOL", "HOLD_DEG", "HOLD_S", "LIQUID_CHECKS", "ONSET_G", "ONSET_TOL_DEG",
-           "TILT_LOADS_G", "TILT_RADII_M", "TILT_RATE", "WEIGH_TOL", "liquid_calibration",
+           "TILT_LOADS_G", "TILT_RADII_M", "TILT_RATE", "WEIGH_TOL", "check_passes",
+           "liquid_calibration",
            "static_tilt_sph", "tilt_for_spill", "weighing_check"]
 
 # The protocol (numerical choices of the test, not of the model).
@@ -202,10 +203,20 @@ def liquid_calibration(food_name: str, spec: Spec, params: PhysicsParams,
                     on_result(tilts[-1])
     weigh = weighing_check(food_name, spec, params, uname)
     dynamic = [check() for check in LIQUID_CHECKS()]
-    return {**backend(), "particle_radius_mm": food.sph_particle_radius * 1e3,
-            "particle_radii_checked_mm": [r * 1e3 for r in radii],
-            "static_tilt": tilts,
-            "static_tilt_passes": all(t["passes"] for t in tilts),
-            "weighing": weigh, "dynamic": dynamic,
-            "passes": all(t["passes"] for t in tilts) and weigh["passes"]
-            and all(bool(d.get("passes", False)) for d in dynamic)}
+    out: dict[str, Any] = {
+        **backend(), "particle_radius_mm": food.sph_particle_radius * 1e3,
+        "particle_radii_checked_mm": [r * 1e3 for r in radii],
+        "static_tilt": tilts, "static_tilt_passes": all(t["passes"] for t in tilts),
+        "weighing": weigh, "dynamic": dynamic,
+        "passes": all(t["passes"] for t in tilts) and weigh["passes"]
+        and all(check_passes(d) for d in dynamic)}
+    for d in dynamic:
+        if d.get("check") == "dam_break":  # the surge front, T = n·t·√(g/a), Z = x/a
+            out["dam_break"] = {"t_star": d["t_star"], "z_star": d["z_star"],
+                                "reference": d["reference"]}
+    return out
+
+
+def check_passes(result: dict[str, Any]) -> bool:
+    """A check's verdict (the dynamic checks say ``pass``, the static ones ``passes``)."""
+    return bool(result.get("pass", result.get("passes", False)))
