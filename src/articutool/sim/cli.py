@@ -67,7 +67,8 @@ def _liquid_options(args: argparse.Namespace, params: PhysicsParams) -> PhysicsP
         assert isinstance(fp, Liquid)
         fp = fp.model_copy(update=update)
         params = params.model_copy(update={"foods": {**params.foods, args.food: fp}})
-    if isinstance(fp, Liquid) and fp.sph_load:
+    placed = getattr(args, "load", None) is not None or args.func is _cmd_calibrate
+    if isinstance(fp, Liquid) and fp.sph_load and placed:
         try:
             load_splishsplash()
         except LiquidLibraryError as err:
