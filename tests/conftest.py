@@ -218,3 +218,35 @@ def trial_record(experiment: str, trial: int = 0, **fields: object):  # type: ig
                 kind = typing.get_origin(f.annotation) or f.annotation
                 line[name] = {dict: {}, list: []}.get(kind, _NEUTRAL.get(kind))
     return TrialRecord.from_log({**line, **fields})
+
+
+# Test modules written for the spheres' placed water: their expectations are the measured
+# behaviour of the MuJoCo spheres (docs/food.md), so they run with ``load_model = "spheres"``
+# (the comparison option). The liquid's own tests (tests/test_liquid_*.py) use the default.
+SPHERE_WATER_MODULES = frozenset({
+    "test_contact_params", "test_experiment_scaling", "test_experiments_protocols",
+    "test_experiments_runner", "test_feeding_sim", "test_ros2_verify",
+    "test_shedding_physics", "test_sim_physics", "test_verify_food", "test_viewer",
+    "test_water_model"})
+
+
+@pytest.fixture(autouse=True)
+def _sphere_water(request, monkeypatch):  # type: ignore[no-untyped-def]
+    """In :data:`SPHERE_WATER_MODULES`, the packaged physics' placed water is spheres."""
+    if request.module.__name__.rsplit(".", 1)[-1] not in SPHERE_WATER_MODULES:
+        yield
+        return
+    from articutool.sim import params as sim_params
+
+    load = sim_params.PhysicsParams.load.__func__
+
+    def spheres(cls, path=None):  # type: ignore[no-untyped-def]
+        p = load(cls, path)
+        w = p.foods.get("water")
+        if path is None and isinstance(w, sim_params.Liquid):
+            w = w.model_copy(update={"load_model": "spheres"})
+            p = p.model_copy(update={"foods": {**p.foods, "water": w}})
+        return p
+
+    monkeypatch.setattr(sim_params.PhysicsParams, "load", classmethod(spheres))
+    yield

@@ -201,8 +201,7 @@ def _closed_loop_targets(thresholds: dict[str, float], cfg: Any) -> dict[str, fl
         noise_g = spec.ft.force_noise_n / spec.imu.gravity * 1000.0 / math.sqrt(n)
         fp = params.food(food)
         # One item of a placed load: a load particle of a liquid, a piece otherwise.
-        item = fp.particle_mass(fp.load_particle_radius) if isinstance(fp, Liquid) \
-            else fp.piece_mass
+        item = fp.load_item_mass if isinstance(fp, Liquid) else fp.piece_mass
         out[food] = round(closed_loop_target_g(thresholds[food], item * 1000.0, noise_g), 3)
     return out
 

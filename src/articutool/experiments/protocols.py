@@ -209,7 +209,7 @@ def capacity_trial(cond: CapacityCondition, seed: int, cfg: ExperimentsConfig,
         u = w.spec.utensil(w.utensil)
         # The dish's level volume, less one of a load's particles: the pour's last must fit.
         brim = (dish_volume_m3(u) * fp.density * 1000.0
-                - fp.particle_mass(fp.load_particle_radius) * 1000.0)
+                - fp.load_item_mass * 1000.0)
         b = FeedingWorld.build(food, w.utensil, spec=w.spec, scene=w.scene, seed=seed,
                                load_g=brim, mouth=False, settle_cache=settled)
         if b.max_load_g() < brim:  # the pour's lattice holds less than the level volume

@@ -293,8 +293,15 @@ def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
         top = float(np.quantile(z, 0.95)) + food.particle_radius
         vol_ml = math.pi * inner**2 * (top - floor) * 1e6
         out["bulk_density_g_per_ml"] = round(world.masses_g()["container"] / vol_ml, 3)
-        out["static_tilt"] = static_tilt(food_name, spec, params, utensil,
-                                         8.0 if load_g is None else load_g, seed)
+        if food.sph_load:  # the SPH liquid, each mechanism beside its law
+            from articutool.sim.liquid_tilt import TILT_LOADS_G, liquid_calibration
+
+            out["liquid"] = liquid_calibration(
+                food_name, spec, params, utensil,
+                TILT_LOADS_G if load_g is None else (load_g,))
+        else:
+            out["static_tilt"] = static_tilt(food_name, spec, params, utensil,
+                                             8.0 if load_g is None else load_g, seed)
     if isinstance(food, Strands):
         from articutool.sim.strand_laws import run_strand_calibration
 

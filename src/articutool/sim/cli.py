@@ -11,11 +11,15 @@ import argparse
 import json
 import math
 import sys
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from articutool.sim.params import PhysicsParams
 
 __all__ = ["add_commands"]
 
 
-def _world_args(args: argparse.Namespace) -> dict:
+def _world_args(args: argparse.Namespace) -> dict[str, Any]:
     from articutool.cli_support import UsageError, spec_from_args
     from articutool.sim.params import PhysicsError, PhysicsParams
 
@@ -31,7 +35,45 @@ def _world_args(args: argparse.Namespace) -> dict:
                          f"{sorted(spec.utensils)}")
     if args.seed < 0:
         raise UsageError(f"--seed must be an integer >= 0; got {args.seed}")
-    return {"spec": spec, "params": params, "seed": args.seed}
+    return {"spec": spec, "params": _liquid_options(args, params), "seed": args.seed}
+
+
+def _liquid_options(args: argparse.Namespace, params: PhysicsParams) -> PhysicsParams:
+    """``--liquid`` and ``--liquid-radius`` applied to a liquid food's parameters (exit 2
+    outside the validated radii or for a food that is no liquid); the liquid solver loaded
+    when a liquid load will use it (exit 2 with the loader's message when it cannot be)."""
+    from articutool.cli_support import UsageError
+    from articutool.sim.params import SPH_RADIUS_RANGE_M, Liquid
+    from articutool.sim.sph_library import LiquidLibraryError, load_splishsplash
+
+    fp = params.food(args.food)
+    update: dict = {}
+    for opt, key, value in (("--liquid", "load_model", args.liquid),
+                            ("--liquid-radius", "sph_particle_radius", args.liquid_radius)):
+        if value is None:
+            continue
+        if not isinstance(fp, Liquid):
+            raise UsageError(f"{opt}: {args.food} is {fp.kind}, not a liquid")
+        update[key] = value
+    if args.liquid_radius is not None:
+        lo, hi = SPH_RADIUS_RANGE_M
+        r = args.liquid_radius
+        if not (math.isfinite(r) and lo * 1e3 - 1e-9 <= r <= hi * 1e3 + 1e-9):
+            raise UsageError(f"--liquid-radius must be in [{lo * 1e3:g}, {hi * 1e3:g}] mm "
+                             f"(the SPH particle radii the static-tilt checks validated); "
+                             f"got {r:g}")
+        update["sph_particle_radius"] = r / 1e3
+    if update:
+        assert isinstance(fp, Liquid)
+        fp = fp.model_copy(update=update)
+        params = params.model_copy(update={"foods": {**params.foods, args.food: fp}})
+    placed = getattr(args, "load", None) is not None or args.func is _cmd_calibrate
+    if isinstance(fp, Liquid) and fp.sph_load and placed:
+        try:
+            load_splishsplash()
+        except LiquidLibraryError as err:
+            raise UsageError(str(err)) from None
+    return params
 
 
 def _check_load(args: argparse.Namespace, kw: dict) -> None:
@@ -217,8 +259,11 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         print(table(result))
         return 0
     tilt = result.pop("static_tilt", None)
+    liquid = result.pop("liquid", None)
     for k, v in result.items():
         print(f"{k:28s} {v}")
+    if liquid is not None:
+        _print_liquid(liquid)
     if tilt is not None:
         print(f"static tilt of {tilt['load_g']:g} g on the {tilt['utensil']} (held "
               f"{tilt['hold_s']:g} s at each tilt; hydrostatics of the load that stayed):")
@@ -235,6 +280,26 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _print_liquid(liquid: dict[str, Any]) -> None:
+    """The SPH liquid's checks, each beside its law."""
+    print(f"liquid: {liquid['backend']} {liquid['version']}, particle radius "
+          f"{liquid['particle_radius_mm']:g} mm")
+    for t in liquid["static_tilt"]:
+        o = t["onset"]
+        holds = ", ".join(f"{h['tilt_deg']:g}° {h['spilled_g']:.2f} g ({h['hydrostatic_g']:.2f})"
+                          for h in t["holds"])
+        print(f"  static tilt {t['load_g']:g} g {t['direction']:4s} r {t['particle_radius_mm']:g}"
+              f" mm: onset {o['measured_deg']}° ({o['law_deg']}°); {holds}: "
+              f"{'passes' if t['passes'] else 'FAILS'}")
+    w = liquid["weighing"]
+    print(f"  weighing: F/T {w['ft_sensor_g']} g, scale {w['scale_g']} g for {w['held_g']} g: "
+          f"{'passes' if w['passes'] else 'FAILS'}")
+    from articutool.sim.liquid_tilt import check_passes
+
+    for d in liquid["dynamic"]:
+        print(f"  {d.get('check', '?')}: {'passes' if check_passes(d) else 'FAILS'}")
+
+
 def _common(p: argparse.ArgumentParser) -> None:
     from articutool.cli_support import add_spec_option
 
@@ -246,6 +311,13 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--physics", metavar="FILE", default=None,
                    help="physics parameters TOML (default: the packaged physics.toml)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument("--liquid", choices=("sph", "spheres"), default=None,
+                   help="a liquid load placed on the utensil: sph (SPlisHSPlasH in the loop, "
+                        "the default of physics.toml) or spheres (MuJoCo spheres, for "
+                        "comparison)")
+    p.add_argument("--liquid-radius", type=float, metavar="MM", default=None,
+                   help="the SPH particle radius (mm), within the validated 0.75-1.0 mm "
+                        "(default: physics.toml's)")
     add_spec_option(p)
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from typing import Protocol
 
 import mujoco
 import numpy as np
@@ -21,9 +22,25 @@ from articutool.arm.scene import Box, Cylinder, Scene, Sphere
 from articutool.sim import accounting as acc
 from articutool.sim.mjcf import WorldLayout
 
-__all__ = ["FoodLedger"]
+__all__ = ["FoodLedger", "LiquidInDish"]
 
 _UTENSIL_NODE, _OTHER_NODE, _SURFACE0 = -1, -2, -10
+
+
+class LiquidInDish(Protocol):
+    """What the ledger needs of a liquid load in the dish (its particles are items)."""
+
+    def force_world(self) -> NDArray[np.float64]:
+        """The liquid's force on the utensil now (N, world frame)."""
+        ...
+
+    def positions_world(self) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        """(items, world positions (n, 3)) of the particles in the dish."""
+        ...
+
+    def remove(self, items: NDArray[np.int64]) -> None:
+        """Take these items' particles out of the liquid (eaten)."""
+        ...
 
 
 class FoodLedger:
@@ -89,6 +106,11 @@ class FoodLedger:
         self._force_z: deque[float] = deque(maxlen=max(1, round(0.5 / period)))
         self._mouth = next(((np.asarray(r.xyz), r.radius) for r in scene.regions
                             if r.name == "mouth"), None) if mouth else None
+        # A liquid load simulated beside MuJoCo (:mod:`articutool.sim.liquid_load`): its
+        # particles are items whose spheres stay parked while they are in the dish
+        # (``in_liquid``): on the utensil, until the liquid hands them to MuJoCo.
+        self.in_liquid = np.zeros(self.n_items, dtype=bool)
+        self.liquid: LiquidInDish | None = None
 
     def contacts(self) -> tuple[NDArray, NDArray, NDArray]:
         """The food's contacts now: (item-item pairs, items on the utensil, [item, surface])."""
@@ -117,12 +139,12 @@ class FoodLedger:
         on the utensil now (negative when they press down on it)."""
         d, m = self.data, self.model
         nc = d.ncon
+        fz = float(self.liquid.force_world()[2]) if self.liquid is not None else 0.0
         if nc == 0 or self.n_items == 0:
-            return 0.0
+            return fz
         nodes = self._geom_node[d.contact.geom[:nc]]
         a, b = nodes[:, 0], nodes[:, 1]
         f6 = np.zeros(6)
-        fz = 0.0
         # MuJoCo's contact frame has its normal from geom1 to geom2; the force acts on geom2
         # along it (and on geom1 against it).
         for i in np.flatnonzero(((a >= 0) & (b == _UTENSIL_NODE))
@@ -149,6 +171,7 @@ class FoodLedger:
             prev[k], prev_where[k] = self._place_below(self.data.xpos[self.item_body[k]])
         codes, where = acc.classify_items(self.n_items, ii, iu, isf, self.surface_codes,
                                           prev, prev_where, asleep)
+        codes[self.in_liquid], where[self.in_liquid] = acc.UTENSIL, -1  # in the dish
         self._sleep_policy(codes)
         # An event each time an item has stayed on a spill place worse than any it reached
         # before for the dwell time (a drop that lands on the table and rolls onto the floor
@@ -211,6 +234,9 @@ class FoodLedger:
         n = len(self.layout.food_bodies)
         inside = np.zeros(self.n_items, dtype=bool)
         inside[:n] = np.linalg.norm(d.xpos[self.item_body[:n]] - c, axis=1) < r
+        if self.liquid is not None:  # a liquid's particles are where the liquid has them
+            items, pos = self.liquid.positions_world()
+            inside[items] = np.linalg.norm(pos - c, axis=1) < r
         for k, verts in enumerate(self.strand_bodies):
             inside[n + k] = bool(np.any(np.linalg.norm(d.xpos[verts] - c, axis=1) < r))
         self._remove_eaten(np.flatnonzero(inside & self.active & (self.codes != acc.EATEN)))
@@ -224,6 +250,10 @@ class FoodLedger:
 
     def _remove_eaten(self, items: NDArray[np.int64]) -> None:
         m, d = self.model, self.data
+        gone = items[self.in_liquid[items]]
+        if gone.size and self.liquid is not None:
+            self.liquid.remove(gone)
+            self.in_liquid[gone] = False
         n_bodies = len(self.layout.food_bodies)
         for k in items:
             # A piece is one body; a strand all its capsules, carried by its root's free joint.
@@ -248,6 +278,19 @@ class FoodLedger:
         R, p = d.xmat[body].reshape(3, 3), d.xpos[body]
         v = np.zeros(6)
         mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, body, v, 0)
+        if rotation is None:
+            q = d.xquat[body].copy()  # lying along the utensil
+        else:
+            q = np.zeros(4)
+            mujoco.mju_mat2Quat(q, np.ascontiguousarray(rotation, dtype=float).reshape(9))
+        self.release(k, p + R @ np.asarray(local), v[3:], q)
+
+    def release(self, k: int, position: NDArray[np.float64], velocity: NDArray[np.float64],
+                quat: NDArray[np.float64] | None = None) -> None:
+        """Give parked item ``k`` its collisions and weight at the world ``position`` with the
+        world ``velocity`` (m/s; no spin), ``quat`` its orientation (default: unturned). A
+        particle of a liquid load that leaves the dish is handed to MuJoCo so."""
+        m, d = self.model, self.data
         bid = int(self.item_body[k])
         g = slice(m.body_geomadr[bid], m.body_geomadr[bid] + m.body_geomnum[bid])
         # The broad phase filters on the body's OR of its geoms' bits, kept in the model.
@@ -257,16 +300,12 @@ class FoodLedger:
         m.tree_sleep_policy[m.body_treeid[bid]] = int(mujoco.mjtSleepPolicy.mjSLEEP_AUTO_ALLOWED)
         j = m.body_jntadr[bid]
         qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
-        d.qpos[qa:qa + 3] = p + R @ np.asarray(local)
-        if rotation is None:
-            d.qpos[qa + 3:qa + 7] = d.xquat[body]  # lying along the utensil
-        else:
-            q = np.zeros(4)
-            mujoco.mju_mat2Quat(q, np.ascontiguousarray(rotation, dtype=float).reshape(9))
-            d.qpos[qa + 3:qa + 7] = q
-        d.qvel[va:va + 3] = v[3:]
+        d.qpos[qa:qa + 3] = position
+        d.qpos[qa + 3:qa + 7] = (1.0, 0.0, 0.0, 0.0) if quat is None else quat
+        d.qvel[va:va + 3] = velocity
         d.qvel[va + 3:va + 6] = 0.0
         self.active[k] = True
+        self.in_liquid[k] = False
 
     def item_classes(self) -> NDArray[np.int64]:
         """Where each food item is now: its code in ``accounting.CLASS_NAMES`` (utensil,

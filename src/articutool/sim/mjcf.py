@@ -323,9 +323,12 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
     cx, cy = box.xyz[0], box.xyz[1]
     out: list[str] = []
     radius, mass = 0.0, food.piece_mass
+    sph = isinstance(food, Liquid) and load_g is not None and food.sph_load
     if isinstance(food, Liquid):  # a placed load has its own, finer particles (physics.toml)
         radius = food.load_particle_radius if load_g is not None else food.particle_radius
         mass = food.particle_mass(radius)
+    if sph:  # one sphere per particle of the SPH load, for when it leaves the dish
+        radius, mass = food.sph_particle_radius, food.sph_particle_mass()
     layout.piece_mass = mass
     count = max(1, round((food.fill_g if load_g is None else load_g) / 1000.0 / mass))
     fcls = f'contype="{_FOOD}" conaffinity="{_ALL}" {contact_attrs(food.contacts.food, 0)}'
@@ -363,7 +366,7 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
         size = 'type="capsule"'
         rgba = "0.55 0.33 0.15 1"
     else:
-        spread = food.load_radius_spread if load_g is not None else 0.0
+        spread = food.load_radius_spread if load_g is not None and not sph else 0.0
         radii_p = np.full(count, radius)
         if spread > 0:  # radii drawn while the load stays within its mass (the count follows)
             drawn: list[float] = []
@@ -413,8 +416,9 @@ def _food_bodies(food: Granular | Liquid | Strands, scene: Scene, params: Physic
                 for i, (a, b, r) in enumerate(pieces[k]))
         else:
             rk = float(radii_p[k])
+            mk = mass if sph else food.particle_mass(rk)
             geoms = (f'<geom name="{name}" {size} size="{rk:.9g}" '
-                     f'mass="{food.particle_mass(rk):.9g}" {fcls} rgba="{rgba}"/>')
+                     f'mass="{mk:.9g}" {fcls} rgba="{rgba}"/>')
         out.append(f'<body name="{name}" pos="{_f(np.array([cx + x, cy + y, z]) + jitter)}" '
                    f'quat="{_f(q)}"{grav}><freejoint/>{geoms}</body>')
     return out

@@ -22,6 +22,7 @@ from articutool.spec import NonNegative, Positive, StrictModel
 __all__ = [
     "CONTACT_PARTNERS",
     "FOOD_KINDS",
+    "SPH_RADIUS_RANGE_M",
     "ContactParams",
     "Food",
     "FoodContacts",
@@ -34,6 +35,9 @@ __all__ = [
 ]
 
 FOOD_KINDS = ("granular", "liquid", "strands")
+# The SPH particle radii (m) the liquid's checks validated (``sim-calibrate --food water``:
+# static tilt at both ends against hydrostatics); a radius outside is refused.
+SPH_RADIUS_RANGE_M = (0.00075, 0.001)
 # What a food item can touch, each with its own contact law (``FoodContacts``): another item
 # of the food, the utensil, its container (bowl, plate), any other surface (table, floor, the
 # user, the wheelchair, the arm's links).
@@ -169,14 +173,47 @@ class Granular(_FoodBase):
 
 
 class Liquid(_FoodBase):
-    """Frictionless spheres standing in for a liquid (e.g. water)."""
+    """A liquid (e.g. water). A load placed on the utensil is, by default, an SPH liquid
+    (SPlisHSPlasH) in the utensil's frame coupled to MuJoCo (``load_model = "sph"``,
+    :mod:`articutool.sim.liquid_load`); a container fill, and a placed load with
+    ``load_model = "spheres"``, are frictionless MuJoCo spheres standing in for it."""
 
     kind: Literal["liquid"]
     particle_radius: Positive  # a container fill
-    load_particle_radius: Positive  # a load placed on the utensil
+    load_particle_radius: Positive  # a load placed on the utensil as spheres
     # A placed load's radii spread uniformly by ± this fraction (a disordered packing).
     load_radius_spread: Annotated[float, Field(ge=0, lt=0.5)] = 0.0
     packing_fraction: Annotated[float, Field(gt=0, le=0.74)]
+    # What a placed load is: the SPH liquid, or the spheres (kept for comparison).
+    load_model: Literal["sph", "spheres"] = "sph"
+    # The SPH particle radius (m), within the range the static-tilt checks validated.
+    sph_particle_radius: Positive = 0.001
+    # Kinematic viscosity (m²/s) of the SPH liquid.
+    viscosity: NonNegative = 1.0e-6
+
+    @model_validator(mode="after")
+    def _sph_radius(self) -> Liquid:
+        lo, hi = SPH_RADIUS_RANGE_M
+        if not lo - 1e-12 <= self.sph_particle_radius <= hi + 1e-12:
+            raise ValueError(f"sph_particle_radius must be in [{lo * 1e3:g}, {hi * 1e3:g}] mm "
+                             f"(the sizes the static-tilt checks validated); got "
+                             f"{self.sph_particle_radius * 1e3:g} mm")
+        return self
+
+    @property
+    def sph_load(self) -> bool:
+        """A placed load is the SPH liquid."""
+        return self.load_model == "sph"
+
+    def sph_particle_mass(self) -> float:
+        """kg per SPH particle: ρ0 · (2r)³ (SPlisHSPlasH's own particle mass)."""
+        return self.density * (2.0 * self.sph_particle_radius) ** 3
+
+    @property
+    def load_item_mass(self) -> float:
+        """kg of one item of a placed load: an SPH particle, or a load sphere."""
+        return (self.sph_particle_mass() if self.sph_load
+                else self.particle_mass(self.load_particle_radius))
 
     def particle_mass(self, radius: float) -> float:
         """kg per particle of ``radius``: density × sphere volume / packing fraction."""

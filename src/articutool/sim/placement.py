@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
@@ -25,6 +26,9 @@ from articutool.sim.loading import (
 from articutool.sim.mjcf import WorldLayout
 from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
 from articutool.spec import Spec, UtensilSpec
+
+if TYPE_CHECKING:
+    from articutool.sim.liquid_load import LiquidLoad
 
 __all__ = ["SUPPLY_FACTOR", "LoadPlacement", "capacity_bound_reason", "load_supply_g",
            "utensil_capacity_bound_g"]
@@ -87,6 +91,8 @@ class LoadPlacement:
         self.utensil, self.food, self.load_g, self.seed = utensil, food, load_g, seed
         self._shape: UtensilSpec = spec.utensil(utensil)
         self._run = run
+        # The SPH liquid of a placed liquid load (``load_model = "sph"``), once placed.
+        self.liquid: LiquidLoad | None = None
 
     def place(self, settle_s: float = 0.5) -> float:
         """Put the load on the utensil the way a scoop leaves it
@@ -97,7 +103,8 @@ class LoadPlacement:
         its tines), each let go just above what is under its spot, 0.3 s apart, while each
         brings the mass on the utensil nearer the load (to within half a piece); what does
         not stay falls where physics takes it. Particles fill the dish from its floor up (a
-        liquid poured in), so a load the spoon can hold stays.
+        liquid poured in), so a load the spoon can hold stays. An SPH liquid
+        (:class:`~articutool.sim.liquid_load.LiquidLoad`) is poured so, at rest in the dish.
         """
         if not self.layout.parked or self.ledger.active.any():
             raise RuntimeError("place_load needs a world built with load_g, not yet placed")
@@ -105,6 +112,11 @@ class LoadPlacement:
         n = self.ledger.n_items
         if isinstance(self.food, Granular):
             self._deposit(body, float(self.load_g or 0.0))
+        elif isinstance(self.food, Liquid) and self.food.sph_load:
+            from articutool.sim.liquid_load import LiquidLoad
+
+            self.liquid = LiquidLoad(self.model, self.data, self.ledger, self._shape,
+                                     self.food)
         else:
             pts = pour_lattice(self._shape, self.layout.piece_size)
             if len(pts) < n:
@@ -159,5 +171,7 @@ class LoadPlacement:
         for pieces (they are dropped one by one, what does not stay falls)."""
         if isinstance(self.food, Granular):
             return math.inf
+        if isinstance(self.food, Liquid) and self.food.sph_load:  # it levels: the dish's own
+            return max_load_g(self._shape, "liquid", self.food.density)
         return (len(pour_lattice(self._shape, self.layout.piece_size))
                 * self.layout.piece_mass * 1000.0)

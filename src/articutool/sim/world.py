@@ -392,6 +392,8 @@ class FeedingWorld:
         if ticked:
             self.tool.tick(self.time)
             self.motors.check_stops()
+            if self.placement.liquid is not None:  # the liquid load, stepped to this time
+                self.placement.liquid.advance()
             self.ledger.classify(self.time)
         self._cpu += time.thread_time() - c0
         self._sim_stepped += n * dt
@@ -539,6 +541,11 @@ class FeedingWorld:
         """Put the load (``load_g``) on the utensil and run ``settle_s``; the grams on it then
         (:meth:`LoadPlacement.place <articutool.sim.placement.LoadPlacement.place>`)."""
         return self.placement.place(settle_s)
+
+    def close(self) -> None:
+        """Free what the world holds beside MuJoCo (a liquid load's solver); idempotent."""
+        if self.placement.liquid is not None:
+            self.placement.liquid.close()
 
     def max_load_g(self) -> float:
         """The most a liquid load can be poured onto this utensil (g)

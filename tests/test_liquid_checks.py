@@ -1,0 +1,116 @@
+"""The liquid's checks against outside laws and measurements: the pure parts (the reading of an
+oscillation, the pour into the dish, the dam break's data) always; one cheap dam-break smoke
+run; the full dam break and slosh runs are slow."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from articutool.food.dish import spoon_dish
+from articutool.food.dish_fill import CLEARANCE_RADII, dish_pour
+from articutool.sim.liquid_checks import (
+    dam_break_check,
+    martin_moyce_1952,
+    oscillation,
+    slosh_mode_check,
+    tank_slosh_check,
+)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(1.0, 5.0), st.floats(0.0, 0.08), st.floats(0.0, 2 * math.pi))
+def test_a_damped_sine_gives_back_its_frequency_and_damping(f, zeta, phase) -> None:
+    t = np.arange(0.0, 3.0, 0.002)
+    w = 2 * math.pi * f
+    wd = w * math.sqrt(1 - zeta ** 2)
+    y = 1e-3 * np.exp(-zeta * w * t) * np.cos(wd * t + phase) + 0.05
+    osc = oscillation(t, y, rest=0.05)
+    assert osc["frequency_hz"] == pytest.approx(wd / (2 * math.pi), rel=0.01)
+    assert osc["damping_ratio"] == pytest.approx(zeta, abs=0.006)
+
+
+def test_too_few_crossings_read_as_nan() -> None:
+    t = np.linspace(0, 1, 100)
+    assert math.isnan(oscillation(t, t)["frequency_hz"])
+
+
+def test_the_pour_fills_the_dish_from_the_floor_clear_of_its_walls(spec) -> None:
+    u = spec.utensil("soup_spoon")
+    d = spoon_dish(u)
+    r = 0.001
+    x = dish_pour(d, u.tip_x, r, 1000)
+    assert x.shape == (1000, 3)
+    h = x[:, 0] - u.tip_x
+    assert h.min() >= CLEARANCE_RADII * r - 1e-12
+    A, B = d.semi_axes(np.clip(h, 0, d.depth))
+    assert np.all(((x[:, 2] - d.zc) / A) ** 2 + (x[:, 1] / B) ** 2 < 1.0)
+    # lowest first: every layer below the top one is complete in the larger pour
+    more = dish_pour(d, u.tip_x, r, 1400)
+    below = more[more[:, 0] < x[:, 0].max() - 1e-9]
+    assert len(below) <= 1000
+    # centres are a lattice of the particle diameter
+    d2 = np.sort(np.linalg.norm(x[:50, None] - x[None], axis=-1), axis=1)[:, 1]
+    assert d2.min() == pytest.approx(2 * r)
+    with pytest.raises(ValueError, match="at most"):
+        dish_pour(d, u.tip_x, r, 100_000)
+
+
+def test_the_dam_break_data_are_the_papers_two_series() -> None:
+    ref = martin_moyce_1952()
+    assert "Martin & Moyce (1952)" in ref["source"] and ref["n_squared"] == 2.0
+    assert [s["a_m"] for s in ref["series"]] == [0.028575, 0.05715]
+    for s in ref["series"]:
+        assert len(s["t_star"]) == len(s["z_star"])
+        assert np.all(np.diff(s["t_star"]) > 0) and np.all(np.diff(s["z_star"]) > 0)
+        assert s["z_star"][0] > 1.0
+
+
+def test_a_coarse_dam_break_runs_and_says_what_it_measured() -> None:
+    """Smoke: the JSON's fields and the front's start (the full check is slow)."""
+    r = dam_break_check(0.05715 / 16, t_star_end=0.9, sample_t_star=0.3)
+    assert r["backend"].startswith("SPlisHSPlasH") and r["version"] == "2.19.0"
+    assert r["particles"] == 8 * 16 * 4 and r["particles_across_column"] == 8
+    assert r["t_star"][0] == 0.0 and r["z_star"][0] == pytest.approx(1.0, abs=0.05)
+    assert np.all(np.diff(r["z_star"]) >= 0) and r["z_star"][-1] > 1.05
+    assert r["compared_at_t_star"] == [0.832]  # the first measured point, Z ≤ 3
+    assert set(r["reference"]) >= {"t_star", "z_star", "source"}
+    assert isinstance(r["pass"], bool) and r["cpu_s"] > 0
+
+
+@pytest.mark.slow
+def test_the_dam_break_front_is_reported_against_martin_and_moyce() -> None:
+    """The full check (20 particles across). Its front runs ahead of the measurement
+    (docs/food.md: 64 %, the 10 % criterion fails); asserted here: the physics it must obey
+    whatever the measurement — the front only advances, never faster than the inviscid
+    shallow-water front (Ritter: dZ/dT ≤ 2), and every measured point up to Z = 3 compared."""
+    r = dam_break_check()
+    t, z = np.asarray(r["t_star"]), np.asarray(r["z_star"])
+    assert np.all(np.diff(z) >= -1e-3)
+    assert np.all(z <= 1.0 + 2.0 * t + 0.05)
+    assert r["compared_at_t_star"] == [0.832, 1.219, 1.997, 2.547]
+    assert isinstance(r["pass"], bool) and r["pass"] == (r["max_rel_error_to_Z3"] <= 0.10)
+
+
+@pytest.mark.slow
+def test_a_tank_sloshes_at_linear_theorys_frequency() -> None:
+    r = tank_slosh_check()
+    assert r["pass"], r
+    assert 0 < r["measured_damping_ratio"] < 0.3
+
+
+@pytest.mark.slow
+def test_the_dish_slosh_modes_are_measured_against_the_linear_model() -> None:
+    """The load keeps every particle; the modes ring in the model's order (across above
+    along) and above it — the model's rectangular-tank mode sits below a round planform's
+    (docs/food.md: +22 % / +18 %, the 10 % criterion fails) — and damp."""
+    r = slosh_mode_check()
+    assert r["particles_kept"] == r["particles"]
+    assert r["across"]["measured_hz"] > r["along"]["measured_hz"]
+    for axis in ("along", "across"):
+        assert 1.0 < r[axis]["measured_hz"] / r[axis]["law_hz"] < 1.3
+        assert 0 < r[axis]["measured_damping_ratio"] < 0.2
