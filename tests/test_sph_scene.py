@@ -207,3 +207,33 @@ def test_liquid_given_as_positions_starts_there() -> None:
         x = liq.positions()[np.argsort(liq.particle_ids())]
         # one first step (≤ 2 ms) has passed: each particle moved a fraction of its radius
         assert np.abs(x - g).max() < 0.3 * R
+
+
+def test_a_second_threads_liquid_waits_for_the_first_to_close() -> None:
+    """The library keeps one scene per process: a liquid opened in another thread (two
+    trials in the threads of one Dask worker) starts once the first is closed, never
+    beside it; each then steps its own particles."""
+    import threading
+
+    order: list[str] = []
+    errors: list[BaseException] = []
+    first = box_liquid()
+    n_first = first.n_particles
+
+    def second() -> None:
+        try:
+            with box_liquid() as liq:
+                order.append("second opened")
+                liq.step_to(0.01)
+                assert liq.n_particles == n_first
+        except BaseException as err:  # reported below
+            errors.append(err)
+
+    t = threading.Thread(target=second)
+    t.start()
+    first.step_to(0.01)  # the first is stepped while the second thread waits
+    order.append("first closed")
+    first.close()
+    t.join(300)
+    assert not t.is_alive() and errors == []
+    assert order == ["first closed", "second opened"]

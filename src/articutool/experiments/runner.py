@@ -267,6 +267,10 @@ def run_trial(spec: TrialSpec, hook: Any = None, config_path: str | None = None,
     except Exception as err:  # a trial that crashes is reported, not silently dropped
         failed = {"error": f"{type(err).__name__}: {err}",
                   "traceback": traceback.format_exc(limit=6)}
+    finally:  # the process's one liquid solver is free for the next trial, in any thread
+        from articutool.sim.sph_scene import close_this_threads_liquid
+
+        close_this_threads_liquid()
     return TrialRecord.model_validate({
         "experiment": spec.experiment, "trial": spec.trial, "repeat": spec.repeat,
         "seed": spec.seed, "condition": spec.condition, "outcome": outcome,

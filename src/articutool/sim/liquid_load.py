@@ -33,6 +33,8 @@ load closes the previous one (whose world can then no longer step its liquid).
 
 from __future__ import annotations
 
+import threading
+
 import mujoco
 import numpy as np
 from numpy.typing import NDArray
@@ -76,8 +78,10 @@ class LiquidLoad:
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, ledger: FoodLedger,
                  utensil: UtensilSpec, food: Liquid) -> None:
-        while _OPEN:
-            _OPEN[-1].close()
+        me = threading.get_ident()  # a load this thread left open is closed; another
+        for stale in [q for q in _OPEN if q._owner == me]:  # thread's is waited for (SphLiquid)
+            stale.close()
+        self._owner = me
         self.model, self.data, self.ledger = model, data, ledger
         self.body = model.body("utensil").id
         self.dish = spoon_dish(utensil)

@@ -68,6 +68,7 @@ import os
 import shutil
 import sys
 import tempfile
+import threading
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -86,6 +87,7 @@ __all__ = [
     "SphLiquid",
     "SphSettings",
     "box_mesh",
+    "close_this_threads_liquid",
     "momentum_balance_force",
     "momentum_balance_torque",
     "rotating_frame_acceleration",
@@ -342,7 +344,37 @@ def _load(threads: int) -> ModuleType:
     return sph
 
 
+# SPlisHSPlasH keeps its scene in process-wide singletons: one liquid is open per process.
+# A thread that opens one while another thread's is open waits for it to close (two trials
+# in the threads of one Dask worker run their liquids one after the other).
+_GUARD = threading.Condition()
 _OPEN: list[SphLiquid] = []
+
+
+def _claim(liquid: SphLiquid) -> None:
+    with _GUARD:
+        while _OPEN and _OPEN[0]._owner != liquid._owner:
+            _GUARD.wait()
+        if _OPEN:
+            raise RuntimeError("one SphLiquid is open in this thread (SPlisHSPlasH keeps its "
+                               "scene in singletons): close it first")
+        _OPEN.append(liquid)
+
+
+def _release(liquid: SphLiquid) -> None:
+    with _GUARD:
+        if liquid in _OPEN:
+            _OPEN.remove(liquid)
+        _GUARD.notify_all()
+
+
+def close_this_threads_liquid() -> None:
+    """Close the liquid this thread opened, if one is open (a trial's end: lets another
+    thread's liquid start)."""
+    with _GUARD:
+        mine = [q for q in _OPEN if q._owner == threading.get_ident()]
+    for q in mine:
+        q.close()
 
 
 class SphLiquid:
@@ -353,9 +385,6 @@ class SphLiquid:
                  fluids: Sequence[FluidBlock | FluidParticles],
                  settings: SphSettings, gravity: ArrayLike = (0.0, 0.0, -9.80665), *,
                  extra_acceleration: ExtraAcceleration | None = None) -> None:
-        if _OPEN:
-            raise RuntimeError("one SphLiquid is open in this process (SPlisHSPlasH keeps its "
-                               "scene in singletons): close it first")
         names = [b.name for b in boundaries]
         if len(set(names)) != len(names):
             raise ValueError(f"boundary names must be unique; got {names}")
@@ -373,6 +402,9 @@ class SphLiquid:
         self.extra_acceleration = extra_acceleration
         self._gravity = _vec3(gravity, "gravity")
         self._sph = _load(settings.threads)
+        self._owner = threading.get_ident()
+        self._closed = True
+        _claim(self)
         self._dir = Path(tempfile.mkdtemp(prefix="articutool-sph-"))
         self._closed = False
         try:
@@ -408,8 +440,8 @@ class SphLiquid:
             self.particle_mass = float(self._fluid.getMass(0))
         except BaseException:
             shutil.rmtree(self._dir, ignore_errors=True)
+            _release(self)
             raise
-        _OPEN.append(self)
 
     # -- lifetime ---------------------------------------------------------------------------
 
@@ -423,8 +455,7 @@ class SphLiquid:
                 self._base.cleanup()
         finally:
             shutil.rmtree(self._dir, ignore_errors=True)
-            if self in _OPEN:
-                _OPEN.remove(self)
+            _release(self)
 
     def __enter__(self) -> SphLiquid:
         return self
