@@ -468,3 +468,22 @@ def test_through_the_link_a_disabled_refuses_queued_motion_and_a_cancel_its_queu
         assert (c["superseded"], c["commands"]) == (4, 3)
     finally:
         bus.close()
+
+
+def test_a_disabled_supersedes_a_command_that_arrived_before_it_but_is_queued_after() -> None:
+    inbox = _inbox()
+    ran: list[str] = []
+    answered: list[bool] = []
+    arrived = inbox.epoch  # a trajectory arrives; its handler is still decoding it
+    inbox.submit_stop("disable", lambda: ran.append("disable"), lambda _: None, supersede=True)
+    assert inbox.submit(lambda: ran.append("early"), discard=answered.append, since=arrived)
+    assert answered == [False] and not inbox.commands  # answered, never queued
+    assert inbox.submit(lambda: ran.append("later"), discard=answered.append,
+                        since=inbox.epoch)  # arrived after the stop: runs
+    inbox.submit_stop(("cancel", "g"), lambda: None, lambda _: None)  # a cancel: no epoch
+    assert inbox.submit(lambda: ran.append("last"), discard=answered.append,
+                        since=inbox.epoch)
+    while inbox.stops or inbox.commands:
+        inbox.work_once()
+    assert ran == ["disable", "later", "last"]
+    assert inbox.counters["superseded"] == 1

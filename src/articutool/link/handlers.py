@@ -119,6 +119,7 @@ class CommandHandlers:
     # ---------------------------------------------------------------- handlers --
     def on_set_mode(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.set_orientation_control
+        since = self.inbox.epoch  # a DISABLED queued from now on supersedes this request
         who, refusal = self.admission.admit(sender, "set_orientation_control")
         if who is None:
             return self._refuse(respond, ep, refusal)
@@ -149,7 +150,8 @@ class CommandHandlers:
         if stop:  # every DISABLED is the same stop: waiting ones are run once
             return self.inbox.submit_stop("disable", run, answer, supersede=True)
         if not self.inbox.submit(lambda: answer(run()),
-                                 discard=lambda _: answer((False, f"refused: {SUPERSEDED}"))):
+                                 discard=lambda _: answer((False, f"refused: {SUPERSEDED}")),
+                                 since=since):
             self._refuse(respond, ep, "refused: the tool's command inbox is full")
         return None
 
@@ -210,6 +212,7 @@ class CommandHandlers:
 
     def on_send_goal(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.send_goal
+        since = self.inbox.epoch
         who, refusal = self.admission.admit(sender, "send_goal")
         if who is None:  # SendGoal's reply has no text: an error reply names the reason
             raise RefusalError(refusal)
@@ -234,7 +237,7 @@ class CommandHandlers:
         def work() -> None:
             self._start_goal(gid, name, params, respond)
         if not self.inbox.submit(work, key=("goal", gid), discard=lambda cancelled:
-                                 self._discard_goal(gid, name, respond, cancelled)):
+                                 self._discard_goal(gid, name, respond, cancelled), since=since):
             raise RefusalError("the tool's command inbox is full")
         return None
 
@@ -345,6 +348,7 @@ class CommandHandlers:
 
     def on_trajectory(self, data: bytes, sender: Sender) -> None:
         ep = self.names.joint_trajectory
+        since = self.inbox.epoch  # decoding a large trajectory takes long: a stop may overtake
         who, _ = self.admission.admit(sender, "a trajectory")
         if who is None or not self.admission.within_rate(ep, sender):
             return
@@ -377,7 +381,7 @@ class CommandHandlers:
         def discard(_: bool) -> None:  # a topic: nobody to answer; counted and logged
             self.counters.bump("rejected_trajectories")
             _log.warning("trajectory from %s dropped: %s", who, SUPERSEDED)
-        if not self.inbox.submit(work, discard=discard):
+        if not self.inbox.submit(work, discard=discard, since=since):
             self.counters.bump("rejected_trajectories")
 
     def on_client_heartbeat(self, data: bytes, sender: Sender) -> None:

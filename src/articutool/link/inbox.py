@@ -64,6 +64,8 @@ class CommandInbox:
         # Stops waiting for the loop, by what they do: (run, answers); see submit_stop.
         self.stops: OrderedDict[object, tuple[Callable[[], object],
                                               list[Callable[[object], None]]]] = OrderedDict()
+        # DISABLEDs queued so far: a handler reads it as its message arrives (``since``)
+        self.epoch = 0
         self._worker: threading.Thread | None = None
         self._wake = threading.Condition()
         # Network I/O never runs on the thread that executes commands (the tool's loop): a
@@ -97,17 +99,26 @@ class CommandInbox:
 
     # -- queueing --
     def submit(self, work: Callable[[], None], *,
-               discard: Callable[[bool], None] | None = None, key: object = None) -> bool:
+               discard: Callable[[bool], None] | None = None, key: object = None,
+               since: int | None = None) -> bool:
         """Queue a ToolAPI call for the loop; False (counted) when the inbox is full.
 
         A command that moves the wrist or changes its mode passes ``discard``: a stop that
         arrives before it runs discards it and calls ``discard(cancelled)`` instead (off the
-        lock; ``cancelled`` is True when a cancel of its goal ``key`` discarded it)."""
+        lock; ``cancelled`` is True when a cancel of its goal ``key`` discarded it). ``since``
+        is :attr:`epoch` when its message arrived: a DISABLED queued while the handler was
+        still decoding or checking it supersedes it too."""
         with self._lock:
-            if len(self.commands) >= self.size:
+            late = discard is not None and since is not None and since != self.epoch
+            if not late and len(self.commands) >= self.size:
                 self.counters.bump("dropped_excess")
                 return False
-            self.commands.append(_Queued(work, discard, key))
+            queued = _Queued(work, discard, key)
+            if not late:
+                self.commands.append(queued)
+        if late:
+            self._answer_discarded([queued], cancelled=False)
+            return True
         with self._wake:
             self._wake.notify()
         return True
@@ -125,7 +136,10 @@ class CommandInbox:
                 self.stops[key] = (run, [answer])
             else:
                 waiting[1].append(answer)
-            gone = self._take(lambda _: True) if supersede else []
+            gone = []
+            if supersede:
+                self.epoch += 1
+                gone = self._take(lambda _: True)
         with self._wake:
             self._wake.notify()
         self._answer_discarded(gone, cancelled=False)
