@@ -72,18 +72,26 @@ def test_the_loop_runs_one_command_per_tick_stops_first_and_excess_is_refused() 
         stop = threading.Thread(target=lambda: replies.append(client.set_mode("disabled")))
         stop.start()
         assert wait_until(lambda: len(server.inbox.stops) == 1, 3.0)
-        _tick(tool)  # the stop first, alone
+        # the stop supersedes the three queued: each refused, none left to run
+        assert wait_until(lambda: len(replies) == 5, 30.0) and not server.inbox.commands
+        assert all(not ok and "superseded by a stop" in msg for ok, msg in replies[2:])
+        _tick(tool)  # the stop, alone
         assert tool.calls == ["set_mode DISABLED"]
-        _tick(tool)
-        assert tool.calls == ["set_mode DISABLED", "set_mode LEVELING"]
-        _tick(tool)
-        _tick(tool)
         _tick(tool)  # nothing left: a tick with an empty inbox does nothing
-        assert tool.calls.count("set_mode LEVELING") == 3
-        for th in (*threads, stop):
-            th.join(timeout=3)
+        assert tool.calls == ["set_mode DISABLED"]
+        stop.join(timeout=30)
+        after = threading.Thread(target=lambda: replies.append(client.set_mode("leveling", 6.0)))
+        after.start()  # a command sent after the stop runs normally
+        assert wait_until(lambda: len(server.inbox.commands) == 1, 30.0)
+        _tick(tool)
+        for th in (*threads, stop, after):
+            th.join(timeout=30)
+        assert tool.calls == ["set_mode DISABLED", "set_mode LEVELING"]
+        assert replies[5][0] and replies[6][0]  # the stop, then the later LEVELING
+        assert tool.offsets == (6.0, 0.0)
         assert server.counters["dropped_excess"] == 2
-        assert tool.offsets == (3.0, 0.0)  # the three queued, in order
+        assert server.counters["superseded"] == 3
+        assert server.counters["commands"] == 2
     finally:
         client.close()
         server.stop()
@@ -352,3 +360,130 @@ def _play(server: ToolServer, tool: LoopTool, ops: list[tuple[str, str]]) -> Non
         assert isinstance(reply, bytes), reply  # a reply, not an error
         if ops[i][0] == "disable":
             assert cdr.decode(reply, n.set_orientation_control.response_type).success
+
+
+def _inbox(size: int = 8):  # type: ignore[no-untyped-def]
+    from articutool.link.counters import LinkCounters
+    from articutool.link.inbox import CommandInbox
+    return CommandInbox(size, LinkCounters(), threading.RLock(), threading.Event())
+
+
+def test_a_disabled_supersedes_the_motion_queued_before_it_and_nothing_after() -> None:
+    inbox = _inbox()
+    ran: list[str] = []
+    answered: list[tuple[str, bool]] = []
+
+    def queue(name: str, motion: bool = True, key: object = None) -> None:
+        assert inbox.submit(lambda: ran.append(name), key=key, discard=(
+            (lambda cancelled: answered.append((name, cancelled))) if motion else None))
+    queue("leveling")
+    queue("goal", key=("goal", b"g"))
+    queue("trajectory")
+    queue("clear_fault", motion=False)
+    stopped: list[object] = []
+    inbox.submit_stop("disable", lambda: ran.append("disable") or "ok", stopped.append,
+                      supersede=True)
+    # answered as the stop arrives, before any tick: superseded, not cancelled
+    assert answered == [("leveling", False), ("goal", False), ("trajectory", False)]
+    queue("after")
+    while inbox.stops or inbox.commands:
+        inbox.work_once()
+    assert ran == ["disable", "clear_fault", "after"]  # the queued motion never ran
+    assert stopped == ["ok"]
+    c = inbox.counters
+    assert (c["superseded"], c["commands"], c["handler_errors"]) == (3, 3, 0)
+
+
+def test_a_stop_without_supersede_and_a_cancel_discard_only_their_goal() -> None:
+    inbox = _inbox()
+    ran: list[str] = []
+    answered: list[tuple[str, bool]] = []
+    for name in ("a", "b", "leveling"):
+        key = ("goal", name) if name != "leveling" else None
+        assert inbox.submit(lambda n=name: ran.append(n), key=key,
+                            discard=lambda cancelled, n=name: answered.append((n, cancelled)))
+    assert inbox.discard(lambda k: k == ("goal", "a")) == [("goal", "a")]
+    assert answered == [("a", True)]  # cancelled, answered once
+    inbox.submit_stop(("cancel", "x"), lambda: None, lambda _: None)  # a cancel: no supersede
+    while inbox.stops or inbox.commands:
+        inbox.work_once()
+    assert ran == ["b", "leveling"]
+    assert inbox.counters["superseded"] == 1 and inbox.counters["commands"] == 3
+
+
+def test_through_the_link_a_disabled_refuses_queued_motion_and_a_cancel_its_queued_goal() -> None:
+    import numpy as np
+
+    from articutool.link.auth import Sender
+    from articutool.trajectory import JointTrajectory
+
+    tool = LoopTool()
+    bus = MemoryBus()
+    server = ToolServer(tool, MemoryTransport(bus, "tool"), CFG.replace(inbox_size=8),
+                        loop=tool)
+    n, h, pc = server.names, server.handlers, Sender("pc-1", True, "pc")
+    got: dict[str, list[bytes]] = {k: [] for k in ("level", "goal", "fault", "stop",
+                                                  "goal2", "cancel", "after")}
+    try:
+        def soc(mode: Mode, into: str) -> None:
+            h.on_set_mode(cdr.encode(m.soc_request(mode, 1.0, 0.0),
+                                     n.set_orientation_control.request_type),
+                          got[into].append, pc)
+        g1, g2 = uuid.uuid4().bytes, uuid.uuid4().bytes
+        soc(Mode.LEVELING, "level")
+        h.on_send_goal(cdr.encode(m.send_goal_request(g1, "SLOW", []), n.send_goal.request_type),
+                       got["goal"].append, pc)
+        traj = JointTrajectory(("pitch", "roll"), np.array([0.5, 1.0]), np.zeros((2, 2)),
+                               np.zeros((2, 2)))
+        h.on_trajectory(cdr.encode(m.trajectory_msg(traj), n.joint_trajectory.type), pc)
+        h.on_clear_fault(cdr.encode(m.trigger_request(), n.clear_fault.request_type),
+                         got["fault"].append, pc)
+        assert len(server.inbox.commands) == 4 and tool.calls == []
+        soc(Mode.DISABLED, "stop")
+        level = cdr.decode(got["level"][0], n.set_orientation_control.response_type)
+        assert not level.success and "superseded by a stop" in level.message
+        assert cdr.decode(got["goal"][0], n.send_goal.response_type).accepted
+        res = h.goals.get(g1).result  # what get_result answers
+        assert res.status == m.GoalStatus.ABORTED and "superseded" in res.message
+        assert server.counters["rejected_trajectories"] == 1
+        # a goal queued after the stop, then cancelled before it starts
+        h.on_send_goal(cdr.encode(m.send_goal_request(g2, "SLOW", []), n.send_goal.request_type),
+                       got["goal2"].append, pc)
+        h.on_cancel(cdr.encode(m.cancel_request(g2), n.cancel_goal.request_type),
+                    got["cancel"].append, pc)
+        assert cdr.decode(got["goal2"][0], n.send_goal.response_type).accepted
+        cancel = cdr.decode(got["cancel"][0], n.cancel_goal.response_type)
+        assert cancel.return_code == 0 and len(cancel.goals_canceling) == 1
+        res = h.goals.get(g2).result
+        assert res.status == m.GoalStatus.CANCELED and not res.success
+        soc(Mode.LEVELING, "after")  # after the stop: runs
+        while server.inbox.stops or server.inbox.commands:
+            server.work_once()
+        assert tool.calls == ["set_mode DISABLED", "clear_fault", "set_mode LEVELING"]
+        assert tool.trajectories == []
+        assert cdr.decode(got["stop"][0], n.set_orientation_control.response_type).success
+        assert cdr.decode(got["after"][0], n.set_orientation_control.response_type).success
+        assert len(got["fault"]) == 1
+        c = server.counters
+        assert (c["superseded"], c["commands"]) == (4, 3)
+    finally:
+        bus.close()
+
+
+def test_a_disabled_supersedes_a_command_that_arrived_before_it_but_is_queued_after() -> None:
+    inbox = _inbox()
+    ran: list[str] = []
+    answered: list[bool] = []
+    arrived = inbox.epoch  # a trajectory arrives; its handler is still decoding it
+    inbox.submit_stop("disable", lambda: ran.append("disable"), lambda _: None, supersede=True)
+    assert inbox.submit(lambda: ran.append("early"), discard=answered.append, since=arrived)
+    assert answered == [False] and not inbox.commands  # answered, never queued
+    assert inbox.submit(lambda: ran.append("later"), discard=answered.append,
+                        since=inbox.epoch)  # arrived after the stop: runs
+    inbox.submit_stop(("cancel", "g"), lambda: None, lambda _: None)  # a cancel: no epoch
+    assert inbox.submit(lambda: ran.append("last"), discard=answered.append,
+                        since=inbox.epoch)
+    while inbox.stops or inbox.commands:
+        inbox.work_once()
+    assert ran == ["disable", "later", "last"]
+    assert inbox.counters["superseded"] == 1

@@ -208,7 +208,8 @@ class Ada(Graph):
         handle = self.wait(self.fjt.send_goal_async(goal))
         assert handle.accepted
         result = handle.get_result_async()
-        if cancel_after_s is not None:  # once the tool follows it (see docs/ros2.md)
+        if cancel_after_s is not None:  # once the tool follows it: the trajectory (a topic)
+            # and the stop (a service) travel apart, so a stop may overtake it (docs/ros2.md)
             assert self.spin_until(lambda: self.health().get("mode") == "TRAJECTORY", 10)
             self.spin_until(lambda: False, cancel_after_s)
             assert handle.status in (GoalStatus.STATUS_ACCEPTED, GoalStatus.STATUS_EXECUTING)

@@ -28,6 +28,7 @@ class LinkCounters:
     rate_limited: int = 0  # a message above a sender's rate, dropped
     dropped_excess: int = 0  # a command refused because the inbox was full
     commands: int = 0  # commands the loop ran
+    superseded: int = 0  # a queued motion command a stop discarded before it ran
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False, compare=False)
 
     def bump(self, name: str, n: int = 1) -> int:

@@ -6,7 +6,10 @@ validates the request, checks the command lease (``link/lease.py``), then queues
 call in the command inbox (``link/inbox.py``) for the tool's loop; stops (DISABLED, a cancel)
 pass the rate limit and the lease and are never refused for room. The action's goals live in
 the goal table (``link/goals.py``); a refused primitive is accepted then aborted, so the
-client can read why (ROS 2's SendGoal reply has no text).
+client can read why (ROS 2's SendGoal reply has no text). A stop supersedes the motion
+queued before it (``link/inbox.py``): a mode request it discards is refused, a primitive goal
+is accepted then aborted (a cancel of that goal: accepted then CANCELED), a trajectory is
+dropped and counted.
 
 :class:`CommandHandlers` is an object ``ToolServer`` (``link/server.py``) owns and builds with
 the parts the handlers need: the API, the transport and names, and the server's counters,
@@ -29,7 +32,7 @@ from articutool.link.admission import Admission
 from articutool.link.auth import Sender
 from articutool.link.counters import LinkCounters
 from articutool.link.goals import Goal, GoalTable
-from articutool.link.inbox import CommandInbox
+from articutool.link.inbox import SUPERSEDED, CommandInbox
 from articutool.link.lease import CommandLease
 from articutool.link.transport import Endpoint, Names, RefusalError, Responder, Transport
 from articutool.tool.api import (
@@ -116,6 +119,7 @@ class CommandHandlers:
     # ---------------------------------------------------------------- handlers --
     def on_set_mode(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.set_orientation_control
+        since = self.inbox.epoch  # a DISABLED queued from now on supersedes this request
         who, refusal = self.admission.admit(sender, "set_orientation_control")
         if who is None:
             return self._refuse(respond, ep, refusal)
@@ -144,8 +148,10 @@ class CommandHandlers:
         def answer(result: object) -> None:
             respond(cdr.encode(m.soc_response(*result), ep.response_type))  # type: ignore[misc]
         if stop:  # every DISABLED is the same stop: waiting ones are run once
-            return self.inbox.submit_stop("disable", run, answer)
-        if not self.inbox.submit(lambda: answer(run())):
+            return self.inbox.submit_stop("disable", run, answer, supersede=True)
+        if not self.inbox.submit(lambda: answer(run()),
+                                 discard=lambda _: answer((False, f"refused: {SUPERSEDED}")),
+                                 since=since):
             self._refuse(respond, ep, "refused: the tool's command inbox is full")
         return None
 
@@ -206,6 +212,7 @@ class CommandHandlers:
 
     def on_send_goal(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.send_goal
+        since = self.inbox.epoch
         who, refusal = self.admission.admit(sender, "send_goal")
         if who is None:  # SendGoal's reply has no text: an error reply names the reason
             raise RefusalError(refusal)
@@ -229,7 +236,8 @@ class CommandHandlers:
 
         def work() -> None:
             self._start_goal(gid, name, params, respond)
-        if not self.inbox.submit(work):
+        if not self.inbox.submit(work, key=("goal", gid), discard=lambda cancelled:
+                                 self._discard_goal(gid, name, respond, cancelled), since=since):
             raise RefusalError("the tool's command inbox is full")
         return None
 
@@ -259,6 +267,21 @@ class CommandHandlers:
         respond(cdr.encode(m.send_goal_response(True, now), ep.response_type))
         self.publish_status()
 
+    def _discard_goal(self, gid: bytes, name: str, respond: Responder, cancelled: bool) -> None:
+        """Answer a queued goal a stop discarded before it started: accepted, then CANCELED
+        (a cancel of this goal) or ABORTED (superseded by a DISABLED)."""
+        now = time.time()
+        ep = self.names.send_goal
+        status = m.GoalStatus.CANCELED if cancelled else m.GoalStatus.ABORTED
+        msg = "cancelled before it started" if cancelled else SUPERSEDED
+        with self._lock:
+            fresh = gid not in self.goals
+            if fresh:  # a resent goal id stays a protocol error (see _start_goal)
+                self.goals.remember(Goal(gid, name, now, status, result=m.PrimitiveResult(
+                    False, msg, self._joints_now(), status)))
+        respond(cdr.encode(m.send_goal_response(fresh, now), ep.response_type))
+        self.publish_status()
+
     def on_get_result(self, data: bytes, respond: Responder, sender: Sender) -> None:
         ep = self.names.get_result  # read-only: open to all, within each sender's rate
         self.admission.rate_limit(ep, sender)
@@ -284,8 +307,18 @@ class CommandHandlers:
         gid = m.uuid_bytes(req.goal_info.goal_id)
         R = cdr.typestore().types[ep.response_type]
 
+        # A queued start of the goal (any goal, for the zero id) is discarded, never run.
+        dropped = self.inbox.discard(lambda k: isinstance(k, tuple) and k[0] == "goal" and (
+            gid == _ZERO_ID or k[1] == gid))
+        with self._lock:
+            cancelled = [(g.goal_id, g.accepted_at) for k in dropped
+                         if (g := self.goals.get(k[1])) is not None]  # type: ignore[index]
+
         def answer(result: object) -> None:
-            respond(cdr.encode(m.cancel_response(*result), ep.response_type))  # type: ignore[misc]
+            code, canceling = result  # type: ignore[misc]
+            if cancelled:  # a queued start it discarded is a goal it cancelled
+                code, canceling = R.ERROR_NONE, cancelled + canceling
+            respond(cdr.encode(m.cancel_response(code, canceling), ep.response_type))
         with self._lock:
             goal = self.goals.active if gid == _ZERO_ID else self.goals.get(gid)
             if goal is None:
@@ -315,6 +348,7 @@ class CommandHandlers:
 
     def on_trajectory(self, data: bytes, sender: Sender) -> None:
         ep = self.names.joint_trajectory
+        since = self.inbox.epoch  # decoding a large trajectory takes long: a stop may overtake
         who, _ = self.admission.admit(sender, "a trajectory")
         if who is None or not self.admission.within_rate(ep, sender):
             return
@@ -343,7 +377,11 @@ class CommandHandlers:
             if not ok:
                 self.counters.bump("rejected_trajectories")
                 _log.warning("trajectory refused: %s", msg)
-        if not self.inbox.submit(work):
+
+        def discard(_: bool) -> None:  # a topic: nobody to answer; counted and logged
+            self.counters.bump("rejected_trajectories")
+            _log.warning("trajectory from %s dropped: %s", who, SUPERSEDED)
+        if not self.inbox.submit(work, discard=discard, since=since):
             self.counters.bump("rejected_trajectories")
 
     def on_client_heartbeat(self, data: bytes, sender: Sender) -> None:
