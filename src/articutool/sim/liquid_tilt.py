@@ -6,7 +6,10 @@
   gravity is turned in the dish's frame at ``TILT_RATE`` (quasi-static: the load's first slosh
   mode is ~2.4 Hz) over the tip or sideways, held ``HOLD_S`` at each of ``HOLD_DEG``. A
   particle that leaves the dish (:func:`articutool.sim.liquid_frame.outside_dish`, as the
-  world decides it) is taken out and counted spilled. The onset is the tilt at which
+  world decides it) is taken out and counted spilled, checked every ``CHECK_S`` of simulated
+  time, holds included: a particle left to fall away from the dish gains speed without bound
+  and the library's CFL step, which follows the fastest particle, shrinks with it (a 1 s hold
+  run unchecked took the step from 2 ms to 0.06 ms). The onset is the tilt at which
   ``ONSET_G`` has left during the turn, beside the tilt at which the ideal liquid of the same
   volume (:class:`articutool.food.hydrostatics.Hydrostatics`) has lost as much; at each hold
   the grams spilled beside the ideal liquid's. Tolerances: onset within ``ONSET_TOL_DEG``,
@@ -44,8 +47,9 @@ __all__ = ["GRAMS_TOL", "HOLD_DEG", "HOLD_S", "LIQUID_CHECKS", "ONSET_G", "ONSET
 # The protocol (numerical choices of the test, not of the model).
 SETTLE_S = 0.5
 TILT_RATE = 0.15  # rad/s
-HOLD_DEG = (15.0, 20.0, 25.0)
+HOLD_DEG = (12.0, 15.0, 20.0, 25.0)
 HOLD_S = 1.0
+CHECK_S = 0.02  # s: how often particles that left the dish are taken out
 ONSET_G = 0.05  # g: the first grams counted as the onset
 # The law's tolerances (the task's criteria).
 ONSET_TOL_DEG = 1.5
@@ -84,12 +88,16 @@ def static_tilt_sph(food: Liquid, spec: Spec, utensil: str, load_g: float, direc
                    gravity=(-g, 0.0, 0.0)) as liq:
         mass_g = liq.particle_mass * 1000.0
         spilled = 0
+        min_dt = math.inf
 
         def run_to(t: float) -> None:
-            nonlocal spilled
-            liq.step_to(t)
-            out = outside_dish(liq.positions(), dish, u.tip_x, r, 3.0 * u.physics.thickness)
-            spilled += liq.remove_particles(out)
+            nonlocal spilled, min_dt
+            while liq.time < t - 1e-12:
+                liq.step_to(min(t, liq.time + CHECK_S))
+                min_dt = min(min_dt, liq.last_dt)
+                out = outside_dish(liq.positions(), dish, u.tip_x, r,
+                                   3.0 * u.physics.thickness)
+                spilled += liq.remove_particles(out)
 
         def tilt_to(t: float, deg: float) -> None:
             liq.set_gravity(-g * up_vector(math.radians(deg), dirn))
@@ -128,6 +136,7 @@ def static_tilt_sph(food: Liquid, spec: Spec, utensil: str, load_g: float, direc
             "holds": holds, "grams_tolerance": GRAMS_TOL,
             "passes": (onset is not None and abs(onset - law_onset) <= ONSET_TOL_DEG
                        and all(h["passes"] for h in holds)),
+            "min_dt_ms": round(min_dt * 1e3, 4),
             "cpu_s": round(time.process_time() - c0, 1),
         }
 
