@@ -29,7 +29,7 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 
 import hypothesis
@@ -250,3 +250,12 @@ def _sphere_water(request, monkeypatch):  # type: ignore[no-untyped-def]
 
     monkeypatch.setattr(sim_params.PhysicsParams, "load", classmethod(spheres))
     yield
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _close_this_threads_liquid() -> Iterator[None]:
+    """A module that leaves a world with a liquid load open (the process holds one liquid
+    solver) does not stop the next module from opening its own."""
+    yield
+    if "articutool.sim.sph_scene" in sys.modules:
+        sys.modules["articutool.sim.sph_scene"].close_this_threads_liquid()

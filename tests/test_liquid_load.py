@@ -64,7 +64,7 @@ def placed_water():
     w.run(1.0)
     w.tare_ft(settle_s=0.2)
     held = w.place_load(settle_s=1.0)
-    w.run(0.5)
+    w.run(2.0)  # a still load: the pour's slosh has rung down
     yield w, held
     w.close()
 
@@ -82,7 +82,7 @@ def test_the_scale_and_the_ft_sensor_weigh_the_liquid(placed_water):
     grams = w.masses_g()["utensil"]
     assert w.carried_g() == pytest.approx(grams, rel=0.01)
     assert w.ft_comparable()
-    assert w.ft_mass_g(0.5) == pytest.approx(grams, rel=0.01)
+    assert w.ft_mass_g(1.0) == pytest.approx(grams, rel=0.01)
 
 
 def test_the_spheres_remain_an_option():
@@ -131,7 +131,9 @@ def test_the_liquid_counts_in_the_static_tilt_as_hydrostatics_says(spec):
     away gaining speed (unchecked, the CFL step fell from 2 ms to 0.06 ms and the run did not
     finish). About 28 CPU s."""
     from articutool.sim.liquid_tilt import GRAMS_TOL, static_tilt_sph
+    from articutool.sim.sph_scene import close_this_threads_liquid
 
+    close_this_threads_liquid()  # the placed load above holds the process's one solver
     res = static_tilt_sph(PhysicsParams.load().food("water"), spec, "soup_spoon", 8.0, "tip")
     hold = {h["tilt_deg"]: h for h in res["holds"]}[20.0]
     assert hold["spilled_g"] == pytest.approx(hold["hydrostatic_g"], rel=GRAMS_TOL)
