@@ -557,6 +557,6 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--threshold-g", type=float, default=None,
                    help="Exp. 3 threshold (default: our Exp. 1 Articutool mean)")
     p.add_argument("--exp2a", metavar="DIR", default=None,
-                   help="the transport planning benchmark's results (`bench transport "
-                        "--out`; default: the exp2a folder beside --out)")
+                   help="the transport planning benchmark's results (bench transport "
+                        "--out; default: the exp2a folder beside --out)")
     p.set_defaults(func=_cmd_report)
