@@ -36,7 +36,7 @@ import numpy as np
 
 from articutool.arm.scene import Cylinder, Scene
 from articutool.food.dish import spoon_dish
-from articutool.food.hydrostatics import SIDE, TIP, Hydrostatics, up_vector
+from articutool.food.hydrostatics import SIDE, TIP, Hydrostatics
 from articutool.sim.loading import max_load_g
 from articutool.sim.mjcf import contact_attrs, food_solver_attrs
 from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
@@ -309,17 +309,6 @@ def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
     return out
 
 
-def _tilt_for_spill(h: Hydrostatics, volume: float, direction: float, grams: float,
-                    density: float) -> float:
-    """The tilt (deg) at which the ideal liquid of ``volume`` has lost ``grams``."""
-    lo, hi = 0.0, math.radians(89.0)
-    for _ in range(50):
-        mid = 0.5 * (lo + hi)
-        lost = float(h.spilled(volume, up_vector(mid, direction))) * density * 1000.0
-        lo, hi = (mid, hi) if lost < grams else (lo, mid)
-    return math.degrees(0.5 * (lo + hi))
-
-
 def static_tilt(food_name: str, spec: Spec, params: PhysicsParams, utensil: str | None,
                 load_g: float = 8.0, seed: int = 0,
                 steps_deg: tuple[float, ...] = TILT_STEPS_DEG,
@@ -370,8 +359,8 @@ def static_tilt(food_name: str, spec: Spec, params: PhysicsParams, utensil: str 
         onset = next((r["tilt_deg"] for r in rows if r["spilled_g"] >= ONSET_G), None)
         out[direction] = {
             "kept_g": round(kept, 3), "rows": rows, "onset_deg": onset,
-            "hydrostatic_onset_deg": round(_tilt_for_spill(h, volume, dirn, ONSET_G,
-                                                           food.density), 2)}
+            "hydrostatic_onset_deg": round(math.degrees(float(h.onset_tilt(
+                volume - ONSET_G / (food.density * 1000.0), dirn))), 2)}
         cpu += world._cpu
         sim += world._sim_stepped
     out["cpu_s"] = round(cpu, 1)

@@ -42,7 +42,7 @@ from articutool.spec import Spec
 __all__ = ["GRAMS_TOL", "HOLD_DEG", "HOLD_S", "LIQUID_CHECKS", "ONSET_G", "ONSET_TOL_DEG",
            "TILT_LOADS_G", "TILT_RADII_M", "TILT_RATE", "WEIGH_TOL", "check_passes",
            "liquid_calibration",
-           "static_tilt_sph", "tilt_for_spill", "weighing_check"]
+           "static_tilt_sph", "weighing_check"]
 
 # The protocol (numerical choices of the test, not of the model).
 SETTLE_S = 0.5
@@ -55,17 +55,6 @@ ONSET_G = 0.05  # g: the first grams counted as the onset
 ONSET_TOL_DEG = 1.5
 GRAMS_TOL = 0.15
 WEIGH_TOL = 0.01
-
-
-def tilt_for_spill(h: Hydrostatics, volume: float, direction: float, grams: float,
-                   density: float) -> float:
-    """The tilt (deg) at which the ideal liquid of ``volume`` (m³) has lost ``grams``."""
-    lo, hi = 0.0, math.radians(89.0)
-    for _ in range(50):
-        mid = 0.5 * (lo + hi)
-        lost = float(h.spilled(volume, up_vector(mid, direction))) * density * 1000.0
-        lo, hi = (mid, hi) if lost < grams else (lo, mid)
-    return math.degrees(0.5 * (lo + hi))
 
 
 def static_tilt_sph(food: Liquid, spec: Spec, utensil: str, load_g: float, direction: str,
@@ -125,7 +114,9 @@ def static_tilt_sph(food: Liquid, spec: Spec, utensil: str, load_g: float, direc
             holds.append({"tilt_deg": target, "spilled_g": round(got, 3),
                           "hydrostatic_g": round(ideal_g, 3),
                           "passes": bool(abs(got - ideal_g) <= GRAMS_TOL * ideal_g)})
-        law_onset = tilt_for_spill(hyd, volume, dirn, ONSET_G, food.density)
+        # the tilt at which the ideal liquid has lost ONSET_G: where it holds only V − ONSET_G
+        law_onset = math.degrees(float(hyd.onset_tilt(
+            volume - ONSET_G / (food.density * 1000.0), dirn)))
         return {
             "load_g": load_g, "direction": direction, "particle_radius_mm": r * 1e3,
             "particles": n, "kept_g": round(kept_g, 3),
