@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from articutool.food.dish import spoon_dish
-from articutool.sim.liquid_frame import (
-    apparent_gravity,
-    momentum_wrench,
-    outside_dish,
-    rotation_accelerations,
-)
+from articutool.sim.liquid_frame import apparent_gravity, outside_dish
 from articutool.sim.params import PhysicsParams
+from articutool.sim.sph_scene import (
+    momentum_balance_force,
+    momentum_balance_torque,
+    rotating_frame_acceleration,
+)
 from conftest import CLI, SRC, assert_refused
 
 
@@ -28,18 +28,19 @@ def test_apparent_gravity_is_gravity_less_the_acceleration_in_the_frame():
 def test_a_still_liquid_weighs_its_mass_and_its_torque_is_its_moment():
     x = np.array([[0.01, 0.0, 0.02], [0.01, 0.0, 0.04]])
     g = np.array([-9.81, 0.0, 0.0])
-    f, tau = momentum_wrench(0.008e-3, x, g, np.zeros_like(x))
+    f = momentum_balance_force(0.008e-3, np.zeros_like(x), g)
+    tau = momentum_balance_torque(0.008e-3, x, np.zeros_like(x), g, np.zeros(3))
     assert np.allclose(f, 2 * 0.008e-3 * g)
     assert np.allclose(tau, np.cross(x, 0.008e-3 * g).sum(axis=0))
     # A particle accelerating with its gravity (free fall) puts nothing on the dish.
-    f, _ = momentum_wrench(1.0, x, g, np.broadcast_to(g, x.shape))
+    f = momentum_balance_force(1.0, np.broadcast_to(g, x.shape), g)
     assert np.allclose(f, 0.0)
 
 
 def test_rotation_terms_centrifugal_and_coriolis():
     x, v = np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]])
     w = np.array([0.0, 0.0, 2.0])
-    a = rotation_accelerations(x, v, w, np.zeros(3))
+    a = rotating_frame_acceleration(w, np.zeros(3))(x, v)
     # centrifugal ω²r outward along x; Coriolis −2ω×v = −2·(2 ẑ × ŷ) = +4 x̂
     assert np.allclose(a, [[4.0 + 4.0, 0.0, 0.0]])
 

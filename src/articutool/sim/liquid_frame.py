@@ -13,7 +13,8 @@ the liquid is ``Σ m (a_i − g_i)`` with ``a_i`` a particle's acceleration and 
 apparent gravity (both in the frame), and the liquid's force on the dish is its negative,
 ``F = Σ m (g_i − a_i)``; over a control period ``a_i`` is the particle's velocity change over
 the period, so ``F`` is the period's mean force (its impulse over the period). The torque
-about the frame's origin is ``Σ x_i × m (g_i − a_i)``.
+about the frame's origin is ``Σ x_i × m (g_i − a_i)``. The rotation terms and these sums are
+:mod:`articutool.sim.sph_scene`'s (``rotating_frame_acceleration``, ``momentum_balance_*``).
 
 A particle leaves the dish when it is outside the rim's ellipse (grown by a margin) seen
 along the dish's normal, or below the shell's floor: from then on it is the world's.
@@ -26,7 +27,7 @@ from numpy.typing import NDArray
 
 from articutool.food.dish import Dish
 
-__all__ = ["apparent_gravity", "momentum_wrench", "outside_dish", "rotation_accelerations"]
+__all__ = ["apparent_gravity", "outside_dish"]
 
 
 def apparent_gravity(R: NDArray[np.float64], gravity: NDArray[np.float64],
@@ -34,26 +35,6 @@ def apparent_gravity(R: NDArray[np.float64], gravity: NDArray[np.float64],
     """``R⊤ (g − a)``: gravity less the frame origin's acceleration (world vectors), in the
     frame whose orientation is ``R`` (world ← frame)."""
     return R.T @ (np.asarray(gravity, dtype=float) - np.asarray(accel, dtype=float))
-
-
-def rotation_accelerations(x: NDArray[np.float64], v: NDArray[np.float64],
-                           omega: NDArray[np.float64], alpha: NDArray[np.float64]
-                           ) -> NDArray[np.float64]:
-    """The rotating frame's fictitious accelerations ``−α×x − 2ω×v − ω×(ω×x)`` (n, 3) of
-    particles at ``x`` moving at ``v`` (frame vectors; ``ω``, ``α`` in the frame)."""
-    x, v = np.atleast_2d(x), np.atleast_2d(v)
-    w = np.asarray(omega, dtype=float)
-    return (-np.cross(alpha, x) - 2.0 * np.cross(w, v) - np.cross(w, np.cross(w, x)))
-
-
-def momentum_wrench(mass: float, x: NDArray[np.float64], g_app: NDArray[np.float64],
-                    accel: NDArray[np.float64]) -> tuple[NDArray[np.float64],
-                                                         NDArray[np.float64]]:
-    """(force, torque about the frame's origin) the liquid puts on its dish (frame vectors):
-    ``Σ m (g_i − a_i)`` and ``Σ x_i × m (g_i − a_i)`` over particles of ``mass`` (kg) at
-    ``x`` with apparent gravity ``g_app`` ((3,) or (n, 3)) and acceleration ``accel``."""
-    f = mass * (np.broadcast_to(g_app, np.shape(x)) - np.asarray(accel))
-    return f.sum(axis=0), np.cross(x, f).sum(axis=0)
 
 
 def outside_dish(x: NDArray[np.float64], dish: Dish, x0: float, margin: float,

@@ -45,12 +45,18 @@ from articutool.food.dish_mesh import dish_boundary_mesh
 from articutool.sim.ledger import FoodLedger
 from articutool.sim.liquid_frame import (
     apparent_gravity,
-    momentum_wrench,
     outside_dish,
-    rotation_accelerations,
 )
 from articutool.sim.params import Liquid
-from articutool.sim.sph_scene import Boundary, FluidParticles, SphLiquid, SphSettings
+from articutool.sim.sph_scene import (
+    Boundary,
+    FluidParticles,
+    SphLiquid,
+    SphSettings,
+    momentum_balance_force,
+    momentum_balance_torque,
+    rotating_frame_acceleration,
+)
 from articutool.spec import UtensilSpec
 
 __all__ = ["LiquidLoad", "sph_settings"]
@@ -189,8 +195,8 @@ class LiquidLoad:
         g_app = apparent_gravity(R, m.opt.gravity, a_o)
         w_b, alpha_b = R.T @ w, R.T @ alpha
         liq.set_gravity(g_app)
-        liq.extra_acceleration = (
-            lambda x, v: rotation_accelerations(x, v, w_b, alpha_b))
+        rotation = rotating_frame_acceleration(w_b, alpha_b)
+        liq.extra_acceleration = rotation
         ids0, v0 = liq.particle_ids(), liq.velocities()
         liq.step_to(t_world - self._t0)
         dt = liq.time - t_liq0
@@ -201,8 +207,9 @@ class LiquidLoad:
                            floor_below=self.thickness * 3.0)
         inn = ~out
         acc = (v1 - v0) / dt
-        g_i = g_app + rotation_accelerations(x1, v1, w_b, alpha_b)
-        f, tau = momentum_wrench(self.mass, x1[inn], g_i[inn], acc[inn])
+        g_i = (g_app + rotation(x1, v1))[inn]
+        f = momentum_balance_force(self.mass, acc[inn], g_i)
+        tau = momentum_balance_torque(self.mass, x1[inn], acc[inn], g_i, np.zeros(3))
         self._force_body, self._torque_body = f, tau
         self._force_world = R @ f
         c = m.body_ipos[self.body]  # xfrc_applied's torque is about the centre of mass

@@ -606,10 +606,11 @@ def momentum_balance_force(mass: ArrayLike, accelerations: ArrayLike,
     """Force (N) a liquid's particles exert on what holds them: ``Σ m (g − a_i)``.
 
     ``mass``: one particle mass (kg) or one per particle; ``accelerations`` (N, 3) m/s²;
-    ``gravity`` (3,), the (apparent) gravity of the frame the accelerations are in."""
+    ``gravity`` (3,) or one per particle (N, 3), the (apparent) gravity of the frame the
+    accelerations are in."""
     a = np.asarray(accelerations, dtype=float).reshape(-1, 3)
     m = np.broadcast_to(np.asarray(mass, dtype=float), (a.shape[0],))
-    g = np.asarray(gravity, dtype=float).reshape(3)
+    g = np.asarray(gravity, dtype=float).reshape(-1, 3)
     return (m[:, None] * (g - a)).sum(axis=0)
 
 
@@ -619,7 +620,7 @@ def momentum_balance_torque(mass: ArrayLike, positions: ArrayLike, accelerations
     a = np.asarray(accelerations, dtype=float).reshape(-1, 3)
     x = np.asarray(positions, dtype=float).reshape(-1, 3)
     m = np.broadcast_to(np.asarray(mass, dtype=float), (a.shape[0],))
-    g = np.asarray(gravity, dtype=float).reshape(3)
+    g = np.asarray(gravity, dtype=float).reshape(-1, 3)
     c = np.asarray(point, dtype=float).reshape(3)
     return np.cross(x - c, m[:, None] * (g - a)).sum(axis=0)
 
