@@ -175,3 +175,19 @@ def test_a_base_motion_taking_the_target_out_of_reach_clips_it_and_reports_the_s
     assert states[-1].extra["leveling_stalled"] == 1.0
     commands = np.array([[s.extra["command_pitch"], s.extra["command_roll"]] for s in states])
     assert np.abs(commands).max() < 0.05  # at rest: no chatter
+
+
+def test_an_unreachable_target_is_refused_without_scipy(monkeypatch):
+    """The tool's core install (the Pi) has no SciPy: refusing an unreachable target needs
+    only NumPy (the nearest reachable attitude in closed form over the roll)."""
+    import sys
+
+    monkeypatch.setitem(sys.modules, "scipy", None)
+    monkeypatch.setitem(sys.modules, "scipy.optimize", None)
+    sim, rt = make()
+    sim.set_base_pose(axis_angle_rotation([1.0, 0.0, 0.0], -math.pi / 2))  # pitch axis up
+    run_loop(sim, rt, 1.0)
+    target = axis_angle_rotation([1.0, 0.0, 0.0], math.pi / 4)  # needs the pitch axis level
+    ok, msg = rt.set_mode(Mode.FULL_ORIENTATION, target_xyzw=_xyzw(target))
+    assert not ok and "nearest reachable attitude is" in msg, msg
+

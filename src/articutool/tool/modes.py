@@ -30,7 +30,6 @@ from articutool.rotations import quaternion_to_matrix
 from articutool.spec import Spec
 from articutool.tool.api import Mode
 from articutool.tool.controller import AttitudeController, LevelingController
-from articutool.tool.kinematics import rotation
 
 __all__ = ["Leveling", "attitude_target", "check_offsets", "requested_mode"]
 
@@ -90,6 +89,40 @@ def attitude_target(xyzw: object) -> NDArray[np.float64]:
     return quaternion_to_matrix([w, x, y, z])[2]  # the third row: R⊤ ẑ
 
 
+def _least_angle_to_vertical(R: NDArray[np.float64], g: NDArray[np.float64],
+                             pitch_limits: tuple[float, float]) -> float:
+    """The least angle (rad) between the tip-frame vector ``g`` and the vertical over the
+    wrist's configurations (pitch within ``pitch_limits``, any roll) under the base
+    orientation ``R``. With ``w`` the vertical in F0 (``R``'s last row), the height
+    ``w · rotation(p, r) g`` is ``sin r (A g₀ + w₁ g₁) + cos r (A g₁ − w₁ g₀) + g₂ B`` with
+    ``A = w₀ cos p + w₂ sin p`` and ``B = w₂ cos p − w₀ sin p``, so its maximum over the
+    roll is ``√((A² + w₁²)(g₀² + g₁²)) + g₂ B``: a function of the pitch alone, maximised on a
+    grid and by golden-section search around the grid's best (NumPy only: the tool's core
+    install has no SciPy)."""
+    w = np.asarray(R, dtype=float)[2]
+    g = np.asarray(g, dtype=float)
+    k = math.hypot(g[0], g[1])
+    lo, hi = pitch_limits
+
+    def height(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        a = w[0] * np.cos(p) + w[2] * np.sin(p)
+        b = w[2] * np.cos(p) - w[0] * np.sin(p)
+        return k * np.sqrt(a * a + w[1] * w[1]) + g[2] * b
+
+    grid = np.linspace(lo, hi, 721)
+    i = int(np.argmax(height(grid)))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    ratio = 0.5 * (math.sqrt(5.0) - 1.0)
+    for _ in range(60):
+        c, d = b - ratio * (b - a), a + ratio * (b - a)
+        if height(np.array(c)) >= height(np.array(d)):
+            b = d
+        else:
+            a = c
+    best = max(float(height(np.array(0.5 * (a + b)))), float(height(grid[i])))
+    return math.acos(min(1.0, max(-1.0, best)))
+
+
 class Leveling:
     """LEVELING (or, with an :class:`AttitudeController`, FULL_ORIENTATION): the controller,
     its offsets and the stall report."""
@@ -142,22 +175,9 @@ class Leveling:
         attitude (the least angle between the held vector and the vertical, pitch within its
         limits, any roll) is more than the deadband from it. "" when within the deadband
         (held as near as the limits allow)."""
-        from scipy.optimize import minimize
-
         ctrl = self.controller
-        g = ctrl.target_vector  # type: ignore[attr-defined]
-        lo, hi = self.pitch_limits
-
-        def miss(q: NDArray[np.float64]) -> float:  # 1 − cos(angle to the vertical)
-            return float(1.0 - (R @ rotation(q) @ g)[2])
-
-        P, Q = np.meshgrid(np.linspace(lo, hi, 19), np.linspace(-math.pi, math.pi, 37),
-                           indexing="ij")
-        grid = np.stack([P.ravel(), Q.ravel()], axis=-1)
-        a = np.einsum("ij,njk,k->ni", R, rotation(grid), g)
-        start = grid[int(np.argmin(-a[:, 2]))]
-        best = minimize(miss, start, method="L-BFGS-B", bounds=[(lo, hi), (None, None)])
-        angle = math.acos(min(1.0, max(-1.0, 1.0 - float(best.fun))))
+        angle = _least_angle_to_vertical(R, ctrl.target_vector,  # type: ignore[attr-defined]
+                                         self.pitch_limits)
         if angle <= ctrl.deadband:
             return ""
         return ("refused: target orientation out of reach: no wrist configuration within the "
