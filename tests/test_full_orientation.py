@@ -191,3 +191,14 @@ def test_an_unreachable_target_is_refused_without_scipy(monkeypatch):
     ok, msg = rt.set_mode(Mode.FULL_ORIENTATION, target_xyzw=_xyzw(target))
     assert not ok and "nearest reachable attitude is" in msg, msg
 
+
+@pytest.mark.parametrize("q, g", [
+    ((0.0, 0.0), (1.0, 1.96e-9, 0.0)),        # v_y a hair inside ρ: arcsin lost half the digits
+    ((0.0, 2.3733680406119793e-08), (1.0, 0.0, 0.0)),  # |v_xz| tiny: ρ² − v_y² lost them all
+])
+def test_an_attitude_at_the_edge_of_the_roll_circle_keeps_its_digits(q, g):
+    g = np.asarray(g) / np.linalg.norm(g)
+    v = rotation(np.asarray(q)) @ g
+    sols = attitude_solutions(g, v, LIMITS)
+    for qs in sols.q[sols.valid]:
+        np.testing.assert_allclose(rotation(qs) @ g, v, atol=1e-12)

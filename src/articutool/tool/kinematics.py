@@ -266,7 +266,12 @@ def attitude_solutions(g: ArrayLike, v: ArrayLike, limits: ArrayLike) -> IKSolut
     phi = float(np.arctan2(hy, hx))
     vy = u[..., 1]
     ok = np.abs(vy) <= rho + 1e-12
-    a = np.arcsin(np.clip(vy / rho, -1.0, 1.0)) if rho > 1e-12 else np.zeros_like(vy)
+    # sin a = v_y / ρ and ρ cos a = ±√(ρ² − v_y²) = ±√(|v_xz|² − h_z²) (both unit vectors):
+    # the second form makes the turned vector's x–z length equal v's by construction, and its
+    # factors keep their digits where v is nearly along the roll circle's edge.
+    vxz = np.hypot(u[..., 0], u[..., 2])
+    c2 = np.maximum((vxz - abs(hz)) * (vxz + abs(hz)), 0.0)
+    a = np.arctan2(vy, np.sqrt(c2)) if rho > 1e-12 else np.zeros_like(vy)
     branches = []
     for r in (a - phi, np.pi - a - phi):
         wx = hx * np.cos(r) - hy * np.sin(r)
