@@ -237,3 +237,24 @@ def test_a_second_threads_liquid_waits_for_the_first_to_close() -> None:
     t.join(300)
     assert not t.is_alive() and errors == []
     assert order == ["first closed", "second opened"]
+
+
+_SAME_SCENE = """
+import hashlib
+from articutool.sim.sph_scene import Boundary, FluidBlock, SphLiquid, SphSettings, box_mesh
+V, F = box_mesh((-0.02, -0.02, -0.002), (0.02, 0.02, 0.04))
+with SphLiquid([Boundary("tank", V, F)], [FluidBlock((-0.018, -0.018, 0.0), (0.0, 0.0, 0.012))],
+               SphSettings(particle_radius=0.001), (0.0, 0.0, -9.80665)) as q:
+    for _ in range(10):
+        q.step()
+    print(hashlib.sha256(q.positions().tobytes()).hexdigest())
+"""
+
+
+def test_a_scene_gives_the_same_bits_in_two_processes() -> None:
+    import subprocess
+    import sys
+
+    runs = [subprocess.run([sys.executable, "-c", _SAME_SCENE], capture_output=True, text=True,
+                           timeout=300, check=True).stdout.split()[-1] for _ in range(2)]
+    assert runs[0] == runs[1]
