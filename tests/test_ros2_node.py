@@ -658,3 +658,73 @@ def test_offset_units_read_what_ada_sends(units: str, expected_deg: float) -> No
         server.destroy()
         node.destroy_node()
         rclpy.try_shutdown(context=ctx)
+
+
+class _ToolWithLimits(_RecordingClient):
+    """A link client whose tool reports joint limits (rad) other than the packaged spec's, as
+    a tool built from another spec file does (``pitch_limit_low``… in its health)."""
+
+    def __init__(self, limits: tuple[tuple[float, float], tuple[float, float]] | None) -> None:
+        super().__init__()
+        self.limits = limits
+
+    def latest_state(self) -> Any:  # type: ignore[override]
+        from articutool.tool.api import Mode, ToolState
+        from articutool.tool.telemetry import LIMIT_KEYS
+        extra = {} if self.limits is None else {
+            k: float(v) for keys, bounds in zip(LIMIT_KEYS, self.limits, strict=True)
+            for k, v in zip(keys, bounds, strict=True)}
+        return ToolState(stamp=0.0, mode=Mode.DISABLED, joint_names=("pitch", "roll"),
+                         position=(0.0, 0.0), velocity=(0.0, 0.0),
+                         orientation_wxyz=(1.0, 0.0, 0.0, 0.0),
+                         angular_velocity=(0.0, 0.0, 0.0),
+                         linear_acceleration=(0.0, 0.0, 0.0), fault="", battery_voltage=12.0,
+                         loop_period_mean=0.02, loop_jitter=0.0, loop_overruns=0, extra=extra)
+
+
+@pytest.mark.parametrize(("limits_deg", "pitch_deg", "forwarded", "words"), [
+    (((-120, 120), (-180, 180)), 100.0, True, ()),  # beyond the packaged ±90°, within its own
+    (((-30, 30), (-180, 180)), 45.0, False, ("pitch_offset_deg", "[-30, 30]")),
+    (None, 100.0, True, ()),  # limits not reported: the tool checks
+])
+def test_offsets_are_admitted_against_the_connected_tools_limits(
+        limits_deg: Any, pitch_deg: float, forwarded: bool, words: tuple[str, ...]) -> None:
+    """The node's pre-check of LEVELING offsets uses the limits the connected tool reports:
+    a request within that tool's limits reaches it even when the packaged spec's are
+    narrower, and one outside them is refused by the node with the tool's message and never
+    forwarded."""
+    from rclpy.executors import MultiThreadedExecutor
+
+    from articutool.ros2.node import ArticutoolRos2Node, NodeSettings
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=DOMAIN)
+    limits = None if limits_deg is None else tuple(
+        (math.radians(lo), math.radians(hi)) for lo, hi in limits_deg)
+    fake = _ToolWithLimits(limits)  # type: ignore[arg-type]
+    ns = f"limits_{len(words)}_{int(pitch_deg)}_{limits is None:d}_{os.getpid()}"
+    server = ArticutoolRos2Node(fake, NodeSettings(namespace=ns), context=ctx)  # type: ignore[arg-type]
+    server_exec = MultiThreadedExecutor(num_threads=2, context=ctx)
+    server_exec.add_node(server.node)
+    threading.Thread(target=server_exec.spin, daemon=True).start()
+    node = rclpy.create_node("plain_limits_client", context=ctx)
+    try:
+        cli = node.create_client(SetOrientationControl, f"/{ns}{SOC}")
+        assert cli.wait_for_service(timeout_sec=30)
+        req = SetOrientationControl.Request(control_mode=1,
+                                            pitch_offset=float(math.radians(pitch_deg)))
+        req.target_orientation_robot_base = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
+        future = cli.call_async(req)
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        ex.spin_until_future_complete(future, timeout_sec=30)
+        reply = future.result()
+        assert reply is not None, "no answer in time"
+        assert reply.success is forwarded, reply.message
+        assert [round(p, 3) for _, p, _ in fake.modes] == ([pitch_deg] if forwarded else [])
+        for w in words:
+            assert w in reply.message
+    finally:
+        server_exec.shutdown(timeout_sec=2.0)
+        server.destroy()
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)

@@ -58,6 +58,7 @@ from articutool.ros2.controllers import ControllerBook
 from articutool.ros2.lanes import StopLane, WorkLane
 from articutool.ros2.names import resolve
 from articutool.tool.api import Mode
+from articutool.tool.telemetry import reported_limits
 
 __all__ = ["ArticutoolRos2Node", "NodeSettings"]
 
@@ -249,7 +250,8 @@ class ArticutoolRos2Node:
         except ValueError as err:
             response.success, response.message = False, str(err)
             return response
-        refusal = mode_refusal(mode, pitch, roll)  # as the tool would: no link round trip
+        # as the connected tool would (its reported limits): no link round trip
+        refusal = mode_refusal(mode, pitch, roll, reported_limits(client.latest_state()))
         if refusal is not None:
             response.success, response.message = False, refusal
             return response
