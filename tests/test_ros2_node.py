@@ -411,6 +411,44 @@ def test_stops_and_cancels_are_all_answered_under_a_flood(flooded_graph: Graph) 
     assert sent[0] == "SENT" and 0 < int(sent[3]) <= int(sent[1]), out
 
 
+@pytest.mark.floods
+def test_every_call_of_a_1000_per_s_flood_is_answered(flooded_graph: Graph) -> None:
+    """3 000 bad calls at 1 000/s (every kind the flooder sends: mode 7, a 500° offset, NaN,
+    unknown primitives, cancels of unknown goals, calibrations, empty verifications), and
+    during it a burst of 300 cancels and 5 stops from this client: every one is answered
+    (a refusal is an answer), however slowly the loaded host lets the node take them, and the
+    next DISABLED on set_orientation_control after the flood is answered too. Counts only:
+    the flooder takes its replies with deep queues, so a reply it loses is not counted
+    against the node (docs/ros2.md)."""
+    from action_msgs.srv import CancelGoal
+    graph = flooded_graph
+    flooder = subprocess.Popen([sys.executable, str(Path(__file__).parent / "ros2_flooder.py"),
+                                "--rate", "1000", "--count", "3000", "--depth", "1000",
+                                "--grace", "240"], env=graph.env, text=True,
+                               stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    assert flooder.stdout is not None
+    assert flooder.stdout.readline().strip() == "READY"
+    try:
+        cancel = graph.node.create_client(CancelGoal, f"{PRIMITIVE}/_action/cancel_goal",
+                                          qos_profile=QoSProfile(depth=1000))
+        assert cancel.wait_for_service(timeout_sec=30)
+        graph.spin_until(lambda: False, 0.5)  # the flood is on
+        burst = []
+        for _ in range(300):
+            req = CancelGoal.Request()
+            req.goal_info.goal_id.uuid = list(os.urandom(16))
+            burst.append(cancel.call_async(req))
+        stops = [graph.stop.call_async(Trigger.Request()) for _ in range(5)]
+        graph.spin_until(lambda: all(f.done() for f in (*burst, *stops)), 240)
+        assert sum(f.done() for f in burst) == len(burst)
+        assert all(f.done() and f.result().success for f in stops)
+    finally:
+        out, _ = flooder.communicate(timeout=300)
+    sent = out.split()  # SENT n ANSWERED n seconds
+    assert sent[0] == "SENT" and int(sent[1]) == 3000 and int(sent[3]) == 3000, out
+    assert graph.set_mode(0).success
+
+
 def test_adas_trajectory_path_moves_the_wrist(graph: Graph) -> None:
     """As ADA's SwitchArticutoolControllers then ExecuteArticutoolTrajectory do: switch to the
     joint_trajectory_controller (BEST_EFFORT), send a FollowJointTrajectory goal in the
