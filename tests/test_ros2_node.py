@@ -655,47 +655,54 @@ class _RecordingClient(_ResultBeforeCancelReply):
         return None
 
 
+def _leveling_in_process(fake: Any, settings: Any, pitch: float, roll: float = 0.0) -> Any:
+    """The node, in process, serving ``fake`` (a link client) with ``settings``: the reply to
+    one LEVELING request with these offsets (the request's units) from a plain client."""
+    from rclpy.executors import MultiThreadedExecutor
+
+    from articutool.ros2.node import ArticutoolRos2Node
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=DOMAIN)
+    server = ArticutoolRos2Node(fake, settings, context=ctx)
+    server_exec = MultiThreadedExecutor(num_threads=2, context=ctx)
+    server_exec.add_node(server.node)
+    threading.Thread(target=server_exec.spin, daemon=True).start()
+    node = rclpy.create_node("plain_leveling_client", context=ctx)
+    try:
+        cli = node.create_client(SetOrientationControl, f"/{settings.namespace}{SOC}")
+        assert cli.wait_for_service(timeout_sec=30)
+        req = SetOrientationControl.Request(control_mode=1, pitch_offset=float(pitch),
+                                            roll_offset=float(roll))
+        req.target_orientation_robot_base = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
+        future = cli.call_async(req)
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        ex.spin_until_future_complete(future, timeout_sec=30)
+        assert future.done(), "no answer in time"
+        return future.result()
+    finally:
+        server_exec.shutdown(timeout_sec=2.0)
+        server.destroy()
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+
+
 @pytest.mark.parametrize(("units", "expected_deg"), [("degrees", math.radians(10.0)),
                                                      ("radians", 10.0)])
 def test_offset_units_read_what_ada_sends(units: str, expected_deg: float) -> None:
     """ADA's CallSetOrientationControl sends math.radians(pitch_offset_deg). Read as degrees
     (the upstream .srv's unit) a 10° request levels 0.17° off; with offset_units=radians (the
     default) it levels the 10° ADA meant."""
-    from rclpy.executors import MultiThreadedExecutor
-
-    from articutool.ros2.node import ArticutoolRos2Node, NodeSettings
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=DOMAIN)
+    from articutool.ros2.node import NodeSettings
     fake = _RecordingClient()
-    ns = f"units_{units}_{os.getpid()}"
-    server = ArticutoolRos2Node(fake, NodeSettings(namespace=ns, offset_units=units),  # type: ignore[arg-type]
-                                context=ctx)
-    server_exec = MultiThreadedExecutor(num_threads=2, context=ctx)
-    server_exec.add_node(server.node)
-    threading.Thread(target=server_exec.spin, daemon=True).start()
-    node = rclpy.create_node("plain_units_client", context=ctx)
-    try:
-        cli = node.create_client(SetOrientationControl, f"/{ns}{SOC}")
-        assert cli.wait_for_service(timeout_sec=30)
-        req = SetOrientationControl.Request(control_mode=1,
-                                            pitch_offset=float(math.radians(10.0)),
-                                            roll_offset=float(math.radians(-5.0)))
-        req.target_orientation_robot_base = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
-        future = cli.call_async(req)
-        ex = SingleThreadedExecutor(context=ctx)
-        ex.add_node(node)
-        ex.spin_until_future_complete(future, timeout_sec=30)
-        assert future.result().success
-        (mode, pitch, roll), = fake.modes
-        assert mode == 1
-        assert pitch == pytest.approx(expected_deg, rel=1e-5)
-        assert roll == pytest.approx(-expected_deg / 2, rel=1e-5)
-        assert NodeSettings().offset_units == "radians"  # ADA's unit is the default
-    finally:
-        server_exec.shutdown(timeout_sec=2.0)
-        server.destroy()
-        node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
+    settings = NodeSettings(namespace=f"units_{units}_{os.getpid()}", offset_units=units)
+    reply = _leveling_in_process(fake, settings, math.radians(10.0), math.radians(-5.0))
+    assert reply.success
+    (mode, pitch, roll), = fake.modes
+    assert mode == 1
+    assert pitch == pytest.approx(expected_deg, rel=1e-5)
+    assert roll == pytest.approx(-expected_deg / 2, rel=1e-5)
+    assert NodeSettings().offset_units == "radians"  # ADA's unit is the default
 
 
 class _ToolWithLimits(_RecordingClient):
@@ -731,38 +738,13 @@ def test_offsets_are_admitted_against_the_connected_tools_limits(
     a request within that tool's limits reaches it even when the packaged spec's are
     narrower, and one outside them is refused by the node with the tool's message and never
     forwarded."""
-    from rclpy.executors import MultiThreadedExecutor
-
-    from articutool.ros2.node import ArticutoolRos2Node, NodeSettings
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=DOMAIN)
+    from articutool.ros2.node import NodeSettings
     limits = None if limits_deg is None else tuple(
         (math.radians(lo), math.radians(hi)) for lo, hi in limits_deg)
     fake = _ToolWithLimits(limits)  # type: ignore[arg-type]
     ns = f"limits_{len(words)}_{int(pitch_deg)}_{limits is None:d}_{os.getpid()}"
-    server = ArticutoolRos2Node(fake, NodeSettings(namespace=ns), context=ctx)  # type: ignore[arg-type]
-    server_exec = MultiThreadedExecutor(num_threads=2, context=ctx)
-    server_exec.add_node(server.node)
-    threading.Thread(target=server_exec.spin, daemon=True).start()
-    node = rclpy.create_node("plain_limits_client", context=ctx)
-    try:
-        cli = node.create_client(SetOrientationControl, f"/{ns}{SOC}")
-        assert cli.wait_for_service(timeout_sec=30)
-        req = SetOrientationControl.Request(control_mode=1,
-                                            pitch_offset=float(math.radians(pitch_deg)))
-        req.target_orientation_robot_base = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
-        future = cli.call_async(req)
-        ex = SingleThreadedExecutor(context=ctx)
-        ex.add_node(node)
-        ex.spin_until_future_complete(future, timeout_sec=30)
-        reply = future.result()
-        assert reply is not None, "no answer in time"
-        assert reply.success is forwarded, reply.message
-        assert [round(p, 3) for _, p, _ in fake.modes] == ([pitch_deg] if forwarded else [])
-        for w in words:
-            assert w in reply.message
-    finally:
-        server_exec.shutdown(timeout_sec=2.0)
-        server.destroy()
-        node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
+    reply = _leveling_in_process(fake, NodeSettings(namespace=ns), math.radians(pitch_deg))
+    assert reply.success is forwarded, reply.message
+    assert [round(p, 3) for _, p, _ in fake.modes] == ([pitch_deg] if forwarded else [])
+    for w in words:
+        assert w in reply.message

@@ -41,6 +41,8 @@ def create_draining_service(node: Any, srv_type: Any, name: str,
 
     def drain(srv: Any) -> None:
         executor = node.executor
+        if executor is None:  # not spun (a request taken now would have no one to finish it)
+            return
         for _ in range(batch):
             try:
                 with srv.handle:
@@ -52,9 +54,6 @@ def create_draining_service(node: Any, srv_type: Any, name: str,
                 return
             out = start(request, srv_type.Response())
             if inspect.iscoroutine(out):
-                if executor is None:
-                    out.close()
-                    return
                 executor.create_task(finish, srv, header, out)
             else:
                 srv.send_response(out, header)

@@ -34,6 +34,10 @@ with an empty namespace).
 - ``switch_controller`` and ``list_controllers``: :mod:`articutool.ros2.controllers`.
 - ``VerifyTrajectory``: :mod:`articutool.ros2.verify_service`, on its own lane.
 
+Every service of the main node takes all its waiting requests (up to a batch) each time the
+executor calls it (:mod:`articutool.ros2.intake`), and request queues are ``queue_depth`` (5 000)
+deep, so a flood of bad calls is answered rather than dropped by DDS (docs/ros2.md).
+
 Callbacks never raise into the executor: a request the client refuses (bad numbers, a silent
 tool) is answered ``success=false`` with the message ``articutool client`` prints.
 """
