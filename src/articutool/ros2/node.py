@@ -34,9 +34,10 @@ with an empty namespace).
 - ``switch_controller`` and ``list_controllers``: :mod:`articutool.ros2.controllers`.
 - ``VerifyTrajectory``: :mod:`articutool.ros2.verify_service`, on its own lane.
 
-Every service of the main node takes all its waiting requests (up to a batch) each time the
-executor calls it (:mod:`articutool.ros2.intake`), and request queues are ``queue_depth`` (5 000)
-deep, so a flood of bad calls is answered rather than dropped by DDS (docs/ros2.md).
+The services of the main node (not rclpy's parameter services; the stop is on the safety node)
+take all their waiting requests, up to a batch, each time the executor calls them
+(:mod:`articutool.ros2.intake`), and request queues are ``queue_depth`` (5 000) deep, so a flood
+of bad calls is answered rather than dropped by DDS (docs/ros2.md).
 
 Callbacks never raise into the executor: a request the client refuses (bad numbers, a silent
 tool) is answered ``success=false`` with the message ``articutool client`` prints.
@@ -506,12 +507,12 @@ class ArticutoolRos2Node:
             goal_service_qos_profile=q, result_service_qos_profile=q,
             cancel_service_qos_profile=q, callback_group=self._safety_group)
         self._controllers = ControllerBook(self.settings.joint_names)
-        self.node.create_service(SwitchController, n["switch_controller"],
-                                 self._on_switch_controller, qos_profile=q,
-                                 callback_group=self._group)
-        self.node.create_service(ListControllers, n["list_controllers"],
-                                 self._on_list_controllers, qos_profile=q,
-                                 callback_group=self._group)
+        create_draining_service(self.node, SwitchController, n["switch_controller"],
+                                self._on_switch_controller, qos_profile=q,
+                                callback_group=self._group)
+        create_draining_service(self.node, ListControllers, n["list_controllers"],
+                                self._on_list_controllers, qos_profile=q,
+                                callback_group=self._group)
 
     def _on_switch_controller(self, request: Any, response: Any) -> Any:
         """The wrist picks its control law per command (a trajectory, a primitive, a mode), so
