@@ -109,8 +109,9 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rate", type=float, default=1000.0)
     ap.add_argument("--seconds", type=float, default=5.0)
-    ap.add_argument("--depth", type=int, default=10,
-                    help="the flooder's client queue depth (10: rclpy's default)")
+    ap.add_argument("--depth", type=int, default=1000,
+                    help="the flooder's client queue depth (10 is rclpy's default: a client "
+                         "that slow loses replies in its own queue, docs/ros2.md)")
     ap.add_argument("--kinds", default="mode,offset,nan,goal,cancel,calibration,verify",
                     help="the flooder's kinds of bad call (tests/ros2_flooder.py)")
     ap.add_argument("--burst", type=int, default=600)

@@ -411,6 +411,44 @@ def test_stops_and_cancels_are_all_answered_under_a_flood(flooded_graph: Graph) 
     assert sent[0] == "SENT" and 0 < int(sent[3]) <= int(sent[1]), out
 
 
+@pytest.mark.floods
+def test_every_call_of_a_1000_per_s_flood_is_answered(flooded_graph: Graph) -> None:
+    """3 000 bad calls at 1 000/s (every kind the flooder sends: mode 7, a 500° offset, NaN,
+    unknown primitives, cancels of unknown goals, calibrations, empty verifications), and
+    during it a burst of 300 cancels and 5 stops from this client: every one is answered
+    (a refusal is an answer), however slowly the loaded host lets the node take them, and the
+    next DISABLED on set_orientation_control after the flood is answered too. Counts only:
+    the flooder takes its replies with deep queues, so a reply it loses is not counted
+    against the node (docs/ros2.md)."""
+    from action_msgs.srv import CancelGoal
+    graph = flooded_graph
+    flooder = subprocess.Popen([sys.executable, str(Path(__file__).parent / "ros2_flooder.py"),
+                                "--rate", "1000", "--count", "3000", "--depth", "1000",
+                                "--grace", "240"], env=graph.env, text=True,
+                               stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    assert flooder.stdout is not None
+    assert flooder.stdout.readline().strip() == "READY"
+    try:
+        cancel = graph.node.create_client(CancelGoal, f"{PRIMITIVE}/_action/cancel_goal",
+                                          qos_profile=QoSProfile(depth=1000))
+        assert cancel.wait_for_service(timeout_sec=30)
+        graph.spin_until(lambda: False, 0.5)  # the flood is on
+        burst = []
+        for _ in range(300):
+            req = CancelGoal.Request()
+            req.goal_info.goal_id.uuid = list(os.urandom(16))
+            burst.append(cancel.call_async(req))
+        stops = [graph.stop.call_async(Trigger.Request()) for _ in range(5)]
+        graph.spin_until(lambda: all(f.done() for f in (*burst, *stops)), 240)
+        assert sum(f.done() for f in burst) == len(burst)
+        assert all(f.done() and f.result().success for f in stops)
+    finally:
+        out, _ = flooder.communicate(timeout=300)
+    sent = out.split()  # SENT n ANSWERED n seconds
+    assert sent[0] == "SENT" and int(sent[1]) == 3000 and int(sent[3]) == 3000, out
+    assert graph.set_mode(0).success
+
+
 def test_adas_trajectory_path_moves_the_wrist(graph: Graph) -> None:
     """As ADA's SwitchArticutoolControllers then ExecuteArticutoolTrajectory do: switch to the
     joint_trajectory_controller (BEST_EFFORT), send a FollowJointTrajectory goal in the
@@ -617,44 +655,96 @@ class _RecordingClient(_ResultBeforeCancelReply):
         return None
 
 
+def _leveling_in_process(fake: Any, settings: Any, pitch: float, roll: float = 0.0) -> Any:
+    """The node, in process, serving ``fake`` (a link client) with ``settings``: the reply to
+    one LEVELING request with these offsets (the request's units) from a plain client."""
+    from rclpy.executors import MultiThreadedExecutor
+
+    from articutool.ros2.node import ArticutoolRos2Node
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=DOMAIN)
+    server = ArticutoolRos2Node(fake, settings, context=ctx)
+    server_exec = MultiThreadedExecutor(num_threads=2, context=ctx)
+    server_exec.add_node(server.node)
+    threading.Thread(target=server_exec.spin, daemon=True).start()
+    node = rclpy.create_node("plain_leveling_client", context=ctx)
+    try:
+        cli = node.create_client(SetOrientationControl, f"/{settings.namespace}{SOC}")
+        assert cli.wait_for_service(timeout_sec=30)
+        req = SetOrientationControl.Request(control_mode=1, pitch_offset=float(pitch),
+                                            roll_offset=float(roll))
+        req.target_orientation_robot_base = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
+        future = cli.call_async(req)
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        ex.spin_until_future_complete(future, timeout_sec=30)
+        assert future.done(), "no answer in time"
+        return future.result()
+    finally:
+        server_exec.shutdown(timeout_sec=2.0)
+        server.destroy()
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+
+
 @pytest.mark.parametrize(("units", "expected_deg"), [("degrees", math.radians(10.0)),
                                                      ("radians", 10.0)])
 def test_offset_units_read_what_ada_sends(units: str, expected_deg: float) -> None:
     """ADA's CallSetOrientationControl sends math.radians(pitch_offset_deg). Read as degrees
     (the upstream .srv's unit) a 10° request levels 0.17° off; with offset_units=radians (the
     default) it levels the 10° ADA meant."""
-    from rclpy.executors import MultiThreadedExecutor
-
-    from articutool.ros2.node import ArticutoolRos2Node, NodeSettings
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=DOMAIN)
+    from articutool.ros2.node import NodeSettings
     fake = _RecordingClient()
-    ns = f"units_{units}_{os.getpid()}"
-    server = ArticutoolRos2Node(fake, NodeSettings(namespace=ns, offset_units=units),  # type: ignore[arg-type]
-                                context=ctx)
-    server_exec = MultiThreadedExecutor(num_threads=2, context=ctx)
-    server_exec.add_node(server.node)
-    threading.Thread(target=server_exec.spin, daemon=True).start()
-    node = rclpy.create_node("plain_units_client", context=ctx)
-    try:
-        cli = node.create_client(SetOrientationControl, f"/{ns}{SOC}")
-        assert cli.wait_for_service(timeout_sec=30)
-        req = SetOrientationControl.Request(control_mode=1,
-                                            pitch_offset=float(math.radians(10.0)),
-                                            roll_offset=float(math.radians(-5.0)))
-        req.target_orientation_robot_base = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
-        future = cli.call_async(req)
-        ex = SingleThreadedExecutor(context=ctx)
-        ex.add_node(node)
-        ex.spin_until_future_complete(future, timeout_sec=30)
-        assert future.result().success
-        (mode, pitch, roll), = fake.modes
-        assert mode == 1
-        assert pitch == pytest.approx(expected_deg, rel=1e-5)
-        assert roll == pytest.approx(-expected_deg / 2, rel=1e-5)
-        assert NodeSettings().offset_units == "radians"  # ADA's unit is the default
-    finally:
-        server_exec.shutdown(timeout_sec=2.0)
-        server.destroy()
-        node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
+    settings = NodeSettings(namespace=f"units_{units}_{os.getpid()}", offset_units=units)
+    reply = _leveling_in_process(fake, settings, math.radians(10.0), math.radians(-5.0))
+    assert reply.success
+    (mode, pitch, roll), = fake.modes
+    assert mode == 1
+    assert pitch == pytest.approx(expected_deg, rel=1e-5)
+    assert roll == pytest.approx(-expected_deg / 2, rel=1e-5)
+    assert NodeSettings().offset_units == "radians"  # ADA's unit is the default
+
+
+class _ToolWithLimits(_RecordingClient):
+    """A link client whose tool reports joint limits (rad) other than the packaged spec's, as
+    a tool built from another spec file does (``pitch_limit_low``… in its health)."""
+
+    def __init__(self, limits: tuple[tuple[float, float], tuple[float, float]] | None) -> None:
+        super().__init__()
+        self.limits = limits
+
+    def latest_state(self) -> Any:  # type: ignore[override]
+        from articutool.tool.api import Mode, ToolState
+        from articutool.tool.telemetry import LIMIT_KEYS
+        extra = {} if self.limits is None else {
+            k: float(v) for keys, bounds in zip(LIMIT_KEYS, self.limits, strict=True)
+            for k, v in zip(keys, bounds, strict=True)}
+        return ToolState(stamp=0.0, mode=Mode.DISABLED, joint_names=("pitch", "roll"),
+                         position=(0.0, 0.0), velocity=(0.0, 0.0),
+                         orientation_wxyz=(1.0, 0.0, 0.0, 0.0),
+                         angular_velocity=(0.0, 0.0, 0.0),
+                         linear_acceleration=(0.0, 0.0, 0.0), fault="", battery_voltage=12.0,
+                         loop_period_mean=0.02, loop_jitter=0.0, loop_overruns=0, extra=extra)
+
+
+@pytest.mark.parametrize(("limits_deg", "pitch_deg", "forwarded", "words"), [
+    (((-120, 120), (-180, 180)), 100.0, True, ()),  # beyond the packaged ±90°, within its own
+    (((-30, 30), (-180, 180)), 45.0, False, ("pitch_offset_deg", "[-30, 30]")),
+    (None, 100.0, True, ()),  # limits not reported: the tool checks
+])
+def test_offsets_are_admitted_against_the_connected_tools_limits(
+        limits_deg: Any, pitch_deg: float, forwarded: bool, words: tuple[str, ...]) -> None:
+    """The node's pre-check of LEVELING offsets uses the limits the connected tool reports:
+    a request within that tool's limits reaches it even when the packaged spec's are
+    narrower, and one outside them is refused by the node with the tool's message and never
+    forwarded."""
+    from articutool.ros2.node import NodeSettings
+    limits = None if limits_deg is None else tuple(
+        (math.radians(lo), math.radians(hi)) for lo, hi in limits_deg)
+    fake = _ToolWithLimits(limits)  # type: ignore[arg-type]
+    ns = f"limits_{len(words)}_{int(pitch_deg)}_{limits is None:d}_{os.getpid()}"
+    reply = _leveling_in_process(fake, NodeSettings(namespace=ns), math.radians(pitch_deg))
+    assert reply.success is forwarded, reply.message
+    assert [round(p, 3) for _, p, _ in fake.modes] == ([pitch_deg] if forwarded else [])
+    for w in words:
+        assert w in reply.message

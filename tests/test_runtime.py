@@ -852,3 +852,20 @@ def test_tool_command_exits_0_on_sigint():
             p.kill()
     assert p.returncode == 0, err
     assert "stopped: motors stopped, torque off, drivers closed" in out
+
+
+def test_the_state_reports_the_tools_own_joint_limits_through_the_link():
+    """A tool built from a spec with other wrist limits reports those limits in its state,
+    and they survive the link's health message: a client (the ROS 2 node's admission) learns
+    the connected tool's limits, not the packaged spec's."""
+    from articutool.link import messages as m
+    from articutool.tool.telemetry import reported_limits
+    narrow = SPEC.model_copy(update={"wrist": SPEC.wrist.model_copy(update={
+        "pitch_limits": (-0.5, 0.6), "roll_limits": (-2.0, 2.5)})})
+    _, rt, _ = ready(spec=narrow)
+    state = rt.state()
+    np.testing.assert_array_equal(reported_limits(state), [[-0.5, 0.6], [-2.0, 2.5]])
+    back = m.state_from_msgs(m.joint_state_msg(state, 1.0), None,
+                             m.health_msg(state, 1.0, {}), None, stamp=1.0)
+    np.testing.assert_array_equal(reported_limits(back), [[-0.5, 0.6], [-2.0, 2.5]])
+    assert reported_limits(None) is None

@@ -34,6 +34,11 @@ with an empty namespace).
 - ``switch_controller`` and ``list_controllers``: :mod:`articutool.ros2.controllers`.
 - ``VerifyTrajectory``: :mod:`articutool.ros2.verify_service`, on its own lane.
 
+The services of the main node (not rclpy's parameter services; the stop is on the safety node)
+take all their waiting requests, up to a batch, each time the executor calls them
+(:mod:`articutool.ros2.intake`), and request queues are ``queue_depth`` (5 000) deep, so a flood
+of bad calls is answered rather than dropped by DDS (docs/ros2.md).
+
 Callbacks never raise into the executor: a request the client refuses (bad numbers, a silent
 tool) is answered ``success=false`` with the message ``articutool client`` prints.
 """
@@ -55,9 +60,11 @@ from articutool.link.client import ArticutoolClient, LinkError, parse_mode
 from articutool.ros2 import wrist_topics
 from articutool.ros2.admission import mode_refusal, primitive_refusal
 from articutool.ros2.controllers import ControllerBook
+from articutool.ros2.intake import create_draining_service
 from articutool.ros2.lanes import StopLane, WorkLane
 from articutool.ros2.names import resolve
 from articutool.tool.api import Mode
+from articutool.tool.telemetry import reported_limits
 
 __all__ = ["ArticutoolRos2Node", "NodeSettings"]
 
@@ -69,6 +76,9 @@ CALIBRATION_MESSAGE = (
     "applied; computed_offset_jacobase_to_filterworld is the identity")
 
 
+_LIMITS_TTL = 1.0  # s between reads of the connected tool's reported joint limits
+
+
 @dataclass(frozen=True)
 class NodeSettings:
     """How the node names and reads things (the ROS 2 parameters of ``articutool ros2``)."""
@@ -78,7 +88,7 @@ class NodeSettings:
     offset_units: str = "radians"  # ADA's; the upstream .srv says degrees
     republish_joint_states: bool = True
     verifier: Any = None  # articutool.ros2.verify_service.Verifier, or None: no service
-    queue_depth: int = 1000  # DDS history of every service and action request queue
+    queue_depth: int = 5000  # DDS history of every service and action request queue
     max_goals: int = 4
 
 
@@ -131,18 +141,22 @@ class ArticutoolRos2Node:
         self._action = None
         if s.verifier is not None:
             from articutool_interfaces.srv import VerifyTrajectory
-            self.node.create_service(VerifyTrajectory, self.names["verify_trajectory"],
-                                     self._on_verify, qos_profile=self._qos,
-                                     callback_group=self._group)
+            create_draining_service(self.node, VerifyTrajectory, self.names["verify_trajectory"],
+                                    self._start_verify, qos_profile=self._qos,
+                                    callback_group=self._group)
         if client is None:
             return
         self._stops = StopLane(self._stop_tool)
+        # No parameter services (it has no parameters): fewer entities for its executor to
+        # wait on, so the stop service and the actions' requests are taken sooner.
         self.safety_node = Node(f"{self.node.get_name()}_stop", context=context,
-                                namespace=self.node.get_namespace())
+                                namespace=self.node.get_namespace(),
+                                start_parameter_services=False)
         self._safety_group = ReentrantCallbackGroup()
         self._wake_safety = self.safety_node.create_guard_condition(
             lambda: None, callback_group=self._safety_group)
         self._lock = threading.Lock()
+        self._limits, self._limits_at = None, -math.inf
         self._running: dict[bytes, _Forwarded] = {}  # accepted, result not yet sent
         self._setup_services()
         self._setup_action()
@@ -156,12 +170,12 @@ class ArticutoolRos2Node:
 
         n, q, g = self.names, self._qos, self._group
         for key in ("set_orientation_control", "set_orientation_control_mode"):
-            self.node.create_service(SetOrientationControl, n[key], self._on_set_mode,
-                                     qos_profile=q, callback_group=g)
-        self.node.create_service(Trigger, n["clear_fault"], self._on_clear_fault, qos_profile=q,
-                                 callback_group=g)
-        self.node.create_service(TriggerCalibration, n["trigger_calibration"],
-                                 self._on_calibration, qos_profile=q, callback_group=g)
+            create_draining_service(self.node, SetOrientationControl, n[key],
+                                    self._start_set_mode, qos_profile=q, callback_group=g)
+        create_draining_service(self.node, Trigger, n["clear_fault"], self._start_clear_fault,
+                                qos_profile=q, callback_group=g)
+        create_draining_service(self.node, TriggerCalibration, n["trigger_calibration"],
+                                self._on_calibration, qos_profile=q, callback_group=g)
         self.safety_node.create_service(Trigger, n["stop"], self._on_stop, qos_profile=q,
                                         callback_group=self._safety_group)
 
@@ -236,7 +250,9 @@ class ArticutoolRos2Node:
         return None if st is None else (float(st.position[0]), float(st.position[1]))
 
     # ------------------------------------------------------------------- services --
-    async def _on_set_mode(self, request: Any, response: Any) -> Any:
+    def _start_set_mode(self, request: Any, response: Any) -> Any:
+        """The response when the node answers at once (a refusal, a busy lane), else the
+        coroutine that awaits the tool (:mod:`articutool.ros2.intake`)."""
         mode = int(request.control_mode)
         scale = (180.0 / math.pi) if self.settings.offset_units == "radians" else 1.0
         pitch, roll = float(request.pitch_offset) * scale, float(request.roll_offset) * scale
@@ -249,7 +265,8 @@ class ArticutoolRos2Node:
         except ValueError as err:
             response.success, response.message = False, str(err)
             return response
-        refusal = mode_refusal(mode, pitch, roll)  # as the tool would: no link round trip
+        # as the connected tool would (its reported limits): no link round trip
+        refusal = mode_refusal(mode, pitch, roll, self._tool_limits())
         if refusal is not None:
             response.success, response.message = False, refusal
             return response
@@ -257,9 +274,20 @@ class ArticutoolRos2Node:
             future = self._stops.submit(self._wake_main)
         else:
             future = self._submit(lambda: client.set_mode(mode, pitch, roll, target))
-        ok, msg = await self._outcome(future, "set_orientation_control")
-        response.success, response.message = ok, msg
+        return self._finish(future, response, "set_orientation_control")
+
+    async def _finish(self, future: Any, response: Any, what: str) -> Any:
+        response.success, response.message = await self._outcome(future, what)
         return response
+
+    def _tool_limits(self) -> Any:
+        """The connected tool's joint limits as it reports them, read at most every
+        ``_LIMITS_TTL`` s (a state is rebuilt from telemetry on each read)."""
+        now = time.monotonic()
+        if now - self._limits_at > _LIMITS_TTL:
+            assert self.client is not None
+            self._limits, self._limits_at = reported_limits(self.client.latest_state()), now
+        return self._limits
 
     async def _on_stop(self, _request: Any, response: Any) -> Any:
         future = self._stops.submit(self._wake_safety)
@@ -271,12 +299,9 @@ class ArticutoolRos2Node:
         self.counters["stops"] += 1
         return self.client.set_mode(Mode.DISABLED)
 
-    async def _on_clear_fault(self, _request: Any, response: Any) -> Any:
+    def _start_clear_fault(self, _request: Any, response: Any) -> Any:
         assert self.client is not None
-        client = self.client
-        future = self._submit(client.clear_fault)
-        response.success, response.message = await self._outcome(future, "clear_fault")
-        return response
+        return self._finish(self._submit(self.client.clear_fault), response, "clear_fault")
 
     def _on_calibration(self, _request: Any, response: Any) -> Any:
         response.success, response.message = True, CALIBRATION_MESSAGE
@@ -302,31 +327,26 @@ class ArticutoolRos2Node:
             _log.exception("%s failed", what)
             return False, f"internal error: {type(err).__name__}: {err}"
 
-    async def _on_verify(self, request: Any, response: Any) -> Any:
+    def _start_verify(self, request: Any, response: Any) -> Any:
         verifier = self.settings.verifier
         wrist = self.current_wrist()
         future = self._submit(lambda: verifier.answer(request, wrist), self._verify_lane)
         if future is None:
-            out = {"feasible": False, "reason": "busy", "first_failure_time": -1.0,
-                   "message": "refused: busy (verifications waiting); try again",
+            return _fill_verify(response, {
+                "feasible": False, "reason": "busy", "first_failure_time": -1.0,
+                "message": "refused: busy (verifications waiting); try again",
+                "velocity_margin": math.nan, "predicted_spill_g": math.nan})
+        return self._finish_verify(future, response)
+
+    async def _finish_verify(self, future: Any, response: Any) -> Any:
+        try:
+            out = await future
+        except Exception as err:
+            _log.exception("verify_trajectory failed")
+            out = {"feasible": False, "reason": "error", "first_failure_time": -1.0,
+                   "message": f"internal error: {type(err).__name__}: {err}",
                    "velocity_margin": math.nan, "predicted_spill_g": math.nan}
-        else:
-            try:
-                out = await future
-            except Exception as err:
-                _log.exception("verify_trajectory failed")
-                out = {"feasible": False, "reason": "error", "first_failure_time": -1.0,
-                       "message": f"internal error: {type(err).__name__}: {err}",
-                       "velocity_margin": math.nan, "predicted_spill_g": math.nan}
-        for key in ("feasible", "reason", "message", "first_failure_time", "velocity_margin",
-                    "samples_checked", "spill_checked", "predicted_spill_g",
-                    "max_required_velocity"):
-            if key in out:
-                setattr(response, key, out[key])
-        wt = out.get("wrist_trajectory")
-        if wt is not None:
-            response.wrist_trajectory = _ros_trajectory(wt, response.wrist_trajectory)
-        return response
+        return _fill_verify(response, out)
 
     def _on_trajectory(self, data: bytes) -> None:
         """A ROS 2 wrist trajectory (serialised) → the tool; header.stamp 0 = start now.
@@ -487,12 +507,12 @@ class ArticutoolRos2Node:
             goal_service_qos_profile=q, result_service_qos_profile=q,
             cancel_service_qos_profile=q, callback_group=self._safety_group)
         self._controllers = ControllerBook(self.settings.joint_names)
-        self.node.create_service(SwitchController, n["switch_controller"],
-                                 self._on_switch_controller, qos_profile=q,
-                                 callback_group=self._group)
-        self.node.create_service(ListControllers, n["list_controllers"],
-                                 self._on_list_controllers, qos_profile=q,
-                                 callback_group=self._group)
+        create_draining_service(self.node, SwitchController, n["switch_controller"],
+                                self._on_switch_controller, qos_profile=q,
+                                callback_group=self._group)
+        create_draining_service(self.node, ListControllers, n["list_controllers"],
+                                self._on_list_controllers, qos_profile=q,
+                                callback_group=self._group)
 
     def _on_switch_controller(self, request: Any, response: Any) -> Any:
         """The wrist picks its control law per command (a trajectory, a primitive, a mode), so
@@ -687,3 +707,16 @@ def _ros_trajectory(traj: Any, out: Any) -> Any:
                                      nanosec=min(round((t - sec) * 1e9), 999_999_999))))
     out.points = pts
     return out
+
+
+def _fill_verify(response: Any, out: dict[str, Any]) -> Any:
+    """A VerifyTrajectory response from the verifier's answer."""
+    for key in ("feasible", "reason", "message", "first_failure_time", "velocity_margin",
+                "samples_checked", "spill_checked", "predicted_spill_g",
+                "max_required_velocity"):
+        if key in out:
+            setattr(response, key, out[key])
+    wt = out.get("wrist_trajectory")
+    if wt is not None:
+        response.wrist_trajectory = _ros_trajectory(wt, response.wrist_trajectory)
+    return response

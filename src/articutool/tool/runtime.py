@@ -760,4 +760,5 @@ class ToolRuntime:
             motor_state=self._motor_state, sensing=self._sensing, filt=self.filter,
             tilt=self._tilt, command=self._command, stats=self.stats,
             faults_total=self._faults_total, stop_failures=self._stop_failures,
-            energy=self._energy, leveling=self._steering(), follower=self._follower)
+            energy=self._energy, leveling=self._steering(), follower=self._follower,
+            limits=self._limits)

@@ -26,7 +26,11 @@ from articutool.tool.following import TrajectoryFollower
 from articutool.tool.modes import Leveling
 from articutool.tool.sensing import Sensing
 
-__all__ = ["EnergyMeter", "LoopStats", "build_state"]
+__all__ = ["LIMIT_KEYS", "EnergyMeter", "LoopStats", "build_state", "reported_limits"]
+
+#: The ``extra`` keys that carry the tool's joint limits (its spec's ``wrist.limits``, rad),
+#: [pitch, roll] × [low, high]: a client learns the limits of the tool it is connected to.
+LIMIT_KEYS = (("pitch_limit_low", "pitch_limit_high"), ("roll_limit_low", "roll_limit_high"))
 
 
 class LoopStats:
@@ -140,6 +144,7 @@ def build_state(
     energy: EnergyMeter,
     leveling: Leveling,
     follower: TrajectoryFollower,
+    limits: NDArray[np.float64],
 ) -> ToolState:
     """The snapshot at ``now``; ``extra`` carries what ``ToolState`` has no field for."""
     # Indexing, not tuple(generator): the snapshot is built every tick (50 Hz).
@@ -189,6 +194,8 @@ def build_state(
         "pitch_offset_deg": offsets[0],
         "roll_offset_deg": offsets[1],
     }
+    for keys, bounds in zip(LIMIT_KEYS, limits, strict=True):
+        extra[keys[0]], extra[keys[1]] = float(bounds[0]), float(bounds[1])
     if ms is not None:
         extra["motor_temperature"] = float(ms.temperature)
     if mode in (Mode.LEVELING, Mode.FULL_ORIENTATION):
@@ -221,3 +228,17 @@ def build_state(
         loop_overruns=stats.overruns,
         extra=extra,
     )
+
+
+def reported_limits(state: ToolState | None) -> NDArray[np.float64] | None:
+    """The joint limits (rad, [pitch, roll] × [low, high]) a tool reports in its state's
+    ``extra`` (:data:`LIMIT_KEYS`), or None when it reports none (no state yet, or a tool
+    that does not send them)."""
+    if state is None:
+        return None
+    try:
+        out = np.array([[state.extra[lo], state.extra[hi]] for lo, hi in LIMIT_KEYS],
+                       dtype=np.float64)
+    except KeyError:
+        return None
+    return out if np.all(np.isfinite(out)) and np.all(out[:, 0] <= out[:, 1]) else None
