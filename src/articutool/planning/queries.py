@@ -110,8 +110,9 @@ def dense_times(traj: JointTrajectory, step: float) -> NDArray[np.float64]:
     vpeak = np.maximum(np.abs(traj.velocities[:-1]), np.abs(traj.velocities[1:])).max(axis=1)
     dpos = np.abs(np.diff(traj.positions, axis=0)).max(axis=1)
     k = np.maximum(np.ceil(np.maximum(dpos, 1.5 * vpeak * dt) / step), 1).astype(int)
-    parts = [t[i] + dt[i] * np.arange(k[i]) / k[i] for i in range(dt.size)]
-    return np.concatenate(parts + [t[-1:]])
+    seg = np.repeat(np.arange(dt.size), k)  # interval i split into k[i] equal steps
+    j = np.arange(seg.size) - np.repeat(np.cumsum(k) - k, k)
+    return np.concatenate([t[seg] + dt[seg] * j / k[seg], t[-1:]])
 
 
 def path_length(q: NDArray[np.float64]) -> float:
