@@ -128,7 +128,8 @@ class ArmModel:
         # The same broad phase on its own model/data copies, for batches of configurations
         # checked in one call (``collisions``): ~11 µs a configuration where a Python call per
         # configuration costs ~20 µs, most of it Boost.Python choosing among the overloads.
-        self.broadphase_pool = pin.BroadPhaseManagerPool_DynamicAABBTreeCollisionManager(model, gmodel, 1)
+        self.broadphase_pool = pin.BroadPhaseManagerPool_DynamicAABBTreeCollisionManager(
+            model, gmodel, 1)
         _configure_requests(self.broadphase_pool.getGeometryData(0))
 
         self.nq: int = model.nq

@@ -296,11 +296,13 @@ class _Problem:
         :meth:`valid`, with the constraint evaluated for all of them at once."""
         a, b = self.start, self.goal
         lo, hi = self.kin.lo, self.kin.hi
-        extent = math.sqrt(sum((h - lo_) ** 2 for lo_, h in zip(lo.tolist(), hi.tolist(),
-                                                                strict=True)))
-        segment = extent * (self.settings.resolution / extent)  # OMPL's longest valid segment
-        dist = math.sqrt(sum((x - y) ** 2 for x, y in zip(a.tolist(), b.tolist(), strict=True)))
-        nd = int(math.ceil(dist / segment))
+        # OMPL's arithmetic: the space's extent, its longest valid segment, the distance.
+        extent = math.sqrt(sum((h - l_) * (h - l_) for l_, h in zip(lo.tolist(), hi.tolist(),
+                                                                   strict=True)))
+        segment = extent * (self.settings.resolution / extent)
+        dist = math.sqrt(sum((x - y) * (x - y) for x, y in zip(a.tolist(), b.tolist(),
+                                                               strict=True)))
+        nd = math.ceil(dist / segment)
         f = np.arange(1, nd + 1, dtype=np.float64) / nd
         q = a + (b - a) * f[:, None]
         q[-1] = b

@@ -23,8 +23,8 @@ import numpy as np
 import toppra
 import toppra.algorithm
 import toppra.constraint
-from toppra.algorithm import ParameterizationReturnCode
 from numpy.typing import NDArray
+from toppra.algorithm import ParameterizationReturnCode
 
 from articutool.planning.constraints import f0_leveling_angles
 from articutool.tool.kinematics import joint_rates_for_rotation
