@@ -366,7 +366,11 @@ def test_straight_motion_check_agrees_with_ompls_motion_validator(system: str) -
     from articutool.planning.ompl_planner import PlannerSettings, _Problem
 
     seen = set()
-    for task in load_task_set().tasks[:30]:
+    tasks = list(load_task_set().tasks[:30])
+    # A motion of zero length too (OMPL then checks the goal alone).
+    tasks.append(dataclasses.replace(tasks[0], goal=tasks[0].start,
+                                     goal_wrist=tasks[0].start_wrist))
+    for task in tasks:
         prob = _Problem(PlanRequest(system, task, timeout_s=1.0), SPEC, PlannerSettings(),
                         "rejection")
         n = prob.kin.n

@@ -302,7 +302,7 @@ class _Problem:
         segment = extent * (self.settings.resolution / extent)
         dist = math.sqrt(sum((x - y) * (x - y) for x, y in zip(a.tolist(), b.tolist(),
                                                                strict=True)))
-        nd = math.ceil(dist / segment)
+        nd = max(math.ceil(dist / segment), 1)  # start = goal: OMPL checks the goal alone
         f = np.arange(1, nd + 1, dtype=np.float64) / nd
         q = a + (b - a) * f[:, None]
         q[-1] = b
