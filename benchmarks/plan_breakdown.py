@@ -29,7 +29,7 @@ import numpy as np
 
 from articutool.bench.taskfile import TaskFileError, load_task_set
 from articutool.planning.ompl_planner import PlannerSettings, plan_transport
-from articutool.planning.types import PHASES, SYSTEMS, PlanRequest
+from articutool.planning.types import PHASES, SYSTEMS, PlanRequest, TransportTask
 from articutool.spec import load_spec
 
 # The baseline planner settings, OMPL's and toppra's defaults (toppra's constraint objects and the
@@ -44,6 +44,20 @@ def _stats(x: list[float]) -> dict[str, float | None]:
     a = np.asarray(x) * 1e3
     return {"median_ms": round(float(np.median(a)), 3),
             "p90_ms": round(float(np.percentile(a, 90)), 3)}
+
+
+def selected_tasks(path: str | None, limit: int | None,
+                   timeout: float) -> tuple[list[TransportTask], str | None]:
+    """The tasks ``--tasks``/``--limit`` select, or the message naming the bad option (with
+    ``--timeout``, which must be > 0)."""
+    if limit is not None and limit < 1:
+        return [], f"--limit must be >= 1; got {limit}"
+    if not timeout > 0:
+        return [], f"--timeout must be > 0 s; got {timeout}"
+    try:
+        return list(load_task_set(path).tasks[:limit]), None
+    except TaskFileError as err:
+        return [], f"--tasks: {err}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -63,18 +77,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"--systems: unknown system {s!r}; allowed: {', '.join(SYSTEMS)}",
                   file=sys.stderr)
             return 2
-    if args.limit is not None and args.limit < 1:
-        print(f"--limit must be >= 1; got {args.limit}", file=sys.stderr)
-        return 2
-    if not args.timeout > 0:
-        print(f"--timeout must be > 0 s; got {args.timeout}", file=sys.stderr)
+    tasks, bad = selected_tasks(args.tasks, args.limit, args.timeout)
+    if bad:
+        print(bad, file=sys.stderr)
         return 2
     spec = load_spec()
-    try:
-        tasks = load_task_set(args.tasks).tasks[: args.limit]
-    except TaskFileError as err:
-        print(f"--tasks: {err}", file=sys.stderr)
-        return 2
     runs: dict[str, list[dict]] = {s: [] for s in systems}
     baseline_runs: dict[str, list[dict]] = {s: [] for s in systems}
     t_start = time.perf_counter()

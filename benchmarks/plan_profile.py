@@ -26,10 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
-from articutool.bench.taskfile import TaskFileError, load_task_set
 from articutool.planning.ompl_planner import plan_transport
 from articutool.planning.types import SYSTEMS, PlanRequest
 from articutool.spec import load_spec
+from plan_breakdown import selected_tasks
 
 # (label, (module path suffix, function name) ...): inclusive CPU time, summed.
 PARTS = (
@@ -104,18 +104,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"--system: unknown system {args.system!r}; allowed: {', '.join(SYSTEMS)}",
               file=sys.stderr)
         return 2
-    if args.limit is not None and args.limit < 1:
-        print(f"--limit must be >= 1; got {args.limit}", file=sys.stderr)
-        return 2
-    if not args.timeout > 0:
-        print(f"--timeout must be > 0 s; got {args.timeout}", file=sys.stderr)
+    tasks, bad = selected_tasks(args.tasks, args.limit, args.timeout)
+    if bad:
+        print(bad, file=sys.stderr)
         return 2
     spec = load_spec()
-    try:
-        tasks = load_task_set(args.tasks).tasks[: args.limit]
-    except TaskFileError as err:
-        print(f"--tasks: {err}", file=sys.stderr)
-        return 2
     requests = [PlanRequest(args.system, t, timeout_s=args.timeout) for t in tasks]
     plan_transport(requests[0], spec)  # models built and cached outside the figures
     cpu = []
