@@ -46,10 +46,21 @@ def _stats(x: list[float]) -> dict[str, float | None]:
             "p90_ms": round(float(np.percentile(a, 90)), 3)}
 
 
-def selected_tasks(path: str | None, limit: int | None,
-                   timeout: float) -> tuple[list[TransportTask], str | None]:
+def emit(doc: dict, path: str | None) -> None:
+    """Print ``doc`` as JSON and, with a ``path``, write it there too."""
+    text = json.dumps(doc, indent=1)
+    print(text)
+    if path:
+        Path(path).write_text(text + "\n")
+
+
+def selected_tasks(path: str | None, limit: int | None, timeout: float, systems: list[str],
+                   option: str) -> tuple[list[TransportTask], str | None]:
     """The tasks ``--tasks``/``--limit`` select, or the message naming the bad option (with
-    ``--timeout``, which must be > 0)."""
+    ``--timeout``, which must be > 0, and the systems named by ``option``)."""
+    for s in systems:
+        if s not in SYSTEMS:
+            return [], f"{option}: unknown system {s!r}; allowed: {', '.join(SYSTEMS)}"
     if limit is not None and limit < 1:
         return [], f"--limit must be >= 1; got {limit}"
     if not timeout > 0:
@@ -72,12 +83,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="also plan with the baseline settings, side by side")
     args = ap.parse_args(argv)
     systems = [s.strip() for s in args.systems.split(",") if s.strip()]
-    for s in systems:
-        if s not in SYSTEMS:
-            print(f"--systems: unknown system {s!r}; allowed: {', '.join(SYSTEMS)}",
-                  file=sys.stderr)
-            return 2
-    tasks, bad = selected_tasks(args.tasks, args.limit, args.timeout)
+    tasks, bad = selected_tasks(args.tasks, args.limit, args.timeout, systems, "--systems")
     if bad:
         print(bad, file=sys.stderr)
         return 2
@@ -140,10 +146,7 @@ def main(argv: list[str] | None = None) -> int:
             out["baseline"][s] = {"solved": len(ok), "of": len(baseline_runs[s]), **_stats(ok),
                                   "paired_time_ratio": ratio("time_s"),
                                   "paired_duration_ratio": ratio("duration_s")}
-    text = json.dumps(out, indent=1)
-    print(text)
-    if args.out:
-        Path(args.out).write_text(text + "\n")
+    emit(out, args.out)
     return 0
 
 

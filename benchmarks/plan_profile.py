@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import cProfile
-import json
 import pstats
 import sys
 import time
@@ -29,7 +28,7 @@ import numpy as np
 from articutool.planning.ompl_planner import plan_transport
 from articutool.planning.types import SYSTEMS, PlanRequest
 from articutool.spec import load_spec
-from plan_breakdown import selected_tasks
+from plan_breakdown import emit, selected_tasks
 
 # (label, (module path suffix, function name) ...): inclusive CPU time, summed.
 PARTS = (
@@ -100,11 +99,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--top", type=int, default=15, help="functions listed by own CPU time")
     ap.add_argument("--out", metavar="FILE", default=None, help="also write the JSON here")
     args = ap.parse_args(argv)
-    if args.system not in SYSTEMS:
-        print(f"--system: unknown system {args.system!r}; allowed: {', '.join(SYSTEMS)}",
-              file=sys.stderr)
-        return 2
-    tasks, bad = selected_tasks(args.tasks, args.limit, args.timeout)
+    tasks, bad = selected_tasks(args.tasks, args.limit, args.timeout, [args.system],
+                                "--system")
     if bad:
         print(bad, file=sys.stderr)
         return 2
@@ -144,10 +140,7 @@ def main(argv: list[str] | None = None) -> int:
         "top_own_time": [{"function": f"{Path(k[0]).name}:{k[1]}({k[2]})", "calls": v[1],
                           "own_cpu_s": round(v[2], 4)} for k, v in own],
     }
-    text = json.dumps(out, indent=1)
-    print(text)
-    if args.out:
-        Path(args.out).write_text(text + "\n")
+    emit(out, args.out)
     return 0
 
 
