@@ -2,7 +2,8 @@
 
 Plans every (system, task) of the packaged Exp. 2a task set (or ``--tasks FILE``) in this one
 process, one after the other, and prints JSON: per system the success count, the median and
-p90 of the whole ``plan()`` call over solved tasks, and for each phase of
+p90 of the whole ``plan()`` call over solved tasks (wall time, and the process's CPU time),
+and for each phase of
 :data:`articutool.planning.api.PHASES` (setup, search, simplify, timing, recheck, verify) its
 median, p90 and share of the summed planning time. The systems run interleaved task by task,
 so their ratios are measured side by side under the same load.
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -27,7 +29,7 @@ import numpy as np
 
 from articutool.bench.taskfile import TaskFileError, load_task_set
 from articutool.planning.ompl_planner import PlannerSettings, plan_transport
-from articutool.planning.types import PHASES, SYSTEMS, PlanRequest
+from articutool.planning.types import PHASES, SYSTEMS, PlanRequest, TransportTask
 from articutool.spec import load_spec
 
 # The baseline planner settings, OMPL's and toppra's defaults (toppra's constraint objects and the
@@ -44,6 +46,31 @@ def _stats(x: list[float]) -> dict[str, float | None]:
             "p90_ms": round(float(np.percentile(a, 90)), 3)}
 
 
+def emit(doc: dict, path: str | None) -> None:
+    """Print ``doc`` as JSON and, with a ``path``, write it there too."""
+    text = json.dumps(doc, indent=1)
+    print(text)
+    if path:
+        Path(path).write_text(text + "\n")
+
+
+def selected_tasks(path: str | None, limit: int | None, timeout: float, systems: list[str],
+                   option: str) -> tuple[list[TransportTask], str | None]:
+    """The tasks ``--tasks``/``--limit`` select, or the message naming the bad option (with
+    ``--timeout``, which must be > 0, and the systems named by ``option``)."""
+    for s in systems:
+        if s not in SYSTEMS:
+            return [], f"{option}: unknown system {s!r}; allowed: {', '.join(SYSTEMS)}"
+    if limit is not None and limit < 1:
+        return [], f"--limit must be >= 1; got {limit}"
+    if not timeout > 0:
+        return [], f"--timeout must be > 0 s; got {timeout}"
+    try:
+        return list(load_task_set(path).tasks[:limit]), None
+    except TaskFileError as err:
+        return [], f"--tasks: {err}"
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--tasks", metavar="FILE", default=None, help="task file (default: packaged)")
@@ -53,35 +80,26 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", metavar="FILE", default=None, help="also write the JSON here")
     ap.add_argument("--baseline", action="store_true",
-                    help="also plan with the pre-issue-12 settings, side by side")
+                    help="also plan with the baseline settings, side by side")
     args = ap.parse_args(argv)
     systems = [s.strip() for s in args.systems.split(",") if s.strip()]
-    for s in systems:
-        if s not in SYSTEMS:
-            print(f"--systems: unknown system {s!r}; allowed: {', '.join(SYSTEMS)}",
-                  file=sys.stderr)
-            return 2
-    if args.limit is not None and args.limit < 1:
-        print(f"--limit must be >= 1; got {args.limit}", file=sys.stderr)
-        return 2
-    if not args.timeout > 0:
-        print(f"--timeout must be > 0 s; got {args.timeout}", file=sys.stderr)
+    tasks, bad = selected_tasks(args.tasks, args.limit, args.timeout, systems, "--systems")
+    if bad:
+        print(bad, file=sys.stderr)
         return 2
     spec = load_spec()
-    try:
-        tasks = load_task_set(args.tasks).tasks[: args.limit]
-    except TaskFileError as err:
-        print(f"--tasks: {err}", file=sys.stderr)
-        return 2
     runs: dict[str, list[dict]] = {s: [] for s in systems}
     baseline_runs: dict[str, list[dict]] = {s: [] for s in systems}
     t_start = time.perf_counter()
+    load_before = os.getloadavg()
 
     def record(req: PlanRequest, settings: PlannerSettings | None) -> dict:
+        c0 = time.process_time()
         r = plan_transport(req, spec, settings=settings)
+        cpu = time.process_time() - c0
         dur = float(r.trajectory.times[-1]) if r.trajectory is not None else None
         return {"task_id": req.task.task_id, "success": r.success, "time_s": r.planning_time_s,
-                "attempts": r.attempts, "duration_s": dur, "phases_s": dict(r.phases)}
+                "cpu_s": cpu, "attempts": r.attempts, "duration_s": dur, "phases_s": dict(r.phases)}
 
     for task in tasks:
         for s in systems:
@@ -90,7 +108,10 @@ def main(argv: list[str] | None = None) -> int:
             if args.baseline:
                 baseline_runs[s].append(record(req, BASELINE))
     out: dict = {"tasks": len(tasks), "timeout_s": args.timeout, "seed": args.seed,
-                 "wall_s": round(time.perf_counter() - t_start, 2), "systems": {}}
+                 "wall_s": round(time.perf_counter() - t_start, 2),
+                 "load_avg_before_after": [round(load_before[0], 2),
+                                           round(os.getloadavg()[0], 2)],
+                 "systems": {}}
     for s, rs in runs.items():
         ok = [r for r in rs if r["success"]]
         total = sum(r["time_s"] for r in ok) or float("nan")
@@ -100,7 +121,9 @@ def main(argv: list[str] | None = None) -> int:
             phases[p] = {**_stats(v), "share": round(sum(v) / total, 3)}
         glue = [r["time_s"] - sum(r["phases_s"].values()) for r in ok]
         phases["other"] = {**_stats(glue), "share": round(sum(glue) / total, 3)}
+        cpu = _stats([r["cpu_s"] for r in ok])
         out["systems"][s] = {"solved": len(ok), "of": len(rs), **_stats([r["time_s"] for r in ok]),
+                             "cpu_median_ms": cpu["median_ms"], "cpu_p90_ms": cpu["p90_ms"],
                              "mean_attempts": round(float(np.mean([r["attempts"] for r in rs])), 2),
                              "phases": phases,
                              "failed_tasks": [r["task_id"] for r in rs if not r["success"]]}
@@ -123,10 +146,7 @@ def main(argv: list[str] | None = None) -> int:
             out["baseline"][s] = {"solved": len(ok), "of": len(baseline_runs[s]), **_stats(ok),
                                   "paired_time_ratio": ratio("time_s"),
                                   "paired_duration_ratio": ratio("duration_s")}
-    text = json.dumps(out, indent=1)
-    print(text)
-    if args.out:
-        Path(args.out).write_text(text + "\n")
+    emit(out, args.out)
     return 0
 
 

@@ -237,6 +237,8 @@ def test_unknown_utensil_and_dof_name_the_allowed_values():
         (lambda m: m.tip_pose(np.full(8, np.nan)), "finite"),
         (lambda m: m.frame_jacobian(np.zeros(8), "elbow"), "unknown frame 'elbow'"),
         (lambda m: m.in_collision(np.zeros((2, 8))), r"shape \(8,\)"),
+        (lambda m: m.collisions(np.zeros(8)), r"shape \(N, 8\)"),
+        (lambda m: m.first_collision(np.full((3, 8), np.nan)), "finite"),
         (lambda m: m.tool_base_rotations(np.zeros((4, 8))), r"shape \(\.\.\., 6\)"),
         (lambda m: m.tool_base_rotations([np.inf] * 6), "finite"),
         (lambda m: m.tool_base_angular_velocity(np.zeros((4, 6)), np.zeros((3, 6))),
@@ -385,3 +387,8 @@ def test_broad_phase_check_gives_the_pair_loops_answer(dof, utensil):
         qs += [a + s0 * (b - a), a + s1 * (b - a)]
     for q in qs:
         assert m.in_collision(q) == bool(m.colliding_pairs(q))
+    # The batch query (the broad phase on its own copies, one call) answers the same.
+    flags = [m.in_collision(q) for q in qs]
+    assert m.collisions(np.array(qs)).tolist() == flags
+    assert m.first_collision(np.array(qs)) == flags.index(True)
+    assert m.first_collision(np.array(free)) is None

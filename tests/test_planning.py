@@ -330,3 +330,66 @@ def test_cached_models_follow_an_edited_scene_file(tmp_path, monkeypatch) -> Non
     for system in ("decoupled", "strict6"):
         r = plan(PlanRequest(system, TASK, timeout_s=10.0), SPEC)
         assert not r.success and "in collision" in r.message and "visitor" in r.message
+
+
+def test_const_accel_sampling_equals_toppras_parametrizer() -> None:
+    # The trajectory is sampled from toppra's grid speeds by the vectorised form of toppra's
+    # ParametrizeConstAccel: the same samples, bit for bit.
+    import toppra
+    import toppra.algorithm
+
+    from articutool.planning.timing import _const_accel, _joint_limit_constraints
+
+    wp = np.linspace(TASK.start, TASK.goal, 40)
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(wp, axis=0), axis=1))])
+    path = toppra.SplineInterpolator(s, wp, bc_type="natural")
+    cons = list(_joint_limit_constraints(tuple(SPEC.arm.max_velocity.tolist()),
+                                         tuple(SPEC.arm.max_acceleration.tolist())))
+    algo = toppra.algorithm.TOPPRA(cons, path, gridpoints=np.linspace(0, s[-1], 90),
+                                   parametrizer="ParametrizeConstAccel")
+    ref = algo.compute_trajectory(0.0, 0.0)
+    ts, s_of_t, sd_of_t = _const_accel(np.asarray(algo.problem_data.gridpoints),
+                                       np.asarray(algo.problem_data.sd_vec))
+    assert ts[-1] == ref.duration
+    t = np.append(np.linspace(0.0, ts[-1], 333), ts[-1])
+    assert np.array_equal(path(s_of_t(t)), ref(t))
+    assert np.array_equal(path(s_of_t(t), 1) * sd_of_t(t)[:, None], ref(t, 1))
+
+
+@pytest.mark.parametrize("system", ["decoupled", "strict6", "strict8"])
+def test_straight_motion_check_agrees_with_ompls_motion_validator(system: str) -> None:
+    # The straight start->goal motion is checked before any OMPL object is built; it must
+    # accept exactly what OMPL's own motion check would.
+    from ompl import base as ob
+
+    from articutool.bench.taskfile import load_task_set
+    from articutool.planning.ompl_planner import PlannerSettings, _Problem
+
+    seen = set()
+    tasks = list(load_task_set().tasks[:30])
+    # A motion of zero length too (OMPL then checks the goal alone).
+    tasks.append(dataclasses.replace(tasks[0], goal=tasks[0].start,
+                                     goal_wrist=tasks[0].start_wrist))
+    for task in tasks:
+        prob = _Problem(PlanRequest(system, task, timeout_s=1.0), SPEC, PlannerSettings(),
+                        "rejection")
+        n = prob.kin.n
+        space = ob.RealVectorStateSpace(n)
+        bounds = ob.RealVectorBounds(n)
+        for i in range(n):
+            bounds.setLow(i, float(prob.kin.lo[i]))
+            bounds.setHigh(i, float(prob.kin.hi[i]))
+        space.setBounds(bounds)
+        si = ob.SpaceInformation(space)
+        si.setStateValidityChecker(
+            lambda s, n=n, prob=prob: prob.valid(np.array([s[i] for i in range(n)])))
+        si.setStateValidityCheckingResolution(
+            PlannerSettings().resolution / space.getMaximumExtent())
+        si.setup()
+        a, b = space.allocState(), space.allocState()
+        for i in range(n):
+            a[i], b[i] = float(prob.start[i]), float(prob.goal[i])
+        ours = prob.straight_motion_valid()
+        assert ours == si.checkMotion(a, b), task.task_id
+        seen.add(ours)
+    assert seen == {True, False}  # both answers occur among these tasks

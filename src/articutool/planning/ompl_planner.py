@@ -84,6 +84,8 @@ from articutool.verify.verifier import verify_trajectory
 __all__ = ["METHODS", "PlannerSettings", "plan_transport"]
 
 METHODS = ("projection", "rejection")
+# OMPL's names of the planners (``Planner.getName()``), recorded for a straight motion too.
+_PLANNER_NAMES = {"rrtconnect": "RRTConnect", "rrtstar": "RRTstar"}
 _TWO_PI = 2.0 * math.pi
 
 ou.setLogLevel(ou.LOG_NONE)  # OMPL's console chatter (reseeding notices) is not ours to show
@@ -208,6 +210,7 @@ class _Problem:
     def __post_init__(self) -> None:
         req, spec = self.req, self.spec
         self.strict8 = req.system == "strict8"
+        self.planner_name = _PLANNER_NAMES[req.planner]
         dof = 8 if self.strict8 else 6
         cached = self.settings.cache_models
         self.model = _arm_model(spec, req.utensil, dof, cached)
@@ -286,6 +289,36 @@ class _Problem:
             return not self.executed.collides(x)
         return self.constraint_ok(q) and not self.kin.collides(q)
 
+    def straight_motion_valid(self) -> bool:
+        """Whether the straight start→goal motion passes the search's motion check: the
+        states OMPL's ``DiscreteMotionValidator`` checks on it (the goal, and the start→goal
+        segment cut into ``ceil(|goal − start| / resolution)`` equal steps), each by
+        :meth:`valid`, with the constraint evaluated for all of them at once."""
+        a, b = self.start, self.goal
+        lo, hi = self.kin.lo, self.kin.hi
+        # OMPL's arithmetic: the space's extent, its longest valid segment, the distance.
+        extent = math.sqrt(sum((h - l_) * (h - l_) for l_, h in zip(lo.tolist(), hi.tolist(),
+                                                                   strict=True)))
+        segment = extent * (self.settings.resolution / extent)
+        dist = math.sqrt(sum((x - y) * (x - y) for x, y in zip(a.tolist(), b.tolist(),
+                                                               strict=True)))
+        nd = max(math.ceil(dist / segment), 1)  # start = goal: OMPL checks the goal alone
+        f = np.arange(1, nd + 1, dtype=np.float64) / nd
+        q = a + (b - a) * f[:, None]
+        q[-1] = b
+        if self.loose is not None:
+            R = self.model.tool_base_rotations(q)
+            if not self.loose.satisfied(R).all():
+                return False
+            w = np.asarray(self.loose.reference) + self.loose.deviation(R)
+            assert self.executed is not None
+            return self.executed.first_collision(np.hstack([q, w])) is None
+        u = self.tip_rotations(q)[:, 2, :]  # Rᵀ ẑ per state
+        b_ = self._band_bound
+        if not ((u[:, 1] > 0.0) & (np.abs(u[:, 0]) <= b_) & (np.abs(u[:, 2]) <= b_)).all():
+            return False
+        return self.kin.first_collision(q) is None
+
     def valid_bounded(self, q: NDArray[np.float64]) -> bool:
         # Projection can push a state past the joint limits; plain samplers cannot.
         return self.kin.in_bounds(q) and self.valid(q)
@@ -324,19 +357,27 @@ class _Problem:
     def solve(self, seed: int, budget: float,
               phases: _Phases) -> tuple[NDArray[np.float64] | None, str]:
         """One OMPL query; dense waypoints (N, n) of the simplified path, or a reason."""
-        ou.RNG.setSeed(seed)  # before any OMPL object is built: their RNGs draw from it
         n, st = self.kin.n, self.settings
+        projected = self.strict is not None and self.method == "projection"
+        if st.try_direct and not projected and self.straight_motion_valid():
+            # The straight motion is valid: nothing to set up, search or simplify.
+            phases.lap("search")
+            return densify(np.stack([self.start, self.goal]), st.resolution), ""
+        ou.RNG.setSeed(seed)  # before any OMPL object is built: their RNGs draw from it
         space = ob.RealVectorStateSpace(n)
         bounds = ob.RealVectorBounds(n)
         for i in range(n):
             bounds.setLow(i, float(self.kin.lo[i]))
             bounds.setHigh(i, float(self.kin.hi[i]))
         space.setBounds(bounds)
-        projected = self.strict is not None and self.method == "projection"
         valid = self.valid_bounded if projected else self.valid
 
+        buf = np.empty(n)  # valid() reads the state and keeps none of it
+
         def checker(s) -> bool:
-            return valid(np.array([s[i] for i in range(n)]))
+            for i in range(n):
+                buf[i] = s[i]
+            return valid(buf)
 
         keep: list[object] = [checker]
         if projected:
@@ -370,10 +411,6 @@ class _Problem:
         ss.setPlanner(planner)
         ss.setup()
         phases.lap("setup")
-        if st.try_direct and not projected and si.checkMotion(a, b):
-            # The straight motion is valid: nothing to search or simplify.
-            phases.lap("search")
-            return densify(np.stack([self.start, self.goal]), st.resolution), ""
         t_start = time.perf_counter()
         if self.req.planner == "rrtstar":
             # RRT* refines until the budget ends or it has refined for as long as it took to
@@ -450,10 +487,10 @@ class _Problem:
             assert self.executed is not None
             kin = self.executed
             q = np.hstack([q, wrist.sample(t)[0]])
-        for k in range(q.shape[0]):
-            if kin.collides(q[k]):
-                pairs = kin.arm.colliding_pairs(q[k])[:3]
-                return f"t = {t[k]:.3f} s: collision ({', '.join('/'.join(p) for p in pairs)})"
+        k = kin.first_collision(q)
+        if k is not None:
+            pairs = kin.arm.colliding_pairs(q[k])[:3]
+            return f"t = {t[k]:.3f} s: collision ({', '.join('/'.join(p) for p in pairs)})"
         return None
 
     def sdot_limit(self) -> Callable[[NDArray[np.float64], NDArray[np.float64]],

@@ -38,6 +38,7 @@ class ArmQueries:
         self.n = model.nq
         self.lo, self.hi = model.lower, model.upper
         self.bp = model.broadphase if broadphase else None
+        self.pool = model.broadphase_pool if broadphase else None
 
     def rotation(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
         pin.forwardKinematics(self.m, self.d, q)
@@ -52,9 +53,16 @@ class ArmQueries:
         return R, J[3:]
 
     def collides(self, q: NDArray[np.float64]) -> bool:
-        if self.bp is not None:
-            return bool(pin.computeCollisions(self.m, self.d, self.bp, q, True))
+        if self.pool is not None:  # the broad phase, as a batch of one: the cheapest call
+            return bool(pin.computeCollisionsInParallel(1, self.pool, q.reshape(-1, 1),
+                                                        True, False)[0])
         return bool(pin.computeCollisions(self.m, self.d, self.gm, self.gd, q, True))
+
+    def first_collision(self, q: NDArray[np.float64]) -> int | None:
+        """Index of the first of the configurations ``q`` (N, n) in collision, or ``None``."""
+        if self.pool is not None:
+            return self.arm.first_collision(q)
+        return next((k for k in range(q.shape[0]) if self.collides(q[k])), None)
 
     def in_bounds(self, q: NDArray[np.float64]) -> bool:
         return bool(np.all(q >= self.lo - 1e-9) and np.all(q <= self.hi + 1e-9))
@@ -102,8 +110,9 @@ def dense_times(traj: JointTrajectory, step: float) -> NDArray[np.float64]:
     vpeak = np.maximum(np.abs(traj.velocities[:-1]), np.abs(traj.velocities[1:])).max(axis=1)
     dpos = np.abs(np.diff(traj.positions, axis=0)).max(axis=1)
     k = np.maximum(np.ceil(np.maximum(dpos, 1.5 * vpeak * dt) / step), 1).astype(int)
-    parts = [t[i] + dt[i] * np.arange(k[i]) / k[i] for i in range(dt.size)]
-    return np.concatenate(parts + [t[-1:]])
+    seg = np.repeat(np.arange(dt.size), k)  # interval i split into k[i] equal steps
+    j = np.arange(seg.size) - np.repeat(np.cumsum(k) - k, k)
+    return np.concatenate([t[seg] + dt[seg] * j / k[seg], t[-1:]])
 
 
 def path_length(q: NDArray[np.float64]) -> float:

@@ -24,6 +24,7 @@ import toppra
 import toppra.algorithm
 import toppra.constraint
 from numpy.typing import NDArray
+from toppra.algorithm import ParameterizationReturnCode
 
 from articutool.planning.constraints import f0_leveling_angles
 from articutool.tool.kinematics import joint_rates_for_rotation
@@ -80,6 +81,35 @@ class WristSpeedConstraint(toppra.constraint.LinearConstraint):
         return None, None, None, None, None, None, xb
 
 
+def _const_accel(
+    ss: NDArray[np.float64], v: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], Callable[[NDArray[np.float64]], NDArray[np.float64]],
+           Callable[[NDArray[np.float64]], NDArray[np.float64]]]:
+    """The path speed ``v`` (at grid points ``ss``) under constant path acceleration between
+    grid points, as toppra's ``ParametrizeConstAccel`` defines it, evaluated vectorised:
+    the grid's times, and ``s(t)`` and ``ṡ(t)``. Same arithmetic, in the same order, as
+    toppra's per-sample loop (bit-identical samples)."""
+    ds = ss[1:] - ss[:-1]
+    x = v ** 2
+    u = 0.5 * (x[1:] - x[:-1]) / ds
+    ts = np.concatenate([[0.0], np.cumsum(2 * ds / (v[:-1] + v[1:]))])
+
+    def where(t: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
+        i = np.searchsorted(ts, t, side="right") - 1
+        i[i == u.size] -= 1
+        return i, t - ts[i]
+
+    def s_of_t(t: NDArray[np.float64]) -> NDArray[np.float64]:
+        i, dt = where(t)
+        return ss[i] + dt * v[i] + 0.5 * dt ** 2 * u[i]
+
+    def sd_of_t(t: NDArray[np.float64]) -> NDArray[np.float64]:
+        i, dt = where(t)
+        return v[i] + dt * u[i]
+
+    return ts, s_of_t, sd_of_t
+
+
 @functools.lru_cache(maxsize=16)
 def _joint_limit_constraints(
     vmax: tuple[float, ...], amax: tuple[float, ...]
@@ -129,17 +159,19 @@ def time_parameterize(
     if sdot_max is not None:
         constraints.append(WristSpeedConstraint(n, sdot_max))
     grid = np.linspace(0.0, s[-1], max(int(np.ceil(s[-1] / grid_step)) + 1, 20))
-    algo = toppra.algorithm.TOPPRA(constraints, path, gridpoints=grid,
-                                   parametrizer="ParametrizeConstAccel")
-    traj = algo.compute_trajectory(0.0, 0.0)
-    if traj is None:
+    algo = toppra.algorithm.TOPPRA(constraints, path, gridpoints=grid)
+    algo.compute_parameterization(0.0, 0.0)
+    data = algo.problem_data
+    if data.return_code != ParameterizationReturnCode.Ok:
         return None
-    T = float(traj.duration)
+    ts, s_of_t, sd_of_t = _const_accel(np.asarray(data.gridpoints), np.asarray(data.sd_vec))
+    T = float(ts[-1])
     if not np.isfinite(T) or T <= 0:
         return None
     t = np.linspace(0.0, T, max(int(np.ceil(T / dt)), 1) + 1)
-    q = np.asarray(traj(t))
-    qd = np.asarray(traj(t, 1))
+    s_t, sd_t = s_of_t(t), sd_of_t(t)
+    q = np.asarray(path(s_t))
+    qd = np.asarray(path(s_t, 1)) * sd_t[:, None]
     q[0], q[-1] = wp[0], wp[-1]
     qd[0], qd[-1] = 0.0, 0.0
     return JointTrajectory(tuple(joint_names), t, q, qd)

@@ -1,0 +1,148 @@
+"""Where a system's planning CPU time goes, by function, over a task set (cProfile, CPU clock).
+
+Plans the first ``--limit`` tasks of the packaged Exp. 2a set (or ``--tasks FILE``) with one
+system twice in this process: once plain, for the CPU time per plan (``time.process_time``;
+medians), and once under cProfile with the CPU clock, for the inclusive CPU time of the
+functions that make up a plan — the OMPL search (its validity callbacks, the straight-motion
+check), the collision checks (coal through Pinocchio), the leveling IK of the search,
+toppra's time parameterisation, the dense re-check and verification. Shares are of the
+profiled total; cProfile charges each Python call a little, so the Python-heavy parts read
+larger than they are (compare ``profiled_cpu_total_s`` with ``profiled_plain_cpu_s``).
+``--middle`` profiles only the plans about the median. Also the CPU cost of
+one collision check of the executed 8-DOF model, called three ways.
+
+    .venv/bin/python benchmarks/plan_profile.py --system decoupled --limit 88 --out FILE
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import pstats
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from articutool.planning.ompl_planner import plan_transport
+from articutool.planning.types import SYSTEMS, PlanRequest
+from articutool.spec import load_spec
+from plan_breakdown import emit, selected_tasks
+
+# (label, (module path suffix, function name) ...): inclusive CPU time, summed.
+PARTS = (
+    ("search: OMPL query incl. its checks", (("planning/ompl_planner.py", "solve"),)),
+    ("search: straight-motion check", (("planning/ompl_planner.py", "straight_motion_valid"),)),
+    ("search: OMPL validity callbacks", (("planning/ompl_planner.py", "checker"),)),
+    ("collision checks (all phases)", (("planning/queries.py", "collides"),
+                                       ("arm/model.py", "collisions"))),
+    ("leveling IK in the search (scalar)", (("planning/ompl_planner.py", "leveling_wrist"),)),
+    ("timing: toppra + wrist-rate constraint", (("planning/timing.py", "time_parameterize"),)),
+    ("timing: toppra's parameterisation loop", (("reachability_algorithm.py",
+                                                 "compute_parameterization"),)),
+    ("timing: wrist-rate constraint", (("planning/ompl_planner.py", "sdot_max"),)),
+    ("recheck: dense re-check", (("planning/ompl_planner.py", "check_trajectory"),)),
+    ("verify: verify_trajectory", (("verify/verifier.py", "verify_trajectory"),)),
+    ("setup: problem + endpoint checks", (("planning/ompl_planner.py", "__post_init__"),
+                                          ("planning/ompl_planner.py", "endpoint_problem"))),
+)
+
+
+def _inclusive(stats: pstats.Stats, targets: tuple[tuple[str, str], ...]) -> float:
+    total = 0.0
+    for (path, _line, name), (_cc, _nc, _tt, ct, _callers) in stats.stats.items():  # type: ignore[attr-defined]
+        if any(path.endswith(p) and name == f for p, f in targets):
+            total += ct
+    return total
+
+
+def _collision_cost(spec, tasks) -> dict[str, float]:
+    """CPU µs per collision check of the executed 8-DOF model at the tasks' start and goal
+    configurations (wrist level at zero): one Python call per configuration through the
+    overloaded ``computeCollisions``, the planner's batch-of-one call, and a batch call."""
+    import pinocchio as pin
+
+    from articutool.arm.model import TOOL_BASE_FRAME, ArmModel
+    from articutool.planning.queries import ArmQueries
+
+    model = ArmModel(spec, dof=8)
+    kin = ArmQueries(model, TOOL_BASE_FRAME)
+    q = np.array([list(t.start) + [0.0, 0.0] for t in tasks]
+                 + [list(t.goal) + [0.0, 0.0] for t in tasks])
+    reps = max(1, 4000 // len(q))
+
+    def per_check(f) -> float:
+        c0 = time.process_time()
+        for _ in range(reps):
+            f()
+        return round((time.process_time() - c0) / (reps * len(q)) * 1e6, 2)
+
+    m, d, bp = model.model, model.data, model.broadphase
+    return {
+        "python_call_per_configuration_us": per_check(
+            lambda: [pin.computeCollisions(m, d, bp, x, True) for x in q]),
+        "planner_batch_of_one_us": per_check(lambda: [kin.collides(x) for x in q]),
+        "batch_call_us": per_check(lambda: model.collisions(q)),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--tasks", metavar="FILE", default=None, help="task file (default: packaged)")
+    ap.add_argument("--system", default="decoupled", help=f"one of {', '.join(SYSTEMS)}")
+    ap.add_argument("--limit", type=int, default=None, help="only the first N tasks")
+    ap.add_argument("--timeout", type=float, default=60.0, help="per plan, s (default 60)")
+    ap.add_argument("--middle", action="store_true",
+                    help="profile only the middle half of the tasks by plain CPU time (the "
+                         "plans about the median; the tail is a few long searches)")
+    ap.add_argument("--top", type=int, default=15, help="functions listed by own CPU time")
+    ap.add_argument("--out", metavar="FILE", default=None, help="also write the JSON here")
+    args = ap.parse_args(argv)
+    tasks, bad = selected_tasks(args.tasks, args.limit, args.timeout, [args.system],
+                                "--system")
+    if bad:
+        print(bad, file=sys.stderr)
+        return 2
+    spec = load_spec()
+    requests = [PlanRequest(args.system, t, timeout_s=args.timeout) for t in tasks]
+    plan_transport(requests[0], spec)  # models built and cached outside the figures
+    cpu = []
+    for req in requests:
+        c0 = time.process_time()
+        plan_transport(req, spec)
+        cpu.append(time.process_time() - c0)
+    profiled = requests
+    if args.middle:
+        lo, hi = np.percentile(cpu, [25, 75])
+        profiled = [r for r, c in zip(requests, cpu, strict=True) if lo <= c <= hi]
+    prof = cProfile.Profile(time.process_time)
+    prof.enable()
+    for req in profiled:
+        plan_transport(req, spec)
+    prof.disable()
+    stats = pstats.Stats(prof)
+    total = _inclusive(stats, (("planning/ompl_planner.py", "plan_transport"),))
+    parts = {}
+    for label, targets in PARTS:
+        ct = _inclusive(stats, targets)
+        parts[label] = {"cpu_s": round(ct, 4), "share": round(ct / total, 3)}
+    own = sorted(stats.stats.items(), key=lambda kv: -kv[1][2])[: args.top]  # type: ignore[attr-defined]
+    out = {
+        "system": args.system, "tasks": len(tasks), "clock": "process CPU (time.process_time)",
+        "plain_cpu_median_ms": round(float(np.median(cpu)) * 1e3, 3),
+        "profiled_tasks": [r.task.task_id for r in profiled],
+        "profiled_plain_cpu_s": round(sum(c for r, c in zip(requests, cpu, strict=True)
+                                          if r in profiled), 3),
+        "profiled_cpu_total_s": round(total, 3),
+        "parts": parts,
+        "collision_check_cpu": _collision_cost(spec, tasks),
+        "top_own_time": [{"function": f"{Path(k[0]).name}:{k[1]}({k[2]})", "calls": v[1],
+                          "own_cpu_s": round(v[2], 4)} for k, v in own],
+    }
+    emit(out, args.out)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
