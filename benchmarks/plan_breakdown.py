@@ -1,15 +1,15 @@
-"""Where planning time goes: per-phase wall time of each transport system over a task set.
+"""Where planning time goes: per-phase wall time of each transport planner over a task set.
 
-Plans every (system, task) of the packaged Exp. 2a task set (or ``--tasks FILE``) in this one
-process, one after the other, and prints JSON: per system the success count, the median and
+Plans every (planner, task) of the packaged Exp. 2a task set (or ``--tasks FILE``) in this one
+process, one after the other, and prints JSON: per planner the success count, the median and
 p90 of the whole ``plan()`` call over solved tasks, and for each phase of
 :data:`articutool.planning.api.PHASES` (setup, search, simplify, timing, recheck, verify) its
-median, p90 and share of the summed planning time. The systems run interleaved task by task,
+median, p90 and share of the summed planning time. The planners run interleaved task by task,
 so their ratios are measured side by side under the same load.
 
     .venv/bin/python benchmarks/plan_breakdown.py --limit 20 --timeout 10 [--out FILE]
 
-``--baseline`` also plans each (system, task) right after with the baseline planner settings
+``--baseline`` also plans each (planner, task) right after with the baseline planner settings
 (OMPL's automatic range in rejection mode, no direct motion, full smoothing, the pair
 loop, models rebuilt per plan, toppra grid 0.01 rad) and reports paired median ratios (new /
 baseline) of planning time and trajectory duration on the tasks both solved.
@@ -27,7 +27,7 @@ import numpy as np
 
 from articutool.bench.taskfile import TaskFileError, load_task_set
 from articutool.planning.ompl_planner import PlannerSettings, plan_transport
-from articutool.planning.types import PHASES, SYSTEMS, PlanRequest
+from articutool.planning.types import PHASES, PLANNERS, PlanRequest
 from articutool.spec import load_spec
 
 # The baseline planner settings, OMPL's and toppra's defaults (toppra's constraint objects and the
@@ -47,7 +47,7 @@ def _stats(x: list[float]) -> dict[str, float | None]:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--tasks", metavar="FILE", default=None, help="task file (default: packaged)")
-    ap.add_argument("--systems", default=",".join(SYSTEMS))
+    ap.add_argument("--systems", default=",".join(PLANNERS))
     ap.add_argument("--limit", type=int, default=None, help="only the first N tasks")
     ap.add_argument("--timeout", type=float, default=10.0, help="per plan, s (default 10)")
     ap.add_argument("--seed", type=int, default=0)
@@ -55,10 +55,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--baseline", action="store_true",
                     help="also plan with the pre-issue-12 settings, side by side")
     args = ap.parse_args(argv)
-    systems = [s.strip() for s in args.systems.split(",") if s.strip()]
-    for s in systems:
-        if s not in SYSTEMS:
-            print(f"--systems: unknown system {s!r}; allowed: {', '.join(SYSTEMS)}",
+    planners = [s.strip() for s in args.systems.split(",") if s.strip()]
+    for s in planners:
+        if s not in PLANNERS:
+            print(f"--systems: unknown system {s!r}; allowed: {', '.join(PLANNERS)}",
                   file=sys.stderr)
             return 2
     if args.limit is not None and args.limit < 1:
@@ -73,8 +73,8 @@ def main(argv: list[str] | None = None) -> int:
     except TaskFileError as err:
         print(f"--tasks: {err}", file=sys.stderr)
         return 2
-    runs: dict[str, list[dict]] = {s: [] for s in systems}
-    baseline_runs: dict[str, list[dict]] = {s: [] for s in systems}
+    runs: dict[str, list[dict]] = {s: [] for s in planners}
+    baseline_runs: dict[str, list[dict]] = {s: [] for s in planners}
     t_start = time.perf_counter()
 
     def record(req: PlanRequest, settings: PlannerSettings | None) -> dict:
@@ -84,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
                 "attempts": r.attempts, "duration_s": dur, "phases_s": dict(r.phases)}
 
     for task in tasks:
-        for s in systems:
+        for s in planners:
             req = PlanRequest(s, task, timeout_s=args.timeout, seed=args.seed)
             runs[s].append(record(req, None))
             if args.baseline:
@@ -111,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
             if v["median_ms"] is not None}
     if args.baseline:
         out["baseline"] = {}
-        for s in systems:
+        for s in planners:
             pairs = [(n, b) for n, b in zip(runs[s], baseline_runs[s], strict=True)
                      if n["success"] and b["success"]]
             ok = [b["time_s"] for b in baseline_runs[s] if b["success"]]
