@@ -270,7 +270,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p = bsub.add_parser("transport", help="run the planners on the tasks (resumable)")
     p.add_argument("--tasks", metavar="FILE", default=None,
                    help="task file (default: the packaged transport_tasks_v1.json)")
-    p.add_argument("--systems", dest="planners", default="decoupled,strict6,strict8",
+    p.add_argument("--systems", dest="planners", metavar="SYSTEMS",
+                   default="decoupled,strict6,strict8",
                    help="comma-separated planners, the thesis' systems (default: all three)")
     p.add_argument("--timeout", type=seconds(MAX_WAIT_S), default=30.0, metavar="S",
                    help=f"planning timeout per trial, in (0, {MAX_WAIT_S:g}] s (default 30; "
