@@ -200,7 +200,7 @@ def _check_trajectory(traj, planner: str, tol_deg: float) -> None:
         assert StrictConstraint(math.radians(tol_deg)).satisfied(R).all()
 
 
-@pytest.mark.parametrize("system", ["decoupled", "strict6", "strict8"])
+@pytest.mark.parametrize("planner", ["decoupled", "strict6", "strict8"])
 def test_each_planner_plans_a_level_transport(planner: str) -> None:
     r = plan(PlanRequest(planner, TASK, timeout_s=30.0, seed=1))
     assert r.success, r.message
@@ -234,7 +234,7 @@ def test_strict_tolerance_parameter_is_respected() -> None:
     _check_trajectory(r.trajectory, "strict6", 5.0)
 
 
-@pytest.mark.parametrize("system", ["strict6", "strict8"])
+@pytest.mark.parametrize("planner", ["strict6", "strict8"])
 def test_projected_state_space_method_keeps_the_tip_level(planner: str) -> None:
     r = plan_transport(PlanRequest(planner, TASK, timeout_s=30.0, seed=2), SPEC,
                        method="projection")
