@@ -1,16 +1,16 @@
-"""Where planning time goes: per-phase wall time of each transport system over a task set.
+"""Where planning time goes: per-phase wall time of each transport planner over a task set.
 
-Plans every (system, task) of the packaged Exp. 2a task set (or ``--tasks FILE``) in this one
-process, one after the other, and prints JSON: per system the success count, the median and
+Plans every (planner, task) of the packaged Exp. 2a task set (or ``--tasks FILE``) in this one
+process, one after the other, and prints JSON: per planner the success count, the median and
 p90 of the whole ``plan()`` call over solved tasks (wall time, and the process's CPU time),
 and for each phase of
 :data:`articutool.planning.api.PHASES` (setup, search, simplify, timing, recheck, verify) its
-median, p90 and share of the summed planning time. The systems run interleaved task by task,
+median, p90 and share of the summed planning time. The planners run interleaved task by task,
 so their ratios are measured side by side under the same load.
 
     .venv/bin/python benchmarks/plan_breakdown.py --limit 20 --timeout 10 [--out FILE]
 
-``--baseline`` also plans each (system, task) right after with the baseline planner settings
+``--baseline`` also plans each (planner, task) right after with the baseline planner settings
 (OMPL's automatic range in rejection mode, no direct motion, full smoothing, the pair
 loop, models rebuilt per plan, toppra grid 0.01 rad) and reports paired median ratios (new /
 baseline) of planning time and trajectory duration on the tasks both solved.
@@ -29,7 +29,7 @@ import numpy as np
 
 from articutool.bench.taskfile import TaskFileError, load_task_set
 from articutool.planning.ompl_planner import PlannerSettings, plan_transport
-from articutool.planning.types import PHASES, SYSTEMS, PlanRequest, TransportTask
+from articutool.planning.types import PHASES, PLANNERS, PlanRequest, TransportTask
 from articutool.spec import load_spec
 
 # The baseline planner settings, OMPL's and toppra's defaults (toppra's constraint objects and the
@@ -59,8 +59,8 @@ def selected_tasks(path: str | None, limit: int | None, timeout: float, systems:
     """The tasks ``--tasks``/``--limit`` select, or the message naming the bad option (with
     ``--timeout``, which must be > 0, and the systems named by ``option``)."""
     for s in systems:
-        if s not in SYSTEMS:
-            return [], f"{option}: unknown system {s!r}; allowed: {', '.join(SYSTEMS)}"
+        if s not in PLANNERS:
+            return [], f"{option}: unknown system {s!r}; allowed: {', '.join(PLANNERS)}"
     if limit is not None and limit < 1:
         return [], f"--limit must be >= 1; got {limit}"
     if not timeout > 0:
@@ -74,7 +74,7 @@ def selected_tasks(path: str | None, limit: int | None, timeout: float, systems:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--tasks", metavar="FILE", default=None, help="task file (default: packaged)")
-    ap.add_argument("--systems", default=",".join(SYSTEMS))
+    ap.add_argument("--systems", default=",".join(PLANNERS))
     ap.add_argument("--limit", type=int, default=None, help="only the first N tasks")
     ap.add_argument("--timeout", type=float, default=10.0, help="per plan, s (default 10)")
     ap.add_argument("--seed", type=int, default=0)
@@ -82,14 +82,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--baseline", action="store_true",
                     help="also plan with the baseline settings, side by side")
     args = ap.parse_args(argv)
-    systems = [s.strip() for s in args.systems.split(",") if s.strip()]
-    tasks, bad = selected_tasks(args.tasks, args.limit, args.timeout, systems, "--systems")
+    planners = [s.strip() for s in args.systems.split(",") if s.strip()]
+    tasks, bad = selected_tasks(args.tasks, args.limit, args.timeout, planners, "--systems")
     if bad:
         print(bad, file=sys.stderr)
         return 2
     spec = load_spec()
-    runs: dict[str, list[dict]] = {s: [] for s in systems}
-    baseline_runs: dict[str, list[dict]] = {s: [] for s in systems}
+    runs: dict[str, list[dict]] = {s: [] for s in planners}
+    baseline_runs: dict[str, list[dict]] = {s: [] for s in planners}
     t_start = time.perf_counter()
     load_before = os.getloadavg()
 
@@ -102,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
                 "cpu_s": cpu, "attempts": r.attempts, "duration_s": dur, "phases_s": dict(r.phases)}
 
     for task in tasks:
-        for s in systems:
+        for s in planners:
             req = PlanRequest(s, task, timeout_s=args.timeout, seed=args.seed)
             runs[s].append(record(req, None))
             if args.baseline:
@@ -134,7 +134,7 @@ def main(argv: list[str] | None = None) -> int:
             if v["median_ms"] is not None}
     if args.baseline:
         out["baseline"] = {}
-        for s in systems:
+        for s in planners:
             pairs = [(n, b) for n, b in zip(runs[s], baseline_runs[s], strict=True)
                      if n["success"] and b["success"]]
             ok = [b["time_s"] for b in baseline_runs[s] if b["success"]]

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from articutool.planning.ompl_planner import plan_transport
-from articutool.planning.types import SYSTEMS, PlanRequest
+from articutool.planning.types import PLANNERS, PlanRequest
 from articutool.spec import load_spec
 from plan_breakdown import emit, selected_tasks
 
@@ -90,7 +90,7 @@ def _collision_cost(spec, tasks) -> dict[str, float]:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--tasks", metavar="FILE", default=None, help="task file (default: packaged)")
-    ap.add_argument("--system", default="decoupled", help=f"one of {', '.join(SYSTEMS)}")
+    ap.add_argument("--system", default="decoupled", help=f"one of {', '.join(PLANNERS)}")
     ap.add_argument("--limit", type=int, default=None, help="only the first N tasks")
     ap.add_argument("--timeout", type=float, default=60.0, help="per plan, s (default 60)")
     ap.add_argument("--middle", action="store_true",

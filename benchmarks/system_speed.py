@@ -1,5 +1,5 @@
 """Planning speed comparisons, measured here because tests assert no timing: is the
-decoupled system the fastest on the same Exp. 2a tasks (thesis Fig. 6.2), and does RRT* end
+decoupled planner the fastest on the same Exp. 2a tasks (thesis Fig. 6.2), and does RRT* end
 within its budget? Wall time on this machine, so a measurement, not a pass/fail; the
 behaviour (every task planned, every trial finished) stays in ``tests/test_slow_bench.py``
 and ``tests/test_planning.py``.
@@ -25,9 +25,9 @@ from articutool.planning.api import plan
 from articutool.planning.types import PlanRequest
 
 
-def systems(limit: int, timeout_s: float, workers: int) -> dict:
-    """``articutool bench transport`` on the first ``limit`` tasks: each system's summary,
-    and whether decoupled's median planning time is below each strict system's."""
+def planners(limit: int, timeout_s: float, workers: int) -> dict:
+    """``articutool bench transport`` on the first ``limit`` tasks: each planner's summary,
+    and whether decoupled's median planning time is below each strict planner's."""
     with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(io.StringIO()) as out:
         code = articutool(["bench", "transport", "--limit", str(limit), "--timeout",
                            str(timeout_s), "--workers", str(workers), "--out",
@@ -45,7 +45,7 @@ def rrtstar_budget(limit: int, budget_s: float, seed: int) -> dict:
     against its budget (tasks whose straight motion is valid need no search)."""
     rows = []
     for task in load_task_set().tasks[:limit]:
-        r = plan(PlanRequest("decoupled", task, timeout_s=budget_s, planner="rrtstar",
+        r = plan(PlanRequest("decoupled", task, timeout_s=budget_s, algorithm="rrtstar",
                              seed=seed))
         rows.append({"task_id": task.task_id, "success": r.success,
                      "planning_time_s": r.planning_time_s,
@@ -65,7 +65,7 @@ def main() -> int:
     result = {
         "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
                     "load_avg": os.getloadavg()},
-        "systems": systems(args.limit, args.timeout, args.workers),
+        "systems": planners(args.limit, args.timeout, args.workers),
         "rrtstar": rrtstar_budget(args.limit, 10.0, 3),
     }
     text = json.dumps(result, indent=1)

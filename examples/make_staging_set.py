@@ -78,10 +78,10 @@ def main() -> None:
 
         for name, q in goals.items():
             task = TransportTask(0, tuple(start), tuple(q))
-            for system, tol in (("decoupled", None), ("strict6", 20.0)):
-                r = plan(PlanRequest(system=system, task=task, timeout_s=10.0, seed=0,
+            for planner, tol in (("decoupled", None), ("strict6", 20.0)):
+                r = plan(PlanRequest(planner=planner, task=task, timeout_s=10.0, seed=0,
                                      tolerance_deg=tol, utensil=args.utensil), spec)
-                print(f"# {name} {system}: {'ok' if r.success else 'FAILED'} "
+                print(f"# {name} {planner}: {'ok' if r.success else 'FAILED'} "
                       f"{r.planning_time_s:.2f} s {r.message}")
     fmt = ", ".join
     print("[staging_set]")

@@ -39,7 +39,7 @@ from articutool.feeding.behaviours import Execute
 from articutool.feeding.strategies import Strategy
 from articutool.meal.bites import DEFAULT_SETTINGS, _tree, make_bite_world, run_bite
 
-STAGES = ("above", "acquire", "shed", "resting")
+STAGES_TO_RESTING = ("above", "acquire", "shed", "resting")
 SYSTEMS = ("articutool", "baseline")
 TUNING_SEED0, MEASURE_SEED0 = 7_000_000, 8_000_000
 # The search's candidates, the same for both systems: where the turn in the food ends (the
@@ -56,10 +56,10 @@ def one(food: str, system: str, seed: int, insertion: dict[str, float] | None = 
         s: Strategy = setup.strategy
         setup.strategy = s.model_copy(update={"insertion": s.insertion.model_copy(
             update=insertion)})
-    root = _tree(setup, STAGES, DEFAULT_SETTINGS)
+    root = _tree(setup, STAGES_TO_RESTING, DEFAULT_SETTINGS)
     wall0 = time.perf_counter()
     try:
-        r = run_bite(setup, stages=STAGES, root=root)
+        r = run_bite(setup, stages=STAGES_TO_RESTING, root=root)
     finally:
         setup.arm.close()
     wall = time.perf_counter() - wall0
@@ -200,7 +200,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     cmd = "PYTHONPATH=src nice python studies/acquisition_study.py " + " ".join(
         sys.argv[1:] if argv is None else argv)
-    doc: dict[str, Any] = {"command": cmd, "stages": list(STAGES), "runs": []}
+    doc: dict[str, Any] = {"command": cmd, "stages": list(STAGES_TO_RESTING), "runs": []}
     if args.mode == "measure":
         for food, k, system in itertools.product(args.foods, range(args.seeds), SYSTEMS):
             doc["runs"].append(one(food, system, MEASURE_SEED0 + k))

@@ -52,15 +52,15 @@ def _plans(goals: list[Any], start: np.ndarray, spec: Any) -> dict[tuple[str, st
 
     out = {}
     for i, g in enumerate(goals):
-        for system, tol in (("decoupled", None), ("strict6", 20.0)):
-            req = PlanRequest(system=system, task=TransportTask(i, tuple(start), tuple(g.q)),
+        for planner, tol in (("decoupled", None), ("strict6", 20.0)):
+            req = PlanRequest(planner=planner, task=TransportTask(i, tuple(start), tuple(g.q)),
                               timeout_s=30.0, seed=SEED0 + i, tolerance_deg=tol,
                               utensil="soup_spoon")
             r = plan(req, spec)
             if not r.success or r.trajectory is None:
-                print(f"  {g.name} {system}: no plan ({r.message})", flush=True)
+                print(f"  {g.name} {planner}: no plan ({r.message})", flush=True)
                 continue
-            out[(g.name, system)] = r.trajectory
+            out[(g.name, planner)] = r.trajectory
     return out
 
 
@@ -284,13 +284,13 @@ def main() -> None:
     plans = _plans(goals, start, spec)
     for gi, g in enumerate(goals):
         for cond in args.conditions.split(","):
-            system = "strict6" if cond == "locked" else "decoupled"
-            if (g.name, system) not in plans:
+            planner = "strict6" if cond == "locked" else "decoupled"
+            if (g.name, planner) not in plans:
                 continue
             for scale in (float(s) for s in args.scales.split(",")):
                 if (g.name, cond, scale) in done:
                     continue
-                row = _trial(g.name, cond, scale, plans[(g.name, system)], SEED0 + 100 * gi
+                row = _trial(g.name, cond, scale, plans[(g.name, planner)], SEED0 + 100 * gi
                              + round(10 * scale), args.load_g, start, args.physics,
                              args.particle_radius)
                 print(json.dumps(row), flush=True)

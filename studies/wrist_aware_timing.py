@@ -51,7 +51,7 @@ def main() -> int:
             rows = []
             for task in tasks:
                 t0 = time.perf_counter()
-                r = plan(PlanRequest(system="decoupled", task=task, timeout_s=args.timeout,
+                r = plan(PlanRequest(planner="decoupled", task=task, timeout_s=args.timeout,
                                      wrist_aware_timing=aware), spec)
                 rows.append((r.success, r.attempts, r.verification_rejections,
                              time.perf_counter() - t0,

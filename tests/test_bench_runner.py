@@ -20,7 +20,7 @@ from articutool.bench.runner import (
     RunConfig,
     RunConfigError,
     make_trials,
-    parse_systems,
+    parse_planners,
     read_log,
     record_key,
     run_trial,
@@ -28,7 +28,7 @@ from articutool.bench.runner import (
 )
 from articutool.bench.taskfile import load_task_set, save_task_set
 from articutool.cli import main
-from articutool.planning.types import SYSTEMS, PlanRequest, PlanResult, TransportTask
+from articutool.planning.types import PLANNERS, PlanRequest, PlanResult, TransportTask
 
 # ------------------------------------------------------------- stand-ins --
 
@@ -36,18 +36,18 @@ from articutool.planning.types import SYSTEMS, PlanRequest, PlanResult, Transpor
 def _solvable(req: PlanRequest) -> bool:
     if req.tolerance_deg is not None:  # sweep: looser tolerance solves more tasks
         return req.task.task_id % 4 < req.tolerance_deg / 10
-    return (req.task.task_id + len(req.system)) % 3 != 0
+    return (req.task.task_id + len(req.planner)) % 3 != 0
 
 
 def fake_plan(req: PlanRequest, spec) -> PlanResult:
-    """Deterministic stand-in: success and time depend on the task and the system."""
+    """Deterministic stand-in: success and time depend on the task and the planner."""
     ok = _solvable(req)
     return PlanResult(
-        system=req.system, task_id=req.task.task_id, success=ok,
-        planning_time_s=0.01 * (req.task.task_id + 1) * (1 + SYSTEMS.index(req.system)),
+        planner=req.planner, task_id=req.task.task_id, success=ok,
+        planning_time_s=0.01 * (req.task.task_id + 1) * (1 + PLANNERS.index(req.planner)),
         attempts=1, verification_rejections=0, path_length=1.5 if ok else math.nan,
         max_tilt_deg=3.0 if ok else math.nan,
-        verified=ok if req.system == "decoupled" else None,
+        verified=ok if req.planner == "decoupled" else None,
         message="fake", trajectory=None, wrist_trajectory=None)
 
 
@@ -150,40 +150,40 @@ def test_resume_with_other_settings_is_refused(tmp_path):
 @pytest.mark.parametrize(
     ("kwargs", "msg"),
     [
-        ({"systems": ["decoupled", "strict7"]}, "unknown system 'strict7'"),
-        ({"systems": []}, "at least one"),
+        ({"planners": ["decoupled", "strict7"]}, "unknown system 'strict7'"),
+        ({"planners": []}, "at least one"),
         ({"timeout_s": 0.0}, "--timeout"),
         ({"timeout_s": -1.0}, "--timeout"),
         ({"timeout_s": math.nan}, "--timeout"),
-        ({"planner": "prm"}, "--planner"),
+        ({"algorithm": "prm"}, "--planner"),
         ({"seed": -1}, "--seed"),
     ],
 )
 def test_make_trials_validates(kwargs, msg):
-    args = {"systems": ["decoupled"], "timeout_s": 1.0} | kwargs
+    args = {"planners": ["decoupled"], "timeout_s": 1.0} | kwargs
     with pytest.raises(RunConfigError, match=msg):
         make_trials(_tasks(1), **args)
 
 
-def test_parse_systems_keeps_order_and_drops_duplicates():
-    assert parse_systems("strict8, decoupled,strict8") == ("strict8", "decoupled")
+def test_parse_planners_keeps_order_and_drops_duplicates():
+    assert parse_planners("strict8, decoupled,strict8") == ("strict8", "decoupled")
 
 
 # ---------------------------------------------------------------- reports --
 
 
 def test_summary_json_shape_plots_and_csv(tmp_path, pool):
-    systems = ("decoupled", "strict6", "strict8")
-    trials = make_trials(_tasks(6), systems, timeout_s=5.0)
+    planners = ("decoupled", "strict6", "strict8")
+    trials = make_trials(_tasks(6), planners, timeout_s=5.0)
     res = run_trials(trials, tmp_path / "results.jsonl", pool, plan_fn=fake_plan)
-    s = report.summarize(res.records, systems)
-    assert set(s) == set(systems)
+    s = report.summarize(res.records, planners)
+    assert set(s) == set(planners)
     for name, v in s.items():
-        expected = [t for t in trials if t.system == name]
+        expected = [t for t in trials if t.planner == name]
         solved = [t for t in expected if _solvable(PlanRequest(name, t.task))]
         assert v["trials"] == 6 and v["successes"] == len(solved)
         assert v["success_rate"] == pytest.approx(len(solved) / 6)
-        times = sorted(0.01 * (t.task.task_id + 1) * (1 + SYSTEMS.index(name)) for t in solved)
+        times = sorted(0.01 * (t.task.task_id + 1) * (1 + PLANNERS.index(name)) for t in solved)
         assert v["median_time_s"] == pytest.approx(times[len(times) // 2] if len(times) % 2
                                                    else sum(times[len(times) // 2 - 1:
                                                                   len(times) // 2 + 1]) / 2)
@@ -198,7 +198,7 @@ def test_summary_json_shape_plots_and_csv(tmp_path, pool):
     lines = csv_path.read_text().splitlines()
     assert lines[0].split(",") == list(report.CSV_FIELDS)
     assert len(lines) == 1 + len(trials)
-    png = report.cactus_plot(res.records, systems, tmp_path / "cactus.png", timeout_s=5.0)
+    png = report.cactus_plot(res.records, planners, tmp_path / "cactus.png", timeout_s=5.0)
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
@@ -216,14 +216,14 @@ def test_tolerance_sweep_summary_and_plot(tmp_path, pool):
     assert png.read_bytes()[:4] == b"\x89PNG"
 
 
-def test_render_table_lists_every_system_beside_the_thesis():
+def test_render_table_lists_every_planner_beside_the_thesis():
     from rich.console import Console
 
-    recs = [run_trial(t, fake_plan) for t in make_trials(_tasks(3), SYSTEMS, timeout_s=1.0)]
+    recs = [run_trial(t, fake_plan) for t in make_trials(_tasks(3), PLANNERS, timeout_s=1.0)]
     console = Console(record=True, width=200)
-    console.print(report.render_table(report.summarize(recs, SYSTEMS)))
+    console.print(report.render_table(report.summarize(recs, PLANNERS)))
     text = console.export_text()
-    for name in SYSTEMS:
+    for name in PLANNERS:
         assert name in text
     assert "96.0 %" in text and "75.70 s" in text
 

@@ -94,7 +94,7 @@ def test_each_exp2b_systems_food_check_models_the_wrist_it_carries(name: str) ->
     assert arm.rigid == (not system.wrist)
     assert (arm.load is not None) == bool(v and v.food_check)
     arm.load = food_load(load_food_definitions()["water"], 7.0)
-    req = PlanRequest(system=system.transport.name, task=TransportTask(
+    req = PlanRequest(planner=system.transport.name, task=TransportTask(
         0, tuple(sset.start), tuple(goals["right"])), timeout_s=10.0, seed=0,
         utensil="soup_spoon", tolerance_deg=system.transport.tolerance_deg)
     traj = plan(req, spec).trajectory

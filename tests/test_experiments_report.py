@@ -36,7 +36,7 @@ def test_every_figure_of_the_deviations_table_is_computed_from_the_committed_run
         recs["exp3"], CFG.exp3.systems, CFG.thesis["exp3"]["threshold_g"])
     run, bench = report.read_exp2a(RESULTS / "exp2a")
     assert run is not None
-    summaries["exp2a"] = {**summarize_exp2a(bench, run["timeout_s"]), "planner": "rrtconnect"}
+    summaries["exp2a"] = {**summarize_exp2a(bench, run["timeout_s"]), "algorithm": "rrtconnect"}
     facts = report.deviation_facts(summaries, recs, out, CFG)
     assert sorted(_figures() - set(facts)) == []
     # The figures the review recomputed: the water held once placed, the speed-up both ways.
@@ -56,7 +56,7 @@ def test_the_benchmark_beside_the_results_joins_the_hypotheses(tmp_path: Path) -
     out.mkdir()
     bench = tmp_path / "exp2a"
     bench.mkdir()
-    (bench / "run.json").write_text(json.dumps({"timeout_s": 60.0, "planner": "rrtconnect"}))
+    (bench / "run.json").write_text(json.dumps({"timeout_s": 60.0, "algorithm": "rrtconnect"}))
     lines = [{"system": s, "task_id": k, "seed": 0, "tolerance_deg": None, "success": True,
               "planning_time_s": (0.01 if s == "decoupled" else 0.1) * (1 + 0.01 * k)}
              for s in ("decoupled", "strict6") for k in range(12)]

@@ -44,13 +44,13 @@ def test_every_configuration_is_level_collision_free_and_in_limits(spec, utensil
     assert d[np.triu_indices(5, 1)].min() > 0.05  # spread: no two goals within 5 cm
 
 
-@pytest.mark.parametrize("system", ["decoupled", "strict6"])
-def test_every_goal_is_reached_from_the_start_by_both_systems(spec, system: str) -> None:
+@pytest.mark.parametrize("planner", ["decoupled", "strict6"])
+def test_every_goal_is_reached_from_the_start_by_both_planners(spec, planner: str) -> None:
     cfg = ExperimentsConfig.load()
-    tol = None if system == "decoupled" else cfg.settings.arm_tolerance_deg
+    tol = None if planner == "decoupled" else cfg.settings.arm_tolerance_deg
     for utensil in ("spoon", "soup_spoon"):
         for g in SSET.goals:
             task = TransportTask(0, tuple(SSET.start), tuple(g.q))
-            r = plan(PlanRequest(system=system, task=task, timeout_s=cfg.settings.plan_budget_s,
+            r = plan(PlanRequest(planner=planner, task=task, timeout_s=cfg.settings.plan_budget_s,
                                  seed=0, tolerance_deg=tol, utensil=utensil), spec)
             assert r.success, f"{g.name} {utensil}: {r.message}"

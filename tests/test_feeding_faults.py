@@ -42,7 +42,7 @@ from articutool.link.server import ToolServer
 from articutool.meal.bites import BiteResult, MealSetup, make_bite_world, run_bite
 from articutool.tool.api import Mode
 
-STAGES = ("staging", "present", "return")
+TRANSFER_STAGES = ("staging", "present", "return")
 THRESHOLD_G = 0.5  # below one pecan piece: a delivered load would be a meaningful success
 
 
@@ -84,7 +84,7 @@ def _loaded(seed: int = 0) -> tuple[MealSetup, float]:
 
 def _bite(setup: MealSetup, *faults: FaultAt) -> BiteResult:
     try:
-        return run_bite(setup, stages=STAGES, threshold_g=THRESHOLD_G, visitors=faults)
+        return run_bite(setup, stages=TRANSFER_STAGES, threshold_g=THRESHOLD_G, visitors=faults)
     finally:
         setup.arm.close()
 
@@ -399,7 +399,7 @@ class Linked:
 
 
 def _linked_bite(setup: MealSetup, link: Linked, *faults: FaultAt,
-                 stages: tuple[str, ...] = STAGES) -> BiteResult:
+                 stages: tuple[str, ...] = TRANSFER_STAGES) -> BiteResult:
     try:
         return run_bite(setup, stages=stages, threshold_g=THRESHOLD_G, visitors=faults,
                         tool=link.tool)
@@ -496,7 +496,7 @@ def test_an_ft_spike_during_transport_changes_nothing_the_bite_completes() -> No
     assert w.tool.fault == "" and w.tool.mode == Mode.DISABLED
     assert r.delivered_g > THRESHOLD_G
     assert r.delivered_g + r.spilled_g <= held + 1e-6
-    assert r.last_stage == "return" and list(r.masses_after) == list(STAGES)
+    assert r.last_stage == "return" and list(r.masses_after) == list(TRANSFER_STAGES)
 
 
 @pytest.mark.slow

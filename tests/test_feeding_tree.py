@@ -300,7 +300,7 @@ def test_primitive_is_cancelled_when_preempted_and_none_succeeds_at_once() -> No
 # ---- the whole bite (articutool.feeding.bite) -------------------------------------------
 
 def _bite(arm, tool, clock, system: str = "articutool", stages=None, user=None):
-    from articutool.feeding.bite import STAGES, bite_tree
+    from articutool.feeding.bite import BITE_STAGES, bite_tree
     from articutool.feeding.insertion import acquisition_waypoints
     from articutool.feeding.strategies import StrategyLibrary
     from articutool.spec import load_spec
@@ -309,18 +309,18 @@ def _bite(arm, tool, clock, system: str = "articutool", stages=None, user=None):
     strat = lib.strategies["noodles_twirl" if system == "articutool" else "noodles_baseline"]
     wps = acquisition_waypoints(strat, [0.45, -0.45, 0.004], [0.0, -1.0, 0.0])
     return bite_tree(arm, tool, strat, wps, clock, system=System.from_strategy(strat),
-                     user=user or FakeUser(), stages=stages or STAGES)
+                     user=user or FakeUser(), stages=stages or BITE_STAGES)
 
 
 def test_a_whole_bite_runs_its_stages_in_order_and_restores_the_tool() -> None:
     from articutool.feeding.behaviours import BiteStage, Retreat
-    from articutool.feeding.bite import STAGES
+    from articutool.feeding.bite import BITE_STAGES
 
     clock = Clock()
     arm, tool = FakeArm(clock, [], []), FakeTool(clock)
     user = FakeUser(tool)
     root = _bite(arm, tool, clock, user=user)
-    assert [n.stage for n in root.iterate() if isinstance(n, BiteStage)] == list(STAGES)
+    assert [n.stage for n in root.iterate() if isinstance(n, BiteStage)] == list(BITE_STAGES)
     assert sum(isinstance(n, Retreat) for n in root.iterate()) == 1
     tree, rec = _run(root, clock, max_ticks=2000)
     assert tree.root.status == Status.SUCCESS, rec.record.failed_stage
@@ -541,7 +541,7 @@ def test_the_food_check_before_a_transport_is_a_bite_setting_the_thesis_systems_
     from articutool.experiments.config import ExperimentsConfig
     from articutool.experiments.protocols import _thesis_bite
     from articutool.feeding.behaviours import CheckFood
-    from articutool.feeding.bite import STAGES, BiteSettings, bite_tree
+    from articutool.feeding.bite import BITE_STAGES, BiteSettings, bite_tree
     from articutool.feeding.insertion import acquisition_waypoints
     from articutool.feeding.strategies import StrategyLibrary
     from articutool.spec import load_spec
@@ -553,7 +553,7 @@ def test_the_food_check_before_a_transport_is_a_bite_setting_the_thesis_systems_
 
     def checks(settings: BiteSettings) -> int:
         root = bite_tree(arm, tool, strat, wps, clock, system=ARTICUTOOL, user=FakeUser(),
-                         stages=STAGES, settings=settings)
+                         stages=BITE_STAGES, settings=settings)
         return sum(isinstance(b, CheckFood) for b in root.iterate())
 
     assert checks(BiteSettings()) == 2  # to Resting and to Staging

@@ -174,15 +174,15 @@ def _tasks(n: int, seed: int = 0) -> list[TransportTask]:
 TASK = _tasks(1)[0]
 
 
-def _tip_rotations(system: str, q: np.ndarray) -> np.ndarray:
-    """Tip rotations along (N, 6|8) strict-system samples (wrist locked at 0 for strict6)."""
+def _tip_rotations(planner: str, q: np.ndarray) -> np.ndarray:
+    """Tip rotations along (N, 6|8) strict-planner samples (wrist locked at 0 for strict6)."""
     m = ArmModel(SPEC, dof=6)
-    qw = q[:, 6:8] if system == "strict8" else np.zeros((len(q), 2))
+    qw = q[:, 6:8] if planner == "strict8" else np.zeros((len(q), 2))
     return m.tool_base_rotations(q[:, :6]) @ wrist_rotation(qw)
 
 
-def _check_trajectory(traj, system: str, tol_deg: float) -> None:
-    dof = 8 if system == "strict8" else 6
+def _check_trajectory(traj, planner: str, tol_deg: float) -> None:
+    dof = 8 if planner == "strict8" else 6
     m = ArmModel(SPEC, dof=dof)
     t = dense_times(traj, 0.01)
     q, qd = traj.sample(t)
@@ -194,25 +194,25 @@ def _check_trajectory(traj, system: str, tol_deg: float) -> None:
     assert (np.abs(qd) <= m.velocity_limits * 1.02).all()
     acc = np.diff(traj.velocities, axis=0) / np.diff(traj.times)[:, None]
     assert (np.abs(acc[:, :6]) <= SPEC.arm.max_acceleration * 1.05).all()
-    if system != "decoupled":
+    if planner != "decoupled":
         R = m.tool_base_rotations(q[:, :6]) @ wrist_rotation(
             q[:, 6:] if dof == 8 else np.zeros((len(q), 2)))
         assert StrictConstraint(math.radians(tol_deg)).satisfied(R).all()
 
 
-@pytest.mark.parametrize("system", ["decoupled", "strict6", "strict8"])
-def test_each_system_plans_a_level_transport(system: str) -> None:
-    r = plan(PlanRequest(system, TASK, timeout_s=30.0, seed=1))
+@pytest.mark.parametrize("planner", ["decoupled", "strict6", "strict8"])
+def test_each_planner_plans_a_level_transport(planner: str) -> None:
+    r = plan(PlanRequest(planner, TASK, timeout_s=30.0, seed=1))
     assert r.success, r.message
     assert r.trajectory is not None and r.attempts >= 1
     assert r.path_length > 0 and math.isfinite(r.max_tilt_deg)
-    _check_trajectory(r.trajectory, system, 10.0)
+    _check_trajectory(r.trajectory, planner, 10.0)
     rec = r.to_record()
     assert rec["success"] is True and "trajectory" not in rec
     # Every phase is timed, and the phases account for the planning time (up to glue).
     assert tuple(r.phases) == PHASES and rec["phases_s"] == r.phases
     assert 0.8 * r.planning_time_s <= sum(r.phases.values()) <= r.planning_time_s
-    if system == "decoupled":
+    if planner == "decoupled":
         assert r.verified is True and r.wrist_trajectory is not None
         rep = verify_trajectory(r.trajectory, ArmModel(SPEC, dof=6), SPEC)
         assert rep.feasible, rep.message
@@ -224,7 +224,7 @@ def test_each_system_plans_a_level_transport(system: str) -> None:
         # The per-axis band allows up to 14.2° of true tilt; the planner reports that.
         assert r.verified is None and r.max_tilt_deg <= 14.3
         q, _ = r.trajectory.sample(dense_times(r.trajectory, 0.025))
-        tilt = tip_tilt_deg(_tip_rotations(system, q)).max()
+        tilt = tip_tilt_deg(_tip_rotations(planner, q)).max()
         assert abs(r.max_tilt_deg - tilt) < 0.1
 
 
@@ -234,21 +234,21 @@ def test_strict_tolerance_parameter_is_respected() -> None:
     _check_trajectory(r.trajectory, "strict6", 5.0)
 
 
-@pytest.mark.parametrize("system", ["strict6", "strict8"])
-def test_projected_state_space_method_keeps_the_tip_level(system: str) -> None:
-    r = plan_transport(PlanRequest(system, TASK, timeout_s=30.0, seed=2), SPEC,
+@pytest.mark.parametrize("planner", ["strict6", "strict8"])
+def test_projected_state_space_method_keeps_the_tip_level(planner: str) -> None:
+    r = plan_transport(PlanRequest(planner, TASK, timeout_s=30.0, seed=2), SPEC,
                        method="projection")
     assert r.success, r.message
-    _check_trajectory(r.trajectory, system, 10.0)
+    _check_trajectory(r.trajectory, planner, 10.0)
 
 
 def test_rrtstar_is_selectable() -> None:
     # RRT* keeps refining after its first solution (here: for as long as that took) and
     # stops on its own; its time against the budget is measured by benchmarks/system_speed.py.
-    star = plan(PlanRequest("decoupled", TASK, timeout_s=10.0, planner="rrtstar", seed=3))
+    star = plan(PlanRequest("decoupled", TASK, timeout_s=10.0, algorithm="rrtstar", seed=3))
     connect = plan(PlanRequest("decoupled", TASK, timeout_s=10.0, seed=3))
     assert star.success and connect.success, (star.message, connect.message)
-    assert star.planner == "RRTstar" and connect.planner == "RRTConnect"
+    assert star.algorithm == "RRTstar" and connect.algorithm == "RRTConnect"
 
 
 def test_same_seed_same_plan() -> None:
@@ -276,8 +276,8 @@ def test_time_parameterisation_respects_limits_and_wrist_rates() -> None:
 @pytest.mark.parametrize(
     ("change", "field"),
     [
-        ({"system": "strict7"}, "system"),
-        ({"planner": "prm"}, "planner"),
+        ({"planner": "strict7"}, "planner"),
+        ({"algorithm": "prm"}, "algorithm"),
         ({"timeout_s": 0.0}, "timeout_s"),
         ({"timeout_s": -1.0}, "timeout_s"),
         ({"timeout_s": math.nan}, "timeout_s"),
@@ -302,8 +302,8 @@ def test_goal_in_collision_fails_cleanly() -> None:
         if m.in_collision(q):
             break
     task = dataclasses.replace(TASK, goal=tuple(q))
-    for system in ("decoupled", "strict6"):
-        r = plan(PlanRequest(system, task, timeout_s=2.0))
+    for planner in ("decoupled", "strict6"):
+        r = plan(PlanRequest(planner, task, timeout_s=2.0))
         assert not r.success and "collision" in r.message
         assert r.trajectory is None and math.isnan(r.path_length)
         assert r.to_record()["path_length"] is None
@@ -319,16 +319,16 @@ def test_cached_models_follow_an_edited_scene_file(tmp_path, monkeypatch) -> Non
     path.write_text(scene_mod.default_scene_path().read_text())
     for mod in (scene_mod, planner_mod):
         monkeypatch.setattr(mod, "default_scene_path", lambda: path)
-    for system in ("decoupled", "strict6"):
-        assert plan(PlanRequest(system, TASK, timeout_s=10.0), SPEC).success
+    for planner in ("decoupled", "strict6"):
+        assert plan(PlanRequest(planner, TASK, timeout_s=10.0), SPEC).success
     x, y, z = ArmModel(SPEC, dof=6).ee_pose(np.array(TASK.goal))[:3, 3]
     with path.open("a") as f:
         f.write(f'\n[[objects]]\nname = "visitor"\nshape = "sphere"\nradius = 0.05\n'
                 f"xyz = [{x}, {y}, {z}]\n")
     st = path.stat()  # a distinct mtime even on a coarse-grained file system
     os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))
-    for system in ("decoupled", "strict6"):
-        r = plan(PlanRequest(system, TASK, timeout_s=10.0), SPEC)
+    for planner in ("decoupled", "strict6"):
+        r = plan(PlanRequest(planner, TASK, timeout_s=10.0), SPEC)
         assert not r.success and "in collision" in r.message and "visitor" in r.message
 
 

@@ -64,7 +64,7 @@ def _cmd_tasks(args: argparse.Namespace) -> int:
     except TaskFileError as err:
         raise _usage(str(err)) from None
     rej = ", ".join(f"{k} {v}" for k, v in ts.ik_rejections.items())
-    print(f"kept {len(ts.tasks)} of {ts.candidates} candidates reachable by all three systems "
+    print(f"kept {len(ts.tasks)} of {ts.candidates} candidates reachable by all three planners "
           f"(IK rejections: {rej}) in {elapsed:.1f} s → {out}")
     return 0
 
@@ -142,13 +142,13 @@ def _cmd_transport(args: argparse.Namespace) -> int:
     if not tasks:
         raise _usage("the tasks file holds no tasks")
     sweep = args.tolerance_sweep
-    systems_arg = "strict6" if sweep else args.systems
+    planners_arg = "strict6" if sweep else args.planners
     try:
-        trials = make_trials(tasks, systems_arg.split(","), args.timeout, args.seed,
-                             args.planner, tolerances if sweep else (None,), ts.utensil,
+        trials = make_trials(tasks, planners_arg.split(","), args.timeout, args.seed,
+                             args.algorithm, tolerances if sweep else (None,), ts.utensil,
                              args.spec)
-        systems = tuple(dict.fromkeys(t.system for t in trials))
-        config = RunConfig(ts.sha256, float(args.timeout), args.planner, ts.utensil,
+        planners = tuple(dict.fromkeys(t.planner for t in trials))
+        config = RunConfig(ts.sha256, float(args.timeout), args.algorithm, ts.utensil,
                            spec_hash(spec))
         output_dir("--out", out, ("run.json", "results.jsonl", "tolerance_sweep.jsonl",
                                   "results.csv", "cactus.png", "tolerance_sweep.csv",
@@ -166,7 +166,7 @@ def _cmd_transport(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
 
     log = out / ("tolerance_sweep.jsonl" if sweep else "results.jsonl")
-    solved = dict.fromkeys(systems, 0)
+    solved = dict.fromkeys(planners, 0)
     t0 = time.perf_counter()
     with Progress("[progress.description]{task.description}", BarColumn(),
                   MofNCompleteColumn(), TimeElapsedColumn(), console=err_console) as bar:
@@ -222,16 +222,16 @@ def _cmd_transport(args: argparse.Namespace) -> int:
             Console(width=None if sys.stdout.isatty() else 160).print(t)
             print(f"wrote {out / 'tolerance_sweep.csv'}, {out / 'tolerance_sweep.png'}")
     else:
-        summary = report.summarize(records, systems)
+        summary = report.summarize(records, planners)
         report.write_results_csv(records, out / "results.csv")
-        report.cactus_plot(records, systems, out / "cactus.png", timeout_s=args.timeout)
+        report.cactus_plot(records, planners, out / "cactus.png", timeout_s=args.timeout)
         if args.json:
             print(json.dumps(summary, indent=1))
         else:
             from rich.console import Console
 
             Console(width=None if sys.stdout.isatty() else 160).print(report.render_table(
-                summary, title=f"Exp. 2a transport: {len(tasks)} tasks, {args.planner}, "
+                summary, title=f"Exp. 2a transport: {len(tasks)} tasks, {args.algorithm}, "
                                f"timeout {args.timeout:g} s, seed {args.seed}"))
             med = {s: v["median_time_s"] for s, v in summary.items()}
             d = med.get("decoupled")
@@ -242,7 +242,7 @@ def _cmd_transport(args: argparse.Namespace) -> int:
     err_console.print(f"ran {summary_run.ran} trials in {wall:.1f} s")
     if summary_run.lost:
         for trial, why in summary_run.lost[:5]:
-            err_console.print(f"[red]lost[/] {trial.system} task {trial.task.task_id}: {why}")
+            err_console.print(f"[red]lost[/] {trial.planner} task {trial.task.task_id}: {why}")
         err_console.print(f"{len(summary_run.lost)} trial(s) did not finish (worker failure); "
                           "run the same command again to resume them")
         return 1
@@ -254,6 +254,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     from articutool.bench.executors import MAX_WORKERS
     from articutool.bench.runner import DEFAULT_TOLERANCES_DEG
     from articutool.cli_support import MAX_WAIT_S, add_spec_option, seconds
+    from articutool.planning.types import ALGORITHMS
 
     bench = sub.add_parser("bench", help="Exp. 2a transport benchmark: tasks and runner")
     bsub = bench.add_subparsers(dest="bench_command", required=True, metavar="BENCH_COMMAND")
@@ -266,11 +267,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     add_spec_option(p)
     p.set_defaults(func=_cmd_tasks)
 
-    p = bsub.add_parser("transport", help="run the systems on the tasks (resumable)")
+    p = bsub.add_parser("transport", help="run the planners on the tasks (resumable)")
     p.add_argument("--tasks", metavar="FILE", default=None,
                    help="task file (default: the packaged transport_tasks_v1.json)")
-    p.add_argument("--systems", default="decoupled,strict6,strict8",
-                   help="comma-separated systems (default: all three)")
+    p.add_argument("--systems", dest="planners", metavar="SYSTEMS",
+                   default="decoupled,strict6,strict8",
+                   help="comma-separated planners, the thesis' systems (default: all three)")
     p.add_argument("--timeout", type=seconds(MAX_WAIT_S), default=30.0, metavar="S",
                    help=f"planning timeout per trial, in (0, {MAX_WAIT_S:g}] s (default 30; "
                         "the thesis used 1000)")
@@ -279,7 +281,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", metavar="DIR", default="bench-results",
                    help="results directory; rerun with the same DIR to resume")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
-    p.add_argument("--planner", choices=("rrtconnect", "rrtstar"), default="rrtconnect")
+    p.add_argument("--planner", dest="algorithm", choices=ALGORITHMS, default="rrtconnect",
+                   help="OMPL search algorithm (default: rrtconnect)")
     p.add_argument("--seed", type=int, default=0, help="planner seed (default 0)")
     p.add_argument("--scheduler", metavar="ADDRESS", default=None,
                    help="run on a Dask distributed cluster at ADDRESS instead of locally")

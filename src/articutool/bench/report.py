@@ -1,4 +1,4 @@
-"""Benchmark reports: per-system statistics, the table beside the thesis, CSV and plots.
+"""Benchmark reports: per-planner statistics, the table beside the thesis, CSV and plots.
 
 :func:`summarize` is pure (records → numbers); the writers do the file I/O. Planning-time
 statistics are over the *solved* trials (time to first solution, as in the thesis' cactus
@@ -55,16 +55,16 @@ def _stat(values: Sequence[float], fn: str) -> float | None:
     return float(np.percentile(a, 90))
 
 
-def summarize(records: Iterable[dict[str, Any]], systems: Sequence[str]) -> dict[str, dict]:
-    """Per-system statistics of trial records (see :data:`CSV_FIELDS` for the fields).
+def summarize(records: Iterable[dict[str, Any]], planners: Sequence[str]) -> dict[str, dict]:
+    """Per-planner statistics of trial records (see :data:`CSV_FIELDS` for the fields).
 
-    Keys per system: ``trials``, ``successes``, ``success_rate``, ``median_time_s``,
+    Keys per planner: ``trials``, ``successes``, ``success_rate``, ``median_time_s``,
     ``mean_time_s``, ``p90_time_s`` (solved trials), ``median_path_length``,
     ``median_max_tilt_deg``, ``mean_attempts``, ``verification_rejections`` (total),
-    ``verified`` (trials whose final verification passed; None for strict systems),
+    ``verified`` (trials whose final verification passed; None for strict planners),
     ``errors`` (planner exceptions), and the thesis' figures (``thesis_*``).
     """
-    by: dict[str, list[dict[str, Any]]] = {s: [] for s in systems}
+    by: dict[str, list[dict[str, Any]]] = {s: [] for s in planners}
     for r in records:
         if r.get("system") in by:
             by[r["system"]].append(r)
@@ -98,14 +98,14 @@ def summarize(records: Iterable[dict[str, Any]], systems: Sequence[str]) -> dict
     return out
 
 
-def summarize_sweep(records: Iterable[dict[str, Any]], system: str = "strict6",
+def summarize_sweep(records: Iterable[dict[str, Any]], planner: str = "strict6",
                     ) -> dict[float, dict]:
-    """Per-tolerance statistics (Fig. 5.1) of ``system``'s records, sorted by tolerance."""
+    """Per-tolerance statistics (Fig. 5.1) of ``planner``'s records, sorted by tolerance."""
     by: dict[float, list[dict[str, Any]]] = {}
     for r in records:
-        if r.get("system") == system and r.get("tolerance_deg") is not None:
+        if r.get("system") == planner and r.get("tolerance_deg") is not None:
             by.setdefault(float(r["tolerance_deg"]), []).append(r)
-    return {tol: summarize(by[tol], [system])[system] for tol in sorted(by)}
+    return {tol: summarize(by[tol], [planner])[planner] for tol in sorted(by)}
 
 
 # ------------------------------------------------------------------- text --
@@ -158,7 +158,7 @@ def _csv_value(v: Any) -> Any:
 
 
 def write_results_csv(records: Iterable[dict[str, Any]], path: str | Path) -> Path:
-    """One row per trial, columns :data:`CSV_FIELDS`, sorted by system, tolerance, task."""
+    """One row per trial, columns :data:`CSV_FIELDS`, sorted by planner, tolerance, task."""
     rows = sorted(records, key=lambda r: (str(r.get("system")), r.get("tolerance_deg") or 0.0,
                                           int(r.get("task_id", 0)), int(r.get("seed", 0))))
     f = io.StringIO(newline="")
@@ -185,9 +185,9 @@ def write_sweep_csv(sweep: dict[float, dict], path: str | Path) -> Path:
 _COLORS = {"decoupled": "tab:orange", "strict8": "dimgray", "strict6": "darkgray"}
 
 
-def cactus_plot(records: Iterable[dict[str, Any]], systems: Sequence[str], path: str | Path,
+def cactus_plot(records: Iterable[dict[str, Any]], planners: Sequence[str], path: str | Path,
                 timeout_s: float | None = None) -> Path:
-    """Fig. 6.2: solved problems sorted by planning time (x) vs. time (y, log), per system."""
+    """Fig. 6.2: solved problems sorted by planning time (x) vs. time (y, log), per planner."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -197,7 +197,7 @@ def cactus_plot(records: Iterable[dict[str, Any]], systems: Sequence[str], path:
     recs = list(records)
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
     drawn = 0
-    for s in systems:
+    for s in planners:
         rs = [r for r in recs if r.get("system") == s]
         t = sorted(float(r["planning_time_s"]) for r in rs
                    if r.get("success") and r.get("planning_time_s") is not None)
@@ -227,7 +227,7 @@ def cactus_plot(records: Iterable[dict[str, Any]], systems: Sequence[str], path:
 
 
 def tolerance_sweep_plot(sweep: dict[float, dict], path: str | Path,
-                         system: str = "strict6") -> Path:
+                         planner: str = "strict6") -> Path:
     """Fig. 5.1: success rate and median planning time vs. orientation tolerance."""
     import matplotlib
 
@@ -247,7 +247,7 @@ def tolerance_sweep_plot(sweep: dict[float, dict], path: str | Path,
     ax2.plot(tols, med, "s--", color="tab:red", label="median planning time")
     ax2.set_yscale("log")
     ax2.set_ylabel("median planning time (s)", color="tab:red")
-    ax.set_title(f"{system}: success and time vs. tolerance (cf. thesis Fig. 5.1)")
+    ax.set_title(f"{planner}: success and time vs. tolerance (cf. thesis Fig. 5.1)")
     ax.grid(True, alpha=0.3)
     fig.tight_layout()
     try:

@@ -1,12 +1,12 @@
-"""Exp. 2a runner: every system on every task, in parallel, resumable (thesis §5.2.1).
+"""Exp. 2a runner: every planner on every task, in parallel, resumable (thesis §5.2.1).
 
-A *trial* is one ``(system, task, seed, tolerance)``; :func:`run_trial` (top-level, picklable)
+A *trial* is one ``(planner, task, seed, tolerance)``; :func:`run_trial` (top-level, picklable)
 plans it with :func:`articutool.planning.api.plan` in a worker process and returns a flat
 JSON record. The runner appends each finished trial to a JSON-lines log, flushed and
 fsync'ed line by line, so a crash loses no finished trial; on restart it skips the trials
 already in the log. A torn last line (the crash hit mid-write) is ignored, counted and cut
 off before appending. ``run.json`` beside the log pins the settings that make trials
-comparable (task set, timeout, planner, utensil, spec); a resume with other settings is
+comparable (task set, timeout, search algorithm, utensil, spec); a resume with other settings is
 refused rather than mixing incomparable trials.
 """
 
@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from articutool.bench.executors import Executor
-from articutool.planning.types import PLANNERS, SYSTEMS, PlanRequest, PlanResult, TransportTask
+from articutool.planning.types import ALGORITHMS, PLANNERS, PlanRequest, PlanResult, TransportTask
 from articutool.spec import Spec, load_spec
 
 __all__ = [
@@ -37,7 +37,7 @@ __all__ = [
     "Trial",
     "append_record",
     "make_trials",
-    "parse_systems",
+    "parse_planners",
     "read_log",
     "record_key",
     "run_logged",
@@ -53,19 +53,21 @@ PlanFn = Callable[[PlanRequest, Spec], PlanResult]
 
 
 class RunConfigError(ValueError):
-    """Bad runner input (unknown system, timeout ≤ 0, …) or a resume with other settings."""
+    """Bad runner input (unknown planner, timeout ≤ 0, …) or a resume with other settings."""
 
 
 # ----------------------------------------------------------------- trials --
 @dataclass(frozen=True)
 class Trial:
-    """One planning run: a system on a task with a seed (and, for the sweep, a tolerance)."""
+    """One planning run: a planner on a task with a seed (and, for the sweep, a tolerance);
+    its record keeps the benchmark's keys (``system``: the planner, ``planner``: the
+    algorithm)."""
 
-    system: str
+    planner: str
     task: TransportTask
     seed: int
     timeout_s: float
-    planner: str = "rrtconnect"
+    algorithm: str = "rrtconnect"
     tolerance_deg: float | None = None
     utensil: str = "spoon"
     wrist_aware_timing: bool = True
@@ -73,19 +75,20 @@ class Trial:
 
     @property
     def key(self) -> tuple[str, int, int, float | None]:
-        """Identity in the log: ``(system, task_id, seed, tolerance_deg)``."""
-        return (self.system, self.task.task_id, self.seed, self.tolerance_deg)
+        """Identity in the log: ``(planner, task_id, seed, tolerance_deg)``."""
+        return (self.planner, self.task.task_id, self.seed, self.tolerance_deg)
 
 
-def parse_systems(text: str | Sequence[str]) -> tuple[str, ...]:
+def parse_planners(text: str | Sequence[str]) -> tuple[str, ...]:
     """``"decoupled,strict6"`` → validated, de-duplicated tuple in the given order."""
     names = [s.strip() for s in text.split(",")] if isinstance(text, str) else list(text)
     names = [n for n in names if n]
     if not names:
-        raise RunConfigError(f"--systems must name at least one of {', '.join(SYSTEMS)}")
+        raise RunConfigError(f"--systems must name at least one of {', '.join(PLANNERS)}")
     for n in names:
-        if n not in SYSTEMS:
-            raise RunConfigError(f"--systems: unknown system {n!r}; allowed: {', '.join(SYSTEMS)}")
+        if n not in PLANNERS:
+            raise RunConfigError(f"--systems: unknown system {n!r}; allowed: "
+                                 f"{', '.join(PLANNERS)}")
     return tuple(dict.fromkeys(names))
 
 
@@ -97,28 +100,29 @@ def _check_timeout(timeout_s: float) -> None:
 
 def make_trials(
     tasks: Sequence[TransportTask],
-    systems: Sequence[str],
+    planners: Sequence[str],
     timeout_s: float,
     seed: int = 0,
-    planner: str = "rrtconnect",
+    algorithm: str = "rrtconnect",
     tolerances_deg: Sequence[float | None] = (None,),
     utensil: str = "spoon",
     spec_path: str | None = None,
 ) -> list[Trial]:
-    """All trials, task-major (every system on task 0, then task 1, …) so a partial run is
-    balanced across systems. Validates everything first (raises :class:`RunConfigError`)."""
-    systems = parse_systems(systems)
+    """All trials, task-major (every planner on task 0, then task 1, …) so a partial run is
+    balanced across planners. Validates everything first (raises :class:`RunConfigError`)."""
+    planners = parse_planners(planners)
     _check_timeout(timeout_s)
-    if planner not in PLANNERS:
-        raise RunConfigError(f"--planner must be one of {', '.join(PLANNERS)}; got {planner!r}")
+    if algorithm not in ALGORITHMS:
+        raise RunConfigError(f"--planner must be one of {', '.join(ALGORITHMS)}; "
+                             f"got {algorithm!r}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise RunConfigError(f"--seed must be an integer >= 0; got {seed!r}")
     for tol in tolerances_deg:
         if tol is not None and not (math.isfinite(tol) and 0 < tol < 90):
             raise RunConfigError(f"tolerances must be in (0, 90) degrees; got {tol!r}")
     return [
-        Trial(system, task, seed, float(timeout_s), planner, tol, utensil, True, spec_path)
-        for tol in tolerances_deg for task in tasks for system in systems
+        Trial(planner, task, seed, float(timeout_s), algorithm, tol, utensil, True, spec_path)
+        for tol in tolerances_deg for task in tasks for planner in planners
     ]
 
 
@@ -142,7 +146,8 @@ def run_trial(trial: Trial, plan_fn: PlanFn | None = None) -> dict[str, Any]:
     trial does not stop the benchmark.
     """
     request = PlanRequest(
-        system=trial.system, task=trial.task, timeout_s=trial.timeout_s, planner=trial.planner,
+        planner=trial.planner, task=trial.task, timeout_s=trial.timeout_s,
+        algorithm=trial.algorithm,
         seed=trial.seed, tolerance_deg=trial.tolerance_deg,
         wrist_aware_timing=trial.wrist_aware_timing, utensil=trial.utensil,
     )
@@ -152,12 +157,12 @@ def run_trial(trial: Trial, plan_fn: PlanFn | None = None) -> dict[str, Any]:
         rec = fn(request, _spec(trial.spec_path)).to_record()
     except Exception as err:  # a planner bug must not take the whole benchmark down
         error = f"{type(err).__name__}: {err}"
-        rec = {"system": trial.system, "task_id": trial.task.task_id, "success": False,
+        rec = {"system": trial.planner, "task_id": trial.task.task_id, "success": False,
                "planning_time_s": None, "attempts": 0, "verification_rejections": 0,
                "path_length": None, "max_tilt_deg": None, "verified": None,
                "message": error, "duration_s": None}
     rec.update({"seed": trial.seed, "tolerance_deg": trial.tolerance_deg,
-                "planner": trial.planner, "timeout_s": trial.timeout_s, "error": error})
+                "planner": trial.algorithm, "timeout_s": trial.timeout_s, "error": error})
     return rec
 
 
@@ -304,17 +309,18 @@ def append_record(fd: int, rec: dict[str, Any]) -> None:
 # ----------------------------------------------------------------- config --
 @dataclass(frozen=True)
 class RunConfig:
-    """Settings that make trials in one log comparable (stored as ``run.json``)."""
+    """Settings that make trials in one log comparable (stored as ``run.json``; its
+    ``planner`` is the search algorithm)."""
 
     tasks_sha256: str
     timeout_s: float
-    planner: str
+    algorithm: str
     utensil: str
     spec_hash: str
 
     def to_dict(self) -> dict[str, Any]:
         return {"tasks_sha256": self.tasks_sha256, "timeout_s": self.timeout_s,
-                "planner": self.planner, "utensil": self.utensil, "spec_hash": self.spec_hash}
+                "planner": self.algorithm, "utensil": self.utensil, "spec_hash": self.spec_hash}
 
     def check_or_write(self, path: Path) -> None:
         """Write ``path`` on a fresh run; on a resume refuse differing settings."""
@@ -445,7 +451,7 @@ def run_trials(
 
 
 def select(records: Iterable[dict[str, Any]], trials: Sequence[Trial]) -> list[dict[str, Any]]:
-    """The records of ``trials`` (a log may hold more, e.g. other seeds or systems)."""
+    """The records of ``trials`` (a log may hold more, e.g. other seeds or planners)."""
     wanted = {t.key for t in trials}
     out: dict[tuple[str, int, int, float | None], dict[str, Any]] = {}
     for r in records:

@@ -1,7 +1,7 @@
 """Exp. 2a benchmark tasks: level (start, goal) transports from the plate/bowl to the user.
 
 Thesis §5.2.1: a candidate set of (start, goal) transport tasks with level tool orientation
-at both ends is filtered down to the tasks that all three systems reach by IK (the "common
+at both ends is filtered down to the tasks that all three planners reach by IK (the "common
 IK-filtered set"). Here a candidate is a pair of tool-tip targets in the feeding scene
 (docs/hardware.md §2, ``data/scene.toml``):
 
@@ -9,7 +9,7 @@ IK-filtered set"). Here a candidate is a pair of tool-tip targets in the feeding
 * goal: a staging pose in front of the user's mouth, level, the utensil pointing at the user.
 
 Each target is a full tip pose (position + level orientation with a sampled heading). For
-every system the target is solved by closed-loop IK (CLIK, damped least squares on the SE(3)
+every planner the target is solved by closed-loop IK (CLIK, damped least squares on the SE(3)
 log error, Pinocchio) from several seeds — the named configurations first, then random ones:
 
 * ``strict6``: the 6-DOF arm with the rigid utensil (wrist locked at 0), tip frame;
@@ -20,7 +20,7 @@ log error, Pinocchio) from several seeds — the named configurations first, the
 
 A solution counts when it is within the joint limits, on target, and collision-free (arm,
 wrist, utensil vs. themselves and the scene). The stored configuration is the one shared by
-the three systems: the 6 arm joints, and for the 8-DOF start/goal the leveling wrist angles
+the three planners: the 6 arm joints, and for the 8-DOF start/goal the leveling wrist angles
 at that arm configuration. Generation is deterministic given the seed; the file records the
 seed, the generator version and hashes of the spec and scene it was made with.
 
@@ -45,7 +45,7 @@ from articutool.bench.taskfile import (
     scene_hash,
     spec_hash,
 )
-from articutool.planning.types import SYSTEMS, TransportTask
+from articutool.planning.types import PLANNERS, TransportTask
 from articutool.spec import Spec
 from articutool.tool.kinematics import nearest_leveling_solution, tilt_from_vertical
 
@@ -142,7 +142,7 @@ def _sample_goal(scene: Scene, rng: np.random.Generator) -> _Target:
     return _Target(p, heading)
 
 
-# ---------------------------------------------------------------- systems --
+# ---------------------------------------------------------------- planners --
 @dataclass
 class _Models:
     spec: Spec
@@ -163,18 +163,18 @@ class _Models:
         q, found = nearest_leveling_solution(R.T @ _WORLD_UP, self.spec.wrist.limits, [0.0, 0.0])
         return q if bool(found) else None
 
-    def solve(self, system: str, target: _Target, seeds: Sequence[NDArray[np.float64]],
+    def solve(self, planner: str, target: _Target, seeds: Sequence[NDArray[np.float64]],
               nearest_to: NDArray[np.float64] | None = None) -> NDArray[np.float64] | None:
-        """IK of ``target`` for one system; returns its configuration (6 or 8 joints).
+        """IK of ``target`` for one planner; returns its configuration (6 or 8 joints).
 
         Without ``nearest_to`` the first seed that converges wins; with it every seed is
         tried and the arm solution nearest to ``nearest_to`` (whole turns of continuous
         joints ignored) is returned.
         """
         if nearest_to is None:
-            return next(self._solutions(system, target, seeds), None)
+            return next(self._solutions(planner, target, seeds), None)
         best, dist = None, np.inf
-        for q in self._solutions(system, target, seeds):
+        for q in self._solutions(planner, target, seeds):
             d = self.distance(q, nearest_to)
             if d < dist:
                 best, dist = q, d
@@ -186,32 +186,32 @@ class _Models:
         d = np.where(self.continuous, np.minimum(d % (2 * np.pi), -d % (2 * np.pi)), d)
         return float(np.linalg.norm(d))
 
-    def solve_pair(self, system: str, start: _Target, goal: _Target,
+    def solve_pair(self, planner: str, start: _Target, goal: _Target,
                    s_seeds: Sequence[NDArray[np.float64]],
                    g_seeds: Sequence[NDArray[np.float64]],
                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
-        """Start and goal solutions of one system, the pair nearest in joint space.
+        """Start and goal solutions of one planner, the pair nearest in joint space.
 
         Start and goal on different IK branches (elbow or wrist flipped) may not connect
         under a level constraint, so every start solution is tried with the goal solution
         nearest to it (the goal seeded from that start first).
         """
         best, dist = None, np.inf
-        for qs in _unique(self._solutions(system, start, s_seeds), self.distance):
-            qg = self.solve(system, goal, [qs[:6], *g_seeds], nearest_to=qs)
+        for qs in _unique(self._solutions(planner, start, s_seeds), self.distance):
+            qg = self.solve(planner, goal, [qs[:6], *g_seeds], nearest_to=qs)
             if qg is not None and self.distance(qs, qg) < dist:
                 best, dist = (qs, qg), self.distance(qs, qg)
         return best
 
-    def _solutions(self, system: str, target: _Target,
+    def _solutions(self, planner: str, target: _Target,
                    seeds: Sequence[NDArray[np.float64]]) -> Iterator[NDArray[np.float64]]:
         T = target.pose()
         for seed in seeds:
-            if system == "strict6":
+            if planner == "strict6":
                 q = solve_pose_ik(self.m6, "tip", T, seed, self.settings)
                 if q is not None and not self.m6.in_collision(q):
                     yield q
-            elif system == "strict8":
+            elif planner == "strict8":
                 q = solve_pose_ik(self.m8, "tip", T, np.concatenate([seed, [0.0, 0.0]]),
                                   self.settings)
                 if q is not None and not self.m8.in_collision(q):
@@ -250,7 +250,7 @@ def generate_tasks(
     settings: IKSettings | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> TaskSet:
-    """Sample ``count`` candidate tasks and keep those all three systems reach by IK.
+    """Sample ``count`` candidate tasks and keep those all three planners reach by IK.
 
     Deterministic given ``seed`` (NumPy PCG64 stream; Pinocchio IK is deterministic).
     ``progress(k)`` is called after each candidate. Task ids are the candidate indices.
@@ -273,7 +273,7 @@ def generate_tasks(
     goal_order += [n for n in named if n not in goal_order]
     ref_start = named.get("AbovePlate", np.zeros(6))
     rng = np.random.default_rng(seed)
-    rejections = dict.fromkeys(SYSTEMS, 0)
+    rejections = dict.fromkeys(PLANNERS, 0)
     tasks: list[TransportTask] = []
     extras: list[dict[str, Any]] = []
     for k in range(count):
@@ -284,13 +284,13 @@ def generate_tasks(
         g_seeds = [named[n] for n in goal_order] + rand[settings.random_seeds:]
         ok = True
         sol: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
-        for system in SYSTEMS:
-            pair = models.solve_pair(system, start_t, goal_t, s_seeds, g_seeds)
+        for planner in PLANNERS:
+            pair = models.solve_pair(planner, start_t, goal_t, s_seeds, g_seeds)
             if pair is None:
-                rejections[system] += 1
+                rejections[planner] += 1
                 ok = False
             else:
-                sol[system] = pair
+                sol[planner] = pair
         if progress is not None:
             progress(k + 1)
         if not ok:

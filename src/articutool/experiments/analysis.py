@@ -396,8 +396,9 @@ def meaningful_at(records: Sequence[TrialRecord], systems: Sequence[str],
 def summarize_exp2a(records: Sequence[Mapping[str, Any]], timeout_s: float,
                     decoupled: str = "decoupled") -> dict[str, Any]:
     """The transport planning benchmark (Exp. 2a, ``articutool bench transport``'s records),
-    ``decoupled`` against each strict system: tasks solved (Fisher, Boschloo; Newcombe's
-    interval of the difference) and planning time. Times: the ratio of the strict system's
+    ``decoupled`` against each strict planner (a record's ``system``): tasks solved (Fisher,
+    Boschloo; Newcombe's interval of the difference) and planning time. Times: the ratio of
+    the strict planner's
     median to the decoupled one's over the solved tasks (the thesis' medians), with the
     bootstrap interval; Mann–Whitney, Welch and the Wilcoxon signed-rank test (tasks
     paired) over every task, a failed plan counted as taking the whole ``timeout_s``."""
@@ -413,12 +414,12 @@ def summarize_exp2a(records: Sequence[Mapping[str, Any]], timeout_s: float,
         return [float(r["planning_time_s"]) for r in rs if r.get("success")]
 
     every = [t for rs in by.values() for t in solved(rs.values())]
-    out: dict[str, Any] = {"timeout_s": timeout_s, "systems": {}, "against": {},
+    out: dict[str, Any] = {"timeout_s": timeout_s, "planners": {}, "against": {},
                            "max_solved_s": max(every) if every else None}
     for name, rs in by.items():
         t = solved(rs.values())
-        out["systems"][name] = {"tasks": len(rs), "solved": len(t),
-                                "median_s": float(np.median(t)) if t else None}
+        out["planners"][name] = {"tasks": len(rs), "solved": len(t),
+                                 "median_s": float(np.median(t)) if t else None}
     dec = by.get(decoupled, {})
     for name, rs in by.items():
         if name == decoupled or not dec:

@@ -227,15 +227,16 @@ def capacity_strategy(strategy: Any, scoop: Any) -> Any:
     """The food's Articutool strategy with the capacity scoop's path (``scoop``: depth, drag,
     offset, the pitch it levels to in the food) and no primitive: the scoop lifts what it
     gathered and sheds nothing on purpose."""
-    from articutool.feeding.strategies import Stage, Stages
+    from articutool.feeding.strategies import AcquisitionStages, PrimitiveStage
 
-    none = Stage(primitive="NONE", params=[])
+    none = PrimitiveStage(primitive="NONE", params=[])
     ins = strategy.insertion.model_copy(update={
         "motion": "sweep", "depth_m": scoop.depth_m, "drag_m": scoop.drag_m,
         "offset_m": scoop.offset_m, "sweep_to_deg": scoop.sweep_to_deg})
     return strategy.model_copy(update={
         "insertion": ins,
-        "stages": Stages(pre_move_into=none, post_move_into=none, post_acquisition=none)})
+        "stages": AcquisitionStages(pre_move_into=none, post_move_into=none,
+                                    post_acquisition=none)})
 
 
 def exp2b_trial(cond: Exp2bCondition, seed: int, cfg: ExperimentsConfig,

@@ -808,7 +808,7 @@ def _sec_exp2a(s: Mapping[str, Any], run: Mapping[str, Any], cfg: Any, where: st
     """The planning benchmark beside the thesis' Fig. 6.2 (our records at ``where``)."""
     th = cfg.thesis.get("exp2a", {})
     rows = []
-    for name, v in s["systems"].items():
+    for name, v in s["planners"].items():
         t = th.get(name, {})
         med = v.get("median_s")
         rows.append([name, f"{v['solved']}/{v['tasks']}",
@@ -840,13 +840,13 @@ def deviation_facts(summaries: Mapping[str, Mapping[str, Any]],
     a2 = summaries.get("exp2a")
     if a2:
         f["exp2a_timeout_s"] = f"{a2['timeout_s']:g}"
-        f["exp2a_planner"] = str(a2.get("planner", "?"))
-        f["exp2a_tasks"] = str(max((v["tasks"] for v in a2["systems"].values()), default=0))
+        f["exp2a_algorithm"] = str(a2.get("algorithm", "?"))
+        f["exp2a_tasks"] = str(max((v["tasks"] for v in a2["planners"].values()), default=0))
         if a2.get("max_solved_s") is not None:
             f["exp2a_max_solved_s"] = f"{a2['max_solved_s']:.1f}"
         f["exp2a_unsolved"] = ", ".join(
             f"{k} {v['tasks'] - v['solved']} of {v['tasks']}"
-            for k, v in a2["systems"].items()) or "–"
+            for k, v in a2["planners"].items()) or "–"
     ok2b = [r for r in records.get("exp2b", ()) if not r.error and r.outcome is not None]
     if ok2b:
         f["exp2b_loads"] = ", ".join(f"{k} {g:g} g" for k, g in cfg.exp2b.load_g.items())
@@ -1037,7 +1037,7 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
     run2a, recs2a = read_exp2a(exp2a) if exp2a is not None else (None, [])
     if run2a is not None and recs2a:
         summaries["exp2a"] = {**summarize_exp2a(recs2a, float(run2a["timeout_s"])),
-                              "planner": run2a.get("planner")}
+                              "algorithm": run2a.get("planner")}
         parts.append(_sec_exp2a(summaries["exp2a"], run2a, cfg, str(exp2a)))
     checks = []
     for exp in ORDER:

@@ -164,7 +164,7 @@ def _exp2a(s: Mapping[str, Any], th: Mapping[str, Any], alpha: float, tests: Map
     out = []
     dec = "decoupled"
     tdec = th.get(dec, {})
-    sysd = s.get("systems", {})
+    sysd = s.get("planners", {})
     for base, v in s.get("against", {}).items():
         tb = th.get(base, {})
         ours_d, ours_b = sysd.get(dec, {}), sysd.get(base, {})

@@ -11,7 +11,7 @@ runtime or a client over Zenoh, and the simulated user or a real one. Long actio
 What the behaviours of one tree share is that tree's own :class:`Board`, passed to each
 behaviour when the tree is built (never py_trees' process-global blackboard): two trees in two
 threads of one process, e.g. two trials in one Dask worker, share nothing. Attempt counts live
-on the :class:`Attempts` nodes themselves.
+on the :class:`CountedRetry` nodes themselves.
 """
 
 from __future__ import annotations
@@ -30,10 +30,10 @@ from articutool.tool.api import ABORTED_BY_MODE_CHANGE, Mode, ToolAPI
 
 __all__ = [
     "ArmInterface",
-    "Attempts",
     "BiteStage",
     "Board",
     "CheckFood",
+    "CountedRetry",
     "Execute",
     "Job",
     "JobResult",
@@ -272,7 +272,7 @@ class TakeBite(py_trees.behaviour.Behaviour):
 
 
 class BiteStage(py_trees.composites.Sequence):
-    """One stage of a bite (``stage``: a name of :data:`articutool.feeding.bite.STAGES`),
+    """One stage of a bite (``stage``: a name of :data:`articutool.feeding.bite.BITE_STAGES`),
     the sequence of its steps; what watches the bite (telemetry, the food at each stage's
     end, the progress display) finds the stages by this class."""
 
@@ -488,7 +488,7 @@ class ToolModeScope(py_trees.decorators.Decorator):
         super().stop(new_status)
 
 
-class Attempts(py_trees.decorators.Retry):
+class CountedRetry(py_trees.decorators.Retry):
     """py_trees' Retry, counting its attempts on itself (``count``: the attempt in progress,
     or the attempts used once it ended; 0 before it first ran) under ``key`` (the name a
     bite's record reports it by), and not mistaking a child left INVALID (e.g. by a

@@ -1,6 +1,6 @@
 """One bite as a py_trees tree, from subtrees that each run alone (thesis §3.2.1, §4.3, §4.4).
 
-Stages, in order (:data:`STAGES`; a bite may run any ordered subset, e.g. Exp. 1 runs
+Stages, in order (:data:`BITE_STAGES`; a bite may run any ordered subset, e.g. Exp. 1 runs
 ``above, acquire, resting``):
 
 - ``above``:   move to AbovePlate (a preparatory motion, empty utensil: no verification),
@@ -43,9 +43,9 @@ import py_trees
 
 from articutool.feeding.behaviours import (
     ArmInterface,
-    Attempts,
     BiteStage,
     Board,
+    CountedRetry,
     Execute,
     PlanLift,
     PlanPath,
@@ -57,14 +57,14 @@ from articutool.feeding.behaviours import (
     User,
 )
 from articutool.feeding.insertion import TipWaypoint
-from articutool.feeding.strategies import Stage, Strategy
+from articutool.feeding.strategies import PrimitiveStage, Strategy
 from articutool.feeding.system import LOOSE, System
 from articutool.feeding.tree import guarded, motion, motion_steps
 from articutool.tool.api import Mode, ToolAPI
 
-__all__ = ["STAGES", "BiteSettings", "bite_tree", "stage_tree"]
+__all__ = ["BITE_STAGES", "BiteSettings", "bite_tree", "stage_tree"]
 
-STAGES = ("above", "acquire", "shed", "resting", "staging", "present", "return")
+BITE_STAGES = ("above", "acquire", "shed", "resting", "staging", "present", "return")
 
 
 @dataclass(frozen=True)
@@ -91,7 +91,7 @@ def _path(arm: ArmInterface, what: str, waypoints: Sequence[TipWaypoint], board:
                                      Execute(arm, what, tool, clock, board=board)])
 
 
-def _primitive(tool: ToolAPI, stage: Stage, name: str, carry: Mode, board: Board
+def _primitive(tool: ToolAPI, stage: PrimitiveStage, name: str, carry: Mode, board: Board
                ) -> py_trees.behaviour.Behaviour:
     run = RunPrimitive(tool, stage.primitive, stage.params, name, board=board)
     if stage.is_none:
@@ -130,7 +130,7 @@ def stage_tree(name: str, arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
             PlanLift(arm, settings.lift_m, board=board), Execute(arm, "lift", board=board)]))
         # Bounded retries of the whole acquisition (each from the above-food pose).
         n = strategy.attempts.acquire
-        return BiteStage("acquire", [Attempts(seq("acquire steps", memory=True, children=steps),
+        return BiteStage("acquire", [CountedRetry(seq("acquire steps", memory=True, children=steps),
                                               n, "acquisition_attempts")])
     if name == "shed":
         steps = [_primitive(tool, st.post_acquisition, "post-acquisition", carry, board)]
@@ -150,22 +150,22 @@ def stage_tree(name: str, arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
     if name == "return":
         return BiteStage("return", motion_steps(arm, "Resting", system.home, **plan_kw),
                          name="return to Resting")
-    raise ValueError(f"stage: unknown stage {name!r}; known: {', '.join(STAGES)}")
+    raise ValueError(f"stage: unknown stage {name!r}; known: {', '.join(BITE_STAGES)}")
 
 
 def bite_tree(arm: ArmInterface, tool: ToolAPI, strategy: Strategy,
               waypoints: dict[str, list[TipWaypoint]], clock: Callable[[], float], *,
-              system: System, user: User, stages: Sequence[str] = STAGES,
+              system: System, user: User, stages: Sequence[str] = BITE_STAGES,
               settings: BiteSettings = BiteSettings()) -> py_trees.behaviour.Behaviour:
     """One bite of ``strategy`` with ``system`` (see the module doc): ``stages`` in
-    :data:`STAGES` order; ``user`` takes the bite at the end of ``present``. The tree's
+    :data:`BITE_STAGES` order; ``user`` takes the bite at the end of ``present``. The tree's
     behaviours share a :class:`~articutool.feeding.behaviours.Board` of its own
     (:func:`~articutool.feeding.tree.board_of`)."""
-    unknown = [s for s in stages if s not in STAGES]
+    unknown = [s for s in stages if s not in BITE_STAGES]
     if unknown or not stages:
-        raise ValueError(f"stages: unknown or empty {unknown}; known: {', '.join(STAGES)}")
-    if list(stages) != sorted(stages, key=STAGES.index):
-        raise ValueError(f"stages must be in the order {', '.join(STAGES)}")
+        raise ValueError(f"stages: unknown or empty {unknown}; known: {', '.join(BITE_STAGES)}")
+    if list(stages) != sorted(stages, key=BITE_STAGES.index):
+        raise ValueError(f"stages must be in the order {', '.join(BITE_STAGES)}")
     carry, board = system.carry, Board()
     # Before acquisition the utensil is empty: the wrist holds (DISABLED); the carry mode
     # starts with the tool-only leveling inside ``acquire``.

@@ -27,9 +27,11 @@ from articutool.tool.primitive_base import PrimitiveError
 from articutool.tool.primitives import make_primitive, primitive_names
 
 __all__ = [
+    "ACQUISITION_STAGES",
     "NONE",
-    "STAGES",
-    "Stage",
+    "AcquisitionStages",
+    "AttemptLimits",
+    "PrimitiveStage",
     "Strategy",
     "StrategyError",
     "StrategyLibrary",
@@ -37,21 +39,21 @@ __all__ = [
 ]
 
 NONE = "NONE"
-STAGES = ("pre_move_into", "post_move_into", "post_acquisition")
+ACQUISITION_STAGES = ("pre_move_into", "post_move_into", "post_acquisition")
 
 
 class StrategyError(ValueError):
     """A strategy file is missing, malformed or holds an invalid strategy."""
 
 
-class Stage(StrictModel):
+class PrimitiveStage(StrictModel):
     """One primitive slot: a registered primitive and its parameters, or ``NONE``."""
 
     primitive: Annotated[str, Field(min_length=1)]
     params: list[float] = Field(default_factory=list)
 
     @model_validator(mode="after")
-    def _known(self) -> Stage:
+    def _known(self) -> PrimitiveStage:
         if self.primitive == NONE:
             if self.params:
                 raise ValueError("NONE takes no params")
@@ -118,12 +120,12 @@ class Insertion(StrictModel):
         return self
 
 
-class Stages(StrictModel):
+class AcquisitionStages(StrictModel):
     """The three primitive stages (thesis §4.4)."""
 
-    pre_move_into: Stage
-    post_move_into: Stage
-    post_acquisition: Stage
+    pre_move_into: PrimitiveStage
+    post_move_into: PrimitiveStage
+    post_acquisition: PrimitiveStage
 
 
 class Transport(StrictModel):
@@ -149,8 +151,9 @@ class Transport(StrictModel):
         return self
 
 
-class Attempts(StrictModel):
-    """Bounded retries."""
+class AttemptLimits(StrictModel):
+    """The most attempts a strategy makes: plans per goal (``plan``) and acquisitions
+    (``acquire``)."""
 
     plan: Annotated[int, Field(ge=1, le=20)]
     acquire: Annotated[int, Field(ge=1, le=10)]
@@ -165,14 +168,14 @@ class Strategy(StrictModel):
     weight: Positive = 1.0
     approach: Approach
     insertion: Insertion
-    stages: Stages
+    stages: AcquisitionStages
     transport: Transport
-    attempts: Attempts
+    attempts: AttemptLimits
 
     @model_validator(mode="after")
     def _baseline_is_rigid(self) -> Strategy:
         if self.system == "baseline":
-            used = [n for n in STAGES if not getattr(self.stages, n).is_none]
+            used = [n for n in ACQUISITION_STAGES if not getattr(self.stages, n).is_none]
             if used:
                 raise ValueError(f"a baseline locks the wrist: stages {used} must be NONE")
             if self.insertion.extract_pitch_down_deg != 0:
@@ -207,8 +210,8 @@ class StrategyLibrary(StrictModel):
                 raise StrategyError(f"invalid strategy file {source}: strategies.{name}.utensil:"
                                     f" unknown utensil {s.utensil!r}; known: "
                                     f"{sorted(spec.utensils)}")
-            for stage in STAGES:
-                st: Stage = getattr(s.stages, stage)
+            for stage in ACQUISITION_STAGES:
+                st: PrimitiveStage = getattr(s.stages, stage)
                 if st.is_none:
                     continue
                 try:  # names, parameter count and ranges, as the tool would check them

@@ -26,10 +26,10 @@ SYSTEMS = ("articutool", "baseline")
 
 @dataclass(frozen=True)
 class Planner:
-    """How the tree plans a move: the planner (a system of :mod:`articutool.planning`, by
-    its name, as the arm is asked for it), whether each plan is verified before it runs
-    (plan-then-verify, Alg. 2), and a strict planner's tolerance band (None for the decoupled
-    planner, whose band is the spec's)."""
+    """How the tree plans a move: the planner (one of
+    :data:`articutool.planning.types.PLANNERS`, by its name, as the arm is asked for it),
+    whether each plan is verified before it runs (plan-then-verify, Alg. 2), and a strict
+    planner's tolerance band (None for the decoupled planner, whose band is the spec's)."""
 
     name: str
     verified: bool

@@ -14,7 +14,7 @@ Shape of :func:`transport_tree`::
       EternalGuard "Unsafe?"    -> Safe stop (py_trees' EternalGuard: checked every tick)
       ToolModeScope <carry mode> (then DISABLED)
         Sequence "transport"
-          Attempts "up to N attempts"    (planning_attempts_<goal>, counted on the node)
+          CountedRetry "up to N attempts" (planning_attempts_<goal>, counted on the node)
             Sequence "plan+verify"  Plan (the planner's own budget) -> Verify
                                     [-> Check the food: retime until predicted spill-free]
           Execute motion            (a slosh-free wrist trajectory goes to the tool; then
@@ -40,9 +40,9 @@ from py_trees.common import Status
 
 from articutool.feeding.behaviours import (
     ArmInterface,
-    Attempts,
     Board,
     CheckFood,
+    CountedRetry,
     Execute,
     Plan,
     PlanPath,
@@ -92,7 +92,7 @@ def motion_steps(arm: ArmInterface, goal: str, planner: Planner, *, attempts: in
     if food:
         steps.append(CheckFood(arm, board=board))
     plan_verify = py_trees.composites.Sequence("plan+verify", memory=True, children=steps)
-    tries = Attempts(plan_verify, attempts, f"planning_attempts_{goal}")
+    tries = CountedRetry(plan_verify, attempts, f"planning_attempts_{goal}")
     return [tries, Execute(arm, f"to {goal}", tool, clock, then, board=board)]
 
 
@@ -107,7 +107,7 @@ def motion(arm: ArmInterface, goal: str, planner: Planner, *, attempts: int, bud
     (:class:`CheckFood`: retimed until predicted spill-free, or re-planned); with ``tool``
     and ``clock`` a trajectory carrying the wrist's joints (slosh-free leveling) sends them
     to the tool, whose mode is ``then`` afterwards. The steps share ``board`` (the tree's);
-    attempts are counted on the :class:`~articutool.feeding.behaviours.Attempts` node, keyed
+    attempts are counted on the :class:`~articutool.feeding.behaviours.CountedRetry` node, keyed
     ``planning_attempts_<goal>``."""
     return py_trees.composites.Sequence(
         f"move to {goal}", memory=True,
@@ -135,13 +135,13 @@ def board_of(root: py_trees.behaviour.Behaviour) -> Board:
 
 
 def attempts_used(root: py_trees.behaviour.Behaviour) -> dict[str, int]:
-    """The attempts each :class:`~articutool.feeding.behaviours.Attempts` node of the tree
+    """The attempts each :class:`~articutool.feeding.behaviours.CountedRetry` node of the tree
     under ``root`` used in its last run, by key (``planning_attempts_<goal>``,
     ``acquisition_attempts``); of two nodes with one key (a stage's move to Resting and the
     retreat's), the later in tree order that ran."""
     used: dict[str, int] = {}
     for node in root.iterate():
-        if isinstance(node, Attempts) and node.count > 0:
+        if isinstance(node, CountedRetry) and node.count > 0:
             used[node.key] = node.count
     return used
 

@@ -31,8 +31,8 @@ from numpy.typing import NDArray
 from py_trees.common import Status
 
 from articutool.arm.scene import SCOOP_HEADING, Cylinder, Scene
-from articutool.feeding.behaviours import Attempts, BiteStage, TakeBite
-from articutool.feeding.bite import STAGES, BiteSettings, bite_tree
+from articutool.feeding.behaviours import BiteStage, CountedRetry, TakeBite
+from articutool.feeding.bite import BITE_STAGES, BiteSettings, bite_tree
 from articutool.feeding.insertion import acquisition_waypoints, dish_outline
 from articutool.feeding.outcomes import classify_bite
 from articutool.feeding.strategies import Strategy, StrategyLibrary
@@ -282,12 +282,12 @@ def _tree(setup: MealSetup, stages: Sequence[str], settings: BiteSettings,
                      system=setup.system, user=SimUser(w), stages=stages, settings=settings)
 
 
-def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
+def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = BITE_STAGES,
              threshold_g: float | None = None, settings: BiteSettings = DEFAULT_SETTINGS,
              root: py_trees.behaviour.Behaviour | None = None, timeout_s: float = 240.0,
              visitors: Sequence[py_trees.visitors.VisitorBase] = (),
              tool: ToolAPI | None = None) -> BiteResult:
-    """Run one bite (``stages`` of :data:`~articutool.feeding.bite.STAGES`) and return its
+    """Run one bite (``stages`` of :data:`~articutool.feeding.bite.BITE_STAGES`) and return its
     record. ``timeout_s`` is simulated time not counting the waits for plans (those depend on
     the machine's speed; each plan ends within the planner's own budget). ``root``: a tree
     from an earlier bite of the same meal (the same tree runs again);
@@ -300,7 +300,7 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = STAGES,
         root = _tree(setup, stages, settings, tool)
     ledger = StageLedger(w)
     for n in root.iterate():  # the same tree runs every bite of a meal: count this bite's only
-        if isinstance(n, Attempts):
+        if isinstance(n, CountedRetry):
             n.count = 0
     t0, wall0, n_spills = w.time, time.perf_counter(), len(w.spills)
     before = w.masses_g()
@@ -386,7 +386,7 @@ def run_meal(food: str, system: str, *, bites: int = 1, seed: int = 0,
     """N bites of ``food`` with ``system`` with the same tree (one strategy per meal, drawn
     with ``seed``); a failed bite retreats to Resting and the meal goes on."""
     setup = setup or make_bite_world(food, system, seed, strategies=strategies)
-    root = _tree(setup, STAGES, settings)
+    root = _tree(setup, BITE_STAGES, settings)
     out = []
     try:
         for k in range(bites):

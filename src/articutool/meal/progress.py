@@ -15,7 +15,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.text import Text
 
-from articutool.feeding.behaviours import Attempts, BiteStage
+from articutool.feeding.behaviours import BiteStage, CountedRetry
 
 __all__ = ["TreeProgress"]
 
@@ -57,8 +57,8 @@ class TreeProgress(py_trees.visitors.SnapshotVisitor):
         tip = self.root.tip()
         path = _ancestry(tip)
         where = " › ".join(n.name for n in path if isinstance(n, BiteStage) or n is tip)
-        attempts = "".join(f" (attempt {n.count})" for n in path
-                           if isinstance(n, Attempts) and n.key.startswith("planning_attempts_"))
+        attempts = "".join(f" (attempt {n.count})" for n in path if isinstance(n, CountedRetry)
+                           and n.key.startswith("planning_attempts_"))
         line = f"{where}{attempts}"
         if line != self.last:
             feedback = tip.feedback_message if tip is not None else ""

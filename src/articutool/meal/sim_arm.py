@@ -306,7 +306,7 @@ class SimArm:
         """Plan from where the arm is to ``goal`` with ``planner`` in a worker thread."""
         start = tuple(float(x) for x in self.world.arm_q)
         target = tuple(float(x) for x in self.goal_configuration(goal))
-        req = PlanRequest(system=planner.name, task=TransportTask(0, start, target),
+        req = PlanRequest(planner=planner.name, task=TransportTask(0, start, target),
                           timeout_s=budget_s, seed=self.seed, utensil=self.world.utensil,
                           tolerance_deg=planner.tolerance_deg)
         spec = self.world.spec

@@ -1,6 +1,6 @@
 """Transport planning API shared by the planners and the Exp. 2a benchmark runner.
 
-Three systems (thesis Ch. 5, Exp. 2a):
+Three planners (the thesis' three systems, Ch. 5, Exp. 2a):
 
 * ``decoupled`` — 6-DOF arm path under a loose tool-base orientation constraint, time
   parameterisation, then plan-then-verify (Alg. 2) with the wrist leveling the utensil.
@@ -15,8 +15,8 @@ from __future__ import annotations
 import math
 
 from articutool.planning.types import (
+    ALGORITHMS,
     PLANNERS,
-    SYSTEMS,
     PlanRequest,
     PlanResult,
 )
@@ -27,10 +27,10 @@ __all__ = ["plan", "validate_request"]
 
 def validate_request(request: PlanRequest) -> None:
     """Raise ``ValueError`` naming the field and allowed values for a malformed request."""
-    if request.system not in SYSTEMS:
-        raise ValueError(f"system must be one of {SYSTEMS}; got {request.system!r}")
     if request.planner not in PLANNERS:
         raise ValueError(f"planner must be one of {PLANNERS}; got {request.planner!r}")
+    if request.algorithm not in ALGORITHMS:
+        raise ValueError(f"algorithm must be one of {ALGORITHMS}; got {request.algorithm!r}")
     t = request.timeout_s
     if isinstance(t, bool) or not isinstance(t, int | float) or not math.isfinite(t) or t <= 0:
         raise ValueError(f"timeout_s must be a finite number > 0 s; got {t!r}")
@@ -54,10 +54,10 @@ def validate_request(request: PlanRequest) -> None:
 
 
 def plan(request: PlanRequest, spec: Spec | None = None) -> PlanResult:
-    """Plan one transport task with the requested system.
+    """Plan one transport task with the requested planner.
 
     Never raises for a planning failure (``success=False`` with a message); raises
-    ``ValueError`` for a bad request (unknown system/planner, timeout <= 0, non-finite task).
+    ``ValueError`` for a bad request (unknown planner/algorithm, timeout <= 0, non-finite task).
     Deterministic given ``request.seed`` (up to the wall-clock timeout).
     """
     from articutool.planning.ompl_planner import plan_transport

@@ -1,4 +1,4 @@
-"""Orientation constraints of the three transport systems (thesis §5.2, Exp. 2a) — pure math.
+"""Orientation constraints of the three transport planners (thesis §5.2, Exp. 2a) — pure math.
 
 Conventions (arm base frame, z up = against gravity):
 

@@ -1,4 +1,4 @@
-"""OMPL planners for the three Exp. 2a transport systems (imperative shell over OMPL).
+"""The three Exp. 2a transport planners (imperative shell over OMPL).
 
 * ``decoupled``: 6-DOF arm in a plain joint space; the loose F0 constraint
   (:class:`~articutool.planning.constraints.LooseConstraint`) and collisions are checked in
@@ -15,7 +15,7 @@
   (:meth:`StrictConstraint.deadzone`: zero inside ±tol, Newton projection onto the band's
   edge outside). Samples are projected into the band and every motion is a chain of projected
   steps ``delta`` rad apart, so the whole path stays inside (``method="projection"``). The
-  default, ``method="rejection"``, plans the strict systems like ``decoupled`` (validity
+  default, ``method="rejection"``, plans the strict planners like ``decoupled`` (validity
   checker with the tolerance band + fine motion checks): it measured faster and more
   reliable on the benchmark tasks (see :func:`plan_transport`).
 
@@ -85,7 +85,7 @@ __all__ = ["METHODS", "PlannerSettings", "plan_transport"]
 
 METHODS = ("projection", "rejection")
 # OMPL's names of the planners (``Planner.getName()``), recorded for a straight motion too.
-_PLANNER_NAMES = {"rrtconnect": "RRTConnect", "rrtstar": "RRTstar"}
+_ALGORITHM_NAMES = {"rrtconnect": "RRTConnect", "rrtstar": "RRTstar"}
 _TWO_PI = 2.0 * math.pi
 
 ou.setLogLevel(ou.LOG_NONE)  # OMPL's console chatter (reseeding notices) is not ours to show
@@ -130,7 +130,7 @@ class PlannerSettings:
 
 def _fail(req: PlanRequest, t0: float, attempts: int, rejections: int, msg: str,
           phases: dict[str, float], verified: bool | None = None) -> PlanResult:
-    return PlanResult(req.system, req.task.task_id, False, time.perf_counter() - t0, attempts,
+    return PlanResult(req.planner, req.task.task_id, False, time.perf_counter() - t0, attempts,
                       rejections, math.nan, math.nan, verified, msg, None, None,
                       phases=phases)
 
@@ -209,8 +209,8 @@ class _Problem:
 
     def __post_init__(self) -> None:
         req, spec = self.req, self.spec
-        self.strict8 = req.system == "strict8"
-        self.planner_name = _PLANNER_NAMES[req.planner]
+        self.strict8 = req.planner == "strict8"
+        self.algorithm_name = _ALGORITHM_NAMES[req.algorithm]
         dof = 8 if self.strict8 else 6
         cached = self.settings.cache_models
         self.model = _arm_model(spec, req.utensil, dof, cached)
@@ -222,7 +222,7 @@ class _Problem:
         pl = spec.planning
         bp = self.settings.broadphase
         self.executed: ArmQueries | None = None  # decoupled: the 8-DOF model the tool executes
-        if req.system == "decoupled":
+        if req.planner == "decoupled":
             self.kin = ArmQueries(self.model, TOOL_BASE_FRAME, bp)
             self.executed = ArmQueries(_arm_model(spec, req.utensil, 8, cached),
                                        TOOL_BASE_FRAME, bp)
@@ -404,15 +404,15 @@ class _Problem:
             for i in range(n):
                 a[i], b[i] = float(self.start[i]), float(self.goal[i])
         ss.setStartAndGoalStates(a, b)
-        planner = og.RRTstar(si) if self.req.planner == "rrtstar" else og.RRTConnect(si)
-        self.planner_name = planner.getName()
-        if projected or (st.range_everywhere and self.req.planner == "rrtconnect"):
-            planner.setRange(st.range)
-        ss.setPlanner(planner)
+        algorithm = og.RRTstar(si) if self.req.algorithm == "rrtstar" else og.RRTConnect(si)
+        self.algorithm_name = algorithm.getName()
+        if projected or (st.range_everywhere and self.req.algorithm == "rrtconnect"):
+            algorithm.setRange(st.range)
+        ss.setPlanner(algorithm)
         ss.setup()
         phases.lap("setup")
         t_start = time.perf_counter()
-        if self.req.planner == "rrtstar":
+        if self.req.algorithm == "rrtstar":
             # RRT* refines until the budget ends or it has refined for as long as it took to
             # find the first solution (bounded anytime behaviour, so benchmarks finish).
             pdef = ss.getProblemDefinition()
@@ -519,7 +519,7 @@ def plan_transport(
 ) -> PlanResult:
     """Plan one (validated) request; see :func:`articutool.planning.api.plan`.
 
-    ``method`` selects the strict systems' constraint handling: ``"rejection"`` (validity
+    ``method`` selects the strict planners' constraint handling: ``"rejection"`` (validity
     checker + motion checks every ``resolution`` rad; the default because it measured best:
     first 10 tasks of transport_tasks_v1, 20 s: strict6 100 % / median 0.36 s, strict8 100 % /
     1.65 s) or ``"projection"`` (OMPL ProjectedStateSpace with the dead-zone constraint:
@@ -560,7 +560,7 @@ def _plan_seeded(request: PlanRequest, spec: Spec, method: str,
         if waypoints is None:
             last = why
             break
-        sdot = (prob.sdot_limit() if req.system == "decoupled" and req.wrist_aware_timing
+        sdot = (prob.sdot_limit() if req.planner == "decoupled" and req.wrist_aware_timing
                 else None)
         traj = time_parameterize(waypoints, names, vmax, amax, sdot_max=sdot,
                                  grid_step=prob.settings.toppra_grid)
@@ -571,7 +571,7 @@ def _plan_seeded(request: PlanRequest, spec: Spec, method: str,
             last = "time parameterisation failed"
             continue
         length = path_length(waypoints)
-        if req.system != "decoupled":
+        if req.planner != "decoupled":
             problem = prob.check_trajectory(traj)
             phases.lap("recheck")
             if problem is not None:
@@ -580,10 +580,10 @@ def _plan_seeded(request: PlanRequest, spec: Spec, method: str,
             q, _ = traj.sample(dense_times(traj, prob.settings.check_step))
             tilt = float(tip_tilt_deg(prob.tip_rotations(q)).max())
             phases.lap("recheck")
-            return PlanResult(req.system, req.task.task_id, True, time.perf_counter() - t0,
+            return PlanResult(req.planner, req.task.task_id, True, time.perf_counter() - t0,
                               attempts, rejections, length, tilt, None,
                               f"planned in {attempts} attempt(s)", traj, None,
-                              prob.planner_name, phases)
+                              prob.algorithm_name, phases)
         rep = verify_trajectory(traj, prob.model, spec, q_wrist_start=req.task.start_wrist)
         phases.lap("verify")
         if not rep.feasible:
@@ -601,11 +601,11 @@ def _plan_seeded(request: PlanRequest, spec: Spec, method: str,
         tilt_R = prob.model.tool_base_rotations(q_arm) @ wrist_rotation(wt.positions)
         tilt = float(tip_tilt_deg(tilt_R).max())
         phases.lap("verify")
-        return PlanResult(req.system, req.task.task_id, True, time.perf_counter() - t0,
+        return PlanResult(req.planner, req.task.task_id, True, time.perf_counter() - t0,
                           attempts, rejections, length, tilt, True,
                           f"planned and verified in {attempts} attempt(s); "
                           f"velocity margin {rep.velocity_margin:.3f}", traj, wt,
-                          prob.planner_name, phases)
-    verified = False if req.system == "decoupled" and rejections else None
+                          prob.algorithm_name, phases)
+    verified = False if req.planner == "decoupled" and rejections else None
     return _fail(req, t0, attempts, rejections, f"failed after {attempts} attempt(s): {last}",
                  phases, verified)

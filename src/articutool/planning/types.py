@@ -1,5 +1,6 @@
 """The transport planning request and result types (thesis Ch. 5, Exp. 2a), and the names
-of the systems, planners and phases.
+of the planners (decoupled, strict6, strict8: the thesis' three Exp. 2a systems), of OMPL's
+search algorithms they run and of the phases.
 
 Their own module so that ``planning.api`` (the front door, ``plan``) and the OMPL backend
 (``planning.ompl_planner``) both read them without importing each other.
@@ -14,16 +15,16 @@ from typing import Any
 from articutool.trajectory import JointTrajectory
 
 __all__ = [
+    "ALGORITHMS",
     "PHASES",
     "PLANNERS",
-    "SYSTEMS",
     "PlanRequest",
     "PlanResult",
     "TransportTask",
 ]
 
-SYSTEMS = ("decoupled", "strict6", "strict8")
-PLANNERS = ("rrtconnect", "rrtstar")
+PLANNERS = ("decoupled", "strict6", "strict8")
+ALGORITHMS = ("rrtconnect", "rrtstar")
 # Phases of one plan() call, in order (PlanResult.phases): building the problem and checking
 # the endpoints, the OMPL search, path simplification, time parameterisation, the dense
 # re-check of the timed trajectory, and (decoupled) verification.
@@ -46,21 +47,22 @@ class TransportTask:
 class PlanRequest:
     """What to plan and how."""
 
-    system: str  # "decoupled" | "strict6" | "strict8"
+    planner: str  # "decoupled" | "strict6" | "strict8"
     task: TransportTask
     timeout_s: float = 30.0
-    planner: str = "rrtconnect"  # or "rrtstar"
+    algorithm: str = "rrtconnect"  # or "rrtstar"
     seed: int = 0
-    tolerance_deg: float | None = None  # strict systems: ±tol pitch/roll (default 10)
+    tolerance_deg: float | None = None  # strict planners: ±tol pitch/roll (default 10)
     wrist_aware_timing: bool = True  # decoupled: wrist velocity limit in time parameterisation
     utensil: str = "spoon"
 
 
 @dataclass(frozen=True)
 class PlanResult:
-    """Outcome of one :func:`plan` call."""
+    """Outcome of one :func:`plan` call. Its record keeps the benchmark's keys: ``system``
+    is the planner, ``planner`` the search algorithm."""
 
-    system: str
+    planner: str
     task_id: int
     success: bool
     planning_time_s: float  # wall time incl. retries, timing and verification
@@ -72,7 +74,7 @@ class PlanResult:
     message: str
     trajectory: JointTrajectory | None  # time-parameterised arm (6 or 8 joints)
     wrist_trajectory: JointTrajectory | None  # decoupled: leveling trajectory from the verifier
-    planner: str = ""  # OMPL's name of the planner that found the path (e.g. "RRTConnect")
+    algorithm: str = ""  # OMPL's name of the algorithm that found the path (e.g. "RRTConnect")
     # Wall time (s) per phase, summed over attempts: setup, search, simplify, timing,
     # recheck, verify (see ``PHASES``); what is left of planning_time_s is glue.
     phases: dict[str, float] = field(default_factory=dict)
@@ -84,7 +86,7 @@ class PlanResult:
             return None if not math.isfinite(x) else float(x)
 
         return {
-            "system": self.system,
+            "system": self.planner,
             "task_id": int(self.task_id),
             "success": bool(self.success),
             "planning_time_s": float(self.planning_time_s),

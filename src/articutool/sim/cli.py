@@ -1,4 +1,4 @@
-"""``articutool sim``: a short scripted scene in the physics world, and its food report.
+"""``articutool sim``: a short scripted scene in the physics world, and the world's report.
 
 ``articutool sim-calibrate``: the calibration experiments that measure what the food models'
 parameters produce (angle of repose, what a level utensil holds), so they can be checked

@@ -47,7 +47,7 @@ def run_demo(
     goal, backoff = staging_configuration(spec, model, seed)
     task = TransportTask(task_id=0, start=tuple(start), goal=tuple(goal))
     t0 = time.perf_counter()
-    result = plan(PlanRequest(system="decoupled", task=task, timeout_s=timeout_s, seed=seed,
+    result = plan(PlanRequest(planner="decoupled", task=task, timeout_s=timeout_s, seed=seed,
                               utensil=utensil), spec)
     plan_time = time.perf_counter() - t0
     figures: dict[str, Any] = {

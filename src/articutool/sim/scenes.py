@@ -29,7 +29,7 @@ from articutool.arm.ik import IKSettings, solve_pose_ik
 from articutool.arm.model import ArmModel
 from articutool.arm.scene import SCOOP_HEADING, Cylinder
 from articutool.planning.timing import time_parameterize
-from articutool.sim.world import FeedingWorld, FoodReport
+from articutool.sim.world import FeedingWorld, WorldReport
 from articutool.spec import Spec
 from articutool.tool.api import Mode
 from articutool.trajectory import JointTrajectory
@@ -351,8 +351,8 @@ def tilt(world: FeedingWorld, level: bool = True, twirl_turns: float | None = No
 
 
 def run_script(world: FeedingWorld, script: str, level: bool = True,
-               twirl_turns: float | None = None) -> FoodReport:
-    """Run a named scene and return the food report (with the F/T-measured mass at rest);
+               twirl_turns: float | None = None) -> WorldReport:
+    """Run a named scene and return the world's report (with the F/T-measured mass at rest);
     ``twirl_turns``: the fork's twirl (see :func:`skewer`)."""
     fn = {"scoop": acquire, "carry": carry, "tilt": tilt}.get(script)
     if fn is None:

@@ -51,7 +51,7 @@ from articutool.sim.weighing import Weighing
 from articutool.spec import Spec
 from articutool.trajectory import JointTrajectory
 
-__all__ = ["REPORT_JSON_KEYS", "FeedingWorld", "FoodReport", "PhysicsResetError", "SettleCache",
+__all__ = ["REPORT_JSON_KEYS", "FeedingWorld", "PhysicsResetError", "SettleCache", "WorldReport",
            "smooth_joint_motion"]
 
 # MuJoCo's warnings on which mj_step resets mjData to the model's defaults (its "simulation is
@@ -59,7 +59,7 @@ __all__ = ["REPORT_JSON_KEYS", "FeedingWorld", "FoodReport", "PhysicsResetError"
 _RESET_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
                    mujoco.mjtWarning.mjWARN_BADQACC)
 
-# The keys of a food report's masses in its JSON form (``articutool sim --json``), by the
+# The keys of a world report's masses in its JSON form (``articutool sim --json``), by the
 # ledger's class names (:meth:`~articutool.sim.ledger.FoodLedger.masses_g`).
 REPORT_JSON_KEYS = {"utensil": "on_utensil_g", "container": "in_bowl_g", "table": "table_g",
                     "critical": "critical_g", "airborne": "airborne_g", "eaten": "eaten_g"}
@@ -79,8 +79,9 @@ def _model_bytes(m: mujoco.MjModel) -> bytes:
 
 
 @dataclass
-class FoodReport:
-    """Where the food is at time ``t``, and every spill so far. ``masses_g``: grams per
+class WorldReport:
+    """What the world reports at time ``t``: where the food is, every spill so far, the F/T
+    mass, the real-time factor and the arm's tracking error. ``masses_g``: grams per
     class, keyed as the ledger's (:meth:`FeedingWorld.masses_g`: utensil, container, table,
     critical, airborne, eaten)."""
 
@@ -552,10 +553,10 @@ class FeedingWorld:
         (:meth:`LoadPlacement.max_load_g <articutool.sim.placement.LoadPlacement.max_load_g>`)."""
         return self.placement.max_load_g()
 
-    def report(self, measure_ft: bool = False) -> FoodReport:
-        """The food report now (``measure_ft``: include the F/T-measured mass, when the
+    def report(self, measure_ft: bool = False) -> WorldReport:
+        """The world's report now (``measure_ft``: include the F/T-measured mass, when the
         sensor is oriented as at its tare — see :meth:`ft_comparable`)."""
-        return FoodReport(
+        return WorldReport(
             t=round(self.time, 4), food=self.food, utensil=self.utensil,
             masses_g=self.masses_g(),
             total_g=float(self.ledger.item_g[self.ledger.active].sum()),

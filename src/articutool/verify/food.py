@@ -41,7 +41,7 @@ from articutool.food.slosh import (
 from articutool.spec import Spec
 from articutool.trajectory import JointTrajectory, TrajectoryError
 
-__all__ = ["FoodReport", "PoseModel", "SloshFreeResult", "dish_poses", "food_check",
+__all__ = ["FoodCheckReport", "PoseModel", "SloshFreeResult", "dish_poses", "food_check",
            "predict_transport", "slosh_free_wrist", "spill_model"]
 
 SPILL_G = 0.001  # g: below the capacity table's resolution a prediction counts as no spill
@@ -135,7 +135,7 @@ def predict_transport(arm: JointTrajectory, wrist: JointTrajectory | ArrayLike,
 
 
 @dataclass(frozen=True)
-class FoodReport:
+class FoodCheckReport:
     """The food check of one transport: the load, its model's parameters, the wrist motion
     assumed (``"leveling"``, ``"locked"``, ``"slosh_free"``) and the prediction."""
 
@@ -157,10 +157,10 @@ class FoodReport:
 
 def food_check(arm: JointTrajectory, wrist: JointTrajectory | ArrayLike, model: PoseModel,
                spec: Spec, utensil: str, load: FoodLoad, wrist_kind: str = "leveling"
-               ) -> FoodReport:
+               ) -> FoodCheckReport:
     """:func:`predict_transport` with the load's model, as a report."""
     m = spill_model(spec, utensil, load)
-    return FoodReport(load, wrist_kind, m.summary(),
+    return FoodCheckReport(load, wrist_kind, m.summary(),
                       predict_transport(arm, wrist, model, spec, utensil, m))
 
 

@@ -72,7 +72,7 @@ class VerificationReport:
     left (negative when infeasible; NaN, like ``max_required_velocity``, when no sample's
     rates were evaluated — an arm limit or no leveling solution at the start).
     ``wrist_trajectory`` levels the tool up to the first failure (the whole trajectory when
-    feasible). ``food`` is the food check (:class:`~articutool.verify.food.FoodReport`) of a
+    feasible). ``food`` is the food check (:class:`~articutool.verify.food.FoodCheckReport`) of a
     kinematically feasible trajectory when a load was given; ``slosh_free`` the slosh-free
     wrist (:class:`~articutool.verify.food.SloshFreeResult`) when asked for.
     """

@@ -40,7 +40,8 @@ def _check_address(host: str, port: int) -> None:
 
 
 def _plan_from_task(args: argparse.Namespace, spec: Any) -> tuple[Any, str, str]:
-    """Plan benchmark task ``--plan-task`` with ``--system``; (trajectory, wrist, title)."""
+    """Plan benchmark task ``--plan-task`` with the planner ``--system``; (trajectory, wrist,
+    title)."""
     from articutool.bench.taskfile import TaskFileError, check_task_limits, load_task_set
     from articutool.cli_support import UsageError
     from articutool.planning.api import plan
@@ -58,13 +59,13 @@ def _plan_from_task(args: argparse.Namespace, spec: Any) -> tuple[Any, str, str]
                          f", {len(ids)} tasks); got {args.plan_task}")
     if args.seed < 0:
         raise UsageError(f"--seed must be an integer >= 0; got {args.seed}")
-    print(f"planning task {task.task_id} with {args.system} (timeout {args.timeout:g} s) …",
+    print(f"planning task {task.task_id} with {args.planner} (timeout {args.timeout:g} s) …",
           flush=True)
-    res = plan(PlanRequest(system=args.system, task=task, timeout_s=args.timeout,
+    res = plan(PlanRequest(planner=args.planner, task=task, timeout_s=args.timeout,
                            seed=args.seed, utensil=args.utensil), spec)
     print(f"plan: {'ok' if res.success else 'FAILED'} in {res.planning_time_s * 1000:.0f} ms "
           f"— {res.message}", flush=True)
-    title = f"task {task.task_id}, {args.system}: {'ok' if res.success else 'failed'}"
+    title = f"task {task.task_id}, {args.planner}: {'ok' if res.success else 'failed'}"
     if res.trajectory is None:
         from articutool.trajectory import JointTrajectory
 
@@ -74,7 +75,7 @@ def _plan_from_task(args: argparse.Namespace, spec: Any) -> tuple[Any, str, str]
         traj = JointTrajectory(names, [0.0, 1.0], q, [[0.0] * 6, [0.0] * 6])
         return traj, "locked", title + f" ({res.message}; start → goal shown as a straight " \
                                        "move, not a plan)"
-    wrist = "locked" if args.system == "strict6" else "leveling"
+    wrist = "locked" if args.planner == "strict6" else "leveling"
     return res.trajectory, wrist, title
 
 
@@ -225,6 +226,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``view``."""
     from articutool.cli_support import MAX_RUN_S, MAX_WAIT_S, add_spec_option, seconds
+    from articutool.planning.types import PLANNERS
 
     p = sub.add_parser("view", help="3-D web viewer of the scene, the robot's named "
                        "configurations, plans (--plan, --plan-task) and recorded runs "
@@ -237,8 +239,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     src.add_argument("--recording", metavar="FILE", default=None,
                      help="replay a recording: .npz (the physics world, articutool sim/meal "
                           "--record F.npz) or .mcap (joint states of any --record F.mcap)")
-    p.add_argument("--system", choices=("decoupled", "strict6", "strict8"),
-                   default="decoupled", help="planner for --plan-task (default: decoupled)")
+    p.add_argument("--system", dest="planner", choices=PLANNERS, default="decoupled",
+                   help="planner for --plan-task, the thesis' system (default: decoupled)")
     p.add_argument("--tasks", metavar="FILE", default=None,
                    help="task set for --plan-task (default: the packaged Exp. 2a set)")
     p.add_argument("--timeout", type=seconds(MAX_WAIT_S), default=30.0, metavar="S",
