@@ -4,9 +4,10 @@
 (:class:`Boundary`, given as arrays) and liquid given as boxes (:class:`FluidBlock`) or as
 particle positions (:class:`FluidParticles`), all one fluid (water's material), with the
 solver settings of :class:`SphSettings` (DFSPH pressure solver, Akinci et al. 2012 boundary
-particles sampled regularly on the meshes, the standard SPH viscosity with water's kinematic viscosity, CFL time steps capped
-at ``max_dt``). Units are SI; the frame is whatever frame the caller gives the meshes, the
-blocks and the gravity in (the library has no preferred "up": gravity is a vector).
+particles sampled regularly on the meshes, the standard SPH viscosity with water's kinematic
+viscosity, CFL time steps capped at ``max_dt``). Units are SI; the frame is whatever frame the
+caller gives the meshes, the blocks and the gravity in (the library has no preferred "up":
+gravity is a vector).
 
 - :meth:`SphLiquid.step_to` advances to a simulated time with the library's own adaptive
   (CFL) steps; it stops at the first step that reaches the time, so ``time`` may overshoot it
