@@ -23,8 +23,9 @@ def scaling(monkeypatch):
 
 
 @pytest.mark.xfail(strict=False, reason="with the SPH water in Exp. 2b, a trial on Dask "
-                   "and on the local pool differed once (found at the end of the round, not "
-                   "yet explained: an open finding, docs/limits.md)")
+                   "and on the local pool differed once: the library's Poisson-disk boundary "
+                   "sampling differed per process (now regular, docs/limits.md); expected to "
+                   "pass, not yet confirmed by a whole run")
 def test_exp2b_on_a_local_pool_and_on_dask_gives_the_same_outcomes(scaling, tmp_path,
                                                                    monkeypatch) -> None:
     pytest.importorskip("distributed")
