@@ -22,10 +22,7 @@ def scaling(monkeypatch):
     return importlib.import_module("experiment_scaling")
 
 
-@pytest.mark.xfail(strict=False, reason="with the SPH water in Exp. 2b, a trial on Dask "
-                   "and on the local pool differed once: the library's Poisson-disk boundary "
-                   "sampling differed per process (now regular, docs/limits.md); expected to "
-                   "pass, not yet confirmed by a whole run")
+@pytest.mark.slow  # Exp. 2b with the SPH water, once per condition on each executor
 def test_exp2b_on_a_local_pool_and_on_dask_gives_the_same_outcomes(scaling, tmp_path,
                                                                    monkeypatch) -> None:
     pytest.importorskip("distributed")
