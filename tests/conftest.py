@@ -25,6 +25,7 @@ import ast
 import functools
 import os
 import random
+import signal
 import socket
 import subprocess
 import sys
@@ -69,6 +70,14 @@ def _flood_tests(module: str) -> frozenset[str]:
     tree = ast.parse(path.read_text(), module)
     return frozenset(f.name for f in ast.walk(tree) if isinstance(f, ast.FunctionDef)
                      and any(ast.unparse(d) == "pytest.mark.floods" for d in f.decorator_list))
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Ctrl-C reaches the processes the tests start: a runner started as a background job of a
+    non-interactive shell (``make test &`` in a script) inherits SIGINT ignored, and so would
+    every process it starts, whose Ctrl-C tests would then wait in vain."""
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def pytest_xdist_make_scheduler(config: pytest.Config, log):  # type: ignore[no-untyped-def]
