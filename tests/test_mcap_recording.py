@@ -140,6 +140,13 @@ def _tool(tmp_path: Path, port: int, *extra: str) -> subprocess.Popen[str]:
                             start_new_session=True)
 
 
+def _kill_if_running(tool: subprocess.Popen[str]) -> None:
+    """A tool a failed test leaves running is killed with its link process (its session)."""
+    if tool.poll() is None:
+        os.killpg(tool.pid, signal.SIGKILL)
+        tool.wait(10)
+
+
 def _wait_for(path: Path, size: int, timeout: float) -> None:
     assert wait_until(lambda: path.exists() and path.stat().st_size >= size, timeout, 0.1), \
         f"{path} did not reach {size} bytes"
@@ -177,9 +184,12 @@ def test_a_killed_tools_recording_is_readable_to_its_last_chunk(tmp_path: Path) 
 def test_ctrl_c_closes_the_tools_recording(tmp_path: Path) -> None:
     path = tmp_path / "tool.mcap"
     tool = _tool(tmp_path, free_port(), "--record", str(path))
-    _wait_for(path, 60_000, 60)  # a few complete chunks (each about a second)
-    tool.send_signal(signal.SIGINT)
-    _, err = tool.communicate(timeout=30)
+    try:
+        _wait_for(path, 60_000, 60)  # a few complete chunks (each about a second)
+        tool.send_signal(signal.SIGINT)
+        _, err = tool.communicate(timeout=30)
+    finally:
+        _kill_if_running(tool)
     assert tool.returncode == 0, err
     with path.open("rb") as f:
         summary = make_reader(f).get_summary()
@@ -201,7 +211,10 @@ def test_the_clients_recording_holds_its_goal(tmp_path: Path) -> None:
                            capture_output=True, text=True, timeout=120)
     finally:
         tool.send_signal(signal.SIGINT)
-        tool.wait(30)
+        try:
+            tool.wait(30)
+        finally:
+            _kill_if_running(tool)
     assert p.returncode == 0, p.stderr
     got = _read(path)
     by: dict[str, list[Any]] = {}
