@@ -374,12 +374,7 @@ def test_straight_motion_check_agrees_with_ompls_motion_validator(system: str) -
         prob = _Problem(PlanRequest(system, task, timeout_s=1.0), SPEC, PlannerSettings(),
                         "rejection")
         n = prob.kin.n
-        space = ob.RealVectorStateSpace(n)
-        bounds = ob.RealVectorBounds(n)
-        for i in range(n):
-            bounds.setLow(i, float(prob.kin.lo[i]))
-            bounds.setHigh(i, float(prob.kin.hi[i]))
-        space.setBounds(bounds)
+        space = prob.state_space()
         si = ob.SpaceInformation(space)
         si.setStateValidityChecker(
             lambda s, n=n, prob=prob: prob.valid(np.array([s[i] for i in range(n)])))

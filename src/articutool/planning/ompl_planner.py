@@ -289,6 +289,17 @@ class _Problem:
             return not self.executed.collides(x)
         return self.constraint_ok(q) and not self.kin.collides(q)
 
+    def state_space(self) -> ob.RealVectorStateSpace:
+        """OMPL's joint space of this problem, bounded by the arm's joint limits."""
+        n = self.kin.n
+        space = ob.RealVectorStateSpace(n)
+        bounds = ob.RealVectorBounds(n)
+        for i in range(n):
+            bounds.setLow(i, float(self.kin.lo[i]))
+            bounds.setHigh(i, float(self.kin.hi[i]))
+        space.setBounds(bounds)
+        return space
+
     def straight_motion_valid(self) -> bool:
         """Whether the straight start→goal motion passes the search's motion check: the
         states OMPL's ``DiscreteMotionValidator`` checks on it (the goal, and the start→goal
@@ -364,12 +375,7 @@ class _Problem:
             phases.lap("search")
             return densify(np.stack([self.start, self.goal]), st.resolution), ""
         ou.RNG.setSeed(seed)  # before any OMPL object is built: their RNGs draw from it
-        space = ob.RealVectorStateSpace(n)
-        bounds = ob.RealVectorBounds(n)
-        for i in range(n):
-            bounds.setLow(i, float(self.kin.lo[i]))
-            bounds.setHigh(i, float(self.kin.hi[i]))
-        space.setBounds(bounds)
+        space = self.state_space()
         valid = self.valid_bounded if projected else self.valid
 
         buf = np.empty(n)  # valid() reads the state and keeps none of it
