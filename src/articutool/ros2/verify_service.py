@@ -14,22 +14,31 @@ position and velocity limits, leveling solutions, jumps, Eq. 4.7 rates). With a 
 predicted to spill is answered ``feasible=false``, ``reason="spill"``, with
 ``spill_checked=true`` and ``predicted_spill_g``; a load the model cannot judge (an unknown
 food, more than the utensil holds) is a bad request naming the field.
+
+:class:`VerifyServer` serves it on the node: the verifier runs on a lane of its own, so a
+verification never holds an executor thread or the tool's commands.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
 
 from articutool.food.definitions import FoodDefinition, load_food_definitions
 from articutool.food.loads import FoodLoad, LoadError, named_load
+from articutool.ros2.intake import create_draining_service
+from articutool.ros2.lanes import WorkLane
+from articutool.ros2.serving import Side, submit
 from articutool.trajectory import JointTrajectory, TrajectoryError
 
-__all__ = ["BadRequestError", "Verifier", "trajectory_from_ros"]
+__all__ = ["BadRequestError", "Verifier", "VerifyServer", "trajectory_from_ros"]
+
+_log = logging.getLogger(__name__)
 
 
 class BadRequestError(ValueError):
@@ -166,3 +175,76 @@ def _refusal(message: str) -> dict[str, Any]:
             "first_failure_time": -1.0, "velocity_margin": math.nan,
             "max_required_velocity": [], "samples_checked": 0, "wrist_trajectory": None,
             "spill_checked": False, "predicted_spill_g": math.nan}
+
+
+class VerifyServer:
+    """``VerifyTrajectory`` on ``side`` (the main node), answered by ``verifier`` on a lane of
+    its own (one thread, four waiting; a full lane answers ``reason="busy"`` at once);
+    ``wrist()`` is the tool's present position (None without one), the default wrist start.
+    The service drains its queue (:mod:`articutool.ros2.intake`)."""
+
+    def __init__(self, verifier: Verifier, side: Side, name: str,
+                 wrist: Callable[[], tuple[float, float] | None],
+                 counters: dict[str, int]) -> None:
+        from articutool_interfaces.srv import VerifyTrajectory
+
+        self._verifier, self._side, self._wrist, self._counters = verifier, side, wrist, counters
+        self._lane = WorkLane("ros2-verify", threads=1, capacity=4)
+        create_draining_service(side.node, VerifyTrajectory, name, self._start_verify,
+                                qos_profile=side.qos, callback_group=side.group)
+
+    def close(self) -> None:
+        self._lane.close()
+
+    def _start_verify(self, request: Any, response: Any) -> Any:
+        verifier, wrist = self._verifier, self._wrist()
+        future = submit(self._lane, lambda: verifier.answer(request, wrist), self._side.wake,
+                        self._counters)
+        if future is None:
+            return _fill_verify(response, {
+                "feasible": False, "reason": "busy", "first_failure_time": -1.0,
+                "message": "refused: busy (verifications waiting); try again",
+                "velocity_margin": math.nan, "predicted_spill_g": math.nan})
+        return self._finish_verify(future, response)
+
+    @staticmethod
+    async def _finish_verify(future: Any, response: Any) -> Any:
+        try:
+            out = await future
+        except Exception as err:
+            _log.exception("verify_trajectory failed")
+            out = {"feasible": False, "reason": "error", "first_failure_time": -1.0,
+                   "message": f"internal error: {type(err).__name__}: {err}",
+                   "velocity_margin": math.nan, "predicted_spill_g": math.nan}
+        return _fill_verify(response, out)
+
+
+def _ros_trajectory(traj: Any, out: Any) -> Any:
+    """articutool JointTrajectory → the given ``trajectory_msgs/JointTrajectory`` message."""
+    from builtin_interfaces.msg import Duration
+    from trajectory_msgs.msg import JointTrajectoryPoint
+
+    out.joint_names = list(traj.joint_names)
+    pts = []
+    for t, q, v in zip(traj.times, traj.positions, traj.velocities, strict=True):
+        sec = math.floor(t)
+        pts.append(JointTrajectoryPoint(
+            positions=np.asarray(q, dtype=float).tolist(),
+            velocities=np.asarray(v, dtype=float).tolist(),
+            time_from_start=Duration(sec=int(sec),
+                                     nanosec=min(round((t - sec) * 1e9), 999_999_999))))
+    out.points = pts
+    return out
+
+
+def _fill_verify(response: Any, out: dict[str, Any]) -> Any:
+    """A VerifyTrajectory response from the verifier's answer."""
+    for key in ("feasible", "reason", "message", "first_failure_time", "velocity_margin",
+                "samples_checked", "spill_checked", "predicted_spill_g",
+                "max_required_velocity"):
+        if key in out:
+            setattr(response, key, out[key])
+    wt = out.get("wrist_trajectory")
+    if wt is not None:
+        response.wrist_trajectory = _ros_trajectory(wt, response.wrist_trajectory)
+    return response

@@ -29,7 +29,7 @@ import numpy as np
 
 from articutool.link import cdr
 
-__all__ = ["setup"]
+__all__ = ["forwarder", "renamer", "setup"]
 
 _log = logging.getLogger(__name__)
 
@@ -41,6 +41,14 @@ def _raw_imu(msg: Any) -> bytes:
     return cdr.encode(msg, cdr.IMU)
 
 
+def renamer(joint_names: tuple[str, str]) -> Callable[[Any], bytes]:
+    """The tool's [pitch, roll] joint state (decoded) → serialised under ``joint_names``."""
+    def renamed(msg: Any) -> bytes:
+        msg.name = list(joint_names)
+        return cdr.encode(msg, cdr.JOINT_STATE)
+    return renamed
+
+
 def setup(node: Any, client: Any, names: dict[str, str], joint_names: tuple[str, str],
           republish_joint_states: bool, counters: dict[str, int]) -> list[Any]:
     """Create the publishers on ``node`` and subscribe them to ``client``'s telemetry; the
@@ -48,9 +56,7 @@ def setup(node: Any, client: Any, names: dict[str, str], joint_names: tuple[str,
     from rclpy.qos import QoSProfile
     from sensor_msgs.msg import Imu, JointState
 
-    def renamed(msg: Any) -> bytes:
-        msg.name = list(joint_names)
-        return cdr.encode(msg, cdr.JOINT_STATE)
+    renamed = renamer(joint_names)
 
     def calibrated(msg: Any) -> bytes:
         return cdr.encode(msg, cdr.IMU)
@@ -63,17 +69,21 @@ def setup(node: Any, client: Any, names: dict[str, str], joint_names: tuple[str,
     if republish_joint_states:
         routes.append((client.names.joint_states, cdr.JOINT_STATE, JointState,
                        names["robot_joint_states"], QoSProfile(depth=1), renamed))
-    handles = []
-    for ep, typename, cls, topic, qos, convert in routes:
-        pub = node.create_publisher(cls, topic, qos)
+    return [client.transport.subscribe(ep, forwarder(node.create_publisher(cls, topic, qos),
+                                                     typename, convert, counters))
+            for ep, typename, cls, topic, qos, convert in routes]
 
-        def on_data(data: bytes, pub: Any = pub, typename: str = typename,
-                    convert: Callable[[Any], bytes] = convert) -> None:
-            try:
-                pub.publish(convert(cdr.decode(data, typename)))
-                counters["forwarded"] += 1
-            except Exception as err:  # malformed payload, or rclpy shutting down
-                counters["dropped"] += 1
-                _log.debug("telemetry not forwarded: %s", err)
-        handles.append(client.transport.subscribe(ep, on_data))
-    return handles
+
+def forwarder(pub: Any, typename: str, convert: Callable[[Any], bytes] | None,
+              counters: dict[str, int]) -> Callable[[bytes], None]:
+    """A link subscriber that publishes each well-formed ``typename`` message on ``pub``:
+    ``convert`` of the decoded message, or the link's bytes as they are when None."""
+    def on_data(data: bytes) -> None:
+        try:  # only well-formed messages of the right type reach the ROS 2 graph
+            msg = cdr.decode(data, typename)
+            pub.publish(convert(msg) if convert is not None else bytes(data))
+            counters["forwarded"] += 1
+        except Exception as err:  # malformed payload, or rclpy shutting down
+            counters["dropped"] += 1
+            _log.debug("telemetry not forwarded: %s", err)
+    return on_data
