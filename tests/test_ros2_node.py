@@ -751,3 +751,59 @@ def test_offsets_are_admitted_against_the_connected_tools_limits(
     assert [round(p, 3) for _, p, _ in fake.modes] == ([pitch_deg] if forwarded else [])
     for w in words:
         assert w in reply.message
+
+
+def test_every_name_is_served_with_its_type_on_its_node() -> None:
+    """Every name of :data:`articutool.ros2.names.ENDPOINTS` is on the graph with its type and
+    kind, the stop and both actions on the safety node (its own executor thread), every other
+    service, publisher and subscription on the main node; the calibration status is latched.
+    The node is built in process around a link client stand-in."""
+    from rclpy.action import get_action_server_names_and_types_by_node
+
+    from articutool.ros2.names import ENDPOINTS, resolve
+    from articutool.ros2.node import ArticutoolRos2Node, NodeSettings
+    from articutool.ros2.verify_service import Verifier
+    from articutool.spec import load_spec
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=DOMAIN)
+    ns = f"graph_{os.getpid()}"
+    settings = NodeSettings(namespace=ns, verifier=Verifier(load_spec(), "spoon",
+                                                            ("atool_joint1", "atool_joint2")))
+    server = ArticutoolRos2Node(_RecordingClient(), settings,  # type: ignore[arg-type]
+                                context=ctx)
+    try:
+        names = resolve(ns)
+        main, safety = server.node, server.safety_node
+        assert safety is not None
+        safe_keys = {"stop", "execute_primitive", "follow_joint_trajectory"}
+
+        def served(node: Any) -> dict[str, set[tuple[str, str]]]:
+            at = (node.get_name(), node.get_namespace())
+            return {
+                "service": {(n, t) for n, ts in node.get_service_names_and_types_by_node(*at)
+                            for t in ts},
+                "action": {(n, t) for n, ts in get_action_server_names_and_types_by_node(
+                    node, *at) for t in ts},
+                "publishes": {(n, t) for n, ts in node.get_publisher_names_and_types_by_node(
+                    *at) for t in ts},
+                "subscribes": {(n, t) for n, ts in
+                               node.get_subscriber_names_and_types_by_node(*at) for t in ts}}
+        def wrong() -> list[tuple[str, str]]:
+            """(name key, what is wrong) for every endpoint not where and as it should be."""
+            on = {"main": served(main), "safety": served(safety)}
+            out = []
+            for key, ep in ENDPOINTS.items():
+                where = "safety" if key in safe_keys else "main"
+                other = "main" if where == "safety" else "safety"
+                if (names[key], ep.type) not in on[where][ep.kind]:
+                    out.append((key, f"not a {ep.kind} {ep.type} on the {where} node"))
+                if any(n == names[key] for n, _ in on[other][ep.kind]):
+                    out.append((key, f"also on the {other} node"))
+            return out
+        wait_until(lambda: not wrong(), 10.0)  # the graph cache may lag the entities
+        assert wrong() == []
+        status, = main.get_publishers_info_by_topic(names["calibration_status"])
+        assert status.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
+    finally:
+        server.destroy()
+        rclpy.try_shutdown(context=ctx)
