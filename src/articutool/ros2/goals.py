@@ -44,6 +44,18 @@ class GoalTable:
             self._running[bytes(goal_handle.goal_id.uuid)] = Forwarded()
         goal_handle.execute()
 
+    def action_server(self, side: Any, action_type: Any, name: str, execute: Any,
+                      cancel: Any) -> Any:
+        """An rclpy ActionServer on ``side`` (a :class:`~articutool.ros2.serving.Side`) whose
+        goals this table admits, with ``execute`` and the ``cancel`` callback; every request
+        queue of the side's depth."""
+        from rclpy.action import ActionServer
+        q = side.qos
+        return ActionServer(side.node, action_type, name, execute, goal_callback=self.on_goal,
+                            handle_accepted_callback=self.on_accepted, cancel_callback=cancel,
+                            goal_service_qos_profile=q, result_service_qos_profile=q,
+                            cancel_service_qos_profile=q, callback_group=side.group)
+
     def track(self, gid: bytes) -> Forwarded:
         """The entry of goal ``gid`` (made if the accepted callback did not)."""
         with self._lock:

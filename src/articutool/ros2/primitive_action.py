@@ -34,17 +34,11 @@ class PrimitiveActionServer:
     def __init__(self, client: Any, side: Side, name: str, goals: GoalTable,
                  log: Any) -> None:
         from articutool_interfaces.action import ExecuteArticutoolPrimitive
-        from rclpy.action import ActionServer
 
         self._client, self._side, self._goals, self._log = client, side, goals, log
         self._type = ExecuteArticutoolPrimitive
-        q = side.qos
-        self._server = ActionServer(
-            side.node, ExecuteArticutoolPrimitive, name, self._execute,
-            goal_callback=goals.on_goal, handle_accepted_callback=goals.on_accepted,
-            cancel_callback=self._on_cancel_request, goal_service_qos_profile=q,
-            result_service_qos_profile=q, cancel_service_qos_profile=q,
-            callback_group=side.group)
+        self._server = goals.action_server(side, ExecuteArticutoolPrimitive, name,
+                                           self._execute, self._on_cancel_request)
 
     def destroy(self) -> None:
         self._server.destroy()

@@ -39,18 +39,12 @@ class FollowJointTrajectoryServer:
     def __init__(self, client: Any, side: Side, name: str, goals: GoalTable, stops: StopLane,
                  joint_names: tuple[str, str]) -> None:
         from control_msgs.action import FollowJointTrajectory
-        from rclpy.action import ActionServer
 
         self._client, self._side, self._goals, self._stops = client, side, goals, stops
         self._joint_names = joint_names
         self._type = FollowJointTrajectory
-        q = side.qos
-        self._server = ActionServer(
-            side.node, FollowJointTrajectory, name, self._execute,
-            goal_callback=goals.on_goal, handle_accepted_callback=goals.on_accepted,
-            cancel_callback=self._on_cancel, goal_service_qos_profile=q,
-            result_service_qos_profile=q, cancel_service_qos_profile=q,
-            callback_group=side.group)
+        self._server = goals.action_server(side, FollowJointTrajectory, name, self._execute,
+                                           self._on_cancel)
 
     def destroy(self) -> None:
         self._server.destroy()
