@@ -15,6 +15,7 @@ free_port``):
 - :func:`wait_until` — poll a condition; the deadline only bounds a failing test;
 - :func:`drop_off_the_table` — move a food item that spilled on the table to just above the
   floor beside it (water deposits where it lands, so a table-then-floor spill is staged);
+- :func:`descendants` — the processes below a process, read from ``/proc``;
 - :func:`trial_record` — an experiment's trial record built by hand (the fields a test names,
   neutral values for the rest), validated as a trial log line is.
 """
@@ -22,6 +23,7 @@ free_port``):
 from __future__ import annotations
 
 import ast
+import contextlib
 import functools
 import os
 import random
@@ -78,6 +80,37 @@ def pytest_configure(config: pytest.Config) -> None:
     every process it starts, whose Ctrl-C tests would then wait in vain."""
     if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, _terminated)
+
+
+def descendants(pid: int) -> list[int]:
+    """The processes below ``pid`` (children first), read from ``/proc``."""
+    children: dict[int, list[int]] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            text = stat.read_text()
+        except OSError:
+            continue  # the process ended while the table was read
+        ppid = int(text[text.rindex(")") + 2:].split()[1])
+        children.setdefault(ppid, []).append(int(stat.parent.name))
+    out, todo = [], [pid]
+    while todo:
+        kids = children.get(todo.pop(), [])
+        out += kids
+        todo += kids
+    return out
+
+
+def _terminated(signum: int, frame: object) -> None:
+    """A runner told to stop (SIGTERM: a CI timeout, ``kill``) takes the processes its tests
+    started with it (tools, nodes, clients — they would otherwise keep running and loading the
+    machine), then ends as SIGTERM ends a process."""
+    for pid in descendants(os.getpid()):
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    os.kill(os.getpid(), signal.SIGTERM)
 
 
 def pytest_xdist_make_scheduler(config: pytest.Config, log):  # type: ignore[no-untyped-def]
