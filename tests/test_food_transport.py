@@ -12,8 +12,8 @@ import py_trees
 import pytest
 from py_trees.common import Status
 
+from articutool.api_types import JobResult
 from articutool.arm.scene import Scene
-from articutool.feeding.behaviours import JobResult
 from articutool.feeding.system import Planner, System
 from articutool.feeding.tree import BiteRecorder, tick_until_done, transport_tree
 from articutool.food.definitions import load_food_definitions

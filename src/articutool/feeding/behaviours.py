@@ -37,7 +37,6 @@ __all__ = [
     "CountedRetry",
     "Execute",
     "Job",
-    "JobResult",
     "Plan",
     "PlanLift",
     "PlanPath",
