@@ -28,6 +28,15 @@ def _arm(spec, start: str = "Resting") -> tuple[PCArm, PerfectArm]:  # type: ign
     return PCArm(driver, spec, UTENSIL, Scene.load(), seed=0), driver
 
 
+def _planned(arm: PCArm, goal: str):  # type: ignore[no-untyped-def]
+    """The trajectory the decoupled planner makes from where the arm is to ``goal``."""
+    job = arm.start_plan(goal, DECOUPLED, budget_s=10.0)
+    job.wait_off_clock()
+    plan = job.result()
+    assert plan.ok, plan.message
+    return plan.value
+
+
 def _run_motion(arm: PCArm, driver: PerfectArm, traj, dt: float = 0.02) -> None:  # type: ignore[no-untyped-def]
     job = arm.start_execute(traj)
     while not job.done():
@@ -38,14 +47,11 @@ def _run_motion(arm: PCArm, driver: PerfectArm, traj, dt: float = 0.02) -> None:
 def test_plan_verify_follow_reaches_the_goal(spec) -> None:  # type: ignore[no-untyped-def]
     arm, driver = _arm(spec)
     try:
-        job = arm.start_plan("Staging", DECOUPLED, budget_s=10.0)
-        job.wait_off_clock()
-        plan = job.result()
-        assert plan.ok, plan.message
-        assert plan.value.positions[0] == pytest.approx(spec.arm.configuration("Resting"))
-        checked = arm.verify(plan.value)
+        plan = _planned(arm, "Staging")
+        assert plan.positions[0] == pytest.approx(spec.arm.configuration("Resting"))
+        checked = arm.verify(plan)
         assert checked.ok, checked.message
-        _run_motion(arm, driver, plan.value)
+        _run_motion(arm, driver, plan)
     finally:
         arm.close()
     goal = arm.goal_configuration("Staging")
@@ -108,12 +114,9 @@ def test_a_tip_path_ends_with_the_tip_at_its_last_waypoint(spec) -> None:  # typ
 def test_a_cancelled_motion_leaves_the_arm_stopped_where_it_is(spec) -> None:  # type: ignore[no-untyped-def]
     arm, driver = _arm(spec)
     try:
-        job = arm.start_plan("Home", DECOUPLED, budget_s=10.0)
-        job.wait_off_clock()
-        plan = job.result()
-        assert plan.ok, plan.message
-        motion = arm.start_execute(plan.value)
-        driver.advance(plan.value.duration / 2)
+        plan = _planned(arm, "Home")
+        motion = arm.start_execute(plan)
+        driver.advance(plan.duration / 2)
         held = driver.joint_positions()
         motion.cancel()
         driver.advance(1.0)
