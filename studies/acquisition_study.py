@@ -116,8 +116,7 @@ def turn(food: str) -> dict[str, Any]:
     from articutool.feeding.insertion import acquisition_waypoints, dish_outline
     from articutool.feeding.strategies import StrategyLibrary
     from articutool.meal.bites import container_floor
-    from articutool.meal.sim_arm import wrist_sweep
-    from articutool.sim.scenes import cartesian_path, first_ik
+    from articutool.planning.tip_paths import cartesian_path, first_ik, wrist_sweep
     from articutool.spec import load_spec
 
     spec, scene = load_spec(), Scene.load()

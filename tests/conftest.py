@@ -17,7 +17,9 @@ free_port``):
   floor beside it (water deposits where it lands, so a table-then-floor spill is staged);
 - :func:`descendants` — the processes below a process, read from ``/proc``;
 - :func:`trial_record` — an experiment's trial record built by hand (the fields a test names,
-  neutral values for the rest), validated as a trial log line is.
+  neutral values for the rest), validated as a trial log line is;
+- :class:`PerfectArm` — an arm driver (:class:`~articutool.planning.pc_arm.ArmDriver`) that
+  follows every commanded trajectory exactly, on a clock the test advances (no physics).
 """
 
 from __future__ import annotations
@@ -216,6 +218,56 @@ def wait_until(pred: Callable[[], object], timeout: float = 5.0, period: float =
             return True
         time.sleep(period)
     return bool(pred())
+
+
+class PerfectArm:
+    """An :class:`~articutool.planning.pc_arm.ArmDriver` without physics: the arm joints are
+    the commanded trajectory's reference at ``t`` (advanced by :meth:`advance`), so a motion
+    ends exactly where it was planned to; the wrist stays at ``wrist``. It refuses a point
+    outside the arm's joint limits, as the servos' driver does."""
+
+    def __init__(self, spec: Spec, q_arm, wrist=(0.0, 0.0)) -> None:  # type: ignore[no-untyped-def]
+        import numpy as np
+
+        self.spec, self.t = spec, 0.0
+        self.q = np.concatenate([np.asarray(q_arm, dtype=float), np.asarray(wrist, dtype=float)])
+        self.followed: list = []
+        self._traj = None
+        self._t0 = 0.0
+
+    def joint_positions(self):  # type: ignore[no-untyped-def]
+        return self.q.copy()
+
+    def follow(self, trajectory) -> None:  # type: ignore[no-untyped-def]
+        import numpy as np
+
+        from articutool.trajectory import JointTrajectory
+
+        names = tuple(self.spec.arm.joint_names)
+        idx = [trajectory.joint_names.index(n) for n in names]
+        arm = JointTrajectory(names, trajectory.times, trajectory.positions[:, idx],
+                              trajectory.velocities[:, idx])
+        lo, hi = self.spec.arm.lower, self.spec.arm.upper
+        if np.any((arm.positions < lo - 1e-9) | (arm.positions > hi + 1e-9)):
+            raise ValueError("trajectory outside the arm's joint limits")
+        self.followed.append(arm)
+        self._traj, self._t0 = arm, self.t
+
+    def stop(self) -> None:
+        self._traj = None
+
+    @property
+    def busy(self) -> bool:
+        return self._traj is not None
+
+    def advance(self, dt: float) -> None:
+        """Let ``dt`` seconds pass: the arm moves along what it follows."""
+        self.t += dt
+        if self._traj is not None:
+            pos, _ = self._traj.sample(self.t - self._t0)
+            self.q[:6] = pos
+            if self.t - self._t0 >= self._traj.duration:
+                self._traj = None
 
 
 def drop_off_the_table(world) -> int:  # type: ignore[no-untyped-def]

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from py_trees.common import Status
 
-from articutool.feeding.behaviours import Board, Execute, JobResult
+from articutool.api_types import JobResult
+from articutool.feeding.behaviours import Board, Execute
 from articutool.tool.api import ToolState
 from articutool.trajectory import JointTrajectory
 

@@ -86,7 +86,7 @@ def test_each_exp2b_systems_food_check_models_the_wrist_it_carries(name: str) ->
 
     spec, scene = load_spec(), Scene.load()
     sset = scene.staging_set
-    world = SimpleNamespace(spec=spec, scene=scene, utensil="soup_spoon", wrist_q=np.zeros(2))
+    world = SimpleNamespace(spec=spec, scene=scene, utensil="soup_spoon", q=np.zeros(8))
     goals = {g.name: g.q for g in sset.goals}
     arm = exp2b_arm(world, name, CFG, goals, seed=0)  # type: ignore[arg-type]
     v = CFG.exp2b.variants.get(name)

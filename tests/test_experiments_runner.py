@@ -250,7 +250,7 @@ def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
         world=mock.MagicMock(), arm=mock.MagicMock(), strategy=mock.MagicMock()))
     monkeypatch.setattr(protocols, "capacity_strategy", lambda s, _: s)
     monkeypatch.setattr(meal, "shed_configuration", lambda *a, **k: None)
-    for name in ("FeedingWorld", "SimArm", "_GoalArm"):
+    for name in ("FeedingWorld", "sim_arm"):
         monkeypatch.setattr(protocols, name, mock.MagicMock())
     goals = ["centre"]
     conds = conditions(experiment, ExperimentsConfig.load(), goals=goals,

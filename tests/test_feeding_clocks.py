@@ -14,8 +14,9 @@ pytest.importorskip("mujoco")
 
 from articutool.feeding.system import System
 from articutool.feeding.tree import attempts_used, run_tree, transport_tree
-from articutool.meal import sim_arm
-from articutool.meal.sim_arm import SimArm
+from articutool.planning import pc_arm
+from articutool.planning.pc_arm import PCArm
+from articutool.sim.arm_driver import sim_arm
 from articutool.sim.world import FeedingWorld
 from articutool.tool.api import Mode
 
@@ -33,24 +34,24 @@ def _transport(monkeypatch: pytest.MonkeyPatch, slow: bool, ahead: bool = False)
     w.place_load(1.0)
     before = w.masses_g()  # the loader may drop a piece beside the spoon (seed 0: 0.46 g)
     if slow:
-        real = sim_arm.plan
+        real = pc_arm.plan
 
         def slow_plan(*args, **kwargs):
             r = real(*args, **kwargs)
             time.sleep(LAG_WALL_S)  # the real plan, on a slower machine
             return r
 
-        monkeypatch.setattr(sim_arm, "plan", slow_plan)
+        monkeypatch.setattr(pc_arm, "plan", slow_plan)
     if ahead:
-        real_start = SimArm.start_plan
+        real_start = PCArm.start_plan
 
         def start_plan_done(self, *args, **kwargs):
             job = real_start(self, *args, **kwargs)
             job.fut.result()  # the worker thread ran while the tree's thread was not scheduled
             return job
 
-        monkeypatch.setattr(SimArm, "start_plan", start_plan_done)
-    arm = SimArm(w)
+        monkeypatch.setattr(PCArm, "start_plan", start_plan_done)
+    arm = sim_arm(w)
     try:
         root = transport_tree(arm, w.tool, "Staging", System.of("articutool"), attempts=3,
                               budget_s=BUDGET_S, clock=lambda: w.time)

@@ -30,7 +30,7 @@ from py_trees.common import Status
 
 pytest.importorskip("mujoco")
 
-from articutool.feeding.behaviours import JobResult
+from articutool.api_types import JobResult
 from articutool.feeding.tree import board_of
 from articutool.link.auth import Sender
 from articutool.link.client import ArticutoolClient

@@ -1,4 +1,5 @@
-"""The feeding tree's transport subtree driving the physics world (SimArm + the tool runtime)."""
+"""The feeding tree's transport subtree driving the physics world (the PC arm over the
+world's arm driver, and the tool runtime)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ pytest.importorskip("mujoco")
 from articutool.feeding.behaviours import BiteStage
 from articutool.feeding.system import System
 from articutool.feeding.tree import attempts_used, run_tree, transport_tree
-from articutool.meal.sim_arm import SimArm
+from articutool.sim.arm_driver import sim_arm
 from articutool.sim.world import FeedingWorld
 from articutool.tool.api import Mode
 
@@ -24,7 +25,7 @@ def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> Non
     w.tare_ft(0.3)
     held = w.place_load(1.0)
     g0 = w.masses_g()  # a piece the loader drops beside the spoon is not the transport's
-    arm = SimArm(w)
+    arm = sim_arm(w)
     tilts = []
     w.on_tick.append(lambda world: tilts.append(world.tilt_deg()))
     try:
@@ -49,7 +50,7 @@ def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> Non
 
 def test_baseline_strict_transport_from_a_rigid_level_start() -> None:
     w = FeedingWorld.build("water", seed=0, load_g=8.0)  # the wrist stays locked (DISABLED)
-    arm = SimArm(w)
+    arm = sim_arm(w)
     try:
         w.move_arm(arm.rigid_level_configuration("Resting"))
         w.run(0.5)
@@ -135,7 +136,7 @@ class _LockedCarry(py_trees.behaviour.Behaviour):
 
     def update(self) -> Status:
         from articutool.sim.scenes import base_tilt_motion
-        from articutool.sim.world import smooth_joint_motion
+        from articutool.trajectory import smooth_joint_motion
         from conftest import drop_off_the_table
 
         w = self.world

@@ -9,7 +9,8 @@ import py_trees
 import pytest
 from py_trees.common import Status
 
-from articutool.feeding.behaviours import Board, JobResult, RunPrimitive, ToolModeScope
+from articutool.api_types import JobResult
+from articutool.feeding.behaviours import Board, RunPrimitive, ToolModeScope
 from articutool.feeding.system import Planner, System
 from articutool.feeding.tree import (
     BiteRecorder,

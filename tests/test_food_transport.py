@@ -6,26 +6,25 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import py_trees
 import pytest
 from py_trees.common import Status
 
+from articutool.api_types import JobResult
 from articutool.arm.scene import Scene
-from articutool.feeding.behaviours import JobResult
 from articutool.feeding.system import Planner, System
 from articutool.feeding.tree import BiteRecorder, tick_until_done, transport_tree
 from articutool.food.definitions import load_food_definitions
 from articutool.food.loads import food_load
-from articutool.meal.sim_arm import FoodDecision, SimArm
+from articutool.planning.pc_arm import FoodDecision, PCArm
 from articutool.planning.timing import time_parameterize
 from articutool.tool.api import Mode
 from articutool.trajectory import JointTrajectory
 from articutool.verify.food import food_check
 from articutool.verify.verifier import verify_trajectory
-from conftest import packaged_spec
+from conftest import PerfectArm, packaged_spec
 from test_feeding_tree import Clock, FakeArm, FakeJob, FakeTool
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -40,15 +39,14 @@ def _water(g: float):
     return food_load(FOODS["water"], g)
 
 
-def _sim_arm(load, rigid: bool = False, leveling: str = "gravity") -> SimArm:
-    """A SimArm on a stand-in world: check_food needs only the spec, the utensil, the scene
-    and the wrist's joints."""
-    world = SimpleNamespace(spec=SPEC, utensil="soup_spoon", scene=Scene.load(),
-                            wrist_q=np.zeros(2))
-    return SimArm(world, rigid=rigid, load=load, leveling=leveling)  # type: ignore[arg-type]
+def _pc_arm(load, rigid: bool = False, leveling: str = "gravity") -> PCArm:
+    """The PC arm over a driver without physics (the food check reads only the wrist's
+    joints of it)."""
+    return PCArm(PerfectArm(SPEC, PATH.positions[0]), SPEC, "soup_spoon", Scene.load(),
+                 rigid=rigid, load=load, leveling=leveling)
 
 
-def _predicted(arm: SimArm, traj: JointTrajectory) -> float:
+def _predicted(arm: PCArm, traj: JointTrajectory) -> float:
     """An independent prediction of what executing ``traj`` with ``arm``'s wrist spills."""
     load = arm.current_load()
     six = JointTrajectory(tuple(SPEC.arm.joint_names), traj.times, traj.positions[:, :6],
@@ -64,7 +62,7 @@ def _predicted(arm: SimArm, traj: JointTrajectory) -> float:
 
 
 def test_a_transport_predicted_to_spill_is_retimed_until_it_is_not() -> None:
-    arm = _sim_arm(_water(14.0))
+    arm = _pc_arm(_water(14.0))
     assert _predicted(arm, FAST) > 0.05  # as planned, 14 g spills
     r = arm.check_food(FAST)
     assert r.ok, r.message
@@ -77,7 +75,7 @@ def test_a_transport_predicted_to_spill_is_retimed_until_it_is_not() -> None:
 
 def test_the_locked_baseline_gets_the_same_retiming() -> None:
     # the example path turns the tool base far from level: no timing saves a locked dish
-    arm = _sim_arm(_water(8.0), rigid=True)
+    arm = _pc_arm(_water(8.0), rigid=True)
     r = arm.check_food(FAST)
     assert not r.ok and "re-plan" in r.message
     assert [t["scale"] for t in r.value.record["tried"]] == [
@@ -86,8 +84,8 @@ def test_the_locked_baseline_gets_the_same_retiming() -> None:
 
 
 def test_slosh_free_leveling_runs_as_planned_where_leveling_needs_retiming() -> None:
-    lev = _sim_arm(_water(14.0)).check_food(FAST)
-    sf = _sim_arm(_water(14.0), leveling="apparent").check_food(FAST)
+    lev = _pc_arm(_water(14.0)).check_food(FAST)
+    sf = _pc_arm(_water(14.0), leveling="apparent").check_food(FAST)
     assert lev.ok and sf.ok
     assert sf.value.record["wrist"] == "slosh_free" and not sf.value.record["retimed"]
     assert len(sf.value.trajectory.joint_names) == 8  # the wrist's joints go to the tool
@@ -95,15 +93,15 @@ def test_slosh_free_leveling_runs_as_planned_where_leveling_needs_retiming() -> 
 
 
 def test_no_load_nothing_to_check() -> None:
-    r = _sim_arm(None).check_food(FAST)
+    r = _pc_arm(None).check_food(FAST)
     assert r.ok and r.value.trajectory is FAST
 
 
 class CheckingArm(FakeArm):
     """The fake arm of the tree tests, planning real trajectories and checking the food with
-    the real :meth:`SimArm.check_food` (a stand-in world)."""
+    the real :meth:`PCArm.check_food`."""
 
-    def __init__(self, clock: Clock, sim: SimArm, plans: list[JointTrajectory]) -> None:
+    def __init__(self, clock: Clock, sim: PCArm, plans: list[JointTrajectory]) -> None:
         super().__init__(clock, [True] * len(plans), [])
         self.sim, self.trajs = sim, list(plans)
 
@@ -137,7 +135,7 @@ def test_the_tree_never_executes_a_transport_predicted_to_spill() -> None:
     # re-plan past the first two and execute only the third.
     clock, tool = Clock(), FakeTool(Clock())
     tool.clock = clock
-    sim = _sim_arm(_water(16.7))
+    sim = _pc_arm(_water(16.7))
     still = JointTrajectory(PATH.joint_names, np.array([0.0, 1.0]),
                             np.tile(PATH.positions[0], (2, 1)), np.zeros((2, 6)))
     arm = CheckingArm(clock, sim, [FAST, FAST, still])
@@ -153,7 +151,7 @@ def test_the_tree_never_executes_a_transport_predicted_to_spill() -> None:
 def test_a_transport_that_cannot_be_made_spill_free_fails_the_attempt_with_the_reason() -> None:
     clock, tool = Clock(), FakeTool(Clock())
     tool.clock = clock
-    arm = CheckingArm(clock, _sim_arm(_water(8.0), rigid=True), [FAST, FAST])
+    arm = CheckingArm(clock, _pc_arm(_water(8.0), rigid=True), [FAST, FAST])
     status, record = _run(arm, tool, clock, system="baseline")
     assert status == Status.FAILURE and arm.executed == []
     assert any("predicted to spill" in why for _, why in record.failures)
@@ -180,7 +178,7 @@ def test_the_slosh_free_wrist_goes_to_the_tool_and_leveling_resumes() -> None:
     clock = Clock()
     tool = WristTool(clock)
     followed = tool.followed
-    arm = CheckingArm(clock, _sim_arm(_water(8.0), leveling="apparent"), [FAST])
+    arm = CheckingArm(clock, _pc_arm(_water(8.0), leveling="apparent"), [FAST])
     status, record = _run(arm, tool, clock)
     assert status == Status.SUCCESS
     assert len(followed) == 1 and followed[0].joint_names == tuple(SPEC.wrist.joint_names)
@@ -191,7 +189,7 @@ def test_the_slosh_free_wrist_goes_to_the_tool_and_leveling_resumes() -> None:
 
 @pytest.mark.parametrize("leveling", ["gravity", "apparent"])
 def test_checked_transports_of_both_wrists_are_predicted_spill_free(leveling: str) -> None:
-    arm = _sim_arm(_water(12.0), leveling=leveling)
+    arm = _pc_arm(_water(12.0), leveling=leveling)
     r = arm.check_food(FAST)
     assert r.ok
     assert _predicted(arm, r.value.trajectory) < 0.001

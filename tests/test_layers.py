@@ -233,8 +233,18 @@ def test_only_the_entry_point_imports_the_top_level_cli() -> None:
 def test_feeding_takes_the_staging_goal_and_the_scoop_heading_from_the_arm_layer() -> None:
     # not from the demo or the scripted scenes (sim/demo.py, sim/scenes.py)
     assert imports_from(GRAPH, "articutool.feeding", "articutool.sim.demo") == []
-    assert ("articutool.arm.ik" in GRAPH["articutool.meal.sim_arm"]
+    assert ("articutool.arm.ik" in GRAPH["articutool.planning.pc_arm"]
             and "articutool.arm.ik" in GRAPH["articutool.sim.demo"])
     for mod in ("articutool.meal.bites", "articutool.meal.cli"):
         assert "articutool.sim.scenes" not in GRAPH[mod]
         assert "articutool.arm.scene" in GRAPH[mod]
+
+
+def test_the_pcs_arm_is_below_the_simulation_and_the_world_is_one_driver() -> None:
+    # planning, verification, the food check and the tip's paths need no simulator: a real
+    # arm is another driver of articutool.planning.pc_arm.ArmDriver
+    for mod in ("articutool.planning.pc_arm", "articutool.planning.tip_paths"):
+        assert layer_of(package(mod)) < layer_of("sim")
+    users = sorted(m for m, deps in GRAPH.items() if "articutool.planning.pc_arm" in deps
+                   and package(m) == "sim")
+    assert users == ["articutool.sim.arm_driver"]

@@ -121,7 +121,8 @@ def test_sim_record_holds_the_runs_spills_where_they_landed(water_run, spec) -> 
 
 
 def test_recorder_samples_the_world_and_never_overwrites(tmp_path: Path, spec) -> None:
-    from articutool.sim.world import FeedingWorld, smooth_joint_motion
+    from articutool.sim.world import FeedingWorld
+    from articutool.trajectory import smooth_joint_motion
 
     world = FeedingWorld.build(None, "spoon", settle=False)
     rec = Recorder(world, rate_hz=10.0)

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Protocol
+from dataclasses import dataclass
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["ArmKinematics", "OrientationModel"]
+__all__ = ["ArmKinematics", "JobResult", "OrientationModel"]
 
 
 class OrientationModel(Protocol):
@@ -36,3 +37,15 @@ class ArmKinematics(OrientationModel, Protocol):
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(..., 6), (..., 6) → rotations (..., 3, 3) and angular velocities (..., 3) of F0."""
         ...
+
+
+@dataclass(frozen=True)
+class JobResult:
+    """How a job ended: ``ok``, a message a person understands, its value (a plan), and
+    ``wall_s``, the wall time the job's own work took (a plan: the planner's time, not the
+    simulated time that passed meanwhile)."""
+
+    ok: bool
+    message: str = ""
+    value: Any = None
+    wall_s: float = 0.0

@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from articutool.datafile import read_document
 
-__all__ = ["JointTrajectory", "TrajectoryError"]
+__all__ = ["JointTrajectory", "TrajectoryError", "smooth_joint_motion"]
 
 
 class TrajectoryError(ValueError):
@@ -195,3 +195,19 @@ class JointTrajectory:
         p = Path(path)
         with p.open("x", encoding="utf-8") as f:
             json.dump(self.to_dict(), f, indent=1)
+
+
+def smooth_joint_motion(q0: ArrayLike, q1: ArrayLike, max_velocity: ArrayLike,
+                        joint_names: list[str] | tuple[str, ...], duration: float | None = None,
+                        n: int = 41) -> JointTrajectory:
+    """A rest-to-rest quintic joint motion q0 → q1, slow enough for ``max_velocity`` (the
+    quintic's peak speed is 1.875 × the mean) unless ``duration`` is given."""
+    a, b = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
+    vmax = np.asarray(max_velocity, dtype=float)
+    need = float(np.max(1.875 * np.abs(b - a) / vmax)) if a.size else 0.0
+    T = max(duration if duration is not None else need, need, 1e-3)
+    s = np.linspace(0.0, 1.0, n)
+    pos_s = 10 * s**3 - 15 * s**4 + 6 * s**5
+    vel_s = (30 * s**2 - 60 * s**3 + 30 * s**4) / T
+    return JointTrajectory(tuple(joint_names), s * T, a + np.outer(pos_s, b - a),
+                           np.outer(vel_s, b - a))

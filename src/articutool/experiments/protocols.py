@@ -41,8 +41,9 @@ from articutool.experiments.records import (
     Exp2cCondition,
     Exp2cOutcome,
 )
-from articutool.meal.sim_arm import SimArm
+from articutool.planning.pc_arm import PCArm
 from articutool.sim import accounting as acc
+from articutool.sim.arm_driver import sim_arm, world_load
 from articutool.sim.world import FeedingWorld, SettleCache
 
 if TYPE_CHECKING:
@@ -57,21 +58,6 @@ __all__ = ["BITE_PROTOCOLS", "Hook", "capacity_strategy", "capacity_trial", "clo
 
 Hook = Callable[[FeedingWorld], None] | None
 Visitors = Sequence["py_trees.visitors.VisitorBase"]
-
-
-class _GoalArm(SimArm):
-    """:class:`SimArm` with extra named goals (the scene's staging set)."""
-
-    def __init__(self, world: FeedingWorld, goals: dict[str, Any], seed: int = 0,
-                 rigid: bool = False, load: Any = None, leveling: str = "gravity") -> None:
-        super().__init__(world, seed=seed, rigid=rigid, load=load, leveling=leveling)
-        self.extra = {k: np.asarray(v, dtype=float) for k, v in goals.items()}
-
-    def goal_configuration(self, goal: str) -> np.ndarray:
-        """A staging-set goal, else the spec's configurations and Staging."""
-        if goal in self.extra:
-            return self.extra[goal]
-        return super().goal_configuration(goal)
 
 
 def _thesis_bite(cfg: ExperimentsConfig) -> BiteSettings:
@@ -91,7 +77,7 @@ def _masses(world: FeedingWorld) -> dict[str, float]:
     return {k: _r(v) for k, v in world.masses_g().items()}
 
 
-def transport(world: FeedingWorld, arm: SimArm, goal: str, system: System, *, attempts: int,
+def transport(world: FeedingWorld, arm: PCArm, goal: str, system: System, *, attempts: int,
               cfg: ExperimentsConfig, visitors: Visitors = (), food: bool = False
               ) -> dict[str, Any]:
     """Run ``system``'s transport subtree of the feeding tree (plan → verify → execute,
@@ -285,20 +271,20 @@ def exp2b_trial(cond: Exp2bCondition, seed: int, cfg: ExperimentsConfig,
 
 
 def exp2b_arm(world: FeedingWorld, name: str, cfg: ExperimentsConfig,
-              goals: dict[str, Any], seed: int) -> SimArm:
+              goals: dict[str, Any], seed: int) -> PCArm:
     """The arm of Exp. 2b's system ``name`` (a thesis system or a variant): its wrist as the
     system carries the load (locked for the baseline, so a food check models the locked
     spoon), the variant's food check of the world's load and its leveling, and the staging
     set's ``goals``."""
     from articutool.feeding.system import System
-    from articutool.meal.sim_arm import world_load
 
     variant = cfg.exp2b.variants.get(name)
     system = System.of(variant.system if variant is not None else name)
     checked = variant is not None and variant.food_check
-    return _GoalArm(world, goals, seed=seed, rigid=not system.wrist,
-                    load=(lambda: world_load(world)) if checked else None,
-                    leveling=variant.leveling if variant is not None else "gravity")
+    return sim_arm(world, seed=seed, rigid=not system.wrist,
+                   load=(lambda: world_load(world)) if checked else None,
+                   leveling=variant.leveling if variant is not None else "gravity",
+                   goals=goals)
 
 
 def _plan_attempts(food: str, system: str) -> int:
@@ -336,7 +322,7 @@ def exp2c_trial(cond: Exp2cCondition, seed: int, cfg: ExperimentsConfig,
                            q_arm=q_shed, mouth=False, settle_cache=settled)
     if hook:
         hook(w)
-    arm = SimArm(w, seed=seed)
+    arm = sim_arm(w, seed=seed)
     prim: dict[str, Any] = {"primitive": None}
     try:
         w.tool.set_mode(Mode.LEVELING)

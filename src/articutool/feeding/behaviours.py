@@ -25,6 +25,7 @@ import numpy as np
 import py_trees
 from py_trees.common import Status
 
+from articutool.api_types import JobResult
 from articutool.feeding.system import Planner
 from articutool.tool.api import ABORTED_BY_MODE_CHANGE, Mode, ToolAPI
 
@@ -36,7 +37,6 @@ __all__ = [
     "CountedRetry",
     "Execute",
     "Job",
-    "JobResult",
     "Plan",
     "PlanLift",
     "PlanPath",
@@ -62,18 +62,6 @@ class Board:
     trajectory: Any = None
     tool_mode: Mode | None = None
     stop_requested: bool = False
-
-
-@dataclass(frozen=True)
-class JobResult:
-    """How a job ended: ``ok``, a message a person understands, its value (a plan), and
-    ``wall_s``, the wall time the job's own work took (a plan: the planner's time, not the
-    simulated time that passed meanwhile)."""
-
-    ok: bool
-    message: str = ""
-    value: Any = None
-    wall_s: float = 0.0
 
 
 class Job(Protocol):

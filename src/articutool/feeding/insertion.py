@@ -2,8 +2,8 @@
 container (pure; thesis §4.3.1 and §4.4, "above-food" pose, insertion, extraction).
 
 The utensil points along a horizontal ``heading`` tipped ``pitch_down`` below the horizon
-(:func:`articutool.sim.scenes.tip_target` turns a waypoint into a pose). Positions are in the
-arm base frame, relative to the centre of the container's inner floor ``floor``.
+(:func:`articutool.planning.tip_paths.tip_target` turns a waypoint into a pose). Positions are
+in the arm base frame, relative to the centre of the container's inner floor ``floor``.
 
 - **scoop** (and **dip**, a scoop without drag): from above, down steeply behind the food,
   into it at ``depth_m`` above the floor, dragged ``drag_m`` through it along the heading

@@ -222,7 +222,7 @@ class BiteRecorder(py_trees.visitors.VisitorBase):
 
     def wait_for_plans(self) -> None:
         """Block (wall time) until every plan the last tick left running in a worker thread
-        (a job with ``wait_off_clock``, as :class:`~articutool.meal.sim_arm.SimArm`'s) has
+        (a job with ``wait_off_clock``, as :class:`~articutool.planning.pc_arm.PCArm`'s) has
         its result.
         The arm holds still while it plans, and the world waits with it: how much simulated
         time passes during a plan must not depend on how fast this machine plans, or a trial

@@ -38,8 +38,9 @@ from articutool.feeding.outcomes import classify_bite
 from articutool.feeding.strategies import Strategy, StrategyLibrary
 from articutool.feeding.system import System
 from articutool.feeding.tree import attempts_used, run_tree
-from articutool.meal.sim_arm import SimArm, world_load
+from articutool.planning.pc_arm import PCArm
 from articutool.sim import accounting as acc
+from articutool.sim.arm_driver import sim_arm, world_load
 from articutool.sim.params import PhysicsParams
 from articutool.sim.world import FeedingWorld, SettleCache
 from articutool.spec import Spec, load_spec
@@ -193,7 +194,7 @@ class MealSetup:
     """What :func:`make_bite_world` built."""
 
     world: FeedingWorld
-    arm: SimArm
+    arm: PCArm
     strategy_name: str
     strategy: Strategy
     seed: int
@@ -217,8 +218,8 @@ def make_bite_world(food: str, system: str, seed: int = 0, *,
     params = PhysicsParams.load(physics) if physics is not None else None
     world = FeedingWorld.build(food, strat.utensil, spec=spec, params=params, seed=seed,
                                load_g=load_g, settle_cache=settle_cache)
-    arm = SimArm(world, seed=seed, rigid=not chosen.wrist, load=lambda: world_load(world),
-                 leveling=strat.transport.leveling)
+    arm = sim_arm(world, seed=seed, rigid=not chosen.wrist, load=lambda: world_load(world),
+                  leveling=strat.transport.leveling)
     if chosen.wrist:
         world.tool.set_mode(Mode.LEVELING)
         world.run(1.0)

@@ -126,8 +126,9 @@ def _cmd_sim(args: argparse.Namespace) -> int:
 
     if args.mjcf is not None:
         return _write_mjcf(args)
+    from articutool.planning.tip_paths import PathError
     from articutool.sim.render import RenderError
-    from articutool.sim.scenes import ScriptError, run_script
+    from articutool.sim.scenes import run_script
     from articutool.sim.world import FeedingWorld, PhysicsResetError
 
     new_output_file("--video", args.video, (".mp4", ".gif"))
@@ -168,7 +169,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
             from articutool.sim.render import save_png
 
             save_png(world, args.snapshot)
-    except (RenderError, ScriptError, PhysicsResetError) as err:
+    except (RenderError, PathError, PhysicsResetError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 1
     out = report.to_dict()

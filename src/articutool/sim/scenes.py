@@ -11,42 +11,35 @@
 - **tilt**: a scoop, then the tool's own TILT primitive (roll to 45° at 0.5 rad/s, hold 1 s,
   return), which pours out what does not stay.
 
-Arm motions are Cartesian paths of the tip solved by the Pinocchio IK (arm joints only, the
-wrist at its present angles), timed so that no arm joint exceeds its speed limit, and run
-through the arm's servos (never teleported).
+Arm motions are Cartesian paths of the tip (:mod:`articutool.planning.tip_paths`: the
+Pinocchio IK for the arm joints, the wrist at its present angles, timed so that no arm joint
+exceeds its speed limit), run through the arm's servos (never teleported).
 """
 
 from __future__ import annotations
 
-import itertools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
 
-from articutool.arm.ik import IKSettings, solve_pose_ik
 from articutool.arm.model import ArmModel
 from articutool.arm.scene import SCOOP_HEADING, Cylinder
-from articutool.planning.timing import time_parameterize
+from articutool.planning.tip_paths import PathError, cartesian_path, first_ik, lift_trajectory
 from articutool.sim.world import FeedingWorld, WorldReport
 from articutool.spec import Spec
 from articutool.tool.api import Mode
-from articutool.trajectory import JointTrajectory
 
 __all__ = [
     "SCRIPTS",
     "SKEWER_TIP_ABOVE_FLOOR_M",
     "ScriptError",
     "acquire",
-    "cartesian_path",
-    "first_ik",
-    "lift_trajectory",
     "max_twirl_turns",
     "run_script",
     "scoop",
     "skewer",
-    "tip_target",
 ]
 
 SCRIPTS = ("scoop", "carry", "tilt")
@@ -55,22 +48,9 @@ _Z = np.array([0.0, 0.0, 1.0])
 SKEWER_TIP_ABOVE_FLOOR_M = 0.002
 
 
-class ScriptError(RuntimeError):
-    """A scripted motion could not be made (no IK solution, no container)."""
-
-
-def tip_target(position: Sequence[float], heading: NDArray[np.float64],
-               pitch_down: float) -> NDArray[np.float64]:
-    """(4, 4) tip pose: the utensil points along horizontal ``heading`` tipped ``pitch_down``
-    rad below the horizon; its up vector (tip y, Eq. 4.1) stays in the vertical plane."""
-    h = np.asarray(heading, dtype=float)
-    h = h / np.linalg.norm(h)
-    z = h * math.cos(pitch_down) - _Z * math.sin(pitch_down)
-    y = h * math.sin(pitch_down) + _Z * math.cos(pitch_down)
-    T = np.eye(4)
-    T[:3, :3] = np.column_stack([np.cross(y, z), y, z])
-    T[:3, 3] = position
-    return T
+class ScriptError(PathError):
+    """A scripted scene could not be made (no container, a primitive refused); a tip path that
+    cannot be made raises :class:`~articutool.planning.tip_paths.PathError`, its base."""
 
 
 def _wrist(world: FeedingWorld) -> NDArray[np.float64]:
@@ -79,75 +59,6 @@ def _wrist(world: FeedingWorld) -> NDArray[np.float64]:
     q = world.wrist_q
     q[1] = math.remainder(q[1], 2 * math.pi)
     return q
-
-
-def _ik_segment(model: ArmModel, q: NDArray[np.float64],
-                p0: NDArray[np.float64], a0: float, p1: NDArray[np.float64], a1: float,
-                step_m: float) -> list[NDArray[np.float64]]:
-    """8-DOF configurations along the straight tip segment p0 → p1 (pitch a0 → a1), IK every
-    ``step_m`` from the previous solution (arm joints only)."""
-    settings = IKSettings(random_seeds=0)
-    n = max(1, math.ceil(np.linalg.norm(p1 - p0) / step_m))
-    out = []
-    for k in range(1, n + 1):
-        s = k / n
-        target = tip_target(p0 + s * (p1 - p0), SCOOP_HEADING, a0 + s * (a1 - a0))
-        sol = solve_pose_ik(model, "tip", target, q, settings, free=6)
-        if sol is None:
-            raise ScriptError(f"no arm IK solution for the tip at "
-                              f"{np.round(target[:3, 3], 3)} m")
-        out.append(sol)
-        q = sol
-    return out
-
-
-def first_ik(model: ArmModel, q_now: NDArray[np.float64], p: NDArray[np.float64],
-             a: float) -> NDArray[np.float64]:
-    """An 8-DOF configuration for the tip pose at ``p`` pitched ``a`` down along
-    :data:`SCOOP_HEADING`, solved for the arm joints (the wrist at ``q_now[6:]``) from the
-    present configuration ``q_now`` or a named one."""
-    target = tip_target(p, SCOOP_HEADING, a)
-    spec = model.spec
-    for q0 in (q_now[:6], *(spec.arm.configuration(n) for n in ("AbovePlate", "Home"))):
-        sol = solve_pose_ik(model, "tip", target, np.concatenate([q0, q_now[6:]]),
-                            IKSettings(random_seeds=0), free=6)
-        if sol is not None:
-            return sol
-    raise ScriptError(f"no arm IK solution for the tip at {np.round(p, 3)} m")
-
-
-def cartesian_path(model: ArmModel, q: NDArray[np.float64],
-                   waypoints: list[tuple[NDArray[np.float64], float, float]],
-                   step_m: float = 0.004) -> JointTrajectory:
-    """Arm trajectory through tip waypoints ``(position, pitch_down, speed m/s)``: each
-    straight segment is solved by IK and timed by TOPP-RA under the arm's velocity and
-    acceleration limits, slowed so the tip does not exceed the segment's speed (the speed of
-    the segment ending at the waypoint); segments run rest to rest. ``q``: the 8-DOF
-    configuration at the first waypoint (the wrist stays at ``q[6:]``)."""
-    arm = model.spec.arm
-    names = tuple(model.joint_names[:6])
-    times, pos, vel = [np.zeros(1)], [q[None, :6]], [np.zeros((1, 6))]
-    t_end = 0.0
-    for (p0, a0, _), (p1, a1, speed) in itertools.pairwise(waypoints):
-        qs = np.array([q] + _ik_segment(model, q, p0, a0, p1, a1, step_m))[:, :6]
-        q = np.concatenate([qs[-1], q[6:]])
-        want = float(np.linalg.norm(p1 - p0)) / speed
-        scale, seg = 1.0, None
-        for _ in range(2):
-            seg = time_parameterize(qs, names, arm.max_velocity * scale,
-                                    arm.max_acceleration * scale * scale)
-            if seg is None:
-                raise ScriptError("TOPP-RA found no timing for a scripted segment")
-            if seg.duration >= want * 0.95:
-                break
-            scale *= seg.duration / want
-        assert seg is not None
-        times.append(t_end + seg.times[1:])
-        pos.append(seg.positions[1:])
-        vel.append(seg.velocities[1:])
-        t_end += seg.duration
-    return JointTrajectory(names, np.concatenate(times), np.concatenate(pos),
-                           np.concatenate(vel))
 
 
 def scoop(world: FeedingWorld, level: bool = True) -> None:
@@ -281,29 +192,6 @@ def _lift(world: FeedingWorld, model: ArmModel, height: float = 0.12,
     its mode says), slowly: the arm's limits scaled by ``speed_scale``."""
     world.follow_arm(lift_trajectory(model, np.concatenate([world.arm_q, _wrist(world)]),
                                      height, speed_scale), settle_s=0.5)
-
-
-def lift_trajectory(model: ArmModel, q: NDArray[np.float64], height: float = 0.12,
-                    speed_scale: float = 0.3) -> JointTrajectory:
-    """Arm trajectory lifting the tool base straight up by ``height`` from ``q`` (8-DOF), its
-    orientation kept, with the arm's limits scaled by ``speed_scale``."""
-    T = model.tool_base_pose(q)
-    qs = [q]
-    n = max(2, round(height / 0.01))
-    for k in range(1, n + 1):
-        Tk = T.copy()
-        Tk[2, 3] += height * k / n
-        sol = solve_pose_ik(model, "tool_base", Tk, qs[-1], IKSettings(random_seeds=0), free=6)
-        if sol is None:
-            raise ScriptError("no arm IK solution for lifting the utensil")
-        qs.append(sol)
-    arm = model.spec.arm
-    lift = time_parameterize(np.array(qs)[:, :6], tuple(model.joint_names[:6]),
-                             arm.max_velocity * speed_scale,
-                             arm.max_acceleration * speed_scale**2)
-    if lift is None:
-        raise ScriptError("TOPP-RA found no timing for the lift")
-    return lift
 
 
 def load(world: FeedingWorld, level: bool = True) -> None:

@@ -49,10 +49,9 @@ from articutool.sim.params import PhysicsParams, Strands
 from articutool.sim.placement import LoadPlacement
 from articutool.sim.weighing import Weighing
 from articutool.spec import Spec
-from articutool.trajectory import JointTrajectory
+from articutool.trajectory import JointTrajectory, smooth_joint_motion
 
-__all__ = ["REPORT_JSON_KEYS", "FeedingWorld", "PhysicsResetError", "SettleCache", "WorldReport",
-           "smooth_joint_motion"]
+__all__ = ["REPORT_JSON_KEYS", "FeedingWorld", "PhysicsResetError", "SettleCache", "WorldReport"]
 
 # MuJoCo's warnings on which mj_step resets mjData to the model's defaults (its "simulation is
 # unstable" reset: NaN, Inf or huge qpos/qvel/qacc). Everything after is not the run's physics.
@@ -105,22 +104,6 @@ class WorldReport:
         out.update(d)
         out["spills"] = [asdict(s) for s in self.spills]
         return out
-
-
-def smooth_joint_motion(q0: ArrayLike, q1: ArrayLike, max_velocity: ArrayLike,
-                        joint_names: list[str] | tuple[str, ...], duration: float | None = None,
-                        n: int = 41) -> JointTrajectory:
-    """A rest-to-rest quintic joint motion q0 → q1, slow enough for ``max_velocity`` (the
-    quintic's peak speed is 1.875 × the mean) unless ``duration`` is given."""
-    a, b = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
-    vmax = np.asarray(max_velocity, dtype=float)
-    need = float(np.max(1.875 * np.abs(b - a) / vmax)) if a.size else 0.0
-    T = max(duration if duration is not None else need, need, 1e-3)
-    s = np.linspace(0.0, 1.0, n)
-    pos_s = 10 * s**3 - 15 * s**4 + 6 * s**5
-    vel_s = (30 * s**2 - 60 * s**3 + 30 * s**4) / T
-    return JointTrajectory(tuple(joint_names), s * T, a + np.outer(pos_s, b - a),
-                           np.outer(vel_s, b - a))
 
 
 class FeedingWorld:

@@ -1,53 +1,58 @@
-"""The feeding tree's arm in the physics world: :class:`SimArm` implements
-:class:`~articutool.feeding.behaviours.ArmInterface` on a
-:class:`~articutool.sim.world.FeedingWorld`, with the project's planners and verifier.
+"""The PC's arm: what the feeding tree asks of the arm
+(:class:`~articutool.feeding.behaviours.ArmInterface`), made on the PC over a small
+:class:`ArmDriver` — planning, plan-then-verify, the food check, goal IK and the tip's paths
+are here; the driver only reports the joints and follows, stops and runs trajectories.
+
+The physics world's arm is one driver (:class:`articutool.sim.arm_driver.MujocoArm`); a real
+Jaco is another, of the same four members (its joint states, a
+``FollowJointTrajectory`` goal, a stop, whether the goal is active).
 
 Plans run in a worker thread (the tree polls them) under the planner's own wall-time budget,
-and report that wall time; motions run through the world's arm
-servos while the caller keeps stepping the world. Goals are the spec's named configurations
-(``Resting``, ``AbovePlate``, ``Home``) and ``Staging`` (the spec's pose, solved by IK and
-backed off until the tool clears the user, as in ``articutool demo``). With ``rigid`` (the
-6-DOF baseline, wrist locked), a goal where a food-carrying utensil waits (Resting, Staging)
-is the arm configuration that holds the locked utensil level there
-(:meth:`SimArm.rigid_level_configuration`).
+and report that wall time; motions run through the driver while the caller's clock runs.
+Goals are the spec's named configurations (``Resting``, ``AbovePlate``, ``Home``), ``Staging``
+(the spec's pose, solved by IK and backed off until the tool clears the user, as in
+``articutool demo``) and any extra ``goals`` given (a scene's staging set). With ``rigid``
+(the 6-DOF baseline, wrist locked), a goal where a food-carrying utensil waits (Resting,
+Staging) is the arm configuration that holds the locked utensil level there
+(:meth:`PCArm.rigid_level_configuration`).
 
 Cartesian paths (insertion, extraction, lift) are solved by the Pinocchio IK for the arm
-joints with the wrist where it is, timed by TOPP-RA (:mod:`articutool.sim.scenes`); the first
-waypoint is reached by a rest-to-rest joint motion from where the arm is.
+joints with the wrist where it is, timed by TOPP-RA (:mod:`articutool.planning.tip_paths`);
+the first waypoint is reached by a rest-to-rest joint motion from where the arm is.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import wait as _wait
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
+from articutool.api_types import JobResult
 from articutool.arm.model import ArmModel
-from articutool.arm.scene import SCOOP_HEADING
-from articutool.feeding.behaviours import JobResult
-from articutool.feeding.insertion import TipWaypoint
-from articutool.feeding.system import Planner
+from articutool.arm.scene import Scene
 from articutool.planning.api import plan
-from articutool.planning.types import PlanRequest, TransportTask
-from articutool.sim.scenes import (
-    ScriptError,
+from articutool.planning.tip_paths import (
+    PathError,
     cartesian_path,
+    concatenate,
     first_ik,
     lift_trajectory,
-    tip_target,
+    with_wrist,
+    wrist_sweep,
 )
-from articutool.sim.world import FeedingWorld, smooth_joint_motion
-from articutool.trajectory import JointTrajectory
+from articutool.planning.types import PlanRequest, TransportTask
+from articutool.spec import Spec
+from articutool.trajectory import JointTrajectory, smooth_joint_motion
 from articutool.verify.verifier import verify_trajectory
 
-__all__ = ["FoodDecision", "SimArm", "world_load", "wrist_sweep"]
+__all__ = ["ArmDriver", "FoodDecision", "PCArm"]
 
 # Where a rigid utensil must wait level with food on it.
 _CARRY_GOALS = ("Resting", "Staging")
@@ -55,99 +60,59 @@ _CARRY_GOALS = ("Resting", "Staging")
 _HERE_M = 0.02
 
 
-def _concatenate(parts: list[JointTrajectory]) -> JointTrajectory:
-    """Rest-to-rest trajectories one after the other (each starts where the last ended)."""
-    times, pos, vel, t0 = [parts[0].times], [parts[0].positions], [parts[0].velocities], 0.0
-    for a, b in itertools.pairwise(parts):
-        t0 += a.duration
-        times.append(t0 + b.times[1:])
-        pos.append(b.positions[1:])
-        vel.append(b.velocities[1:])
-    return JointTrajectory(parts[0].joint_names, np.concatenate(times), np.concatenate(pos),
-                           np.concatenate(vel))
+class ArmDriver(Protocol):
+    """The arm as the PC commands it (the physics world's, a real Jaco's)."""
+
+    def joint_positions(self) -> NDArray[np.float64]:
+        """The 8 joints now (rad): the six arm joints and the wrist's [pitch, roll], in the
+        arm model's order (the spec's joint names)."""
+        ...
+
+    def follow(self, trajectory: JointTrajectory) -> None:
+        """Start following ``trajectory``'s six arm joints (by name; wrist joints in it are
+        the tool's, ignored) from now; returns at once. Raises ``ValueError`` for a point
+        outside the arm's joint limits."""
+        ...
+
+    def stop(self) -> None:
+        """Stop following: hold the arm where it is now, at rest."""
+        ...
+
+    @property
+    def busy(self) -> bool:
+        """True while a trajectory is being followed."""
+        ...
 
 
-_PITCH_MARGIN = math.radians(5.0)
+class Planner(Protocol):
+    """What the arm reads of the tree's planner (:class:`~articutool.feeding.system.Planner`)."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def tolerance_deg(self) -> float | None: ...
 
 
-def _pitch_down(model: ArmModel, q: np.ndarray) -> float:
-    """How far the utensil points below the horizon at ``q`` (rad)."""
-    return float(math.asin(-np.clip(model.tip_pose(q)[2, 2], -1.0, 1.0)))
+class Waypoint(Protocol):
+    """A tip waypoint (:class:`~articutool.feeding.insertion.TipWaypoint`)."""
 
+    @property
+    def position(self) -> tuple[float, float, float]: ...
 
-def wrist_sweep(model: ArmModel, q: np.ndarray, p0: np.ndarray, a0: float, p1: np.ndarray,
-                a1: float, speed: float, step_m: float = 0.002, dt: float = 0.02
-                ) -> JointTrajectory:
-    """8-joint trajectory of a tip segment p0 → p1 whose pitch change a0 → a1 the wrist's
-    pitch makes while the arm translates (thesis §4.3.1, "a 2-DOF local motion with
-    the Articutool"): the wrist pitch is interpolated from ``q``'s to the one that gives
-    ``a1`` with the tool base as at ``q`` (within its range: beyond it the arm makes the rest
-    of the turn), and the arm joints are solved by IK for every tip
-    pose along the segment. Rest to rest, on a smoothstep in time no faster than ``speed`` on
-    average and within the arm's and the wrist's velocity limits. Raises ``ScriptError``."""
-    from articutool.arm.ik import IKSettings, solve_pose_ik
+    @property
+    def pitch_down(self) -> float: ...
 
-    spec = model.spec
-    # The wrist pitch that turns the utensil by a1 − a0 with the arm still (sign from the
-    # kinematics, refined by two secant steps).
-    w0 = float(q[6])
-    cands = [w0 + (a1 - a0), w0 - (a1 - a0)]
+    @property
+    def speed(self) -> float: ...
 
-    def err(w: float) -> float:
-        qq = q.copy()
-        qq[6] = w
-        return _pitch_down(model, qq) - a1
-
-    w1 = min(cands, key=lambda w: abs(err(w)))
-    for _ in range(2):
-        e, h = err(w1), 1e-4
-        d = (err(w1 + h) - e) / h
-        if abs(d) > 1e-6:
-            w1 -= e / d
-    # Beyond the wrist's range the arm makes the rest of the turn (IK below solves the tip's
-    # pitch whatever the wrist gives), 5° inside the limit the runtime enforces.
-    lo, hi = spec.wrist.pitch_limits
-    w1 = min(max(w1, lo + _PITCH_MARGIN), hi - _PITCH_MARGIN)
-    n = max(2, math.ceil(max(np.linalg.norm(p1 - p0) / step_m,
-                             abs(a1 - a0) / math.radians(1.0))))
-    settings = IKSettings(random_seeds=0)
-    qs = [q.copy()]
-    for k in range(1, n + 1):
-        s = k / n
-        q_try = qs[-1].copy()
-        q_try[6] = w0 + s * (w1 - w0)
-        target = tip_target(p0 + s * (p1 - p0), SCOOP_HEADING, a0 + s * (a1 - a0))
-        sol = solve_pose_ik(model, "tip", target, q_try, settings, free=6)
-        if sol is None:
-            raise ScriptError(f"no arm IK solution for the tip at {np.round(target[:3, 3], 3)}"
-                              " m with the wrist levelling")
-        qs.append(sol)
-    Q = np.array(qs)
-    vmax = np.concatenate([spec.arm.max_velocity, spec.wrist.max_velocity])
-    dq_ds = np.max(np.abs(np.diff(Q, axis=0)) * n, axis=0)  # per unit of path parameter
-    # Smoothstep s(τ) = 3τ² − 2τ³ peaks at 1.5/T.
-    T = max(float(np.linalg.norm(p1 - p0)) / speed, 1.5 * float(np.max(dq_ds / vmax)), 4 * dt)
-    T = math.ceil(T / dt) * dt
-    tau = np.linspace(0.0, 1.0, round(T / dt) + 1)
-    sv = 3 * tau**2 - 2 * tau**3
-    grid = np.linspace(0.0, 1.0, n + 1)
-    pos = np.column_stack([np.interp(sv, grid, Q[:, j]) for j in range(Q.shape[1])])
-    vel = np.gradient(pos, tau * T, axis=0)
-    vel[0] = vel[-1] = 0.0
-    return JointTrajectory(tuple(model.joint_names), tau * T, pos, vel)
-
-
-def _with_wrist(traj: JointTrajectory, model: ArmModel, wrist: np.ndarray) -> JointTrajectory:
-    """An arm trajectory as an 8-joint one, the wrist held at ``wrist``."""
-    n = len(traj.times)
-    return JointTrajectory(tuple(model.joint_names), traj.times,
-                           np.column_stack([traj.positions, np.tile(wrist, (n, 1))]),
-                           np.column_stack([traj.velocities, np.zeros((n, 2))]))
+    @property
+    def wrist(self) -> bool: ...
 
 
 def _timed(work: Callable[[], JobResult]) -> Callable[[], JobResult]:
     """``work`` that reports its own wall time (``JobResult.wall_s``), measured in the worker
-    thread: the planner's time, whatever the simulated clock did meanwhile."""
+    thread: the planner's time, whatever the caller's clock did meanwhile."""
 
     def run() -> JobResult:
         t0 = time.perf_counter()
@@ -179,47 +144,31 @@ class _FutureJob:
 
 
 class _MotionJob:
-    def __init__(self, world: FeedingWorld) -> None:
-        self.world = world
+    def __init__(self, driver: ArmDriver) -> None:
+        self.driver = driver
         self.cancelled = False
 
     def done(self) -> bool:
-        return self.cancelled or not self.world.arm_busy
+        return self.cancelled or not self.driver.busy
 
     def result(self) -> JobResult:
         if self.cancelled:
             return JobResult(False, "motion cancelled; the arm holds where it is")
-        return JobResult(True, f"arrived (tracking error ≤ "
-                               f"{np.degrees(self.world.arm_tracking_error):.2f}°)")
+        return JobResult(True, "arrived")
 
     def cancel(self) -> None:
         if not self.done():
-            self.world.stop_arm()
+            self.driver.stop()
         self.cancelled = True
 
 
 @dataclasses.dataclass(frozen=True)
 class FoodDecision:
-    """What :meth:`SimArm.check_food` decided: the trajectory to execute (None when no
+    """What :meth:`PCArm.check_food` decided: the trajectory to execute (None when no
     timing is predicted spill-free) and the record of what was done and predicted."""
 
     trajectory: JointTrajectory | None
     record: dict[str, Any]
-
-
-def world_load(world: FeedingWorld) -> Any:
-    """The load on the world's utensil as the food check models it: its food and the grams
-    on the utensil (the physics world's count stands for the weighing the F/T sensor gives
-    a real tool), or None for a food whose spill is not modelled (strands) or nothing."""
-    from articutool.food.loads import LoadError, food_load
-
-    if not world.food:
-        return None
-    grams = world.masses_g()["utensil"]
-    try:
-        return food_load(world.params.definition(world.food), round(grams, 3))
-    except LoadError:
-        return None
 
 
 def _food_record(pred: Any, load: Any, wrist: str, scale: float, planned: JointTrajectory,
@@ -234,32 +183,54 @@ def _food_record(pred: Any, load: Any, wrist: str, scale: float, planned: JointT
             "min_margin_deg": round(pred.min_margin_deg, 3)}
 
 
-class SimArm:
-    """The physics world's arm for the feeding tree (see module doc).
+def _arm_part(trajectory: JointTrajectory) -> JointTrajectory:
+    """The six arm joints of a trajectory (of 6 or 8)."""
+    return JointTrajectory(trajectory.joint_names[:6], trajectory.times,
+                           trajectory.positions[:, :6], trajectory.velocities[:, :6])
 
-    ``load`` gives the load on the utensil when a transport is checked (None: nothing to
-    check): a :class:`~articutool.food.loads.FoodLoad` or a callable returning one (the
-    protocols and the meal weigh it). ``leveling`` is what the decoupled wrist levels
-    against: ``"gravity"`` (its IMU loop) or ``"apparent"`` (slosh-free).
+
+class PCArm:
+    """The feeding tree's arm on the PC, over ``driver`` (see module doc).
+
+    ``spec``, ``utensil`` and ``scene`` make the planning model. ``load`` gives the load on
+    the utensil when a transport is checked (None: nothing to check): a
+    :class:`~articutool.food.loads.FoodLoad` or a callable returning one. ``leveling`` is what
+    the decoupled wrist levels against: ``"gravity"`` (its IMU loop) or ``"apparent"``
+    (slosh-free). ``goals``: extra named arm configurations (6 joints), found before the
+    spec's.
     """
 
-    def __init__(self, world: FeedingWorld, seed: int = 0, rigid: bool = False, load: Any = None,
-                 leveling: str = "gravity") -> None:
+    def __init__(self, driver: ArmDriver, spec: Spec, utensil: str, scene: Scene, *,
+                 seed: int = 0, rigid: bool = False, load: Any = None,
+                 leveling: str = "gravity", goals: Mapping[str, ArrayLike] | None = None
+                 ) -> None:
         if leveling not in ("gravity", "apparent"):
             raise ValueError(f"leveling must be 'gravity' or 'apparent'; got {leveling!r}")
-        self.world = world
+        self.driver = driver
+        self.spec = spec
+        self.utensil = utensil
         self.seed = seed
         self.rigid = rigid
         self.load = load
         self.leveling = leveling
-        self.model = ArmModel(world.spec, world.utensil, 8, world.scene)
+        self.extra = {k: np.asarray(v, dtype=float) for k, v in (goals or {}).items()}
+        self.model = ArmModel(spec, utensil, 8, scene)
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="plan")
         self._goals: dict[str, np.ndarray] = {}
 
+    def _q(self) -> NDArray[np.float64]:
+        """The 8 joints now, the roll wrapped to (−π, π] (a twirl turns it whole turns)."""
+        q = np.asarray(self.driver.joint_positions(), dtype=float).copy()
+        q[7] = math.remainder(q[7], 2 * math.pi)
+        return q
+
     def goal_configuration(self, goal: str) -> np.ndarray:
-        """Arm joints of a named goal (configurations of the spec, or Staging)."""
+        """Arm joints of a named goal (an extra goal, a configuration of the spec, or
+        Staging)."""
+        if goal in self.extra:
+            return self.extra[goal]
         if goal not in self._goals:
-            spec = self.world.spec
+            spec = self.spec
             if self.rigid and goal in _CARRY_GOALS:
                 self._goals[goal] = self.rigid_level_configuration(goal, free=True)
             elif goal in spec.arm.configurations:
@@ -270,7 +241,7 @@ class SimArm:
                 self._goals[goal] = staging_configuration(spec, self.model, self.seed)[0]
             else:
                 raise ValueError(f"goal: unknown goal {goal!r}; known: "
-                                 f"{sorted([*spec.arm.configurations, 'Staging'])}")
+                                 f"{sorted([*self.extra, *spec.arm.configurations, 'Staging'])}")
         return self._goals[goal]
 
     def rigid_level_configuration(self, goal: str, free: bool = False) -> np.ndarray:
@@ -283,7 +254,7 @@ class SimArm:
         give a level rigid utensil (measured by IK from 33 starts)."""
         from articutool.arm.ik import solve_level_ik
 
-        spec, wq = self.world.spec, self.world.wrist_q
+        spec, wq = self.spec, self.driver.joint_positions()[6:]
         named = (spec.arm.configuration(goal) if goal in spec.arm.configurations else None)
         if named is None:
             rigid, self.rigid = self.rigid, False  # the Articutool's Staging, to start from
@@ -304,12 +275,12 @@ class SimArm:
 
     def start_plan(self, goal: str, planner: Planner, budget_s: float) -> _FutureJob:
         """Plan from where the arm is to ``goal`` with ``planner`` in a worker thread."""
-        start = tuple(float(x) for x in self.world.arm_q)
+        start = tuple(float(x) for x in self.driver.joint_positions()[:6])
         target = tuple(float(x) for x in self.goal_configuration(goal))
         req = PlanRequest(planner=planner.name, task=TransportTask(0, start, target),
-                          timeout_s=budget_s, seed=self.seed, utensil=self.world.utensil,
+                          timeout_s=budget_s, seed=self.seed, utensil=self.utensil,
                           tolerance_deg=planner.tolerance_deg)
-        spec = self.world.spec
+        spec = self.spec
 
         def work() -> JobResult:
             r = plan(req, spec)
@@ -324,9 +295,7 @@ class SimArm:
         """Plan-then-verify: can the wrist level along this arm trajectory (Alg. 2)?"""
         if not isinstance(trajectory, JointTrajectory):
             return JobResult(False, "no trajectory to verify")
-        arm = JointTrajectory(trajectory.joint_names[:6], trajectory.times,
-                              trajectory.positions[:, :6], trajectory.velocities[:, :6])
-        rep = verify_trajectory(arm, self.model, self.world.spec)
+        rep = verify_trajectory(_arm_part(trajectory), self.model, self.spec)
         if rep.feasible:
             return JobResult(True, f"feasible, velocity margin {rep.velocity_margin:.0%}")
         return JobResult(False, f"the wrist cannot follow: {rep.reason}")
@@ -351,15 +320,15 @@ class SimArm:
             return JobResult(True, "no load to check", FoodDecision(trajectory, None))
         if not isinstance(trajectory, JointTrajectory):
             return JobResult(False, "no trajectory to check")
-        spec, utensil = self.world.spec, self.world.utensil
+        spec, utensil = self.spec, self.utensil
         try:
             spill_model(spec, utensil, load)
         except LoadError as err:
             return JobResult(False, f"the load cannot be modelled: {err}",
                              FoodDecision(None, {"food": load.food, "load_g": load.grams,
                                                  "error": str(err)}))
-        arm = JointTrajectory(trajectory.joint_names[:6], trajectory.times,
-                              trajectory.positions[:, :6], trajectory.velocities[:, :6])
+        arm = _arm_part(trajectory)
+        wrist_now = np.asarray(self.driver.joint_positions()[6:], dtype=float)
         tried: list[dict[str, Any]] = []
         fallback = ""
         for scale in RETIME_SCALES:
@@ -368,7 +337,7 @@ class SimArm:
             if timed is None:
                 continue
             if self.rigid:
-                wrist: Any = np.asarray(self.world.wrist_q, dtype=float)
+                wrist: Any = wrist_now
                 kind, executed = "locked", timed
             else:
                 rep = verify_trajectory(timed, self.model, spec)
@@ -378,7 +347,7 @@ class SimArm:
                 wrist, kind, executed = rep.wrist_trajectory, "leveling", timed
                 if self.leveling == "apparent":
                     sf = slosh_free_wrist(timed, self.model, spec, utensil,
-                                          q_wrist_start=self.world.wrist_q)
+                                          q_wrist_start=wrist_now)
                     if sf.ok:
                         assert sf.arm is not None
                         wrist, kind, executed = sf.wrist, "slosh_free", sf.combined()
@@ -408,13 +377,13 @@ class SimArm:
                                 f"{RETIME_SCALES[-1]:g}× speed ({worst} g): re-plan",
                          FoodDecision(None, record))
 
-    def start_plan_path(self, name: str, waypoints: Sequence[TipWaypoint]) -> _FutureJob:
+    def start_plan_path(self, name: str, waypoints: Sequence[Waypoint]) -> _FutureJob:
         """Plan the tip's Cartesian path through ``waypoints`` in a worker thread: a joint
         motion to the first, then straight segments (see module doc)."""
-        q_now = np.concatenate([self.world.arm_q, self.world.wrist_q])
-        q_now[7] = math.remainder(q_now[7], 2 * math.pi)  # a twirl turns the roll whole turns
+        q_now = self._q()
         pts = [(np.array(w.position), w.pitch_down, w.speed) for w in waypoints]
-        spec, joints = self.world.spec, tuple(self.world.layout.arm_joints)
+        spec = self.spec
+        joints = tuple(spec.arm.joint_names)
 
         def work() -> JobResult:
             try:
@@ -434,7 +403,7 @@ class SimArm:
                     if len(pts) > 1:
                         parts.append(cartesian_path(self.model, q0, pts))
                 else:  # the Articutool: the wrist makes the marked segments' pitch change
-                    parts = [_with_wrist(p, self.model, q0[6:]) for p in parts]
+                    parts = [with_wrist(p, self.model, q0[6:]) for p in parts]
                     q, k = q0, 1
                     while k < len(pts):
                         j = k
@@ -447,38 +416,37 @@ class SimArm:
                                 q = seg.positions[-1].copy()
                         else:
                             seg6 = cartesian_path(self.model, q, pts[k - 1:j])
-                            parts.append(_with_wrist(seg6, self.model, q[6:]))
+                            parts.append(with_wrist(seg6, self.model, q[6:]))
                             q = np.concatenate([seg6.positions[-1], q[6:]])
                         k = j
-            except ScriptError as err:
+            except PathError as err:
                 return JobResult(False, str(err))
-            traj = _concatenate(parts)
+            traj = concatenate(parts)
             return JobResult(True, f"{traj.duration:.1f} s", traj)
 
         return _FutureJob(self._pool.submit(_timed(work)))
 
     def start_plan_lift(self, height_m: float) -> _FutureJob:
         """Plan lifting the tool base straight up by ``height_m`` in a worker thread."""
-        q_now = np.concatenate([self.world.arm_q, self.world.wrist_q])
-        q_now[7] = math.remainder(q_now[7], 2 * math.pi)
+        q_now = self._q()
 
         def work() -> JobResult:
             try:
                 traj = lift_trajectory(self.model, q_now, height_m)
-            except ScriptError as err:
+            except PathError as err:
                 return JobResult(False, str(err))
             return JobResult(True, f"{traj.duration:.1f} s", traj)
 
         return _FutureJob(self._pool.submit(_timed(work)))
 
     def start_execute(self, trajectory: Any) -> _MotionJob:
-        """Run the trajectory through the world's arm servos (the caller steps the world)."""
-        self.world.follow_arm(trajectory, wait=False)
-        return _MotionJob(self.world)
+        """Run the trajectory through the driver (the caller's clock runs meanwhile)."""
+        self.driver.follow(trajectory)
+        return _MotionJob(self.driver)
 
     def stop(self) -> None:
         """Hold the arm where it is."""
-        self.world.stop_arm()
+        self.driver.stop()
 
     def close(self) -> None:
         """Stop the planning thread."""
