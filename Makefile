@@ -47,12 +47,13 @@ demo: $(VENV)/.installed
 
 # The tests run on every core (pytest-xdist; TEST_WORKERS=0 for one process): each module's
 # tests together on one worker, the tests marked `floods` one after another on one worker
-# (tests/conftest.py). Exit 5 (no test selected, e.g. PYTEST_ARGS=-k that matches none) passes.
+# (tests/conftest.py); the 25 longest tests are listed at the end. Exit 5 (no test selected,
+# e.g. PYTEST_ARGS=-k that matches none) passes.
 TEST_WORKERS ?= auto
 PYTEST = $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup $(PYTEST_ARGS)
 test: $(VENV)/.installed
 	$(BIN)/ruff check src tests benchmarks studies examples
-	$(PYTEST) -m "not slow" || [ $$? -eq 5 ]
+	$(PYTEST) -m "not slow" --durations=25 || [ $$? -eq 5 ]
 
 test-slow: $(VENV)/.installed
 	$(PYTEST) -m slow || [ $$? -eq 5 ]
