@@ -1,10 +1,12 @@
-"""What an awake pecan bowl's step costs under each static-friction setting, beside the creep law
-(a measurement, not a change: the shipped parameters stay those of ``data/physics.toml``).
+"""What an awake pecan bowl's step costs under each contact dimension and static-friction setting,
+beside the creep law (a measurement, not a change: the shipped parameters stay those of
+``data/physics.toml``).
 
 The 125 g bowl is built and settled as a bite's world is (``FeedingWorld.build("pecans")``),
 then sleeping is switched off so every piece is awake (the bowl while the spoon is in it: the
 costly part of a bite; a resting bowl sleeps). For each setting the settled state is restored
-(``mj_copyData``), the options reset to the shipped ones and the setting applied, 5 steps taken,
+(``mj_copyData``), the options reset to the shipped ones and the setting applied (``condim``:
+every food geom's contact dimension; 3 sliding, 6 with torsion and rolling), 5 steps taken,
 then ``--steps`` steps timed on the thread's CPU clock: CPU ms a step, contacts, the main
 solver's iterations, and the largest piece speed at the end (a pile that keeps moving faster
 than ``sleep_tolerance`` never sleeps). Beside each setting, the creep law of
@@ -25,11 +27,14 @@ import numpy as np
 
 from bench_io import machine, write_json
 
-SETTINGS: dict[str, dict[str, float]] = {
-    "no-slip 10 passes": {"noslip_iterations": 10},
-    "no-slip 2 passes": {"noslip_iterations": 2},
-    "no-slip 1 pass": {"noslip_iterations": 1},
-    "no no-slip": {"noslip_iterations": 0},
+SETTINGS: dict[str, dict[str, int]] = {
+    "condim 6, no-slip 10 passes": {"condim": 6, "noslip_iterations": 10},
+    "condim 6, no-slip 2 passes": {"condim": 6, "noslip_iterations": 2},
+    "condim 6, no no-slip": {"condim": 6, "noslip_iterations": 0},
+    "condim 4, no-slip 2 passes": {"condim": 4, "noslip_iterations": 2},
+    "condim 3, no-slip 2 passes": {"condim": 3, "noslip_iterations": 2},
+    "condim 3, no-slip 1 pass": {"condim": 3, "noslip_iterations": 1},
+    "condim 3, no no-slip": {"condim": 3, "noslip_iterations": 0},
 }
 
 
@@ -48,25 +53,32 @@ def main(argv: list[str] | None = None) -> int:
     m.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
     kept = mujoco.MjData(m)
     mujoco.mj_copyData(kept, m, d)
-    shipped = {"noslip_iterations": m.opt.noslip_iterations}
+    food_geom = np.isin(m.geom_bodyid, w.ledger.item_body)
     lin = np.concatenate([m.body_dofadr[b] + np.arange(3) for b in w.ledger.item_body])
     rows = {}
     for name, setting in SETTINGS.items():
-        for k, v in {**shipped, **setting}.items():
-            setattr(m.opt, k, v)
+        m.opt.noslip_iterations = setting["noslip_iterations"]
+        m.geom_condim[food_geom] = setting["condim"]
         mujoco.mj_copyData(d, m, kept)
         mujoco.mj_step(m, d, 5)
-        ncon = niter = 0
+        ncon = nefc = niter = 0
         c0 = time.thread_time()
         for _ in range(args.steps):
             mujoco.mj_step(m, d)
             ncon += d.ncon
+            nefc += d.nefc
             niter += int(d.solver_niter[0])
         cpu = time.thread_time() - c0
-        law = food.model_copy(update={"noslip_iterations": int(setting["noslip_iterations"])})
+        c = food.contacts
+        law = food.model_copy(update={
+            "noslip_iterations": setting["noslip_iterations"],
+            "contacts": c.model_copy(update={
+                k: getattr(c, k).model_copy(update={"condim": setting["condim"]})
+                for k in ("food", "utensil", "container", "surface")})})
         rows[name] = {
             "cpu_ms_per_step": round(cpu / args.steps * 1e3, 2),
-            "contacts": ncon // args.steps, "solver_iterations": round(niter / args.steps, 1),
+            "contacts": ncon // args.steps, "constraint_rows": nefc // args.steps,
+            "solver_iterations": round(niter / args.steps, 1),
             "max_piece_speed_m_s": round(float(np.max(np.linalg.norm(
                 d.qvel[lin].reshape(-1, 3), axis=1))), 4),
             "creep_mm": [round(creep_mm(law, params, a), 4) for a in CREEP_SLOPES_DEG]}

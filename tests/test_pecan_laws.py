@@ -67,3 +67,15 @@ def test_above_its_friction_angle_the_half_slides(params: PhysicsParams) -> None
     # The no-slip passes hold static friction without changing the Coulomb coefficient: at 25°
     # (atan 0.45 = 24.2°) the half slides off (325 mm in 1 s, measured).
     assert creep_mm(params.food("pecans"), params, 25.0, hold_s=1.0) > 10.0
+
+
+def test_the_settled_bowl_sleeps() -> None:
+    # The static-friction setting must let a resting pile come to rest below the sleep
+    # tolerance: a settled bowl then costs nothing until the spoon touches it (one pass of
+    # no-slip, or stiffer friction rows without it, left pieces moving at cm/s: measured).
+    from articutool.sim.world import FeedingWorld
+
+    w = FeedingWorld.build("pecans", seed=0)
+    w.run(1.0)
+    awake = w.data.body_awake[w.ledger.item_body]
+    assert not awake.any(), f"{int(awake.sum())} of {awake.size} pieces awake"

@@ -301,6 +301,8 @@ def test_a_noodle_strand_on_the_fork_is_eaten_once_and_never_counted_again() -> 
     assert w.eat_from_utensil() == pytest.approx(strand_g)
     w.run(0.5)
     assert w.eat_from_utensil() == 0.0
+    # Frozen out of reach, the eaten strand sleeps (carried, it could not): it costs no steps.
+    assert not w.data.body_awake[w.ledger.item_body[k]]
     g = w.masses_g()
     assert g["utensil"] == 0.0 and g["eaten"] == pytest.approx(strand_g)
     # A strand reaching into the mouth region is eaten there too.

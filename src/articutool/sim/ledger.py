@@ -267,6 +267,9 @@ class FoodLedger:
             qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
             d.qpos[qa:qa + 3] = (100.0 + k, 0.0, 10.0)
             d.qvel[va:va + 6] = 0.0
+            # Frozen where nothing reaches it, it may sleep (it was carried: never, till now).
+            m.tree_sleep_policy[m.body_treeid[self.item_body[k]]] = int(
+                mujoco.mjtSleepPolicy.mjSLEEP_AUTO_ALLOWED)
             self.codes[k] = acc.EATEN
 
     def unpark(self, k: int, body: int, local: tuple[float, float, float],
