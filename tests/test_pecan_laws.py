@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 pytest.importorskip("mujoco")
@@ -17,6 +18,8 @@ from articutool.sim.calibrate import (
     angle_of_repose_deg,
     creep_mm,
     flank_angle_deg,
+    pile_test_model,
+    surface_envelope,
 )
 from articutool.sim.params import PhysicsParams
 
@@ -54,6 +57,40 @@ def test_the_flank_angle_is_the_slope_of_the_surface_envelope() -> None:
     assert 0.0 < flank_angle_deg([*pts, (0.001, h0 + 0.01)]) - 30.0 < apex
     assert flank_angle_deg([(0.01, 0.01)]) == 0.0
     assert FLANK_BIN_M < PLATE_RADIUS_M
+
+
+def test_every_contact_of_the_pile_test_carries_the_file_s_law(params: PhysicsParams) -> None:
+    # What MuJoCo applies after mixing the two geoms' condim, friction, solref and priority:
+    # piece-piece, piece-plate and piece-tube contacts of a settling tube of pieces.
+    import mujoco
+
+    food = params.food("pecans")
+    m, _, _ = pile_test_model(food, params, n=20, seed=0)
+    d = mujoco.MjData(m)
+    assert m.opt.noslip_iterations == food.noslip_iterations
+    seen = set()
+    for _ in range(150):
+        mujoco.mj_step(m, d)
+        for c in d.contact[:d.ncon]:
+            if 0 in (c.geom1, c.geom2):  # the ground plane: pieces fallen off the plate
+                continue
+            plate = m.geom_bodyid[c.geom1] == 0 or m.geom_bodyid[c.geom2] == 0
+            tube = 1 in (m.geom_bodyid[c.geom1], m.geom_bodyid[c.geom2])
+            law = food.contacts.utensil if plate or tube else food.contacts.food
+            sl, tor, roll = law.friction
+            assert c.dim == law.condim
+            np.testing.assert_allclose(c.friction, (sl, sl, tor, roll, roll))
+            np.testing.assert_allclose(c.solref, law.solref)
+            np.testing.assert_allclose(c.solimp, law.solimp)
+            seen.add("plate" if plate else "tube" if tube else "piece")
+    assert {"plate", "piece"} <= seen
+
+
+def test_the_surface_envelope_keeps_each_ring_s_highest_point_on_the_plate() -> None:
+    pts = [(0.001, 0.020), (0.004, 0.025), (0.012, 0.010), (0.013, 0.015), (0.051, 0.030)]
+    # Rings of 5 mm: the first ring's highest point, the third's; beyond the plate: none.
+    assert surface_envelope(pts) == [(0.0025, 0.025), (0.0125, 0.015)]
+    assert surface_envelope([]) == []
 
 
 def test_the_pile_test_reruns_bit_identically(params: PhysicsParams) -> None:

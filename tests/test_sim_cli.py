@@ -87,8 +87,9 @@ def test_sim_calibrate_measures_the_pecan_model(capsys: pytest.CaptureFixture[st
     pecans = PhysicsParams.load().food("pecans")
     assert out["piece_mass_g"] == pytest.approx(pecans.piece_mass * 1000.0, abs=1e-3)
     assert out["angle_of_repose_cited_deg"] == pecans.angle_of_repose_deg
-    # The verdict is the measured heap against the cited kernels' angle and its tolerance
-    # (the model's heap is steeper than the cited one: docs/food.md gives the measured reasons).
+    # The verdict is the measured heap against the cited kernels' angle and its tolerance. The
+    # shipped model's 28.3° passes, but its heap creeps with 2 no-slip passes (10 hold it and
+    # stand at 32.5°): a pass is not asserted (docs/food.md).
     off = abs(out["angle_of_repose_deg"] - out["angle_of_repose_cited_deg"])
     within = off <= out["angle_of_repose_tolerance_deg"]
     assert out["angle_of_repose_within_tolerance"] == ("yes" if within else "no"), out

@@ -47,8 +47,9 @@ from articutool.spec import Spec
 from articutool.tool.api import Mode
 
 __all__ = ["CREEP_HOLD_S", "CREEP_LIMIT_MM", "CREEP_SLOPES_DEG", "ONSET_G", "TILT_HOLD_S",
-           "TILT_RATE", "TILT_STEPS_DEG", "angle_of_repose_deg", "creep_mm",
-           "level_capacity_g", "run_calibration", "static_tilt"]
+           "TILT_RATE", "TILT_STEPS_DEG", "angle_of_repose_deg", "creep_mm", "flank_angle_deg",
+           "level_capacity_g", "pile_test_model", "run_calibration", "static_tilt",
+           "surface_envelope"]
 
 # The static-tilt protocol (numerical choices of the test, not of the model): 1° steps where
 # the onsets lie, coarser beyond; the wrist turns at ≤ 0.15 rad/s (quasi-static: the liquid's
@@ -85,16 +86,12 @@ CREEP_HOLD_S = 3.0
 CREEP_LIMIT_MM = 0.1
 
 
-def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = PILE_PIECES,
-                        seed: int = 0) -> dict[str, float]:
-    """The fixed-base ("lifted cylinder on a raised plate") angle of repose of ``n`` pieces
-    on a plate of the utensil's material, the test of the nut-kernel measurements cited in
-    ``physics.toml``: a tube standing on a round plate is filled a layer at a time with the
-    food's pieces (drawn with ``seed``), lifted slowly; the pieces pour into a heap whose
-    surplus falls over the plate's edge; the angle is ``atan(H / R)`` with ``H`` the heap's
-    top above the plate and ``R`` the plate's radius. Contacts as in the feeding world:
-    piece–piece and piece–plate laws of ``physics.toml``, the same solver and no-slip passes.
-    Returns the angle, ``H`` (mm), the pieces left on the plate and the CPU time (s)."""
+def pile_test_model(food: Granular, params: PhysicsParams, n: int = PILE_PIECES,
+                    seed: int = 0) -> tuple[mujoco.MjModel, float, float]:
+    """The pile test's model (:func:`angle_of_repose_deg`): ``n`` pieces drawn with ``seed``
+    laid a layer at a time in the tube standing on the plate; the plate's top height and the
+    tube's height (m) beside it. Contacts as in the feeding world: piece–piece and
+    piece–plate laws of ``physics.toml``, the same solver and no-slip passes."""
     rng = np.random.default_rng(seed)
     pieces = [draw_piece(food, rng) for _ in range(n)]
     radii = [footprint(c) for c in pieces]
@@ -137,7 +134,20 @@ def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = PILE_PIE
            f'<body name="tube"><joint name="lift" type="slide" axis="0 0 1"/>{walls}'
            '<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body>'
            f'{"".join(bodies)}</worldbody></mujoco>')
-    m = mujoco.MjModel.from_xml_string(xml)
+    return mujoco.MjModel.from_xml_string(xml), z0, height
+
+
+def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = PILE_PIECES,
+                        seed: int = 0) -> dict[str, Any]:
+    """The fixed-base ("lifted cylinder on a raised plate") angle of repose of ``n`` pieces
+    on a plate of the utensil's material, the test of the nut-kernel measurements cited in
+    ``physics.toml``: a tube standing on a round plate is filled a layer at a time with the
+    food's pieces (drawn with ``seed``, :func:`pile_test_model`), lifted slowly; the pieces
+    pour into a heap whose surplus falls over the plate's edge; the angle is ``atan(H / R)``
+    with ``H`` the heap's top above the plate and ``R`` the plate's radius. Returns the
+    angle, ``H`` (mm), the flank's angle and the surface's ring tops (mm), the pieces left on
+    the plate, a hash of the end state and the CPU time (s)."""
+    m, z0, height = pile_test_model(food, params, n, seed)
     d = mujoco.MjData(m)
     j = m.joint("lift")
     qa, va = int(j.qposadr[0]), int(j.dofadr[0])
@@ -174,24 +184,32 @@ def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = PILE_PIE
     h = float(np.max(np.array(tops)[on_plate])) - z0 if on_plate.any() else 0.0
     return {"angle_deg": math.degrees(math.atan2(h, PLATE_RADIUS_M)), "height_mm": h * 1e3,
             "flank_angle_deg": flank_angle_deg(surface), "pieces_on_plate": int(on_plate.sum()),
+            "surface_mm": [(round(r * 1e3, 1), round(z * 1e3, 1))
+                           for r, z in surface_envelope(surface)],
             "state_sha256": hashlib.sha256(np.concatenate([d.qpos, d.qvel]).tobytes())
             .hexdigest(), "cpu_s": cpu}
 
 
-def flank_angle_deg(points: list[tuple[float, float]], bin_m: float = FLANK_BIN_M) -> float:
-    """The slope (degrees) of a heap's free surface: ``points`` are (distance from the axis,
-    height above the base) of the pieces' highest points; the surface is their upper envelope,
-    the highest point in each ring ``bin_m`` wide out to the plate's edge, and the angle is
-    that of the least-squares line through the envelope (0 for fewer than two rings)."""
+def surface_envelope(points: list[tuple[float, float]],
+                     bin_m: float = FLANK_BIN_M) -> list[tuple[float, float]]:
+    """A heap's free surface as (ring's mid radius, height), both m: ``points`` are (distance
+    from the axis, height above the base) of the pieces' highest points, and each ring
+    ``bin_m`` wide out to the plate's edge keeps its highest point."""
     rings: dict[int, float] = {}
     for r, z in points:
         if r < PLATE_RADIUS_M:
             k = int(r // bin_m)
             rings[k] = max(rings.get(k, -math.inf), z)
-    if len(rings) < 2:
+    return [((k + 0.5) * bin_m, rings[k]) for k in sorted(rings)]
+
+
+def flank_angle_deg(points: list[tuple[float, float]], bin_m: float = FLANK_BIN_M) -> float:
+    """The slope (degrees) of a heap's free surface: the angle of the least-squares line
+    through its :func:`surface_envelope` (0 for fewer than two rings)."""
+    env = surface_envelope(points, bin_m)
+    if len(env) < 2:
         return 0.0
-    ks = sorted(rings)
-    slope = np.polyfit([(k + 0.5) * bin_m for k in ks], [rings[k] for k in ks], 1)[0]
+    slope = np.polyfit([r for r, _ in env], [z for _, z in env], 1)[0]
     return math.degrees(math.atan(max(-float(slope), 0.0)))
 
 
