@@ -14,6 +14,7 @@ parameter, discovery open without the flag, a socket bound beyond loopback when 
 from __future__ import annotations
 
 import argparse
+import faulthandler
 import os
 import signal
 import sys
@@ -96,7 +97,10 @@ def _configure(args: argparse.Namespace, values: dict[str, Any], defaults: dict[
 
 
 def run(args: argparse.Namespace) -> int:
-    """Handler of ``articutool ros2``."""
+    """Handler of ``articutool ros2``. A fatal signal inside the C of rcl, rmw or DDS prints
+    where every Python thread was (``faulthandler``) before the process ends; an error is
+    printed before the node is torn down, so it is seen whatever the teardown does."""
+    faulthandler.enable()
     from articutool.link.config import ConfigError, check_ros_environment, config_from_args
     from articutool.ros2.exposure import ALLOW_FLAG, discovery_scope
     from articutool.ros2.host_only import apply_profile
@@ -237,11 +241,12 @@ def _start(args: argparse.Namespace, cfg0: Any, ctx: Any, stop: threading.Event,
     if profile is not None:
         profile.remove()  # read by Fast DDS when the participant was made
     if wide:
-        node.destroy_node()
-        return _err(f"refusing to run host-only: DDS socket(s) bound beyond loopback "
+        code = _err(f"refusing to run host-only: DDS socket(s) bound beyond loopback "
                     f"({', '.join(map(str, wide))}), reachable from other hosts. The node's "
                     "loopback-only Fast DDS profile was not applied as written (another RMW "
-                    "or DDS configuration in force?)", 2), None, None, None
+                    "or DDS configuration in force?)", 2)
+        node.destroy_node()
+        return code, None, None, None
     defaults = _defaults(args, cfg0)
     try:
         values = declare_all(node, defaults)
@@ -255,8 +260,9 @@ def _start(args: argparse.Namespace, cfg0: Any, ctx: Any, stop: threading.Event,
         spec = load_spec()
         verifier = Verifier(spec, values["utensil"], values["joint_names"])
     except (ParamError, ConfigError, ValueError) as err:
+        code = _err(str(err), 2)
         node.destroy_node()
-        return _err(str(err), 2), None, None, None
+        return code, None, None, None
     settings = NodeSettings(namespace=values["namespace"], joint_names=values["joint_names"],
                             offset_units=values["offset_units"], verifier=verifier,
                             republish_joint_states=values["republish_joint_states"])
@@ -265,8 +271,9 @@ def _start(args: argparse.Namespace, cfg0: Any, ctx: Any, stop: threading.Event,
     try:
         client = ArticutoolClient(cfg)
     except (ConfigError, LinkOpenError) as err:
+        code = _err(str(err), 2)
         node.destroy_node()
-        return _err(str(err), 2), None, None, None
+        return code, None, None, None
     wait = float(values["wait_s"])
     try:
         heard = client.wait_for_tool(wait)
