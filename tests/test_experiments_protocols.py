@@ -28,6 +28,7 @@ def _accounted(r: dict) -> float:
     return r["delivered_g"] + r["spilled_g"] + r.get("shed_g", 0.0)
 
 
+@pytest.mark.slow
 def test_capacity_trial_scoops_the_full_bowl_and_weighs_what_the_level_spoon_holds() -> None:
     spec = make_trials("capacity", conditions("capacity", CFG), 1, 0)[0]  # pecans
     r = run_trial(spec).to_log()
@@ -267,6 +268,7 @@ def test_the_shedding_pose_is_over_the_scenes_bowl_wherever_the_bowl_is(tmp_path
             assert not model.in_collision(np.r_[q, 0.0, 0.0])
 
 
+@pytest.mark.slow
 def test_exp2c_sheds_over_the_bowl_what_falls_is_shed_not_spilled() -> None:
     # Water's closed-loop TILT_UNTIL_LOAD (the shipped open-loop TILT, 0.2 rad, sheds
     # nothing) at the shedding pose, seed 1: particles leave the spoon; they land in the bowl

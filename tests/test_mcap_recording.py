@@ -232,6 +232,7 @@ def test_the_clients_recording_holds_its_goal(tmp_path: Path) -> None:
     assert len(by["joint_states"]) >= 5
 
 
+@pytest.mark.slow
 def test_a_recorded_simulated_bite_opens_with_the_standard_reader(tmp_path: Path) -> None:
     """``articutool meal --record``: the bite's own record (--json) agrees with the file."""
     import json
@@ -276,6 +277,7 @@ def test_a_recorded_simulated_bite_opens_with_the_standard_reader(tmp_path: Path
     assert all(r.status == m.GoalStatus.SUCCEEDED and r.result.success for r in results)
 
 
+@pytest.mark.slow
 def test_an_experiment_trial_recording_agrees_with_its_record(tmp_path: Path) -> None:
     import json
 

@@ -121,6 +121,7 @@ def _run_on_a_terminal(*args: str, timeout_s: float = 600.0) -> tuple[int, str]:
     return rc, re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text)
 
 
+@pytest.mark.slow
 def test_a_meal_on_a_terminal_shows_the_live_tree_verbatim() -> None:
     # The live tree is py_trees' text, whose "[o]" (a selector) looks like rich markup; it
     # must reach the terminal as written, and the bite's record after it. The root guard is

@@ -103,8 +103,10 @@ def test_an_interrupted_dask_run_stops_and_keeps_the_finished(tmp_path):
     assert res == {"ran": 2, "interrupted": True, "lost": 0, "keys": [0, 1]}
 
 
+@pytest.mark.slow
 def test_experiment_interrupted_by_sigint_keeps_its_trials_and_resumes(tmp_path):
-    """The real command on a cheap experiment (Exp. 2b: 80 trials of 0.5-5 s)."""
+    """The real command on Exp. 2b (80 trials; its water trials run the SPH liquid, minutes
+    each: four minutes in all, so slow; the runner's interrupts are also tested above)."""
     cmd = [sys.executable, "-m", "articutool", "experiment", "exp2b", "--trials", "20",
            "--workers", "2", "--out", str(tmp_path)]
     log = tmp_path / "exp2b" / "trials.jsonl"
