@@ -267,7 +267,8 @@ class FoodLedger:
             qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
             d.qpos[qa:qa + 3] = (100.0 + k, 0.0, 10.0)
             d.qvel[va:va + 6] = 0.0
-            # Frozen where nothing reaches it, it may sleep (it was carried: never, till now).
+            # Parked out of reach with no contacts, it cannot wake anything: it may sleep,
+            # whatever policy it had while carried.
             m.tree_sleep_policy[m.body_treeid[self.item_body[k]]] = int(
                 mujoco.mjtSleepPolicy.mjSLEEP_AUTO_ALLOWED)
             self.codes[k] = acc.EATEN
