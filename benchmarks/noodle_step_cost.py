@@ -75,7 +75,7 @@ def _capstan(change: dict[str, float]) -> dict[str, float]:
     sl._option = lambda params, f: shipped_option(params, f).replace(
         "/>", f' impratio="{imp}"/>')
     try:
-        r = sl.capstan_hold_ratio(food, p, bar, sl._fork_attrs(food, tack=False), load)
+        r = sl.capstan_hold_ratio(food, p, bar, sl._fork_law(food, tack=False), load)
     finally:
         sl._option = shipped_option
     return {"hold_ratio": r["hold_ratio"], "law_e_mu_pi": r["law_e_mu_pi"],

@@ -74,7 +74,7 @@ def test_a_cantilevered_strand_bends_as_the_elastica_of_its_modulus() -> None:
 
 def test_a_frictionless_bar_holds_no_load_ratio() -> None:
     bar = _fork_bar()
-    r = sl.capstan_hold_ratio(FOOD, PARAMS, bar, sl._fork_attrs(FOOD, False, frictionless=True),
+    r = sl.capstan_hold_ratio(FOOD, PARAMS, bar, sl._fork_law(FOOD, False, frictionless=True),
                               0.05, hi=2.0, rel_tol=0.02)
     assert r["effective"]["mu"] < 1e-3 and r["unstable_trials"] == 0
     assert 0 < r["hold_ratio"] <= sl.FRICTIONLESS_MAX
@@ -87,7 +87,7 @@ def test_a_strand_on_a_fork_wide_bar_holds_the_capstan_ratio() -> None:
     rc = bar + FOOD.strand_radius
     hang = FOOD.piece_mass / FOOD.strand_length * sl.GRAVITY * (FOOD.strand_length
                                                                  - math.pi * rc) / 2
-    r = sl.capstan_hold_ratio(FOOD, PARAMS, bar, sl._fork_attrs(FOOD, tack=False),
+    r = sl.capstan_hold_ratio(FOOD, PARAMS, bar, sl._fork_law(FOOD, tack=False),
                               10 * ei / rc**2 - hang)
     assert r["effective"]["mu"] == pytest.approx(FOOD.friction[0])
     assert r["law_e_mu_pi"] == pytest.approx(math.exp(FOOD.friction[0] * math.pi), rel=1e-3)

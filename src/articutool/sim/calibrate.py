@@ -38,11 +38,11 @@ from articutool.arm.scene import Cylinder, Scene
 from articutool.food.dish import spoon_dish
 from articutool.food.hydrostatics import SIDE, TIP, Hydrostatics
 from articutool.sim.loading import max_load_g
-from articutool.sim.mjcf import contact_attrs, food_solver_attrs
 from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
 from articutool.sim.pieces import draw_piece, footprint, pack_layer
 from articutool.sim.placement import utensil_capacity_bound_g
 from articutool.sim.world import FeedingWorld
+from articutool.sim.world_parts import set_contact, solver_spec
 from articutool.spec import Spec
 from articutool.tool.api import Mode
 
@@ -108,33 +108,54 @@ def pile_test_model(food: Granular, params: PhysicsParams, n: int = PILE_PIECES,
     height = z - z0 + 0.03
     # Pieces carry the food-food law; the plate and the tube, the food-utensil law (the cited
     # kernels were heaped on stainless steel, the spoon's material), at the higher priority.
-    piece_law = contact_attrs(food.contacts.food, 0)
-    plate_law = contact_attrs(food.contacts.utensil, 1)
-    bodies = []
-    for (x, y, zz), caps in zip(pts, pieces, strict=False):
-        yaw = float(rng.uniform(0.0, 2.0 * math.pi))
-        geoms = "".join(
-            f'<geom type="capsule" size="{r}" fromto="{" ".join(map(str, (*a, *b)))}" '
-            f'density="{food.density}" {piece_law} contype="2" conaffinity="3"/>'
-            for a, b, r in caps)
-        bodies.append(f'<body pos="{x} {y} {zz}" euler="0 0 {yaw}"><freejoint/>{geoms}</body>')
+    s = solver_spec(params.world, food)
+    wb = s.worldbody
+    wb.add_geom(type=_G.mjGEOM_PLANE, size=[1.0, 1.0, 0.1], contype=1, conaffinity=0)
+    set_contact(wb.add_geom(type=_G.mjGEOM_CYLINDER, size=[PLATE_RADIUS_M, z0 / 2, 0.0],
+                            pos=[0.0, 0.0, z0 / 2], contype=1, conaffinity=0),
+                food.contacts.utensil, 1)
+    tube = wb.add_body(name="tube", mass=1.0, ipos=[0.0, 0.0, 0.0], inertia=[1.0, 1.0, 1.0],
+                       explicitinertial=True)
+    tube.add_joint(name="lift", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0.0, 0.0, 1.0])
     nw, t = 24, 0.004
     # Each wall's half-width reaches its neighbours' at the wall's outer face: a closed tube.
     hw = (TUBE_RADIUS_M + t) * math.tan(math.pi / nw)
-    walls = "".join(
-        f'<geom type="box" size="{t / 2} {hw} {height / 2}" '
-        f'pos="{(TUBE_RADIUS_M + t / 2) * math.cos(2 * math.pi * k / nw)} '
-        f'{(TUBE_RADIUS_M + t / 2) * math.sin(2 * math.pi * k / nw)} {z0 + height / 2 + 5e-4}" '
-        f'euler="0 0 {2 * math.pi * k / nw}" {plate_law} contype="1" conaffinity="0"/>'
-        for k in range(nw))
-    xml = (f'<mujoco><compiler angle="radian"/>{_granular_option(food, params)}'
-           '<worldbody><geom type="plane" size="1 1 0.1" contype="1" conaffinity="0"/>'
-           f'<geom type="cylinder" size="{PLATE_RADIUS_M} {z0 / 2}" pos="0 0 {z0 / 2}" '
-           f'{plate_law} contype="1" conaffinity="0"/>'
-           f'<body name="tube"><joint name="lift" type="slide" axis="0 0 1"/>{walls}'
-           '<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body>'
-           f'{"".join(bodies)}</worldbody></mujoco>')
-    return mujoco.MjModel.from_xml_string(xml), z0, height
+    for k in range(nw):
+        a = 2 * math.pi * k / nw
+        g = tube.add_geom(type=_G.mjGEOM_BOX, size=[t / 2, hw, height / 2],
+                          pos=[(TUBE_RADIUS_M + t / 2) * math.cos(a),
+                               (TUBE_RADIUS_M + t / 2) * math.sin(a), z0 + height / 2 + 5e-4],
+                          contype=1, conaffinity=0)
+        _euler(g, [0.0, 0.0, a])
+        set_contact(g, food.contacts.utensil, 1)
+    for (x, y, zz), caps in zip(pts, pieces, strict=False):
+        yaw = float(rng.uniform(0.0, 2.0 * math.pi))
+        body = wb.add_body(pos=[x, y, zz])
+        _euler(body, [0.0, 0.0, yaw])
+        body.add_freejoint()
+        for a, b, r in caps:
+            g = _capsule(body, food, r, [*a, *b])
+            g.contype, g.conaffinity = 2, 3
+    return s.compile(), z0, height
+
+
+_G = mujoco.mjtGeom
+
+
+def _euler(e: mujoco.MjsBody | mujoco.MjsGeom, angles: list[float]) -> None:
+    """Turn body or geom ``e`` by the Euler angles (rad; the compiler's x-y-z sequence)."""
+    e.alt.type = mujoco.mjtOrientation.mjORIENTATION_EULER
+    e.alt.euler = angles
+
+
+def _capsule(body: mujoco.MjsBody, food: Granular, r: float,
+             fromto: list[float]) -> mujoco.MjsGeom:
+    """One capsule of a piece in ``body``: weighed by the food's density, with the food-food
+    law."""
+    g = body.add_geom(type=_G.mjGEOM_CAPSULE, size=[r, 0.0, 0.0], fromto=fromto,
+                      density=food.density)
+    set_contact(g, food.contacts.food, 0)
+    return g
 
 
 def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = PILE_PIECES,
@@ -213,14 +234,6 @@ def flank_angle_deg(points: list[tuple[float, float]], bin_m: float = FLANK_BIN_
     return math.degrees(math.atan(max(-float(slope), 0.0)))
 
 
-def _granular_option(food: Granular, params: PhysicsParams) -> str:
-    """The feeding world's solver options for a granular food (no sleeping: a test scene)."""
-    w = params.world
-    return (f'<option timestep="{w.timestep}" solver="{w.solver}" iterations="{w.iterations}" '
-            f'tolerance="{w.tolerance}" cone="{w.cone}" integrator="implicitfast" '
-            f'{food_solver_attrs(food)}/>')
-
-
 def creep_mm(food: Granular, params: PhysicsParams, slope_deg: float,
              hold_s: float = CREEP_HOLD_S) -> float:
     """How far (mm) a pecan half of the middle width creeps in ``hold_s`` lying on a plane of
@@ -231,15 +244,17 @@ def creep_mm(food: Granular, params: PhysicsParams, slope_deg: float,
     w = float(np.mean(food.half_width_m))
     r, half = w / 4.0, max(food.half_length_ratio * w / 2.0 - w / 4.0, 0.0)
     a = math.radians(slope_deg)
-    piece_law = contact_attrs(food.contacts.food, 0)
-    geoms = "".join(f'<geom type="capsule" size="{r}" fromto="{-half} {y} 0 {half} {y} 0" '
-                    f'density="{food.density}" {piece_law}/>' for y in (-r, r))
-    xml = (f'<mujoco><compiler angle="radian"/>{_granular_option(food, params)}<worldbody>'
-           f'<body euler="0 {a} 0"><geom type="box" size="0.1 0.1 0.01" pos="0 0 -0.01" '
-           f'{contact_attrs(food.contacts.utensil, 1)}/></body>'
-           f'<body pos="0 0 {r * math.cos(a)}" euler="0 {a} 0"><freejoint/>{geoms}</body>'
-           '</worldbody></mujoco>')
-    m = mujoco.MjModel.from_xml_string(xml)
+    s = solver_spec(params.world, food)
+    plane = s.worldbody.add_body()
+    _euler(plane, [0.0, a, 0.0])
+    set_contact(plane.add_geom(type=_G.mjGEOM_BOX, size=[0.1, 0.1, 0.01], pos=[0.0, 0.0, -0.01]),
+                food.contacts.utensil, 1)
+    piece = s.worldbody.add_body(pos=[0.0, 0.0, r * math.cos(a)])
+    _euler(piece, [0.0, a, 0.0])
+    piece.add_freejoint()
+    for y in (-r, r):
+        _capsule(piece, food, r, [-half, y, 0.0, half, y, 0.0])
+    m = s.compile()
     d = mujoco.MjData(m)
     mujoco.mj_step(m, d, round(0.2 / m.opt.timestep))
     x0 = d.qpos[:3].copy()

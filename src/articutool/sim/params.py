@@ -227,7 +227,7 @@ class Liquid(_FoodBase):
 
 class Strands(_FoodBase):
     """Elastic strands (e.g. noodles): chains of capsule bodies with ball-joint bending springs,
-    heaped in the container (:func:`articutool.sim.mjcf.strand_chain`)."""
+    heaped in the container (:func:`articutool.sim.food_strands.strand_chain`)."""
 
     kind: Literal["strands"]
     strand_radius: Positive

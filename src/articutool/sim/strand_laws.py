@@ -1,7 +1,7 @@
 """The noodle model's mechanisms, each alone in MuJoCo beside the physical law it should follow.
 
-A strand (:func:`articutool.sim.mjcf.strand_chain`, the bowl's own builder and parameters) is
-put in four small worlds:
+A strand (:func:`articutool.sim.food_strands.strand_chain`, the bowl's own builder and
+parameters) is put in four small worlds, built with ``MjSpec`` as the feeding world is:
 
 - **capstan** — draped over a fixed horizontal bar, loaded at both ends, one end's load raised
   in steps until the strand slides round the bar. A flexible rope with friction μ holds a
@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -34,8 +35,9 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from articutool.sim.mjcf import fork_strand_attrs, strand_chain, strand_geom_attrs
+from articutool.sim.food_strands import set_fork_strand, set_strand_geom, strand_chain
 from articutool.sim.params import PhysicsParams, Strands
+from articutool.sim.world_parts import GeomSetter, sigs, solver_spec
 from articutool.spec import Spec
 
 __all__ = [
@@ -107,35 +109,46 @@ class _Rig:
     n: int
 
 
-def _option(params: PhysicsParams, food: Strands) -> str:
-    w = params.world
-    return (f'<option timestep="{w.timestep}" solver="{w.solver}" iterations="{w.iterations}" '
-            f'tolerance="{w.tolerance}" cone="{w.cone}" integrator="implicitfast" '
-            f'noslip_iterations="{food.noslip_iterations}"/>')
+Part = Callable[[mujoco.MjsBody], None]  # adds bodies and geoms to the world body
 
 
-def _fork_attrs(food: Strands, tack: bool, frictionless: bool = False) -> str:
-    """A fork geom's contact attributes toward strands, as the world gives the fork; the
-    frictionless variant has the same solref and wins every contact by priority."""
-    if frictionless:
-        sr = food.contacts.utensil.solref
-        return f'condim="1" priority="1" friction="0 0 0" solref="{sr[0]:.9g} {sr[1]:.9g}"'
-    return fork_strand_attrs(food, tack)
+def _fork_law(food: Strands, tack: bool, frictionless: bool = False) -> GeomSetter:
+    """A fork geom's contact toward strands, as the world gives the fork; the frictionless
+    variant has the same solref and wins every contact by priority."""
+    if not frictionless:
+        return lambda g: set_fork_strand(g, food, tack)
+
+    def law(g: mujoco.MjsGeom) -> None:
+        g.condim, g.priority, g.friction = 1, 1, [0.0, 0.0, 0.0]
+        g.solref = sigs(food.contacts.utensil.solref)
+    return law
 
 
-def _rig(xml_world: str, params: PhysicsParams, food: Strands, name: str = "s") -> _Rig:
-    xml = (f'<mujoco><compiler angle="radian"/>{_option(params, food)}'
-           f'<size memory="64M"/><worldbody>{xml_world}</worldbody></mujoco>')
-    m = mujoco.MjModel.from_xml_string(xml)
+def _rig(parts: list[Part], params: PhysicsParams, food: Strands, name: str = "s") -> _Rig:
+    """A small world of ``parts`` with the feeding world's solver and the food's no-slip
+    passes."""
+    s = solver_spec(params.world, food)
+    s.memory = 64 << 20
+    for part in parts:
+        part(s.worldbody)
+    m = s.compile()
     d = mujoco.MjData(m)
     return _Rig(m, d, m.body(f"{name}/0").id, food.segments)
 
 
 def _straight(food: Strands, pos: tuple[float, float, float], free: bool = True,
-              name: str = "s", tack: bool = True) -> str:
+              name: str = "s", tack: bool = True) -> Part:
     eye = [np.eye(3)] * food.segments
-    return "".join(strand_chain(food, name, pos, eye, strand_geom_attrs(food, tack),
-                                free=free))
+    return lambda parent: strand_chain(food, parent, name, pos, eye,
+                                       lambda g: set_strand_geom(g, food, tack), free=free)
+
+
+def _geom(name: str, kind: mujoco.mjtGeom, size: list[float], law: GeomSetter,
+          **where: list[float]) -> Part:
+    """A part: one geom of the world body carrying ``law``."""
+    def part(parent: mujoco.MjsBody) -> None:
+        law(parent.add_geom(name=name, type=kind, size=size, **where))
+    return part
 
 
 def _effective(rig: _Rig, geom: int) -> dict[str, Any] | None:
@@ -148,10 +161,11 @@ def _effective(rig: _Rig, geom: int) -> dict[str, Any] | None:
     return None
 
 
-def _hold(food: Strands, params: PhysicsParams, radius: float, attrs: str, end_load: float,
+def _hold(food: Strands, params: PhysicsParams, radius: float, surface: GeomSetter,
+          end_load: float,
           ratio: float, settle_s: float = 1.5, ramp_s: float = 1.5, hold_s: float = 3.0
           ) -> tuple[bool, dict[str, Any]]:
-    """One capstan trial: the strand draped over a bar of ``radius`` (its surface ``attrs``),
+    """One capstan trial: the strand draped over a bar of ``radius`` (its ``surface`` law),
     ``end_load`` N hung on both ends; after settling, one end's tension is raised to
     ``ratio`` × the other's over ``ramp_s`` and held. It holds when the strand's middle,
     measured round the bar, no longer moves in the last second (< 1 mm: a polygon of capsules
@@ -173,9 +187,9 @@ def _hold(food: Strands, params: PhysicsParams, radius: float, attrs: str, end_l
         nodes[i + 1] = nodes[i] + ds * np.array([math.cos(phis[i]), -math.sin(phis[i])])
     for i in range(mid - 1, -1, -1):
         nodes[i] = nodes[i + 1] - ds * np.array([math.cos(phis[i]), -math.sin(phis[i])])
-    bar = (f'<geom name="bar" type="capsule" size="{radius}" '
-           f'fromto="0 -0.05 {z0} 0 0.05 {z0}" {attrs}/>')
-    rig = _rig(bar + _straight(food, (0.0, 0.0, 1.0), tack=False), params, food)
+    bar = _geom("bar", mujoco.mjtGeom.mjGEOM_CAPSULE, [radius, 0.0, 0.0], surface,
+                fromto=[0.0, -0.05, z0, 0.0, 0.05, z0])
+    rig = _rig([bar, _straight(food, (0.0, 0.0, 1.0), tack=False)], params, food)
     m, d = rig.model, rig.data
     qa = m.jnt_qposadr
 
@@ -225,21 +239,21 @@ def _hold(food: Strands, params: PhysicsParams, radius: float, attrs: str, end_l
     return touching and abs(ang - a1) * rc < 0.001, info
 
 
-def capstan_hold_ratio(food: Strands, params: PhysicsParams, radius: float, attrs: str,
-                       end_load: float, hi: float = 16.0, rel_tol: float = 0.02
+def capstan_hold_ratio(food: Strands, params: PhysicsParams, radius: float,
+                       surface: GeomSetter, end_load: float, hi: float = 16.0, rel_tol: float = 0.02
                        ) -> dict[str, Any]:
     """The largest end-load ratio the draped strand holds (:func:`_hold`), found by bisection
     between 1 and ``hi`` to ``rel_tol``; with MuJoCo's effective μ and e^(μπ) beside it."""
     c0 = time.process_time()
     lo = 1.0
-    ok, info = _hold(food, params, radius, attrs, end_load, lo)
+    ok, info = _hold(food, params, radius, surface, end_load, lo)
     unstable = int(info.pop("unstable"))
     # Sliding at equal loads: a neutral balance (a frictionless bar) holds no more than 1.
     info["slides_at_equal_loads"] = not ok
     if ok:
         while hi / lo > 1 + rel_tol:
             mid = math.sqrt(lo * hi)
-            held, trial = _hold(food, params, radius, attrs, end_load, mid)
+            held, trial = _hold(food, params, radius, surface, end_load, mid)
             unstable += trial["unstable"]  # counted as not holding
             lo, hi = (mid, hi) if held else (lo, mid)
     mu = (info.get("effective") or {}).get("mu", 0.0)
@@ -267,7 +281,7 @@ def cantilever_test(food: Strands, params: PhysicsParams, segments: int,
     # The strand cut to the clamped segment and the overhang (same ds, E·I and mass per m).
     sub = food.model_copy(update={"segments": segments + 1,
                                   "strand_length": ds * (segments + 1)})
-    rig = _rig(_straight(sub, (0.0, 0.0, z0), free=False), params, sub)
+    rig = _rig([_straight(sub, (0.0, 0.0, z0), free=False)], params, sub)
     m, d = rig.model, rig.data
     assert abs(sub.bend_stiffness - food.bend_stiffness) < 1e-12 * food.bend_stiffness
     mujoco.mj_step(m, d, round(settle_s / m.opt.timestep))
@@ -295,16 +309,16 @@ def tack_test(food: Strands, params: PhysicsParams, on: str = "fork", segments: 
     sub = food.model_copy(update={"segments": segments, "strand_length": ds * segments})
     z = 0.3
     if on == "fork":
-        below = (f'<geom name="below" type="box" size="0.05 0.02 0.001" pos="0 0 {z - 0.001}" '
-                 f'{_fork_attrs(food, tack=True)}/>')
+        below = _geom("below", mujoco.mjtGeom.mjGEOM_BOX, [0.05, 0.02, 0.001],
+                      _fork_law(food, tack=True), pos=[0.0, 0.0, z - 0.001])
         zc = z + r
     else:
         # A fixed strand below, as long and with the strand geoms' own attributes.
-        below = (f'<geom name="below" type="capsule" size="{r}" '
-                 f'fromto="-0.01 0 {z + r} {sub.strand_length + 0.01} 0 {z + r}" '
-                 f'{strand_geom_attrs(food)}/>')
+        below = _geom("below", mujoco.mjtGeom.mjGEOM_CAPSULE, [r, 0.0, 0.0],
+                      lambda g: set_strand_geom(g, food),
+                      fromto=[-0.01, 0.0, z + r, sub.strand_length + 0.01, 0.0, z + r])
         zc = z + 3 * r
-    rig = _rig(below + _straight(sub, (0.0, 0.0, zc)), params, sub)
+    rig = _rig([below, _straight(sub, (0.0, 0.0, zc))], params, sub)
     m, d = rig.model, rig.data
     dt = m.opt.timestep
     bodies = list(range(rig.first, rig.first + segments))
@@ -346,7 +360,7 @@ def run_strand_calibration(food: Strands, params: PhysicsParams, spec: Spec,
                          f"{utensil!r}")
     out: dict[str, Any] = {}
     # Mass and diameter of the strand as MuJoCo compiled it.
-    rig = _rig(_straight(food, (0.0, 0.0, 0.3)), params, food)
+    rig = _rig([_straight(food, (0.0, 0.0, 0.3))], params, food)
     mass_g = float(sum(rig.model.body_mass[rig.first:rig.first + food.segments])) * 1e3
     dia = 2e3 * float(rig.model.geom_size[rig.model.body_geomadr[rig.first]][0])
     out["strand"] = {
@@ -362,10 +376,10 @@ def run_strand_calibration(food: Strands, params: PhysicsParams, spec: Spec,
     w_hang = food.piece_mass / food.strand_length * GRAVITY * (food.strand_length
                                                                 - math.pi * rc) / 2
     load = max(10 * ei / rc**2 - w_hang, 0.0)
-    cap = capstan_hold_ratio(food, params, bar, _fork_attrs(food, tack=False), load)
+    cap = capstan_hold_ratio(food, params, bar, _fork_law(food, tack=False), load)
     cap["pass"] = abs(cap["hold_ratio"] / cap["law_e_mu_pi"] - 1) <= CAPSTAN_TOL
     out["capstan_bar"] = cap
-    fl = capstan_hold_ratio(food, params, bar, _fork_attrs(food, False, frictionless=True),
+    fl = capstan_hold_ratio(food, params, bar, _fork_law(food, False, frictionless=True),
                             load)
     fl["law_e_mu_pi"] = 1.0
     fl["pass"] = 0 < fl["hold_ratio"] <= FRICTIONLESS_MAX
@@ -373,9 +387,9 @@ def run_strand_calibration(food: Strands, params: PhysicsParams, spec: Spec,
     # On one tine, with a strand's own weight hung on each end (no rope law applies).
     strand_w = food.piece_mass * GRAVITY
     out["capstan_tine"] = capstan_hold_ratio(food, params, ph.tine_radius,
-                                             _fork_attrs(food, tack=False), strand_w)
+                                             _fork_law(food, tack=False), strand_w)
     out["capstan_tine_frictionless"] = capstan_hold_ratio(
-        food, params, ph.tine_radius, _fork_attrs(food, False, frictionless=True), strand_w)
+        food, params, ph.tine_radius, _fork_law(food, False, frictionless=True), strand_w)
     # Bending: cantilevers of 3 and 5 segments.
     bends = [cantilever_test(food, params, k) for k in (3, 5, 8)]
     out["cantilever"] = {"overhangs": bends,
