@@ -40,3 +40,22 @@ def test_bad_arguments_are_refused_before_anything_is_built() -> None:
         build_parts(None, "spoon", q_wrist=(0.0,))
     with pytest.raises(ValueError, match="seed"):
         build_parts(None, "spoon", seed=-1)
+
+
+def test_every_food_kind_has_its_builder_and_each_food_builds_its_bodies() -> None:
+    from articutool.arm.scene import Scene
+    from articutool.food.definitions import FOOD_KINDS
+    from articutool.sim.mjcf import FOOD_BUILDERS, build_mjcf
+    from articutool.sim.params import PhysicsParams
+    from conftest import packaged_spec
+
+    assert sorted(FOOD_BUILDERS) == sorted(FOOD_KINDS)
+    spec, params = packaged_spec(), PhysicsParams.load()
+    for name, food in params.foods.items():
+        lay = build_mjcf(spec, Scene.load(), params, food.utensil, name, seed=1)
+        m = lay.spec.compile()
+        items = lay.food_bodies or [f"{s}/{i}" for s in lay.food_strands
+                                    for i in range(lay.strand_segments)]
+        assert items, name
+        assert all(m.body(b).id > 0 for b in items)
+        assert lay.container == food.container

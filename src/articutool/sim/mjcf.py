@@ -59,7 +59,7 @@ from articutool.sim.world_parts import (
     WorldLayout,
     pair_law,
     set_contact,
-        set_pose,
+    set_pose,
     sigs,
     solver_spec,
 )
@@ -74,9 +74,9 @@ _G = mujoco.mjtGeom
 
 # The builder of each food kind (``kind`` in physics.toml).
 FOOD_BUILDERS: dict[str, FoodBuilder] = {
-    "granular": build_granular,  # type: ignore[dict-item]
-    "liquid": build_liquid,  # type: ignore[dict-item]
-    "strands": build_strands,  # type: ignore[dict-item]
+    "granular": build_granular,
+    "liquid": build_liquid,
+    "strands": build_strands,
 }
 
 _PLACE_RGBA = {"container": [0.95, 0.95, 0.92, 1.0], "table": [0.55, 0.4, 0.3, 1.0],

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -65,9 +66,10 @@ class WorldLayout:
 
 # A food kind's builder: ``(food, container, rng, layout, parent, load_g)`` adds the food's
 # bodies under ``parent`` (the world body) in ``container`` (an open bowl), or with
-# ``load_g`` that many grams parked for the utensil, and records them in ``layout``.
-FoodBuilder = Callable[[Food, Cylinder, np.random.Generator, WorldLayout, mujoco.MjsBody,
-                        "float | None"], None]
+# ``load_g`` that many grams parked for the utensil, and records them in ``layout``. (The
+# food is its kind's model: Granular, Liquid or Strands.)
+FoodBuilder = Callable[[Any, Cylinder, np.random.Generator, WorldLayout, mujoco.MjsBody,
+                        float | None], None]
 
 
 def sig(x: float, digits: int = 9) -> float:
