@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import subprocess
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -26,6 +27,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from articutool.link.messages import stamp_to_time
 from articutool.link.pairing import pair
 from conftest import free_port
 
@@ -138,8 +140,15 @@ class Ada(Graph):
         return {kv.key: kv.value for kv in h[-1].status[0].values} if h else {}
 
     def settle(self, s: float = 0.3) -> list[float]:
+        """The wrist's joints after ``s`` s of rest, from a joint state the tool stamped after
+        them (a loaded host delivers the states late: the last one received may be older)."""
         self.spin_until(lambda: False, s)
-        return list(self.got["js"][-1].position)
+        t = time.time()
+        js = self.got["js"]
+        assert self.spin_until(lambda: bool(js) and stamp_to_time(js[-1].header.stamp) >= t,
+                               30), \
+            "no joint state stamped after the wait"
+        return list(js[-1].position)
 
     # -- CallSetOrientationControl.update --
     def call_set_orientation_control(self, control_mode: int, pitch_offset_deg: float = 0.0,
@@ -276,6 +285,21 @@ def test_post_acquisition_leveling_sequence_runs_a_moveit_style_trajectory(ada: 
     assert res.status == GoalStatus.STATUS_SUCCEEDED
     np.testing.assert_allclose(ada.settle(), [-0.3, 0.4], atol=0.05)  # on its last point
     assert ada.execute_articutool_trajectory(JointTrajectory())[0] == 0  # ADA: trivially
+
+
+def test_a_trajectory_the_tool_refuses_ends_invalid_and_moves_nothing(ada: Ada) -> None:
+    # A MoveIt-style trajectory whose first point (t = 0) is 0.4 rad from the wrist: the tool
+    # refuses it (no motion), and the action says so once the tool's own telemetry has gone on
+    # without taking it, however late a loaded PC reads that telemetry.
+    assert ada.call_set_orientation_control(SetOrientationControl.Request.MODE_DISABLED).success
+    assert ada.switch_articutool_controllers(["joint_trajectory_controller"],
+                                             ["velocity_controller"]).ok
+    q0 = ada.settle()
+    far = [q0[0] + 0.4, q0[1]]
+    code, res = ada.execute_articutool_trajectory(_moveit_trajectory(far, q0, 1.5))
+    assert code == FollowJointTrajectory.Result.INVALID_GOAL, res.result.error_string
+    assert "did not take the trajectory" in res.result.error_string
+    np.testing.assert_allclose(ada.settle(), q0, atol=0.02)  # nothing moved
 
 
 def test_post_retract_sequence_runs_a_primitive_then_levels_with_adas_radians(ada: Ada) -> None:

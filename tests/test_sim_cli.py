@@ -15,12 +15,19 @@ from articutool.cli import main
 from conftest import run_cli
 
 
-def test_sim_scoop_json_reports_where_the_food_is(capsys: pytest.CaptureFixture[str]) -> None:
+def test_sim_scoop_json_reports_where_the_food_is_and_its_snapshot_renders_headless(
+        tmp_path: Path) -> None:
     # The rigid scripted scoop takes 0-2 pecan pieces: seeds 0-4 took 0, 0.92, 0.97, 1.72 and
     # 0 g (the thesis' rigid baseline: 1.32 ± 0.48 g). The report's accounting and the F/T's
-    # weighing need a load on the spoon: seed 3's scoop takes two pieces.
-    assert main(["sim", "--food", "pecans", "--script", "scoop", "--json", "--seed", "3"]) == 0
-    out = json.loads(capsys.readouterr().out)
+    # weighing need a load on the spoon: seed 3's scoop takes two pieces. The same run saves
+    # its last frame, rendered offscreen in a process of its own (one scoop for both).
+    from PIL import Image
+
+    png = tmp_path / "s.png"
+    r = run_cli("sim", "--food", "pecans", "--script", "scoop", "--json", "--seed", "3",
+                "--snapshot", str(png), timeout=900.0)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
     for key in ("on_utensil_g", "in_bowl_g", "table_g", "critical_g", "spills",
                 "realtime_factor"):
         assert key in out
@@ -30,6 +37,9 @@ def test_sim_scoop_json_reports_where_the_food_is(capsys: pytest.CaptureFixture[
     assert out["on_utensil_g"] > 0  # the scoop acquired something
     assert abs(out["ft_mass_g"] - out["on_utensil_g"]) < 0.5
     assert out["tool_fault"] == ""
+    img = Image.open(png)
+    assert img.size == (640, 480)
+    assert len(np.unique(np.asarray(img.convert("L")))) > 20  # a scene, not a blank frame
 
 
 @pytest.mark.parametrize("args,field", [
@@ -51,17 +61,6 @@ def test_sim_never_overwrites_a_file(tmp_path: Path) -> None:
     r = run_cli("sim", "--snapshot", str(p))
     assert r.returncode == 2 and "exists" in r.stderr
     assert p.read_bytes() == b"precious"
-
-
-def test_sim_snapshot_renders_headless(tmp_path: Path) -> None:
-    from PIL import Image
-
-    png = tmp_path / "s.png"
-    r = run_cli("sim", "--food", "pecans", "--snapshot", str(png))
-    assert r.returncode == 0, r.stderr
-    img = Image.open(png)
-    assert img.size == (640, 480)
-    assert len(np.unique(np.asarray(img.convert("L")))) > 20  # a scene, not a blank frame
 
 
 @pytest.mark.slow

@@ -285,6 +285,13 @@ class ArticutoolClient:
                     return str(kv.value)
         return None
 
+    def latest_tool_time(self) -> float | None:
+        """The tool's own stamp (wall-clock seconds) of the latest joint state, or None: how
+        far the tool's loop had got when it sent what this client last received."""
+        with self._lock:
+            js = self._latest.get("js")
+        return None if js is None else m.stamp_to_time(js.header.stamp)
+
     def latest_state(self) -> ToolState | None:
         """The latest telemetry as a ToolState (``stamp`` = local receive time), or None
         (also when two tools answer to one identity: their streams would be mixed)."""

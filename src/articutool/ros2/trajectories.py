@@ -14,6 +14,7 @@ on the safety node and shares its goal table with the primitive action.
 from __future__ import annotations
 
 import logging
+import math
 import time
 from typing import Any
 
@@ -28,6 +29,10 @@ from articutool.ros2.serving import Side, in_thread, outcome
 from articutool.tool.api import Mode
 
 __all__ = ["FollowJointTrajectoryServer", "TrajectoryTopic"]
+
+# How long the tool's own telemetry may show another mode after a trajectory was sent before
+# the trajectory counts as refused (s of the tool's clock).
+TAKE_WINDOW_S = 1.0
 
 _log = logging.getLogger(__name__)
 
@@ -77,6 +82,12 @@ class FollowJointTrajectoryServer:
 
         def run() -> str:
             """'' when the trajectory ran to its end, else why not."""
+            sent = client.latest_tool_time()  # the tool's time before it can have the trajectory
+
+            def tool_time_since(t: float | None) -> float:
+                now_tool = client.latest_tool_time()
+                return math.inf if t is None or now_tool is None else now_tool - t
+
             try:
                 client.follow_trajectory(traj, start_at=start_at)
             except (ValueError, LinkError) as err:
@@ -91,7 +102,11 @@ class FollowJointTrajectoryServer:
                 now = time.time()
                 if st is not None and now >= t0:
                     taken = taken or st.mode is Mode.TRAJECTORY
-                    if not taken and now > t0 + 0.5:
+                    # Refused: the tool's own telemetry, a second on from before the trajectory
+                    # was sent, still shows another mode (judged on the tool's clock: a loaded
+                    # PC reads the tool's states late).
+                    waited = tool_time_since(sent)
+                    if not taken and now > t0 + 0.5 and waited >= TAKE_WINDOW_S:
                         return (f"the tool did not take the trajectory (its mode is "
                                 f"{st.mode.name}; it refuses positions outside the wrist "
                                 "limits, velocities above them, or a first point far from "
