@@ -339,8 +339,6 @@ def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) ->
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from articutool.experiments import report
-    from articutool.experiments.analysis import summarize
     from articutool.experiments.config import ExperimentsConfig, ExperimentsConfigError
     from articutool.experiments.runner import RunError, data_hash, log_path, pin_run
 
@@ -358,6 +356,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.trial is not None:
         return _replay(args, exp, trials, out)
     from articutool.cli_support import output_dir
+    from articutool.experiments import report  # scipy.stats: imported once the input is good
+    from articutool.experiments.analysis import summarize
 
     d = output_dir("--out", out, ("run.json", "trials.jsonl", "summary.json", "notes.md",
                                   f"{exp}.png"), own=exp)

@@ -126,11 +126,6 @@ def _cmd_sim(args: argparse.Namespace) -> int:
 
     if args.mjcf is not None:
         return _write_mjcf(args)
-    from articutool.planning.tip_paths import PathError
-    from articutool.sim.render import RenderError
-    from articutool.sim.scenes import run_script
-    from articutool.sim.world import FeedingWorld, PhysicsResetError
-
     new_output_file("--video", args.video, (".mp4", ".gif"))
     new_output_file("--snapshot", args.snapshot, (".png",))
     new_output_file("--record", args.record, (".npz",))
@@ -138,6 +133,11 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     _check_load(args, kw)
     if args.twirl_turns is not None:
         _check_twirl(args, kw)
+    # The world and the planners (toppra, scipy, matplotlib): imported once the input is good.
+    from articutool.planning.tip_paths import PathError
+    from articutool.sim.render import RenderError
+    from articutool.sim.scenes import run_script
+    from articutool.sim.world import FeedingWorld, PhysicsResetError
     try:
         world = FeedingWorld.build(args.food, args.utensil, load_g=args.load, **kw)
     except ValueError as err:  # e.g. strands cannot be placed as a load
