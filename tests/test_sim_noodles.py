@@ -46,8 +46,9 @@ def test_noodle_world_builds_as_jointed_chains_and_stays_stable() -> None:
 
 
 def test_a_strand_collides_with_itself_but_not_across_a_joint() -> None:
-    w = FeedingWorld.build("noodles", seed=5000, settle=False)
-    m = w.model
+    from articutool.sim.build import build_parts
+
+    m = build_parts("noodles", seed=5000).model  # the model alone: no step of the laid nest
     a, b, c = (m.geom(f"strand0/{i}").id for i in (0, 1, 5))
     assert m.geom_contype[a] & m.geom_conaffinity[c]  # a wrap can rest on its own strand
     assert m.body_parentid[m.geom_bodyid[b]] == m.geom_bodyid[a]  # neighbours: parent-child
