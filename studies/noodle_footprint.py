@@ -32,7 +32,7 @@ from articutool.spec import load_spec
 
 def footprint(seed: int, offset_m: float, depth_m: float, radius_m: float) -> dict[str, Any]:
     """Strands of the settled nest under the scripted and the tree's insertion points."""
-    w = FeedingWorld.build("noodles", "fork", seed=seed)
+    w = FeedingWorld.make("noodles", "fork", seed=seed)
     box = w.scene.get(w.layout.container or "bowl")
     assert isinstance(box, Cylinder) and box.container_wall is not None
     floor = float(box.inner_floor()[2])

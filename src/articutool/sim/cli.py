@@ -139,7 +139,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     if args.twirl_turns is not None:
         _check_twirl(args, kw)
     try:
-        world = FeedingWorld.build(args.food, args.utensil, load_g=args.load, **kw)
+        world = FeedingWorld.make(args.food, args.utensil, load_g=args.load, **kw)
     except ValueError as err:  # e.g. strands cannot be placed as a load
         raise UsageError(f"--load: {err}") from None
     recorder = None
