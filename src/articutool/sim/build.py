@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -180,9 +180,9 @@ class WorldConfig:
 
     food: str | None = "pecans"
     utensil: str | None = None
-    spec: Spec = None  # type: ignore[assignment]  # resolved in __post_init__
-    scene: Scene = None  # type: ignore[assignment]
-    params: PhysicsParams = None  # type: ignore[assignment]
+    spec: Spec = field(default_factory=load_spec)
+    scene: Scene = field(default_factory=Scene.load)
+    params: PhysicsParams = field(default_factory=PhysicsParams.load)
     seed: int = 0
     q_arm: tuple[float, ...] | None = None
     q_wrist: tuple[float, ...] = (0.0, 0.0)
@@ -195,6 +195,7 @@ class WorldConfig:
         def resolve(name: str, value: object) -> None:
             object.__setattr__(self, name, value)
 
+        # An explicit None is the packaged default too.
         spec = self.spec if self.spec is not None else load_spec()
         params = self.params if self.params is not None else PhysicsParams.load()
         resolve("spec", spec)
