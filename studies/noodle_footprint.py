@@ -1,5 +1,5 @@
 """How many strands of the settled nest lie where each acquisition puts the fork's tip?
-For each seed the default noodle bowl is built and settled (``FeedingWorld.build``); within
+For each seed the default noodle bowl is built and settled (``FeedingWorld.make``); within
 the fork's half-width (horizontally) of the insertion point the strands are counted, and of
 them those with a segment whose centre lies above the tip's height over the floor (a strand
 the tines can pass beside rather than press down). The points: the bowl's centre with the tip

@@ -1,7 +1,8 @@
 """The feeding world: MuJoCo physics with the Articutool's own onboard software in the loop.
 
-:meth:`FeedingWorld.build` builds a world's parts from the spec, the scene and a food
-(:mod:`articutool.sim.build`: the MJCF, the model, the drivers, the tool), lets the food
+:meth:`FeedingWorld.build` builds a world's parts from a
+:class:`~articutool.sim.build.WorldConfig` (the spec, the scene, a food, the seed…;
+:mod:`articutool.sim.build`: the MJCF, the model, the drivers, the tool), lets the food
 settle, then starts the unchanged :class:`~articutool.tool.runtime.ToolRuntime` on
 MuJoCo-backed drivers (:mod:`articutool.sim.mj_drivers`) at ``spec.wrist.loop_rate_hz`` in
 lockstep with the physics and tares the F/T sensor: each physics step applies the arm servos'
@@ -14,8 +15,9 @@ bit-identical to stepping one at a time and settling afresh (``tests/test_sim_sp
 where the time goes: docs/simulation.md, *Speed*).
 
 One stepping loop — arm servos, the wrist's velocity loop, sensors, the tool's tick — and the
-arm-motion API around it; the food ledger, the weighing and the load placement are objects
-the world owns.
+arm-motion API around it; the food ledger (``world.ledger``), the weighing
+(``world.weighing``) and the load placement (``world.placement``) are objects the world owns,
+used directly.
 
 The arm follows a :class:`~articutool.trajectory.JointTrajectory` with joint servos (PD with
 velocity feed-forward, torque-limited by the spec's efforts), so contacts see the real
