@@ -72,3 +72,11 @@ def test_every_food_kind_has_its_builder_and_each_food_builds_its_bodies() -> No
         assert items, name
         assert all(m.body(b).id > 0 for b in items)
         assert lay.container == food.container
+
+
+def test_the_config_loads_its_defaults_when_made(monkeypatch: pytest.MonkeyPatch) -> None:
+    from articutool.sim import params as sim_params
+
+    loaded = sim_params.PhysicsParams.load()
+    monkeypatch.setattr(sim_params.PhysicsParams, "load", classmethod(lambda cls: loaded))
+    assert WorldConfig(None, "spoon").params is loaded

@@ -180,9 +180,10 @@ class WorldConfig:
 
     food: str | None = "pecans"
     utensil: str | None = None
-    spec: Spec = field(default_factory=load_spec)
-    scene: Scene = field(default_factory=Scene.load)
-    params: PhysicsParams = field(default_factory=PhysicsParams.load)
+    # The packaged defaults, loaded when a config is made (not when this class is defined).
+    spec: Spec = field(default_factory=lambda: load_spec())
+    scene: Scene = field(default_factory=lambda: Scene.load())
+    params: PhysicsParams = field(default_factory=lambda: PhysicsParams.load())
     seed: int = 0
     q_arm: tuple[float, ...] | None = None
     q_wrist: tuple[float, ...] = (0.0, 0.0)
