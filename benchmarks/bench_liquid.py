@@ -36,11 +36,11 @@ def main() -> None:
     if out.is_symlink():
         raise SystemExit(f"--out {out} is a symlink; refusing to write through it")
     c0 = time.process_time()
-    w = FeedingWorld.build("water", load_g=args.load, mouth=False)
+    w = FeedingWorld.make("water", load_g=args.load, mouth=False)
     w.tool.set_mode(Mode.LEVELING)
     w.run(1.0)
-    w.tare_ft(settle_s=0.2)
-    held = w.place_load(settle_s=0.5)
+    w.weighing.tare(settle_s=0.2)
+    held = w.placement.place(settle_s=0.5)
     c1 = time.process_time()
     q0 = w.arm_q
     q1 = base_tilt_motion(w, 40.0)
@@ -51,7 +51,7 @@ def main() -> None:
         w.run_until(lambda: not w.arm_busy, t_end - w.time)
         legs += 1
     c2 = time.process_time()
-    masses = w.masses_g()
+    masses = w.ledger.masses_g()
     liquid = w.placement.liquid
     result = {
         "what": f"{TRANSPORT_S:g} s placed-load transport of {args.load:g} g of water (SPH), "
@@ -59,7 +59,7 @@ def main() -> None:
         "clock": "process CPU s (time.process_time, all threads)",
         "liquid_backend": "SPlisHSPlasH (pysplishsplash)", "liquid_version": library_version(),
         "particle_radius_mm": liquid.settings.particle_radius * 1e3 if liquid else None,
-        "particles": w.n_items, "held_after_placing_g": round(held, 3),
+        "particles": w.ledger.n_items, "held_after_placing_g": round(held, 3),
         "transport_cpu_s": round(c2 - c1, 1), "goal_cpu_s": GOAL_CPU_S,
         "within_goal": (c2 - c1) <= GOAL_CPU_S,
         "build_and_place_cpu_s": round(c1 - c0, 1), "arm_legs": legs,

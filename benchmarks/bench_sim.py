@@ -98,25 +98,25 @@ def one(food: str, seed: int, variant: str) -> dict:
     params = _variant_params(variant)
     load = os.getloadavg()[0]
     c0, t0 = time.thread_time(), time.perf_counter()
-    w = FeedingWorld.build(food, seed=seed, params=params)
+    w = FeedingWorld.make(food, seed=seed, params=params)
     acquire(w, level=True)
     cpu, wall = time.thread_time() - c0, time.perf_counter() - t0
-    outcome = w.masses_g()["utensil"]
+    outcome = w.ledger.masses_g()["utensil"]
     row = {"seed": seed, "realtime_factor": round(w.realtime_factor, 3),
            "realtime_factor_end_to_end": round(w.time / cpu, 3),
            "simulated_s": round(w.time, 2), "cpu_s": round(cpu, 2), "wall_s": round(wall, 2),
            "loadavg_1min_start": round(load, 2)}
     if food == "water":
-        w = FeedingWorld.build("water", seed=seed, params=params, load_g=8.0)
+        w = FeedingWorld.make("water", seed=seed, params=params, load_g=8.0)
         w.tool.set_mode(Mode.LEVELING)
         w.run(1.0)
         w.tool.set_mode(Mode.DISABLED)
-        w.place_load(settle_s=1.0)
+        w.placement.place(settle_s=1.0)
         w.move_arm(base_tilt_motion(w, 40.0))
         w.run(1.5)
-        outcome = w.masses_g()["utensil"]
+        outcome = w.ledger.masses_g()["utensil"]
         row["realtime_factor_load"] = round(w.realtime_factor, 3)
-        row["load_particles"] = w.n_items
+        row["load_particles"] = w.ledger.n_items
     row["outcome_g"] = round(outcome, 3)
     return row
 
@@ -140,7 +140,7 @@ def _pecan_contact() -> dict:
 
     from articutool.sim.world import FeedingWorld
 
-    w = FeedingWorld.build("pecans", seed=0)
+    w = FeedingWorld.make("pecans", seed=0)
     m, d = w.model, w.data
     m.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
     mujoco.mj_step(m, d, 2)

@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
 
     info = machine()
     params = PhysicsParams.load(args.physics)
-    w = FeedingWorld.build("noodles", seed=args.seed, params=params)
+    w = FeedingWorld.make("noodles", seed=args.seed, params=params)
     pressed: list[float] = []
 
     def hook(world: FeedingWorld) -> None:

@@ -2,7 +2,7 @@
 beside the creep law (a measurement, not a change: the shipped parameters stay those of
 ``data/physics.toml``).
 
-The 125 g bowl is built and settled as a bite's world is (``FeedingWorld.build("pecans")``),
+The 125 g bowl is built and settled as a bite's world is (``FeedingWorld.make("pecans")``),
 then sleeping is switched off so every piece is awake (the bowl while the spoon is in it: the
 costly part of a bite; a resting bowl sleeps). For each setting the settled state is restored
 (``mj_copyData``), the options reset to the shipped ones and the setting applied (``condim``:
@@ -47,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     from articutool.sim.calibrate import CREEP_SLOPES_DEG, creep_mm
     from articutool.sim.world import FeedingWorld
 
-    w = FeedingWorld.build("pecans", seed=args.seed)
+    w = FeedingWorld.make("pecans", seed=args.seed)
     m, d, params = w.model, w.data, w.params
     food = params.food("pecans")
     m.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)

@@ -61,7 +61,7 @@ def _run(food: str, seed: int, mj_cpu: list[float] | None = None):
             mj_cpu[0] += time.thread_time() - c
         mujoco.mj_step = timed
     c0 = time.thread_time()
-    w = FeedingWorld.build(food, seed=seed)
+    w = FeedingWorld.make(food, seed=seed)
     c_built = time.thread_time()
     try:
         acquire(w, level=True)
@@ -114,7 +114,7 @@ def python_cost(food: str, seed: int, seconds: float = 5.0) -> dict:
     from articutool.sim.world import FeedingWorld
     from articutool.tool.api import Mode
 
-    w = FeedingWorld.build(food, seed=seed)
+    w = FeedingWorld.make(food, seed=seed)
     w.tool.set_mode(Mode.LEVELING)
     q = w.arm_q.copy()
     q[0] += 0.3

@@ -36,7 +36,7 @@ import numpy as np
 def _fingerprint(world) -> str:
     d = world.data
     h = hashlib.sha256()
-    for a in (d.qpos, d.qvel, d.act, world.item_classes()):
+    for a in (d.qpos, d.qvel, d.act, world.ledger.item_classes()):
         h.update(np.ascontiguousarray(a).tobytes())
     return h.hexdigest()[:16]
 
@@ -50,10 +50,10 @@ def run(foods: list[str], seeds: list[int]) -> dict:
     for food in foods:
         for seed in seeds:
             c0, t0 = time.thread_time(), time.perf_counter()
-            w = FeedingWorld.build(food, seed=seed)
+            w = FeedingWorld.make(food, seed=seed)
             acquire(w, level=True)
-            g = w.masses_g()
-            spilled = acc.spilled_by_place(w.spills)
+            g = w.ledger.masses_g()
+            spilled = acc.spilled_by_place(w.ledger.spills)
             r = {"seed": seed, "acquired_g": round(g["utensil"], 4),
                  "spilled_g": round(sum(spilled.values()), 4),
                  "container_g": round(g["container"], 4), "simulated_s": round(w.time, 3),

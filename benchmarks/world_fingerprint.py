@@ -38,8 +38,10 @@ LOADS_G = {"pecans": 3.0, "water": 6.0}
 def _build(food: str | None, **kw: Any) -> Any:
     from articutool.sim.world import FeedingWorld
 
-    # Checkouts whose constructor builds the world have no ``build``: both are fingerprinted.
-    return getattr(FeedingWorld, "build", FeedingWorld)(food, **kw)
+    # The keyword factory is ``make`` (``build`` takes a ``WorldConfig``); older checkouts
+    # build with keywords through ``build`` or the constructor: all are fingerprinted.
+    make = getattr(FeedingWorld, "make", None) or getattr(FeedingWorld, "build", FeedingWorld)
+    return make(food, **kw)
 
 
 def _fingerprint(w: Any, extra: Any) -> str:
@@ -47,12 +49,12 @@ def _fingerprint(w: Any, extra: Any) -> str:
     d = w.data
     h = hashlib.sha256()
     for a in (d.qpos, d.qvel, d.act, d.qacc_warmstart, d.ctrl, np.array([d.time]),
-              w.item_classes(), np.array([w.arm_tracking_error])):
+              w.ledger.item_classes(), np.array([w.arm_tracking_error])):
         h.update(np.ascontiguousarray(a).tobytes())
     st = w.tool.state()
     tool = (st.stamp, st.mode.name, st.position, st.velocity, st.orientation_wxyz,
             st.angular_velocity, st.linear_acceleration, st.fault)
-    ledger = (w.masses_g(), [asdict(s) for s in w.spills])
+    ledger = (w.ledger.masses_g(), [asdict(s) for s in w.ledger.spills])
     h.update(repr((tool, ledger, extra)).encode())
     return h.hexdigest()
 
@@ -79,7 +81,7 @@ def bowl(food: str, seed: int, cache: Any = None) -> str:
     assert ok, msg
     w.run(1.0)
     tilted = _report(w)
-    eaten = w.eat_from_utensil()
+    eaten = w.ledger.eat_from_utensil()
     w.run(0.2)
     return _fingerprint(w, (built, tilted, eaten, _report(w), w.tilt_deg(),
                             w.tool_base_tilt_deg(), w.tip_pose().tolist()))
@@ -88,11 +90,12 @@ def bowl(food: str, seed: int, cache: Any = None) -> str:
 def loaded(food: str, seed: int) -> str:
     """A load placed by hand on the tared utensil, weighed by the F/T sensor and a scale."""
     w = _build(food, seed=seed, load_g=LOADS_G[food], mouth=False)
-    placed = w.place_load()
-    readings = (placed, w.ft_comparable(), w.ft_mass_g(), w.utensil_mass_g(), w.carried_g(),
+    placed = w.placement.place()
+    wg = w.weighing
+    readings = (placed, wg.comparable(), wg.ft_mass_g(), wg.utensil_mass_g(), wg.carried_g(),
                 _report(w, measure_ft=True))
-    w.tare_ft(0.1)
-    return _fingerprint(w, (readings, w.ft_mass_g(0.2), w.item_masses_g().tolist()))
+    w.weighing.tare(0.1)
+    return _fingerprint(w, (readings, w.weighing.ft_mass_g(0.2), w.ledger.item_g.tolist()))
 
 
 def run(foods: list[str], seeds: list[int], noodles: bool) -> dict[str, str]:

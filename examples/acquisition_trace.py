@@ -53,7 +53,8 @@ def main() -> None:
             if name != self.last or (h < args.near_m and w.time >= self.next_t):
                 tau = np.round(w.data.actuator_force[acts], 2)
                 print(f"{w.time:7.2f} s  {name:28.28s} tip {100 * h:5.1f} cm  "
-                      f"tilt {w.tilt_deg():5.1f}°  utensil {w.masses_g()['utensil']:5.1f} g  "
+                      f"tilt {w.tilt_deg():5.1f}°  "
+                      f"utensil {w.ledger.masses_g()['utensil']:5.1f} g  "
                       f"wrist {np.round(w.wrist_q, 2)} rad  torque {tau} N·m", flush=True)
                 self.last, self.next_t = name, w.time + 0.2
 

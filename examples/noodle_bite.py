@@ -28,10 +28,10 @@ def main() -> int:
     out = Path(args.out)
     if out.exists():
         ap.error(f"--out: {out} exists; choose a new file (nothing is overwritten)")
-    w = FeedingWorld.build("noodles", seed=args.seed)
+    w = FeedingWorld.make("noodles", seed=args.seed)
     skewer(w, level=True, twirl_turns=args.turns)
     save_png(w, out, "utensil_close")
-    print(f"{out}: {w.masses_g()['utensil']:.2f} g on the fork")
+    print(f"{out}: {w.ledger.masses_g()['utensil']:.2f} g on the fork")
     return 0
 
 

@@ -24,13 +24,13 @@ def main() -> None:
     for level in (True, False):
         rows = []
         for seed in range(args.seeds):
-            w = FeedingWorld.build(args.food, seed=seed, load_g=args.load)
+            w = FeedingWorld.make(args.food, seed=seed, load_g=args.load)
             load(w, level)
-            held = w.masses_g()["utensil"]
+            held = w.ledger.masses_g()["utensil"]
             w.move_arm(base_tilt_motion(w, 40.0))
             w.run(1.5)
             rows.append({"seed": seed, "held_g": round(held, 2),
-                         "spilled_g": round(held - w.masses_g()["utensil"], 2)})
+                         "spilled_g": round(held - w.ledger.masses_g()["utensil"], 2)})
         out["leveling" if level else "locked"] = rows
     print(json.dumps(out, indent=1))
 

@@ -23,17 +23,17 @@ def main() -> None:
     out = Path(ap.parse_args().out)
     out.mkdir(parents=True, exist_ok=True)
     # Pecans: the scripted scoop, leveled, above the bowl.
-    w = FeedingWorld.build("pecans", seed=0)
+    w = FeedingWorld.make("pecans", seed=0)
     scoop(w, level=True)
     save_png(w, out / "sim_pecans.png", "utensil")
     # Water: 8 g poured into the leveled, tared soup spoon (the Exp. 2b load).
-    w = FeedingWorld.build("water", seed=0, load_g=8.0)
+    w = FeedingWorld.make("water", seed=0, load_g=8.0)
     w.tool.set_mode(Mode.LEVELING)
     w.run(1.0)
-    w.place_load(settle_s=1.0)
+    w.placement.place(settle_s=1.0)
     save_png(w, out / "sim_water.png", "utensil")
     # Noodles: the strands settled in the bowl, the fork above.
-    w = FeedingWorld.build("noodles", seed=0)
+    w = FeedingWorld.make("noodles", seed=0)
     save_png(w, out / "sim_noodles.png", "bowl")
 
 

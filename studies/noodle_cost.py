@@ -35,7 +35,7 @@ import mujoco
 import numpy as np
 
 from articutool.sim.accounting import UTENSIL
-from articutool.sim.build import build_parts
+from articutool.sim.build import WorldConfig, build_parts
 from articutool.sim.params import PhysicsParams
 from articutool.sim.scenes import skewer
 from articutool.sim.world import FeedingWorld
@@ -53,7 +53,7 @@ def measure(fill_g: float, seed: int, turns: float | None) -> dict[str, Any]:
     """One scripted acquisition in a bowl of ``fill_g``; its cost, phase by phase."""
     params = nest_params(fill_g)
     c0 = time.process_time()
-    w = FeedingWorld.build("noodles", seed=seed, params=params)
+    w = FeedingWorld.make("noodles", seed=seed, params=params)
     built = time.process_time() - c0
     m = w.model
     trees = np.array([m.body_treeid[m.body(f"{s}/0").id] for s in w.layout.food_strands])
@@ -70,7 +70,7 @@ def measure(fill_g: float, seed: int, turns: float | None) -> dict[str, Any]:
 
     def phase(name: str) -> None:
         phases[name] = {"t": round(w.time, 2), "cpu_s": round(time.process_time() - c0, 1),
-                        "strands_on_fork": int(np.sum(w.item_classes() == UTENSIL))}
+                        "strands_on_fork": int(np.sum(w.ledger.item_classes() == UTENSIL))}
 
     w.on_tick.append(sample)
     t_start, c_start = w.time, time.process_time()
@@ -83,7 +83,7 @@ def measure(fill_g: float, seed: int, turns: float | None) -> dict[str, Any]:
             "script_sim_s": round(w.time - t_start, 2), "script_cpu_s": round(cpu, 1),
             "realtime_factor": round((w.time - t_start) / cpu, 4),
             "awake_share_of_time": round(len(awake) / max(len(samples), 1), 3),
-            "lifted_g": round(w.masses_g()["utensil"], 2), "phases": phases,
+            "lifted_g": round(w.ledger.masses_g()["utensil"], 2), "phases": phases,
             "warnings": {n: int(w.data.warning[int(x)].number)
                          for n, x in mujoco.mjtWarning.__members__.items()
                          if w.data.warning[int(x)].number},
@@ -94,7 +94,7 @@ def awake_cost(fill_g: float, seed: int, seconds: float) -> dict[str, Any]:
     """The bowl of ``fill_g`` built and settled, then ``seconds`` with sleeping off (the whole
     nest awake, as while the fork stirs it): CPU per simulated second."""
     c0 = time.process_time()
-    w = FeedingWorld.build("noodles", seed=seed, params=nest_params(fill_g))
+    w = FeedingWorld.make("noodles", seed=seed, params=nest_params(fill_g))
     built = time.process_time() - c0
     w.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
     c1 = time.process_time()
@@ -112,7 +112,8 @@ def settle_trace(fill_g: float, seed: int, seconds: float, cpu_budget_s: float,
     """The bowl of ``fill_g`` laid and left to fall for ``seconds`` (tool off) or until
     ``cpu_budget_s`` of this thread's CPU; ``write`` gets the record after each 0.02 s."""
     c0 = time.thread_time()
-    w = FeedingWorld(build_parts("noodles", seed=seed, params=nest_params(fill_g)))
+    w = FeedingWorld(build_parts(WorldConfig("noodles", seed=seed,
+                                                 params=nest_params(fill_g))))
     m = w.model
     rec: dict[str, Any] = {
         "fill_g": fill_g, "seed": seed, "strands": len(w.layout.food_strands),

@@ -1,5 +1,5 @@
 """How many strands of the settled nest lie where each acquisition puts the fork's tip?
-For each seed the default noodle bowl is built and settled (``FeedingWorld.build``); within
+For each seed the default noodle bowl is built and settled (``FeedingWorld.make``); within
 the fork's half-width (horizontally) of the insertion point the strands are counted, and of
 them those with a segment whose centre lies above the tip's height over the floor (a strand
 the tines can pass beside rather than press down). The points: the bowl's centre with the tip
@@ -32,7 +32,7 @@ from articutool.spec import load_spec
 
 def footprint(seed: int, offset_m: float, depth_m: float, radius_m: float) -> dict[str, Any]:
     """Strands of the settled nest under the scripted and the tree's insertion points."""
-    w = FeedingWorld.build("noodles", "fork", seed=seed)
+    w = FeedingWorld.make("noodles", "fork", seed=seed)
     box = w.scene.get(w.layout.container or "bowl")
     assert isinstance(box, Cylinder) and box.container_wall is not None
     floor = float(box.inner_floor()[2])

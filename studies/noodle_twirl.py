@@ -61,18 +61,18 @@ def one_run(seed: int, turns: float, params: PhysicsParams | None = None,
     ``params``, ``prepare`` (called on the settled world) and ``skewer_kw``: a variant's
     physics, a change to the built world and the fork motion (studies/noodle_levers.py)."""
     t0 = time.perf_counter()
-    w = FeedingWorld.build("noodles", seed=seed, params=params)
+    w = FeedingWorld.make("noodles", seed=seed, params=params)
     if prepare is not None:
         prepare(w)
     touching: dict[str, int] = {}
     skewer(w, level=True, twirl_turns=turns, on_phase=lambda name: touching.__setitem__(
-        name, int(np.sum(w.item_classes() == UTENSIL))), **skewer_kw)
+        name, int(np.sum(w.ledger.item_classes() == UTENSIL))), **skewer_kw)
     warn = warnings_of(w.data)
-    classes = w.item_classes()
+    classes = w.ledger.item_classes()
     return {"seed": seed, "twirl_turns": turns,
-            "lifted_g": round(w.masses_g()["utensil"], 3),
+            "lifted_g": round(w.ledger.masses_g()["utensil"], 3),
             "strands_lifted": int(np.sum(classes == UTENSIL)),
-            "ft_mass_g": round(w.ft_mass_g(), 3) if w.ft_comparable() else None,
+            "ft_mass_g": round(w.weighing.ft_mass_g(), 3) if w.weighing.comparable() else None,
             "strands_touching": touching,
             "reset": any(k in warn for k in _RESET_WARNINGS), "warnings": warn,
             "sim_s": round(w.time, 3), "realtime_factor": round(w.realtime_factor, 4),

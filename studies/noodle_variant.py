@@ -41,12 +41,12 @@ def main(argv: list[str] | None = None) -> int:
         d["utensils"]["fork"]["tip_x"] = args.fork_offset
         spec = Spec.model_validate(d)
     t0 = time.perf_counter()
-    w = FeedingWorld.build("noodles", seed=args.seed, spec=spec)
+    w = FeedingWorld.make("noodles", seed=args.seed, spec=spec)
     log: dict[str, object] = dict(vars(args))
     during: list[int] = []
 
     def on_fork() -> int:
-        return int(np.sum(w.item_classes() == UTENSIL))
+        return int(np.sum(w.ledger.item_classes() == UTENSIL))
 
     def every_half_second(world: FeedingWorld) -> None:
         if world.tool.mode == Mode.PRIMITIVE and round(world.time / world.dt) % 250 == 0:
@@ -56,7 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     skewer(w, level=True, twirl_turns=args.turns, tines_up=args.rise == "tines-up",
            on_phase=lambda name: log.__setitem__(name, on_fork()))
     log["during_twirl"] = during
-    log.update(lifted_g=round(w.masses_g()["utensil"], 3),
+    log.update(lifted_g=round(w.ledger.masses_g()["utensil"], 3),
                warnings=warnings_of(w.data),
                realtime_factor=round(w.realtime_factor, 3),
                wall_s=round(time.perf_counter() - t0))

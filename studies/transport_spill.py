@@ -93,7 +93,7 @@ def _trial(goal: str, cond: str, scale: float, path: Any, seed: int, load_g: flo
     # No mouth region: the experimenter weighs the spoon at the goal, nobody eats from it.
     scene = Scene.load()
     scene = scene.model_copy(update={"regions": [r for r in scene.regions if r.name != "mouth"]})
-    w = FeedingWorld.build("water", "soup_spoon", seed=seed, load_g=load_g, q_arm=start,
+    w = FeedingWorld.make("water", "soup_spoon", seed=seed, load_g=load_g, q_arm=start,
                            scene=scene, params=_params(physics, radius))
     spec = w.spec
     model = ArmModel(spec, "soup_spoon", 8, w.scene)
@@ -106,9 +106,9 @@ def _trial(goal: str, cond: str, scale: float, path: Any, seed: int, load_g: flo
     wrist_mode = Mode.DISABLED if cond == "locked" else Mode.LEVELING
     w.tool.set_mode(wrist_mode)
     w.run(1.0)
-    held = w.place_load(settle_s=1.0)
+    held = w.placement.place(settle_s=1.0)
     load = food_load(w.params.definition("water"), held)
-    before, n_spills = w.masses_g(), len(w.spills)
+    before, n_spills = w.ledger.masses_g(), len(w.ledger.spills)
     executed, wrist_pred, used = arm, None, cond
     if cond == "locked":
         wrist_pred = np.asarray(w.wrist_q, dtype=float)
@@ -144,15 +144,15 @@ def _trial(goal: str, cond: str, scale: float, path: Any, seed: int, load_g: flo
     if used == "slosh_free":
         w.tool.set_mode(Mode.LEVELING)  # the IMU loop takes over after the motion
     w.run(1.5)
-    spilled = acc.spilled_by_place(w.spills, n_spills)
+    spilled = acc.spilled_by_place(w.ledger.spills, n_spills)
     pred = food_check(executed, wrist_pred, model, spec, "soup_spoon", load,
                       "locked" if cond == "locked" else used).prediction
     row.update({
         "wrist_used": used, "duration_s": round(executed.duration, 3),
         "held_g": round(held, 4), "simulated_spill_g": round(sum(spilled.values()), 4),
         "spilled_by_place": {k: round(v, 4) for k, v in spilled.items()},
-        "on_utensil_after_g": round(w.masses_g()["utensil"], 4),
-        "lost_g": round(before["utensil"] - w.masses_g()["utensil"], 4),
+        "on_utensil_after_g": round(w.ledger.masses_g()["utensil"], 4),
+        "lost_g": round(before["utensil"] - w.ledger.masses_g()["utensil"], 4),
         "max_tilt_deg": round(max(tilts), 3) if tilts else None,
         "predicted_spill_g": round(pred.spilled_g, 4),
         "predicted_peak_apparent_tilt_deg": round(pred.peak_apparent_tilt_deg, 3),

@@ -34,7 +34,7 @@ def main(argv: list[str] | None = None) -> int:
 
     out: dict = {"sleep_tolerance_m_s": None, "seeds": {}}
     for seed in range(args.seeds):
-        w = FeedingWorld.build("water", seed=seed)
+        w = FeedingWorld.make("water", seed=seed)
         m, d = w.model, w.data
         body = w.ledger.item_body
         dof = m.body_dofadr[body]

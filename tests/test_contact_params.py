@@ -113,7 +113,7 @@ def _probe(world: FeedingWorld, laws: dict) -> set[str]:
 @pytest.mark.parametrize("food", ["pecans", "water", "noodles"])
 def test_every_food_pair_of_a_container_fill_has_the_files_law(food: str) -> None:
     laws = _table()["foods"][food]["contacts"]
-    world = FeedingWorld.build(food, seed=0, settle=False)
+    world = FeedingWorld.make(food, seed=0, settle=False)
     assert _probe(world, laws) == set(CONTACT_PARTNERS)
     # And in motion: every contact of the fill a few steps on (with the pile kept awake:
     # MuJoCo makes no contacts for a sleeping pile).
@@ -132,8 +132,8 @@ def test_every_food_pair_of_a_container_fill_has_the_files_law(food: str) -> Non
 @pytest.mark.parametrize("food", ["pecans", "water"])
 def test_every_food_pair_of_a_placed_load_has_the_files_law(food: str) -> None:
     laws = _table()["foods"][food]["contacts"]
-    world = FeedingWorld.build(food, seed=0, load_g=3.0)
-    world.place_load(settle_s=0.1)
+    world = FeedingWorld.make(food, seed=0, load_g=3.0)
+    world.placement.place(settle_s=0.1)
     food_geoms = set(_food_geoms(world))
     seen = set()
     for c in world.data.contact[:world.data.ncon]:
@@ -147,7 +147,7 @@ def test_the_utensil_scrapes_the_bowl_with_its_own_law_whatever_the_food() -> No
     law = _table()["world"]["utensil_contact"]
     dim, fr, ref, imp = _expected(law)
     for food in ("pecans", "water"):
-        world = FeedingWorld.build(food, seed=0, settle=False)
+        world = FeedingWorld.make(food, seed=0, settle=False)
         m = world.model
         static = {m.geom(n).id for n in world.layout.static_geoms}
         utensil = {m.geom(n).id for n in world.layout.utensil_geoms}

@@ -216,20 +216,20 @@ def test_a_particle_on_the_table_then_the_floor_is_spilled_once_in_a_record() ->
     from articutool.sim.world import FeedingWorld
     from conftest import drop_off_the_table
 
-    w = FeedingWorld.build("water", seed=0, load_g=8.0)
+    w = FeedingWorld.make("water", seed=0, load_g=8.0)
     w.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)  # moved by hand below
     load(w, level=False)
-    before, n0, start = w.masses_g(), len(w.spills), w.item_classes()
+    before, n0, start = w.ledger.masses_g(), len(w.ledger.spills), w.ledger.item_classes()
     w.move_arm(base_tilt_motion(w, 40.0))
     w.run(3.0)
     drop_off_the_table(w)
     w.run(0.5)
-    events = w.spills[n0:]
+    events = w.ledger.spills[n0:]
     items = {e.item for e in events}
     assert len(events) > len(items)  # a particle spilled twice: table, then floor
     r = transport_outcome(w, start, n0, before)
-    g = w.item_masses_g()
-    lost = (start == 1) & (w.item_classes() != 1)  # left the spoon (1: utensil)
+    g = w.ledger.item_g
+    lost = (start == 1) & (w.ledger.item_classes() != 1)  # left the spoon (1: utensil)
     assert r["spilled_g"] == pytest.approx(g[lost].sum(), abs=1e-3)  # each once
     floor = {e.item for e in events if e.place == "critical" and start[e.item] == 1}
     assert r["spilled_by_place"]["critical"] == pytest.approx(sum(g[k] for k in floor),
@@ -302,13 +302,13 @@ def test_food_that_leaves_the_spoon_in_transport_and_lands_in_the_bowl_is_spille
     from articutool.spec import load_spec
 
     q = shed_configuration(load_spec(), Scene.load(), "soup_spoon")
-    w = FeedingWorld.build("water", seed=0, load_g=8.0, q_arm=q, mouth=False)
+    w = FeedingWorld.make("water", seed=0, load_g=8.0, q_arm=q, mouth=False)
     load(w, level=False)
-    before, n0, start = w.masses_g(), len(w.spills), w.item_classes()
+    before, n0, start = w.ledger.masses_g(), len(w.ledger.spills), w.ledger.item_classes()
     w.move_arm(base_tilt_motion(w, 40.0))
     w.run(2.0)
     r = transport_outcome(w, start, n0, before)
-    into_bowl = w.masses_g()["container"] - before["container"]
+    into_bowl = w.ledger.masses_g()["container"] - before["container"]
     assert into_bowl > 0.4  # at least one particle poured into the bowl
     assert r["spilled_by_place"]["container"] == pytest.approx(into_bowl, abs=1e-3)
     assert r["spilled_g"] == pytest.approx(sum(r["spilled_by_place"].values()), abs=1e-3)

@@ -28,11 +28,11 @@ LAG_WALL_S = 1.5
 
 
 def _transport(monkeypatch: pytest.MonkeyPatch, slow: bool, ahead: bool = False) -> dict:
-    w = FeedingWorld.build("pecans", seed=0, load_g=4.0)
+    w = FeedingWorld.make("pecans", seed=0, load_g=4.0)
     w.tool.set_mode(Mode.LEVELING)
     w.run(1.0)
-    w.place_load(1.0)
-    before = w.masses_g()  # the loader may drop a piece beside the spoon (seed 0: 0.46 g)
+    w.placement.place(1.0)
+    before = w.ledger.masses_g()  # the loader may drop a piece beside the spoon (seed 0: 0.46 g)
     if slow:
         real = pc_arm.plan
 
@@ -60,8 +60,8 @@ def _transport(monkeypatch: pytest.MonkeyPatch, slow: bool, ahead: bool = False)
     finally:
         arm.close()
         monkeypatch.undo()
-    return {"status": status, "rec": rec, "masses": w.masses_g(), "before": before, "t": w.time,
-            "qpos": w.data.qpos.copy(),
+    return {"status": status, "rec": rec, "masses": w.ledger.masses_g(), "before": before,
+            "t": w.time, "qpos": w.data.qpos.copy(),
             "attempts": attempts_used(root).get("planning_attempts_Staging")}
 
 

@@ -77,7 +77,7 @@ def _root(node: py_trees.behaviour.Behaviour | None) -> py_trees.behaviour.Behav
 
 def _loaded(seed: int = 0) -> tuple[MealSetup, float]:
     setup = make_bite_world("pecans", "articutool", seed, load_g=4.0)
-    held = setup.world.place_load(1.0)
+    held = setup.world.placement.place(1.0)
     assert held > 0.5
     return setup, held
 
@@ -131,7 +131,7 @@ def test_the_user_stopping_during_transport_stops_safely_and_delivers_nothing() 
     # Delivered nothing; what is not still held (a piece perched by the loader may fall
     # while the arm stops) is spilled and counted once.
     assert r.delivered_g == 0.0 and r.outcome in ("failed", "table_spill", "user_spill")
-    assert setup.world.masses_g()["utensil"] + r.spilled_g == pytest.approx(held)
+    assert setup.world.ledger.masses_g()["utensil"] + r.spilled_g == pytest.approx(held)
 
 
 def test_a_motor_overload_during_transport_faults_the_tool_and_stops_safely() -> None:

@@ -22,12 +22,12 @@ from articutool.tool.api import Mode
 
 
 def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> None:
-    w = FeedingWorld.build("pecans", seed=0, load_g=4.0)
+    w = FeedingWorld.make("pecans", seed=0, load_g=4.0)
     w.tool.set_mode(Mode.LEVELING)
     w.run(1.0)
-    w.tare_ft(0.3)
-    held = w.place_load(1.0)
-    g0 = w.masses_g()  # a piece the loader drops beside the spoon is not the transport's
+    w.weighing.tare(0.3)
+    held = w.placement.place(1.0)
+    g0 = w.ledger.masses_g()  # a piece the loader drops beside the spoon is not the transport's
     arm = sim_arm(w)
     tilts = []
     w.on_tick.append(lambda world: tilts.append(world.tilt_deg()))
@@ -38,7 +38,7 @@ def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> Non
         status, rec = run.status, run.record
     finally:
         arm.close()
-    g = w.masses_g()
+    g = w.ledger.masses_g()
     assert status == Status.SUCCESS, rec.failed_stage
     assert attempts_used(root) == {"planning_attempts_Staging": 1}
     assert rec.motion_time_s > 1.0
@@ -54,14 +54,14 @@ def test_decoupled_transport_to_staging_in_physics_keeps_the_load_level() -> Non
 def test_baseline_strict_transport_from_a_rigid_level_start() -> None:
     # The strict baseline's tilt bound and its locked wrist, with a load of pecans (the same
     # transport with SPH water costs ~5x the CPU and asserts nothing more here).
-    w = FeedingWorld.build("pecans", seed=0, load_g=4.0)  # the wrist stays locked (DISABLED)
+    w = FeedingWorld.make("pecans", seed=0, load_g=4.0)  # the wrist stays locked (DISABLED)
     arm = sim_arm(w)
     try:
         w.move_arm(arm.rigid_level_configuration("Resting"))
         w.run(0.5)
         assert w.tilt_deg() < 3.0
-        w.tare_ft(0.3)
-        w.place_load(1.0)
+        w.weighing.tare(0.3)
+        w.placement.place(1.0)
         tilts = []
         w.on_tick.append(lambda world: tilts.append(world.tilt_deg()))
         root = transport_tree(arm, w.tool, "Staging", System.of("baseline", tolerance_deg=20.0),
@@ -210,16 +210,16 @@ def test_a_bites_spill_counts_a_particle_that_goes_from_table_to_floor_once() ->
     w = setup.world
     w.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)  # moved by hand
     try:
-        w.place_load(settle_s=1.0)
-        n0 = len(w.spills)
+        w.placement.place(settle_s=1.0)
+        n0 = len(w.ledger.spills)
         r = run_bite(setup, stages=("resting",), root=_LockedCarry(w, 3.0, drop=True),
                      threshold_g=0.0)
     finally:
         setup.arm.close()
-    events = w.spills[n0:]
+    events = w.ledger.spills[n0:]
     items = {e.item for e in events}
     assert len(events) > len(items)  # a particle spilled twice: table, then floor
-    g = w.item_masses_g()
+    g = w.ledger.item_g
     assert r.spilled_g == pytest.approx(sum(g[k] for k in items))
     floor = {e.item for e in events if e.place == "critical"}
     assert r.spilled_by_place["critical"] == pytest.approx(sum(g[k] for k in floor))

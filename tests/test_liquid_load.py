@@ -60,11 +60,11 @@ def placed_water():
     from articutool.sim.world import FeedingWorld
     from articutool.tool.api import Mode
 
-    w = FeedingWorld.build("water", load_g=8.0, mouth=False)
+    w = FeedingWorld.make("water", load_g=8.0, mouth=False)
     w.tool.set_mode(Mode.LEVELING)
     w.run(1.0)
-    w.tare_ft(settle_s=0.2)
-    held = w.place_load(settle_s=1.0)
+    w.weighing.tare(settle_s=0.2)
+    held = w.placement.place(settle_s=1.0)
     w.run(2.0)  # a still load: the pour's slosh has rung down
     yield w, held
     w.close()
@@ -74,16 +74,16 @@ def test_a_placed_liquid_keeps_its_grams_on_the_utensil(placed_water):
     w, held = placed_water
     assert w.placement.liquid is not None  # the default: the SPH liquid
     assert held >= 0.99 * 8.0
-    assert w.masses_g()["utensil"] >= 0.99 * 8.0
+    assert w.ledger.masses_g()["utensil"] >= 0.99 * 8.0
     assert w.report().total_g == pytest.approx(8.0, rel=1e-9)  # every particle an item
 
 
 def test_the_scale_and_the_ft_sensor_weigh_the_liquid(placed_water):
     w, _ = placed_water
-    grams = w.masses_g()["utensil"]
-    assert w.carried_g() == pytest.approx(grams, rel=0.01)
-    assert w.ft_comparable()
-    assert w.ft_mass_g(1.0) == pytest.approx(grams, rel=0.01)
+    grams = w.ledger.masses_g()["utensil"]
+    assert w.weighing.carried_g() == pytest.approx(grams, rel=0.01)
+    assert w.weighing.comparable()
+    assert w.weighing.ft_mass_g(1.0) == pytest.approx(grams, rel=0.01)
 
 
 def test_the_spheres_remain_an_option():
@@ -92,9 +92,9 @@ def test_the_spheres_remain_an_option():
     p = PhysicsParams.load()
     water = p.foods["water"].model_copy(update={"load_model": "spheres"})
     p = p.model_copy(update={"foods": {**p.foods, "water": water}})
-    w = FeedingWorld.build("water", params=p, load_g=4.0, mouth=False, settle=False)
-    w.place_load(settle_s=0.2)
-    assert w.placement.liquid is None and w.masses_g()["utensil"] > 0
+    w = FeedingWorld.make("water", params=p, load_g=4.0, mouth=False, settle=False)
+    w.placement.place(settle_s=0.2)
+    assert w.placement.liquid is None and w.ledger.masses_g()["utensil"] > 0
 
 
 def test_a_particle_radius_outside_the_validated_range_is_refused(tmp_path):
@@ -153,15 +153,15 @@ def test_a_locked_carry_spills_the_liquid_and_the_ledger_counts_it():
     from articutool.sim.world import FeedingWorld
     from articutool.tool.api import Mode
 
-    w = FeedingWorld.build("water", load_g=8.0, mouth=False)
+    w = FeedingWorld.make("water", load_g=8.0, mouth=False)
     try:
         w.tool.set_mode(Mode.LEVELING)
         w.run(1.0)
-        held = w.place_load(settle_s=0.5)
+        held = w.placement.place(settle_s=0.5)
         w.tool.set_mode(Mode.DISABLED)
         w.move_arm(base_tilt_motion(w, 40.0))
         w.run(1.5)
-        m = w.masses_g()
+        m = w.ledger.masses_g()
         assert w.placement.liquid.handed_off > 0
         assert m["utensil"] < held - 2.0  # hydrostatics at 40°: most of it runs out
         assert sum(m.values()) == pytest.approx(8.0, rel=1e-9)

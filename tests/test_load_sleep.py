@@ -20,15 +20,15 @@ from articutool.tool.api import Mode
 def test_a_placed_load_moves_with_the_spoon_and_never_hangs_where_it_was() -> None:
     sset = Scene.load().staging_set
     assert sset is not None
-    w = FeedingWorld.build("pecans", seed=0, load_g=2.5, q_arm=sset.start, mouth=False)
+    w = FeedingWorld.make("pecans", seed=0, load_g=2.5, q_arm=sset.start, mouth=False)
     w.tool.set_mode(Mode.LEVELING)
     w.run(1.0)
-    w.tare_ft(0.3)
-    w.place_load(settle_s=1.0)
+    w.weighing.tare(0.3)
+    w.placement.place(settle_s=1.0)
     w.run(1.0)  # the spoon held still: a resting piece could fall asleep now
-    masses = w.masses_g()
+    masses = w.ledger.masses_g()
     assert masses["critical"] == 0.0, masses  # nothing reached the floor from a still spoon
-    on = np.flatnonzero(w.item_classes() == acc.UTENSIL)
+    on = np.flatnonzero(w.ledger.item_classes() == acc.UTENSIL)
     assert on.size >= 2
     bodies = w.ledger.item_body[on]
     before = w.data.xpos[bodies].copy()

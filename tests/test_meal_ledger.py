@@ -12,11 +12,13 @@ from articutool.meal.bites import SimUser, StageLedger
 
 
 class World:
-    """What the ledger and the user read and do, with a log of the calls in order."""
+    """What the ledger and the user read and do, with a log of the calls in order; it
+    stands in for the world, its food ledger and its weighing at once."""
 
     def __init__(self) -> None:
         self.on_utensil, self.eaten, self.spills = 2.5, 0.0, []
         self.calls: list[str] = []
+        self.ledger = self.weighing = self
 
     def masses_g(self) -> dict[str, float]:
         self.calls.append("masses")
@@ -28,7 +30,7 @@ class World:
     def item_classes(self) -> np.ndarray:
         return np.zeros(1)
 
-    def ft_comparable(self) -> bool:
+    def comparable(self) -> bool:
         return True
 
     def ft_mass_g(self, _: float) -> float:

@@ -112,7 +112,7 @@ def test_the_settled_bowl_sleeps() -> None:
     # no-slip, or stiffer friction rows without it, left pieces moving at cm/s: measured).
     from articutool.sim.world import FeedingWorld
 
-    w = FeedingWorld.build("pecans", seed=0)
+    w = FeedingWorld.make("pecans", seed=0)
     w.run(1.0)
     awake = w.data.body_awake[w.ledger.item_body]
     assert not awake.any(), f"{int(awake.sum())} of {awake.size} pieces awake"

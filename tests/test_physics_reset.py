@@ -24,7 +24,7 @@ def _mujoco_log_in_tmp(tmp_path, monkeypatch) -> None:
 
 
 def test_a_mujoco_reset_stops_the_run_and_says_where() -> None:
-    w = FeedingWorld.build(None, "fork", seed=0, settle=False)
+    w = FeedingWorld.make(None, "fork", seed=0, settle=False)
     w.run(0.1)  # a healthy world runs
     w.data.qvel[0] = np.nan  # what a blown-up contact solve leaves behind
     with pytest.raises(PhysicsResetError, match=r"mjWARN_BADQ\w+ ×1 .*DOF 0"):

@@ -16,7 +16,7 @@ from articutool.sim.world import FeedingWorld
 def loaded() -> FeedingWorld:
     # 2.5 g of pecans placed on the utensil: the pile's other pieces wait parked far off
     # the table, which makes MuJoCo's model extent ~50 m.
-    return FeedingWorld.build("pecans", seed=0, load_g=2.5)
+    return FeedingWorld.make("pecans", seed=0, load_g=2.5)
 
 
 def _utensil_geoms(model: Any) -> set[int]:

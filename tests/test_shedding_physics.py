@@ -62,8 +62,8 @@ def test_a_bowl_of_pieces_settles_without_throwing_any_out():
     from articutool.sim.world import FeedingWorld
 
     for seed in (0, 1):
-        w = FeedingWorld.build("pecans", seed=seed)
-        m = w.masses_g()
+        w = FeedingWorld.make("pecans", seed=seed)
+        m = w.ledger.masses_g()
         assert m["container"] == pytest.approx(sum(m.values()))
         assert sum(x.number for x in w.data.warning) == 0
 
@@ -76,15 +76,15 @@ def test_pieces_vary_in_size_and_the_world_weighs_each_one():
     assert np.percentile(masses, 90) > 3 * np.percentile(masses, 10)  # sizes vary
     from articutool.sim.placement import SUPPLY_FACTOR
 
-    w = FeedingWorld.build("pecans", seed=0, load_g=5.0)
-    g = w.item_masses_g()
+    w = FeedingWorld.make("pecans", seed=0, load_g=5.0)
+    g = w.ledger.item_g
     assert len(set(np.round(g, 6))) > 1
     # The supply: pieces drawn until twice the load is reached (some roll off when placed).
     assert g.sum() >= SUPPLY_FACTOR * 5.0 and g.sum() - g.max() < SUPPLY_FACTOR * 5.0
-    w.place_load(settle_s=0.5)
+    w.placement.place(settle_s=0.5)
     placed = w.ledger.active
-    assert sum(w.masses_g().values()) == pytest.approx(g[placed].sum())  # every gram placed
-    assert abs(w.masses_g()["utensil"] - 5.0) <= g[placed].max() / 2 + 1e-9
+    assert sum(w.ledger.masses_g().values()) == pytest.approx(g[placed].sum())  # every gram placed
+    assert abs(w.ledger.masses_g()["utensil"] - 5.0) <= g[placed].max() / 2 + 1e-9
 
 
 @pytest.mark.slow

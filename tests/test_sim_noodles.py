@@ -22,7 +22,7 @@ _RESETS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
 
 def test_noodle_world_builds_as_jointed_chains_and_stays_stable() -> None:
     food = PhysicsParams.load().food("noodles")
-    w = FeedingWorld.build("noodles", seed=5000)
+    w = FeedingWorld.make("noodles", seed=5000)
     m, d = w.model, w.data
     n = len(w.layout.food_strands)
     assert n == round(food.fill_g / 1000 / food.piece_mass)
@@ -36,7 +36,7 @@ def test_noodle_world_builds_as_jointed_chains_and_stays_stable() -> None:
     w.run(1.0)  # the heap settles for 1 s more with the tool running
     assert np.isfinite(d.qpos).all()
     assert all(d.warning[int(k)].number == 0 for k in _RESETS)
-    g = w.masses_g()
+    g = w.ledger.masses_g()
     assert g["container"] == pytest.approx(n * food.piece_mass * 1000)
     # The heap stays a heap round the bowl's centre (nothing thrown out by stored energy).
     bowl = w.scene.get("bowl")
@@ -46,9 +46,10 @@ def test_noodle_world_builds_as_jointed_chains_and_stays_stable() -> None:
 
 
 def test_a_strand_collides_with_itself_but_not_across_a_joint() -> None:
-    from articutool.sim.build import build_parts
+    from articutool.sim.build import WorldConfig, build_parts
 
-    m = build_parts("noodles", seed=5000).model  # the model alone: no step of the laid nest
+    # the model alone: no step of the laid nest
+    m = build_parts(WorldConfig("noodles", seed=5000)).model
     a, b, c = (m.geom(f"strand0/{i}").id for i in (0, 1, 5))
     assert m.geom_contype[a] & m.geom_conaffinity[c]  # a wrap can rest on its own strand
     assert m.body_parentid[m.geom_bodyid[b]] == m.geom_bodyid[a]  # neighbours: parent-child
@@ -62,12 +63,12 @@ def test_the_thesis_bowl_reserves_the_arena_its_settling_heap_was_measured_to_us
     import json
     from pathlib import Path
 
-    from articutool.sim.build import build_parts
+    from articutool.sim.build import WorldConfig, build_parts
 
     trace = json.loads((Path(__file__).resolve().parents[1] / "studies" / "results" /
                         "noodle_settle_125g.json").read_text())
     params = _noodle_params(fill_g=125.0)
-    m = build_parts("noodles", seed=6000, params=params).model
+    m = build_parts(WorldConfig("noodles", seed=6000, params=params)).model
     assert trace["fill_g"] == 125.0 and trace["strands"] == 63
     assert m.narena >= 2 * trace["arena_max_used_mb"] * 2**20
 
@@ -95,7 +96,7 @@ def test_twirl_turns_range_is_the_cable_budget() -> None:
 def test_a_noodle_recording_holds_every_capsule_where_the_world_has_it(tmp_path) -> None:
     from articutool.sim.recording import Recorder, Recording
 
-    w = FeedingWorld.build("noodles", seed=5000, settle=False)
+    w = FeedingWorld.make("noodles", seed=5000, settle=False)
     rec = Recorder(w)
     w.run(0.1)
     rec.save(tmp_path / "n.npz")
@@ -116,7 +117,7 @@ def test_the_forks_acquisition_twirls_through_the_tool_runtime_and_lifts_strands
     from articutool.sim.accounting import UTENSIL
     from articutool.sim.scenes import skewer
 
-    w = FeedingWorld.build("noodles", seed=5000)  # a study seed (studies/noodle_twirl.py)
+    w = FeedingWorld.make("noodles", seed=5000)  # a study seed (studies/noodle_twirl.py)
     turns = max_twirl_turns(w.spec)
     roll: list[float] = []
     w.on_tick.append(lambda world: roll.append(float(world.wrist_q[1])))
@@ -127,8 +128,8 @@ def test_the_forks_acquisition_twirls_through_the_tool_runtime_and_lifts_strands
     assert all(w.data.warning[int(k)].number == 0 for k in _RESETS)
     # Every strand is somewhere: on the fork, in the bowl or fallen (what the fork lifts is the
     # twirl study's measurement, studies/noodle_twirl.py, not an assertion).
-    g = w.masses_g()
-    n_on = int(np.sum(w.item_classes() == UTENSIL))
+    g = w.ledger.masses_g()
+    n_on = int(np.sum(w.ledger.item_classes() == UTENSIL))
     assert g["utensil"] == pytest.approx(n_on * w.layout.piece_mass * 1000)
     assert sum(g.values()) == pytest.approx(len(w.layout.food_strands) * w.layout.piece_mass
                                             * 1000)
@@ -187,7 +188,7 @@ def test_starch_tack_without_a_gap_is_refused_naming_the_field() -> None:
 def test_tack_is_the_force_of_fork_and_strand_contacts() -> None:
     food = PhysicsParams.load().food("noodles")
     assert food.stickiness_pa > 0  # the shipped strands stick
-    w = FeedingWorld.build("noodles", seed=5100, settle=False)
+    w = FeedingWorld.make("noodles", seed=5100, settle=False)
     m = w.model
     tine, s0, s1 = (m.geom(n).id for n in ("utensil/tine0", "strand0/3", "strand1/7"))
     # A fork-strand contact takes the fork's adhesion alone (the higher priority decides, as
@@ -200,7 +201,7 @@ def test_tack_is_the_force_of_fork_and_strand_contacts() -> None:
     # where a friction-only nest has none.
     w.run(0.3, tick=False)
     assert np.abs(w.data.qfrc_adhesion).max() > 0
-    plain = FeedingWorld.build("noodles", seed=5100, settle=False,
+    plain = FeedingWorld.make("noodles", seed=5100, settle=False,
                                params=_noodle_params(stickiness_pa=0.0))
     plain.run(0.3, tick=False)
     assert np.abs(plain.data.qfrc_adhesion).max() == 0
@@ -216,7 +217,7 @@ def test_a_twirl_before_insertion_frees_roll_budget_for_the_twirl_inside() -> No
         if name == "twirled":
             raise TwirledError
 
-    w = FeedingWorld.build(None, "fork", seed=1)  # the bowl without food: the fork's motion only
+    w = FeedingWorld.make(None, "fork", seed=1)  # the bowl without food: the fork's motion only
     roll: list[float] = []
     w.on_tick.append(lambda world: roll.append(float(world.wrist_q[1])))
     hi = max_twirl_turns(w.spec)

@@ -50,51 +50,52 @@ def test_tip_pose_in_mujoco_equals_pinocchio(utensil: str) -> None:
 def _leveled(food: str, load_g: float, seed: int = 0, level: bool = True) -> FeedingWorld:
     """A world whose tool leveled (then, unless ``level``, locked its wrist), tared its F/T
     sensor, and was loaded with ``load_g`` of ``food``."""
-    w = FeedingWorld.build(food, seed=seed, load_g=load_g)
+    w = FeedingWorld.make(food, seed=seed, load_g=load_g)
     load(w, level)
     return w
 
 
 def test_level_spoon_keeps_its_pecans_for_10_s_and_the_ft_sensor_weighs_them() -> None:
     w = _leveled("pecans", 4.0)
-    held = w.masses_g()["utensil"]
+    held = w.ledger.masses_g()["utensil"]
     assert held > 2.5
     w.run(10.0)
-    assert w.masses_g()["utensil"] == pytest.approx(held)
+    assert w.ledger.masses_g()["utensil"] == pytest.approx(held)
     assert w.tool.fault == ""
     assert w.tilt_deg() < 3.0
     # At rest and level the F/T sensor (noise on) weighs what ground truth says.
-    assert abs(w.ft_mass_g(1.0) - held) < 0.3
+    assert abs(w.weighing.ft_mass_g(1.0) - held) < 0.3
 
 
 def test_tilting_the_spoon_past_the_angle_of_repose_spills() -> None:
     w = _leveled("pecans", 4.0, level=False)
-    g0, t0 = w.masses_g(), w.time
+    g0, t0 = w.ledger.masses_g(), w.time
     ok, msg = w.tool.start_primitive("TILT", [math.radians(75.0), 1.0, 1.0])
     assert ok, msg
     w.run_until(lambda: w.tool.mode != Mode.PRIMITIVE, 15.0)
     w.run(1.0)
-    g = w.masses_g()
+    g = w.ledger.masses_g()
     left = g0["utensil"] - g["utensil"]
     assert left > 0.5
     # Every gram that left the spoon is on record: back in a container (the plate below
     # Resting), or a spill event at the place where it lies. (A piece the loader dropped
     # beside the spoon is a spill before the tilt: seed 0 drops a 0.46 g piece.)
-    spilled = acc.spilled_by_place([e for e in w.spills if e.t >= t0])
+    spilled = acc.spilled_by_place([e for e in w.ledger.spills if e.t >= t0])
     assert g["container"] - g0["container"] + sum(spilled.values()) == pytest.approx(left)
     for k in np.flatnonzero((w.ledger.codes == acc.TABLE) | (w.ledger.codes == acc.CRITICAL)):
-        assert acc.CLASS_NAMES[w.ledger.codes[k]] in [e.place for e in w.spills if e.item == k]
+        places = [e.place for e in w.ledger.spills if e.item == k]
+        assert acc.CLASS_NAMES[w.ledger.codes[k]] in places
     assert (g["table"] + g["critical"] - g0["table"] - g0["critical"]
             == pytest.approx(sum(spilled.values())))
 
 
 def test_water_pours_from_a_tilted_soup_spoon() -> None:
     w = _leveled("water", 8.0, level=False)
-    before = w.masses_g()["utensil"]
+    before = w.ledger.masses_g()["utensil"]
     ok, msg = w.tool.start_primitive("TILT", [math.radians(60.0), 1.0, 1.0])
     assert ok, msg
     w.run_until(lambda: w.tool.mode != Mode.PRIMITIVE, 15.0)
-    assert w.masses_g()["utensil"] < 0.5 * before
+    assert w.ledger.masses_g()["utensil"] < 0.5 * before
 
 
 # Pecans: a heap above the rim (11.4 g asked; seed 0's loader holds 10.4 g). A heap stands at
@@ -109,10 +110,10 @@ def test_a_40_degree_base_tilt_spills_from_a_locked_wrist_not_from_a_leveling_on
     spilled = {}
     for level in (True, False):
         w = _leveled(food, load, level=level)
-        held = w.masses_g()["utensil"]
+        held = w.ledger.masses_g()["utensil"]
         w.move_arm(base_tilt_motion(w, 40.0))
         w.run(1.5)
-        spilled[level] = held - w.masses_g()["utensil"]
+        spilled[level] = held - w.ledger.masses_g()["utensil"]
         if level:
             assert w.tilt_deg() < 5.0  # the wrist kept it level through the arm's motion
             assert w.tool.fault == ""
@@ -147,8 +148,8 @@ def test_same_seed_same_result() -> None:
 
 
 def test_food_that_enters_the_mouth_is_eaten() -> None:
-    w = FeedingWorld.build("pecans", seed=0, load_g=1.0)
-    w.place_load(settle_s=0.2)
+    w = FeedingWorld.make("pecans", seed=0, load_g=1.0)
+    w.placement.place(settle_s=0.2)
     mouth = w.scene.region("mouth")
     k = 0
     bid = w.ledger.item_body[k]
@@ -156,13 +157,13 @@ def test_food_that_enters_the_mouth_is_eaten() -> None:
     qa = w.model.jnt_qposadr[j]
     w.data.qpos[qa:qa + 3] = mouth.xyz
     w.run(0.1)
-    assert w.masses_g()["eaten"] == pytest.approx(w.item_masses_g()[k])
+    assert w.ledger.masses_g()["eaten"] == pytest.approx(w.ledger.item_g[k])
     assert w.report().masses_g["eaten"] > 0
 
 
 def test_bad_food_inputs_are_refused_naming_the_field(tmp_path) -> None:
     with pytest.raises(PhysicsError, match="food"):
-        FeedingWorld.build("caviar")
+        FeedingWorld.make("caviar")
     data = read_document(default_physics_path(), "physics", PhysicsError)
     bad = {k: dict(v) if isinstance(v, dict) else v for k, v in data.items()}
     bad["foods"] = {k: dict(v) for k, v in data["foods"].items()}
@@ -174,9 +175,9 @@ def test_bad_food_inputs_are_refused_naming_the_field(tmp_path) -> None:
     with pytest.raises(PhysicsError, match=r"foods\.pecans.*density"):
         PhysicsParams.from_dict(bad)
     with pytest.raises(ValueError, match="load_g"):
-        FeedingWorld.build("pecans", load_g=-1.0)
+        FeedingWorld.make("pecans", load_g=-1.0)
     with pytest.raises(ValueError, match="seed"):
-        FeedingWorld.build("pecans", seed=-1)
+        FeedingWorld.make("pecans", seed=-1)
 
 
 def test_classification_of_items_from_contacts() -> None:
@@ -214,18 +215,18 @@ def test_every_gram_that_stays_off_the_utensil_has_a_spill_event_at_its_worst_pl
     w.run(w.params.world.spill_dwell_s)  # what arrived just now has stayed its dwell time
     stayed = (codes == w.ledger.codes) & ((codes == acc.TABLE) | (codes == acc.CRITICAL))
     worst: dict[int, str] = {}
-    for e in w.spills:
+    for e in w.ledger.spills:
         worst[e.item] = e.place  # events come in order of increasing severity per item
     assert stayed[k_floor] and codes[k_floor] == acc.CRITICAL  # staged: landed, deposited
     for k in np.flatnonzero(stayed):
         assert worst.get(int(k)) == acc.CLASS_NAMES[codes[k]]
     # The spilled mass: each spilled item once, at its worst place.
-    g = w.item_masses_g()
-    by_place = acc.spilled_by_place(w.spills)
+    g = w.ledger.item_g
+    by_place = acc.spilled_by_place(w.ledger.spills)
     for place in ("critical", "table"):
         assert by_place[place] == pytest.approx(sum(g[k] for k, p in worst.items() if p == place))
     assert sum(by_place.values()) == pytest.approx(sum(g[k] for k in worst))
-    assert len(w.spills) > len(worst)  # some particle went table → floor: two events
+    assert len(w.ledger.spills) > len(worst)  # some particle went table → floor: two events
 
 
 def _drop(w: FeedingWorld, k: int, xyz: tuple[float, float, float]) -> None:
@@ -238,19 +239,19 @@ def _drop(w: FeedingWorld, k: int, xyz: tuple[float, float, float]) -> None:
     ((0.28, 0.40, 0.90), "critical", "user_head"),  # 5 cm above the user's head
 ])
 def test_a_piece_that_lands_on_the_table_or_the_user_is_one_spill(xyz, place, where) -> None:
-    w = FeedingWorld.build("pecans", seed=0, load_g=0.9)  # one piece, parked
+    w = FeedingWorld.make("pecans", seed=0, load_g=0.9)  # one piece, parked
     t0 = w.time
     _drop(w, 0, xyz)
     w.run(2.0)
-    assert [(s.item, s.place, s.where) for s in w.spills] == [(0, place, where)]
-    assert acc.spilled_by_place(w.spills)[place] == pytest.approx(w.item_masses_g()[0])
+    assert [(s.item, s.place, s.where) for s in w.ledger.spills] == [(0, place, where)]
+    assert acc.spilled_by_place(w.ledger.spills)[place] == pytest.approx(w.ledger.item_g[0])
     # Dated when it landed (a 5 cm fall takes 0.1 s), not when the dwell time ran out.
-    assert w.spills[0].t - t0 < 0.15
+    assert w.ledger.spills[0].t - t0 < 0.15
 
 
 def test_a_one_tick_contact_flicker_with_the_table_is_no_spill() -> None:
     w = _leveled("pecans", 1.0)
-    assert w.masses_g()["utensil"] > 0
+    assert w.ledger.masses_g()["utensil"] > 0
     k = int(np.flatnonzero(w.ledger.codes == acc.UTENSIL)[0])
     table = w.ledger.surface_names.index("table")
     real = w.ledger.contacts
@@ -266,7 +267,7 @@ def test_a_one_tick_contact_flicker_with_the_table_is_no_spill() -> None:
     w.ledger.contacts = flicker
     w.run(1.0)
     assert ticks[0] > 3
-    assert w.spills == []
+    assert w.ledger.spills == []
     assert w.ledger.codes[k] == acc.UTENSIL
 
 
@@ -284,7 +285,7 @@ def _move_strand(w: FeedingWorld, s: int, centre: np.ndarray) -> None:
 
 
 def test_a_noodle_strand_on_the_fork_is_eaten_once_and_never_counted_again() -> None:
-    w = FeedingWorld.build("noodles", seed=0)
+    w = FeedingWorld.make("noodles", seed=0)
     w.tool.set_mode(Mode.LEVELING)
     w.run(1.0)
     # Lay strand 0's coil on the level fork's tines, 6 mm above them; it rests there.
@@ -296,18 +297,18 @@ def test_a_noodle_strand_on_the_fork_is_eaten_once_and_never_counted_again() -> 
     k = len(w.layout.food_bodies)  # strand 0's item index
     strand_g = w.layout.piece_mass * 1000.0
     assert w.ledger.codes[k] == acc.UTENSIL
-    assert w.masses_g()["utensil"] == pytest.approx(strand_g)
+    assert w.ledger.masses_g()["utensil"] == pytest.approx(strand_g)
     # The user takes the bite: the strand is eaten, once.
-    assert w.eat_from_utensil() == pytest.approx(strand_g)
+    assert w.ledger.eat_from_utensil() == pytest.approx(strand_g)
     w.run(0.5)
-    assert w.eat_from_utensil() == 0.0
+    assert w.ledger.eat_from_utensil() == 0.0
     # Frozen out of reach, the eaten strand sleeps (carried, it could not): it costs no steps.
     assert not w.data.body_awake[w.ledger.item_body[k]]
-    g = w.masses_g()
+    g = w.ledger.masses_g()
     assert g["utensil"] == 0.0 and g["eaten"] == pytest.approx(strand_g)
     # A strand reaching into the mouth region is eaten there too.
     mouth = np.asarray(w.scene.region("mouth").xyz)
     _move_strand(w, 1, mouth)
     w.run(0.1)
     assert w.ledger.codes[k + 1] == acc.EATEN
-    assert w.masses_g()["eaten"] == pytest.approx(2 * strand_g)
+    assert w.ledger.masses_g()["eaten"] == pytest.approx(2 * strand_g)

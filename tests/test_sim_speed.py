@@ -20,7 +20,7 @@ from articutool.tool.api import Mode  # noqa: E402
 def _state(w: FeedingWorld) -> bytes:
     d = w.data
     parts = [d.qpos, d.qvel, d.act, d.qacc_warmstart, d.ctrl, np.array([d.time]),
-             d.tree_asleep, d.body_awake, w.item_classes()]
+             d.tree_asleep, d.body_awake, w.ledger.item_classes()]
     return b"".join(np.ascontiguousarray(a).tobytes() for a in parts)
 
 
@@ -37,9 +37,9 @@ def _scene(w: FeedingWorld) -> tuple:
 @pytest.mark.parametrize("food,seed", [("pecans", 11), ("water", 12)])
 def test_a_restored_settle_is_bit_identical_to_a_fresh_one(food: str, seed: int) -> None:
     cache = SettleCache()
-    fresh = FeedingWorld.build(food, seed=seed, settle_cache=cache)
-    restored = FeedingWorld.build(food, seed=seed, settle_cache=cache)
-    alone = FeedingWorld.build(food, seed=seed)  # no cache: settles afresh
+    fresh = FeedingWorld.make(food, seed=seed, settle_cache=cache)
+    restored = FeedingWorld.make(food, seed=seed, settle_cache=cache)
+    alone = FeedingWorld.make(food, seed=seed)  # no cache: settles afresh
     # The second world did not settle: it stepped only what follows the settle.
     assert restored._sim_stepped < fresh._sim_stepped - 0.9 * fresh.params.world.settle_s
     assert alone._sim_stepped == pytest.approx(fresh._sim_stepped)
@@ -49,9 +49,9 @@ def test_a_restored_settle_is_bit_identical_to_a_fresh_one(food: str, seed: int)
 
 def test_another_seed_or_start_is_settled_afresh() -> None:
     cache = SettleCache()
-    a = FeedingWorld.build("pecans", seed=11, settle_cache=cache)
-    b = FeedingWorld.build("pecans", seed=13, settle_cache=cache)
-    c = FeedingWorld.build("pecans", seed=11, q_wrist=(0.1, 0.0), settle_cache=cache)
+    a = FeedingWorld.make("pecans", seed=11, settle_cache=cache)
+    b = FeedingWorld.make("pecans", seed=13, settle_cache=cache)
+    c = FeedingWorld.make("pecans", seed=11, q_wrist=(0.1, 0.0), settle_cache=cache)
     settle = a.params.world.settle_s
     assert b._sim_stepped >= a._sim_stepped - 1e-9 and c._sim_stepped >= a._sim_stepped - 1e-9
     assert a._sim_stepped > settle
@@ -88,7 +88,7 @@ def _drive(w: FeedingWorld, stepwise: bool) -> bytes:
 
 
 def test_stepping_in_batches_between_ticks_is_bit_identical_to_single_steps() -> None:
-    a = FeedingWorld.build("pecans", seed=14)
-    b = FeedingWorld.build("pecans", seed=14)
+    a = FeedingWorld.make("pecans", seed=14)
+    b = FeedingWorld.make("pecans", seed=14)
     assert _drive(a, stepwise=False) == _drive(b, stepwise=True)
     assert not a.arm_busy and a.arm_tracking_error > 0

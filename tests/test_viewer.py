@@ -124,7 +124,7 @@ def test_recorder_samples_the_world_and_never_overwrites(tmp_path: Path, spec) -
     from articutool.sim.world import FeedingWorld
     from articutool.trajectory import smooth_joint_motion
 
-    world = FeedingWorld.build(None, "spoon", settle=False)
+    world = FeedingWorld.make(None, "spoon", settle=False)
     rec = Recorder(world, rate_hz=10.0)
     q0 = world.arm_q
     q1 = q0 + np.array([0.2, 0.0, 0.0, 0.0, 0.0, 0.0])

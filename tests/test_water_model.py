@@ -64,10 +64,10 @@ def test_the_collision_dish_is_the_ideal_dish(utensil: str, spec) -> None:
 
 
 def _placed(load_g: float, seed: int = 0) -> FeedingWorld:
-    w = FeedingWorld.build("water", seed=seed, load_g=load_g)
+    w = FeedingWorld.make("water", seed=seed, load_g=load_g)
     w.tool.set_mode(Mode.LEVELING)
     w.run(1.0)
-    w.place_load(settle_s=1.0)
+    w.placement.place(settle_s=1.0)
     return w
 
 
@@ -75,14 +75,14 @@ def test_a_placed_load_settles_at_the_liquids_level(spec) -> None:
     # The particles weigh what the water they stand for weighs (packing fraction): the load
     # that stayed fills the level dish as high as that much water, within a particle.
     w = _placed(8.0)
-    kept = w.masses_g()["utensil"]
+    kept = w.ledger.masses_g()["utensil"]
     food = w.params.food("water")
     r = food.load_particle_radius
     assert kept > 7.0
     fill = Hydrostatics(spoon_dish(spec.utensil("soup_spoon"))).fill_height(kept * 1e-6)
     body = w.model.body("utensil").id
     R, p = w.data.xmat[body].reshape(3, 3), w.data.xpos[body]
-    on = w.item_classes() == 1
+    on = w.ledger.item_classes() == 1
     x = np.array([(R.T @ (w.data.xpos[w.model.body(b).id] - p))[0]
                   for k, b in enumerate(w.layout.food_bodies) if on[k]])
     top = float(np.quantile(x + r, 0.95)) - spec.utensil("soup_spoon").tip_x

@@ -74,7 +74,7 @@ def _r(x: float) -> float:
 
 
 def _masses(world: FeedingWorld) -> dict[str, float]:
-    return {k: _r(v) for k, v in world.masses_g().items()}
+    return {k: _r(v) for k, v in world.ledger.masses_g().items()}
 
 
 def transport(world: FeedingWorld, arm: PCArm, goal: str, system: System, *, attempts: int,
@@ -140,11 +140,12 @@ def transport_outcome(world: FeedingWorld, start: np.ndarray, n_spills: int,
     on the utensil now (plus anything eaten) is delivered. Only the load counts, as the
     experimenter weighs the utensil: food that missed it while the load was placed (a
     particle sliding off the plate meanwhile) is not the transport's."""
-    after = world.masses_g()
+    after = world.ledger.masses_g()
     carried = {int(k) for k in np.flatnonzero(np.asarray(start) == acc.UTENSIL)}
-    events = world.spills[:n_spills] + [e for e in world.spills[n_spills:] if e.item in carried]
+    spills = world.ledger.spills
+    events = spills[:n_spills] + [e for e in spills[n_spills:] if e.item in carried]
     spilled = {k: _r(v) for k, v in acc.transport_spill(
-        start, world.item_classes(), world.item_masses_g(), events, n_spills).items()}
+        start, world.ledger.item_classes(), world.ledger.item_g, events, n_spills).items()}
     return {
         "spilled_by_place": spilled,
         "spilled_g": _r(sum(spilled.values())),
@@ -181,11 +182,11 @@ def capacity_trial(cond: CapacityCondition, seed: int, cfg: ExperimentsConfig,
     finally:
         setup.arm.close()
     w.run(cfg.settings.settle_s)
-    g = w.masses_g()
+    g = w.ledger.masses_g()
     out: dict[str, Any] = {
         "utensil": w.utensil, "completed": r.completed, "failed_stage": r.failed_stage,
-        "scoop_g": _r(w.utensil_mass_g()), "items_g": _r(g["utensil"]),
-        "ft_mass_g": _r(w.ft_mass_g()) if w.ft_comparable() else None,
+        "scoop_g": _r(w.weighing.utensil_mass_g()), "items_g": _r(g["utensil"]),
+        "ft_mass_g": _r(w.weighing.ft_mass_g()) if w.weighing.comparable() else None,
         "tilt_deg": _r(w.tilt_deg()), "spilled_g": _r(r.spilled_g),
         "realtime_factor": _r(w.realtime_factor)}
     fp = w.params.food(food)
@@ -196,16 +197,16 @@ def capacity_trial(cond: CapacityCondition, seed: int, cfg: ExperimentsConfig,
         # The dish's level volume, less one of a load's particles: the pour's last must fit.
         brim = (dish_volume_m3(u) * fp.density * 1000.0
                 - fp.load_item_mass * 1000.0)
-        b = FeedingWorld.build(food, w.utensil, spec=w.spec, scene=w.scene, seed=seed,
+        b = FeedingWorld.make(food, w.utensil, spec=w.spec, scene=w.scene, seed=seed,
                                load_g=brim, mouth=False, settle_cache=settled)
-        if b.max_load_g() < brim:  # the pour's lattice holds less than the level volume
-            brim = b.max_load_g() - 1e-6
-            b = FeedingWorld.build(food, w.utensil, spec=w.spec, scene=w.scene, seed=seed,
+        if b.placement.max_load_g() < brim:  # the pour's lattice holds less than the level volume
+            brim = b.placement.max_load_g() - 1e-6
+            b = FeedingWorld.make(food, w.utensil, spec=w.spec, scene=w.scene, seed=seed,
                                    load_g=brim, mouth=False, settle_cache=settled)
         b.tool.set_mode(Mode.LEVELING)
         b.run(1.0)
-        b.place_load(settle_s=cfg.settings.settle_s)
-        out.update(brim_poured_g=_r(brim), brim_g=_r(b.masses_g()["utensil"]))
+        b.placement.place(settle_s=cfg.settings.settle_s)
+        out.update(brim_poured_g=_r(brim), brim_g=_r(b.ledger.masses_g()["utensil"]))
     return CapacityOutcome.model_validate(out)
 
 
@@ -246,7 +247,7 @@ def exp2b_trial(cond: Exp2bCondition, seed: int, cfg: ExperimentsConfig,
     if sset is None:
         raise ValueError("the scene has no [staging_set]")
     load = cfg.exp2b.load_g[food]
-    w = FeedingWorld.build(food, seed=seed, load_g=load, q_arm=sset.start, mouth=False,
+    w = FeedingWorld.make(food, seed=seed, load_g=load, q_arm=sset.start, mouth=False,
                            settle_cache=settled)
     if hook:
         hook(w)
@@ -256,9 +257,9 @@ def exp2b_trial(cond: Exp2bCondition, seed: int, cfg: ExperimentsConfig,
         if system.wrist:
             w.tool.set_mode(Mode.LEVELING)
         w.run(1.0)
-        w.tare_ft(0.3)
-        held = w.place_load(settle_s=cfg.settings.settle_s)
-        before, n_spills, start = w.masses_g(), len(w.spills), w.item_classes()
+        w.weighing.tare(0.3)
+        held = w.placement.place(settle_s=cfg.settings.settle_s)
+        before, n_spills, start = w.ledger.masses_g(), len(w.ledger.spills), w.ledger.item_classes()
         tr = transport(w, arm, goal, system, attempts=_plan_attempts(food, base), cfg=cfg,
                        visitors=visitors, food=checked)
     finally:
@@ -266,7 +267,7 @@ def exp2b_trial(cond: Exp2bCondition, seed: int, cfg: ExperimentsConfig,
     return Exp2bOutcome.model_validate({
         "load_g": load, "held_g": _r(held), "planner": system.transport.name,
         "tolerance_deg": tol, **tr,
-        **transport_outcome(w, start, n_spills, before), "weighed_g": _r(w.carried_g()),
+        **transport_outcome(w, start, n_spills, before), "weighed_g": _r(w.weighing.carried_g()),
         "masses_after_g": _masses(w), "realtime_factor": _r(w.realtime_factor)})
 
 
@@ -318,7 +319,7 @@ def exp2c_trial(cond: Exp2cCondition, seed: int, cfg: ExperimentsConfig,
     stage = strat.stages.post_acquisition
     scene = Scene.load()
     q_shed = shed_configuration(spec, scene, strat.utensil)
-    w = FeedingWorld.build(food, strat.utensil, spec=spec, scene=scene, seed=seed, load_g=load,
+    w = FeedingWorld.make(food, strat.utensil, spec=spec, scene=scene, seed=seed, load_g=load,
                            q_arm=q_shed, mouth=False, settle_cache=settled)
     if hook:
         hook(w)
@@ -327,9 +328,9 @@ def exp2c_trial(cond: Exp2cCondition, seed: int, cfg: ExperimentsConfig,
     try:
         w.tool.set_mode(Mode.LEVELING)
         w.run(1.0)
-        w.tare_ft(0.3)
-        held = w.place_load(settle_s=cfg.settings.settle_s)
-        loaded, n_loaded = w.masses_g(), len(w.spills)
+        w.weighing.tare(0.3)
+        held = w.placement.place(settle_s=cfg.settings.settle_s)
+        loaded, n_loaded = w.ledger.masses_g(), len(w.ledger.spills)
         if arm_cond in ("primitive", "closed_loop"):
             shed = cfg.exp2c.closed_loop[food] if arm_cond == "closed_loop" else stage
             params = list(shed.params)
@@ -343,8 +344,8 @@ def exp2c_trial(cond: Exp2cCondition, seed: int, cfg: ExperimentsConfig,
             prim = {"primitive": shed.primitive, "primitive_params": params,
                     "primitive_ok": bool(done and st is not None and st.success),
                     "primitive_message": msg if not ok else (st.message if st else "")}
-        before, n_before, start = w.masses_g(), len(w.spills), w.item_classes()
-        spills_primitive = acc.spilled_by_place(w.spills, n_loaded)
+        before, n_before, start = w.ledger.masses_g(), len(w.ledger.spills), w.ledger.item_classes()
+        spills_primitive = acc.spilled_by_place(w.ledger.spills, n_loaded)
         tr = transport(w, arm, "Staging", System.from_strategy(strat),
                        attempts=strat.attempts.plan, cfg=cfg, visitors=visitors)
     finally:
@@ -361,7 +362,7 @@ def exp2c_trial(cond: Exp2cCondition, seed: int, cfg: ExperimentsConfig,
     return Exp2cOutcome.model_validate({
         "load_g": load, "held_g": _r(held), **prim, "primitive_moved_g": by_primitive,
         "after_primitive_g": _r(before["utensil"]), "shed_g": shed_g, **tr, **out,
-        "weighed_g": _r(w.carried_g()), "masses_after_g": _masses(w),
+        "weighed_g": _r(w.weighing.carried_g()), "masses_after_g": _masses(w),
         "realtime_factor": _r(w.realtime_factor)})
 
 
@@ -425,7 +426,7 @@ def _bite(cond: BiteCondition, seed: int, cfg: ExperimentsConfig, hook: Hook,
     for k in ("bite", "food", "system", "seed"):
         rec.pop(k)
     return json_safe({**rec, "utensil": w.utensil, "masses_end_g": _masses(w),
-                      "weighed_end_g": _r(w.utensil_mass_g()),
+                      "weighed_end_g": _r(w.weighing.utensil_mass_g()),
                       "realtime_factor": _r(w.realtime_factor)})
 
 

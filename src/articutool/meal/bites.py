@@ -12,7 +12,8 @@ and returns a :class:`BiteResult`: masses from the world's accounting at the end
 (a visitor, :class:`StageLedger`), spills by place, planning attempts and times (the tree's
 :class:`~articutool.feeding.tree.BiteRecorder`), and the outcome class
 (:func:`~articutool.feeding.outcomes.classify_bite`). At the end of ``present`` the simulated
-user (:class:`SimUser`) takes the bite (:meth:`FeedingWorld.eat_from_utensil`).
+user (:class:`SimUser`) takes the bite (:meth:`FoodLedger.eat_from_utensil
+<articutool.sim.ledger.FoodLedger.eat_from_utensil>`).
 :func:`run_meal` runs N bites with the same tree.
 """
 
@@ -105,14 +106,15 @@ TRANSPORT_STAGES = ("resting", "staging", "present")
 
 class SimUser:
     """The simulated user (:class:`~articutool.feeding.behaviours.User`): takes what is on
-    the utensil (:meth:`FeedingWorld.eat_from_utensil`)."""
+    the utensil (:meth:`FoodLedger.eat_from_utensil
+    <articutool.sim.ledger.FoodLedger.eat_from_utensil>`)."""
 
     def __init__(self, world: FeedingWorld) -> None:
         self.world = world
 
     def take_bite(self) -> float:
         """The grams on the utensil, eaten."""
-        return self.world.eat_from_utensil()
+        return self.world.ledger.eat_from_utensil()
 
 
 class StageLedger(py_trees.visitors.VisitorBase):
@@ -141,8 +143,8 @@ class StageLedger(py_trees.visitors.VisitorBase):
             return dict.fromkeys(acc.TRANSPORT_PLACES, 0.0)
         start, n, _ = self.transport_start
         end = self.transport_end if self.transport_end is not None \
-            else self.world.item_classes()
-        return acc.transport_spill(start, end, self.world.item_masses_g(), self.world.spills,
+            else self.world.ledger.item_classes()
+        return acc.transport_spill(start, end, self.world.ledger.item_g, self.world.ledger.spills,
                                    n)
 
     def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
@@ -150,8 +152,8 @@ class StageLedger(py_trees.visitors.VisitorBase):
         if offered is not None and offered not in self.after:
             self._ended(offered)  # before the user takes the bite
             self.presented = True
-            self.after[offered]["ft"] = (self.world.ft_mass_g(0.5)
-                                         if self.world.ft_comparable() else float("nan"))
+            self.after[offered]["ft"] = (self.world.weighing.ft_mass_g(0.5)
+                                         if self.world.weighing.comparable() else float("nan"))
             return
         if not isinstance(behaviour, BiteStage):
             return
@@ -161,7 +163,8 @@ class StageLedger(py_trees.visitors.VisitorBase):
         if behaviour.status == Status.RUNNING and stage in TRANSPORT_STAGES:
             if self.transport_start is None:
                 w = self.world
-                self.transport_start = (w.item_classes(), len(w.spills), w.masses_g())
+                led = w.ledger
+                self.transport_start = (led.item_classes(), len(led.spills), led.masses_g())
             self.transport_end = None  # (a later transport stage runs: not ended yet)
             if stage in ("resting", "staging"):
                 self.tilts.append(self.world.tilt_deg())
@@ -169,12 +172,12 @@ class StageLedger(py_trees.visitors.VisitorBase):
             self._ended(stage)
 
     def _ended(self, stage: str) -> None:
-        self.after[stage] = self.world.masses_g()
+        self.after[stage] = self.world.ledger.masses_g()
         # What a scale under the utensil reads (a hanging strand counts as borne).
-        self.after[stage]["carried"] = self.world.carried_g()
+        self.after[stage]["carried"] = self.world.weighing.carried_g()
         if stage in TRANSPORT_STAGES and self.transport_start is not None:
             # Before the user eats: what is eaten is delivered, not lost.
-            self.transport_end = self.world.item_classes()
+            self.transport_end = self.world.ledger.item_classes()
 
 
 def _bite_offered(behaviour: py_trees.behaviour.Behaviour) -> str | None:
@@ -216,7 +219,7 @@ def make_bite_world(food: str, system: str, seed: int = 0, *,
     name, strat = lib.choose(food, system, np.random.default_rng(seed))
     chosen = System.from_strategy(strat)
     params = PhysicsParams.load(physics) if physics is not None else None
-    world = FeedingWorld.build(food, strat.utensil, spec=spec, params=params, seed=seed,
+    world = FeedingWorld.make(food, strat.utensil, spec=spec, params=params, seed=seed,
                                load_g=load_g, settle_cache=settle_cache)
     arm = sim_arm(world, seed=seed, rigid=not chosen.wrist, load=lambda: world_load(world),
                   leveling=strat.transport.leveling)
@@ -227,7 +230,7 @@ def make_bite_world(food: str, system: str, seed: int = 0, *,
     else:
         world.move_arm(arm.goal_configuration("Resting"))
         world.run(0.5)
-    world.tare_ft(0.3)  # level and empty, as one would before a meal
+    world.weighing.tare(0.3)  # level and empty, as one would before a meal
     return MealSetup(world, arm, name, strat, seed, chosen)
 
 
@@ -303,8 +306,8 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = BITE_ST
     for n in root.iterate():  # the same tree runs every bite of a meal: count this bite's only
         if isinstance(n, CountedRetry):
             n.count = 0
-    t0, wall0, n_spills = w.time, time.perf_counter(), len(w.spills)
-    before = w.masses_g()
+    t0, wall0, n_spills = w.time, time.perf_counter(), len(w.ledger.spills)
+    before = w.ledger.masses_g()
     # simulated time, not counting the waits for plans
     run = run_tree(root, w.run, lambda: w.time, period_s=0.1, timeout_s=timeout_s,
                    visitors=[ledger, *visitors])
@@ -315,8 +318,8 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = BITE_ST
     # before the transport a spill is food on the table or the user, in transport anything
     # that left the utensil, wherever it landed (a container apart).
     n_transport = (ledger.transport_start[1] if ledger.transport_start is not None
-                   else len(w.spills))
-    spilled = acc.spilled_by_place(w.spills[:n_transport], n_spills)
+                   else len(w.ledger.spills))
+    spilled = acc.spilled_by_place(w.ledger.spills[:n_transport], n_spills)
     moved = ledger.transport_spill()
     spilled = {"table": spilled["table"] + moved["table"],
                "critical": spilled["critical"] + moved["critical"],
@@ -334,9 +337,9 @@ def run_bite(setup: MealSetup, *, bite: int = 0, stages: Sequence[str] = BITE_ST
     if ledger.presented:
         end = after["present"]
     elif completed:
-        end = after.get(stages[-1]) or w.masses_g()
+        end = after.get(stages[-1]) or w.ledger.masses_g()
     else:
-        end = {**w.masses_g(), "utensil": 0.0}
+        end = {**w.ledger.masses_g(), "utensil": 0.0}
     if w.strands and "carried" in end and end["utensil"] > 0:
         # A strand can hang from the fork onto a surface: its grams are what the fork bears,
         # as a scale under it reads (rigid pieces and particles are wholly on it or not).

@@ -9,7 +9,7 @@ An item (a pecan piece, a water particle, a noodle strand) is, at each accountin
 - on the **utensil** if it touches the utensil, whatever else it touches: an item the utensil
   holds has not left it (a noodle strand hanging from the fork onto the plate is carried by
   the fork, and its weight is shared as a scale under the fork would read it,
-  :meth:`articutool.sim.world.FeedingWorld.carried_g`);
+  :meth:`articutool.sim.weighing.Weighing.carried_g`);
 - otherwise what it rests on: through item-item contacts it takes the place of the items
   holding it. The places spread from every classified item at once, one contact hop at a
   time: an item takes the place of its nearest classified neighbours (fewest hops), and among

@@ -52,7 +52,7 @@ def world_load(world: FeedingWorld) -> Any:
 
     if not world.food:
         return None
-    grams = world.masses_g()["utensil"]
+    grams = world.ledger.masses_g()["utensil"]
     try:
         return food_load(world.params.definition(world.food), round(grams, 3))
     except LoadError:

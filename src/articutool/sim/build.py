@@ -1,19 +1,21 @@
 """The parts of a feeding world, built and checked before anything steps.
 
-:func:`build_parts` checks a world's arguments, builds the MJCF from the spec, the scene and a
-food (:mod:`articutool.sim.mjcf`), compiles it, indexes its joints, actuators, sensors and
-sites (:class:`WorldIndex`), puts the arm and the wrist at their start, and builds the food
-ledger, the MuJoCo-backed drivers and the tool's runtime on them. Nothing here steps the
-physics: :meth:`articutool.sim.world.FeedingWorld.build` wires the parts into a world, then
-settles it (restoring a settled pile from a :class:`SettleCache` when it has one), starts the
-tool and tares the F/T sensor.
+A :class:`WorldConfig` is what a world is built from (food, utensil, spec, scene, physics
+parameters, seed, start angles, sensor noise, a load to place by hand, the mouth), every field
+checked once when it is made. :func:`build_parts` builds the MJCF from it
+(:mod:`articutool.sim.mjcf`), compiles it, indexes its joints, actuators, sensors and sites
+(:class:`WorldIndex`), puts the arm and the wrist at their start, and builds the food ledger,
+the MuJoCo-backed drivers and the tool's runtime on them. Nothing here steps the physics:
+:meth:`articutool.sim.world.FeedingWorld.build` wires the parts into a world, then settles it
+(restoring a settled pile from a :class:`SettleCache` when it has one), starts the tool and
+tares the F/T sensor.
 """
 
 from __future__ import annotations
 
 import math
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -33,7 +35,7 @@ from articutool.spec import Spec, load_spec
 from articutool.tool.drivers.motor_model import MotorPlant
 from articutool.tool.runtime import ToolRuntime
 
-__all__ = ["SettleCache", "SettledState", "WorldIndex", "WorldParts", "build_parts"]
+__all__ = ["SettleCache", "SettledState", "WorldConfig", "WorldIndex", "WorldParts", "build_parts"]
 
 # What a settle leaves: every byte of mjData, and the stepping loop's own state (the wrist's
 # velocity-loop integrals, the arm's worst tracking error, the physics steps taken).
@@ -121,13 +123,7 @@ class WorldIndex:
 class WorldParts:
     """A world's parts, built and wired to one another, its physics not yet stepped."""
 
-    spec: Spec
-    scene: Scene
-    params: PhysicsParams
-    food: str | None
-    utensil: str
-    seed: int
-    load_g: float | None
+    config: WorldConfig
     layout: WorldLayout
     model: mujoco.MjModel
     data: mujoco.MjData  # the arm and the wrist at their start, forward kinematics done
@@ -157,44 +153,87 @@ def _start(spec: Spec, q_arm: ArrayLike | None,
     return q0, qw
 
 
-def build_parts(
-    food: str | None = "pecans",
-    utensil: str | None = None,
-    *,
-    spec: Spec | None = None,
-    scene: Scene | None = None,
-    params: PhysicsParams | None = None,
-    seed: int = 0,
-    q_arm: ArrayLike | None = None,
-    q_wrist: ArrayLike = (0.0, 0.0),
-    noise: bool = True,
-    gyro_bias: ArrayLike | None = None,
-    load_g: float | None = None,
-    mouth: bool = True,
-) -> WorldParts:
-    """The parts of a world (arguments: :meth:`articutool.sim.world.FeedingWorld.build`),
-    every argument checked first; raises ``ValueError`` naming the argument and its range."""
-    spec = spec if spec is not None else load_spec()
-    scene = scene if scene is not None else Scene.load()
-    params = params if params is not None else PhysicsParams.load()
-    if food is not None:
-        params.food(food)  # unknown food → PhysicsError naming the allowed ones
-    utensil = utensil or (params.food(food).utensil if food else "spoon")
-    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-        raise ValueError(f"seed must be an integer >= 0; got {seed!r}")
-    seed = int(seed)
-    if load_g is not None and not (math.isfinite(load_g) and load_g > 0):
-        raise ValueError(f"load_g must be a finite mass > 0 g; got {load_g}")
-    if load_g is not None and food is None:
-        raise ValueError("load_g needs a food")
-    if load_g is not None and load_g > (
-            most := utensil_capacity_bound_g(spec, params, food or "", utensil)):
-        why = capacity_bound_reason(params.food(food or ""))
-        raise ValueError(f"load_g must be in (0, {most:.2f}] g: the most the "
-                         f"{utensil} can hold of {food} ({why}); got {load_g:g}")
-    q0, qw = _start(spec, q_arm, q_wrist)
+@dataclass(frozen=True)
+class WorldConfig:
+    """What a feeding world is built from, checked once when made: a bad field raises
+    ``ValueError`` naming it and its range (an unknown food: ``PhysicsError`` naming the
+    allowed ones). Defaults are resolved on creation, so every field holds what the world
+    uses (``utensil``, ``spec``, ``scene``, ``params``, ``q_arm`` are never ``None``).
+
+    Fields:
+        food: a food of ``physics.toml`` (``None``: no food).
+        utensil: which utensil the tool carries (default: the food's utensil).
+        spec, scene, params: hardware spec, scene and physics parameters (packaged
+            defaults).
+        seed: food placement, sensor noise and gyro bias; same seed, same result.
+        q_arm: the arm's start configuration (default: the spec's ``Resting``).
+        q_wrist: the wrist's start angles [pitch, roll] (rad).
+        noise: sensor noise on (IMU, F/T); the gyro bias is on either way unless given.
+        gyro_bias: rad/s (3,); default drawn from ±1 °/s per axis with the seed.
+        load_g: instead of filling the food's container, hold this many grams of it ready
+            to be placed on the utensil with ``world.placement.place`` (the thesis' Exp.
+            2b/2c protocol: a tared utensil loaded by hand).
+        mouth: food entering the scene's ``mouth`` region is eaten (a bite); ``False`` for
+            protocols in which nobody eats and the experimenter weighs the utensil at the
+            goal (Exp. 2b, 2c).
+    """
+
+    food: str | None = "pecans"
+    utensil: str | None = None
+    # The packaged defaults, loaded when a config is made (not when this class is defined).
+    spec: Spec = field(default_factory=lambda: load_spec())
+    scene: Scene = field(default_factory=lambda: Scene.load())
+    params: PhysicsParams = field(default_factory=lambda: PhysicsParams.load())
+    seed: int = 0
+    q_arm: tuple[float, ...] | None = None
+    q_wrist: tuple[float, ...] = (0.0, 0.0)
+    noise: bool = True
+    gyro_bias: tuple[float, ...] | None = None
+    load_g: float | None = None
+    mouth: bool = True
+
+    def __post_init__(self) -> None:
+        def resolve(name: str, value: object) -> None:
+            object.__setattr__(self, name, value)
+
+        # An explicit None is the packaged default too.
+        spec = self.spec if self.spec is not None else load_spec()
+        params = self.params if self.params is not None else PhysicsParams.load()
+        resolve("spec", spec)
+        resolve("scene", self.scene if self.scene is not None else Scene.load())
+        resolve("params", params)
+        food, seed, load_g = self.food, self.seed, self.load_g
+        if food is not None:
+            params.food(food)  # unknown food → PhysicsError naming the allowed ones
+        utensil = self.utensil or (params.food(food).utensil if food else "spoon")
+        resolve("utensil", utensil)
+        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+            raise ValueError(f"seed must be an integer >= 0; got {seed!r}")
+        resolve("seed", int(seed))
+        if load_g is not None and not (math.isfinite(load_g) and load_g > 0):
+            raise ValueError(f"load_g must be a finite mass > 0 g; got {load_g}")
+        if load_g is not None and food is None:
+            raise ValueError("load_g needs a food")
+        if load_g is not None and load_g > (
+                most := utensil_capacity_bound_g(spec, params, food or "", utensil)):
+            why = capacity_bound_reason(params.food(food or ""))
+            raise ValueError(f"load_g must be in (0, {most:.2f}] g: the most the "
+                             f"{utensil} can hold of {food} ({why}); got {load_g:g}")
+        q0, qw = _start(spec, self.q_arm, self.q_wrist)
+        resolve("q_arm", tuple(float(v) for v in q0))
+        resolve("q_wrist", tuple(float(v) for v in qw))
+        if self.gyro_bias is not None:
+            resolve("gyro_bias", tuple(float(v) for v in np.asarray(self.gyro_bias, dtype=float)))
+
+
+def build_parts(config: WorldConfig) -> WorldParts:
+    """The parts of the world ``config`` describes (checked when it was made)."""
+    c = config
+    spec, scene, params, food, utensil, seed = (c.spec, c.scene, c.params, c.food,
+                                                str(c.utensil), c.seed)
+    q0, qw = np.array(c.q_arm, dtype=float), np.array(c.q_wrist, dtype=float)
     layout = build_mjcf(spec, scene, params, utensil, food, seed,
-                        load_supply_g(params, food, load_g))
+                        load_supply_g(params, food, c.load_g))
     m = layout.spec.compile()
     d = mujoco.MjData(m)
     period = spec.wrist.period
@@ -203,20 +242,19 @@ def build_parts(
         raise ValueError(f"world.timestep {dt} s must divide the loop period {period} s")
     rng = np.random.default_rng(seed + 1_000_003)
     ix = WorldIndex.of(m, layout, utensil)
-    ledger = FoodLedger(m, d, layout, scene, params.world.spill_dwell_s, period, mouth=mouth)
+    ledger = FoodLedger(m, d, layout, scene, params.world.spill_dwell_s, period, mouth=c.mouth)
     d.qpos[ix.arm_q] = q0
     d.qpos[ix.wrist_q] = qw
     mujoco.mj_forward(m, d)
-    bias = (rng.uniform(-1.0, 1.0, 3) * math.radians(1.0) if gyro_bias is None
-            else np.asarray(gyro_bias, dtype=float))
+    bias = (rng.uniform(-1.0, 1.0, 3) * math.radians(1.0) if c.gyro_bias is None
+            else np.array(c.gyro_bias, dtype=float))
     plant = MotorPlant(position=lambda: d.qpos[ix.wrist_q].copy(),
                        velocity=lambda: d.qvel[ix.wrist_v].copy(),
                        input_voltage=lambda: spec.motors.supply_v,
                        temperature=lambda: 35.0, stamp=lambda: float(d.time))
     motors = MjMotorDriver(spec, plant, ix.wrist_range)
-    imu = MjImuDriver(spec, bias, noise, rng)
-    ft = MjFTDriver(spec, noise, rng)
+    imu = MjImuDriver(spec, bias, c.noise, rng)
+    ft = MjFTDriver(spec, c.noise, rng)
     tool = ToolRuntime(spec, motors, imu, ft, clock=lambda: float(d.time))
-    return WorldParts(spec=spec, scene=scene, params=params, food=food, utensil=utensil,
-                      seed=seed, load_g=load_g, layout=layout, model=m, data=d, index=ix,
-                      ledger=ledger, motors=motors, imu=imu, ft=ft, tool=tool)
+    return WorldParts(config=c, layout=layout, model=m, data=d, index=ix, ledger=ledger,
+                      motors=motors, imu=imu, ft=ft, tool=tool)

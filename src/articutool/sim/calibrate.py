@@ -268,15 +268,15 @@ def level_capacity_g(food_name: str, spec: Spec, params: PhysicsParams, utensil:
     ``load_g``, or with as much as the loader can pour if that is less (a liquid heaped
     above the rim); if all of it stays, the capacity is at least that."""
     load_g = min(load_g, utensil_capacity_bound_g(spec, params, food_name, utensil))
-    world = FeedingWorld.build(food_name, utensil, spec=spec, params=params, seed=seed,
+    world = FeedingWorld.make(food_name, utensil, spec=spec, params=params, seed=seed,
                                load_g=load_g)
-    if world.max_load_g() < load_g:
-        world = FeedingWorld.build(food_name, utensil, spec=spec, params=params, seed=seed,
-                                   load_g=world.max_load_g() - 1e-6)
+    if world.placement.max_load_g() < load_g:
+        world = FeedingWorld.make(food_name, utensil, spec=spec, params=params, seed=seed,
+                                   load_g=world.placement.max_load_g() - 1e-6)
     world.tool.set_mode(Mode.LEVELING)
     world.run(1.0)
-    world.place_load(settle_s=1.0)
-    return world.masses_g()["utensil"], world.report().total_g
+    world.placement.place(settle_s=1.0)
+    return world.ledger.masses_g()["utensil"], world.report().total_g
 
 
 def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
@@ -318,14 +318,14 @@ def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
     if isinstance(food, Liquid):
         out["load_piece_mass_g"] = round(food.particle_mass(food.load_particle_radius) * 1e3, 5)
         box = Scene.load().get(food.container)
-        world = FeedingWorld.build(food_name, utensil, spec=spec, params=params, seed=seed)
+        world = FeedingWorld.make(food_name, utensil, spec=spec, params=params, seed=seed)
         assert isinstance(box, Cylinder) and box.container_wall is not None
         inner = box.radius - box.container_wall
         floor = float(box.inner_floor()[2])
         z = np.array([world.data.xpos[b][2] for b in world.ledger.item_body])
         top = float(np.quantile(z, 0.95)) + food.particle_radius
         vol_ml = math.pi * inner**2 * (top - floor) * 1e6
-        out["bulk_density_g_per_ml"] = round(world.masses_g()["container"] / vol_ml, 3)
+        out["bulk_density_g_per_ml"] = round(world.ledger.masses_g()["container"] / vol_ml, 3)
         if food.sph_load:  # the SPH liquid, each mechanism beside its law
             from articutool.sim.liquid_tilt import TILT_LOADS_G, liquid_calibration
 
@@ -364,12 +364,12 @@ def static_tilt(food_name: str, spec: Spec, params: PhysicsParams, utensil: str 
                  "hold_s": TILT_HOLD_S, "rate_rad_s": TILT_RATE, "onset_g": ONSET_G}
     cpu, sim = 0.0, 0.0
     for direction in directions:
-        world = FeedingWorld.build(food_name, uname, spec=spec, params=params, seed=seed,
+        world = FeedingWorld.make(food_name, uname, spec=spec, params=params, seed=seed,
                                    load_g=load_g)
         world.tool.set_mode(Mode.LEVELING)
         world.run(1.0)
-        world.place_load(settle_s=1.0)
-        kept = world.masses_g()["utensil"]
+        world.placement.place(settle_s=1.0)
+        kept = world.ledger.masses_g()["utensil"]
         volume = kept / (food.density * 1000.0)
         dirn = TIP if direction == "tip" else SIDE
         body = world.model.body("utensil").id
@@ -387,7 +387,7 @@ def static_tilt(food_name: str, spec: Spec, params: PhysicsParams, utensil: str 
             tilt = math.degrees(math.acos(min(1.0, float(up[0]))))
             ideal = float(h.spilled(volume, up)) * food.density * 1000.0
             rows.append({"tilt_cmd_deg": target, "tilt_deg": round(tilt, 2),
-                         "spilled_g": round(kept - world.masses_g()["utensil"], 3),
+                         "spilled_g": round(kept - world.ledger.masses_g()["utensil"], 3),
                          "hydrostatic_g": round(ideal, 3)})
         onset = next((r["tilt_deg"] for r in rows if r["spilled_g"] >= ONSET_G), None)
         out[direction] = {

@@ -139,7 +139,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     from articutool.sim.scenes import run_script
     from articutool.sim.world import FeedingWorld, PhysicsResetError
     try:
-        world = FeedingWorld.build(args.food, args.utensil, load_g=args.load, **kw)
+        world = FeedingWorld.make(args.food, args.utensil, load_g=args.load, **kw)
     except ValueError as err:  # e.g. strands cannot be placed as a load
         raise UsageError(f"--load: {err}") from None
     recorder = None

@@ -242,8 +242,10 @@ class FoodLedger:
         self._remove_eaten(np.flatnonzero(inside & self.active & (self.codes != acc.EATEN)))
 
     def eat_from_utensil(self) -> float:
-        """The user takes the bite: what is on the utensil now is eaten (see
-        :meth:`FeedingWorld.eat_from_utensil`). Returns the grams eaten."""
+        """The user takes the bite: what is on the utensil now — pieces, particles and noodle
+        strands alike — is eaten (moved out of the world, never counted again). Returns the
+        grams eaten. (The simulated user does not bite or chew; the feeding tree presents the
+        bite and this stands for the user taking it.)"""
         on = np.flatnonzero(self.active & (self.codes == acc.UTENSIL))
         self._remove_eaten(on)
         return float(self.item_g[on].sum())

@@ -138,15 +138,15 @@ def weighing_check(food_name: str, spec: Spec, params: PhysicsParams, utensil: s
     from articutool.sim.world import FeedingWorld
     from articutool.tool.api import Mode
 
-    world = FeedingWorld.build(food_name, utensil, spec=spec, params=params, seed=seed,
+    world = FeedingWorld.make(food_name, utensil, spec=spec, params=params, seed=seed,
                                load_g=load_g, mouth=False)
     try:
         world.tool.set_mode(Mode.LEVELING)
         world.run(1.0)
-        world.tare_ft(settle_s=0.2)
-        held = world.place_load(settle_s=1.5)
-        ft = world.ft_mass_g(0.5)
-        scale = world.carried_g()
+        world.weighing.tare(settle_s=0.2)
+        held = world.placement.place(settle_s=1.5)
+        ft = world.weighing.ft_mass_g(0.5)
+        scale = world.weighing.carried_g()
     finally:
         world.close()
     return {"load_g": load_g, "held_g": round(held, 4),

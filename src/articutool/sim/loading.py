@@ -1,7 +1,7 @@
 """Placing a load on the utensil by hand (the thesis' Exp. 2b/2c protocol): pure geometry.
 
-The world holds a parked supply of the food (``FeedingWorld.build(load_g=…)``);
-:class:`~articutool.sim.placement.LoadPlacement` (``FeedingWorld.place_load``) puts the load on
+The world holds a parked supply of the food (``FeedingWorld.make(load_g=…)``);
+:class:`~articutool.sim.placement.LoadPlacement` (``world.placement.place``) puts the load on
 the utensil the way a scoop leaves it:
 
 - **rigid pieces** are deposited one at a time at :func:`deposit_spot` — a random spot over

@@ -156,7 +156,7 @@ class WorldMcapRecorder:
         self.rec.write_msg("/arm/joint_states", cdr.JOINT_STATE, arm, t)
         if self.goal is not None:
             self._goal_tick(self._api.primitive_status())
-        if world.time >= self._next_food or len(world.spills) != self._spills:
+        if world.time >= self._next_food or len(world.ledger.spills) != self._spills:
             self._next_food = world.time + self._food_period
             self._food(world, t)
 
@@ -176,17 +176,17 @@ class WorldMcapRecorder:
 
     def _food(self, world: Any, t: float) -> None:
         kv = [cdr.msg("diagnostic_msgs/msg/KeyValue", key=f"{k}_g", value=repr(v))
-              for k, v in world.masses_g().items()]
+              for k, v in world.ledger.masses_g().items()]
         sts = [cdr.msg("diagnostic_msgs/msg/DiagnosticStatus", level=0, name="food: mass per place",
                      message=world.food, hardware_id="sim", values=kv)]
-        for s in world.spills:
+        for s in world.ledger.spills:
             sts.append(cdr.msg("diagnostic_msgs/msg/DiagnosticStatus", level=1,
                              name=f"food: spill of item {s.item}", message=s.place,
                              hardware_id="sim", values=[
                                  cdr.msg("diagnostic_msgs/msg/KeyValue", key=k, value=str(v))
                                  for k, v in (("t", s.t), ("mass_g", s.mass_g),
                                               ("where", s.where))]))
-        self._spills = len(world.spills)
+        self._spills = len(world.ledger.spills)
         self.rec.write_msg("/sim/food", cdr.DIAGNOSTIC_ARRAY,
                            cdr.msg(cdr.DIAGNOSTIC_ARRAY, header=m.header(t), status=sts), t)
 

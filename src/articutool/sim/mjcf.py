@@ -259,7 +259,7 @@ def _food_bodies(food: Food, scene: Scene, rng: np.random.Generator, layout: Wor
 
     With ``load_g`` the food is a load for the utensil instead: that many grams of pieces,
     parked out of the world (no collisions, weightless) until the world places them on the
-    utensil (``FeedingWorld.place_load``), as an experimenter loads a tared spoon.
+    utensil (``world.placement.place``), as an experimenter loads a tared spoon.
     """
     try:
         box = scene.get(food.container)

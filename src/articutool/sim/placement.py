@@ -33,7 +33,7 @@ if TYPE_CHECKING:
 __all__ = ["SUPPLY_FACTOR", "LoadPlacement", "capacity_bound_reason", "load_supply_g",
            "utensil_capacity_bound_g"]
 
-# Pieces in a placed load's supply per gram of the load (place_load deposits until the utensil
+# Pieces in a placed load's supply per gram of the load (``place`` deposits until the utensil
 # holds the load; the rest stays parked). A numerical choice: at the capacity load a third of
 # the deposited pieces rolled off the heap in trials (seeds 0-4), so twice the load suffices.
 SUPPLY_FACTOR = 2.0
@@ -107,7 +107,7 @@ class LoadPlacement:
         (:class:`~articutool.sim.liquid_load.LiquidLoad`) is poured so, at rest in the dish.
         """
         if not self.layout.parked or self.ledger.active.any():
-            raise RuntimeError("place_load needs a world built with load_g, not yet placed")
+            raise RuntimeError("placing a load needs a world built with load_g, not yet placed")
         body = self.model.body("utensil").id
         n = self.ledger.n_items
         if isinstance(self.food, Granular):

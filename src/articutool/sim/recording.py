@@ -106,7 +106,7 @@ class Recorder:
         self._ticks = 0
         self._frames: dict[str, list[Any]] = {k: [] for k in _ARRAYS}
         self._spills: list[dict[str, Any]] = []
-        self._seen_spills = len(world.spills)
+        self._seen_spills = len(world.ledger.spills)
         self._grab(world)
         world.on_tick.append(self._on_tick)
 
@@ -115,7 +115,7 @@ class Recorder:
 
     def _on_tick(self, world: FeedingWorld) -> None:
         self._ticks += 1
-        new = len(world.spills) > self._seen_spills
+        new = len(world.ledger.spills) > self._seen_spills
         if new or self._ticks % self._every == 0:
             self._grab(world)
 
@@ -134,17 +134,17 @@ class Recorder:
         f["q"].append(world.q)
         f["qpos"].append(world.data.qpos.astype(np.float32))
         f["food_xyz"].append(xyz)
-        f["food_class"].append(world.item_classes().astype(np.int8))
+        f["food_class"].append(world.ledger.item_classes().astype(np.int8))
         f["tool_mode"].append(int(state.mode))
         f["tool_q"].append(np.asarray(state.position, dtype=np.float32))
         f["tilt_deg"].append(world.tilt_deg())
         f["base_tilt_deg"].append(world.tool_base_tilt_deg())
-        for s in world.spills[self._seen_spills:]:
+        for s in world.ledger.spills[self._seen_spills:]:
             d = asdict(s)
             d["counted_t"] = world.time
             d["xyz"] = self._item_xyz(xyz, s.item).tolist()
             self._spills.append(d)
-        self._seen_spills = len(world.spills)
+        self._seen_spills = len(world.ledger.spills)
 
     def _item_xyz(self, xyz: NDArray[np.float32], item: int) -> NDArray[np.float64]:
         if self._kind == "strands":

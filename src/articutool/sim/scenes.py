@@ -91,7 +91,7 @@ def scoop(world: FeedingWorld, level: bool = True) -> None:
     world.tool.set_mode(Mode.LEVELING)
     world.run(1.0)
     world.tool.set_mode(Mode.DISABLED)
-    world.tare_ft(0.3)
+    world.weighing.tare(0.3)
     # Get above the start first (a free joint motion), then the Cartesian scoop.
     q0 = first_ik(model, np.concatenate([world.arm_q, _wrist(world)]), pts[0][0], pts[0][1])
     world.move_arm(q0[:6])
@@ -150,7 +150,7 @@ def skewer(world: FeedingWorld, level: bool = True, twirl_turns: float | None = 
     world.tool.set_mode(Mode.LEVELING)
     world.run(1.0)
     world.tool.set_mode(Mode.DISABLED)
-    world.tare_ft(0.2)
+    world.weighing.tare(0.2)
     if prewind_turns > 0:
         ok, msg = world.tool.start_primitive("TWIRL_CCW", [prewind_turns, 3.0])
         if not ok:
@@ -202,8 +202,8 @@ def load(world: FeedingWorld, level: bool = True) -> None:
     world.run(1.0)
     if not level:
         world.tool.set_mode(Mode.DISABLED)
-    world.tare_ft(0.3)
-    world.place_load(settle_s=1.0)
+    world.weighing.tare(0.3)
+    world.placement.place(settle_s=1.0)
 
 
 def acquire(world: FeedingWorld, level: bool = True, twirl_turns: float | None = None) -> None:

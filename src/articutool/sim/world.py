@@ -1,7 +1,8 @@
 """The feeding world: MuJoCo physics with the Articutool's own onboard software in the loop.
 
-:meth:`FeedingWorld.build` builds a world's parts from the spec, the scene and a food
-(:mod:`articutool.sim.build`: the MJCF, the model, the drivers, the tool), lets the food
+:meth:`FeedingWorld.build` builds a world's parts from a
+:class:`~articutool.sim.build.WorldConfig` (the spec, the scene, a food, the seed…;
+:mod:`articutool.sim.build`: the MJCF, the model, the drivers, the tool), lets the food
 settle, then starts the unchanged :class:`~articutool.tool.runtime.ToolRuntime` on
 MuJoCo-backed drivers (:mod:`articutool.sim.mj_drivers`) at ``spec.wrist.loop_rate_hz`` in
 lockstep with the physics and tares the F/T sensor: each physics step applies the arm servos'
@@ -14,8 +15,9 @@ bit-identical to stepping one at a time and settling afresh (``tests/test_sim_sp
 where the time goes: docs/simulation.md, *Speed*).
 
 One stepping loop — arm servos, the wrist's velocity loop, sensors, the tool's tick — and the
-arm-motion API around it; the food ledger, the weighing and the load placement are objects
-the world owns.
+arm-motion API around it; the food ledger (``world.ledger``), the weighing
+(``world.weighing``) and the load placement (``world.placement``) are objects the world owns,
+used directly.
 
 The arm follows a :class:`~articutool.trajectory.JointTrajectory` with joint servos (PD with
 velocity feed-forward, torque-limited by the spec's efforts), so contacts see the real
@@ -42,13 +44,17 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from articutool.arm.scene import Scene
 from articutool.sim import accounting as acc
-from articutool.sim.build import SettleCache, SettledState, WorldParts, build_parts
-from articutool.sim.params import PhysicsParams, Strands
+from articutool.sim.build import (
+    SettleCache,
+    SettledState,
+    WorldConfig,
+    WorldParts,
+    build_parts,
+)
+from articutool.sim.params import Strands
 from articutool.sim.placement import LoadPlacement
 from articutool.sim.weighing import Weighing
-from articutool.spec import Spec
 from articutool.trajectory import JointTrajectory, smooth_joint_motion
 
 __all__ = ["REPORT_JSON_KEYS", "FeedingWorld", "PhysicsResetError", "SettleCache", "WorldReport"]
@@ -81,7 +87,8 @@ def _model_bytes(m: mujoco.MjModel) -> bytes:
 class WorldReport:
     """What the world reports at time ``t``: where the food is, every spill so far, the F/T
     mass, the real-time factor and the arm's tracking error. ``masses_g``: grams per
-    class, keyed as the ledger's (:meth:`FeedingWorld.masses_g`: utensil, container, table,
+    class, keyed as the ledger's (:meth:`FoodLedger.masses_g
+    <articutool.sim.ledger.FoodLedger.masses_g>`: utensil, container, table,
     critical, airborne, eaten)."""
 
     t: float
@@ -115,9 +122,9 @@ class FeedingWorld:
     """
 
     def __init__(self, parts: WorldParts) -> None:
-        self.spec, self.scene, self.params = parts.spec, parts.scene, parts.params
-        self.food, self.utensil, self.seed, self.load_g = (parts.food, parts.utensil,
-                                                           parts.seed, parts.load_g)
+        self.config = c = parts.config
+        self.spec, self.scene, self.params = c.spec, c.scene, c.params
+        self.food, self.utensil, self.seed, self.load_g = c.food, str(c.utensil), c.seed, c.load_g
         self.layout, self.model, self.data = parts.layout, parts.model, parts.data
         self.index = parts.index
         self.wrist_range = parts.index.wrist_range
@@ -152,59 +159,35 @@ class FeedingWorld:
             self.seed, self.run)
 
     @classmethod
-    def build(
-        cls,
-        food: str | None = "pecans",
-        utensil: str | None = None,
-        *,
-        spec: Spec | None = None,
-        scene: Scene | None = None,
-        params: PhysicsParams | None = None,
-        seed: int = 0,
-        q_arm: ArrayLike | None = None,
-        q_wrist: ArrayLike = (0.0, 0.0),
-        noise: bool = True,
-        gyro_bias: ArrayLike | None = None,
-        settle: bool = True,
-        load_g: float | None = None,
-        mouth: bool = True,
-        settle_cache: SettleCache | None = None,
-    ) -> FeedingWorld:
-        """A world ready to run: its parts built (:func:`~articutool.sim.build.build_parts`),
-        the food settled with the wrist held, the tool started and run 0.2 s, the F/T tared.
+    def build(cls, config: WorldConfig, *, settle: bool = True,
+              settle_cache: SettleCache | None = None) -> FeedingWorld:
+        """The world ``config`` describes, ready to run: its parts built
+        (:func:`~articutool.sim.build.build_parts`), the food settled with the wrist held, the
+        tool started and run 0.2 s, the F/T tared.
 
-        Args:
-            food: a food of ``physics.toml`` (``None``: no food).
-            utensil: which utensil the tool carries (default: the food's utensil).
-            spec, scene, params: hardware spec, scene and physics parameters (packaged
-                defaults).
-            seed: food placement, sensor noise and gyro bias; same seed, same result.
-            q_arm: the arm's start configuration (default: the spec's ``Resting``).
-            q_wrist: the wrist's start angles [pitch, roll] (rad).
-            noise: sensor noise on (IMU, F/T); the gyro bias is on either way unless given.
-            gyro_bias: rad/s (3,); default drawn from ±1 °/s per axis with the seed.
-            settle: let the food settle for ``params.world.settle_s`` before the tool starts
-                (else 0.2 s, the servos only).
-            load_g: instead of filling the food's container, hold this many grams of it
-                ready to be placed on the utensil with :meth:`place_load` (the thesis' Exp.
-                2b/2c protocol: a tared utensil loaded by hand).
-            mouth: food entering the scene's ``mouth`` region is eaten (a bite); ``False``
-                for protocols in which nobody eats and the experimenter weighs the utensil at
-                the goal (Exp. 2b, 2c).
-            settle_cache: restores the settled state of an earlier world with the same model
-                and start state instead of settling again (bit-identical;
-                :class:`~articutool.sim.build.SettleCache`); ``None`` settles afresh.
+        ``settle``: let the food settle for ``params.world.settle_s`` before the tool starts
+        (else 0.2 s, the servos only). ``settle_cache``: restores the settled state of an
+        earlier world with the same model and start state instead of settling again
+        (bit-identical; :class:`~articutool.sim.build.SettleCache`); ``None`` settles afresh.
         """
-        world = cls(build_parts(food, utensil, spec=spec, scene=scene, params=params,
-                                seed=seed, q_arm=q_arm, q_wrist=q_wrist, noise=noise,
-                                gyro_bias=gyro_bias, load_g=load_g, mouth=mouth))
+        world = cls(build_parts(config))
+        food = config.food
         world._settle(world.params.world.settle_s if settle and food is not None else 0.2,
                       settle_cache)
         world._start_tool()
         world.run(0.2)
-        world.tare_ft()
+        world.weighing.tare()
         world.ledger.classify(world.time)
         return world
+
+    @classmethod
+    def make(cls, food: str | None = "pecans", utensil: str | None = None, *,
+             settle: bool = True, settle_cache: SettleCache | None = None,
+             **fields: Any) -> FeedingWorld:
+        """``build(WorldConfig(food, utensil, **fields), settle=…, settle_cache=…)``: the
+        fields are :class:`~articutool.sim.build.WorldConfig`'s."""
+        return cls.build(WorldConfig(food, utensil, **fields), settle=settle,
+                         settle_cache=settle_cache)
 
     def _settle(self, seconds: float, cache: SettleCache | None) -> None:
         """Run ``seconds`` with the tool off, or, with a :class:`SettleCache`, restore the
@@ -461,90 +444,26 @@ class FeedingWorld:
 
     # ---------------------------------------------------------------- food --
     @property
-    def n_items(self) -> int:
-        """Number of food items (pieces, particles, strands)."""
-        return self.ledger.n_items
-
-    @property
-    def spills(self) -> list[acc.SpillEvent]:
-        """Every spill event so far (:mod:`articutool.sim.accounting`)."""
-        return self.ledger.spills
-
-    @property
     def strands(self) -> bool:
         """The food is strands (noodles): an item may hang from the utensil onto a surface."""
         return self.food is not None and isinstance(self.params.food(self.food), Strands)
-
-    def eat_from_utensil(self) -> float:
-        """The user takes the bite: what is on the utensil now — pieces, particles and
-        noodle strands alike — is eaten (moved out of the world, never counted again).
-        Returns the grams eaten. (The simulated user does not bite or chew; the feeding tree
-        presents the bite and this stands for the user taking it.)"""
-        return self.ledger.eat_from_utensil()
-
-    def item_masses_g(self) -> NDArray[np.float64]:
-        """Grams of each food item (pieces vary in size; particles and strands do not)."""
-        return self.ledger.item_g.copy()
-
-    def item_classes(self) -> NDArray[np.int64]:
-        """Where each food item is now: its code in ``accounting.CLASS_NAMES`` (utensil,
-        container, table, …), or −1 for a piece of a load not yet placed."""
-        return self.ledger.item_classes()
-
-    def masses_g(self) -> dict[str, float]:
-        """Mass (g) per class: utensil, container, table, critical, airborne, eaten."""
-        return self.ledger.masses_g()
-
-    # ---------------------------------- weighing and placing (the objects that do it) --
-    def tare_ft(self, settle_s: float = 0.0) -> None:
-        """Tare the F/T sensor after ``settle_s`` at rest (:meth:`Weighing.tare
-        <articutool.sim.weighing.Weighing.tare>`)."""
-        self.weighing.tare(settle_s)
-
-    def ft_comparable(self, tol_deg: float = 3.0) -> bool:
-        """Whether the F/T reading weighs the load now (:meth:`Weighing.comparable
-        <articutool.sim.weighing.Weighing.comparable>`)."""
-        return self.weighing.comparable(tol_deg)
-
-    def ft_mass_g(self, window_s: float = 1.0) -> float:
-        """Mass on the utensil (g) as the F/T sensor measures it (:meth:`Weighing.ft_mass_g
-        <articutool.sim.weighing.Weighing.ft_mass_g>`)."""
-        return self.weighing.ft_mass_g(window_s)
-
-    def carried_g(self) -> float:
-        """What a scale under the utensil reads (g) (:meth:`Weighing.carried_g
-        <articutool.sim.weighing.Weighing.carried_g>`)."""
-        return self.weighing.carried_g()
-
-    def utensil_mass_g(self) -> float:
-        """The mass on the utensil as an experimenter weighing it would find (g)
-        (:meth:`Weighing.utensil_mass_g <articutool.sim.weighing.Weighing.utensil_mass_g>`)."""
-        return self.weighing.utensil_mass_g()
-
-    def place_load(self, settle_s: float = 0.5) -> float:
-        """Put the load (``load_g``) on the utensil and run ``settle_s``; the grams on it then
-        (:meth:`LoadPlacement.place <articutool.sim.placement.LoadPlacement.place>`)."""
-        return self.placement.place(settle_s)
 
     def close(self) -> None:
         """Free what the world holds beside MuJoCo (a liquid load's solver); idempotent."""
         if self.placement.liquid is not None:
             self.placement.liquid.close()
 
-    def max_load_g(self) -> float:
-        """The most a liquid load can be poured onto this utensil (g)
-        (:meth:`LoadPlacement.max_load_g <articutool.sim.placement.LoadPlacement.max_load_g>`)."""
-        return self.placement.max_load_g()
-
     def report(self, measure_ft: bool = False) -> WorldReport:
         """The world's report now (``measure_ft``: include the F/T-measured mass, when the
-        sensor is oriented as at its tare — see :meth:`ft_comparable`)."""
+        sensor is oriented as at its tare — see
+        :meth:`Weighing.comparable <articutool.sim.weighing.Weighing.comparable>`)."""
         return WorldReport(
             t=round(self.time, 4), food=self.food, utensil=self.utensil,
-            masses_g=self.masses_g(),
+            masses_g=self.ledger.masses_g(),
             total_g=float(self.ledger.item_g[self.ledger.active].sum()),
-            spills=list(self.spills),
-            ft_mass_g=self.ft_mass_g() if measure_ft and self.ft_comparable() else None,
+            spills=list(self.ledger.spills),
+            ft_mass_g=(self.weighing.ft_mass_g() if measure_ft and self.weighing.comparable()
+                       else None),
             realtime_factor=self.realtime_factor,
             arm_tracking_error_rad=self.arm_tracking_error,
         )
