@@ -54,7 +54,7 @@ _SWEEP = [{"sweep_to_deg": a, "offset_m": o} for a, o in itertools.product(
 CANDIDATES: dict[str, list[dict[str, float]]] = {
     "water": _SWEEP, "pecans": _SWEEP,
     "noodles": [{"offset_m": o, "depth_m": d} for o, d in itertools.product(
-        (0.0, 0.0125, 0.025), (0.002, 0.006))]}
+        (0.0, 0.025), (0.002, 0.006))]}
 
 
 def one(food: str, system: str, seed: int, insertion: dict[str, float] | None = None
