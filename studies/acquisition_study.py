@@ -16,7 +16,9 @@ insertion (water, pecans: sweep_to_deg × offset_m; noodles: offset_m × depth_m
 on the same tuning seeds; per food and system the candidate with the highest mean acquired
 mass; a tie goes to the higher mean at Resting, then to the system's shipped insertion, then to
 the first in the grid. Runs go seed by seed (every candidate and system on one seed before the
-next), and the JSON is rewritten after every run, so an interrupted search keeps whole seeds.
+next; the baseline's, the cheaper, first), and the JSON is rewritten after every run, so an
+interrupted search keeps what finished; ``--resume`` keeps the runs already in ``--out`` and
+runs the rest.
 
 Run (one process, niced): ``PYTHONPATH=src nice python studies/acquisition_study.py
 measure --foods water --seeds 10 --out studies/results/acquisition_study_water.json``
@@ -227,6 +229,8 @@ def main(argv: list[str] | None = None) -> int:
                     choices=sorted(CANDIDATES))
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--resume", action="store_true",
+                    help="search: keep the runs already in --out and run the rest")
     args = ap.parse_args(argv)
     if args.seeds < 1 or args.seeds > 1000:
         print("--seeds must be in 1..1000", file=sys.stderr)
@@ -248,9 +252,19 @@ def main(argv: list[str] | None = None) -> int:
             _write(args.out, doc)
     else:
         doc["candidates"] = {f: CANDIDATES[f] for f in args.foods}
+        if args.resume and args.out.exists():
+            old = json.loads(args.out.read_text())
+            if old.get("candidates") != doc["candidates"]:
+                print(f"--resume: {args.out} holds other candidates than this search's "
+                      f"{doc['candidates']}", file=sys.stderr)
+                return 2
+            doc["runs"] = old["runs"]
+        done = {(r["food"], r["system"], r["seed"], r["candidate"]) for r in doc["runs"]}
         for food in args.foods:
-            for k, (c, cand), system in itertools.product(
-                    range(args.seeds), enumerate(CANDIDATES[food]), SYSTEMS):
+            for k, system, (c, cand) in itertools.product(
+                    range(args.seeds), SYSTEMS[::-1], enumerate(CANDIDATES[food])):
+                if (food, system, TUNING_SEED0 + k, c) in done:
+                    continue
                 run = one(food, system, TUNING_SEED0 + k, cand)
                 run["candidate"] = c
                 doc["runs"].append(run)
