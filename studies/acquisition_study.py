@@ -16,9 +16,10 @@ insertion (water, pecans: sweep_to_deg × offset_m; noodles: offset_m × depth_m
 on the same tuning seeds; per food and system the candidate with the highest mean acquired
 mass; a tie goes to the higher mean at Resting, then to the system's shipped insertion, then to
 the first in the grid. Runs go seed by seed (every candidate and system on one seed before the
-next; the baseline's, the cheaper, first), and the JSON is rewritten after every run, so an
-interrupted search keeps what finished; ``--resume`` keeps the runs already in ``--out`` and
-runs the rest.
+next; the baseline's, the cheaper, first; the grid from its end, so a noodle search reaches the
+nest's centre, where a twirl wakes every strand, last), and the JSON is rewritten after every
+run, so an interrupted search keeps what finished; ``--resume`` keeps the runs already in
+``--out`` and runs the rest.
 
 Run (one process, niced): ``PYTHONPATH=src nice python studies/acquisition_study.py
 measure --foods water --seeds 10 --out studies/results/acquisition_study_water.json``
@@ -262,7 +263,7 @@ def main(argv: list[str] | None = None) -> int:
         done = {(r["food"], r["system"], r["seed"], r["candidate"]) for r in doc["runs"]}
         for food in args.foods:
             for k, system, (c, cand) in itertools.product(
-                    range(args.seeds), SYSTEMS[::-1], enumerate(CANDIDATES[food])):
+                    range(args.seeds), SYSTEMS[::-1], list(enumerate(CANDIDATES[food]))[::-1]):
                 if (food, system, TUNING_SEED0 + k, c) in done:
                     continue
                 run = one(food, system, TUNING_SEED0 + k, cand)
