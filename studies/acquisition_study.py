@@ -11,16 +11,22 @@ the wrist's largest tracking error in a wrist-made path (from the tool's measure
 its reference), the arm's (ground truth vs its servo reference), real-time factor; summary
 per food × system (mean ± SD, 95 % CI) and Welch's p between the systems.
 
-``search``: the same candidates for both systems (sweep_to_deg × offset_m, applied to each
-system's own strategy), on the tuning seeds; the candidate with the highest mean acquired mass
-per food and system. The JSON is rewritten after every run, so an interrupted run keeps what
-finished.
+``search``: the same candidates for both systems, applied to each system's own strategy's
+insertion (water, pecans: sweep_to_deg × offset_m; noodles: offset_m × depth_m of the skewer),
+on the same tuning seeds; per food and system the candidate with the highest mean acquired
+mass; a tie goes to the higher mean at Resting, then to the system's shipped insertion, then to
+the first in the grid. Runs go seed by seed (every candidate and system on one seed before the
+next; the baseline's, the cheaper, first; the grid from its end, so a noodle search reaches the
+nest's centre, where a twirl wakes every strand, last), and the JSON is rewritten after every
+run, so an interrupted search keeps what finished; ``--resume`` keeps the runs already in
+``--out`` and runs the rest.
 
 Run (one process, niced): ``PYTHONPATH=src nice python studies/acquisition_study.py
 measure --foods water --seeds 10 --out studies/results/acquisition_study_water.json``
 (pecans: ``--foods pecans --out studies/results/acquisition_study_pecans.json``) and
 ``... search --foods water --seeds 3 --out studies/results/strategy_search.json`` (pecans:
-``studies/results/strategy_search_pecans.json``).
+``studies/results/strategy_search_pecans.json``; noodles: ``--foods noodles --out
+studies/results/strategy_search_noodles.json``).
 """
 
 from __future__ import annotations
@@ -42,10 +48,16 @@ from articutool.meal.bites import DEFAULT_SETTINGS, _tree, make_bite_world, run_
 STAGES_TO_RESTING = ("above", "acquire", "shed", "resting")
 SYSTEMS = ("articutool", "baseline")
 TUNING_SEED0, MEASURE_SEED0 = 7_000_000, 8_000_000
-# The search's candidates, the same for both systems: where the turn in the food ends (the
-# handle must clear the bowl's rim behind) × where along the heading the sweep is centred.
-CANDIDATES = [{"sweep_to_deg": a, "offset_m": o} for a, o in itertools.product(
+# The search's candidates per food, the same for both systems. Sweeps (water, pecans): where
+# the turn in the food ends (the handle must clear the bowl's rim behind) × where along the
+# heading the sweep is centred. The noodle skewer: where along the heading the fork goes in
+# (the nest's centre, or towards the bowl's front) × how high above the floor its tip stops.
+_SWEEP = [{"sweep_to_deg": a, "offset_m": o} for a, o in itertools.product(
     (15.0, 25.0), (0.01, 0.03))]
+CANDIDATES: dict[str, list[dict[str, float]]] = {
+    "water": _SWEEP, "pecans": _SWEEP,
+    "noodles": [{"offset_m": o, "depth_m": d} for o, d in itertools.product(
+        (0.0, 0.025), (0.002, 0.006))]}
 
 
 def one(food: str, system: str, seed: int, insertion: dict[str, float] | None = None
@@ -57,12 +69,12 @@ def one(food: str, system: str, seed: int, insertion: dict[str, float] | None = 
         setup.strategy = s.model_copy(update={"insertion": s.insertion.model_copy(
             update=insertion)})
     root = _tree(setup, STAGES_TO_RESTING, DEFAULT_SETTINGS)
-    wall0 = time.perf_counter()
+    wall0, cpu0 = time.perf_counter(), time.process_time()
     try:
         r = run_bite(setup, stages=STAGES_TO_RESTING, root=root)
     finally:
         setup.arm.close()
-    wall = time.perf_counter() - wall0
+    wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
     werr = max((n.wrist_tracking_error for n in root.iterate() if isinstance(n, Execute)),
                default=0.0)
     w = setup.world
@@ -73,7 +85,7 @@ def one(food: str, system: str, seed: int, insertion: dict[str, float] | None = 
             "end_state": r.end_state, "failed_stage": r.failed_stage,
             "wrist_tracking_error_deg": math.degrees(werr),
             "arm_tracking_error_deg": math.degrees(w.arm_tracking_error),
-            "sim_time_s": r.sim_time_s, "wall_time_s": wall,
+            "sim_time_s": r.sim_time_s, "wall_time_s": wall, "cpu_s_process": cpu,
             "realtime_factor_physics": w.realtime_factor}
 
 
@@ -174,6 +186,37 @@ def table(doc: dict[str, Any]) -> str:
     return "\n".join(rows)
 
 
+def best(runs: list[dict[str, Any]], foods: list[str]) -> dict[str, Any]:
+    """Per food/system, the search's choice among the candidates run so far: the highest mean
+    acquired mass; a tie goes to the higher mean at Resting, then to the system's shipped
+    insertion, then to the first candidate in the grid."""
+    from articutool.feeding.strategies import StrategyLibrary
+    from articutool.spec import load_spec
+
+    lib = StrategyLibrary.load(load_spec())
+    out: dict[str, Any] = {}
+    for food, system in itertools.product(foods, SYSTEMS):
+        shipped = next(iter(lib.for_food(food, system).values())).insertion.model_dump()
+        scores: dict[int, dict[str, Any]] = {}
+        for i, cand in enumerate(CANDIDATES[food]):
+            rs = [r for r in runs if r["food"] == food and r["system"] == system
+                  and r["candidate"] == i]
+            if rs:
+                scores[i] = {"n": len(rs),
+                             "acquired_g": describe([r["acquired_g"] for r in rs]).to_dict(),
+                             "at_resting_g": describe([r["at_resting_g"] for r in rs]).to_dict(),
+                             "completed": sum(r["end_state"] == "completed" for r in rs),
+                             "shipped": all(shipped[k] == v for k, v in cand.items())}
+        if scores:
+            i = max(scores, key=lambda j: (scores[j]["acquired_g"]["mean"],
+                                           scores[j]["at_resting_g"]["mean"],
+                                           scores[j]["shipped"], -j))
+            out[f"{food}/{system}"] = {"candidate": i, **CANDIDATES[food][i],
+                                       "mean_acquired_g": scores[i]["acquired_g"]["mean"],
+                                       "scores": {str(j): v for j, v in scores.items()}}
+    return out
+
+
 def _write(path: Path, doc: dict[str, Any]) -> None:
     tmp = path.with_suffix(".tmp")
     tmp.write_text(json.dumps(doc, indent=1))
@@ -183,9 +226,12 @@ def _write(path: Path, doc: dict[str, Any]) -> None:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("mode", choices=("measure", "search", "table", "turn"))
-    ap.add_argument("--foods", nargs="+", default=["water", "pecans"])
+    ap.add_argument("--foods", nargs="+", default=["water", "pecans"],
+                    choices=sorted(CANDIDATES))
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--resume", action="store_true",
+                    help="search: keep the runs already in --out and run the rest")
     args = ap.parse_args(argv)
     if args.seeds < 1 or args.seeds > 1000:
         print("--seeds must be in 1..1000", file=sys.stderr)
@@ -206,28 +252,25 @@ def main(argv: list[str] | None = None) -> int:
             doc["summary"] = summarise(doc["runs"])
             _write(args.out, doc)
     else:
-        doc["candidates"] = CANDIDATES
-        for food, system, (c, cand) in itertools.product(args.foods, SYSTEMS,
-                                                          enumerate(CANDIDATES)):
-            for k in range(args.seeds):
+        doc["candidates"] = {f: CANDIDATES[f] for f in args.foods}
+        if args.resume and args.out.exists():
+            old = json.loads(args.out.read_text())
+            if old.get("candidates") != doc["candidates"]:
+                print(f"--resume: {args.out} holds other candidates than this search's "
+                      f"{doc['candidates']}", file=sys.stderr)
+                return 2
+            doc["runs"] = old["runs"]
+        done = {(r["food"], r["system"], r["seed"], r["candidate"]) for r in doc["runs"]}
+        for food in args.foods:
+            for k, system, (c, cand) in itertools.product(
+                    range(args.seeds), SYSTEMS[::-1], list(enumerate(CANDIDATES[food]))[::-1]):
+                if (food, system, TUNING_SEED0 + k, c) in done:
+                    continue
                 run = one(food, system, TUNING_SEED0 + k, cand)
                 run["candidate"] = c
                 doc["runs"].append(run)
-            best: dict[str, Any] = {}
-            for f, s in itertools.product(args.foods, SYSTEMS):
-                scores = {}
-                for i in range(len(CANDIDATES)):
-                    xs = [r["acquired_g"] for r in doc["runs"]
-                          if r["food"] == f and r["system"] == s and r["candidate"] == i]
-                    if xs:
-                        scores[i] = sum(xs) / len(xs)
-                if scores:
-                    i = max(sorted(scores), key=lambda j: scores[j])
-                    best[f"{f}/{s}"] = {"candidate": i, **CANDIDATES[i],
-                                        "mean_acquired_g": scores[i],
-                                        "scores": {str(j): v for j, v in scores.items()}}
-            doc["best"] = best
-            _write(args.out, doc)
+                doc["best"] = best(doc["runs"], args.foods)
+                _write(args.out, doc)
     return 0
 
 
