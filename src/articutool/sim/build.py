@@ -2,7 +2,7 @@
 
 A :class:`WorldConfig` is what a world is built from (food, utensil, spec, scene, physics
 parameters, seed, start angles, sensor noise, a load to place by hand, the mouth), every field
-checked once when it is made. :func:`build_parts` builds the MJCF from it
+checked once when it is made. :func:`build_parts` builds the world's ``MjSpec`` from it
 (:mod:`articutool.sim.mjcf`), compiles it, indexes its joints, actuators, sensors and sites
 (:class:`WorldIndex`), puts the arm and the wrist at their start, and builds the food ledger,
 the MuJoCo-backed drivers and the tool's runtime on them. Nothing here steps the physics:
