@@ -172,9 +172,9 @@ def test_a_fill_height_outside_the_dish_is_refused() -> None:
 
 
 def test_the_physics_world_builds_the_same_dish() -> None:
-    from articutool.sim import mjcf
+    from articutool.sim import world_spec
 
-    assert mjcf.spoon_dish is spoon_dish
+    assert world_spec.spoon_dish is spoon_dish
 
 
 def test_the_food_package_needs_only_the_spec_and_data_files() -> None:

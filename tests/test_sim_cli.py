@@ -117,8 +117,8 @@ def test_sim_mjcf_writes_the_world_mujoco_reads_back_exactly(tmp_path: Path) -> 
     import mujoco
 
     from articutool.arm.scene import Scene
-    from articutool.sim.mjcf import build_mjcf
     from articutool.sim.params import PhysicsParams
+    from articutool.sim.world_spec import build_world_spec
     from articutool.spec import load_spec
 
     out = tmp_path / "world.xml"
@@ -127,7 +127,7 @@ def test_sim_mjcf_writes_the_world_mujoco_reads_back_exactly(tmp_path: Path) -> 
     assert "mujoco.viewer" in proc.stdout
     m = mujoco.MjModel.from_xml_path(str(out))
     spec = load_spec()
-    ref = build_mjcf(spec, Scene.load(), PhysicsParams.load(), "soup_spoon", "water", 2)
+    ref = build_world_spec(spec, Scene.load(), PhysicsParams.load(), "soup_spoon", "water", 2)
     r = ref.spec.compile()
     for field in ("body_pos", "body_quat", "body_mass", "geom_size", "geom_pos", "geom_quat",
                   "geom_friction", "geom_solref", "geom_priority", "pair_friction",

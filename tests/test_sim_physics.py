@@ -17,10 +17,10 @@ from articutool.arm.model import ArmModel  # noqa: E402
 from articutool.arm.scene import Scene  # noqa: E402
 from articutool.datafile import read_document  # noqa: E402
 from articutool.sim import accounting as acc  # noqa: E402
-from articutool.sim.mjcf import build_mjcf, tip_site_name  # noqa: E402
 from articutool.sim.params import PhysicsError, PhysicsParams, default_physics_path  # noqa: E402
 from articutool.sim.scenes import base_tilt_motion, load  # noqa: E402
 from articutool.sim.world import FeedingWorld  # noqa: E402
+from articutool.sim.world_spec import build_world_spec, tip_site_name  # noqa: E402
 from articutool.tool.api import Mode  # noqa: E402
 from conftest import packaged_spec  # noqa: E402
 
@@ -32,7 +32,7 @@ PARAMS = PhysicsParams.load()
 def test_tip_pose_in_mujoco_equals_pinocchio(utensil: str) -> None:
     # Both load the one robot description: they agree to rounding (measured ≤ 7e-15), so a
     # model built apart from it again would fail here.
-    lay = build_mjcf(SPEC, Scene.load(), PARAMS, utensil)
+    lay = build_world_spec(SPEC, Scene.load(), PARAMS, utensil)
     m = lay.spec.compile()
     d = mujoco.MjData(m)
     am = ArmModel(SPEC, utensil, 8)

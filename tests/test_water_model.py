@@ -16,9 +16,9 @@ import pytest
 from articutool.food.dish import spoon_dish
 from articutool.food.hydrostatics import Hydrostatics
 from articutool.sim.calibrate import static_tilt
-from articutool.sim.mjcf import dish_walls
 from articutool.sim.params import PhysicsParams
 from articutool.sim.world import FeedingWorld
+from articutool.sim.world_spec import dish_walls
 from articutool.tool.api import Mode
 
 

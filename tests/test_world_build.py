@@ -58,14 +58,14 @@ def test_the_config_holds_what_the_world_uses_and_the_world_keeps_it() -> None:
 def test_every_food_kind_has_its_builder_and_each_food_builds_its_bodies() -> None:
     from articutool.arm.scene import Scene
     from articutool.food.definitions import FOOD_KINDS
-    from articutool.sim.mjcf import FOOD_BUILDERS, build_mjcf
     from articutool.sim.params import PhysicsParams
+    from articutool.sim.world_spec import FOOD_BUILDERS, build_world_spec
     from conftest import packaged_spec
 
     assert sorted(FOOD_BUILDERS) == sorted(FOOD_KINDS)
     spec, params = packaged_spec(), PhysicsParams.load()
     for name, food in params.foods.items():
-        lay = build_mjcf(spec, Scene.load(), params, food.utensil, name, seed=1)
+        lay = build_world_spec(spec, Scene.load(), params, food.utensil, name, seed=1)
         m = lay.spec.compile()
         items = lay.food_bodies or [f"{s}/{i}" for s in lay.food_strands
                                     for i in range(lay.strand_segments)]

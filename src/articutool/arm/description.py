@@ -3,7 +3,7 @@ MuJoCo ``MjSpec``, built from the hardware spec (``data/hardware.toml``).
 
 Both models of the robot come from it: :class:`~articutool.arm.model.ArmModel` loads its
 MJCF into Pinocchio (``pinocchio.buildModelFromMJCF``, collision geometry with
-``buildGeomFromMJCF``), and the physics world (:mod:`articutool.sim.mjcf`) adds the robot to
+``buildGeomFromMJCF``), and the physics world (:mod:`articutool.sim.world_spec`) adds the robot to
 its world spec with :func:`add_robot` and drives it. So a dimension, a joint axis or a limit
 is written here once (docs/hardware.md §1, §3):
 
@@ -26,7 +26,7 @@ is written here once (docs/hardware.md §1, §3):
   utensil's shape (the physics world's).
 
 What the simulation adds — servo armature and friction, gravity compensation, actuators,
-sensors, contact filtering and colours — is the world's (:mod:`articutool.sim.mjcf`).
+sensors, contact filtering and colours — is the world's (:mod:`articutool.sim.world_spec`).
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ semi-axes run linearly from the floor's to the rim's. The floor's inner surface 
 utensil frame's ``x = tip_x``, the opening faces +x (the wrist's up vector), the dish centre
 is at ``z = tip_z − a`` (its far rim end is the tip).
 
-The physics world (``articutool.sim.mjcf``) builds its collision dish from this, the loader
+The physics world (``articutool.sim.world_spec``) builds its collision dish from this, the loader
 pours into it, and ``articutool.food.hydrostatics`` integrates it.
 """
 

@@ -3,7 +3,7 @@
 A :class:`WorldConfig` is what a world is built from (food, utensil, spec, scene, physics
 parameters, seed, start angles, sensor noise, a load to place by hand, the mouth), every field
 checked once when it is made. :func:`build_parts` builds the world's ``MjSpec`` from it
-(:mod:`articutool.sim.mjcf`), compiles it, indexes its joints, actuators, sensors and sites
+(:mod:`articutool.sim.world_spec`), compiles it, indexes its joints, actuators, sensors and sites
 (:class:`WorldIndex`), puts the arm and the wrist at their start, and builds the food ledger,
 the MuJoCo-backed drivers and the tool's runtime on them. Nothing here steps the physics:
 :meth:`articutool.sim.world.FeedingWorld.build` wires the parts into a world, then settles it
@@ -24,12 +24,18 @@ from numpy.typing import ArrayLike, NDArray
 from articutool.arm.scene import Scene
 from articutool.sim.ledger import FoodLedger
 from articutool.sim.mj_drivers import MjFTDriver, MjImuDriver, MjMotorDriver
-from articutool.sim.mjcf import FT_SITE, IMU_SITE, WorldLayout, build_mjcf, tip_site_name
 from articutool.sim.params import PhysicsParams
 from articutool.sim.placement import (
     capacity_bound_reason,
     load_supply_g,
     utensil_capacity_bound_g,
+)
+from articutool.sim.world_spec import (
+    FT_SITE,
+    IMU_SITE,
+    WorldLayout,
+    build_world_spec,
+    tip_site_name,
 )
 from articutool.spec import Spec, load_spec
 from articutool.tool.drivers.motor_model import MotorPlant
@@ -232,7 +238,7 @@ def build_parts(config: WorldConfig) -> WorldParts:
     spec, scene, params, food, utensil, seed = (c.spec, c.scene, c.params, c.food,
                                                 str(c.utensil), c.seed)
     q0, qw = np.array(c.q_arm, dtype=float), np.array(c.q_wrist, dtype=float)
-    layout = build_mjcf(spec, scene, params, utensil, food, seed,
+    layout = build_world_spec(spec, scene, params, utensil, food, seed,
                         load_supply_g(params, food, c.load_g))
     m = layout.spec.compile()
     d = mujoco.MjData(m)

@@ -96,8 +96,8 @@ def _write_mjcf(args: argparse.Namespace) -> int:
     keyframe ``start``) for MuJoCo's viewer, and run nothing."""
     from articutool.arm.scene import Scene
     from articutool.cli_support import UsageError, new_output_file
-    from articutool.sim.mjcf import build_mjcf, viewer_mjcf
     from articutool.sim.placement import load_supply_g
+    from articutool.sim.world_spec import build_world_spec, viewer_mjcf
 
     out = new_output_file("--mjcf", args.mjcf, (".xml",))
     assert out is not None
@@ -107,7 +107,7 @@ def _write_mjcf(args: argparse.Namespace) -> int:
     utensil = args.utensil or params.food(args.food).utensil
     supply = load_supply_g(params, args.food, args.load)
     try:
-        layout = build_mjcf(spec, Scene.load(), params, utensil, args.food, args.seed, supply)
+        layout = build_world_spec(spec, Scene.load(), params, utensil, args.food, args.seed, supply)
     except ValueError as err:  # e.g. strands cannot be placed as a load
         raise UsageError(f"--load: {err}") from None
     text = viewer_mjcf(layout, spec.arm.configuration("Resting"))

@@ -1,7 +1,7 @@
 """A granular food in the feeding world: pieces (flat clusters of capsules, drawn by
 :func:`articutool.sim.pieces.draw_piece`) packed layer by layer in the container, or a load
 of them parked for the utensil. Registered for ``kind = "granular"`` in
-:data:`articutool.sim.mjcf.FOOD_BUILDERS`."""
+:data:`articutool.sim.world_spec.FOOD_BUILDERS`."""
 
 from __future__ import annotations
 

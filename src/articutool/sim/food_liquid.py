@@ -1,6 +1,6 @@
 """A liquid in the feeding world: spheres on a lattice inside the container (a fill), or a
 load of finer spheres parked for the utensil (the SPH load's particles when the food's load
-is SPH). Registered for ``kind = "liquid"`` in :data:`articutool.sim.mjcf.FOOD_BUILDERS`."""
+is SPH). Registered for ``kind = "liquid"`` in :data:`articutool.sim.world_spec.FOOD_BUILDERS`."""
 
 from __future__ import annotations
 

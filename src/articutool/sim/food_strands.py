@@ -1,7 +1,7 @@
 """Strands in the feeding world (noodles): chains of capsules joined by ball joints whose
 springs give the rod's bending stiffness, heaped in the container; their contact laws and
 starch tack toward each other and the fork. Registered for ``kind = "strands"`` in
-:data:`articutool.sim.mjcf.FOOD_BUILDERS`; the calibration experiments
+:data:`articutool.sim.world_spec.FOOD_BUILDERS`; the calibration experiments
 (:mod:`articutool.sim.strand_laws`) build their strands with :func:`strand_chain` too."""
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from articutool.arm.scene import Box, Cylinder, Scene, Sphere
 from articutool.sim import accounting as acc
-from articutool.sim.mjcf import WorldLayout
+from articutool.sim.world_spec import WorldLayout
 
 __all__ = ["FoodLedger", "LiquidInDish"]
 

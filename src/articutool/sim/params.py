@@ -77,7 +77,7 @@ class ContactParams(StrictModel):
 
 class FoodContacts(StrictModel):
     """The contact law of a food against each partner (``CONTACT_PARTNERS``): the world gives
-    every such pair exactly these values (``articutool.sim.mjcf``)."""
+    every such pair exactly these values (``articutool.sim.world_spec``)."""
 
     food: ContactParams
     utensil: ContactParams

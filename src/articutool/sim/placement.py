@@ -23,8 +23,8 @@ from articutool.sim.loading import (
     max_load_g,
     pour_lattice,
 )
-from articutool.sim.mjcf import WorldLayout
 from articutool.sim.params import Granular, Liquid, PhysicsParams, Strands
+from articutool.sim.world_spec import WorldLayout
 from articutool.spec import Spec, UtensilSpec
 
 if TYPE_CHECKING:

@@ -1,6 +1,6 @@
 """What every part of the feeding world is built with: the collision bits, the contact laws
 set on an ``MjsGeom``, the solver options a food sets, poses, and the loose items a container
-is filled with (:mod:`articutool.sim.mjcf` and the food builders use them, and so do the
+is filled with (:mod:`articutool.sim.world_spec` and the food builders use them, and so do the
 calibration experiments' small worlds).
 
 The world's poses, masses and contact laws are its numbers to 9 significant digits

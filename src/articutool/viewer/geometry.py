@@ -1,9 +1,9 @@
 """What the viewer draws, taken from the MuJoCo model of the feeding world.
 
 The robot (Jaco + Articutool + the current utensil) and the scene (table, plate, bowl, user,
-wheelchair) are the geoms of :func:`articutool.sim.mjcf.build_mjcf`, built from the one spec and
-the one scene file, so the viewer restates no dimension. Each geom becomes a triangle mesh in
-its own frame once (:func:`geom_meshes`); a configuration only moves them
+wheelchair) are the geoms of :func:`articutool.sim.world_spec.build_world_spec`, built from the
+one spec and the one scene file, so the viewer restates no dimension. Each geom becomes a
+triangle mesh in its own frame once (:func:`geom_meshes`); a configuration only moves them
 (:class:`Poser`). Food bodies (free joints) are not meshes here: the viewer draws food as
 points. A ground plane is drawn as a square tile (MuJoCo's is infinite).
 """
@@ -94,10 +94,10 @@ def geom_meshes(model: mujoco.MjModel, robot_root: str) -> list[GeomMesh]:
 def model_for_view(spec: object, scene: object, utensil: str) -> tuple[mujoco.MjModel, str]:
     """The feeding world's model without food, for showing plans and configurations;
     returns the compiled model and the robot's root body name."""
-    from articutool.sim.mjcf import build_mjcf
     from articutool.sim.params import PhysicsParams
+    from articutool.sim.world_spec import build_world_spec
 
-    layout = build_mjcf(spec, scene, PhysicsParams.load(), utensil)  # type: ignore[arg-type]
+    layout = build_world_spec(spec, scene, PhysicsParams.load(), utensil)  # type: ignore[arg-type]
     return layout.spec.compile(), spec.arm.base_frame  # type: ignore[attr-defined]
 
 

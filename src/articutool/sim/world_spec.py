@@ -65,7 +65,7 @@ from articutool.sim.world_parts import (
 )
 from articutool.spec import Spec, UtensilSpec
 
-__all__ = ["FOOD_BUILDERS", "FT_SITE", "IMU_SITE", "WorldLayout", "build_mjcf", "dish_walls",
+__all__ = ["FOOD_BUILDERS", "FT_SITE", "IMU_SITE", "WorldLayout", "build_world_spec", "dish_walls",
            "tip_site_name", "viewer_mjcf"]
 
 _WALL_BOXES = 24
@@ -289,7 +289,7 @@ def arena_bytes(strands: int) -> int:
     return max(ARENA_MIN_BYTES, ARENA_PER_STRAND_BYTES * strands)
 
 
-def build_mjcf(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
+def build_world_spec(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
                food: str | None = None, seed: int = 0,
                load_g: float | None = None) -> WorldLayout:
     """The world's ``MjSpec``: the arm + Articutool with ``utensil``, the scene and
