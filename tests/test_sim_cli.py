@@ -69,7 +69,8 @@ def test_sim_video_renders_headless(tmp_path: Path) -> None:
 
     gif, mp4 = tmp_path / "s.gif", tmp_path / "s.mp4"
     for path in (gif, mp4):
-        r = run_cli("sim", "--food", "water", "--script", "tilt", "--video", str(path))
+        r = run_cli("sim", "--food", "water", "--script", "tilt", "--video", str(path),
+                    timeout=1200.0)  # SPH water and a render: minutes on a loaded host
         assert r.returncode == 0, r.stderr
     with Image.open(gif) as g:
         assert g.n_frames > 100
