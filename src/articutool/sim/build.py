@@ -239,7 +239,7 @@ def build_parts(config: WorldConfig) -> WorldParts:
                                                 str(c.utensil), c.seed)
     q0, qw = np.array(c.q_arm, dtype=float), np.array(c.q_wrist, dtype=float)
     layout = build_world_spec(spec, scene, params, utensil, food, seed,
-                        load_supply_g(params, food, c.load_g))
+                              load_supply_g(params, food, c.load_g))
     m = layout.spec.compile()
     d = mujoco.MjData(m)
     period = spec.wrist.period

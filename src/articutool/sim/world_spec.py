@@ -290,8 +290,8 @@ def arena_bytes(strands: int) -> int:
 
 
 def build_world_spec(spec: Spec, scene: Scene, params: PhysicsParams, utensil: str,
-               food: str | None = None, seed: int = 0,
-               load_g: float | None = None) -> WorldLayout:
+                     food: str | None = None, seed: int = 0,
+                     load_g: float | None = None) -> WorldLayout:
     """The world's ``MjSpec``: the arm + Articutool with ``utensil``, the scene and
     (optionally) ``food``: a fill of its container, or with ``load_g`` a load parked for the
     utensil.
