@@ -186,17 +186,25 @@ def table(doc: dict[str, Any]) -> str:
     return "\n".join(rows)
 
 
-def best(runs: list[dict[str, Any]], foods: list[str]) -> dict[str, Any]:
-    """Per food/system, the search's choice among the candidates run so far: the highest mean
-    acquired mass; a tie goes to the higher mean at Resting, then to the system's shipped
-    insertion, then to the first candidate in the grid."""
+def shipped_insertions(foods: list[str]) -> dict[tuple[str, str], dict[str, Any]]:
+    """Each food's and system's insertion as the packaged strategies ship it."""
     from articutool.feeding.strategies import StrategyLibrary
     from articutool.spec import load_spec
 
     lib = StrategyLibrary.load(load_spec())
+    return {(f, s): next(iter(lib.for_food(f, s).values())).insertion.model_dump()
+            for f, s in itertools.product(foods, SYSTEMS)}
+
+
+def best(runs: list[dict[str, Any]], foods: list[str],
+         shipped_by: dict[tuple[str, str], dict[str, Any]]) -> dict[str, Any]:
+    """Per food/system, the search's choice among the candidates run so far: the highest mean
+    acquired mass; a tie goes to the higher mean at Resting, then to the system's shipped
+    insertion (``shipped_by``, :func:`shipped_insertions`), then to the first candidate in the
+    grid."""
     out: dict[str, Any] = {}
     for food, system in itertools.product(foods, SYSTEMS):
-        shipped = next(iter(lib.for_food(food, system).values())).insertion.model_dump()
+        shipped = shipped_by[food, system]
         scores: dict[int, dict[str, Any]] = {}
         for i, cand in enumerate(CANDIDATES[food]):
             rs = [r for r in runs if r["food"] == food and r["system"] == system
@@ -261,6 +269,7 @@ def main(argv: list[str] | None = None) -> int:
                 return 2
             doc["runs"] = old["runs"]
         done = {(r["food"], r["system"], r["seed"], r["candidate"]) for r in doc["runs"]}
+        shipped = shipped_insertions(args.foods)
         for food in args.foods:
             for k, system, (c, cand) in itertools.product(
                     range(args.seeds), SYSTEMS[::-1], list(enumerate(CANDIDATES[food]))[::-1]):
@@ -269,7 +278,7 @@ def main(argv: list[str] | None = None) -> int:
                 run = one(food, system, TUNING_SEED0 + k, cand)
                 run["candidate"] = c
                 doc["runs"].append(run)
-                doc["best"] = best(doc["runs"], args.foods)
+                doc["best"] = best(doc["runs"], args.foods, shipped)
                 _write(args.out, doc)
     return 0
 

@@ -50,12 +50,14 @@ def _index(study, food: str, system: str) -> int:
 def test_the_choice_is_the_most_acquired_then_at_resting_then_shipped_then_first(
         study) -> None:
     n = len(study.CANDIDATES["noodles"])
+    shipped_by = study.shipped_insertions(["noodles"])
     for system in study.SYSTEMS:
         shipped = _index(study, "noodles", system)
         other = (shipped + 1) % n
 
         def choice(scores: dict[int, tuple[float, float]], s: str = system) -> int:
-            return study.best(_runs(s, scores), ["noodles"])[f"noodles/{s}"]["candidate"]
+            return study.best(_runs(s, scores), ["noodles"],
+                              shipped_by)[f"noodles/{s}"]["candidate"]
 
         assert choice({shipped: (1.0, 1.0), other: (2.0, 0.0)}) == other
         assert choice({shipped: (1.0, 0.5), other: (1.0, 0.9)}) == other

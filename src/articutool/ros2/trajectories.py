@@ -83,11 +83,6 @@ class FollowJointTrajectoryServer:
         def run() -> str:
             """'' when the trajectory ran to its end, else why not."""
             sent = client.latest_tool_time()  # the tool's time before it can have the trajectory
-
-            def tool_time_since(t: float | None) -> float:
-                now_tool = client.latest_tool_time()
-                return math.inf if t is None or now_tool is None else now_tool - t
-
             try:
                 client.follow_trajectory(traj, start_at=start_at)
             except (ValueError, LinkError) as err:
@@ -105,7 +100,8 @@ class FollowJointTrajectoryServer:
                     # Refused: the tool's own telemetry, a second on from before the trajectory
                     # was sent, still shows another mode (judged on the tool's clock: a loaded
                     # PC reads the tool's states late).
-                    waited = tool_time_since(sent)
+                    tool_now = client.latest_tool_time()
+                    waited = math.inf if sent is None or tool_now is None else tool_now - sent
                     if not taken and now > t0 + 0.5 and waited >= TAKE_WINDOW_S:
                         return (f"the tool did not take the trajectory (its mode is "
                                 f"{st.mode.name}; it refuses positions outside the wrist "
