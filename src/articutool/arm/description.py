@@ -52,6 +52,7 @@ __all__ = [
     "UTENSIL_BODY",
     "add_robot",
     "exact_xml",
+    "mj_quat",
     "robot_spec",
     "tip_site_name",
 ]
@@ -71,14 +72,16 @@ def tip_site_name(utensil: str) -> str:
     return _TIP_SITE.format(utensil)
 
 
-def _quat(R: NDArray[np.float64]) -> NDArray[np.float64]:
+def mj_quat(R: NDArray[np.float64]) -> NDArray[np.float64]:
+    """MuJoCo's unit quaternion (w, x, y, z) of rotation matrix ``R`` (``mju_mat2Quat``, the
+    same arithmetic MuJoCo uses, so a pose set from it compiles as MuJoCo would place it)."""
     q = np.zeros(4)
     mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=float).reshape(9))
     return q
 
 
 def _rpy_quat(rpy: tuple[float, float, float] | list[float]) -> NDArray[np.float64]:
-    return _quat(rpy_matrix(tuple(rpy)))
+    return mj_quat(rpy_matrix(tuple(rpy)))
 
 
 def _sphere_site(body: mujoco.MjsBody, name: str, radius: float) -> mujoco.MjsSite:

@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from articutool.arm.description import mj_quat
 from articutool.arm.scene import Box, Cylinder, Scene, Sphere
 from articutool.sim import accounting as acc
 from articutool.sim.world_spec import WorldLayout
@@ -284,11 +285,8 @@ class FoodLedger:
         R, p = d.xmat[body].reshape(3, 3), d.xpos[body]
         v = np.zeros(6)
         mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, body, v, 0)
-        if rotation is None:
-            q = d.xquat[body].copy()  # lying along the utensil
-        else:
-            q = np.zeros(4)
-            mujoco.mju_mat2Quat(q, np.ascontiguousarray(rotation, dtype=float).reshape(9))
+        # without a rotation, lying along the utensil
+        q = d.xquat[body].copy() if rotation is None else mj_quat(rotation)
         self.release(k, p + R @ np.asarray(local), v[3:], q)
 
     def release(self, k: int, position: NDArray[np.float64], velocity: NDArray[np.float64],

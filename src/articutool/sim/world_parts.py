@@ -19,12 +19,12 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from articutool.arm.description import exact_xml
+from articutool.arm.description import exact_xml, mj_quat
 from articutool.arm.scene import Cylinder
 from articutool.sim.params import ContactParams, Granular, Liquid, Strands, WorldParams
 
 __all__ = ["ALL", "FOOD", "ROBOT", "STATIC", "UTENSIL", "Food", "FoodBuilder", "GeomSetter",
-           "WorldLayout", "add_items", "pair_law", "quat", "set_contact", "set_food_solver",
+           "WorldLayout", "add_items", "pair_law", "set_contact", "set_food_solver",
            "set_pose", "sig", "sigs", "solver_spec"]
 
 # Collision filtering (contype/conaffinity bits): static surfaces, food, utensil, robot links.
@@ -82,17 +82,10 @@ def sigs(v: float | Sequence[float] | NDArray[np.float64], digits: int = 9) -> l
     return [sig(float(x), digits) for x in np.atleast_1d(np.asarray(v, dtype=float))]
 
 
-def quat(R: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The unit quaternion (w, x, y, z) of rotation matrix ``R``."""
-    q = np.zeros(4)
-    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=float).reshape(9))
-    return q
-
-
 def set_pose(e: mujoco.MjsBody | mujoco.MjsGeom, xyz: NDArray[np.float64] | Sequence[float],
              R: NDArray[np.float64]) -> None:
     """Place body or geom ``e`` at ``xyz`` turned by ``R`` (in its parent's frame)."""
-    e.pos, e.quat = sigs(xyz), sigs(quat(R))
+    e.pos, e.quat = sigs(xyz), sigs(mj_quat(R))
 
 
 def set_contact(g: mujoco.MjsGeom, law: ContactParams | None, priority: int) -> None:
