@@ -15,6 +15,7 @@ from articutool.food.slosh import (
     STANDARD_GRAVITY,
     SloshModel,
     apparent_gravity,
+    dish_mode,
     rectangular_tank_mode,
 )
 from conftest import packaged_spec
@@ -32,10 +33,37 @@ def test_the_modes_of_8_ml_in_the_soup_spoon() -> None:
     across, along = MODEL.modes
     assert MODEL.mean_depth * 1e3 == pytest.approx(5.87, abs=0.01)
     assert along.length_m * 1e3 == pytest.approx(49.8, abs=0.1)
-    assert along.frequency_hz == pytest.approx(2.35, abs=0.01)
-    assert across.frequency_hz == pytest.approx(3.30, abs=0.01)
-    assert along.zeta == pytest.approx(0.020, abs=0.001)
-    assert across.zeta == pytest.approx(0.015, abs=0.001)
+    assert along.frequency_hz == pytest.approx(2.96, abs=0.01)
+    assert across.frequency_hz == pytest.approx(4.09, abs=0.01)
+    assert along.zeta == pytest.approx(0.018, abs=0.001)
+    assert across.zeta == pytest.approx(0.013, abs=0.001)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.floats(0.01, 0.1), st.floats(0.3, 1.0), st.floats(1e-4, 1e-3))
+def test_a_paraboloid_basins_tilting_mode_is_lambs(a: float, b_over_a: float,
+                                                   h0_over_a: float) -> None:
+    """Shallow water in an elliptic paraboloid, depth h0·(1 − x²/a² − y²/b²): the plane is
+    the exact first mode, σ² = 2·g·h0/a² (Lamb 1932, §193)."""
+    b, h0 = a * b_over_a, a * h0_over_a
+    w, _ = dish_mode(a, b, 0.5 * math.pi * a * b * h0)
+    assert w ** 2 == pytest.approx(2 * G * h0 / a ** 2, rel=1e-3)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.floats(0.01, 0.05), st.floats(0.3, 1.0), st.floats(0.05, 0.5), st.floats(0.2, 5.0))
+def test_a_dish_mode_scales_as_froude(a: float, b_over_a: float, fill: float,
+                                      scale: float) -> None:
+    """A geometrically similar dish λ times larger rings 1/√λ as fast (inviscid), finite
+    depth lowers the shallow quotient, and the shorter axis rings faster."""
+    b, v = a * b_over_a, fill * a ** 3
+    w, _ = dish_mode(a, b, v, nu=0.0)
+    w_big, zeta = dish_mode(scale * a, scale * b, scale ** 3 * v, nu=0.0)
+    assert zeta == 0.0
+    assert w_big == pytest.approx(w / math.sqrt(scale), rel=1e-9)
+    assert w ** 2 <= G * v / (0.25 * math.pi * a ** 3 * b) * (1 + 1e-12)
+    if b_over_a < 0.99:
+        assert dish_mode(b, a, v, nu=0.0)[0] > w
 
 
 def test_the_tank_formula() -> None:

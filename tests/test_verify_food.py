@@ -145,7 +145,7 @@ def test_the_cli_reports_every_figure_and_refuses_bad_loads(tmp_path: Path) -> N
     assert out.returncode == 0, out.stderr
     food = json.loads(out.stdout)["food"]
     assert food["spill_free"] and food["spilled_g"] == 0.0
-    assert food["model"]["modes"][1]["frequency_hz"] == pytest.approx(2.35, abs=0.01)
+    assert food["model"]["modes"][1]["frequency_hz"] == pytest.approx(2.96, abs=0.01)
     for load, field in (("soup:3", "--load food"), ("water:-2", "--load grams"),
                         ("water:nan", "--load"), ("water:20", "--load grams"),
                         ("noodles:2", "--load food")):

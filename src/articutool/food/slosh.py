@@ -17,14 +17,23 @@ a change of acceleration makes it overshoot (up to twice the step, undamped) and
 mode's frequency. The surface's tilt and direction then give the dish's capacity
 (:meth:`Hydrostatics.capacity_fast`), and the running minimum of the capacity what stays.
 
-**Frequency** of the first mode of a rectangular tank of length ``L`` along the axis and mean
-depth ``h`` (linear potential theory; NASA SP-106 ch. 2; Ibrahim 2005 eq. 2.41)::
+**Frequency** of the model's own mode shape, a plane free surface, in the dish's real shape.
+In shallow water the plane's kinetic and potential energies give Rayleigh's quotient::
 
-    ω² = (π g / L) tanh(π h / L)
+    ω₀² = g V / I
 
-with ``L`` the free surface's extent along the axis (the dish's cross-section at the fill
-height: ``2A(h)`` along, ``2B(h)`` across) and ``h`` the liquid's volume over the surface's
-area (the mean depth). For 8 mL in the soup spoon: 2.36 Hz along, 3.30 Hz across.
+with ``V`` the liquid's volume and ``I = ∫ s² dA`` the second moment of the free surface about
+the axis it tilts around (an ellipse of semi-axes ``A`` along and ``B`` across at the fill
+height: ``I = πA³B/4`` along, ``πAB³/4`` across). For a basin whose depth falls to zero at the
+waterline as a paraboloid's does the plane is the exact first mode (Lamb, *Hydrodynamics*,
+6th ed., 1932, §193: ``σ² = 2gh₀/a²``, which ``gV/I`` gives for any elliptic paraboloid);
+for other basins it bounds the mode from above (Rayleigh's principle). The dish's 45° walls
+run the depth to zero at the waterline too. Finite depth lowers it by linear theory's
+dispersion, ``ω² = ω₀² tanh(kh)/(kh)`` with ``k = ω₀/√(gh)`` and ``h`` the mean depth
+(volume over surface area). For 8 mL in the soup spoon: 2.96 Hz along, 4.09 Hz across
+(``dish_mode``); a rectangular tank of the surface's length and the same mean depth
+(``rectangular_tank_mode``, ``ω² = (πg/L) tanh(πh/L)``: NASA SP-106 ch. 2, Ibrahim 2005
+eq. 2.41) would ring at 2.35 and 3.30 Hz, its cosine mode not the plane.
 
 **Damping** from viscosity alone: the energy the laminar Stokes boundary layers on the floor
 and the walls dissipate per cycle, over the mode's energy (Keulegan, "Energy dissipation in
@@ -35,18 +44,21 @@ walls and the side walls gives::
 
     ζ = √(ν / 2ω) · [ k (1 − 2h/L) / sinh(2kh) + 1/L + 1/W ]
 
-(water, 8 mL in the soup spoon: ζ ≈ 0.020 along, 0.015 across). A contact line moving on the
-spoon and a contaminated surface add damping the formula leaves out, so the model rings
-longer than the real liquid: it errs towards predicting spill.
+The dish's mode takes it for the tank of the surface's length and width and the mean
+depth, at the dish's frequency (water, 8 mL in the soup spoon: ζ ≈ 0.018 along, 0.013
+across). A contact line moving on the spoon and a contaminated surface add damping the
+formula leaves out, so the model rings longer than the real liquid: it errs towards
+predicting spill.
 
-**Limits, stated.** The mode is a rectangular tank's, not the elliptic dish's with sloped
-walls (which lower the frequency somewhat); the whole static response is carried by the first
-mode (higher modes, faster and smaller, are left out); the surface is kept a plane (the mode's
-cosine shape reaches the rim with the plane's wall height); linear in the slopes (fine below
-~30° where everything spills anyway); the frequency is the initial fill's (liquid that spilled
-does not change it); the dish's rotation enters through ``p_eq`` and through the acceleration
-of the centroid it causes (a pendulum whose mass sits at the centroid), the Coriolis term is
-second order. No surface tension: a meniscus pinned at the rim holds a few degrees more.
+**Limits, stated.** The frequency is the plane's: a true mode that bends away from a plane
+rings somewhat lower (a flat-floored round tank: wavenumber 1.841/R against the plane's 2/R,
+4–9 % in frequency from deep to shallow); the whole static response is carried by the first
+mode (higher modes, faster and smaller, are left out); the surface is kept a plane; linear
+in the slopes (fine below ~30° where everything spills anyway); the frequency is the initial
+fill's (liquid that spilled does not change it); the dish's rotation enters through ``p_eq``
+and through the acceleration of the centroid it causes (a pendulum whose mass sits at the
+centroid), the Coriolis term is second order. No surface tension: a meniscus pinned at the
+rim holds a few degrees more.
 """
 
 from __future__ import annotations
@@ -68,6 +80,7 @@ __all__ = [
     "SloshModel",
     "SloshPrediction",
     "apparent_gravity",
+    "dish_mode",
     "rectangular_tank_mode",
     "uniform_grid",
 ]
@@ -97,11 +110,36 @@ def rectangular_tank_mode(length: float, width: float, depth: float,
                          f"{length}, {width}, {depth}, {g}")
     k = math.pi / length
     omega = math.sqrt(g * k * math.tanh(k * depth))
+    return omega, _stokes_damping(omega, length, width, depth, nu)
+
+
+def _stokes_damping(omega: float, length: float, width: float, depth: float,
+                    nu: float) -> float:
+    """Keulegan's viscous damping ratio of a tank's first mode along ``length`` ringing at
+    ``omega`` (the module doc's formula)."""
+    k = math.pi / length
     x = 2.0 * k * depth
     over_sinh = 2.0 * math.exp(-x) / -math.expm1(-2.0 * x)  # 1 / sinh(x), no overflow
-    zeta = math.sqrt(nu / (2.0 * omega)) * (
+    return math.sqrt(nu / (2.0 * omega)) * (
         k * (1.0 - 2.0 * depth / length) * over_sinh + 1.0 / length + 1.0 / width)
-    return omega, zeta
+
+
+def dish_mode(semi_along: float, semi_across: float, volume: float,
+              g: float = STANDARD_GRAVITY,
+              nu: float = WATER_KINEMATIC_VISCOSITY) -> tuple[float, float]:
+    """(ω rad/s, ζ) of a plane free surface tilting along ``semi_along`` — an elliptic
+    surface of semi-axes ``semi_along`` × ``semi_across`` (m) over ``volume`` m³ of liquid:
+    Rayleigh's shallow-water quotient ``gV/I`` with linear theory's finite-depth correction,
+    and the viscous damping of the tank of the surface's extent (see the module doc)."""
+    A, B, v = float(semi_along), float(semi_across), float(volume)
+    if not (A > 0 and B > 0 and v > 0 and g > 0 and nu >= 0):
+        raise ValueError(f"a dish mode needs positive semi-axes, volume and g; got "
+                         f"{A}, {B}, {v}, {g}")
+    depth = v / (math.pi * A * B)
+    omega0 = math.sqrt(g * v / (0.25 * math.pi * A ** 3 * B))
+    kh = omega0 * math.sqrt(depth / g)
+    omega = omega0 * math.sqrt(math.tanh(kh) / kh)
+    return omega, _stokes_damping(omega, 2.0 * A, 2.0 * B, depth, nu)
 
 
 @dataclass(frozen=True)
@@ -265,10 +303,8 @@ class SloshModel:
         self._filters: list[tuple[NDArray[np.float64], NDArray[np.float64]]] = []
         if v > _MIN_VOLUME:
             self.modes = (
-                SloshMode("across", 2 * B, 2 * A, self.mean_depth,
-                          *rectangular_tank_mode(2 * B, 2 * A, self.mean_depth, g, nu)),
-                SloshMode("along", 2 * A, 2 * B, self.mean_depth,
-                          *rectangular_tank_mode(2 * A, 2 * B, self.mean_depth, g, nu)))
+                SloshMode("across", 2 * B, 2 * A, self.mean_depth, *dish_mode(B, A, v, g, nu)),
+                SloshMode("along", 2 * A, 2 * B, self.mean_depth, *dish_mode(A, B, v, g, nu)))
             from scipy.signal import cont2discrete
 
             for m in self.modes:
