@@ -45,13 +45,15 @@ SPILL_G = 0.05  # g: a trial "spills" above this (the particle water's grains ar
 CONDITIONS = ("locked", "leveling", "slosh_free")
 
 
-def _plans(goals: list[Any], start: np.ndarray, spec: Any) -> dict[tuple[str, str], Any]:
-    """One decoupled and one strict ±20° plan per goal (the paths every scale re-times)."""
+def _plans(goals: list[tuple[int, Any]], start: np.ndarray,
+           spec: Any) -> dict[tuple[str, str], Any]:
+    """One decoupled and one strict ±20° plan per (index in the staging set, goal): the paths
+    every scale re-times."""
     from articutool.planning.api import plan
     from articutool.planning.types import PlanRequest, TransportTask
 
     out = {}
-    for i, g in enumerate(goals):
+    for i, g in goals:
         for planner, tol in (("decoupled", None), ("strict6", 20.0)):
             req = PlanRequest(planner=planner, task=TransportTask(i, tuple(start), tuple(g.q)),
                               timeout_s=30.0, seed=SEED0 + i, tolerance_deg=tol,
@@ -265,7 +267,9 @@ def main() -> None:
 
     spec = load_spec()
     sset = Scene.load().staging_set
-    goals = [g for g in sset.goals if not args.goals or g.name in args.goals.split(",")]
+    # A goal keeps its index in the staging set (its seeds) when --goals picks a subset.
+    goals = [(i, g) for i, g in enumerate(sset.goals)
+             if not args.goals or g.name in args.goals.split(",")]
     start = np.asarray(sset.start, dtype=float)
     out = Path(args.out)
     doc: dict[str, Any] = json.loads(out.read_text()) if out.exists() else {}
@@ -282,7 +286,7 @@ def main() -> None:
                 "command": " ".join(sys.argv), "source": source,
                 "loadavg_start": os.getloadavg()})
     plans = _plans(goals, start, spec)
-    for gi, g in enumerate(goals):
+    for gi, g in goals:
         for cond in args.conditions.split(","):
             planner = "strict6" if cond == "locked" else "decoupled"
             if (g.name, planner) not in plans:
