@@ -1,0 +1,113 @@
+"""Exp. 1 (thesis §5.1, H1): acquisition — from above the plate, acquire with the system's
+strategy and move level to Resting; the mass on the utensil there."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from articutool.experiments.analysis import ok_records, summarize_mass
+from articutool.experiments.config import ExperimentsConfig
+from articutool.experiments.figures import mass_bars
+from articutool.experiments.markdown import mass_rows, table
+from articutool.experiments.protocols import bite
+from articutool.experiments.records import BiteCondition, BiteOutcome, TrialRecord
+from articutool.experiments.unit import (
+    Experiment,
+    Hook,
+    Visitors,
+    add_foods_argument,
+    add_physics_argument,
+)
+
+if TYPE_CHECKING:
+    from articutool.sim.world import SettleCache
+
+__all__ = ["EXPERIMENT", "exp1_trial", "summarize_exp1"]
+
+
+def exp1_trial(cond: BiteCondition, seed: int, cfg: ExperimentsConfig,
+               hook: Hook = None, visitors: Visitors = (),
+               settled: SettleCache | None = None) -> BiteOutcome:
+    """Exp. 1 (§5.1): from AbovePlate, acquire with the system's strategy, move
+    level-constrained to Resting; the mass on the utensil there (``mass_g``, ground truth;
+    ``ft_mass_g`` as the F/T sensor weighs it when comparable)."""
+    rec = bite(cond, seed, cfg, hook, ("above", "acquire", "resting"), cfg.exp1.timeout_s,
+                visitors, settled)
+    rec["mass_g"] = rec["weighed_end_g"]  # as the experimenter weighs it (strands: borne)
+    return BiteOutcome.model_validate(rec)
+
+
+
+def summarize_exp1(records: Sequence[TrialRecord], cfg: Any) -> dict[str, Any]:
+    """Mass on the utensil at Resting per food and system, Welch (§5.1)."""
+    return {"acquired_g": summarize_mass(ok_records(records), cfg.exp1.foods, cfg.exp1.systems,
+                                         lambda o: o.mass_g)}
+
+
+
+def section_exp1(s: Mapping[str, Any], cfg: Any) -> str:
+    """The acquired mass per food and system beside the thesis'."""
+    th = cfg.thesis["exp1"]
+
+    def cell(f: str, sys_: str, d: Mapping[str, Any]) -> list[str]:
+        t = th.get(f, {}).get(sys_)
+        return [f"{t[0]:.2f} ± {t[1]:.2f}" if t else "–"]
+
+    rows = mass_rows(s["acquired_g"], cfg.exp1.foods, cfg.exp1.systems, th, cell)
+    return table(["food", "system", "n", "acquired (g), mean ± SD", "95 % CI",
+                   "thesis (g)", "Welch p (ours)", "p (thesis)"], rows)
+
+
+
+class Exp1(Experiment):
+    """Exp. 1."""
+
+    name = "exp1"
+    help = "acquisition, H1 (§5.1)"
+    title = "Exp. 1 — acquisition (H1, §5.1; cf. Fig. 6.1)"
+    order = 10
+    condition = BiteCondition
+    outcome = BiteOutcome
+
+    def add_arguments(self, parser: argparse.ArgumentParser) -> None:
+        add_physics_argument(parser)
+        add_foods_argument(parser)
+
+    def conditions(self, cfg: ExperimentsConfig, **inputs: Any) -> list[Any]:
+        return [BiteCondition(food=f, system=s) for f in cfg.exp1.foods
+                for s in cfg.exp1.systems]
+
+    def run_trial(self, cond: BiteCondition, seed: int, cfg: ExperimentsConfig,
+                  hook: Hook = None, visitors: Visitors = (),
+                  settled: SettleCache | None = None) -> BiteOutcome:
+        return exp1_trial(cond, seed, cfg, hook, visitors, settled)
+
+    def summarize(self, records: Sequence[TrialRecord], cfg: ExperimentsConfig,
+                  **settings: Any) -> dict[str, Any]:
+        return summarize_exp1(records, cfg)
+
+    def section(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> str:
+        return section_exp1(summary, cfg)
+
+    def differences(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> list[str]:
+        s, th, out = summary, cfg.thesis, []
+        for f in cfg.exp1.foods:
+            for sys_ in cfg.exp1.systems:
+                m = s["acquired_g"][f][sys_].get("mean")
+                t = th["exp1"].get(f, {}).get(sys_)
+                if m is not None and t:
+                    out.append(f"{f}, {sys_}: {m:.2f} g vs the thesis' {t[0]:.2f} g "
+                               f"({m - t[0]:+.2f} g)")
+        return out
+
+    def figure(self, records: Sequence[TrialRecord], summary: Mapping[str, Any],
+               cfg: ExperimentsConfig, directory: Path) -> Path | None:
+        return mass_bars(records, summary["acquired_g"], cfg.exp1.foods, cfg.exp1.systems,
+                         lambda o: o.mass_g, "mass on the utensil at Resting (g), mean ± 95% CI",
+                         "Exp. 1: acquisition (cf. thesis Fig. 6.1)", directory / "exp1.png")
+
+
+EXPERIMENT = Exp1()
