@@ -31,9 +31,9 @@ from pathlib import Path
 from typing import Any
 
 from articutool.experiments.config import ExperimentsConfig
-from articutool.experiments.protocols import exp1_trial
 from articutool.experiments.records import BiteCondition
 from articutool.experiments.stats import describe, welch
+from articutool.experiments.units.exp1 import exp1_trial
 from articutool.feeding.strategies import default_strategies_path
 from noodle_twirl import twirl_vs_still
 

@@ -14,6 +14,7 @@ from articutool.experiments import report
 from articutool.experiments.analysis import summarize, summarize_exp2a
 from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.runner import read_trial_log
+from articutool.experiments.units.exp3 import meaningful_at
 from articutool.thresholds import exp1_means
 
 CFG = ExperimentsConfig.load()
@@ -27,12 +28,12 @@ def _figures() -> set[str]:
 
 def test_every_figure_of_the_deviations_table_is_computed_from_the_committed_run() -> None:
     out = RESULTS / "experiments"
-    recs = {e: read_trial_log(out, e).records for e in report.ORDER}
+    recs = {e: read_trial_log(out, e).records for e in [u.name for u in report.order()]}
     means = exp1_means(out)
     summaries = {e: summarize(e, r, CFG, thresholds_g={f: means[f] for f in CFG.exp2c.foods},
                               threshold_g=means[CFG.exp3.food]) for e, r in recs.items()}
     summaries["exp2c"]["load_g"] = report.read_summary(out / "exp2c" / "summary.json")["load_g"]
-    summaries["exp3"]["at_thesis_threshold"] = report.meaningful_at(
+    summaries["exp3"]["at_thesis_threshold"] = meaningful_at(
         recs["exp3"], CFG.exp3.systems, CFG.thesis["exp3"]["threshold_g"])
     run, bench = report.read_exp2a(RESULTS / "exp2a")
     assert run is not None
@@ -61,14 +62,12 @@ def test_the_benchmark_beside_the_results_joins_the_hypotheses(tmp_path: Path) -
               "planning_time_s": (0.01 if s == "decoupled" else 0.1) * (1 + 0.01 * k)}
              for s in ("decoupled", "strict6") for k in range(12)]
     (bench / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in lines))
-    md = report.write_report(out, CFG, thresholds_g=None, thresholds_source="none",
-                             threshold_g=None, exp2a=bench)[0].read_text()
+    md = report.write_report(out, CFG, exp2a=bench)[0].read_text()
     assert "Exp. 2a — transport planning benchmark" in md
     assert "the decoupled planner plans faster than strict6" in md
     assert "| strict6 | 12/12 |" in md
     assert "Where our protocol differs from the thesis'" in md
-    none = report.write_report(out, CFG, thresholds_g=None, thresholds_source="none",
-                               threshold_g=None, exp2a=tmp_path / "nothing")[0].read_text()
+    none = report.write_report(out, CFG, exp2a=tmp_path / "nothing")[0].read_text()
     assert "| H2 | Fig. 6.2 | exp2a's claims |  | not run |" in none
 
 

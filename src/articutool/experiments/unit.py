@@ -23,7 +23,6 @@ if TYPE_CHECKING:
     import py_trees
 
     from articutool.experiments.config import ExperimentsConfig
-    from articutool.experiments.records import ConditionBase, OutcomeBase, TrialRecord
     from articutool.sim.world import FeedingWorld, SettleCache
 
 __all__ = ["MAX_LOAD_G", "Experiment", "Hook", "Visitors", "add_foods_argument",
@@ -46,8 +45,10 @@ class Experiment:
     help: ClassVar[str]  # the subcommand's help
     title: ClassVar[str]  # the report section's title
     order: ClassVar[int]  # the section's place in the report (the thesis' order)
-    condition: ClassVar[type[ConditionBase]]
-    outcome: ClassVar[type[OutcomeBase]]
+    # Its condition and outcome: subclasses of records.ConditionBase and records.OutcomeBase
+    # (named here without importing them: the records' reader imports this registry).
+    condition: ClassVar[type[Any]]
+    outcome: ClassVar[type[Any]]
     # What the run's inputs (:meth:`inputs`) note in the summary, kept by the report.
     noted_inputs: ClassVar[tuple[str, ...]] = ()
     # What the analysis settings (:meth:`analysis`) note in the summary.
@@ -93,12 +94,12 @@ class Experiment:
         raise NotImplementedError
 
     # ---------------------------------------------------------------------- analysis --
-    def summarize(self, records: Sequence[TrialRecord], cfg: ExperimentsConfig,
+    def summarize(self, records: Sequence[Any], cfg: ExperimentsConfig,
                   **settings: Any) -> dict[str, Any]:
         """The summary's body (pure)."""
         raise NotImplementedError
 
-    def report_extras(self, records: Sequence[TrialRecord], cfg: ExperimentsConfig
+    def report_extras(self, records: Sequence[Any], cfg: ExperimentsConfig
                       ) -> dict[str, Any]:
         """What the report adds to the summary beyond the run's (none by default)."""
         return {}
@@ -112,13 +113,13 @@ class Experiment:
         """Where our numbers differ from the thesis', by how much (one line each)."""
         return []
 
-    def facts(self, summary: Mapping[str, Any] | None, records: Sequence[TrialRecord],
+    def facts(self, summary: Mapping[str, Any] | None, records: Sequence[Any],
               cfg: ExperimentsConfig) -> dict[str, str]:
         """The figures the deviations table quotes (``{name}`` in ``experiments.toml
         [[deviations]]``) from this experiment's summary (``None``: not run) and records."""
         return {}
 
-    def figure(self, records: Sequence[TrialRecord], summary: Mapping[str, Any],
+    def figure(self, records: Sequence[Any], summary: Mapping[str, Any],
                cfg: ExperimentsConfig, directory: Path) -> Path | None:
         """Write the figure into ``directory`` (``records``: the trials that did not raise);
         None when there is none."""
