@@ -191,8 +191,9 @@ def test_report_recomputes_the_thesis_exp3_p_value_from_its_counts(cfg) -> None:
     exact test on those counts gives p ≈ 0.056. The report prints both and says which is
     which."""
     from articutool.experiments import report
+    from articutool.experiments.units.exp3 import thesis_exp3_no_spill
 
-    r = report.thesis_exp3_no_spill(cfg.thesis["exp3"])
+    r = thesis_exp3_no_spill(cfg.thesis["exp3"])
     assert r is not None and r.table == ((14, 6), (7, 13))
     assert r.p == pytest.approx(0.056, abs=5e-4)
     recs = [bite(5.0, system="articutool", planning_attempts=1),
@@ -203,7 +204,7 @@ def test_report_recomputes_the_thesis_exp3_p_value_from_its_counts(cfg) -> None:
             "spill, Fisher's exact test, two-sided): p = 0.056") in md
     # Without the thesis' counts nothing is made up: only the printed value stays.
     blind = {k: v for k, v in cfg.thesis["exp3"].items() if k != "baseline"}
-    assert report.thesis_exp3_no_spill(blind) is None
+    assert thesis_exp3_no_spill(blind) is None
 
 
 def test_every_comparison_the_verdicts_read_is_in_the_summaries(cfg) -> None:
