@@ -11,8 +11,9 @@ from pathlib import Path
 import pytest
 
 from articutool.experiments import report
-from articutool.experiments.analysis import summarize, summarize_exp2a
+from articutool.experiments.analysis import summarize
 from articutool.experiments.config import ExperimentsConfig
+from articutool.experiments.exp2a import read_exp2a, summarize_exp2a
 from articutool.experiments.runner import read_trial_log
 from articutool.experiments.units.exp3 import meaningful_at
 from articutool.thresholds import exp1_means
@@ -35,7 +36,7 @@ def test_every_figure_of_the_deviations_table_is_computed_from_the_committed_run
     summaries["exp2c"]["load_g"] = report.read_summary(out / "exp2c" / "summary.json")["load_g"]
     summaries["exp3"]["at_thesis_threshold"] = meaningful_at(
         recs["exp3"], CFG.exp3.systems, CFG.thesis["exp3"]["threshold_g"])
-    run, bench = report.read_exp2a(RESULTS / "exp2a")
+    run, bench = read_exp2a(RESULTS / "exp2a")
     assert run is not None
     summaries["exp2a"] = {**summarize_exp2a(bench, run["timeout_s"]), "algorithm": "rrtconnect"}
     facts = report.deviation_facts(summaries, recs, out, CFG)
@@ -77,7 +78,7 @@ def test_an_unreadable_benchmark_folder_is_refused_naming_it(tmp_path: Path, bad
 
     (tmp_path / "run.json").write_text(bad)
     with pytest.raises(ResultsError, match=r"run\.json"):
-        report.read_exp2a(tmp_path)
+        read_exp2a(tmp_path)
 
 
 def test_a_benchmark_folder_that_is_not_one_exits_2_naming_the_option(tmp_path, capsys) -> None:

@@ -234,8 +234,10 @@ def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
 
     import articutool.feeding.tree as tree
     import articutool.meal.bites as meal
-    from articutool.experiments import protocols
+    import articutool.sim.arm_driver as arm_driver
+    import articutool.sim.world as world
     from articutool.experiments.runner import run_trial
+    from articutool.experiments.units import capacity
 
     got: list[object] = []
 
@@ -248,10 +250,10 @@ def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
     monkeypatch.setattr(tree, "transport_tree", mock.MagicMock())
     monkeypatch.setattr(meal, "make_bite_world", lambda *a, **k: SimpleNamespace(
         world=mock.MagicMock(), arm=mock.MagicMock(), strategy=mock.MagicMock()))
-    monkeypatch.setattr(protocols, "capacity_strategy", lambda s, _: s)
+    monkeypatch.setattr(capacity, "capacity_strategy", lambda s, _: s)
     monkeypatch.setattr(meal, "shed_configuration", lambda *a, **k: None)
-    for name in ("FeedingWorld", "sim_arm"):
-        monkeypatch.setattr(protocols, name, mock.MagicMock())
+    monkeypatch.setattr(world, "FeedingWorld", mock.MagicMock())
+    monkeypatch.setattr(arm_driver, "sim_arm", mock.MagicMock())
     goals = ["centre"]
     conds = conditions(experiment, ExperimentsConfig.load(), goals=goals,
                        load_g={"pecans": 5.0, "water": 5.0})

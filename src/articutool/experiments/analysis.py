@@ -13,7 +13,7 @@ numerical instability (``PhysicsResetError``) are counted apart.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 import numpy as np
@@ -29,13 +29,26 @@ from articutool.experiments.stats import (
     proportion_ci,
     welch,
     welch_ci,
-    wilcoxon_paired,
 )
 from articutool.feeding.outcomes import classify_bite
 
-__all__ = ["by_place", "class_counts", "classify", "compare_counts", "compare_samples",
-           "completeness", "food_system", "measured", "ok_records", "rate",
-           "representative_trials", "summarize", "summarize_exp2a", "summarize_mass", "where"]
+__all__ = [
+    "by_place",
+    "class_counts",
+    "classify",
+    "compare_counts",
+    "compare_samples",
+    "completeness",
+    "food_system",
+    "measured",
+    "ok_records",
+    "pv",
+    "rate",
+    "representative_trials",
+    "summarize",
+    "summarize_mass",
+    "where",
+]
 
 
 def ok_records(records: Iterable[TrialRecord]) -> list[TrialRecord]:
@@ -89,7 +102,8 @@ def rate(k: int, n: int) -> dict[str, Any]:
             "ci95": [lo, hi] if n else None}
 
 
-def _pv(p: float) -> float | None:
+def pv(p: float) -> float | None:
+    """A p-value for a summary: ``None`` when not finite."""
     return float(p) if np.isfinite(p) else None
 
 
@@ -99,7 +113,7 @@ def compare_samples(a: Sequence[float], b: Sequence[float]) -> dict[str, Any]:
     interval and with the bootstrap's (``effect``). Which of them decides a claim's verdict
     is pre-registered (``experiments.toml [tests]``)."""
     return {"n": [len(a), len(b)],
-            "p": {"welch": _pv(welch(a, b).p), "mann_whitney": _pv(mann_whitney(a, b))},
+            "p": {"welch": pv(welch(a, b).p), "mann_whitney": pv(mann_whitney(a, b))},
             "effect": {"welch": welch_ci(a, b).to_dict(),
                        "bootstrap": bootstrap_ci(a, b).to_dict()}}
 
@@ -108,8 +122,8 @@ def compare_counts(a_k: int, a_n: int, b_k: int, b_n: int) -> dict[str, Any]:
     """Rate a_k/a_n against b_k/b_n: Fisher's and Boschloo's exact tests (``p``) and the
     difference of the rates with Newcombe's interval (``effect``)."""
     return {"n": [a_n, b_n], "k": [a_k, b_k],
-            "p": {"fisher": _pv(fisher(a_k, a_n, b_k, b_n).p),
-                  "boschloo": _pv(boschloo(a_k, a_n, b_k, b_n))},
+            "p": {"fisher": pv(fisher(a_k, a_n, b_k, b_n).p),
+                  "boschloo": pv(boschloo(a_k, a_n, b_k, b_n))},
             "effect": {"newcombe": newcombe_ci(a_k, a_n, b_k, b_n).to_dict()}}
 
 
@@ -149,53 +163,6 @@ def by_place(records: Sequence[TrialRecord]) -> dict[str, dict[str, float]]:
             e = out.setdefault(place, {"g": 0.0, "trials": 0})
             e["g"] = round(e["g"] + float(g), 4)
             e["trials"] += int(float(g) > 1e-9)
-    return out
-
-
-def summarize_exp2a(records: Sequence[Mapping[str, Any]], timeout_s: float,
-                    decoupled: str = "decoupled") -> dict[str, Any]:
-    """The transport planning benchmark (Exp. 2a, ``articutool bench transport``'s records),
-    ``decoupled`` against each strict planner (a record's ``system``): tasks solved (Fisher,
-    Boschloo; Newcombe's interval of the difference) and planning time. Times: the ratio of
-    the strict planner's
-    median to the decoupled one's over the solved tasks (the thesis' medians), with the
-    bootstrap interval; Mann–Whitney, Welch and the Wilcoxon signed-rank test (tasks
-    paired) over every task, a failed plan counted as taking the whole ``timeout_s``."""
-    by: dict[str, dict[int, Mapping[str, Any]]] = {}
-    for r in records:
-        if r.get("tolerance_deg") is None:  # the benchmark's own ±10°, not a sweep
-            by.setdefault(str(r["system"]), {})[int(r["task_id"])] = r
-
-    def time(r: Mapping[str, Any]) -> float:
-        return float(r["planning_time_s"]) if r.get("success") else float(timeout_s)
-
-    def solved(rs: Iterable[Mapping[str, Any]]) -> list[float]:
-        return [float(r["planning_time_s"]) for r in rs if r.get("success")]
-
-    every = [t for rs in by.values() for t in solved(rs.values())]
-    out: dict[str, Any] = {"timeout_s": timeout_s, "planners": {}, "against": {},
-                           "max_solved_s": max(every) if every else None}
-    for name, rs in by.items():
-        t = solved(rs.values())
-        out["planners"][name] = {"tasks": len(rs), "solved": len(t),
-                                 "median_s": float(np.median(t)) if t else None}
-    dec = by.get(decoupled, {})
-    for name, rs in by.items():
-        if name == decoupled or not dec:
-            continue
-        tasks = sorted(set(rs) & set(dec))
-        a = [time(rs[k]) for k in tasks]
-        d = [time(dec[k]) for k in tasks]
-        sa, sd = solved(rs[k] for k in tasks), solved(dec[k] for k in tasks)
-        times = {"n": [len(a), len(d)],
-                 "p": {"mann_whitney": _pv(mann_whitney(a, d)), "welch": _pv(welch(a, d).p),
-                       "wilcoxon": _pv(wilcoxon_paired(a, d)) if tasks else None},
-                 "effect": {"bootstrap": bootstrap_ci(sa, sd, "median ratio").to_dict()
-                            if sa and sd else None}}
-        out["against"][name] = {
-            "tasks": len(tasks),
-            "success": compare_counts(len(sd), len(tasks), len(sa), len(tasks)),
-            "time": times}
     return out
 
 

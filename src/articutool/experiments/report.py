@@ -18,11 +18,12 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from articutool.experiments import exp2a as bench
 from articutool.experiments.analysis import completeness, representative_trials, summarize
 from articutool.experiments.markdown import num, table
 from articutool.experiments.records import TrialRecord
 from articutool.experiments.unit import Experiment, registry, unit
-from articutool.experiments.verdicts import TEST_NAMES, code_versions, verdicts
+from articutool.experiments.verdicts import TEST_NAMES, Verdict, code_versions
 from articutool.thresholds import Grams
 
 if TYPE_CHECKING:
@@ -30,7 +31,7 @@ if TYPE_CHECKING:
 
 __all__ = ["CROSS_CHECKS", "HONESTY", "LogCheck", "check_log", "cross_checks",
            "deviation_facts", "deviations_section", "figure", "hypotheses_section", "order",
-           "read_exp2a", "read_summary", "section", "write_report"]
+           "read_summary", "section", "verdicts", "write_report"]
 
 
 def order() -> list[Experiment]:
@@ -86,11 +87,6 @@ class _SummaryFile(_Open):
     load_g: dict[str, Grams] | None = None
     load_source: str | None = None
     goals: list[str] | None = None
-
-
-class _BenchRun(_Open):
-    timeout_s: Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
-    planner: str | None = None
 
 
 def read_summary(path: Path) -> dict[str, Any] | None:
@@ -210,7 +206,6 @@ def figure(exp: str, records: Sequence[TrialRecord], summary: Mapping[str, Any],
     if not ok:
         return None
     return unit(exp).figure(ok, summary, cfg, directory)
-
 
 
 # ----------------------------------------------------------------------- sections --
@@ -398,8 +393,30 @@ _CI_METHODS = {"welch": "Welch's t interval of the difference of means",
                            "from the two Wilson intervals"}
 
 
+def verdicts(summaries: Mapping[str, Mapping[str, Any]], thesis: Mapping[str, Any],
+             alpha: float, tests: Mapping[str, Any]) -> list[Verdict]:
+    """One :class:`Verdict` per claim, in the thesis' order (H1, H2, H3): the claims of every
+    experiment that tests one (its ``verdicts``, :class:`~articutool.experiments.unit.
+    Experiment`) and of the planning benchmark (:mod:`articutool.experiments.exp2a`).
+    ``summaries`` maps an experiment to its summary (:mod:`articutool.experiments.analysis`);
+    ``tests`` is ``experiments.toml [tests]``, the pre-registered test of each kind of claim.
+    A missing experiment gives one "cannot test" row saying so."""
+    sources = sorted([bench.BENCHMARK, *(u for u in registry().values() if u.hypothesis)],
+                     key=lambda u: u.order)
+    out: list[Verdict] = []
+    for u in sources:
+        s = summaries.get(u.name)
+        rows = u.verdicts(s, thesis.get(u.name, {}), alpha, tests) if s else []
+        why = ("not run" if not s else "run, but no comparison could be formed (Exp. 2c "
+               "needs outcome thresholds: Exp. 1's means or --thresholds-g)")
+        out += rows or [Verdict(u.hypothesis, u.thesis_figure, f"{u.name}'s claims", "", why,
+                                "", "", "", "cannot test")]
+    return out
+
+
+
 def hypotheses_section(summaries: Mapping[str, Mapping[str, Any]], cfg: Any) -> str:
-    """The per-hypothesis table (:func:`articutool.experiments.verdicts.verdicts`), the
+    """The per-hypothesis table (:func:`verdicts`), the
     pre-registered tests it used (``experiments.toml [tests]``) and which code every trial
     ran (``run.sources`` of each experiment)."""
     alpha = cfg.settings.alpha
@@ -443,38 +460,6 @@ def hypotheses_section(summaries: Mapping[str, Mapping[str, Any]], cfg: Any) -> 
     return md
 
 
-def read_exp2a(directory: Path) -> tuple[dict[str, Any] | None, list[dict[str, Any]]]:
-    """The transport benchmark's run settings (``run.json``) and records
-    (``results.jsonl``, :func:`articutool.bench.runner.read_log`) in ``directory``;
-    ``(None, [])`` when it holds none."""
-    from articutool.bench.runner import read_log
-    from articutool.datafile import read_own_json
-
-    run = read_own_json(directory / "run.json", "Exp. 2a run settings", _BenchRun)
-    if run is None:
-        return None, []
-    return run.model_dump(), read_log(directory / "results.jsonl").records
-
-
-def _sec_exp2a(s: Mapping[str, Any], run: Mapping[str, Any], cfg: Any, where: str) -> str:
-    """The planning benchmark beside the thesis' Fig. 6.2 (our records at ``where``)."""
-    th = cfg.thesis.get("exp2a", {})
-    rows = []
-    for name, v in s["planners"].items():
-        t = th.get(name, {})
-        med = v.get("median_s")
-        rows.append([name, f"{v['solved']}/{v['tasks']}",
-                     "–" if med is None else f"{med * 1e3:.1f} ms",
-                     f"{t['success']:g} %, median {t['median_s']:g} s" if t else "–"])
-    return ("## Exp. 2a — transport planning benchmark (H2, §5.2.1; cf. Fig. 6.2)\n\n"
-            + table(["system", "solved", "median planning time (solved)",
-                      f"thesis ({th.get('timeout_s', '?'):g} s timeout)"], rows)
-            + f"\n\nOur records: `{where}` ({run.get('planner', '?')}, "
-              f"{s['timeout_s']:g} s per task; `articutool bench transport --out {where}`; "
-              "docs/planning.md). A failed plan counts as taking the whole timeout in the "
-              "rank tests.\n")
-
-
 def deviation_facts(summaries: Mapping[str, Mapping[str, Any]],
                     records: Mapping[str, Sequence[TrialRecord]], out: Path, cfg: Any
                     ) -> dict[str, str]:
@@ -484,16 +469,7 @@ def deviation_facts(summaries: Mapping[str, Mapping[str, Any]],
     facts`); a figure that cannot be formed is absent (shown as "–")."""
     f: dict[str, str] = {"plan_budget_s": f"{cfg.settings.plan_budget_s:g}"}
 
-    a2 = summaries.get("exp2a")
-    if a2:
-        f["exp2a_timeout_s"] = f"{a2['timeout_s']:g}"
-        f["exp2a_algorithm"] = str(a2.get("algorithm", "?"))
-        f["exp2a_tasks"] = str(max((v["tasks"] for v in a2["planners"].values()), default=0))
-        if a2.get("max_solved_s") is not None:
-            f["exp2a_max_solved_s"] = f"{a2['max_solved_s']:.1f}"
-        f["exp2a_unsolved"] = ", ".join(
-            f"{k} {v['tasks'] - v['solved']} of {v['tasks']}"
-            for k, v in a2["planners"].items()) or "–"
+    f.update(bench.facts(summaries.get("exp2a")))
     for u in order():
         f.update(u.facts(summaries.get(u.name), records.get(u.name, ()), cfg))
     f.update(_crosscheck_facts(out))
@@ -636,18 +612,16 @@ def write_report(out: Path, cfg: Any, *,
              "EXP_TRIALS=5 make experiments    # a shorter run\n"
              "articutool experiment exp2b --trial K --video trial.mp4   # replay one trial\n```\n",
              "## Honesty rules\n", HONESTY]
-    from articutool.experiments.analysis import summarize_exp2a
-
     missing = []
     machines = {}
     summaries: dict[str, Mapping[str, Any]] = {}
     records: dict[str, Sequence[TrialRecord]] = {}
     at_verdicts = len(parts)
-    run2a, recs2a = read_exp2a(exp2a) if exp2a is not None else (None, [])
+    run2a, recs2a = bench.read_exp2a(exp2a) if exp2a is not None else (None, [])
     if run2a is not None and recs2a:
-        summaries["exp2a"] = {**summarize_exp2a(recs2a, float(run2a["timeout_s"])),
+        summaries["exp2a"] = {**bench.summarize_exp2a(recs2a, float(run2a["timeout_s"])),
                               "algorithm": run2a.get("planner")}
-        parts.append(_sec_exp2a(summaries["exp2a"], run2a, cfg, str(exp2a)))
+        parts.append(bench.section_exp2a(summaries["exp2a"], run2a, cfg, str(exp2a)))
     checks = []
     for u in order():
         exp = u.name

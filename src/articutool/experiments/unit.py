@@ -49,6 +49,9 @@ class Experiment:
     # (named here without importing them: the records' reader imports this registry).
     condition: ClassVar[type[Any]]
     outcome: ClassVar[type[Any]]
+    # The thesis' hypothesis and figure whose claims it tests (None: it tests none).
+    hypothesis: ClassVar[str | None] = None
+    thesis_figure: ClassVar[str] = ""
     # What the run's inputs (:meth:`inputs`) note in the summary, kept by the report.
     noted_inputs: ClassVar[tuple[str, ...]] = ()
     # What the analysis settings (:meth:`analysis`) note in the summary.
@@ -111,6 +114,13 @@ class Experiment:
 
     def differences(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> list[str]:
         """Where our numbers differ from the thesis', by how much (one line each)."""
+        return []
+
+    def verdicts(self, summary: Mapping[str, Any], thesis: Mapping[str, Any], alpha: float,
+                 tests: Mapping[str, Any]) -> list[Any]:
+        """What our summary says of each claim it tests
+        (:class:`~articutool.experiments.verdicts.Verdict`; ``thesis``: its
+        ``[thesis.NAME]``, ``tests``: the pre-registered tests)."""
         return []
 
     def facts(self, summary: Mapping[str, Any] | None, records: Sequence[Any],

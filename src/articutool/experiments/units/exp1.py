@@ -21,6 +21,7 @@ from articutool.experiments.unit import (
     add_foods_argument,
     add_physics_argument,
 )
+from articutool.experiments.verdicts import Verdict, judge, mean_sd_g
 
 if TYPE_CHECKING:
     from articutool.sim.world import SettleCache
@@ -62,12 +63,40 @@ def section_exp1(s: Mapping[str, Any], cfg: Any) -> str:
 
 
 
+def claims_exp1(s: Mapping[str, Any], th: Mapping[str, Any], alpha: float,
+              tests: Mapping[str, Any]) -> list[Verdict]:
+    """Our summary ``s`` against the thesis' ``th`` on each claim it tests, judged by the
+    pre-registered ``tests`` at ``alpha`` (:func:`~articutool.experiments.verdicts.judge`)."""
+    out = []
+    for food, d in s["acquired_g"].items():
+        a, b = d.get("articutool"), d.get("baseline")
+        if not a or not b:
+            continue
+        t = th.get(food, {})
+        given = "articutool" in t and "baseline" in t
+        thesis = (f"{t['articutool'][0]:.2f} vs {t['baseline'][0]:.2f} g, p {t.get('p')}"
+                  if given else "not given")
+        none_moved = a.get("mean") == 0 and b.get("mean") == 0
+        both_constant = not a.get("sd") and not b.get("sd")
+        test, size, others, verdict = judge(
+            d.get("compare"), tests["exp1"],
+            t["articutool"][0] - t["baseline"][0] if given else None, +1, alpha,
+            none_moved or both_constant, "g")
+        out.append(Verdict("H1", "Fig. 6.1", f"{food}: the Articutool acquires more than the "
+                           "baseline", thesis, f"{mean_sd_g(a)} vs {mean_sd_g(b)}", test, size,
+                           others, verdict))
+    return out
+
+
+
 class Exp1(Experiment):
     """Exp. 1."""
 
     name = "exp1"
     help = "acquisition, H1 (§5.1)"
     title = "Exp. 1 — acquisition (H1, §5.1; cf. Fig. 6.1)"
+    hypothesis = "H1"
+    thesis_figure = "Fig. 6.1"
     order = 10
     condition = BiteCondition
     outcome = BiteOutcome
@@ -88,6 +117,11 @@ class Exp1(Experiment):
     def summarize(self, records: Sequence[TrialRecord], cfg: ExperimentsConfig,
                   **settings: Any) -> dict[str, Any]:
         return summarize_exp1(records, cfg)
+
+    def verdicts(self, summary: Mapping[str, Any], thesis: Mapping[str, Any], alpha: float,
+                 tests: Mapping[str, Any]) -> list[Verdict]:
+        """The claims of Fig. 6.1 (:mod:`articutool.experiments.verdicts`)."""
+        return claims_exp1(summary, thesis, alpha, tests)
 
     def section(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> str:
         return section_exp1(summary, cfg)

@@ -36,6 +36,7 @@ from articutool.experiments.unit import (
     add_foods_argument,
     usage,
 )
+from articutool.experiments.verdicts import Verdict, judge, mean_sd_g
 
 if TYPE_CHECKING:
     from articutool.planning.pc_arm import PCArm
@@ -334,12 +335,44 @@ def _sec_exp2b_variants(s: Mapping[str, Any], cfg: Any) -> str:
 
 
 
+def claims_exp2b(s: Mapping[str, Any], th: Mapping[str, Any], alpha: float,
+               tests: Mapping[str, Any]) -> list[Verdict]:
+    """Our summary ``s`` against the thesis' ``th`` on each claim it tests, judged by the
+    pre-registered ``tests`` at ``alpha`` (:func:`~articutool.experiments.verdicts.judge`)."""
+    out = []
+    for food, d in s["spilled_g"].items():
+        a, b = d.get("articutool"), d.get("baseline")
+        if not a or not b:
+            continue
+        t = th.get(food, {})
+        given = isinstance(t.get("articutool"), float | int) and isinstance(
+            t.get("baseline"), float | int)
+        thesis = (f"{t['articutool']:.2f} vs {t['baseline']:.2f} g spilled, p {t.get('p')}"
+                  if given else t.get("note", "not given"))
+        nz = (a.get("nonzero", {}).get("k"), b.get("nonzero", {}).get("k"))
+        test, size, others, verdict = judge(
+            d.get("compare"), tests["exp2b"],
+            t["articutool"] - t["baseline"] if given else None, -1, alpha,
+            not a.get("sd") and not b.get("sd"), "g",
+            labels={"fisher": "Fisher (spill frequency)"})
+        spills = (f"; spilled in {nz[0]}/{a['n']} vs {nz[1]}/{b['n']}"
+                  if None not in nz else "")
+        out.append(Verdict(
+            "H2", "Fig. 6.3", f"{food}: the Articutool spills less in transport than the "
+            "locked baseline", thesis, f"{mean_sd_g(a)} vs {mean_sd_g(b)} spilled{spills}", test,
+            size, others, verdict))
+    return out
+
+
+
 class Exp2b(Experiment):
     """Exp. 2b."""
 
     name = "exp2b"
     help = "transport of placed loads to five Staging goals, H2 (§5.2.2)"
     title = "Exp. 2b — transport of placed loads (H2, §5.2.2; cf. Fig. 6.3)"
+    hypothesis = "H2"
+    thesis_figure = "Fig. 6.3"
     order = 20
     condition = Exp2bCondition
     outcome = Exp2bOutcome
@@ -383,6 +416,11 @@ class Exp2b(Experiment):
     def summarize(self, records: Sequence[TrialRecord], cfg: ExperimentsConfig,
                   **settings: Any) -> dict[str, Any]:
         return summarize_exp2b(records, cfg)
+
+    def verdicts(self, summary: Mapping[str, Any], thesis: Mapping[str, Any], alpha: float,
+                 tests: Mapping[str, Any]) -> list[Verdict]:
+        """The claims of Fig. 6.3 (:mod:`articutool.experiments.verdicts`)."""
+        return claims_exp2b(summary, thesis, alpha, tests)
 
     def section(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> str:
         return section_exp2b(summary, cfg)

@@ -36,6 +36,7 @@ from articutool.experiments.unit import (
     parse_food_grams,
     usage,
 )
+from articutool.experiments.verdicts import Verdict, judge
 from articutool.sim import accounting as acc
 
 if TYPE_CHECKING:
@@ -383,12 +384,54 @@ def _closed_loop_targets(thresholds: dict[str, float], cfg: Any) -> dict[str, fl
 
 
 
+_EXP2C = {"primitive": ("", "the open-loop primitive"),
+          "closed_loop": ("_closed_loop", "the closed-loop primitive")}
+
+
+def claims_exp2c(s: Mapping[str, Any], th: Mapping[str, Any], alpha: float,
+               tests: Mapping[str, Any]) -> list[Verdict]:
+    """Our summary ``s`` against the thesis' ``th`` on each claim it tests, judged by the
+    pre-registered ``tests`` at ``alpha`` (:func:`~articutool.experiments.verdicts.judge`)."""
+    if not s.get("thresholds_g"):
+        return []
+    out = []
+    for food, d in s["foods"].items():
+        ctrl = d.get("control")
+        if not ctrl:
+            continue
+        for cond, (suffix, name) in _EXP2C.items():
+            c = d.get(cond)
+            comp = d.get("compare_meaningful" + suffix)
+            if not c or comp is None:
+                continue
+            ms_c = ctrl["percent"].get("meaningful_success", 0.0)
+            ms_p = c["percent"].get("meaningful_success", 0.0)
+            tc = th.get(f"{food}_control", {}).get("meaningful_success", 0.0)
+            tp = th.get(f"{food}_primitive", {}).get("meaningful_success")
+            thesis = (f"meaningful success {tp:g} % with the primitive vs {tc:g} % control"
+                      if tp is not None else "not given")
+            constant = ms_c == ms_p and ms_c in (0.0, 100.0)
+            test, size, others, verdict = judge(
+                comp, tests["exp2c"], (tp - tc) / 100 if tp is not None else None, +1,
+                alpha, constant, "points")
+            out.append(Verdict(
+                "H2", "Fig. 6.4", f"{food}: {name} raises meaningful success over control",
+                thesis + (" (open loop; the thesis had no closed loop)"
+                          if cond == "closed_loop" else ""),
+                f"{ms_p:.0f} % vs {ms_c:.0f} % (n {c['n']} / {ctrl['n']})", test, size,
+                others, verdict))
+    return out
+
+
+
 class Exp2c(Experiment):
     """Exp. 2c."""
 
     name = "exp2c"
     help = "shedding primitives vs control, H2 (§5.2.3)"
     title = "Exp. 2c — shedding primitives (H2, §5.2.3; cf. Fig. 6.4)"
+    hypothesis = "H2"
+    thesis_figure = "Fig. 6.4"
     order = 30
     condition = Exp2cCondition
     outcome = Exp2cOutcome
@@ -448,6 +491,11 @@ class Exp2c(Experiment):
                   thresholds_g: Mapping[str, float] | None = None, **settings: Any
                   ) -> dict[str, Any]:
         return summarize_exp2c(records, cfg, thresholds_g)
+
+    def verdicts(self, summary: Mapping[str, Any], thesis: Mapping[str, Any], alpha: float,
+                 tests: Mapping[str, Any]) -> list[Verdict]:
+        """The claims of Fig. 6.4 (:mod:`articutool.experiments.verdicts`)."""
+        return claims_exp2c(summary, thesis, alpha, tests)
 
     def section(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> str:
         return section_exp2c(summary, cfg)

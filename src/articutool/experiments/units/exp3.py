@@ -31,7 +31,7 @@ from articutool.experiments.unit import (
     add_physics_argument,
     usage,
 )
-from articutool.experiments.verdicts import thesis_trials
+from articutool.experiments.verdicts import Verdict, judge, mean_sd_g
 from articutool.feeding.outcomes import OUTCOMES
 
 if TYPE_CHECKING:
@@ -160,12 +160,75 @@ def section_exp3(s: Mapping[str, Any], cfg: Any) -> str:
 
 
 
+def claims_exp3(s: Mapping[str, Any], th: Mapping[str, Any], alpha: float,
+              tests: Mapping[str, Any]) -> list[Verdict]:
+    """Our summary ``s`` against the thesis' ``th`` on each claim it tests, judged by the
+    pre-registered ``tests`` at ``alpha`` (:func:`~articutool.experiments.verdicts.judge`)."""
+    a, b = s["systems"].get("articutool"), s["systems"].get("baseline")
+    if not a or not b or not a["n"] or not b["n"]:
+        return []
+    ta, tb = th.get("articutool", {}), th.get("baseline", {})
+    na, nb = thesis_trials(ta), thesis_trials(tb)
+    out = []
+    ms_a, ms_b = (x["counts"]["meaningful_success"] for x in (a, b))
+    no_food = not a["delivered_g"].get("mean") and not b["delivered_g"].get("mean")
+    given = bool(na and nb and "meaningful_success" in ta and "meaningful_success" in tb)
+    test, size, others, verdict = judge(
+        s.get("compare_meaningful"), tests["exp3_success"],
+        ta["meaningful_success"] / na - tb["meaningful_success"] / nb if given else None, +1,
+        alpha, no_food, "points")
+    out.append(Verdict(
+        "H3", "Fig. 6.5", "noodles end to end: the Articutool has more meaningful successes",
+        f"{ta.get('meaningful_success')}/{na} vs {tb.get('meaningful_success')}/{nb}"
+        + (f" (> {th['threshold_g']:g} g)" if "threshold_g" in th else ""),
+        f"{ms_a}/{a['n']} vs {ms_b}/{b['n']}"
+        + (f" (> {s['threshold_g']:.2f} g)" if s.get("threshold_g") is not None else "")
+        + f"; delivered {mean_sd_g(a['delivered_g'])} vs {mean_sd_g(b['delivered_g'])}", test, size,
+        others, verdict))
+    ok_a = ta.get("meaningful_success", 0) + ta.get("trivial_success", 0)
+    ok_b = tb.get("meaningful_success", 0) + tb.get("trivial_success", 0)
+    ns_a, ns_b = a["no_spill"]["k"], b["no_spill"]["k"]
+    test, size, others, verdict = judge(
+        s.get("compare_no_spill"), tests["exp3_no_spill"],
+        ok_a / na - ok_b / nb if na and nb else None, +1, alpha, no_food, "points")
+    out.append(Verdict(
+        "H3", "Fig. 6.5", "noodles end to end: the Articutool spills in fewer bites",
+        f"{ok_a}/{na} vs {ok_b}/{nb} without spill",
+        f"{ns_a}/{a['n']} vs {ns_b}/{b['n']} without spill", test, size, others, verdict))
+    pa, pb = a["planning_attempts"], b["planning_attempts"]
+    if pa.get("mean") is None or pb.get("mean") is None:
+        return out
+    given = "planning_attempts" in ta and "planning_attempts" in tb
+    equal_constants = not pa.get("sd") and not pb.get("sd") and pa["mean"] == pb["mean"]
+    test, size, others, verdict = judge(
+        s.get("compare_planning_attempts"), tests["exp3_attempts"],
+        ta["planning_attempts"] - tb["planning_attempts"] if given else None, -1, alpha,
+        False, "")
+    out.append(Verdict(
+        "H3", "attempts", "the Articutool needs fewer planning attempts to Staging",
+        f"{ta.get('planning_attempts')} vs {tb.get('planning_attempts')} attempts",
+        f"{pa['mean']:.2f} ± {pa['sd'] or 0.0:.2f} vs {pb['mean']:.2f} ± {pb['sd'] or 0.0:.2f}"
+        " attempts", test + ("; both constant" if equal_constants else ""), size, others,
+        # Equal constants are a measured "no difference", not an untestable claim.
+        "not reproduced" if equal_constants else verdict))
+    return out
+
+
+
+def thesis_trials(t: Mapping[str, Any]) -> int:
+    """The thesis' Exp. 3 trials of one system: the sum of its outcome counts (§6.3)."""
+    return sum(int(t.get(k, 0)) for k in OUTCOMES[:4])
+
+
+
 class Exp3(Experiment):
     """Exp. 3."""
 
     name = "exp3"
     help = "noodles end to end, H3 (§5.3)"
     title = "Exp. 3 — noodles end to end (H3, §5.3; cf. Fig. 6.5)"
+    hypothesis = "H3"
+    thesis_figure = "Fig. 6.5"
     order = 40
     condition = BiteCondition
     outcome = BiteOutcome
@@ -227,6 +290,11 @@ class Exp3(Experiment):
         if theirs is None:
             return {}
         return {"at_thesis_threshold": meaningful_at(records, cfg.exp3.systems, theirs)}
+
+    def verdicts(self, summary: Mapping[str, Any], thesis: Mapping[str, Any], alpha: float,
+                 tests: Mapping[str, Any]) -> list[Verdict]:
+        """The claims of Fig. 6.5 (:mod:`articutool.experiments.verdicts`)."""
+        return claims_exp3(summary, thesis, alpha, tests)
 
     def section(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> str:
         return section_exp3(summary, cfg)
