@@ -24,10 +24,10 @@ import sys
 import time
 from pathlib import Path
 
-from articutool.experiments.config import ExperimentsConfig, ShedPrimitive
+from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import trial_seed
 from articutool.experiments.protocols import json_safe
-from articutool.experiments.units.exp2c import Exp2cCondition, exp2c_trial
+from articutool.experiments.units.exp2c import Exp2cCondition, ShedPrimitive, exp2c_trial
 from articutool.spec import load_spec
 
 TUNING_BASE_SEED = 9

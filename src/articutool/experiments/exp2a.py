@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, ClassVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -176,6 +176,8 @@ class _Benchmark:
     hypothesis = "H2"
     thesis_figure = "Fig. 6.2"
     order = 15
+    claims: ClassVar[dict[str, str]] = {"exp2a_success": "Exp. 2a tasks solved (H2)",
+                                        "exp2a_time": "Exp. 2a planning time (H2)"}
 
     def verdicts(self, summary: Mapping[str, Any], thesis: Mapping[str, Any], alpha: float,
                  tests: Mapping[str, Any]) -> list[Verdict]:

@@ -380,12 +380,6 @@ def section(exp: str, summary: Mapping[str, Any], cfg: Any, figure_name: str | N
     return md
 
 
-_CLAIM_KINDS = {
-    "exp1": "Exp. 1 acquired mass (H1)", "exp2a_success": "Exp. 2a tasks solved (H2)",
-    "exp2a_time": "Exp. 2a planning time (H2)", "exp2b": "Exp. 2b spilled mass (H2)",
-    "exp2c": "Exp. 2c meaningful success (H2)", "exp3_success": "Exp. 3 meaningful success (H3)",
-    "exp3_no_spill": "Exp. 3 bites without spill (H3)",
-    "exp3_attempts": "Exp. 3 planning attempts (H3)"}
 _CI_METHODS = {"welch": "Welch's t interval of the difference of means",
                "bootstrap": "bias-corrected and accelerated bootstrap (9 999 resamples, fixed "
                             "seed)",
@@ -441,7 +435,10 @@ def hypotheses_section(summaries: Mapping[str, Mapping[str, Any]], cfg: Any) -> 
           + table(["H", "figure", "claim", "thesis", "ours", "pre-registered test (p)",
                     "difference [95 % CI] beside the thesis'", "other tests (p)", "verdict"],
                    rows) + "\n")
-    pre = [[_CLAIM_KINDS.get(k, k), t.measure, TEST_NAMES[t.test], _CI_METHODS[t.ci], t.why]
+    from articutool.experiments.config import claims
+
+    kinds = claims()
+    pre = [[kinds.get(k, k), t.measure, TEST_NAMES[t.test], _CI_METHODS[t.ci], t.why]
            for k, t in cfg.tests.items()]
     md += ("\n**Pre-registered tests** (`experiments.toml [tests]`, chosen from the type of "
            "each measurement; chosen after the run at `68222c7` had been read, binding every "

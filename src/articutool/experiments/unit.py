@@ -22,7 +22,6 @@ from typing import TYPE_CHECKING, Any, ClassVar
 if TYPE_CHECKING:
     import py_trees
 
-    from articutool.experiments.config import ExperimentsConfig
     from articutool.sim.world import FeedingWorld, SettleCache
 
 __all__ = ["MAX_LOAD_G", "Experiment", "Hook", "Visitors", "add_foods_argument",
@@ -32,6 +31,9 @@ __all__ = ["MAX_LOAD_G", "Experiment", "Hook", "Visitors", "add_foods_argument",
 # (a soup spoon's capacity is ~15 g), as ``sim --load`` and ``meal --threshold`` bound it.
 MAX_LOAD_G = 100.0
 
+# The validated experiments file (:class:`articutool.experiments.config.ExperimentsConfig`,
+# not imported: the config reads this registry for each experiment's table).
+Config = Any
 Hook = Callable[["FeedingWorld"], None] | None
 Visitors = Sequence["py_trees.visitors.VisitorBase"]
 
@@ -49,6 +51,10 @@ class Experiment:
     # (named here without importing them: the records' reader imports this registry).
     condition: ClassVar[type[Any]]
     outcome: ClassVar[type[Any]]
+    # Its table of ``data/experiments.toml`` (a ``StrictModel``), validated with the file.
+    config_model: ClassVar[type[Any]]
+    # The kinds of claim it tests (keys of ``experiments.toml [tests]``), with their labels.
+    claims: ClassVar[dict[str, str]] = {}
     # The thesis' hypothesis and figure whose claims it tests (None: it tests none).
     hypothesis: ClassVar[str | None] = None
     thesis_figure: ClassVar[str] = ""
@@ -67,14 +73,14 @@ class Experiment:
     def check_arguments(self, args: argparse.Namespace) -> None:
         """Refuse a bad option (:func:`usage`) before the config is read."""
 
-    def inputs(self, args: argparse.Namespace, out: Path, cfg: ExperimentsConfig
+    def inputs(self, args: argparse.Namespace, out: Path, cfg: Config
                ) -> tuple[dict[str, Any], dict[str, Any]]:
         """What the conditions and trials take beyond the config (keyword arguments of
         :meth:`conditions` and :meth:`trial_condition`), and what the summary notes of them
         (where they came from)."""
         return {}, {}
 
-    def analysis(self, args: argparse.Namespace, out: Path, cfg: ExperimentsConfig, *,
+    def analysis(self, args: argparse.Namespace, out: Path, cfg: Config, *,
                  required: bool = True) -> dict[str, Any]:
         """The summary's settings given on the command line or derived from other results
         (keyword arguments of :meth:`summarize`); ``required``: the experiment's trials
@@ -83,7 +89,7 @@ class Experiment:
         return {}
 
     # ------------------------------------------------------------------------ trials --
-    def conditions(self, cfg: ExperimentsConfig, **inputs: Any) -> list[Any]:
+    def conditions(self, cfg: Config, **inputs: Any) -> list[Any]:
         """The conditions in a fixed order."""
         raise NotImplementedError
 
@@ -91,28 +97,28 @@ class Experiment:
         """The condition of repeat ``repeat`` (the same by default)."""
         return cond
 
-    def run_trial(self, cond: Any, seed: int, cfg: ExperimentsConfig, hook: Hook = None,
+    def run_trial(self, cond: Any, seed: int, cfg: Config, hook: Hook = None,
                   visitors: Visitors = (), settled: SettleCache | None = None) -> Any:
         """The protocol: one trial in the physics world, its outcome."""
         raise NotImplementedError
 
     # ---------------------------------------------------------------------- analysis --
-    def summarize(self, records: Sequence[Any], cfg: ExperimentsConfig,
+    def summarize(self, records: Sequence[Any], cfg: Config,
                   **settings: Any) -> dict[str, Any]:
         """The summary's body (pure)."""
         raise NotImplementedError
 
-    def report_extras(self, records: Sequence[Any], cfg: ExperimentsConfig
+    def report_extras(self, records: Sequence[Any], cfg: Config
                       ) -> dict[str, Any]:
         """What the report adds to the summary beyond the run's (none by default)."""
         return {}
 
     # ------------------------------------------------------------------------ report --
-    def section(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> str:
+    def section(self, summary: Mapping[str, Any], cfg: Config) -> str:
         """The report section's body: our numbers beside the thesis'."""
         raise NotImplementedError
 
-    def differences(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> list[str]:
+    def differences(self, summary: Mapping[str, Any], cfg: Config) -> list[str]:
         """Where our numbers differ from the thesis', by how much (one line each)."""
         return []
 
@@ -124,13 +130,13 @@ class Experiment:
         return []
 
     def facts(self, summary: Mapping[str, Any] | None, records: Sequence[Any],
-              cfg: ExperimentsConfig) -> dict[str, str]:
+              cfg: Config) -> dict[str, str]:
         """The figures the deviations table quotes (``{name}`` in ``experiments.toml
         [[deviations]]``) from this experiment's summary (``None``: not run) and records."""
         return {}
 
     def figure(self, records: Sequence[Any], summary: Mapping[str, Any],
-               cfg: ExperimentsConfig, directory: Path) -> Path | None:
+               cfg: Config, directory: Path) -> Path | None:
         """Write the figure into ``directory`` (``records``: the trials that did not raise);
         None when there is none."""
         return None

@@ -5,21 +5,56 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Annotated, Any
+
+from pydantic import Field, model_validator
 
 from articutool.experiments.analysis import measured, ok_records, rate
-from articutool.experiments.config import ExperimentsConfig
+from articutool.experiments.config import ExperimentsConfig, Names
 from articutool.experiments.markdown import ci95, mean_sd, num, table
 from articutool.experiments.protocols import rounded, thesis_bite
 from articutool.experiments.records import ConditionBase, OutcomeBase, TrialRecord
 from articutool.experiments.stats import describe
 from articutool.experiments.unit import Experiment, Hook, Visitors, add_foods_argument
+from articutool.spec import StrictModel
 
 if TYPE_CHECKING:
     from articutool.sim.world import SettleCache
 
-__all__ = ["EXPERIMENT", "CapacityCondition", "CapacityOutcome", "capacity_strategy",
-           "capacity_trial", "summarize_capacity"]
+__all__ = [
+    "EXPERIMENT",
+    "CapacityCondition",
+    "CapacityConfig",
+    "CapacityOutcome",
+    "capacity_strategy",
+    "capacity_trial",
+    "summarize_capacity",
+]
+
+
+class Scoop(StrictModel):
+    """The maximal scoop's path: the food's Articutool sweep (strategies.toml) with these
+    insertion values (see the data file)."""
+
+    depth_m: Annotated[float, Field(ge=0, le=0.02)]
+    drag_m: Annotated[float, Field(ge=0, le=0.2)]
+    offset_m: Annotated[float, Field(ge=-0.1, le=0.1)]
+    sweep_to_deg: Annotated[float, Field(ge=0, le=90)]
+
+
+class CapacityConfig(StrictModel):
+    """Our "maximum capacity" protocol (see the data file)."""
+
+    foods: Names
+    scoop: dict[str, Scoop]
+
+    @model_validator(mode="after")
+    def _every_food_scoops(self) -> CapacityConfig:
+        missing = [f for f in self.foods if f not in self.scoop]
+        if missing:
+            raise ValueError(f"scoop: no scoop for {missing}")
+        return self
+
 
 
 class CapacityCondition(ConditionBase):
@@ -181,7 +216,7 @@ def section_capacity(s: Mapping[str, Any], cfg: Any) -> str:
 
 
 
-class Capacity(Experiment):
+class CapacityExperiment(Experiment):
     """The maximal scoops."""
 
     name = "capacity"
@@ -189,6 +224,7 @@ class Capacity(Experiment):
     title = "Maximum capacity (Exp. 2c's load, §5.2.3)"
     order = 25
     condition = CapacityCondition
+    config_model = CapacityConfig
     outcome = CapacityOutcome
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
@@ -210,4 +246,4 @@ class Capacity(Experiment):
         return section_capacity(summary, cfg)
 
 
-EXPERIMENT = Capacity()
+EXPERIMENT = CapacityExperiment()

@@ -6,10 +6,10 @@ from __future__ import annotations
 import argparse
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from articutool.experiments.analysis import ok_records, summarize_mass
-from articutool.experiments.config import ExperimentsConfig
+from articutool.experiments.config import ExperimentsConfig, Names
 from articutool.experiments.figures import mass_bars
 from articutool.experiments.markdown import mass_rows, table
 from articutool.experiments.protocols import bite
@@ -22,11 +22,21 @@ from articutool.experiments.unit import (
     add_physics_argument,
 )
 from articutool.experiments.verdicts import Verdict, judge, mean_sd_g
+from articutool.spec import Positive, StrictModel
 
 if TYPE_CHECKING:
     from articutool.sim.world import SettleCache
 
-__all__ = ["EXPERIMENT", "exp1_trial", "summarize_exp1"]
+__all__ = ["EXPERIMENT", "Exp1Config", "exp1_trial", "summarize_exp1"]
+
+
+class Exp1Config(StrictModel):
+    """Exp. 1 (§5.1)."""
+
+    foods: Names
+    systems: Names
+    timeout_s: Positive
+
 
 
 def exp1_trial(cond: BiteCondition, seed: int, cfg: ExperimentsConfig,
@@ -89,7 +99,7 @@ def claims_exp1(s: Mapping[str, Any], th: Mapping[str, Any], alpha: float,
 
 
 
-class Exp1(Experiment):
+class Exp1Experiment(Experiment):
     """Exp. 1."""
 
     name = "exp1"
@@ -99,6 +109,8 @@ class Exp1(Experiment):
     thesis_figure = "Fig. 6.1"
     order = 10
     condition = BiteCondition
+    config_model = Exp1Config
+    claims: ClassVar[dict[str, str]] = {"exp1": "Exp. 1 acquired mass (H1)"}
     outcome = BiteOutcome
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
@@ -144,4 +156,4 @@ class Exp1(Experiment):
                          "Exp. 1: acquisition (cf. thesis Fig. 6.1)", directory / "exp1.png")
 
 
-EXPERIMENT = Exp1()
+EXPERIMENT = Exp1Experiment()

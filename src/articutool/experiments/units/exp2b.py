@@ -7,7 +7,9 @@ from __future__ import annotations
 import argparse
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
+
+from pydantic import Field, model_validator
 
 from articutool.experiments.analysis import (
     by_place,
@@ -18,7 +20,7 @@ from articutool.experiments.analysis import (
     summarize_mass,
     where,
 )
-from articutool.experiments.config import ExperimentsConfig
+from articutool.experiments.config import ExperimentsConfig, Names
 from articutool.experiments.figures import mass_bars
 from articutool.experiments.markdown import mass_rows, mean_sd, num, p_value, places, table
 from articutool.experiments.protocols import (
@@ -37,13 +39,63 @@ from articutool.experiments.unit import (
     usage,
 )
 from articutool.experiments.verdicts import Verdict, judge, mean_sd_g
+from articutool.spec import Positive, StrictModel
 
 if TYPE_CHECKING:
     from articutool.planning.pc_arm import PCArm
     from articutool.sim.world import FeedingWorld, SettleCache
 
-__all__ = ["EXPERIMENT", "Exp2bCondition", "Exp2bOutcome", "carried_wrists", "exp2b_arm",
-           "exp2b_trial", "summarize_exp2b"]
+__all__ = [
+    "EXPERIMENT",
+    "Exp2bCondition",
+    "Exp2bConfig",
+    "Exp2bOutcome",
+    "carried_wrists",
+    "exp2b_arm",
+    "exp2b_trial",
+    "summarize_exp2b",
+]
+
+
+class Exp2bVariant(StrictModel):
+    """A system of this stack beside the thesis' two: ``system`` (whose planner and tool
+    mode it keeps) with the food-aware check before the transport (retimed until predicted
+    spill-free, or re-planned) and the wrist leveling against ``leveling`` (``apparent``:
+    slosh-free), on ``foods``."""
+
+    system: Literal["articutool", "baseline"]
+    food_check: bool = True
+    leveling: Literal["gravity", "apparent"] = "gravity"
+    foods: Names
+
+    @model_validator(mode="after")
+    def _decoupled(self) -> Exp2bVariant:
+        if self.leveling == "apparent" and self.system != "articutool":
+            raise ValueError("leveling = 'apparent' needs the articutool system (the "
+                             "decoupled wrist)")
+        return self
+
+
+class Exp2bConfig(StrictModel):
+    """Exp. 2b (§5.2.2): the thesis' ``systems`` and this stack's ``variants`` beside them
+    (each named; the name is the trial's ``system``)."""
+
+    foods: Names
+    systems: Names
+    load_g: dict[str, Positive]
+    variants: dict[str, Exp2bVariant] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _names(self) -> Exp2bConfig:
+        for name, v in self.variants.items():
+            if name in self.systems:
+                raise ValueError(f"variants.{name}: the name of a thesis system")
+            unknown = [f for f in v.foods if f not in self.foods]
+            if unknown:
+                raise ValueError(f"variants.{name}.foods: {unknown} not among foods "
+                                 f"{self.foods}")
+        return self
+
 
 
 class Exp2bCondition(ConditionBase):
@@ -365,7 +417,7 @@ def claims_exp2b(s: Mapping[str, Any], th: Mapping[str, Any], alpha: float,
 
 
 
-class Exp2b(Experiment):
+class Exp2bExperiment(Experiment):
     """Exp. 2b."""
 
     name = "exp2b"
@@ -375,6 +427,8 @@ class Exp2b(Experiment):
     thesis_figure = "Fig. 6.3"
     order = 20
     condition = Exp2bCondition
+    config_model = Exp2bConfig
+    claims: ClassVar[dict[str, str]] = {"exp2b": "Exp. 2b spilled mass (H2)"}
     outcome = Exp2bOutcome
     noted_inputs = ("goals",)
 
@@ -462,4 +516,4 @@ class Exp2b(Experiment):
         return f
 
 
-EXPERIMENT = Exp2b()
+EXPERIMENT = Exp2bExperiment()

@@ -9,7 +9,9 @@ import argparse
 import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal, get_args
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, get_args
+
+from pydantic import Field, model_validator
 
 from articutool.experiments.analysis import (
     by_place,
@@ -21,7 +23,7 @@ from articutool.experiments.analysis import (
     rate,
     where,
 )
-from articutool.experiments.config import ExperimentsConfig
+from articutool.experiments.config import ExperimentsConfig, Names
 from articutool.experiments.figures import outcome_bars
 from articutool.experiments.markdown import mean_sd, p_value, places, table
 from articutool.experiments.protocols import masses, rounded, transport, transport_outcome
@@ -38,19 +40,58 @@ from articutool.experiments.unit import (
 )
 from articutool.experiments.verdicts import Verdict, judge
 from articutool.sim import accounting as acc
+from articutool.spec import StrictModel
 
 if TYPE_CHECKING:
     from articutool.sim.world import SettleCache
 
-__all__ = ["EXP2C_CLASSES", "EXP2C_CONDITIONS", "EXPERIMENT", "Exp2cArm", "Exp2cCondition",
-           "Exp2cOutcome", "classify_exp2c", "closed_loop_params", "closed_loop_target_g",
-           "exp2c_trial", "summarize_exp2c"]
+__all__ = [
+    "EXP2C_CLASSES",
+    "EXP2C_CONDITIONS",
+    "EXPERIMENT",
+    "Exp2cArm",
+    "Exp2cCondition",
+    "Exp2cConfig",
+    "Exp2cOutcome",
+    "classify_exp2c",
+    "closed_loop_params",
+    "closed_loop_target_g",
+    "exp2c_trial",
+    "summarize_exp2c",
+]
 
 # Exp. 2c's conditions: no primitive, the strategy's open-loop primitive, the closed-loop
 # (F/T) one.
 Exp2cArm = Literal["control", "primitive", "closed_loop"]
 EXP2C_CONDITIONS: tuple[Exp2cArm, ...] = get_args(Exp2cArm)
 EXP2C_CLASSES = ("meaningful_success", "trivial_success", "transport_failure", "failed")
+
+
+class ShedPrimitive(StrictModel):
+    """A shedding primitive and its parameters (checked against the tool's registry)."""
+
+    primitive: Annotated[str, Field(min_length=1)]
+    params: list[float]
+
+    @model_validator(mode="after")
+    def _known(self) -> ShedPrimitive:
+        import numpy as np
+
+        from articutool.spec import load_spec
+        from articutool.tool.primitives import make_primitive
+
+        make_primitive(self.primitive, self.params, load_spec(), np.zeros(2))  # names the field
+        return self
+
+
+class Exp2cConfig(StrictModel):
+    """Exp. 2c (§5.2.3): the strategy whose post-acquisition primitive is the open-loop test,
+    and the closed-loop (F/T) primitive of the third condition (thesis §7.1.2)."""
+
+    foods: Names
+    strategy: dict[str, str]
+    closed_loop: dict[str, ShedPrimitive]
+
 
 
 class Exp2cCondition(ConditionBase):
@@ -424,7 +465,7 @@ def claims_exp2c(s: Mapping[str, Any], th: Mapping[str, Any], alpha: float,
 
 
 
-class Exp2c(Experiment):
+class Exp2cExperiment(Experiment):
     """Exp. 2c."""
 
     name = "exp2c"
@@ -434,6 +475,8 @@ class Exp2c(Experiment):
     thesis_figure = "Fig. 6.4"
     order = 30
     condition = Exp2cCondition
+    config_model = Exp2cConfig
+    claims: ClassVar[dict[str, str]] = {"exp2c": "Exp. 2c meaningful success (H2)"}
     outcome = Exp2cOutcome
     noted_inputs = ("load_g", "load_source", "closed_loop_target_g")
     noted_settings = ("thresholds_source",)
@@ -554,4 +597,4 @@ class Exp2c(Experiment):
         return f
 
 
-EXPERIMENT = Exp2c()
+EXPERIMENT = Exp2cExperiment()

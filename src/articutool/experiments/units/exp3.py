@@ -6,7 +6,9 @@ from __future__ import annotations
 import argparse
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar
+
+from pydantic import Field
 
 from articutool.experiments.analysis import (
     class_counts,
@@ -17,7 +19,7 @@ from articutool.experiments.analysis import (
     ok_records,
     rate,
 )
-from articutool.experiments.config import ExperimentsConfig
+from articutool.experiments.config import ExperimentsConfig, Names
 from articutool.experiments.figures import outcome_bars
 from articutool.experiments.markdown import mean_sd, num, p_value, table
 from articutool.experiments.protocols import bite
@@ -33,12 +35,29 @@ from articutool.experiments.unit import (
 )
 from articutool.experiments.verdicts import Verdict, judge, mean_sd_g
 from articutool.feeding.outcomes import OUTCOMES
+from articutool.spec import Positive, StrictModel
 
 if TYPE_CHECKING:
     from articutool.sim.world import SettleCache
 
-__all__ = ["EXPERIMENT", "exp3_trial", "meaningful_at", "staging_attempts", "summarize_exp3",
-           "thesis_exp3_no_spill"]
+__all__ = [
+    "EXPERIMENT",
+    "Exp3Config",
+    "exp3_trial",
+    "meaningful_at",
+    "staging_attempts",
+    "summarize_exp3",
+    "thesis_exp3_no_spill",
+]
+
+
+class Exp3Config(StrictModel):
+    """Exp. 3 (§5.3)."""
+
+    food: Annotated[str, Field(min_length=1)]
+    systems: Names
+    timeout_s: Positive
+
 
 
 def exp3_trial(cond: BiteCondition, seed: int, cfg: ExperimentsConfig,
@@ -221,7 +240,7 @@ def thesis_trials(t: Mapping[str, Any]) -> int:
 
 
 
-class Exp3(Experiment):
+class Exp3Experiment(Experiment):
     """Exp. 3."""
 
     name = "exp3"
@@ -231,6 +250,10 @@ class Exp3(Experiment):
     thesis_figure = "Fig. 6.5"
     order = 40
     condition = BiteCondition
+    config_model = Exp3Config
+    claims: ClassVar[dict[str, str]] = {"exp3_success": "Exp. 3 meaningful success (H3)",
+              "exp3_no_spill": "Exp. 3 bites without spill (H3)",
+              "exp3_attempts": "Exp. 3 planning attempts (H3)"}
     outcome = BiteOutcome
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
@@ -343,4 +366,4 @@ class Exp3(Experiment):
         return f
 
 
-EXPERIMENT = Exp3()
+EXPERIMENT = Exp3Experiment()
