@@ -1,6 +1,6 @@
 """``articutool experiment …``: the thesis' physical experiments in the physics world.
 
-* ``experiment capacity|exp1|exp2b|exp2c|exp3 [--trials N] [--workers N] [--scheduler ADDR]
+* ``experiment NAME [--trials N] [--workers N] [--scheduler ADDR]
   [--out DIR] [--seed S] [--json]``: run (resumable; a progress bar on stderr), then write
   ``DIR/<experiment>/summary.json`` and the figure and print our numbers beside the thesis'.
 * ``… --trial K [--video FILE]``: replay trial K alone (its seed is in its record), print its

@@ -401,8 +401,8 @@ def verdicts(summaries: Mapping[str, Mapping[str, Any]], thesis: Mapping[str, An
     for u in sources:
         s = summaries.get(u.name)
         rows = u.verdicts(s, thesis.get(u.name, {}), alpha, tests) if s else []
-        why = ("not run" if not s else "run, but no comparison could be formed (Exp. 2c "
-               "needs outcome thresholds: Exp. 1's means or --thresholds-g)")
+        why = "not run" if not s else "run, but no comparison could be formed" + (
+            f" ({u.unjudged})" if getattr(u, "unjudged", "") else "")
         out += rows or [Verdict(u.hypothesis, u.thesis_figure, f"{u.name}'s claims", "", why,
                                 "", "", "", "cannot test")]
     return out
@@ -445,7 +445,7 @@ def hypotheses_section(summaries: Mapping[str, Mapping[str, Any]], cfg: Any) -> 
            "run after it):\n\n"
            + table(["claims", "measurement", "test (two-sided)", "interval of the difference",
                      "why"], pre) + "\n")
-    versions = code_versions({k: v for k, v in summaries.items() if k != "exp2a"})
+    versions = code_versions({k: v for k, v in summaries.items() if k != bench.BENCHMARK.name})
     every = {v for vs in versions.values() for v in vs}
     n = sum(sum(vs.values()) for vs in versions.values())
     if len(every) == 1:
@@ -466,7 +466,7 @@ def deviation_facts(summaries: Mapping[str, Mapping[str, Any]],
     facts`); a figure that cannot be formed is absent (shown as "–")."""
     f: dict[str, str] = {"plan_budget_s": f"{cfg.settings.plan_budget_s:g}"}
 
-    f.update(bench.facts(summaries.get("exp2a")))
+    f.update(bench.facts(summaries.get(bench.BENCHMARK.name)))
     for u in order():
         f.update(u.facts(summaries.get(u.name), records.get(u.name, ()), cfg))
     f.update(_crosscheck_facts(out))
@@ -616,9 +616,10 @@ def write_report(out: Path, cfg: Any, *,
     at_verdicts = len(parts)
     run2a, recs2a = bench.read_exp2a(exp2a) if exp2a is not None else (None, [])
     if run2a is not None and recs2a:
-        summaries["exp2a"] = {**bench.summarize_exp2a(recs2a, float(run2a["timeout_s"])),
-                              "algorithm": run2a.get("planner")}
-        parts.append(bench.section_exp2a(summaries["exp2a"], run2a, cfg, str(exp2a)))
+        s2a = {**bench.summarize_exp2a(recs2a, float(run2a["timeout_s"])),
+               "algorithm": run2a.get("planner")}
+        summaries[bench.BENCHMARK.name] = s2a
+        parts.append(bench.section_exp2a(s2a, run2a, cfg, str(exp2a)))
     checks = []
     for u in order():
         exp = u.name

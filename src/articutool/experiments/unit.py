@@ -58,6 +58,8 @@ class Experiment:
     # The thesis' hypothesis and figure whose claims it tests (None: it tests none).
     hypothesis: ClassVar[str | None] = None
     thesis_figure: ClassVar[str] = ""
+    # Why a run may give no verdict (shown when :meth:`verdicts` gives none).
+    unjudged: ClassVar[str] = ""
     # What the run's inputs (:meth:`inputs`) note in the summary, kept by the report.
     noted_inputs: ClassVar[tuple[str, ...]] = ()
     # What the analysis settings (:meth:`analysis`) note in the summary.

@@ -480,6 +480,7 @@ class Exp2cExperiment(Experiment):
     outcome = Exp2cOutcome
     noted_inputs = ("load_g", "load_source", "closed_loop_target_g")
     noted_settings = ("thresholds_source",)
+    unjudged = "Exp. 2c needs outcome thresholds: Exp. 1's means or --thresholds-g"
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         add_foods_argument(parser)
