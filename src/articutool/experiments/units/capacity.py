@@ -227,23 +227,18 @@ class CapacityExperiment(Experiment):
     config_model = CapacityConfig
     outcome = CapacityOutcome
 
+    run_trial = staticmethod(capacity_trial)
+    section = staticmethod(section_capacity)
+
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         add_foods_argument(parser)
 
     def conditions(self, cfg: ExperimentsConfig, **inputs: Any) -> list[Any]:
         return [CapacityCondition(food=f) for f in cfg.capacity.foods]
 
-    def run_trial(self, cond: CapacityCondition, seed: int, cfg: ExperimentsConfig,
-                  hook: Hook = None, visitors: Visitors = (),
-                  settled: SettleCache | None = None) -> CapacityOutcome:
-        return capacity_trial(cond, seed, cfg, hook, visitors, settled)
-
     def summarize(self, records: Sequence[TrialRecord], cfg: ExperimentsConfig,
                   **settings: Any) -> dict[str, Any]:
         return summarize_capacity(records)
-
-    def section(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> str:
-        return section_capacity(summary, cfg)
 
 
 EXPERIMENT = CapacityExperiment()

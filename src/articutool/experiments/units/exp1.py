@@ -113,6 +113,10 @@ class Exp1Experiment(Experiment):
     claims: ClassVar[dict[str, str]] = {"exp1": "Exp. 1 acquired mass (H1)"}
     outcome = BiteOutcome
 
+    run_trial = staticmethod(exp1_trial)
+    verdicts = staticmethod(claims_exp1)
+    section = staticmethod(section_exp1)
+
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         add_physics_argument(parser)
         add_foods_argument(parser)
@@ -121,22 +125,9 @@ class Exp1Experiment(Experiment):
         return [BiteCondition(food=f, system=s) for f in cfg.exp1.foods
                 for s in cfg.exp1.systems]
 
-    def run_trial(self, cond: BiteCondition, seed: int, cfg: ExperimentsConfig,
-                  hook: Hook = None, visitors: Visitors = (),
-                  settled: SettleCache | None = None) -> BiteOutcome:
-        return exp1_trial(cond, seed, cfg, hook, visitors, settled)
-
     def summarize(self, records: Sequence[TrialRecord], cfg: ExperimentsConfig,
                   **settings: Any) -> dict[str, Any]:
         return summarize_exp1(records, cfg)
-
-    def verdicts(self, summary: Mapping[str, Any], thesis: Mapping[str, Any], alpha: float,
-                 tests: Mapping[str, Any]) -> list[Verdict]:
-        """The claims of Fig. 6.1 (:mod:`articutool.experiments.verdicts`)."""
-        return claims_exp1(summary, thesis, alpha, tests)
-
-    def section(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> str:
-        return section_exp1(summary, cfg)
 
     def differences(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> list[str]:
         s, th, out = summary, cfg.thesis, []

@@ -432,6 +432,10 @@ class Exp2bExperiment(Experiment):
     outcome = Exp2bOutcome
     noted_inputs = ("goals",)
 
+    run_trial = staticmethod(exp2b_trial)
+    verdicts = staticmethod(claims_exp2b)
+    section = staticmethod(section_exp2b)
+
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         add_foods_argument(parser)
 
@@ -462,22 +466,9 @@ class Exp2bExperiment(Experiment):
             raise ValueError("exp2b needs the staging set's goals")
         return cond.model_copy(update={"goal": goals[repeat % len(goals)]})
 
-    def run_trial(self, cond: Exp2bCondition, seed: int, cfg: ExperimentsConfig,
-                  hook: Hook = None, visitors: Visitors = (),
-                  settled: SettleCache | None = None) -> Exp2bOutcome:
-        return exp2b_trial(cond, seed, cfg, hook, visitors, settled)
-
     def summarize(self, records: Sequence[TrialRecord], cfg: ExperimentsConfig,
                   **settings: Any) -> dict[str, Any]:
         return summarize_exp2b(records, cfg)
-
-    def verdicts(self, summary: Mapping[str, Any], thesis: Mapping[str, Any], alpha: float,
-                 tests: Mapping[str, Any]) -> list[Verdict]:
-        """The claims of Fig. 6.3 (:mod:`articutool.experiments.verdicts`)."""
-        return claims_exp2b(summary, thesis, alpha, tests)
-
-    def section(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> str:
-        return section_exp2b(summary, cfg)
 
     def differences(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> list[str]:
         s, out = summary, []

@@ -482,6 +482,10 @@ class Exp2cExperiment(Experiment):
     noted_settings = ("thresholds_source",)
     unjudged = "Exp. 2c needs outcome thresholds: Exp. 1's means or --thresholds-g"
 
+    run_trial = staticmethod(exp2c_trial)
+    verdicts = staticmethod(claims_exp2c)
+    section = staticmethod(section_exp2c)
+
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         add_foods_argument(parser)
         parser.add_argument("--load-g", default=None, metavar="FOOD=G,…",
@@ -526,23 +530,10 @@ class Exp2cExperiment(Experiment):
                                and f in target_g else None)
                 for f in cfg.exp2c.foods for c in EXP2C_CONDITIONS]
 
-    def run_trial(self, cond: Exp2cCondition, seed: int, cfg: ExperimentsConfig,
-                  hook: Hook = None, visitors: Visitors = (),
-                  settled: SettleCache | None = None) -> Exp2cOutcome:
-        return exp2c_trial(cond, seed, cfg, hook, visitors, settled)
-
     def summarize(self, records: Sequence[TrialRecord], cfg: ExperimentsConfig,
                   thresholds_g: Mapping[str, float] | None = None, **settings: Any
                   ) -> dict[str, Any]:
         return summarize_exp2c(records, cfg, thresholds_g)
-
-    def verdicts(self, summary: Mapping[str, Any], thesis: Mapping[str, Any], alpha: float,
-                 tests: Mapping[str, Any]) -> list[Verdict]:
-        """The claims of Fig. 6.4 (:mod:`articutool.experiments.verdicts`)."""
-        return claims_exp2c(summary, thesis, alpha, tests)
-
-    def section(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> str:
-        return section_exp2c(summary, cfg)
 
     def differences(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> list[str]:
         s, th, out = summary, cfg.thesis, []

@@ -251,10 +251,15 @@ class Exp3Experiment(Experiment):
     order = 40
     condition = BiteCondition
     config_model = Exp3Config
-    claims: ClassVar[dict[str, str]] = {"exp3_success": "Exp. 3 meaningful success (H3)",
-              "exp3_no_spill": "Exp. 3 bites without spill (H3)",
-              "exp3_attempts": "Exp. 3 planning attempts (H3)"}
+    claims: ClassVar[dict[str, str]] = {
+        "exp3_success": "Exp. 3 meaningful success (H3)",
+        "exp3_no_spill": "Exp. 3 bites without spill (H3)",
+        "exp3_attempts": "Exp. 3 planning attempts (H3)"}
     outcome = BiteOutcome
+
+    run_trial = staticmethod(exp3_trial)
+    verdicts = staticmethod(claims_exp3)
+    section = staticmethod(section_exp3)
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         add_physics_argument(parser)
@@ -295,11 +300,6 @@ class Exp3Experiment(Experiment):
     def conditions(self, cfg: ExperimentsConfig, **inputs: Any) -> list[Any]:
         return [BiteCondition(food=cfg.exp3.food, system=s) for s in cfg.exp3.systems]
 
-    def run_trial(self, cond: BiteCondition, seed: int, cfg: ExperimentsConfig,
-                  hook: Hook = None, visitors: Visitors = (),
-                  settled: SettleCache | None = None) -> BiteOutcome:
-        return exp3_trial(cond, seed, cfg, hook, visitors, settled)
-
     def summarize(self, records: Sequence[TrialRecord], cfg: ExperimentsConfig,
                   threshold_g: float | None = None, **settings: Any) -> dict[str, Any]:
         if threshold_g is None:
@@ -313,14 +313,6 @@ class Exp3Experiment(Experiment):
         if theirs is None:
             return {}
         return {"at_thesis_threshold": meaningful_at(records, cfg.exp3.systems, theirs)}
-
-    def verdicts(self, summary: Mapping[str, Any], thesis: Mapping[str, Any], alpha: float,
-                 tests: Mapping[str, Any]) -> list[Verdict]:
-        """The claims of Fig. 6.5 (:mod:`articutool.experiments.verdicts`)."""
-        return claims_exp3(summary, thesis, alpha, tests)
-
-    def section(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> str:
-        return section_exp3(summary, cfg)
 
     def differences(self, summary: Mapping[str, Any], cfg: ExperimentsConfig) -> list[str]:
         s, th, out = summary, cfg.thesis, []
