@@ -62,7 +62,7 @@ class CapacityCondition(ConditionBase):
 
 
 class CapacityOutcome(OutcomeBase):
-    """One maximal scoop (:func:`~articutool.experiments.protocols.capacity_trial`); a
+    """One maximal scoop (:func:`capacity_trial`); a
     liquid's also ``brim_poured_g`` and ``brim_g``."""
 
     utensil: str

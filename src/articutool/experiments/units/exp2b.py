@@ -111,8 +111,8 @@ class Exp2bCondition(ConditionBase):
 
 
 class Exp2bOutcome(OutcomeBase):
-    """A placed load carried to a goal (:func:`~articutool.experiments.protocols.
-    exp2b_trial`); ``food_checks`` with the food-aware check only."""
+    """A placed load carried to a goal (:func:`exp2b_trial`); ``food_checks`` with the
+    food-aware check only."""
 
     load_g: float
     held_g: float

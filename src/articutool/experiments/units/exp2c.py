@@ -108,9 +108,8 @@ class Exp2cCondition(ConditionBase):
 
 
 class Exp2cOutcome(OutcomeBase):
-    """A load shed over the bowl (or not), then carried to Staging
-    (:func:`~articutool.experiments.protocols.exp2c_trial`); the primitive's parameters,
-    success and message when one ran."""
+    """A load shed over the bowl (or not), then carried to Staging (:func:`exp2c_trial`);
+    the primitive's parameters, success and message when one ran."""
 
     load_g: float
     held_g: float
