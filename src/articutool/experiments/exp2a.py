@@ -176,6 +176,7 @@ class _Benchmark:
     hypothesis = "H2"
     thesis_figure = "Fig. 6.2"
     order = 15
+    unjudged = ""
     claims: ClassVar[dict[str, str]] = {"exp2a_success": "Exp. 2a tasks solved (H2)",
                                         "exp2a_time": "Exp. 2a planning time (H2)"}
 

@@ -402,7 +402,7 @@ def verdicts(summaries: Mapping[str, Mapping[str, Any]], thesis: Mapping[str, An
         s = summaries.get(u.name)
         rows = u.verdicts(s, thesis.get(u.name, {}), alpha, tests) if s else []
         why = "not run" if not s else "run, but no comparison could be formed" + (
-            f" ({u.unjudged})" if getattr(u, "unjudged", "") else "")
+            f" ({u.unjudged})" if u.unjudged else "")
         out += rows or [Verdict(u.hypothesis, u.thesis_figure, f"{u.name}'s claims", "", why,
                                 "", "", "", "cannot test")]
     return out

@@ -1,11 +1,12 @@
 """An experiment as one registered unit, and the registry the generic modules read.
 
 Each experiment is one module of :mod:`articutool.experiments.units` holding its condition
-and typed outcome, its protocol, its summary, its report section and its command-line
-arguments, with its settings in ``data/experiments.toml``; it defines a subclass of
-:class:`Experiment` and names an instance ``EXPERIMENT``. The runner, the command line, the
-report and the record reader iterate :func:`registry` and hold no experiment's name. Adding an
-experiment is one new module there and its table in the data file.
+and typed outcome, the model of its table of ``data/experiments.toml``, its protocol, its
+summary, its report section, its claims and their verdicts, and its command-line arguments;
+it defines a subclass of :class:`Experiment` and names an instance ``EXPERIMENT``. The
+runner, the command line, the record reader, the experiments file's validation, the report
+and its verdicts iterate :func:`registry` and hold no experiment's name. Adding an experiment
+is one new module there and its table in the data file.
 """
 
 from __future__ import annotations
