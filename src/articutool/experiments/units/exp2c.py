@@ -399,8 +399,9 @@ def _check_loads(loads: dict[str, float], cfg: Any, field: str) -> None:
 
 def _closed_loop_targets(thresholds: dict[str, float], cfg: Any) -> dict[str, float]:
     """Per food with a load-targeting closed-loop primitive, its target from the food's
-    meaningful-success threshold (:func:`closed_loop_target_g`): one item's mass (the physics' food model) and the noise of one
-    weighing (the F/T sensor's per-sample noise over the primitive's window)."""
+    meaningful-success threshold (:func:`closed_loop_target_g`): one item's mass (the
+    physics' food model) and the noise of one weighing (the F/T sensor's per-sample noise
+    over the primitive's window)."""
     from articutool.sim.params import Liquid, PhysicsParams
     from articutool.spec import load_spec
     from articutool.tool.primitives import get_primitive
