@@ -87,3 +87,18 @@ def test_a_benchmark_folder_that_is_not_one_exits_2_naming_the_option(tmp_path, 
     assert cli.main(["experiment", "report", "--out", str(tmp_path), "--exp2a",
                      str(tmp_path / "missing")]) == 2
     assert "--exp2a" in capsys.readouterr().err
+
+
+def test_the_water_models_deviation_names_the_load_model_the_world_builds(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The deviations table states the placed load's model from the physics file: the SPH
+    liquid by default, the frictionless spheres when the file selects them."""
+    from articutool.sim.params import PhysicsParams
+
+    assert "SPlisHSPlasH" in report._physics_facts()["water_model"]
+    p = PhysicsParams.load()
+    spheres = p.model_copy(update={"foods": {**p.foods, "water": p.foods["water"].model_copy(
+        update={"load_model": "spheres"})}})
+    monkeypatch.setattr(PhysicsParams, "load", classmethod(lambda cls, path=None: spheres))
+    text = report._physics_facts()["water_model"]
+    assert "SPlisHSPlasH" not in text and "in a load placed on a spoon" in text

@@ -518,13 +518,17 @@ def _physics_facts() -> dict[str, str]:
         pass
     try:
         w = p.food("water")
-        spread = getattr(w, "load_radius_spread", 0.0)
-        f["water_model"] = (
-            f"frictionless particles, {w.particle_radius * 1e3:g} mm in radius "
-            f"({w.particle_mass(w.particle_radius) * 1e3:.2f} g each) in the bowl and "
-            f"{w.load_particle_radius * 1e3:g} mm"
-            + (f" ± {100 * spread:.0f} %" if spread else "")
-            + " in a load placed on a spoon; no surface tension and no meniscus")
+        bowl = (f"frictionless particles, {w.particle_radius * 1e3:g} mm in radius "
+                f"({w.particle_mass(w.particle_radius) * 1e3:.2f} g each) in the bowl")
+        if w.sph_load:
+            load = (f"SPlisHSPlasH's liquid (DFSPH), particles {w.sph_particle_radius * 1e3:g} mm "
+                    "in radius, in a load placed on a spoon")
+        else:
+            spread = getattr(w, "load_radius_spread", 0.0)
+            load = (f"frictionless particles {w.load_particle_radius * 1e3:g} mm"
+                    + (f" ± {100 * spread:.0f} %" if spread else "")
+                    + " in radius in a load placed on a spoon")
+        f["water_model"] = f"{bowl} and {load}; no surface tension and no meniscus"
     except (KeyError, AttributeError, TypeError, ValueError):
         pass
     return f
