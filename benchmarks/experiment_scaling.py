@@ -193,11 +193,11 @@ def table(doc: dict[str, Any]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     from articutool.cli_support import UsageError
-    from articutool.experiments.cli import RUN_EXPERIMENTS
     from articutool.experiments.design import MAX_TRIALS
+    from articutool.experiments.unit import names
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--experiment", default="exp2c", choices=RUN_EXPERIMENTS)
+    ap.add_argument("--experiment", default="exp2c", choices=names())
     ap.add_argument("--trials", type=int, default=5, help="trials per condition (default 5)")
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2],
                     help="worker counts, each run locally and on Dask (default: 1 2)")

@@ -31,9 +31,9 @@ from pathlib import Path
 from typing import Any
 
 from articutool.experiments.config import ExperimentsConfig
-from articutool.experiments.protocols import exp1_trial
 from articutool.experiments.records import BiteCondition
 from articutool.experiments.stats import describe, welch
+from articutool.experiments.units.exp1 import exp1_trial
 from articutool.feeding.strategies import default_strategies_path
 from noodle_twirl import twirl_vs_still
 
@@ -72,7 +72,7 @@ def no_twirl_library(dest: Path) -> Path:
 
 def one(condition: str, seed: int, strategies: Path | None, cfg: ExperimentsConfig
         ) -> dict[str, Any]:
-    """One Exp. 1 trial (:func:`~articutool.experiments.protocols.exp1_trial`) for
+    """One Exp. 1 trial (:func:`~articutool.experiments.units.exp1.exp1_trial`) for
     ``condition``, with ``strategies`` as its action library (None: the shipped one)."""
     cond = BiteCondition(food="noodles", system=CONDITIONS[condition][0],
                          strategies=None if strategies is None else str(strategies))

@@ -1,6 +1,6 @@
 """Sweep of the open-loop shedding primitives' parameters (thesis §4.4, §5.2.3).
 
-Each candidate runs Exp. 2c's protocol (:func:`articutool.experiments.protocols.exp2c_trial`:
+Each candidate runs Exp. 2c's protocol (:func:`articutool.experiments.units.exp2c.exp2c_trial`:
 the capacity load placed at the shedding pose over the bowl, the primitive, the transport to
 Staging) on TUNING seeds — base seed 9 (seeds 9000+r), disjoint from the experiments' seeds
 (base 0: 0..999, ``experiments/design.py``). The candidate runs in the third condition's slot
@@ -24,10 +24,10 @@ import sys
 import time
 from pathlib import Path
 
-from articutool.experiments.config import ExperimentsConfig, ShedPrimitive
+from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import trial_seed
-from articutool.experiments.protocols import exp2c_trial, json_safe
-from articutool.experiments.records import Exp2cCondition
+from articutool.experiments.protocols import json_safe
+from articutool.experiments.units.exp2c import Exp2cCondition, ShedPrimitive, exp2c_trial
 from articutool.spec import load_spec
 
 TUNING_BASE_SEED = 9

@@ -299,15 +299,16 @@ def trial_record(experiment: str, trial: int = 0, **fields: object):  # type: ig
     other required field is neutral (0, "", empty, completed)."""
     import typing
 
-    from articutool.experiments.records import CONDITIONS, OUTCOMES, TrialRecord
+    from articutool.experiments.records import TrialRecord
+    from articutool.experiments.unit import unit
 
     line: dict[str, object] = {"experiment": experiment, "trial": trial, "repeat": 0,
                                "seed": 0, "wall_time_s": 1.0, "pid": 1, "error": None}
-    for name, f in CONDITIONS[experiment].model_fields.items():
+    for name, f in unit(experiment).condition.model_fields.items():
         if f.is_required():
             line[name] = _CONDITION[name]
     if not fields.get("error"):
-        for name, f in OUTCOMES[experiment].model_fields.items():
+        for name, f in unit(experiment).outcome.model_fields.items():
             if f.is_required() and name not in line:
                 kind = typing.get_origin(f.annotation) or f.annotation
                 line[name] = {dict: {}, list: []}.get(kind, _NEUTRAL.get(kind))

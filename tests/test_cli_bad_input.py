@@ -150,8 +150,7 @@ def test_an_edited_experiment_report_is_kept_before_regenerating(tmp_path):
     kept: list[tuple[Path, Path]] = []
 
     def write() -> Path:
-        md, _ = report.write_report(tmp_path, cfg, thresholds_g=None, thresholds_source="",
-                                    threshold_g=None, on_kept=lambda p, c: kept.append((p, c)))
+        md, _ = report.write_report(tmp_path, cfg, on_kept=lambda p, c: kept.append((p, c)))
         return md
 
     md = write()

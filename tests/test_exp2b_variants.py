@@ -6,10 +6,10 @@ from typing import Any
 
 import pytest
 
-from articutool.experiments.analysis import summarize_exp2b
 from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import conditions
 from articutool.experiments.report import section
+from articutool.experiments.units.exp2b import summarize_exp2b
 from conftest import trial_record
 
 

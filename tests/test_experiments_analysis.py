@@ -7,9 +7,11 @@ import json
 
 import pytest
 
-from articutool.experiments.analysis import classify, classify_exp2c, summarize
+from articutool.experiments.analysis import classify, summarize
 from articutool.experiments.config import ExperimentsConfig
-from articutool.experiments.records import OUTCOMES, TrialRecord
+from articutool.experiments.records import TrialRecord
+from articutool.experiments.unit import unit
+from articutool.experiments.units.exp2c import classify_exp2c
 from conftest import trial_record
 
 PIECE = 0.9163  # one pecan piece (g)
@@ -22,7 +24,7 @@ def rec(delivered: float, table: float = 0.0, critical: float = 0.0, shed: float
                                                              "critical": critical},
               "spilled_g": table + critical, "shed_g": shed, "completed": completed,
               "held_g": delivered + table + critical + shed}
-    own = OUTCOMES[experiment].model_fields
+    own = unit(experiment).outcome.model_fields
     return trial_record(experiment, **{k: v for k, v in masses.items() if k in own}, **extra)
 
 
@@ -148,8 +150,7 @@ def test_report_puts_ours_beside_the_thesis_and_lists_what_did_not_run(cfg, tmp_
     (tmp_path / "exp2b" / "notes.md").write_text("Why: our water does not slosh.")
     (tmp_path / "exp3").mkdir()  # not run, with the reason why
     (tmp_path / "exp3" / "notes.md").write_text("Not run: a trial costs an hour of CPU.")
-    md_path, html_path = report.write_report(tmp_path, cfg, thresholds_g=None,
-                                             thresholds_source="none", threshold_g=None)
+    md_path, html_path = report.write_report(tmp_path, cfg, )
     md = md_path.read_text()
     assert "| water | baseline | 2 | 0.21 ± 0.30" in md
     assert "1.31" in md and "0.0030" in md  # the thesis' water figures beside ours
@@ -190,8 +191,9 @@ def test_report_recomputes_the_thesis_exp3_p_value_from_its_counts(cfg) -> None:
     exact test on those counts gives p ≈ 0.056. The report prints both and says which is
     which."""
     from articutool.experiments import report
+    from articutool.experiments.units.exp3 import thesis_exp3_no_spill
 
-    r = report.thesis_exp3_no_spill(cfg.thesis["exp3"])
+    r = thesis_exp3_no_spill(cfg.thesis["exp3"])
     assert r is not None and r.table == ((14, 6), (7, 13))
     assert r.p == pytest.approx(0.056, abs=5e-4)
     recs = [bite(5.0, system="articutool", planning_attempts=1),
@@ -202,7 +204,7 @@ def test_report_recomputes_the_thesis_exp3_p_value_from_its_counts(cfg) -> None:
             "spill, Fisher's exact test, two-sided): p = 0.056") in md
     # Without the thesis' counts nothing is made up: only the printed value stays.
     blind = {k: v for k, v in cfg.thesis["exp3"].items() if k != "baseline"}
-    assert report.thesis_exp3_no_spill(blind) is None
+    assert thesis_exp3_no_spill(blind) is None
 
 
 def test_every_comparison_the_verdicts_read_is_in_the_summaries(cfg) -> None:
@@ -244,7 +246,7 @@ def test_the_food_aware_baselines_checks_of_another_wrist_are_counted(cfg) -> No
 
 
 def test_our_bites_at_another_threshold(cfg) -> None:
-    from articutool.experiments.analysis import meaningful_at
+    from articutool.experiments.units.exp3 import meaningful_at
 
     bites = [bite(5.0, system="articutool", planning_attempts=1),
              bite(2.0, system="articutool", planning_attempts=1),

@@ -77,7 +77,7 @@ def test_each_exp2b_systems_food_check_models_the_wrist_it_carries(name: str) ->
     from types import SimpleNamespace
 
     from articutool.arm.scene import Scene
-    from articutool.experiments.protocols import exp2b_arm
+    from articutool.experiments.units.exp2b import exp2b_arm
     from articutool.feeding.system import System
     from articutool.food.definitions import load_food_definitions
     from articutool.food.loads import food_load
@@ -331,7 +331,7 @@ def test_exp2b_has_no_mouth_the_load_at_the_centre_goal_is_weighed_not_eaten() -
 
 
 def test_exp2c_closed_loop_target_is_derived_from_the_threshold_above_it() -> None:
-    from articutool.experiments.protocols import closed_loop_params, closed_loop_target_g
+    from articutool.experiments.units.exp2c import closed_loop_params, closed_loop_target_g
 
     assert closed_loop_target_g(8.65, 0.42, 0.09) == pytest.approx(8.65 + 0.42 + 0.27)
     conds = [c.fields() for c in conditions("exp2c", CFG, load_g={"pecans": 8.0,

@@ -11,9 +11,11 @@ from pathlib import Path
 import pytest
 
 from articutool.experiments import report
-from articutool.experiments.analysis import summarize, summarize_exp2a
+from articutool.experiments.analysis import summarize
 from articutool.experiments.config import ExperimentsConfig
+from articutool.experiments.exp2a import read_exp2a, summarize_exp2a
 from articutool.experiments.runner import read_trial_log
+from articutool.experiments.units.exp3 import meaningful_at
 from articutool.thresholds import exp1_means
 
 CFG = ExperimentsConfig.load()
@@ -27,14 +29,14 @@ def _figures() -> set[str]:
 
 def test_every_figure_of_the_deviations_table_is_computed_from_the_committed_run() -> None:
     out = RESULTS / "experiments"
-    recs = {e: read_trial_log(out, e).records for e in report.ORDER}
+    recs = {e: read_trial_log(out, e).records for e in [u.name for u in report.order()]}
     means = exp1_means(out)
     summaries = {e: summarize(e, r, CFG, thresholds_g={f: means[f] for f in CFG.exp2c.foods},
                               threshold_g=means[CFG.exp3.food]) for e, r in recs.items()}
     summaries["exp2c"]["load_g"] = report.read_summary(out / "exp2c" / "summary.json")["load_g"]
-    summaries["exp3"]["at_thesis_threshold"] = report.meaningful_at(
+    summaries["exp3"]["at_thesis_threshold"] = meaningful_at(
         recs["exp3"], CFG.exp3.systems, CFG.thesis["exp3"]["threshold_g"])
-    run, bench = report.read_exp2a(RESULTS / "exp2a")
+    run, bench = read_exp2a(RESULTS / "exp2a")
     assert run is not None
     summaries["exp2a"] = {**summarize_exp2a(bench, run["timeout_s"]), "algorithm": "rrtconnect"}
     facts = report.deviation_facts(summaries, recs, out, CFG)
@@ -61,14 +63,12 @@ def test_the_benchmark_beside_the_results_joins_the_hypotheses(tmp_path: Path) -
               "planning_time_s": (0.01 if s == "decoupled" else 0.1) * (1 + 0.01 * k)}
              for s in ("decoupled", "strict6") for k in range(12)]
     (bench / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in lines))
-    md = report.write_report(out, CFG, thresholds_g=None, thresholds_source="none",
-                             threshold_g=None, exp2a=bench)[0].read_text()
+    md = report.write_report(out, CFG, exp2a=bench)[0].read_text()
     assert "Exp. 2a — transport planning benchmark" in md
     assert "the decoupled planner plans faster than strict6" in md
     assert "| strict6 | 12/12 |" in md
     assert "Where our protocol differs from the thesis'" in md
-    none = report.write_report(out, CFG, thresholds_g=None, thresholds_source="none",
-                               threshold_g=None, exp2a=tmp_path / "nothing")[0].read_text()
+    none = report.write_report(out, CFG, exp2a=tmp_path / "nothing")[0].read_text()
     assert "| H2 | Fig. 6.2 | exp2a's claims |  | not run |" in none
 
 
@@ -78,7 +78,7 @@ def test_an_unreadable_benchmark_folder_is_refused_naming_it(tmp_path: Path, bad
 
     (tmp_path / "run.json").write_text(bad)
     with pytest.raises(ResultsError, match=r"run\.json"):
-        report.read_exp2a(tmp_path)
+        read_exp2a(tmp_path)
 
 
 def test_a_benchmark_folder_that_is_not_one_exits_2_naming_the_option(tmp_path, capsys) -> None:
@@ -87,3 +87,18 @@ def test_a_benchmark_folder_that_is_not_one_exits_2_naming_the_option(tmp_path, 
     assert cli.main(["experiment", "report", "--out", str(tmp_path), "--exp2a",
                      str(tmp_path / "missing")]) == 2
     assert "--exp2a" in capsys.readouterr().err
+
+
+def test_the_water_models_deviation_names_the_load_model_the_world_builds(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The deviations table states the placed load's model from the physics file: the SPH
+    liquid by default, the frictionless spheres when the file selects them."""
+    from articutool.sim.params import PhysicsParams
+
+    assert "SPlisHSPlasH" in report._physics_facts()["water_model"]
+    p = PhysicsParams.load()
+    spheres = p.model_copy(update={"foods": {**p.foods, "water": p.foods["water"].model_copy(
+        update={"load_model": "spheres"})}})
+    monkeypatch.setattr(PhysicsParams, "load", classmethod(lambda cls, path=None: spheres))
+    text = report._physics_facts()["water_model"]
+    assert "SPlisHSPlasH" not in text and "in a load placed on a spoon" in text

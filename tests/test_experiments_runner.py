@@ -234,8 +234,10 @@ def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
 
     import articutool.feeding.tree as tree
     import articutool.meal.bites as meal
-    from articutool.experiments import protocols
+    import articutool.sim.arm_driver as arm_driver
+    import articutool.sim.world as world
     from articutool.experiments.runner import run_trial
+    from articutool.experiments.units import capacity
 
     got: list[object] = []
 
@@ -248,10 +250,10 @@ def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
     monkeypatch.setattr(tree, "transport_tree", mock.MagicMock())
     monkeypatch.setattr(meal, "make_bite_world", lambda *a, **k: SimpleNamespace(
         world=mock.MagicMock(), arm=mock.MagicMock(), strategy=mock.MagicMock()))
-    monkeypatch.setattr(protocols, "capacity_strategy", lambda s, _: s)
+    monkeypatch.setattr(capacity, "capacity_strategy", lambda s, _: s)
     monkeypatch.setattr(meal, "shed_configuration", lambda *a, **k: None)
-    for name in ("FeedingWorld", "sim_arm"):
-        monkeypatch.setattr(protocols, name, mock.MagicMock())
+    monkeypatch.setattr(world, "FeedingWorld", mock.MagicMock())
+    monkeypatch.setattr(arm_driver, "sim_arm", mock.MagicMock())
     goals = ["centre"]
     conds = conditions(experiment, ExperimentsConfig.load(), goals=goals,
                        load_g={"pecans": 5.0, "water": 5.0})
@@ -393,3 +395,23 @@ def test_two_trials_in_the_threads_of_one_dask_worker_give_their_outcomes_alone(
     assert len(pids) == 1  # one worker process ran both
     assert all(r.error is None for r in res.records), [r.error for r in res.records]
     assert outcomes(r.to_log() for r in res.records) == alone
+
+
+def test_exp2c_trials_carry_the_closed_loop_target_derived_from_the_threshold(
+        tmp_path: Path) -> None:
+    """``experiment exp2c`` builds its conditions from the loads and thresholds given: the
+    closed loop's load target stands above the food's threshold (one item and three σ of a
+    weighing), and the run notes the loads and targets it used."""
+    from argparse import Namespace
+
+    from articutool.experiments.cli import trials_for
+
+    args = Namespace(trials=1, seed=0, load_g="pecans=5,water=10",
+                     thresholds_g="pecans=2,water=5", foods=None)
+    trials, extra = trials_for("exp2c", args, tmp_path, ExperimentsConfig.load())
+    targets = extra["closed_loop_target_g"]
+    assert targets and all(g > {"pecans": 2.0, "water": 5.0}[f] for f, g in targets.items())
+    assert extra["load_g"] == {"pecans": 5.0, "water": 10.0}
+    for t in trials:
+        c = t.condition
+        assert c.target_g == (targets.get(c.food) if c.condition == "closed_loop" else None)

@@ -540,7 +540,7 @@ def test_the_tick_driver_stops_a_tree_that_outlives_its_timeout() -> None:
 def test_the_food_check_before_a_transport_is_a_bite_setting_the_thesis_systems_turn_off(
         ) -> None:
     from articutool.experiments.config import ExperimentsConfig
-    from articutool.experiments.protocols import _thesis_bite
+    from articutool.experiments.protocols import thesis_bite
     from articutool.feeding.behaviours import CheckFood
     from articutool.feeding.bite import BITE_STAGES, BiteSettings, bite_tree
     from articutool.feeding.insertion import acquisition_waypoints
@@ -558,7 +558,7 @@ def test_the_food_check_before_a_transport_is_a_bite_setting_the_thesis_systems_
         return sum(isinstance(b, CheckFood) for b in root.iterate())
 
     assert checks(BiteSettings()) == 2  # to Resting and to Staging
-    thesis = _thesis_bite(ExperimentsConfig.load())
+    thesis = thesis_bite(ExperimentsConfig.load())
     assert not thesis.food_check and checks(thesis) == 0
 
 

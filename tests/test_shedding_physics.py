@@ -92,8 +92,7 @@ def test_a_heaped_load_spills_more_in_a_locked_carry_than_a_single_layer():
     # The baseline's transport (wrist locked, strict ±20°) with Exp. 2b's 2.5 g — one layer in
     # the dish — and with a heap above the rim, 8 g (the deposit's most, sim-calibrate).
     from articutool.arm.scene import Scene
-    from articutool.experiments.protocols import exp2b_trial
-    from articutool.experiments.records import Exp2bCondition
+    from articutool.experiments.units.exp2b import Exp2bCondition, exp2b_trial
 
     cfg = ExperimentsConfig.load()
     goals = [g.name for g in Scene.load().staging_set.goals]

@@ -10,10 +10,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from articutool.experiments.analysis import compare_samples, summarize_exp2a
+from articutool.experiments.analysis import compare_samples
 from articutool.experiments.config import ExperimentsConfig, ExperimentsConfigError
+from articutool.experiments.exp2a import summarize_exp2a
+from articutool.experiments.report import verdicts
 from articutool.experiments.stats import describe, welch
-from articutool.experiments.verdicts import VERDICTS, decide, verdicts
+from articutool.experiments.verdicts import VERDICTS, decide
 from conftest import trial_record
 
 CFG = ExperimentsConfig.load()
@@ -210,7 +212,7 @@ def test_exp2c_without_thresholds_says_so_rather_than_not_run():
 
 
 def test_the_thesis_exp3_counts_are_read_out_of_its_own_trials_not_out_of_20():
-    from articutool.experiments.verdicts import thesis_trials
+    from articutool.experiments.units.exp3 import thesis_trials
 
     th = {"articutool": {"meaningful_success": 6, "trivial_success": 1, "table_spill": 2,
                          "user_spill": 1, "planning_attempts": 1.2},

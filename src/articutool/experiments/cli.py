@@ -1,6 +1,6 @@
 """``articutool experiment …``: the thesis' physical experiments in the physics world.
 
-* ``experiment capacity|exp1|exp2b|exp2c|exp3 [--trials N] [--workers N] [--scheduler ADDR]
+* ``experiment NAME [--trials N] [--workers N] [--scheduler ADDR]
   [--out DIR] [--seed S] [--json]``: run (resumable; a progress bar on stderr), then write
   ``DIR/<experiment>/summary.json`` and the figure and print our numbers beside the thesis'.
 * ``… --trial K [--video FILE]``: replay trial K alone (its seed is in its record), print its
@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import datetime as _dt
 import json
-import math
 import os
 import shlex
 import sys
@@ -23,13 +22,11 @@ import time
 from pathlib import Path
 from typing import Any
 
+from articutool.experiments.unit import registry, unit, usage
+
 __all__ = ["BOOKKEEPING_FIELDS", "TIMING_FIELDS", "add_commands", "trials_for"]
 
-RUN_EXPERIMENTS = ("capacity", "exp1", "exp2b", "exp2c", "exp3")
 DEFAULT_OUT = "results/experiments"
-# The most food a load or a threshold may name (g): more than any utensil of the spec holds
-# (a soup spoon's capacity is ~15 g), as ``sim --load`` and ``meal --threshold`` bound it.
-MAX_LOAD_G = 100.0
 # A trial record's fields that a rerun of its seed need not reproduce (the replay check,
 # benchmarks/experiment_scaling.py). Plans run in a thread while the world steps, so when a
 # plan is ready in simulated time depends on the machine's speed: these may differ slightly
@@ -42,207 +39,51 @@ BOOKKEEPING_FIELDS = frozenset({"wall_time_s", "pid", "realtime_factor", "bite_w
                                 "traceback", "source"})
 
 
-BITE_EXPERIMENTS = ("exp1", "exp3")
-
-
-def _usage(msg: str) -> Exception:
-    from articutool.cli_support import UsageError
-
-    return UsageError(msg)
-
-
-def _parse_food_grams(text: str, field: str, most: float) -> dict[str, float]:
-    """``"pecans=7,water=20"`` → ``{"pecans": 7.0, "water": 20.0}`` (grams in [0, most])."""
-    out: dict[str, float] = {}
-    for part in text.split(","):
-        if not part.strip():
-            continue
-        food, sep, val = part.partition("=")
-        try:
-            g = float(val)
-        except ValueError:
-            g = math.nan
-        if not sep or not food.strip() or not 0 <= g <= most:  # also refuses NaN
-            raise _usage(f"{field} must be FOOD=GRAMS[,FOOD=GRAMS] with grams in "
-                         f"[0, {most:g}]; got {part.strip()!r}")
-        out[food.strip()] = g
-    return out
-
-
 def _check_common(args: argparse.Namespace) -> Path:
     from articutool.experiments.design import MAX_TRIALS
 
     if not 1 <= args.trials <= MAX_TRIALS:
-        raise _usage(f"--trials must be in [1, {MAX_TRIALS}] per condition; got {args.trials}")
+        raise usage(f"--trials must be in [1, {MAX_TRIALS}] per condition; got {args.trials}")
     from articutool.bench.cli import check_workers
 
     check_workers(args.workers)
     if args.seed < 0:
-        raise _usage(f"--seed must be >= 0; got {args.seed}")
+        raise usage(f"--seed must be >= 0; got {args.seed}")
     out = Path(args.out)
     if out.exists() and not out.is_dir():
-        raise _usage(f"--out {out} exists and is not a directory")
+        raise usage(f"--out {out} exists and is not a directory")
     if args.video is not None:
         from articutool.cli_support import new_output_file
 
         if args.trial is None:
-            raise _usage("--video needs --trial K (a video of one replayed trial)")
+            raise usage("--video needs --trial K (a video of one replayed trial)")
         new_output_file("--video", args.video, (".mp4", ".gif"))
     if args.record is not None:
         from articutool.cli_support import new_output_file
 
         if args.trial is None:
-            raise _usage("--record needs --trial K (a recording of one replayed trial)")
+            raise usage("--record needs --trial K (a recording of one replayed trial)")
         new_output_file("--record", args.record, (".mcap",))
-    return out
-
-
-def _thresholds(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str, float] | None,
-                                                                         str]:
-    """Exp. 2c's thresholds: ``--thresholds-g``, else OUR Exp. 1 Articutool means (the thesis
-    took its own Exp. 1 means), else none (only spill / no spill is reported)."""
-    from articutool.thresholds import exp1_means
-
-    if getattr(args, "thresholds_g", None):
-        th = _parse_food_grams(args.thresholds_g, "--thresholds-g", MAX_LOAD_G)
-        other = sorted(set(th) - set(cfg.exp2c.foods))
-        if other or not th:
-            raise _usage(f"--thresholds-g must give grams for foods of Exp. 2c "
-                         f"({', '.join(cfg.exp2c.foods)}); got {args.thresholds_g!r}")
-        return th, "--thresholds-g"
-    means = exp1_means(out)
-    th = {f: means[f] for f in cfg.exp2c.foods if f in means}
-    if th:
-        return th, f"our Exp. 1 Articutool means ({out / 'exp1' / 'summary.json'})"
-    return None, "none: run exp1 first or pass --thresholds-g"
-
-
-def _check_threshold_g(args: argparse.Namespace) -> None:
-    v = getattr(args, "threshold_g", None)
-    if v is not None and not 0 <= v <= MAX_LOAD_G:  # also refuses NaN
-        raise _usage(f"--threshold-g must be a mass in [0, {MAX_LOAD_G:g}] g; got {v}")
-
-
-def _exp3_threshold(args: argparse.Namespace, out: Path, cfg: Any) -> float:
-    """Exp. 3's threshold: ``--threshold-g``, else our Exp. 1 Articutool mean for its food
-    (the rule the thesis used for Exp. 2c; its Exp. 3's 3.0 g came from the bimodal
-    distribution of its baseline's bites, §5.3, and the report classifies ours at it too)."""
-    from articutool.thresholds import exp1_means
-
-    if getattr(args, "threshold_g", None) is not None:
-        return float(args.threshold_g)
-    mean = exp1_means(out).get(cfg.exp3.food)
-    if mean is None:
-        raise _usage(f"--threshold-g: no Exp. 1 result for {cfg.exp3.food} under {out} to "
-                     "derive it from; run `articutool experiment exp1` first or pass it")
-    return mean
-
-
-def _exp2c_loads(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str, float], str]:
-    from articutool.thresholds import capacity_means
-
-    if args.load_g:
-        loads = _parse_food_grams(args.load_g, "--load-g", MAX_LOAD_G)
-        src = "--load-g"
-    else:
-        loads = capacity_means(out)
-        p = out / "capacity" / "summary.json"
-        if loads is None:
-            raise _usage(f"exp2c needs the capacity load: run `articutool experiment capacity "
-                         f"--out {out}` first, or pass --load-g pecans=G,water=G")
-        src = f"our capacity means ({p})"
-    missing = [f for f in cfg.exp2c.foods if f not in loads or loads[f] <= 0]
-    if missing:
-        raise _usage(f"--load-g: no load > 0 g for {missing}")
-    unknown = sorted(set(loads) - set(cfg.exp2c.foods))
-    if unknown:
-        raise _usage(f"--load-g: unknown foods {unknown}; Exp. 2c's foods: "
-                     f"{', '.join(cfg.exp2c.foods)}")
-    _check_loads(loads, cfg, "--load-g" if args.load_g else f"the capacity summary {src}")
-    return loads, src
-
-
-def _check_loads(loads: dict[str, float], cfg: Any, field: str) -> None:
-    """Every load within what its food's Exp. 2c utensil can hold (exit 2 naming the range)."""
-    from articutool.feeding.strategies import StrategyLibrary
-    from articutool.sim.params import PhysicsParams
-    from articutool.sim.placement import capacity_bound_reason, utensil_capacity_bound_g
-    from articutool.spec import load_spec
-
-    spec, params = load_spec(), PhysicsParams.load()
-    lib = StrategyLibrary.load(spec)
-    for food, g in loads.items():
-        utensil = lib.strategies[cfg.exp2c.strategy[food]].utensil
-        most = utensil_capacity_bound_g(spec, params, food, utensil)
-        if not g <= most:
-            raise _usage(f"{field}: {food} must be in (0, {most:.2f}] g, the most the "
-                         f"{utensil} can hold ({capacity_bound_reason(params.food(food))}); "
-                         f"got {g:g}")
-
-
-def _closed_loop_targets(thresholds: dict[str, float], cfg: Any) -> dict[str, float]:
-    """Per food with a load-targeting closed-loop primitive, its target from the food's
-    meaningful-success threshold (:func:`~articutool.experiments.protocols.
-    closed_loop_target_g`): one item's mass (the physics' food model) and the noise of one
-    weighing (the F/T sensor's per-sample noise over the primitive's window)."""
-    from articutool.experiments.protocols import closed_loop_target_g
-    from articutool.sim.params import Liquid, PhysicsParams
-    from articutool.spec import load_spec
-    from articutool.tool.primitives import get_primitive
-
-    spec, params = load_spec(), PhysicsParams.load()
-    out = {}
-    for food, shed in cfg.exp2c.closed_loop.items():
-        names = get_primitive(shed.primitive).parameter_names
-        if "target_load_g" not in names or food not in thresholds:
-            continue
-        window = shed.params[names.index("window_s")] if "window_s" in names else 0.0
-        n = max(1, round(window * spec.ft.rate_hz))
-        noise_g = spec.ft.force_noise_n / spec.imu.gravity * 1000.0 / math.sqrt(n)
-        fp = params.food(food)
-        # One item of a placed load: a load particle of a liquid, a piece otherwise.
-        item = fp.load_item_mass if isinstance(fp, Liquid) else fp.piece_mass
-        out[food] = round(closed_loop_target_g(thresholds[food], item * 1000.0, noise_g), 3)
     return out
 
 
 def trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
                ) -> tuple[list[Any], dict[str, Any]]:
-    """The trials ``experiment EXP`` runs (``args.trials``, ``args.seed``; for exp2c
-    ``args.load_g`` or the capacity summary under ``out``) and the run's conditions with what
-    they came from."""
-    from articutool.experiments.design import conditions, make_trials
+    """The trials ``experiment EXP`` runs (``args.trials``, ``args.seed``, and what the
+    experiment takes beyond its config: :meth:`~articutool.experiments.unit.Experiment.
+    inputs`) and the run's conditions with what they came from."""
+    from articutool.experiments.design import make_trials
 
-    goals: list[str] = []
-    extra: dict[str, Any] = {}
-    loads = None
-    if exp == "exp2b":
-        from articutool.arm.scene import Scene
-
-        sset = Scene.load().staging_set
-        if sset is None:
-            raise _usage("the scene has no [staging_set] (Exp. 2b's start and goals)")
-        goals = [g.name for g in sset.goals]
-        extra["goals"] = goals
-    targets = None
-    if exp == "exp2c":
-        loads, src = _exp2c_loads(args, out, cfg)
-        th, _ = _thresholds(args, out, cfg)
-        if th is None or any(f not in th for f in cfg.exp2c.foods):
-            raise _usage("exp2c needs each food's meaningful-success threshold (its "
-                         "closed-loop target is derived from it): run `articutool experiment "
-                         f"exp1 --out {out}` first, or pass --thresholds-g "
-                         + ",".join(f"{f}=G" for f in cfg.exp2c.foods))
-        targets = _closed_loop_targets(th, cfg)
-        extra.update(load_g=loads, load_source=src, closed_loop_target_g=targets)
-    conds = conditions(exp, cfg, goals=goals, load_g=loads, target_g=targets)
+    u = unit(exp)
+    inputs, noted = u.inputs(args, out, cfg)
+    conds = u.conditions(cfg, **inputs)
     foods = getattr(args, "foods", None)
     if foods:
         wanted = [f.strip() for f in foods.split(",") if f.strip()]
         known = sorted({c.food for c in conds})
         if not wanted or any(f not in known for f in wanted):
-            raise _usage(f"--foods must name foods of {exp} ({', '.join(known)}), "
-                         f"comma-separated; got {foods!r}")
+            raise usage(f"--foods must name foods of {exp} ({', '.join(known)}), "
+                        f"comma-separated; got {foods!r}")
         conds = [c for c in conds if c.food in wanted]
     physics = getattr(args, "physics", None)
     if physics is not None:
@@ -251,14 +92,14 @@ def trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
         try:
             params = PhysicsParams.load(physics)
         except PhysicsError as err:
-            raise _usage(f"--physics: {err}") from None
+            raise usage(f"--physics: {err}") from None
         missing = sorted({c.food for c in conds} - set(params.foods))
         if missing:
-            raise _usage(f"--physics {physics}: no parameters for {missing}")
+            raise usage(f"--physics {physics}: no parameters for {missing}")
         conds = [c.model_copy(update={"physics": str(Path(physics).resolve())})
                  for c in conds]
-    return make_trials(exp, conds, args.trials, args.seed, goals=goals), {
-        "conditions": [c.fields() for c in conds], **extra}
+    return make_trials(exp, conds, args.trials, args.seed, **inputs), {
+        "conditions": [c.fields() for c in conds], **noted}
 
 
 def _machine() -> dict[str, Any]:
@@ -274,7 +115,7 @@ def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) ->
 
     spec = next((t for t in trials if t.trial == args.trial), None)
     if spec is None:
-        raise _usage(f"--trial must be in [0, {len(trials) - 1}] for --trials {args.trials}; "
+        raise usage(f"--trial must be in [0, {len(trials) - 1}] for --trials {args.trials}; "
                      f"got {args.trial}")
     rec_holder: dict[str, Any] = {}
     visitors: list[Any] = []  # read by the protocol when it builds a tree (after the hook)
@@ -343,16 +184,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from articutool.experiments.runner import RunError, data_hash, log_path, pin_run
 
     exp = args.experiment
+    u = unit(exp)
     out = _check_common(args)
-    _check_threshold_g(args)
+    u.check_arguments(args)
     try:
         cfg = ExperimentsConfig.load()
     except ExperimentsConfigError as err:
-        raise _usage(str(err)) from None
+        raise usage(str(err)) from None
     trials, extra = trials_for(exp, args, out, cfg)
     # Checked before any trial runs; the trials themselves do not depend on it.
-    threshold = _exp3_threshold(args, out, cfg) if exp == "exp3" else None
-    th, th_src = _thresholds(args, out, cfg) if exp == "exp2c" else (None, "")
+    given = u.analysis(args, out, cfg)
     if args.trial is not None:
         return _replay(args, exp, trials, out)
     from articutool.cli_support import output_dir
@@ -368,7 +209,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     try:
         pin_run(d / "run.json", settings)
     except RunError as err:
-        raise _usage(str(err)) from None
+        raise usage(str(err)) from None
     from articutool.bench.cli import make_executor
 
     executor = make_executor(args)
@@ -382,7 +223,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 130
     records = summary_run.records
-    summary = summarize(exp, records, cfg, thresholds_g=th, threshold_g=threshold)
+    summary = summarize(exp, records, cfg, **given)
     summary["run"].update(
         trials_per_condition=args.trials, base_seed=args.seed, executor=executor.description,
         experiment_wall_time_s=round(summary_run.wall_time_s, 1), ran_now=summary_run.ran,
@@ -400,8 +241,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             if k in old_summary["run"]:
                 summary["run"][k] = old_summary["run"][k]
     summary.update({k: v for k, v in extra.items() if k != "conditions"})
-    if exp == "exp2c":
-        summary["thresholds_source"] = th_src
+    summary.update({k: given[k] for k in u.noted_settings if k in given})
     from articutool.datafile import replace_own
 
     replace_own(d / "summary.json", json.dumps(summary, indent=1, allow_nan=False) + "\n")
@@ -464,22 +304,21 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     if not out.is_dir():
-        raise _usage(f"--out {out} is not a directory of experiment results")
-    _check_threshold_g(args)
+        raise usage(f"--out {out} is not a directory of experiment results")
+    for u in registry().values():
+        u.check_arguments(args)
     cfg = ExperimentsConfig.load()
-    th, src = _thresholds(args, out, cfg)
-    threshold = (_exp3_threshold(args, out, cfg) if (out / "exp3" / "trials.jsonl").exists()
-                 else None)
+    settings = {u.name: u.analysis(args, out, cfg, required=False)
+                for u in registry().values()}
     def kept(path: Path, copy: Path) -> None:
         print(f"note: {path} was not as `articutool experiment report` wrote it (edited?): "
               f"kept it as {copy}", file=sys.stderr)
 
     exp2a = Path(args.exp2a) if args.exp2a is not None else out.parent / "exp2a"
     if args.exp2a is not None and not exp2a.is_dir():
-        raise _usage(f"--exp2a {exp2a} is not a directory of `bench transport` results")
+        raise usage(f"--exp2a {exp2a} is not a directory of `bench transport` results")
     checks: list[report.LogCheck] = []
-    md, html = report.write_report(out, cfg, thresholds_g=th, thresholds_source=src,
-                                   threshold_g=threshold, on_kept=kept, exp2a=exp2a,
+    md, html = report.write_report(out, cfg, settings=settings, on_kept=kept, exp2a=exp2a,
                                    on_log=checks.append)
     print(f"wrote {md} and {html}")
     for c in checks:
@@ -502,13 +341,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
 
     p0 = sub.add_parser("experiment", help="the thesis' physical experiments in simulation")
     esub = p0.add_subparsers(dest="experiment", required=True, metavar="EXPERIMENT")
-    helps = {"capacity": "maximum-capacity loads (Exp. 2c's load)",
-             "exp1": "acquisition, H1 (§5.1)",
-             "exp2b": "transport of placed loads to five Staging goals, H2 (§5.2.2)",
-             "exp2c": "shedding primitives vs control, H2 (§5.2.3)",
-             "exp3": "noodles end to end, H3 (§5.3)"}
-    for name in RUN_EXPERIMENTS:
-        p = esub.add_parser(name, help=helps[name])
+    for u in registry().values():
+        p = esub.add_parser(u.name, help=u.help)
         p.add_argument("--trials", type=int, default=20,
                        help="trials per condition (default 20, as the thesis)")
         p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
@@ -529,33 +363,13 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                        help="with --trial: record the trial as ROS 2 messages in MCAP (tool "
                             "telemetry and commands, arm joints, food, the feeding tree's "
                             "status); never overwrites")
-        if name in BITE_EXPERIMENTS:
-            p.add_argument("--physics", metavar="FILE", default=None,
-                           help="another physics parameter file for the bite's world (e.g. the "
-                                "thesis' 125 g of noodles: docs/food.md); use its own --out")
-        if name != "exp3":
-            p.add_argument("--foods", metavar="FOOD,…", default=None,
-                           help="run only these foods' conditions (same seeds as a full run; "
-                                "use its own --out)")
-        if name == "exp2c":
-            p.add_argument("--load-g", default=None, metavar="FOOD=G,…",
-                           help="the load per food (default: our capacity means)")
-            p.add_argument("--thresholds-g", default=None, metavar="FOOD=G,…",
-                           help="meaningful-success thresholds (default: our Exp. 1 "
-                                "Articutool means)")
-        if name == "exp3":
-            p.add_argument("--threshold-g", type=float, default=None,
-                           help="meaningful-success threshold (default: our Exp. 1 Articutool "
-                                "mean for the food, the thesis' rule for Exp. 2c; the thesis' "
-                                "Exp. 3 took 3.0 g from its baseline's bimodal bites)")
+        u.add_arguments(p)
         p.set_defaults(func=_cmd_run)
     p = esub.add_parser("report", help="one Markdown + HTML page with every experiment")
     p.add_argument("--out", metavar="DIR", default=DEFAULT_OUT,
                    help=f"results root (default {DEFAULT_OUT})")
-    p.add_argument("--thresholds-g", default=None, metavar="FOOD=G,…",
-                   help="Exp. 2c thresholds (default: our Exp. 1 Articutool means)")
-    p.add_argument("--threshold-g", type=float, default=None,
-                   help="Exp. 3 threshold (default: our Exp. 1 Articutool mean)")
+    for u in registry().values():
+        u.add_report_arguments(p)
     p.add_argument("--exp2a", metavar="DIR", default=None,
                    help="the transport planning benchmark's results (bench transport "
                         "--out; default: the exp2a folder beside --out)")

@@ -1,5 +1,7 @@
-"""The experiments' trial contracts: each experiment's condition, what its protocol measures,
-and the trial record that joins them to the trial's identity and bookkeeping.
+"""The experiments' trial contracts: the base types of a condition and of what a protocol
+measures (each experiment's own are in its module, :mod:`articutool.experiments.units`),
+the bite's and the food check's shared by several, and the trial record that joins them to
+the trial's identity and bookkeeping.
 
 A trial's record is one flat JSON line of ``<out>/<experiment>/trials.jsonl``: its identity
 (``experiment``, ``trial``, ``repeat``, ``seed``), its condition's fields (sorted by name),
@@ -12,21 +14,21 @@ only its ``traceback``.
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from collections.abc import Mapping
+from typing import Any
+
+from pydantic import field_validator, model_validator
 
 from articutool.spec import StrictModel
 
-__all__ = ["CONDITIONS", "OUTCOMES", "BiteCondition", "BiteOutcome", "CapacityCondition",
-           "CapacityOutcome", "Condition", "Exp2bCondition", "Exp2bOutcome", "Exp2cArm",
-           "Exp2cCondition", "Exp2cOutcome", "FoodCheck", "Outcome", "TrialRecord"]
-
-# Exp. 2c's conditions: no primitive, the strategy's open-loop primitive, the closed-loop
-# (F/T) one.
-Exp2cArm = Literal["control", "primitive", "closed_loop"]
+__all__ = ["BiteCondition", "BiteOutcome", "ConditionBase", "FoodCheck", "OutcomeBase",
+           "TrialRecord"]
 
 
 # ---------------------------------------------------------------------- conditions --
-class _Condition(StrictModel):
+class ConditionBase(StrictModel):
+    """A trial's condition: at least its ``food``."""
+
     food: str
 
     def fields(self) -> dict[str, Any]:
@@ -34,16 +36,12 @@ class _Condition(StrictModel):
         return self.model_dump(exclude_none=True)
 
     def group(self) -> tuple[str, ...]:
-        """What the analysis groups trials by: the food, and the system or Exp. 2c
-        condition (not an Exp. 2b goal, a load or another data file)."""
+        """What the analysis groups trials by: the food, and what the experiment compares
+        (not what varies within a condition, as a goal, a load or another data file)."""
         return (self.food,)
 
 
-class CapacityCondition(_Condition):
-    """A maximal scoop of ``food``."""
-
-
-class BiteCondition(_Condition):
+class BiteCondition(ConditionBase):
     """A bite of Exp. 1 or 3: ``food`` by ``system``; ``strategies``: another action-library
     file; ``physics``: another physics parameter file."""
 
@@ -56,39 +54,8 @@ class BiteCondition(_Condition):
         return (self.food, self.system)
 
 
-class Exp2bCondition(_Condition):
-    """Exp. 2b: a placed load of ``food`` carried by ``system`` (a thesis system or a variant)
-    to the staging-set ``goal`` (each trial's; a run's condition list has none)."""
-
-    system: str
-    goal: str | None = None
-
-    def group(self) -> tuple[str, ...]:
-        """The food and the system (a thesis system or a variant)."""
-        return (self.food, self.system)
-
-
-class Exp2cCondition(_Condition):
-    """Exp. 2c: ``load_g`` of ``food`` over the bowl, then ``condition``; ``target_g``: the
-    closed-loop primitive's load target."""
-
-    condition: Exp2cArm
-    load_g: float
-    target_g: float | None = None
-
-    def group(self) -> tuple[str, ...]:
-        """The food and the condition."""
-        return (self.food, self.condition)
-
-
-Condition = CapacityCondition | BiteCondition | Exp2bCondition | Exp2cCondition
-CONDITIONS: dict[str, type[Condition]] = {
-    "capacity": CapacityCondition, "exp1": BiteCondition, "exp2b": Exp2bCondition,
-    "exp2c": Exp2cCondition, "exp3": BiteCondition}
-
-
 # ------------------------------------------------------------------------ outcomes --
-class _Outcome(StrictModel):
+class OutcomeBase(StrictModel):
     """What a protocol measured. Each type declares its fields in the order its protocol
     logs them (Exp. 2b's and 2c's transport fields sit between their own, so they are
     declared in each rather than inherited, which would move them in the log line)."""
@@ -97,26 +64,15 @@ class _Outcome(StrictModel):
         """What the protocol measured, as logged: the fields it set, in declaration order."""
         return self.model_dump(exclude_unset=True)
 
-
-class CapacityOutcome(_Outcome):
-    """One maximal scoop (:func:`~articutool.experiments.protocols.capacity_trial`); a
-    liquid's also ``brim_poured_g`` and ``brim_g``."""
-
-    utensil: str
-    completed: bool
-    failed_stage: str
-    scoop_g: float
-    items_g: float
-    ft_mass_g: float | None
-    tilt_deg: float
-    spilled_g: float
-    realtime_factor: float
-    brim_poured_g: float | None = None
-    brim_g: float | None = None
+    def food_g(self) -> float:
+        """The food the trial ends with (the report's typical trial): delivered."""
+        return float(self.delivered_g)  # type: ignore[attr-defined]
 
 
 class FoodCheck(StrictModel):
-    """What one food check before a transport decided (the fields it recorded)."""
+    """What one food check before a transport decided, as a trial records it: the fields of
+    the arm's check record (:meth:`articutool.planning.pc_arm.PCArm.check_food`) that a
+    summary reads (the full record stays in the bite's log)."""
 
     wrist: str | None = None
     scale: float | None = None
@@ -127,63 +83,19 @@ class FoodCheck(StrictModel):
     executed: bool | None = None
     slosh_free_fallback: str | None = None
 
-
-class Exp2bOutcome(_Outcome):
-    """A placed load carried to a goal (:func:`~articutool.experiments.protocols.
-    exp2b_trial`); ``food_checks`` with the food-aware check only."""
-
-    load_g: float
-    held_g: float
-    planner: str
-    tolerance_deg: float | None
-    completed: bool
-    planning_attempts: int
-    planning_wall_s: float
-    planning_wait_sim_s: float
-    motion_time_s: float
-    failed_stage: str
-    max_tilt_deg: float | None
-    food_checks: list[FoodCheck] | None = None
-    spilled_by_place: dict[str, float]
-    spilled_g: float
-    delivered_g: float
-    airborne_g: float
-    weighed_g: float
-    masses_after_g: dict[str, float]
-    realtime_factor: float
+    @classmethod
+    def of(cls, check: Mapping[str, Any]) -> FoodCheck:
+        """The arm's check record ``check`` as a trial records it: the wrist it modelled (for
+        a plan it refused, the wrist of its last try), the speed scale it kept, the spill it
+        predicted."""
+        out = {k: check[k] for k in cls.model_fields if k in check}
+        modelled = [t["wrist"] for t in check.get("tried", ()) if "wrist" in t]
+        if "wrist" not in out and modelled:  # a refused plan: the wrist its last try modelled
+            out["wrist"] = modelled[-1]
+        return cls.model_validate(out)
 
 
-class Exp2cOutcome(_Outcome):
-    """A load shed over the bowl (or not), then carried to Staging
-    (:func:`~articutool.experiments.protocols.exp2c_trial`); the primitive's parameters,
-    success and message when one ran."""
-
-    load_g: float
-    held_g: float
-    primitive: str | None
-    primitive_params: list[float] | None = None
-    primitive_ok: bool | None = None
-    primitive_message: str | None = None
-    primitive_moved_g: dict[str, float]
-    after_primitive_g: float
-    shed_g: float
-    completed: bool
-    planning_attempts: int
-    planning_wall_s: float
-    planning_wait_sim_s: float
-    motion_time_s: float
-    failed_stage: str
-    max_tilt_deg: float | None
-    spilled_by_place: dict[str, float]
-    spilled_g: float
-    delivered_g: float
-    airborne_g: float
-    weighed_g: float
-    masses_after_g: dict[str, float]
-    realtime_factor: float
-
-
-class BiteOutcome(_Outcome):
+class BiteOutcome(OutcomeBase):
     """A bite through the feeding tree (:class:`~articutool.meal.bites.BiteResult`'s fields,
     its identity left to the record), then what the experimenter weighs; ``mass_g``: Exp. 1's
     mass at Resting."""
@@ -219,11 +131,10 @@ class BiteOutcome(_Outcome):
     realtime_factor: float
     mass_g: float | None = None
 
+    def food_g(self) -> float:
+        """The food the trial ends with: acquired."""
+        return float(self.acquired_g)
 
-Outcome = CapacityOutcome | BiteOutcome | Exp2bOutcome | Exp2cOutcome
-OUTCOMES: dict[str, type[Outcome]] = {
-    "capacity": CapacityOutcome, "exp1": BiteOutcome, "exp2b": Exp2bOutcome,
-    "exp2c": Exp2cOutcome, "exp3": BiteOutcome}
 
 _IDENTITY = ("experiment", "trial", "repeat", "seed")
 _BOOKKEEPING = ("traceback", "wall_time_s", "pid", "source", "error")
@@ -235,17 +146,37 @@ class TrialRecord(StrictModel):
     ``error`` and ``traceback`` say what), and the run's bookkeeping (``source``: the code
     it ran, :func:`~articutool.experiments.runner.source_version`)."""
 
-    experiment: Literal["capacity", "exp1", "exp2b", "exp2c", "exp3"]
+    experiment: str
     trial: int
     repeat: int
     seed: int
-    condition: Condition
-    outcome: Outcome | None
+    condition: ConditionBase
+    outcome: OutcomeBase | None
     traceback: str | None = None
     wall_time_s: float
     pid: int
     source: str | None = None
     error: str | None
+
+    @field_validator("experiment")
+    @classmethod
+    def _registered(cls, name: str) -> str:
+        from articutool.experiments.unit import names
+
+        if name not in names():
+            raise ValueError(f"must be one of {', '.join(names())}")
+        return name
+
+    @model_validator(mode="after")
+    def _types(self) -> TrialRecord:
+        from articutool.experiments.unit import unit
+
+        u = unit(self.experiment)
+        if not isinstance(self.condition, u.condition):
+            raise ValueError(f"condition: {self.experiment}'s is a {u.condition.__name__}")
+        if self.outcome is not None and not isinstance(self.outcome, u.outcome):
+            raise ValueError(f"outcome: {self.experiment}'s is a {u.outcome.__name__}")
+        return self
 
     def to_log(self) -> dict[str, Any]:
         """The record as one line of the trial log (see module doc)."""
@@ -264,10 +195,12 @@ class TrialRecord(StrictModel):
         field but the identity and the bookkeeping is the outcome's (a field both name, as
         Exp. 2c's ``load_g``, is logged once and read into both). A trial that raised
         (``error``) has no outcome."""
-        exp = line.get("experiment")
-        if exp not in CONDITIONS:
+        from articutool.experiments.unit import registry
+
+        exp = registry().get(line.get("experiment"))  # type: ignore[arg-type]
+        if exp is None:
             return cls.model_validate(line)  # names the experiment field
-        cond_type, out_type = CONDITIONS[exp], OUTCOMES[exp]
+        cond_type, out_type = exp.condition, exp.outcome
         own = {*_IDENTITY, *_BOOKKEEPING}
         fields: dict[str, Any] = {k: v for k, v in line.items() if k in own}
         fields["condition"] = cond_type.model_validate(

@@ -18,37 +18,26 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from articutool.experiments.analysis import (
-    EXP2C_CLASSES,
-    completeness,
-    meaningful_at,
-    representative_trials,
-    summarize,
-)
-from articutool.experiments.design import EXP2C_CONDITIONS
-from articutool.experiments.figures import mass_bars, outcome_bars
+from articutool.experiments import exp2a as bench
+from articutool.experiments.analysis import completeness, representative_trials, summarize
+from articutool.experiments.markdown import num, table
 from articutool.experiments.records import TrialRecord
-from articutool.experiments.stats import FisherResult, fisher
-from articutool.experiments.verdicts import TEST_NAMES, code_versions, thesis_trials, verdicts
-from articutool.feeding.outcomes import OUTCOMES
+from articutool.experiments.unit import Experiment, registry, unit
+from articutool.experiments.verdicts import TEST_NAMES, Verdict, code_versions
 from articutool.thresholds import Grams
 
 if TYPE_CHECKING:
     from articutool.experiments.runner import TrialLog
 
 __all__ = ["CROSS_CHECKS", "HONESTY", "LogCheck", "check_log", "cross_checks",
-           "deviation_facts", "deviations_section", "differences", "figure",
-           "hypotheses_section", "read_exp2a", "read_summary", "section",
-           "thesis_exp3_no_spill", "write_report"]
+           "deviation_facts", "deviations_section", "figure", "hypotheses_section", "order",
+           "read_summary", "section", "verdicts", "write_report"]
 
-ORDER = ("exp1", "exp2b", "capacity", "exp2c", "exp3")
-TITLES = {
-    "capacity": "Maximum capacity (Exp. 2c's load, §5.2.3)",
-    "exp1": "Exp. 1 — acquisition (H1, §5.1; cf. Fig. 6.1)",
-    "exp2b": "Exp. 2b — transport of placed loads (H2, §5.2.2; cf. Fig. 6.3)",
-    "exp2c": "Exp. 2c — shedding primitives (H2, §5.2.3; cf. Fig. 6.4)",
-    "exp3": "Exp. 3 — noodles end to end (H3, §5.3; cf. Fig. 6.5)",
-}
+
+def order() -> list[Experiment]:
+    """The experiments in the report's order (the thesis')."""
+    return sorted(registry().values(), key=lambda e: e.order)
+
 HONESTY = """\
 - **Trials differ only by seed.** Repeat *r* of every condition has seed 1000·S + r: the food's
   placement, the sensors' noise and gyro bias, and the planner's seed. The systems face the
@@ -79,41 +68,6 @@ HONESTY = """\
 """
 
 
-def _f(x: Any, nd: int = 2) -> str:
-    if x is None:
-        return "–"
-    if isinstance(x, float):
-        return f"{x:.{nd}f}"
-    return str(x)
-
-
-def _p(x: Any) -> str:
-    if x is None:
-        return "n/a"
-    return f"{x:.2g}" if x >= 1e-3 else f"{x:.1e}"
-
-
-def _msd(d: Mapping[str, Any] | None, nd: int = 2) -> str:
-    if not d or d.get("mean") is None:
-        return "–"
-    s = f"{d['mean']:.{nd}f}"
-    if d.get("sd") is not None:
-        s += f" ± {d['sd']:.{nd}f}"
-    return s
-
-
-def _ci(d: Mapping[str, Any] | None, nd: int = 2) -> str:
-    if not d or d.get("ci_low") is None:
-        return "–"
-    return f"[{d['ci_low']:.{nd}f}, {d['ci_high']:.{nd}f}]"
-
-
-def _table(head: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
-    return "\n".join(lines)
-
-
 # ---------------------------------------------------------------------- summaries --
 class _Open(BaseModel):
     model_config = ConfigDict(extra="allow", frozen=True)
@@ -133,11 +87,6 @@ class _SummaryFile(_Open):
     load_g: dict[str, Grams] | None = None
     load_source: str | None = None
     goals: list[str] | None = None
-
-
-class _BenchRun(_Open):
-    timeout_s: Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
-    planner: str | None = None
 
 
 def read_summary(path: Path) -> dict[str, Any] | None:
@@ -198,7 +147,6 @@ def check_log(out: Path, experiment: str, log: TrialLog,
     from pydantic import ValidationError
 
     from articutool.datafile import ResultsError, format_validation_error, read_own_json
-    from articutool.experiments.records import CONDITIONS
 
     n = (summary or {}).get("run", {}).get("trials_per_condition")
     if not isinstance(n, int) or isinstance(n, bool) or n < 1:
@@ -208,7 +156,7 @@ def check_log(out: Path, experiment: str, log: TrialLog,
     conds = None
     if pinned is not None:
         try:
-            conds = [CONDITIONS[experiment].model_validate(c) for c in pinned["conditions"]]
+            conds = [unit(experiment).condition.model_validate(c) for c in pinned["conditions"]]
         except ValidationError as err:
             raise ResultsError(format_validation_error(
                 err, f"the run's settings {path}: conditions:")) from None
@@ -245,7 +193,7 @@ def _logs_section(checks: Sequence[LogCheck]) -> str:
             "not a JSON record, holds NaN or an infinity, or is torn is not read), and the "
             "trials per condition its last finished run asked for beside those found. A "
             "condition short of its trials makes `articutool experiment report` exit 2.\n\n"
-            + _table(["experiment", "lines read", "records accepted", "bad lines",
+            + table(["experiment", "lines read", "records accepted", "bad lines",
                       "trials per condition (promised)", "found per condition", "status"],
                      rows) + "\n")
 
@@ -257,27 +205,7 @@ def figure(exp: str, records: Sequence[TrialRecord], summary: Mapping[str, Any],
     ok = [r for r in records if not r.error]
     if not ok:
         return None
-    if exp == "exp2b":
-        return mass_bars(ok, summary["spilled_g"], cfg.exp2b.foods, cfg.exp2b.systems,
-                         lambda o: o.spilled_g, "spilled during transport (g), mean ± 95% CI",
-                         "Exp. 2b: spill carrying placed loads to five Staging goals "
-                         "(cf. thesis Fig. 6.3)", directory / "exp2b.png")
-    if exp == "exp1":
-        return mass_bars(ok, summary["acquired_g"], cfg.exp1.foods, cfg.exp1.systems,
-                         lambda o: o.mass_g, "mass on the utensil at Resting (g), mean ± 95% CI",
-                         "Exp. 1: acquisition (cf. thesis Fig. 6.1)", directory / "exp1.png")
-    if exp == "exp2c" and summary.get("thresholds_g"):
-        groups = {f"{f}\n{c}": summary["foods"][f][c]["counts"]
-                  for f in cfg.exp2c.foods for c in EXP2C_CONDITIONS
-                  if c in summary["foods"][f] and "counts" in summary["foods"][f][c]}
-        return outcome_bars(groups, EXP2C_CLASSES, "Exp. 2c: shedding primitives vs control "
-                            "(cf. thesis Fig. 6.4)", directory / "exp2c.png")
-    if exp == "exp3":
-        groups = {s: v["counts"] for s, v in summary["systems"].items()}
-        return outcome_bars(groups, OUTCOMES, f"Exp. 3: noodles end to end, threshold "
-                            f"{summary['threshold_g']:g} g (cf. thesis Fig. 6.5)",
-                            directory / "exp3.png")
-    return None
+    return unit(exp).figure(ok, summary, cfg, directory)
 
 
 # ----------------------------------------------------------------------- sections --
@@ -290,7 +218,7 @@ def _run_line(s: Mapping[str, Any]) -> str:
              + (f", of them {resets} runs that MuJoCo reset after a numerical instability, "
                 "not counted" if resets else "") + ")"]
     if w.get("mean") is not None:
-        parts.append(f"wall time per trial {w['mean']:.1f} ± {_f(w.get('sd'), 1)} s, "
+        parts.append(f"wall time per trial {w['mean']:.1f} ± {num(w.get('sd'), 1)} s, "
                      f"sum {r.get('wall_time_total_s')} s")
     if r.get("sources"):
         parts.append("code: " + ", ".join(f"{k} ({n} trials)" for k, n in r["sources"].items()))
@@ -303,37 +231,6 @@ def _run_line(s: Mapping[str, Any]) -> str:
             f"{x:g}" for x in ml["before"]) + " at the start, " + "/".join(
             f"{x:g}" for x in ml["after"]) + " at the end")
     return "; ".join(parts)
-
-
-def _sec_capacity(s: Mapping[str, Any], cfg: Any) -> str:
-    th = cfg.thesis["exp2c"]["capacity_g"]
-    rows = []
-    for f, v in s["foods"].items():
-        c = v["capacity_g"]
-        diff = (f"{c['mean'] - th[f]:+.1f} g ({100 * (c['mean'] / th[f] - 1):+.0f} %)"
-                if c.get("mean") is not None and f in th else "–")
-        done = v.get("completed", {})
-        rows.append([f, v["utensil"], f"{done.get('k', '?')}/{done.get('n', '?')}",
-                     _msd(v.get("scoop_g")), _ci(v.get("scoop_g")), _msd(v.get("brim_g")),
-                     f"**{_f(c.get('mean'))}**", v.get("capacity_source", "–"),
-                     f"{th.get(f, '–')}", diff])
-    return (_table(["food", "utensil", "scoops completed", "maximal scoop (g), mean ± SD",
-                    "95 % CI", "dish filled to the brim (g)", "capacity (Exp. 2c's load, g)",
-                    "from", "thesis (g)", "ours − thesis"], rows)
-            + "\n\nProtocol (§5.2.3: an experimenter's repeated maximal manual scoops; their "
-              "mean is Exp. 2c's load): the Articutool scoops through the full bowl along "
-              "the food's own sweep made maximal (`experiments.toml [capacity.scoop]`: the "
-              "dish's outline 1 mm above the bowl's floor, dragged through the food, levelled "
-              "in it as far as the handle clears the rim; no shedding primitive), lifts the "
-              "spoon level and holds it 1 s; what it holds then, pieces perched on others "
-              "included, is one maximal load. A liquid's trial also fills the leveled dish to "
-              "its brim: a particle liquid without surface tension holds at most the dish's "
-              "level volume (the soup spoon: 16.79 mL, 16.8 g of water). The thesis' 20 g of "
-              "water is 3.2 g (19 %) more than that level volume: spread over the rim's "
-              "opening (π · 30 · 22.5 mm² = 21.2 cm²) it is a 1.5 mm layer above the rim — a "
-              "meniscus pinned at a brim-full spoon's rim (water's capillary length is "
-              "2.7 mm; such menisci bulge 1-2 mm), which a model without surface tension "
-              "cannot hold.")
 
 
 def _sec_static_tilt(d: Mapping[str, Any]) -> str:
@@ -352,9 +249,9 @@ def _sec_static_tilt(d: Mapping[str, Any]) -> str:
         rows = [[f"{r['tilt_deg']:.1f}", f"{r['spilled_g']:.2f}", f"{r['hydrostatic_g']:.2f}"]
                 for r in v.get("rows", [])]
         out += (f"**{'Over the tip' if direction == 'tip' else 'Sideways'}** (load kept "
-                f"{_f(v.get('kept_g'))} g): spill onset {_f(v.get('onset_deg'), 1)}° in the "
-                f"world, {_f(v.get('hydrostatic_onset_deg'), 1)}° by hydrostatics.\n\n"
-                + _table(["tilt (°)", "spilled, particles (g)", "spilled, hydrostatics (g)"],
+                f"{num(v.get('kept_g'))} g): spill onset {num(v.get('onset_deg'), 1)}° in the "
+                f"world, {num(v.get('hydrostatic_onset_deg'), 1)}° by hydrostatics.\n\n"
+                + table(["tilt (°)", "spilled, particles (g)", "spilled, hydrostatics (g)"],
                          rows) + "\n\n")
     return out
 
@@ -366,8 +263,8 @@ def _sec_slosh(d: Mapping[str, Any]) -> str:
     trials = d.get("trials", [])
     for t in trials:
         rows.append([t.get("goal", "–"), t.get("condition", t.get("wrist_used", "–")),
-                     _f(t.get("scale")), t.get("seed", "–"), _f(t.get("max_tilt_deg"), 1),
-                     _f(t.get("predicted_spill_g")), _f(t.get("lost_g"))])
+                     num(t.get("scale")), t.get("seed", "–"), num(t.get("max_tilt_deg"), 1),
+                     num(t.get("predicted_spill_g")), num(t.get("lost_g"))])
     head = (f"{d.get('water', '')}\n\nLoad {d.get('load_g', '?')} g; command: "
             f"`{d.get('command', '?')}`. Simulated is what left the spoon during the "
             "transport (the study's `lost_g`), not what ran off while the load was placed.\n\n")
@@ -380,7 +277,7 @@ def _sec_slosh(d: Mapping[str, Any]) -> str:
         tail = (f"\nThe model and the particles agree on whether a transport spills (more "
                 f"than {cut:g} g) in {agree} of {len(both)} transports "
                 f"({100 * agree / len(both):.0f} %).\n")
-    return head + _table(["goal", "wrist", "speed scale", "seed", "max tilt (°)",
+    return head + table(["goal", "wrist", "speed scale", "seed", "max tilt (°)",
                           "predicted by the slosh model (g)",
                           "simulated, spilled in transport (g)"], rows) + "\n" + tail
 
@@ -399,33 +296,33 @@ def _sec_strands(d: Mapping[str, Any]) -> str:
                       ("capstan_tine_frictionless", "capstan, frictionless tine")):
         v = d.get(key)
         if v:
-            rows.append([what, f"{_f(v.get('bar_radius_mm'), 2)} mm",
-                         f"hold ratio {_f(v.get('hold_ratio'))}",
-                         f"e^(μπ) = {_f(v.get('law_e_mu_pi'))}", verdict(v)])
+            rows.append([what, f"{num(v.get('bar_radius_mm'), 2)} mm",
+                         f"hold ratio {num(v.get('hold_ratio'))}",
+                         f"e^(μπ) = {num(v.get('law_e_mu_pi'))}", verdict(v)])
     for o in d.get("cantilever", {}).get("overhangs", []):
-        rows.append(["bending, cantilever", f"{_f(o.get('overhang_mm'), 1)} mm overhang",
-                     f"tip falls {_f(o.get('tip_fall_mm'))} mm",
-                     f"elastica {_f(o.get('law_elastica_mm'))} mm",
+        rows.append(["bending, cantilever", f"{num(o.get('overhang_mm'), 1)} mm overhang",
+                     f"tip falls {num(o.get('tip_fall_mm'))} mm",
+                     f"elastica {num(o.get('law_elastica_mm'))} mm",
                      verdict(d.get("cantilever", {}))])
     for t in d.get("tack", {}).get("tests", []):
         rows.append([f"tack, on the {t.get('on', '?')}", f"{t.get('contacts_at_rest', '?')} "
-                     "contacts", f"pull-off {_f(t.get('pull_off_N_per_m'))} N/m",
-                     f"{_f(t.get('law_N_per_m'))} N/m (cited "
-                     f"{'–'.join(_f(x) for x in t.get('law_range_N_per_m', []))})", verdict(t)])
+                     "contacts", f"pull-off {num(t.get('pull_off_N_per_m'))} N/m",
+                     f"{num(t.get('law_N_per_m'))} N/m (cited "
+                     f"{'–'.join(num(x) for x in t.get('law_range_N_per_m', []))})", verdict(t)])
     st = d.get("strand", {})
     if st:
         rows.append(["strand", f"{st.get('segments', '?')} segments of "
-                     f"{_f(st.get('segment_mm'))} mm", f"{_f(st.get('mass_g'))} g, "
-                     f"{_f(st.get('diameter_mm'), 1)} mm",
-                     f"cooked: {_f(st.get('cited_mass_g'))} g, "
-                     f"{'–'.join(_f(x, 1) for x in st.get('cited_diameter_mm', []))} mm",
+                     f"{num(st.get('segment_mm'))} mm", f"{num(st.get('mass_g'))} g, "
+                     f"{num(st.get('diameter_mm'), 1)} mm",
+                     f"cooked: {num(st.get('cited_mass_g'))} g, "
+                     f"{'–'.join(num(x, 1) for x in st.get('cited_diameter_mm', []))} mm",
                      verdict(st)])
-    bend = _f(d.get("capstan_tine", {}).get("bending_over_tension"), 1)
+    bend = num(d.get("capstan_tine", {}).get("bending_over_tension"), 1)
     head = ("Each mechanism of the noodle strand alone, beside the law it should follow "
             "(tolerances: capstan on the bar within 20 % of e^(μπ), a frictionless bar "
             f"≤ 1.1; on a tine bending is {bend}× the tension, so no rope law applies and "
             f"it is reported). All pass: **{d.get('all_pass', '?')}**.\n\n")
-    return head + _table(["mechanism", "set-up", "simulated", "law", "verdict"], rows) + "\n"
+    return head + table(["mechanism", "set-up", "simulated", "law", "verdict"], rows) + "\n"
 
 
 # The cross-checks the report shows when their JSON files are in the results directory.
@@ -463,263 +360,13 @@ def cross_checks(out: Path) -> str:
     return md
 
 
-def _mass_rows(block: Mapping[str, Any], foods: Sequence[str], systems: Sequence[str],
-               thesis: Mapping[str, Any], cell: Any) -> list[list[Any]]:
-    """Rows food | system | n | mean ± SD | 95 % CI | thesis cell | Welch p | thesis p (the
-    p-values on each food's first row)."""
-    rows = []
-    for f in foods:
-        e = block[f]
-        for sys_ in systems:
-            d, first = e[sys_], sys_ == systems[0]
-            rows.append([f, sys_, d["n"], _msd(d), _ci(d), *cell(f, sys_, d),
-                         _p(e.get("welch", {}).get("p")) if first else "",
-                         thesis.get(f, {}).get("p", "–") if first else ""])
-    return rows
-
-
-def _sec_exp2b(s: Mapping[str, Any], cfg: Any) -> str:
-    th = cfg.thesis["exp2b"]
-
-    def cell(f: str, sys_: str, d: Mapping[str, Any]) -> list[str]:
-        t = th.get(f, {})
-        return [f"{d['nonzero']['k']}/{d['nonzero']['n']}",
-                _f(t.get(sys_)) if sys_ in t else "not in text"]
-
-    rows = _mass_rows(s["spilled_g"], cfg.exp2b.foods, cfg.exp2b.systems, th, cell)
-    out = _table(["food", "system", "n", "spilled (g), mean ± SD", "95 % CI",
-                  "trials with spill", "thesis mean (g)", "Welch p (ours)", "p (thesis)"],
-                 rows)
-    rows = []
-    for f in cfg.exp2b.foods:
-        for sys_ in cfg.exp2b.systems:
-            t = s["transport"][f][sys_]
-            rows.append([f, sys_, _msd(t["held_g"]), f"{t['completed']['k']}/{t['completed']['n']}",
-                         _msd(t["planning_attempts"]), _msd(t["max_tilt_deg"], 1),
-                         _p(s["spill_frequency_fisher"].get(f, {}).get("p"))
-                         if sys_ == cfg.exp2b.systems[0] else ""])
-    out += "\n\n" + _table(["food", "system", "load held after placing (g)", "completed",
-                            "planning attempts", "max utensil tilt (°)",
-                            "Fisher p, spill frequency"], rows)
-    if s.get("spilled_by_place"):
-        rows = [[f, sys_, _places(s["spilled_by_place"][f][sys_])]
-                for f in cfg.exp2b.foods for sys_ in cfg.exp2b.systems]
-        out += ("\n\nWhere the spilled food went (g over all trials, trials with any): in "
-                "transport anything that left the spoon is spilled, a container apart:\n\n"
-                + _table(["food", "system", "by place"], rows))
-    rows = []
-    for f in cfg.exp2b.foods:
-        for sys_ in cfg.exp2b.systems:
-            pg = s["per_goal"][f][sys_]
-            rows.append([f, sys_] + [f"{_msd(v)} (n={v['n']})" for v in pg.values()])
-    goals = list(next(iter(s["per_goal"][cfg.exp2b.foods[0]].values())).keys()) if rows else []
-    out += "\n\nSpilled per goal (g):\n\n" + _table(["food", "system", *goals], rows)
-    return out + _sec_exp2b_variants(s, cfg)
-
-
-def _sec_exp2b_variants(s: Mapping[str, Any], cfg: Any) -> str:
-    """This stack's systems beside the thesis' two (same seeds and goals as the system each
-    extends)."""
-    rows = []
-    for name, per in (s.get("variants") or {}).items():
-        v = cfg.exp2b.variants[name]
-        what = ("food-aware check" if v.food_check else "no food check") + (
-            ", slosh-free leveling" if v.leveling == "apparent" else "")
-        for f, e in per.items():
-            rows.append([f, f"{name} ({v.system} + {what})",
-                         f"{e['spills']['k']}/{e['spills']['n']}",
-                         f"{e['base_spills']['k']}/{e['base_spills']['n']}",
-                         _msd(e["spilled_g"]), _p((e.get("fisher_vs_base") or {}).get("p")),
-                         f"{_msd(e['motion_time_s'], 1)} vs {_msd(e['base_motion_time_s'], 1)}",
-                         f"{e['retimed']}/{e['checks']}", f"{e['slosh_free']}/{e['checks']}",
-                         f"{e.get('checks_of_carried_wrist', '–')}/{e['checks']}",
-                         _places(e["spilled_by_place"])])
-    if not rows:
-        return ""
-    return ("\n\n**This stack's systems beside the thesis' two** (extra conditions on the same "
-            "seeds and goals as the thesis system each extends; the thesis' comparison above "
-            "is unchanged by them):\n\n"
-            + _table(["food", "system", "trials with spill", "same, its thesis system",
-                      "spilled (g), mean ± SD", "Fisher p vs its thesis system",
-                      "motion time (s), it vs its thesis system", "checks retimed",
-                      "checks slosh-free", "checks of the wrist carried", "spilled by place"],
-                     rows)
-            + "\n\nA check of the wrist carried predicts the transport the trial makes (the "
-              "locked spoon for the baseline); a check of another wrist tests nothing about "
-              "this transport.")
-
-
-def _places(d: Mapping[str, Any] | None) -> str:
-    """``{"table": {"g", "trials"}, …}`` as "table 0.42 g (1), container …" (none: "none")."""
-    parts = [f"{p} {v['g']:.2f} g ({v['trials']})" for p, v in (d or {}).items() if v["g"] > 0]
-    return ", ".join(parts) or "none"
-
-
-def _sec_exp2c(s: Mapping[str, Any], cfg: Any) -> str:
-    th = cfg.thesis["exp2c"]
-    ths = s.get("thresholds_g")
-    out = (f"Loads: {', '.join(f'{f} {g:.2f} g' for f, g in s.get('load_g', {}).items())} "
-           f"({s.get('load_source', '?')}); thesis: "
-           + " / ".join(f"{g:g} g" for g in th["capacity_g"].values()) + ". Thresholds: "
-           + (", ".join(f"{f} {g:.2f} g" for f, g in ths.items()) if ths else "none")
-           + f" ({s.get('thresholds_source', '?')}); thesis: "
-           + " / ".join(f"> {cfg.thesis['exp1'][f]['articutool'][0]:g} g"
-                        for f in cfg.exp2c.foods)
-           + " (its Exp. 1 means)."
-           + (" Closed-loop load targets, from the thresholds (threshold + one item + 3 σ of one "
-              "weighing): " + ", ".join(f"{f} {g:.2f} g" for f, g in
-                                        s["closed_loop_target_g"].items()) + "."
-              if s.get("closed_loop_target_g") else "") + "\n\n")
-    rows = []
-    for f in cfg.exp2c.foods:
-        e = s["foods"][f]
-        for c in EXP2C_CONDITIONS:
-            if c not in e:  # a summary written before the closed-loop condition
-                continue
-            d = e[c]
-            t = th.get(f"{f}_{c}", {})
-            pct = d.get("percent", {})
-            cls = [f"{d['counts'][k]} ({pct[k]:.0f} %)" if "counts" in d and d["n"] else "–"
-                   for k in EXP2C_CLASSES]
-            rows.append([f, c, d["spill"]["n"], _msd(d["held_g"]), _msd(d["shed_g"]),
-                         _msd(d["delivered_g"]), *cls,
-                         ", ".join(f"{k.replace('_', ' ')} {v:g} %" for k, v in t.items()),
-                         "" if c == "control" else
-                         _p(e.get("fisher_meaningful" + ("" if c == "primitive" else
-                                                         "_closed_loop"), {}).get("p"))])
-    out += _table(["food", "condition", "n", "held (g)", "shed into container (g)",
-                   "delivered (g)", "meaningful", "trivial", "transport failure",
-                   "tree failed", "thesis", "Fisher p (meaningful, vs control)"], rows)
-    rows = [[f, c, _places(s["foods"][f][c].get("spilled_by_place"))]
-            for f in cfg.exp2c.foods for c in EXP2C_CONDITIONS if c in s["foods"][f]]
-    out += ("\n\nWhere the spilled food went (g over all trials, trials with any):\n\n"
-            + _table(["food", "condition", "by place"], rows))
-    out += ("\n\nSpill frequency alone (Fisher, no-spill trials, primitive vs control): "
-            + ", ".join(f"{f} p = {_p(s['foods'][f]['fisher_no_spill'].get('p'))}"
-                        for f in cfg.exp2c.foods) + ".")
-    closed = [f for f in cfg.exp2c.foods if "fisher_no_spill_closed_vs_open" in s["foods"][f]]
-    if closed:
-        cvo = {f: s["foods"][f].get("fisher_meaningful_closed_vs_open", {}) for f in closed}
-        out += (" Closed loop vs open loop (meaningful success): "
-                + ", ".join(f"{f} p = {_p(cvo[f].get('p'))}" for f in closed) + ".")
-    return out
-
-
-def _sec_exp1(s: Mapping[str, Any], cfg: Any) -> str:
-    th = cfg.thesis["exp1"]
-
-    def cell(f: str, sys_: str, d: Mapping[str, Any]) -> list[str]:
-        t = th.get(f, {}).get(sys_)
-        return [f"{t[0]:.2f} ± {t[1]:.2f}" if t else "–"]
-
-    rows = _mass_rows(s["acquired_g"], cfg.exp1.foods, cfg.exp1.systems, th, cell)
-    return _table(["food", "system", "n", "acquired (g), mean ± SD", "95 % CI",
-                   "thesis (g)", "Welch p (ours)", "p (thesis)"], rows)
-
-
-def thesis_exp3_no_spill(thesis_exp3: Mapping[str, Any]) -> FisherResult | None:
-    """Fisher's exact test (two-sided) of trials without spill (meaningful + trivial
-    success), Articutool against the baseline, recomputed from the thesis' own Exp. 3 counts
-    (§6.3, Fig. 6.5; ``[thesis.exp3]`` of experiments.toml). From 14/20 against 7/20 it gives
-    p ≈ 0.056, where the thesis prints p < 0.00012. None if a count is missing."""
-    counts = []
-    for sys_ in ("articutool", "baseline"):
-        t = thesis_exp3.get(sys_, {})
-        if not all(isinstance(t.get(k), int) for k in OUTCOMES[:4]):
-            return None
-        counts += [t["meaningful_success"] + t["trivial_success"],
-                   sum(t[k] for k in OUTCOMES[:4])]
-    return fisher(*counts)
-
-
-def _sec_exp3(s: Mapping[str, Any], cfg: Any) -> str:
-    th = cfg.thesis["exp3"]
-    rows = []
-    for sys_, d in s["systems"].items():
-        t = th.get(sys_, {})
-        rows.append([sys_, d["n"], *(d["counts"][k] for k in OUTCOMES),
-                     " / ".join(str(t.get(k, "–")) for k in OUTCOMES[:4]),
-                     _msd(d["planning_attempts"]), _f(t.get("planning_attempts")),
-                     _msd(d["delivered_g"])])
-    out = _table(["system", "n", *(k.replace("_", " ") for k in OUTCOMES),
-                  "thesis (meaningful / trivial / table / user, of 20)",
-                  "planning attempts to Staging", "thesis attempts", "delivered (g)"], rows)
-    at = s.get("at_thesis_threshold")
-    if at:
-        sy = list(at["meaningful_success"])
-        out += (f"\n\nAt the thesis' {at['threshold_g']:.1f} g (taken from the bimodal "
-                "distribution of its Exp. 3 baseline's bites, §5.3), our meaningful successes "
-                "are " + " vs ".join(f"{at['meaningful_success'][x]}/{at['n'][x]}" for x in sy)
-                + f" ({' vs '.join(sy)}; Fisher p {_p(at.get('fisher', {}).get('p'))}). Ours "
-                "below is the rule the thesis used for Exp. 2c (our Exp. 1 Articutool mean).")
-    ours = (f"\n\nThreshold {s['threshold_g']:g} g. Ours: Fisher p, meaningful success: "
-            f"{_p(s.get('fisher_meaningful', {}).get('p'))}; no spill: "
-            f"{_p(s.get('fisher_no_spill', {}).get('p'))}; Welch p, planning attempts: "
-            f"{_p(s.get('welch_planning_attempts', {}).get('p'))}.")
-    printed = th.get("p_no_spill", "not given")
-    r = thesis_exp3_no_spill(th)
-    if r is None:
-        return out + ours + f" The thesis' no-spill p, as printed: {printed}."
-    (a, a_no), (b, b_no) = r.table
-    return (out + ours + f" The thesis' no-spill p, as printed: {printed}; recomputed here "
-            f"from the thesis' own counts ({a}/{a + a_no} vs {b}/{b + b_no} trials without "
-            f"spill, Fisher's exact test, two-sided): p = {_p(r.p)}.")
-
-
-def differences(exp: str, s: Mapping[str, Any], cfg: Any) -> list[str]:
-    """Where our numbers differ from the thesis', by how much (one line each)."""
-    th = cfg.thesis
-    out: list[str] = []
-    if exp == "exp2b":
-        for f, t in th["exp2b"].items():
-            for sys_ in cfg.exp2b.systems:
-                m = s["spilled_g"].get(f, {}).get(sys_, {}).get("mean")
-                if m is not None and isinstance(t.get(sys_), float | int):
-                    out.append(f"{f}, {sys_}: spilled {m:.2f} g vs the thesis' "
-                               f"{t[sys_]:.2f} g ({m - t[sys_]:+.2f} g)")
-            p = s["spilled_g"].get(f, {}).get("welch", {}).get("p")
-            if "p" in t:
-                out.append(f"{f}: Welch p {_p(p)} vs the thesis' {t['p']}")
-    elif exp == "exp2c" and s.get("thresholds_g"):
-        for f in cfg.exp2c.foods:
-            for c in ("control", "primitive"):  # the thesis has no closed-loop condition
-                d, t = s["foods"][f][c], th["exp2c"].get(f"{f}_{c}", {})
-                for k, v in t.items():
-                    ours = d.get("percent", {}).get(k)
-                    if ours is not None:
-                        out.append(f"{f} {c}: {k.replace('_', ' ')} {ours:.0f} % vs the "
-                                   f"thesis' {v:g} % ({ours - v:+.0f} points)")
-    elif exp == "exp1":
-        for f in cfg.exp1.foods:
-            for sys_ in cfg.exp1.systems:
-                m = s["acquired_g"][f][sys_].get("mean")
-                t = th["exp1"].get(f, {}).get(sys_)
-                if m is not None and t:
-                    out.append(f"{f}, {sys_}: {m:.2f} g vs the thesis' {t[0]:.2f} g "
-                               f"({m - t[0]:+.2f} g)")
-    elif exp == "exp3":
-        for sys_, d in s["systems"].items():
-            t = th["exp3"].get(sys_, {})
-            if d["n"]:
-                ms = 100.0 * d["counts"]["meaningful_success"] / d["n"]
-                tms = 100.0 * t.get("meaningful_success", 0) / max(thesis_trials(t), 1)
-                out.append(f"{sys_}: meaningful success {ms:.0f} % vs the thesis' {tms:.0f} % "
-                           f"({ms - tms:+.0f} points)")
-            a = d["planning_attempts"].get("mean")
-            if a is not None and "planning_attempts" in t:
-                out.append(f"{sys_}: {a:.2f} planning attempts to Staging vs the thesis' "
-                           f"{t['planning_attempts']:.2f}")
-    return out
-
-
 def section(exp: str, summary: Mapping[str, Any], cfg: Any, figure_name: str | None,
             notes: str = "") -> str:
     """One experiment's Markdown: title, our numbers beside the thesis', the differences,
     ``notes`` (why we believe they differ), the figure and the run line."""
-    body = {"capacity": _sec_capacity, "exp1": _sec_exp1, "exp2b": _sec_exp2b,
-            "exp2c": _sec_exp2c, "exp3": _sec_exp3}[exp](summary, cfg)
-    md = f"## {TITLES[exp]}\n\n{body}\n"
-    diff = differences(exp, summary, cfg)
+    u = unit(exp)
+    md = f"## {u.title}\n\n{u.section(summary, cfg)}\n"
+    diff = u.differences(summary, cfg)
     if diff:
         md += "\n**Beside the thesis:** " + "; ".join(diff) + ".\n"
     if notes:
@@ -733,12 +380,6 @@ def section(exp: str, summary: Mapping[str, Any], cfg: Any, figure_name: str | N
     return md
 
 
-_CLAIM_KINDS = {
-    "exp1": "Exp. 1 acquired mass (H1)", "exp2a_success": "Exp. 2a tasks solved (H2)",
-    "exp2a_time": "Exp. 2a planning time (H2)", "exp2b": "Exp. 2b spilled mass (H2)",
-    "exp2c": "Exp. 2c meaningful success (H2)", "exp3_success": "Exp. 3 meaningful success (H3)",
-    "exp3_no_spill": "Exp. 3 bites without spill (H3)",
-    "exp3_attempts": "Exp. 3 planning attempts (H3)"}
 _CI_METHODS = {"welch": "Welch's t interval of the difference of means",
                "bootstrap": "bias-corrected and accelerated bootstrap (9 999 resamples, fixed "
                             "seed)",
@@ -746,8 +387,30 @@ _CI_METHODS = {"welch": "Welch's t interval of the difference of means",
                            "from the two Wilson intervals"}
 
 
+def verdicts(summaries: Mapping[str, Mapping[str, Any]], thesis: Mapping[str, Any],
+             alpha: float, tests: Mapping[str, Any]) -> list[Verdict]:
+    """One :class:`Verdict` per claim, in the thesis' order (H1, H2, H3): the claims of every
+    experiment that tests one (its ``verdicts``, :class:`~articutool.experiments.unit.
+    Experiment`) and of the planning benchmark (:mod:`articutool.experiments.exp2a`).
+    ``summaries`` maps an experiment to its summary (:mod:`articutool.experiments.analysis`);
+    ``tests`` is ``experiments.toml [tests]``, the pre-registered test of each kind of claim.
+    A missing experiment gives one "cannot test" row saying so."""
+    sources = sorted([bench.BENCHMARK, *(u for u in registry().values() if u.hypothesis)],
+                     key=lambda u: u.order)
+    out: list[Verdict] = []
+    for u in sources:
+        s = summaries.get(u.name)
+        rows = u.verdicts(s, thesis.get(u.name, {}), alpha, tests) if s else []
+        why = "not run" if not s else "run, but no comparison could be formed" + (
+            f" ({u.unjudged})" if u.unjudged else "")
+        out += rows or [Verdict(u.hypothesis, u.thesis_figure, f"{u.name}'s claims", "", why,
+                                "", "", "", "cannot test")]
+    return out
+
+
+
 def hypotheses_section(summaries: Mapping[str, Mapping[str, Any]], cfg: Any) -> str:
-    """The per-hypothesis table (:func:`articutool.experiments.verdicts.verdicts`), the
+    """The per-hypothesis table (:func:`verdicts`), the
     pre-registered tests it used (``experiments.toml [tests]``) and which code every trial
     ran (``run.sources`` of each experiment)."""
     alpha = cfg.settings.alpha
@@ -769,17 +432,20 @@ def hypotheses_section(summaries: Mapping[str, Mapping[str, Any]], cfg: Any) -> 
           "system's minus the second's (rates in percentage points), planning times the "
           "strict system's median over the decoupled one's. Why ours differ is in each "
           "experiment's section below.\n\n"
-          + _table(["H", "figure", "claim", "thesis", "ours", "pre-registered test (p)",
+          + table(["H", "figure", "claim", "thesis", "ours", "pre-registered test (p)",
                     "difference [95 % CI] beside the thesis'", "other tests (p)", "verdict"],
                    rows) + "\n")
-    pre = [[_CLAIM_KINDS.get(k, k), t.measure, TEST_NAMES[t.test], _CI_METHODS[t.ci], t.why]
+    from articutool.experiments.config import claims
+
+    kinds = claims()
+    pre = [[kinds.get(k, k), t.measure, TEST_NAMES[t.test], _CI_METHODS[t.ci], t.why]
            for k, t in cfg.tests.items()]
     md += ("\n**Pre-registered tests** (`experiments.toml [tests]`, chosen from the type of "
            "each measurement; chosen after the run at `68222c7` had been read, binding every "
            "run after it):\n\n"
-           + _table(["claims", "measurement", "test (two-sided)", "interval of the difference",
+           + table(["claims", "measurement", "test (two-sided)", "interval of the difference",
                      "why"], pre) + "\n")
-    versions = code_versions({k: v for k, v in summaries.items() if k != "exp2a"})
+    versions = code_versions({k: v for k, v in summaries.items() if k != bench.BENCHMARK.name})
     every = {v for vs in versions.values() for v in vs}
     n = sum(sum(vs.values()) for vs in versions.values())
     if len(every) == 1:
@@ -791,104 +457,18 @@ def hypotheses_section(summaries: Mapping[str, Mapping[str, Any]], cfg: Any) -> 
     return md
 
 
-def read_exp2a(directory: Path) -> tuple[dict[str, Any] | None, list[dict[str, Any]]]:
-    """The transport benchmark's run settings (``run.json``) and records
-    (``results.jsonl``, :func:`articutool.bench.runner.read_log`) in ``directory``;
-    ``(None, [])`` when it holds none."""
-    from articutool.bench.runner import read_log
-    from articutool.datafile import read_own_json
-
-    run = read_own_json(directory / "run.json", "Exp. 2a run settings", _BenchRun)
-    if run is None:
-        return None, []
-    return run.model_dump(), read_log(directory / "results.jsonl").records
-
-
-def _sec_exp2a(s: Mapping[str, Any], run: Mapping[str, Any], cfg: Any, where: str) -> str:
-    """The planning benchmark beside the thesis' Fig. 6.2 (our records at ``where``)."""
-    th = cfg.thesis.get("exp2a", {})
-    rows = []
-    for name, v in s["planners"].items():
-        t = th.get(name, {})
-        med = v.get("median_s")
-        rows.append([name, f"{v['solved']}/{v['tasks']}",
-                     "–" if med is None else f"{med * 1e3:.1f} ms",
-                     f"{t['success']:g} %, median {t['median_s']:g} s" if t else "–"])
-    return ("## Exp. 2a — transport planning benchmark (H2, §5.2.1; cf. Fig. 6.2)\n\n"
-            + _table(["system", "solved", "median planning time (solved)",
-                      f"thesis ({th.get('timeout_s', '?'):g} s timeout)"], rows)
-            + f"\n\nOur records: `{where}` ({run.get('planner', '?')}, "
-              f"{s['timeout_s']:g} s per task; `articutool bench transport --out {where}`; "
-              "docs/planning.md). A failed plan counts as taking the whole timeout in the "
-              "rank tests.\n")
-
-
 def deviation_facts(summaries: Mapping[str, Mapping[str, Any]],
                     records: Mapping[str, Sequence[TrialRecord]], out: Path, cfg: Any
                     ) -> dict[str, str]:
     """The figures the deviations table quotes (``{name}`` in ``experiments.toml
     [[deviations]]``), computed from the records, the summaries, the cross-checks' JSON
-    and the physics file; a figure that cannot be formed is absent (shown as "–")."""
-    from articutool.experiments.stats import describe
-
+    and the physics file (each experiment's: :meth:`~articutool.experiments.unit.Experiment.
+    facts`); a figure that cannot be formed is absent (shown as "–")."""
     f: dict[str, str] = {"plan_budget_s": f"{cfg.settings.plan_budget_s:g}"}
 
-    def msd(values: Sequence[float]) -> str:
-        d = describe(values)
-        return f"{d.mean:.2f} ± {d.sd:.2f} g" if d.n > 1 else f"{d.mean:.2f} g"
-
-    a2 = summaries.get("exp2a")
-    if a2:
-        f["exp2a_timeout_s"] = f"{a2['timeout_s']:g}"
-        f["exp2a_algorithm"] = str(a2.get("algorithm", "?"))
-        f["exp2a_tasks"] = str(max((v["tasks"] for v in a2["planners"].values()), default=0))
-        if a2.get("max_solved_s") is not None:
-            f["exp2a_max_solved_s"] = f"{a2['max_solved_s']:.1f}"
-        f["exp2a_unsolved"] = ", ".join(
-            f"{k} {v['tasks'] - v['solved']} of {v['tasks']}"
-            for k, v in a2["planners"].items()) or "–"
-    ok2b = [r for r in records.get("exp2b", ()) if not r.error and r.outcome is not None]
-    if ok2b:
-        f["exp2b_loads"] = ", ".join(f"{k} {g:g} g" for k, g in cfg.exp2b.load_g.items())
-        for food in cfg.exp2b.foods:
-            held = [float(r.outcome.held_g) for r in ok2b  # type: ignore[union-attr]
-                    if r.condition.food == food]
-            if held:
-                f[f"exp2b_{food}_held"] = msd(held)
-    c = summaries.get("exp2c")
-    if c:
-        if c.get("load_g"):
-            f["exp2c_loads"] = ", ".join(f"{k} {g:.2f} g" for k, g in c["load_g"].items())
-        f["exp2c_held"] = ", ".join(f"{k} {_msd(v['control']['held_g'])} g"
-                                    for k, v in c["foods"].items() if "control" in v)
-        if c.get("thresholds_g"):
-            f["exp2c_thresholds"] = ", ".join(f"{k} {g:.2f} g"
-                                              for k, g in c["thresholds_g"].items())
-        for food, key in (("pecans", "vibrate"), ("water", "tilt")):
-            prim = c["foods"].get(food, {}).get("primitive")
-            if prim:
-                f[f"exp2c_{key}_shed"] = f"{_msd(prim['shed_g'])} g"
-        for r in records.get("exp2c", ()):
-            o = r.outcome
-            params = getattr(o, "primitive_params", None)
-            if (o is None or r.condition.condition != "primitive" or not params):
-                continue
-            key = {"pecans": "exp2c_vibrate", "water": "exp2c_tilt"}.get(r.condition.food)
-            if key:
-                f.setdefault(key, "(" + ", ".join(f"{x:g}" for x in params) + ")")
-    e3 = summaries.get("exp3")
-    if e3:
-        f["exp3_threshold"] = f"{e3['threshold_g']:.2f} g"
-        at = e3.get("at_thesis_threshold")
-        if at:
-            f["exp3_at_thesis_threshold"] = " vs ".join(
-                f"{at['meaningful_success'][x]}/{at['n'][x]}" for x in at["meaningful_success"])
-        base = e3["systems"].get("baseline", {}).get("delivered_g")
-        if base and base.get("mean") is not None:
-            f["exp3_baseline_delivered"] = (f"{_msd(base)} g in {base['n']} bites")
-    r = thesis_exp3_no_spill(cfg.thesis.get("exp3", {}))
-    if r is not None:
-        f["thesis_exp3_no_spill_p"] = _p(r.p)
+    f.update(bench.facts(summaries.get(bench.BENCHMARK.name)))
+    for u in order():
+        f.update(u.facts(summaries.get(u.name), records.get(u.name, ()), cfg))
     f.update(_crosscheck_facts(out))
     f.update(_physics_facts())
     return f
@@ -938,13 +518,17 @@ def _physics_facts() -> dict[str, str]:
         pass
     try:
         w = p.food("water")
-        spread = getattr(w, "load_radius_spread", 0.0)
-        f["water_model"] = (
-            f"frictionless particles, {w.particle_radius * 1e3:g} mm in radius "
-            f"({w.particle_mass(w.particle_radius) * 1e3:.2f} g each) in the bowl and "
-            f"{w.load_particle_radius * 1e3:g} mm"
-            + (f" ± {100 * spread:.0f} %" if spread else "")
-            + " in a load placed on a spoon; no surface tension and no meniscus")
+        bowl = (f"frictionless particles, {w.particle_radius * 1e3:g} mm in radius "
+                f"({w.particle_mass(w.particle_radius) * 1e3:.2f} g each) in the bowl")
+        if w.sph_load:
+            load = (f"SPlisHSPlasH's liquid (DFSPH), particles {w.sph_particle_radius * 1e3:g} mm "
+                    "in radius, in a load placed on a spoon")
+        else:
+            spread = getattr(w, "load_radius_spread", 0.0)
+            load = (f"frictionless particles {w.load_particle_radius * 1e3:g} mm"
+                    + (f" ± {100 * spread:.0f} %" if spread else "")
+                    + " in radius in a load placed on a spoon")
+        f["water_model"] = f"{bowl} and {load}; no surface tension and no meniscus"
     except (KeyError, AttributeError, TypeError, ValueError):
         pass
     return f
@@ -965,7 +549,7 @@ def deviations_section(cfg: Any, facts: Mapping[str, str]) -> str:
             "Every place the protocol differs, what the thesis did, what we do and why; the "
             "figures are computed from this run's records and cross-checks "
             "(`experiments.toml [[deviations]]`).\n\n"
-            + _table(["what", "thesis", "ours", "why"], rows) + "\n")
+            + table(["what", "thesis", "ours", "why"], rows) + "\n")
 
 
 def replays(exp: str, records: Sequence[TrialRecord], summary: Mapping[str, Any],
@@ -990,18 +574,20 @@ def replays(exp: str, records: Sequence[TrialRecord], summary: Mapping[str, Any]
            + (f" --seed {seed}" if seed else "") + f" --trial K --video {out}/{exp}/videos/"
            "trial-K.mp4")
     return ("\n**Replays** (typical: food mass nearest the condition's median; worst: most "
-            "spilled, then least food):\n\n" + _table(["condition", "typical", "worst"], rows)
+            "spilled, then least food):\n\n" + table(["condition", "typical", "worst"], rows)
             + f"\n\n```sh\n{cmd}\n```\n")
 
 
 # ------------------------------------------------------------------------- report --
-def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | None,
-                 thresholds_source: str, threshold_g: float | None,
+def write_report(out: Path, cfg: Any, *,
+                 settings: Mapping[str, Mapping[str, Any]] | None = None,
                  on_kept: Callable[[Path, Path], None] | None = None,
                  exp2a: Path | None = None,
                  on_log: Callable[[LogCheck], None] | None = None) -> tuple[Path, Path]:
     """Write ``out/report.md`` and ``out/report.html`` (figures in each experiment's
-    directory); experiments not yet run are listed as missing, with their ``notes.md`` (why
+    directory); ``settings``: each experiment's analysis settings
+    (:meth:`~articutool.experiments.unit.Experiment.analysis`: Exp. 2c's thresholds, Exp. 3's
+    threshold). Experiments not yet run are listed as missing, with their ``notes.md`` (why
     not) if present. ``out/<exp>/notes.md``, if present, is included in the experiment's
     section: the physical reasons we believe explain
     where our numbers differ, written by whoever examined the run (trials, videos).
@@ -1027,20 +613,20 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
              "EXP_TRIALS=5 make experiments    # a shorter run\n"
              "articutool experiment exp2b --trial K --video trial.mp4   # replay one trial\n```\n",
              "## Honesty rules\n", HONESTY]
-    from articutool.experiments.analysis import summarize_exp2a
-
     missing = []
     machines = {}
     summaries: dict[str, Mapping[str, Any]] = {}
     records: dict[str, Sequence[TrialRecord]] = {}
     at_verdicts = len(parts)
-    run2a, recs2a = read_exp2a(exp2a) if exp2a is not None else (None, [])
+    run2a, recs2a = bench.read_exp2a(exp2a) if exp2a is not None else (None, [])
     if run2a is not None and recs2a:
-        summaries["exp2a"] = {**summarize_exp2a(recs2a, float(run2a["timeout_s"])),
-                              "algorithm": run2a.get("planner")}
-        parts.append(_sec_exp2a(summaries["exp2a"], run2a, cfg, str(exp2a)))
+        s2a = {**bench.summarize_exp2a(recs2a, float(run2a["timeout_s"])),
+               "algorithm": run2a.get("planner")}
+        summaries[bench.BENCHMARK.name] = s2a
+        parts.append(bench.section_exp2a(s2a, run2a, cfg, str(exp2a)))
     checks = []
-    for exp in ORDER:
+    for u in order():
+        exp = u.name
         log = read_trial_log(out, exp)
         recs = log.records
         records[exp] = recs
@@ -1051,17 +637,13 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
         if not recs or old is None:
             missing.append(exp)
             continue
-        summary = summarize(exp, recs, cfg, thresholds_g=thresholds_g, threshold_g=threshold_g)
+        given = (settings or {}).get(exp, {})
+        summary = summarize(exp, recs, cfg, **given)
         summary["run"].update({k: v for k, v in old["run"].items()
                                if k not in summary["run"]})
-        for k in ("load_g", "load_source", "goals", "closed_loop_target_g"):
-            if k in old:
-                summary[k] = old[k]
-        if exp == "exp2c":
-            summary["thresholds_source"] = thresholds_source
-        theirs = cfg.thesis.get("exp3", {}).get("threshold_g")
-        if exp == "exp3" and theirs is not None:  # our bites at the thesis' threshold too
-            summary["at_thesis_threshold"] = meaningful_at(recs, cfg.exp3.systems, theirs)
+        summary.update({k: old[k] for k in u.noted_inputs if k in old})
+        summary.update({k: given[k] for k in u.noted_settings if k in given})
+        summary.update(u.report_extras(recs, cfg))
         fig = figure(exp, recs, summary, cfg, own_folder(out, exp))
         rel = f"{exp}/{fig.name}" if fig else None
         npath = out / exp / "notes.md"
@@ -1087,12 +669,12 @@ def write_report(out: Path, cfg: Any, *, thresholds_g: Mapping[str, float] | Non
         for exp in missing:  # why not: the experiment's notes, when someone wrote them
             npath = out / exp / "notes.md"
             if npath.exists() or npath.is_symlink():
-                parts.append(f"**{TITLES.get(exp, exp)}.** "
+                parts.append(f"**{unit(exp).title}.** "
                              + read_text(npath, "notes", ResultsError).strip() + "\n")
     if machines:
         rows = [[e, m.get("host"), m.get("platform"), m.get("python"), m.get("cpus"),
                  m.get("load_avg"), d] for e, (m, d) in machines.items()]
-        parts.append("## Machine and date\n\n" + _table(
+        parts.append("## Machine and date\n\n" + table(
             ["experiment", "host", "platform", "python", "CPUs",
              "load average (1/5/15 min) when the run ended", "date (UTC) the run ended"],
             rows) + "\n\nThe machine's 2 cores were shared with other work during every run: "

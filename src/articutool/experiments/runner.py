@@ -37,7 +37,7 @@ from articutool.bench.executors import Executor
 from articutool.bench.runner import LogState, read_log, run_logged
 from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import TrialSpec
-from articutool.experiments.records import Outcome, TrialRecord
+from articutool.experiments.records import TrialRecord
 
 if TYPE_CHECKING:
     from articutool.sim.world import SettleCache
@@ -223,20 +223,6 @@ def pin_run(path: Path, settings: dict[str, Any]) -> None:
                        "use the same settings to resume, or another --out")
 
 
-def _protocol(experiment: str) -> Callable[..., Outcome]:
-    from articutool.experiments import protocols
-
-    table: dict[str, Callable[..., Outcome]] = {
-        "capacity": protocols.capacity_trial,
-        "exp2b": protocols.exp2b_trial,
-        "exp2c": protocols.exp2c_trial,
-        **protocols.BITE_PROTOCOLS,
-    }
-    if experiment not in table:
-        raise RunError(f"experiment must be one of {sorted(table)}; got {experiment!r}")
-    return table[experiment]
-
-
 @functools.cache
 def trial_settles() -> SettleCache:
     """The settled worlds of this process's trials, owned by the runner (one per worker
@@ -255,15 +241,17 @@ def run_trial(spec: TrialSpec, hook: Any = None, config_path: str | None = None,
     protocol raised one: the trial is then recorded as an error, with its traceback and no
     outcome, not rerun). ``hook`` and ``visitors`` (py_trees visitors for the trial's
     feeding trees, read after the hook ran) go to the protocol
-    (:mod:`articutool.experiments.protocols`)."""
+    (the experiment's :meth:`~articutool.experiments.unit.Experiment.run_trial`)."""
+    from articutool.experiments.unit import unit
+
     cfg = ExperimentsConfig.load(config_path)
-    fn = _protocol(spec.experiment)
+    exp = unit(spec.experiment)
     t0 = time.perf_counter()
     failed: dict[str, Any] = {}
     outcome = None
     try:
-        outcome = fn(spec.condition, spec.seed, cfg, hook, visitors=visitors,
-                     settled=trial_settles())
+        outcome = exp.run_trial(spec.condition, spec.seed, cfg, hook, visitors=visitors,
+                                settled=trial_settles())
     except Exception as err:  # a trial that crashes is reported, not silently dropped
         failed = {"error": f"{type(err).__name__}: {err}",
                   "traceback": traceback.format_exc(limit=6)}

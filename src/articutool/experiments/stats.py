@@ -31,7 +31,19 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
-from scipy import stats as _st
+
+
+class _LazyScipyStats:
+    """``scipy.stats``, imported on first use: the command line's parser, which registers
+    the experiments, builds on an install without scipy (the onboard one)."""
+
+    def __getattr__(self, name: str) -> Any:
+        from scipy import stats
+
+        return getattr(stats, name)
+
+
+_st = _LazyScipyStats()
 
 __all__ = [
     "Describe",

@@ -1,9 +1,12 @@
-"""What our simulation says about each of the thesis' hypotheses and figures (pure).
+"""What our simulation says about each of the thesis' hypotheses and figures (pure): the
+rules every claim is judged by.
 
 The thesis (Ch. 6) makes comparative claims; each is a direction (the Articutool, the
-decoupled planner or a primitive does better) with a size (its difference). For each,
-:func:`verdicts` judges our measurement with the test pre-registered for the claim's kind of
-measurement (``experiments.toml [tests]``) and the 95 % interval of our difference:
+decoupled planner or a primitive does better) with a size (its difference). Each experiment's
+``verdicts`` (:meth:`articutool.experiments.unit.Experiment.verdicts`, gathered by
+:func:`articutool.experiments.report.verdicts`) judges our measurement with :func:`judge`: the
+test pre-registered for the claim's kind of measurement (``experiments.toml [tests]``) and the
+95 % interval of our difference:
 
 - **reproduced**: our difference has the thesis' direction, the test gives p < α, and the
   thesis' difference lies inside our interval (its edges included);
@@ -26,10 +29,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from articutool.feeding.outcomes import OUTCOMES
-
-__all__ = ["TEST_NAMES", "VERDICTS", "Verdict", "code_versions", "decide", "thesis_trials",
-           "verdicts"]
+__all__ = ["TEST_NAMES", "VERDICTS", "Verdict", "code_versions", "decide", "judge",
+           "mean_sd_g"]
 
 VERDICTS = ("reproduced", "reproduced in sign only", "not reproduced", "contradicted",
             "cannot test")
@@ -75,22 +76,18 @@ def _fmt_p(p: float | None) -> str:
     return "n/a" if p is None else (f"{p:.2g}" if p >= 1e-4 else f"{p:.1e}")
 
 
-def _msd(d: Mapping[str, Any]) -> str:
+def mean_sd_g(d: Mapping[str, Any]) -> str:
+    """A summary statistic of grams as a claim's row shows it."""
     if d.get("mean") is None:
         return f"no data (n {d.get('n', 0)})"
     return f"{d['mean']:.2f} ± {d['sd'] or 0.0:.2f} g (n {d['n']})"
-
-
-def thesis_trials(t: Mapping[str, Any]) -> int:
-    """The thesis' Exp. 3 trials of one system: the sum of its outcome counts (§6.3)."""
-    return sum(int(t.get(k, 0)) for k in OUTCOMES[:4])
 
 
 def _attr(pre: Any, name: str) -> str:
     return str(pre[name] if isinstance(pre, Mapping) else getattr(pre, name))
 
 
-def _judge(comp: Mapping[str, Any] | None, pre: Any, thesis: float | None, direction: int,
+def judge(comp: Mapping[str, Any] | None, pre: Any, thesis: float | None, direction: int,
            alpha: float, constant: bool, unit: str, labels: Mapping[str, str] | None = None
            ) -> tuple[str, str, str, str]:
     """(test, size, others, verdict) of one claim from its comparison (``compare_*`` of
@@ -134,207 +131,6 @@ def _judge(comp: Mapping[str, Any] | None, pre: Any, thesis: float | None, direc
     size += f"; thesis {show(thesis)}{u}" if thesis is not None else "; thesis: no number"
     others = "; ".join(f"{names[k]} {_fmt_p(v)}" for k, v in ps.items() if k != test)
     return f"{names[test]} {_fmt_p(p)}", size, others, verdict
-
-
-def _exp1(s: Mapping[str, Any], th: Mapping[str, Any], alpha: float, tests: Mapping[str, Any]
-          ) -> list[Verdict]:
-    out = []
-    for food, d in s["acquired_g"].items():
-        a, b = d.get("articutool"), d.get("baseline")
-        if not a or not b:
-            continue
-        t = th.get(food, {})
-        given = "articutool" in t and "baseline" in t
-        thesis = (f"{t['articutool'][0]:.2f} vs {t['baseline'][0]:.2f} g, p {t.get('p')}"
-                  if given else "not given")
-        none_moved = a.get("mean") == 0 and b.get("mean") == 0
-        both_constant = not a.get("sd") and not b.get("sd")
-        test, size, others, verdict = _judge(
-            d.get("compare"), tests["exp1"],
-            t["articutool"][0] - t["baseline"][0] if given else None, +1, alpha,
-            none_moved or both_constant, "g")
-        out.append(Verdict("H1", "Fig. 6.1", f"{food}: the Articutool acquires more than the "
-                           "baseline", thesis, f"{_msd(a)} vs {_msd(b)}", test, size, others,
-                           verdict))
-    return out
-
-
-def _exp2a(s: Mapping[str, Any], th: Mapping[str, Any], alpha: float, tests: Mapping[str, Any]
-           ) -> list[Verdict]:
-    out = []
-    dec = "decoupled"
-    tdec = th.get(dec, {})
-    sysd = s.get("planners", {})
-    for base, v in s.get("against", {}).items():
-        tb = th.get(base, {})
-        ours_d, ours_b = sysd.get(dec, {}), sysd.get(base, {})
-        comp = v["success"]
-        k = comp.get("k", [0, 0])
-        n = comp.get("n", [0, 0])
-        at_bound = k[0] * n[1] == k[1] * n[0] and k[0] in (0, n[0])
-        given = "success" in tdec and "success" in tb
-        test, size, others, verdict = _judge(
-            comp, tests["exp2a_success"],
-            (tdec["success"] - tb["success"]) / 100 if given else None, +1, alpha,
-            at_bound or not n[0] or not n[1], "points")
-        timeout = s.get("timeout_s")
-        out.append(Verdict(
-            "H2", "Fig. 6.2", f"transport planning: the decoupled planner solves more tasks "
-            f"than {base} (±10°)",
-            f"{tdec.get('success', '–')} % vs {tb.get('success', '–')} % solved "
-            f"({th.get('timeout_s', '?'):g} s)" if given else "not given",
-            f"{k[0]}/{n[0]} vs {k[1]}/{n[1]} solved ({timeout:g} s)" if timeout else
-            f"{k[0]}/{n[0]} vs {k[1]}/{n[1]} solved", test, size, others, verdict))
-        given = "median_s" in tdec and "median_s" in tb
-        md, mb = ours_d.get("median_s"), ours_b.get("median_s")
-        test, size, others, verdict = _judge(
-            v["time"], tests["exp2a_time"],
-            tb["median_s"] / tdec["median_s"] if given else None, +1, alpha,
-            md is None or mb is None, "×")
-        out.append(Verdict(
-            "H2", "Fig. 6.2", f"transport planning: the decoupled planner plans faster than "
-            f"{base} ({base} / decoupled median)",
-            f"median {tdec['median_s']:g} vs {tb['median_s']:g} s" if given else "not given",
-            f"median {md * 1e3:.1f} vs {mb * 1e3:.1f} ms" if md is not None and mb is not None
-            else "no solved task", test, size, others, verdict))
-    return out
-
-
-def _exp2b(s: Mapping[str, Any], th: Mapping[str, Any], alpha: float, tests: Mapping[str, Any]
-           ) -> list[Verdict]:
-    out = []
-    for food, d in s["spilled_g"].items():
-        a, b = d.get("articutool"), d.get("baseline")
-        if not a or not b:
-            continue
-        t = th.get(food, {})
-        given = isinstance(t.get("articutool"), float | int) and isinstance(
-            t.get("baseline"), float | int)
-        thesis = (f"{t['articutool']:.2f} vs {t['baseline']:.2f} g spilled, p {t.get('p')}"
-                  if given else t.get("note", "not given"))
-        nz = (a.get("nonzero", {}).get("k"), b.get("nonzero", {}).get("k"))
-        test, size, others, verdict = _judge(
-            d.get("compare"), tests["exp2b"],
-            t["articutool"] - t["baseline"] if given else None, -1, alpha,
-            not a.get("sd") and not b.get("sd"), "g",
-            labels={"fisher": "Fisher (spill frequency)"})
-        spills = (f"; spilled in {nz[0]}/{a['n']} vs {nz[1]}/{b['n']}"
-                  if None not in nz else "")
-        out.append(Verdict(
-            "H2", "Fig. 6.3", f"{food}: the Articutool spills less in transport than the "
-            "locked baseline", thesis, f"{_msd(a)} vs {_msd(b)} spilled{spills}", test, size,
-            others, verdict))
-    return out
-
-
-_EXP2C = {"primitive": ("", "the open-loop primitive"),
-          "closed_loop": ("_closed_loop", "the closed-loop primitive")}
-
-
-def _exp2c(s: Mapping[str, Any], th: Mapping[str, Any], alpha: float, tests: Mapping[str, Any]
-           ) -> list[Verdict]:
-    if not s.get("thresholds_g"):
-        return []
-    out = []
-    for food, d in s["foods"].items():
-        ctrl = d.get("control")
-        if not ctrl:
-            continue
-        for cond, (suffix, name) in _EXP2C.items():
-            c = d.get(cond)
-            comp = d.get("compare_meaningful" + suffix)
-            if not c or comp is None:
-                continue
-            ms_c = ctrl["percent"].get("meaningful_success", 0.0)
-            ms_p = c["percent"].get("meaningful_success", 0.0)
-            tc = th.get(f"{food}_control", {}).get("meaningful_success", 0.0)
-            tp = th.get(f"{food}_primitive", {}).get("meaningful_success")
-            thesis = (f"meaningful success {tp:g} % with the primitive vs {tc:g} % control"
-                      if tp is not None else "not given")
-            constant = ms_c == ms_p and ms_c in (0.0, 100.0)
-            test, size, others, verdict = _judge(
-                comp, tests["exp2c"], (tp - tc) / 100 if tp is not None else None, +1,
-                alpha, constant, "points")
-            out.append(Verdict(
-                "H2", "Fig. 6.4", f"{food}: {name} raises meaningful success over control",
-                thesis + (" (open loop; the thesis had no closed loop)"
-                          if cond == "closed_loop" else ""),
-                f"{ms_p:.0f} % vs {ms_c:.0f} % (n {c['n']} / {ctrl['n']})", test, size,
-                others, verdict))
-    return out
-
-
-def _exp3(s: Mapping[str, Any], th: Mapping[str, Any], alpha: float, tests: Mapping[str, Any]
-          ) -> list[Verdict]:
-    a, b = s["systems"].get("articutool"), s["systems"].get("baseline")
-    if not a or not b or not a["n"] or not b["n"]:
-        return []
-    ta, tb = th.get("articutool", {}), th.get("baseline", {})
-    na, nb = thesis_trials(ta), thesis_trials(tb)
-    out = []
-    ms_a, ms_b = (x["counts"]["meaningful_success"] for x in (a, b))
-    no_food = not a["delivered_g"].get("mean") and not b["delivered_g"].get("mean")
-    given = bool(na and nb and "meaningful_success" in ta and "meaningful_success" in tb)
-    test, size, others, verdict = _judge(
-        s.get("compare_meaningful"), tests["exp3_success"],
-        ta["meaningful_success"] / na - tb["meaningful_success"] / nb if given else None, +1,
-        alpha, no_food, "points")
-    out.append(Verdict(
-        "H3", "Fig. 6.5", "noodles end to end: the Articutool has more meaningful successes",
-        f"{ta.get('meaningful_success')}/{na} vs {tb.get('meaningful_success')}/{nb}"
-        + (f" (> {th['threshold_g']:g} g)" if "threshold_g" in th else ""),
-        f"{ms_a}/{a['n']} vs {ms_b}/{b['n']}"
-        + (f" (> {s['threshold_g']:.2f} g)" if s.get("threshold_g") is not None else "")
-        + f"; delivered {_msd(a['delivered_g'])} vs {_msd(b['delivered_g'])}", test, size,
-        others, verdict))
-    ok_a = ta.get("meaningful_success", 0) + ta.get("trivial_success", 0)
-    ok_b = tb.get("meaningful_success", 0) + tb.get("trivial_success", 0)
-    ns_a, ns_b = a["no_spill"]["k"], b["no_spill"]["k"]
-    test, size, others, verdict = _judge(
-        s.get("compare_no_spill"), tests["exp3_no_spill"],
-        ok_a / na - ok_b / nb if na and nb else None, +1, alpha, no_food, "points")
-    out.append(Verdict(
-        "H3", "Fig. 6.5", "noodles end to end: the Articutool spills in fewer bites",
-        f"{ok_a}/{na} vs {ok_b}/{nb} without spill",
-        f"{ns_a}/{a['n']} vs {ns_b}/{b['n']} without spill", test, size, others, verdict))
-    pa, pb = a["planning_attempts"], b["planning_attempts"]
-    if pa.get("mean") is None or pb.get("mean") is None:
-        return out
-    given = "planning_attempts" in ta and "planning_attempts" in tb
-    equal_constants = not pa.get("sd") and not pb.get("sd") and pa["mean"] == pb["mean"]
-    test, size, others, verdict = _judge(
-        s.get("compare_planning_attempts"), tests["exp3_attempts"],
-        ta["planning_attempts"] - tb["planning_attempts"] if given else None, -1, alpha,
-        False, "")
-    out.append(Verdict(
-        "H3", "attempts", "the Articutool needs fewer planning attempts to Staging",
-        f"{ta.get('planning_attempts')} vs {tb.get('planning_attempts')} attempts",
-        f"{pa['mean']:.2f} ± {pa['sd'] or 0.0:.2f} vs {pb['mean']:.2f} ± {pb['sd'] or 0.0:.2f}"
-        " attempts", test + ("; both constant" if equal_constants else ""), size, others,
-        # Equal constants are a measured "no difference", not an untestable claim.
-        "not reproduced" if equal_constants else verdict))
-    return out
-
-
-def verdicts(summaries: Mapping[str, Mapping[str, Any]], thesis: Mapping[str, Any],
-             alpha: float, tests: Mapping[str, Any]) -> list[Verdict]:
-    """One :class:`Verdict` per claim, in the thesis' order (H1, H2, H3). ``summaries`` maps
-    an experiment (``exp1``, ``exp2a``, ``exp2b``, ``exp2c``, ``exp3``) to its summary
-    (:mod:`articutool.experiments.analysis`); ``tests`` is ``experiments.toml [tests]``, the
-    pre-registered test of each kind of claim. A missing experiment gives one "cannot test"
-    row saying so."""
-    rules = (("exp1", "H1", "Fig. 6.1", _exp1), ("exp2a", "H2", "Fig. 6.2", _exp2a),
-             ("exp2b", "H2", "Fig. 6.3", _exp2b), ("exp2c", "H2", "Fig. 6.4", _exp2c),
-             ("exp3", "H3", "Fig. 6.5", _exp3))
-    out: list[Verdict] = []
-    for exp, h, fig, rule in rules:
-        s = summaries.get(exp)
-        rows = rule(s, thesis.get(exp, {}), alpha, tests) if s else []
-        why = ("not run" if not s else "run, but no comparison could be formed (Exp. 2c "
-               "needs outcome thresholds: Exp. 1's means or --thresholds-g)")
-        out += rows or [Verdict(h, fig, f"{exp}'s claims", "", why, "", "", "",
-                                "cannot test")]
-    return out
 
 
 def code_versions(summaries: Mapping[str, Mapping[str, Any]]) -> dict[str, dict[str, int]]:
