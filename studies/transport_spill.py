@@ -229,7 +229,7 @@ def plot(path: Path, figure: Path) -> None:
         pts = sorted((v["mean_duration_s"], v["mean_simulated_spill_g"],
                       v["mean_predicted_spill_g"]) for v in rows.values())
         d, sim, pred = zip(*pts, strict=True)
-        line, = ax.plot(d, sim, "o-", label=f"{labels[cond]}: particle world")
+        line, = ax.plot(d, sim, "o-", label=f"{labels[cond]}: simulated")
         ax.plot(d, pred, "x--", color=line.get_color(), alpha=0.7, label="… predicted")
     ax.set_xlabel("transport duration (s, mean over the Exp. 2b goals)")
     ax.set_ylabel("water spilled (g of 8 g)")
