@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 import os
 
@@ -388,3 +389,72 @@ def test_straight_motion_check_agrees_with_ompls_motion_validator(system: str) -
         assert ours == si.checkMotion(a, b), task.task_id
         seen.add(ours)
     assert seen == {True, False}  # both answers occur among these tasks
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_toppra_speeds_equal_toppras_algorithm(seed: int) -> None:
+    # time_parameterize drives toppra's seidel solver itself: the grid speeds must be those
+    # of toppra's own TOPPRA algorithm, bit for bit, with and without the wrist constraint.
+    import toppra
+    import toppra.algorithm
+
+    from articutool.planning.timing import (
+        WristSpeedConstraint,
+        _joint_limit_constraints,
+        toppra_speeds,
+    )
+
+    rng = np.random.default_rng(seed)
+    a = np.array(TASK.start)
+    corners = [a] + [a + rng.uniform(-1.0, 1.0, 6) for _ in range(1 + seed % 3)]
+    wp = np.concatenate([np.linspace(p, q, 12)[:-1] for p, q in itertools.pairwise(corners)]
+                        + [corners[-1][None]])
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(wp, axis=0), axis=1))])
+    path = toppra.SplineInterpolator(s, wp, bc_type="natural")
+    cons = list(_joint_limit_constraints(tuple(SPEC.arm.max_velocity.tolist()),
+                                         tuple(SPEC.arm.max_acceleration.tolist())))
+    if seed % 2:
+        m = ArmModel(SPEC, dof=6)
+
+        def sdot(q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+            _, w = m.tool_base_kinematics(q, dq)
+            return 0.6 / np.maximum(np.linalg.norm(w, axis=1), 1e-6)
+
+        cons.append(WristSpeedConstraint(6, sdot))
+    grid = np.linspace(0.0, s[-1], 40 + 37 * seed)
+    algo = toppra.algorithm.TOPPRA(cons, path, gridpoints=grid)
+    algo.compute_parameterization(0.0, 0.0)
+    ours = toppra_speeds(cons, path, grid)
+    assert ours is not None
+    assert np.array_equal(ours, algo.problem_data.sd_vec)
+
+
+@pytest.mark.parametrize("system", ["decoupled", "strict6", "strict8"])
+def test_search_state_checker_agrees_with_valid(system: str) -> None:
+    # The search's validity callback is one flat function; state by state it must answer
+    # what the problem's valid() answers (the leveling wrist, the band, the collisions), on
+    # both leveling branches.
+    from articutool.bench.taskfile import load_task_set
+    from articutool.planning.ompl_planner import PlannerSettings, _Problem
+
+    rng = np.random.default_rng(11)
+    answers = set()
+    for task in list(load_task_set().tasks[:6]):
+        prob = _Problem(PlanRequest(system, task, timeout_s=1.0), SPEC, PlannerSettings(),
+                        "rejection")
+        variants = [prob]
+        if prob.loose is not None:
+            other = _Problem(PlanRequest(system, task, timeout_s=1.0), SPEC,
+                             PlannerSettings(), "rejection")
+            other.loose = dataclasses.replace(other.loose, branch=1 - other.loose.branch)
+            variants.append(other)
+        for p in variants:
+            check = p.state_checker()
+            ends = np.stack([p.start, p.goal])
+            qs = ends[rng.integers(0, 2, 60)] + rng.normal(0.0, 0.5, (60, p.kin.n))
+            qs = np.clip(qs, p.kin.lo, p.kin.hi)
+            for q in qs:
+                want = p.valid(q)
+                assert check(list(q)) == want
+                answers.add(want)
+    assert answers == {True, False}

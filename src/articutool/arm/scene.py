@@ -21,6 +21,7 @@ acquisition); the arm and the wrist are still checked against them.
 
 from __future__ import annotations
 
+import functools
 import math
 from importlib import resources
 from pathlib import Path
@@ -223,8 +224,10 @@ class StagingSet(BaseModel):
         raise KeyError(f"unknown staging goal {name!r}; known: {[g.name for g in self.goals]}")
 
 
+@functools.cache
 def default_scene_path() -> Path:
-    """Path of the scene shipped with the package."""
+    """Path of the scene shipped with the package (looked up once: the planners stat it on
+    every plan)."""
     return Path(str(resources.files("articutool") / "data" / "scene.toml"))
 
 

@@ -21,17 +21,17 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 import toppra
-import toppra.algorithm
 import toppra.constraint
 from numpy.typing import NDArray
-from toppra.algorithm import ParameterizationReturnCode
+from toppra.constants import MAX_TRIES, SMALL, TINY
+from toppra.solverwrapper.cy_seidel_solverwrapper import seidelWrapper
 
 from articutool.planning.constraints import f0_leveling_angles
 from articutool.tool.kinematics import joint_rates_for_rotation
 from articutool.trajectory import JointTrajectory
 
 __all__ = ["RETIME_SCALES", "WristSpeedConstraint", "retime", "time_parameterize",
-           "wrist_rate_profile"]
+           "toppra_speeds", "wrist_rate_profile"]
 
 # toppra logs at INFO on every call; keep library output quiet.
 toppra.setup_logging("WARNING")
@@ -110,6 +110,79 @@ def _const_accel(
     return ts, s_of_t, sd_of_t
 
 
+def toppra_speeds(
+    constraints: Sequence[toppra.constraint.LinearConstraint],
+    path: toppra.SplineInterpolator,
+    gridpoints: NDArray[np.float64],
+) -> NDArray[np.float64] | None:
+    """Path speeds ``ṡ`` at ``gridpoints`` of the time-optimal rest-to-rest parameterisation:
+    ``toppra.algorithm.TOPPRA(constraints, path, gridpoints).compute_parameterization(0, 0)``
+    with the solver it picks for linear constraints (toppra's Cython ``seidelWrapper``), its
+    ``sd_vec``; ``None`` where it reports a failure.
+
+    The same solver calls with the same arguments in the same order and the same arithmetic
+    between them as toppra's backward (controllable sets) and forward passes, so the same
+    speeds bit for bit (``tests/test_planning.py``); without the per-stage NumPy temporaries,
+    NaN scans and logger checks of toppra's Python loop, and without its search for optional
+    solver packages on every call, which cost about as much as the solves.
+    """
+    solver = seidelWrapper(list(constraints), path, gridpoints, solve_lp1d=True)
+    solve = solver.solve_stagewise_optim
+    n = solver.get_no_stages()
+    nan = math.nan
+    # Backward pass: K[i] = [lo[i], hi[i]], the squared speeds at stage i from which rest
+    # at the end stays reachable (ReachabilityAlgorithm.compute_controllable_sets, sd_end 0).
+    lo, hi = [0.0] * (n + 1), [0.0] * (n + 1)
+    g_max = np.zeros(solver.get_no_vars())
+    g_max[0], g_max[1] = 1e-9, -1.0
+    g_min = -g_max
+    solver.setup_solver()
+    for i in range(n - 1, -1, -1):
+        a, b = lo[i + 1], hi[i + 1]
+        x_hi = solve(i, None, g_max, nan, nan, a, b)[1]
+        x_lo = solve(i, None, g_min, nan, nan, a, b)[1]
+        if x_lo < 0:
+            x_lo = 0.0
+        if x_lo != x_lo or x_hi != x_hi:  # NaN
+            return None  # toppra: FailUncontrollable
+        lo[i], hi[i] = x_lo, x_hi
+    solver.close_solver()
+    if lo[0] > SMALL or hi[0] + SMALL < 0.0:  # toppra: x_start + SMALL < K[0, 0] or …
+        return None  # rest at the start is not controllable
+    # Forward pass: the largest controllable speed at every stage (TOPPRA._forward_step and
+    # the loop of compute_parameterization, sd_start 0, with its retries).
+    deltas = solver.get_deltas().tolist()
+    xs = [0.0] * (n + 1)
+    g = np.zeros(solver.get_no_vars())
+    g[1] = -1.0
+    tries = 0
+    solver.setup_solver()
+    i = 0
+    while i < n:
+        x = xs[i]
+        g[0] = -2 * deltas[i]
+        a, b = lo[i + 1], hi[i + 1]
+        u = solve(i, None, g, x, x, a, b)[0]
+        if u != u:  # NaN: toppra retries from a slightly lower speed
+            if tries >= MAX_TRIES:
+                return None  # toppra: ErrUnknown
+            xs[i] = max(x - TINY, 0.999 * x)
+            tries += 1
+            continue
+        tries = 0
+        x_next = x + 2 * deltas[i] * u
+        # toppra's max(x_next - TINY, 0.9999 * x_next), then min(b, max(a, that)), spelled
+        # out as the builtins decide (a NaN gives a)
+        p, q = x_next - TINY, 0.9999 * x_next
+        x_next = q if q > p else p
+        m = x_next if x_next > a else a
+        xs[i + 1] = m if m < b else b
+        i += 1
+    solver.close_solver()
+    sd = np.sqrt(np.array(xs))
+    return None if np.isnan(sd).any() else sd
+
+
 @functools.lru_cache(maxsize=16)
 def _joint_limit_constraints(
     vmax: tuple[float, ...], amax: tuple[float, ...]
@@ -159,12 +232,10 @@ def time_parameterize(
     if sdot_max is not None:
         constraints.append(WristSpeedConstraint(n, sdot_max))
     grid = np.linspace(0.0, s[-1], max(int(np.ceil(s[-1] / grid_step)) + 1, 20))
-    algo = toppra.algorithm.TOPPRA(constraints, path, gridpoints=grid)
-    algo.compute_parameterization(0.0, 0.0)
-    data = algo.problem_data
-    if data.return_code != ParameterizationReturnCode.Ok:
+    sd = toppra_speeds(constraints, path, grid)
+    if sd is None:
         return None
-    ts, s_of_t, sd_of_t = _const_accel(np.asarray(data.gridpoints), np.asarray(data.sd_vec))
+    ts, s_of_t, sd_of_t = _const_accel(grid, sd)
     T = float(ts[-1])
     if not np.isfinite(T) or T <= 0:
         return None
