@@ -3,9 +3,10 @@
 Plans the first ``--limit`` tasks of the packaged Exp. 2a set (or ``--tasks FILE``) with one
 system twice in this process: once plain, for the CPU time per plan (``time.process_time``;
 medians), and once under cProfile with the CPU clock, for the inclusive CPU time of the
-functions that make up a plan — the OMPL search (its validity callbacks, the straight-motion
-check), the collision checks (coal through Pinocchio), the leveling IK of the search,
-toppra's time parameterisation, the dense re-check and verification. Shares are of the
+functions that make up a plan — the OMPL search (its validity callbacks, each one function
+with the leveling IK or the band and one collision call; the straight-motion check), the
+collision checks outside the callbacks (coal through Pinocchio), toppra's time
+parameterisation (its solver passes), the dense re-check and verification. Shares are of the
 profiled total; cProfile charges each Python call a little, so the Python-heavy parts read
 larger than they are (compare ``profiled_cpu_total_s`` with ``profiled_plain_cpu_s``).
 ``--middle`` profiles only the plans about the median. Also the CPU cost of
@@ -34,13 +35,15 @@ from plan_breakdown import emit, selected_tasks
 PARTS = (
     ("search: OMPL query incl. its checks", (("planning/ompl_planner.py", "solve"),)),
     ("search: straight-motion check", (("planning/ompl_planner.py", "straight_motion_valid"),)),
-    ("search: OMPL validity callbacks", (("planning/ompl_planner.py", "checker"),)),
-    ("collision checks (all phases)", (("planning/queries.py", "collides"),
-                                       ("arm/model.py", "collisions"))),
-    ("leveling IK in the search (scalar)", (("planning/ompl_planner.py", "leveling_wrist"),)),
+    ("search: OMPL validity callbacks (leveling IK or band, one collision call each)",
+     (("planning/ompl_planner.py", "leveling_checker"),
+      ("planning/ompl_planner.py", "strict_checker"),
+      ("planning/ompl_planner.py", "checker"))),
+    ("collision checks outside the callbacks", (("planning/queries.py", "collides"),
+                                                ("arm/model.py", "collisions"))),
     ("timing: toppra + wrist-rate constraint", (("planning/timing.py", "time_parameterize"),)),
-    ("timing: toppra's parameterisation loop", (("reachability_algorithm.py",
-                                                 "compute_parameterization"),)),
+    ("timing: toppra's solver passes (toppra_speeds)", (("planning/timing.py",
+                                                         "toppra_speeds"),)),
     ("timing: wrist-rate constraint", (("planning/ompl_planner.py", "sdot_max"),)),
     ("recheck: dense re-check", (("planning/ompl_planner.py", "check_trajectory"),)),
     ("verify: verify_trajectory", (("verify/verifier.py", "verify_trajectory"),)),

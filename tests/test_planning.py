@@ -458,3 +458,27 @@ def test_search_state_checker_agrees_with_valid(system: str) -> None:
                 assert check(list(q)) == want
                 answers.add(want)
     assert answers == {True, False}
+
+
+def _densify_loop(q: np.ndarray, step: float) -> np.ndarray:
+    # densify's definition, segment by segment
+    out = [q[:1]]
+    for a, b in itertools.pairwise(q):
+        k = max(int(np.ceil(np.abs(b - a).max() / step)), 1)
+        out.append(a + (np.arange(1, k + 1)[:, None] / k) * (b - a))
+    return np.concatenate(out)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 9), st.floats(0.005, 0.5), st.integers(0, 2**31))
+def test_densify_equals_its_segment_by_segment_definition(rows: int, step: float,
+                                                          seed: int) -> None:
+    from articutool.planning.queries import densify
+
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(-3.0, 3.0, (rows, 6))
+    if rows > 2:
+        q[1] = q[0]  # a zero-length segment
+    ours = densify(q, step)
+    assert np.array_equal(ours, _densify_loop(q, step))
+    assert (np.abs(np.diff(ours, axis=0)).max(axis=1) <= step * (1 + 1e-12)).all()

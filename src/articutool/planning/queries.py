@@ -10,8 +10,6 @@ them with OMPL.
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
@@ -94,13 +92,18 @@ def level_configuration(
 
 
 def densify(q: NDArray[np.float64], step: float) -> NDArray[np.float64]:
-    """Insert linear samples so that consecutive rows differ by at most ``step`` (max-norm)."""
-    out = [q[:1]]
-    for a, b in itertools.pairwise(q):
-        k = max(int(np.ceil(np.abs(b - a).max() / step)), 1)
-        f = np.arange(1, k + 1)[:, None] / k
-        out.append(a + f * (b - a))
-    return np.concatenate(out)
+    """Insert linear samples so that consecutive rows differ by at most ``step`` (max-norm):
+    segment ``a → b`` of ``k = max(⌈max|b − a| / step⌉, 1)`` steps gets the rows
+    ``a + (j / k)(b − a)``, ``j = 1 … k``, all segments at once."""
+    q = np.asarray(q, dtype=np.float64)
+    d = np.diff(q, axis=0)
+    if d.shape[0] == 0:
+        return q[:1].copy()
+    k = np.maximum(np.ceil(np.abs(d).max(axis=1) / step).astype(np.int64), 1)
+    seg = np.repeat(np.arange(k.size), k)
+    j = np.arange(1, seg.size + 1) - np.repeat(np.cumsum(k) - k, k)
+    f = (j / k[seg])[:, None]
+    return np.concatenate([q[:1], q[seg] + f * d[seg]])
 
 
 def dense_times(traj: JointTrajectory, step: float) -> NDArray[np.float64]:
