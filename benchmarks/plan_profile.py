@@ -10,7 +10,9 @@ parameterisation (its solver passes), the dense re-check and verification. Share
 profiled total; cProfile charges each Python call a little, so the Python-heavy parts read
 larger than they are (compare ``profiled_cpu_total_s`` with ``profiled_plain_cpu_s``).
 ``--middle`` profiles only the plans about the median. Also the CPU cost of
-one collision check of the executed 8-DOF model, called three ways.
+one collision check of the executed 8-DOF model, called three ways, and the plain CPU of each
+piece of the ten single-attempt plans nearest the median, each piece run warm ten times
+(``pieces_about_median``).
 
     .venv/bin/python benchmarks/plan_profile.py --system decoupled --limit 88 --out FILE
 """
@@ -26,9 +28,18 @@ from pathlib import Path
 
 import numpy as np
 
-from articutool.planning.ompl_planner import plan_transport
+from articutool.planning.ompl_planner import (
+    PlannerSettings,
+    _Phases,
+    _Problem,
+    _seed,
+    plan_transport,
+)
+from articutool.planning.queries import dense_times
+from articutool.planning.timing import time_parameterize
 from articutool.planning.types import PLANNERS, PlanRequest
 from articutool.spec import load_spec
+from articutool.verify.verifier import verify_trajectory
 from plan_breakdown import emit, selected_tasks
 
 # (label, (module path suffix, function name) ...): inclusive CPU time, summed.
@@ -90,6 +101,68 @@ def _collision_cost(spec, tasks) -> dict[str, float]:
     }
 
 
+def _pieces(spec, requests: list[PlanRequest], cpu: list[float], count: int = 10,
+            reps: int = 10) -> dict:
+    """Plain CPU (ms, no profiler) of each piece of the ``count`` solved plans nearest the
+    median, each piece run ``reps`` times warm (median per plan, then median over the plans):
+    the whole plan, the problem and endpoint checks, the search (the straight-motion check,
+    or OMPL's search and simplification), time parameterisation, the dense re-check and its
+    collision calls alone, verification."""
+    order = sorted(range(len(requests)), key=lambda k: abs(cpu[k] - float(np.median(cpu))))
+    rows: dict[str, list[float]] = {}
+    ids = []
+    settings = PlannerSettings()
+    for k in order:
+        if len(ids) == count:
+            break
+        req = requests[k]
+        r = plan_transport(req, spec)
+        if not r.success or r.attempts != 1:
+            continue
+        ids.append(req.task.task_id)
+        traj, wt = r.trajectory, r.wrist_trajectory
+        prob = _Problem(req, spec, settings, "rejection")
+        waypoints, _ = prob.solve(_seed(req.seed, 1), req.timeout_s, _Phases())
+        assert waypoints is not None
+        names = tuple(prob.model.joint_names)
+        vmax, amax = prob.model.velocity_limits, spec.arm.max_acceleration
+        if prob.strict8:
+            amax = np.concatenate([amax, np.full(2, amax.max())])
+        sdot = prob.sdot_limit() if req.planner == "decoupled" else None
+        t = dense_times(traj, settings.check_step)
+        q = traj.sample(t)[0]
+        kin = prob.kin
+        if wt is not None:
+            q, kin = np.hstack([q, wt.sample(t)[0]]), prob.executed
+
+        def setup(req: PlanRequest = req) -> None:
+            _Problem(req, spec, settings, "rejection").endpoint_problem()
+
+        pieces = {
+            "plan": lambda req=req: plan_transport(req, spec),
+            "setup": setup,
+            "search": lambda req=req, prob=prob: prob.solve(_seed(req.seed, 1), req.timeout_s,
+                                                            _Phases()),
+            "timing": lambda w=waypoints, v=vmax, a=amax, sd=sdot, n=names: time_parameterize(
+                w, n, v, a, sdot_max=sd, grid_step=settings.toppra_grid),
+            "recheck": lambda prob=prob, traj=traj, wt=wt: prob.check_trajectory(traj, wrist=wt),
+            "recheck_collisions": lambda kin=kin, q=q: kin.first_collision(q),
+        }
+        if wt is not None:
+            pieces["verify"] = lambda traj=traj, prob=prob, req=req: verify_trajectory(
+                traj, prob.model, spec, q_wrist_start=req.task.start_wrist)
+        for name, f in pieces.items():
+            times = []
+            for _ in range(reps):
+                c0 = time.process_time()
+                f()
+                times.append(time.process_time() - c0)
+            rows.setdefault(name, []).append(float(np.median(times)) * 1e3)
+    return {"tasks": ids, "reps": reps,
+            "median_ms": {k: round(float(np.median(v)), 3) for k, v in rows.items()},
+            "mean_ms": {k: round(float(np.mean(v)), 3) for k, v in rows.items()}}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--tasks", metavar="FILE", default=None, help="task file (default: packaged)")
@@ -140,6 +213,7 @@ def main(argv: list[str] | None = None) -> int:
         "profiled_cpu_total_s": round(total, 3),
         "parts": parts,
         "collision_check_cpu": _collision_cost(spec, tasks),
+        "pieces_about_median": _pieces(spec, requests, cpu),
         "top_own_time": [{"function": f"{Path(k[0]).name}:{k[1]}({k[2]})", "calls": v[1],
                           "own_cpu_s": round(v[2], 4)} for k, v in own],
     }

@@ -29,6 +29,10 @@ def test_profile_accounts_for_the_parts_of_a_plan(tmp_path) -> None:
     assert d["parts"]["timing: toppra + wrist-rate constraint"]["cpu_s"] > 0
     assert d["parts"]["verify: verify_trajectory"]["cpu_s"] > 0
     assert all(v > 0 for v in d["collision_check_cpu"].values())
+    pieces = d["pieces_about_median"]
+    assert pieces["tasks"] and set(pieces["median_ms"]) == {
+        "plan", "setup", "search", "timing", "recheck", "recheck_collisions", "verify"}
+    assert all(v > 0 for v in pieces["median_ms"].values())
 
 
 def test_bad_options_exit_2_naming_them() -> None:

@@ -162,11 +162,13 @@ def test_a_fast_motion_between_sparse_waypoints_is_caught_by_densification():
 def test_densified_steps_respect_the_bound():
     tr = ramp(2, 0.8, 2.0, n=3)
     for step in (0.5, 1.0, 3.0):
-        t, _q, _, R = densify(tr, CARM, np.radians(step))
+        t, q, qd, R = densify(tr, CARM, np.radians(step))
         tr_ = np.einsum("kij,kij->k", R[:-1], R[1:])
         ang = np.degrees(np.arccos(np.clip((tr_ - 1) / 2, -1, 1)))
         assert ang.max() <= step + 1e-9
         assert np.isin(tr.times, t).all()  # every waypoint is a sample
+        at = np.searchsorted(t, tr.times)  # ... with the waypoint's own values, exactly
+        assert np.array_equal(q[at], tr.positions) and np.array_equal(qd[at], tr.velocities)
 
 
 def test_branch_switch_is_a_discontinuity():
@@ -202,6 +204,7 @@ def test_arm_joint_limits_are_checked():
 
 def test_joint_order_does_not_matter():
     tr = ramp(1, 0.5, 1.0)
+    assert tr.reordered(tr.joint_names) is tr  # in order already: nothing to copy
     perm = [5, 3, 1, 0, 2, 4]
     shuffled = JointTrajectory(tuple(tr.joint_names[i] for i in perm), tr.times,
                                tr.positions[:, perm], tr.velocities[:, perm])

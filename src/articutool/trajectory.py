@@ -101,7 +101,10 @@ class JointTrajectory:
         return int(self.times.size)
 
     def reordered(self, joint_names: list[str] | tuple[str, ...]) -> JointTrajectory:
-        """The same trajectory with columns in ``joint_names`` order (all must be present)."""
+        """The same trajectory with columns in ``joint_names`` order (all must be present);
+        this trajectory itself when they already are (it is immutable)."""
+        if tuple(joint_names) == self.joint_names:
+            return self
         missing = [n for n in joint_names if n not in self.joint_names]
         extra = [n for n in self.joint_names if n not in joint_names]
         if missing or extra:

@@ -163,8 +163,10 @@ def densify(
         t_new = np.append(t[seg] + frac * (t[seg + 1] - t[seg]), t[-1])
         # Keep exact waypoint samples; only new interior points are interpolated.
         q, qd = traj.sample(t_new)
-        is_wp = np.isin(t_new, traj.times)
-        wp_idx = np.searchsorted(traj.times, t_new[is_wp])
+        # The waypoints' own times among the samples (times increase strictly).
+        at = np.minimum(np.searchsorted(traj.times, t_new), traj.times.size - 1)
+        is_wp = traj.times[at] == t_new
+        wp_idx = at[is_wp]
         q[is_wp], qd[is_wp] = traj.positions[wp_idx], traj.velocities[wp_idx]
         t = t_new
         R = model.tool_base_rotations(q)
