@@ -53,8 +53,10 @@ PARTS = (
     ("collision checks outside the callbacks", (("planning/queries.py", "collides"),
                                                 ("arm/model.py", "collisions"))),
     ("timing: toppra + wrist-rate constraint", (("planning/timing.py", "time_parameterize"),)),
-    ("timing: toppra's solver passes (toppra_speeds)", (("planning/timing.py",
-                                                         "toppra_speeds"),)),
+    # toppra_speeds, or toppra's own TOPPRA loop where a tree runs that
+    ("timing: toppra's solver passes", (("planning/timing.py", "toppra_speeds"),
+                                        ("reachability_algorithm.py",
+                                         "compute_parameterization"))),
     ("timing: wrist-rate constraint", (("planning/ompl_planner.py", "sdot_max"),)),
     ("recheck: dense re-check", (("planning/ompl_planner.py", "check_trajectory"),)),
     ("verify: verify_trajectory", (("verify/verifier.py", "verify_trajectory"),)),
