@@ -123,8 +123,8 @@ def toppra_speeds(
     The same solver calls with the same arguments in the same order and the same arithmetic
     between them as toppra's backward (controllable sets) and forward passes, so the same
     speeds bit for bit (``tests/test_planning.py``); without the per-stage NumPy temporaries,
-    NaN scans and logger checks of toppra's Python loop, and without its search for optional
-    solver packages on every call, which cost about as much as the solves.
+    NaN scans and logger checks of toppra's Python loop and without its search for optional
+    solver packages on every call, which together cost about twice as much as the solves.
     """
     solver = seidelWrapper(list(constraints), path, gridpoints, solve_lp1d=True)
     solve = solver.solve_stagewise_optim
