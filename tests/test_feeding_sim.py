@@ -113,6 +113,7 @@ def _assert_shed_over_the_bowl(world: FeedingWorld, at_shed: _AtShed, r: BiteRes
     assert r.shed_g == pytest.approx(r.acquired_g - r.masses_after["shed"]["utensil"])
 
 
+@pytest.mark.slow  # the demo's bite: the spoon in an awake pile of 190 pieces, minutes of CPU
 def test_a_whole_pecan_bite_by_the_articutool_in_physics(
         capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
     # The meal CLI's bite, watched where its primitive sheds (one whole bite for both).

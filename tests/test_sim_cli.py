@@ -15,6 +15,29 @@ from articutool.cli import main
 from conftest import run_cli
 
 
+def test_sim_carry_json_accounts_for_a_placed_load_and_its_snapshot_renders_headless(
+        tmp_path: Path) -> None:
+    # A placed load carried level: the report's accounting adds up, the F/T weighs what is on
+    # the spoon, and the last frame renders offscreen in a process of its own.
+    from PIL import Image
+
+    png = tmp_path / "s.png"
+    r = run_cli("sim", "--food", "pecans", "--load", "2", "--script", "carry", "--json",
+                "--seed", "3", "--snapshot", str(png), timeout=900.0)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["total_g"] == pytest.approx(out["on_utensil_g"] + out["in_bowl_g"]
+                                           + out["table_g"] + out["critical_g"]
+                                           + out["airborne_g"] + out["eaten_g"])
+    assert out["on_utensil_g"] > 0
+    assert abs(out["ft_mass_g"] - out["on_utensil_g"]) < 0.5
+    assert out["tool_fault"] == ""
+    img = Image.open(png)
+    assert img.size == (640, 480)
+    assert len(np.unique(np.asarray(img.convert("L")))) > 20  # a scene, not a blank frame
+
+
+@pytest.mark.slow  # the spoon in an awake pile of 190 pieces: a minute of CPU
 def test_sim_scoop_json_reports_where_the_food_is_and_its_snapshot_renders_headless(
         tmp_path: Path) -> None:
     # The rigid scripted scoop takes 0-2 pecan pieces: seeds 0-4 took 0, 0.92, 0.97, 1.72 and
