@@ -27,6 +27,7 @@ from __future__ import annotations
 import ast
 import contextlib
 import functools
+import json
 import os
 import random
 import signal
@@ -115,12 +116,26 @@ def _terminated(signum: int, frame: object) -> None:
     os.kill(os.getpid(), signal.SIGTERM)
 
 
+# A module missing from tests/module_costs.json counts this many seconds a test.
+UNMEASURED_TEST_S = 1.0
+
+
+@functools.cache
+def _module_costs() -> dict[str, float]:
+    """Each module's measured test time (``tests/module_costs.json``, written by
+    ``tests/module_costs.py``): the order the scheduler sends modules in, costliest first."""
+    path = ROOT / "tests" / "module_costs.json"
+    return json.loads(path.read_text(encoding="utf-8")) if path.is_file() else {}
+
+
 def pytest_xdist_make_scheduler(config: pytest.Config, log):  # type: ignore[no-untyped-def]
     """``--dist loadgroup``: each module's tests together on one worker (module fixtures are
     built once), the tests marked ``floods`` (link floods, a CPU hog beside the real-time
     loop: two must not load the machine at once) one after another on one worker, sent
-    first (they are long). pytest-xdist's own loadgroup reads groups from the node ids, which
-    pytest 9.2 no longer lets a plugin change."""
+    first (they are long), then the modules costliest first (``tests/module_costs.json``), so
+    that no long module starts while the other workers run out of work. pytest-xdist's own
+    loadgroup reads groups from the node ids, which pytest 9.2 no longer lets a plugin
+    change."""
     if config.getvalue("dist") != "loadgroup":
         return None
     from xdist.scheduler import LoadScopeScheduling
@@ -132,6 +147,12 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):  # type: ignore[no-
             return FLOODS if name in _flood_tests(module) else module
 
         def _assign_work_unit(self, node):  # type: ignore[no-untyped-def]
+            if not getattr(self, "_ordered", False):
+                self._ordered = True
+                cost = _module_costs()
+                for scope in sorted(self.workqueue, key=lambda s: -cost.get(
+                        s, len(self.workqueue[s]) * UNMEASURED_TEST_S)):
+                    self.workqueue.move_to_end(scope)
             if FLOODS in self.workqueue:
                 self.workqueue.move_to_end(FLOODS, last=False)
             super()._assign_work_unit(node)

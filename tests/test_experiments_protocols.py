@@ -55,6 +55,7 @@ def test_capacity_trial_of_water_also_fills_the_dish_to_the_brim() -> None:
     assert 0.8 * r["brim_poured_g"] < r["brim_g"] <= r["brim_poured_g"] + 1e-6
 
 
+@pytest.mark.slow  # a strict plan and a carry of SPH water: minutes of CPU
 def test_exp2b_trial_baseline_water_to_a_goal_accounts_for_every_gram() -> None:
     goals = ["low_near"]
     trials = make_trials("exp2b", conditions("exp2b", CFG, goals=goals), 1, 0, goals=goals)

@@ -65,9 +65,16 @@ def _transport(monkeypatch: pytest.MonkeyPatch, slow: bool, ahead: bool = False)
             "attempts": attempts_used(root).get("planning_attempts_Staging")}
 
 
+@pytest.fixture(scope="module")
+def polled() -> dict:
+    """The transport with the plan polled as it comes (shared: the tests compare to it)."""
+    with pytest.MonkeyPatch.context() as mp:
+        return _transport(mp, False)
+
+
 def test_a_slower_planner_gives_the_same_attempts_and_outcome(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    fast, slow = _transport(monkeypatch, False), _transport(monkeypatch, True)
+        polled: dict, monkeypatch: pytest.MonkeyPatch) -> None:
+    fast, slow = polled, _transport(monkeypatch, True)
     assert fast["status"] == slow["status"] == Status.SUCCESS, slow["rec"].failed_stage
     assert fast["attempts"] == slow["attempts"] == 1
     assert slow["rec"].failures == []
@@ -80,11 +87,11 @@ def test_a_slower_planner_gives_the_same_attempts_and_outcome(
 
 
 def test_a_plan_finished_before_the_tree_looks_again_costs_the_same_tick(
-        monkeypatch: pytest.MonkeyPatch) -> None:
+        polled: dict, monkeypatch: pytest.MonkeyPatch) -> None:
     """Whether the planner's thread ends before the tree's thread polls the plan in the tick
     that started it is up to the operating system (a busy machine, a Dask worker's threads):
     the world waits one tick period for the plan either way."""
-    polled, ahead = _transport(monkeypatch, False), _transport(monkeypatch, False, ahead=True)
+    ahead = _transport(monkeypatch, False, ahead=True)
     assert polled["status"] == ahead["status"] == Status.SUCCESS, ahead["rec"].failed_stage
     assert ahead["rec"].planning_wait_sim_s == polled["rec"].planning_wait_sim_s > 0.0
     assert ahead["t"] == polled["t"]
