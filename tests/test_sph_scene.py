@@ -97,7 +97,8 @@ def test_a_steady_turn_throws_outwards_and_coriolis_does_no_work(xv, w) -> None:
 
 @pytest.mark.parametrize("kw", [{"particle_radius": 0.0}, {"particle_radius": 1e-3, "max_dt": 0.0},
                                 {"particle_radius": 1e-3, "threads": 0},
-                                {"particle_radius": 1e-3, "cfl_factor": 2.0}])
+                                {"particle_radius": 1e-3, "cfl_factor": 2.0},
+                                {"particle_radius": 1e-3, "viscosity_method": "xsph"}])
 def test_settings_out_of_range_are_refused_naming_the_field(kw: dict[str, float]) -> None:
     with pytest.raises(ValueError, match="out of range"):
         SphSettings(**kw)  # type: ignore[arg-type]
