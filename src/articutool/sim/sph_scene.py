@@ -214,7 +214,7 @@ class SphSettings:
     (m²/s, the standard SPH viscosity of Monaghan's form); ``boundary_viscosity``: the same
     coefficient at the walls (0: free slip). ``viscosity_method``: ``"standard"`` (explicit;
     unstable at large coefficients) or ``"weiler2018"`` (Weiler et al. 2018, implicit: stable
-    at any coefficient). ``cfl_factor`` scales the CFL step."""
+    at large coefficients). ``cfl_factor`` scales the CFL step."""
 
     particle_radius: float
     density0: float = 1000.0
