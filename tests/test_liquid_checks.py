@@ -86,23 +86,25 @@ def test_a_coarse_dam_break_runs_and_says_what_it_measured() -> None:
 def test_the_column_is_released_from_rest() -> None:
     """The tiled lattice is denser than water next to the walls (the boundary particles' share
     is too large at 2r), so a column released as tiled bursts out at once; the check lets it
-    settle behind a gate first and releases it at rest."""
+    settle behind a gate first and releases it from rest (this coarse column keeps some jitter;
+    the full check's settles to millimetres per second, asserted in the slow test)."""
     r = dam_break_check(0.05715 / 16, t_star_end=0.1, sample_t_star=0.1)
     s = r["settling"]
     assert s["first_step_max_speed_m_s"] > 0.2  # the tiled start: ~10 g·dt and more
-    assert s["rms_speed_at_release_m_s"] < 0.03
+    assert s["rms_speed_at_release_m_s"] < s["first_step_max_speed_m_s"] / 20
     assert s["particles_lost_settling"] <= 0.01 * r["particles"]
 
 
 @pytest.mark.slow
 def test_the_dam_break_front_is_reported_against_martin_and_moyce() -> None:
-    """The full check (20 particles across). Its front runs 15–20 % ahead of the measurement
+    """The full check (20 particles across). Its front runs 13–20 % ahead of the measurement
     (docs/food.md; the 10 % criterion fails), a lag nearly constant in time; asserted here:
     the physics it must obey whatever the measurement — the front only advances, never faster
     than the inviscid shallow-water front (Ritter: dZ/dT ≤ 2), ahead of the measured one at
     every point (an instant release beside a gate drawn away) but by less than the tiled
     start's 38–50 %, and every measured point up to Z = 3 compared."""
     r = dam_break_check()
+    assert r["settling"]["rms_speed_at_release_m_s"] < 0.01
     t, z = np.asarray(r["t_star"]), np.asarray(r["z_star"])
     assert np.all(np.diff(z) >= -1e-3)
     assert np.all(z <= 1.0 + 2.0 * t + 0.05)

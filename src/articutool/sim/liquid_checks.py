@@ -67,7 +67,7 @@ def martin_moyce_1952() -> dict[str, Any]:
     return tomllib.loads(path.read_text(encoding="utf-8"))
 
 
-DAM_BREAK_SETTLE_S = 0.1  # s the column rests behind the gate before its release ...
+DAM_BREAK_SETTLE_S = 0.2  # s the column rests behind the gate before its release ...
 DAM_BREAK_SETTLE_VISCOSITY = 0.01  # m²/s ... in an implicit viscosity that brings it to rest
 DAM_BREAK_SETTLE_DT = 5e-4  # s, the settling's longest step: the tiled start's burst (up to
 # ~1.5 m/s) outruns 2 ms steps at 32 particles across and blows the liquid up
