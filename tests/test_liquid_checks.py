@@ -74,7 +74,8 @@ def test_a_coarse_dam_break_runs_and_says_what_it_measured() -> None:
     """Smoke: the JSON's fields and the front's start (the full check is slow)."""
     r = dam_break_check(0.05715 / 16, t_star_end=0.9, sample_t_star=0.3)
     assert r["backend"].startswith("SPlisHSPlasH") and r["version"] == "2.19.0"
-    assert r["particles"] == 8 * 16 * 4 and r["particles_across_column"] == 8
+    assert r["particles"] + r["settling"]["particles_lost_settling"] == 8 * 16 * 4
+    assert r["particles_across_column"] == 8
     assert r["t_star"][0] == 0.0 and r["z_star"][0] == pytest.approx(1.0, abs=0.05)
     assert np.all(np.diff(r["z_star"]) >= 0) and r["z_star"][-1] > 1.05
     assert r["compared_at_t_star"] == [0.832]  # the first measured point, Z ≤ 3
@@ -82,17 +83,34 @@ def test_a_coarse_dam_break_runs_and_says_what_it_measured() -> None:
     assert isinstance(r["pass"], bool) and r["cpu_s"] > 0
 
 
+def test_the_column_is_released_from_rest() -> None:
+    """The tiled lattice is denser than water next to the walls (the boundary particles' share
+    is too large at 2r), so a column released as tiled bursts out at once; the check lets it
+    settle behind a gate first and releases it from rest (this coarse column keeps some jitter;
+    the full check's settles to millimetres per second, asserted in the slow test)."""
+    r = dam_break_check(0.05715 / 16, t_star_end=0.1, sample_t_star=0.1)
+    s = r["settling"]
+    assert s["first_step_max_speed_m_s"] > 0.2  # the tiled start: ~10 g·dt and more
+    assert s["rms_speed_at_release_m_s"] < s["first_step_max_speed_m_s"] / 20
+    assert s["particles_lost_settling"] <= 0.01 * r["particles"]
+
+
 @pytest.mark.slow
 def test_the_dam_break_front_is_reported_against_martin_and_moyce() -> None:
-    """The full check (20 particles across). Its front runs ahead of the measurement
-    (docs/food.md: 64 %, the 10 % criterion fails); asserted here: the physics it must obey
-    whatever the measurement — the front only advances, never faster than the inviscid
-    shallow-water front (Ritter: dZ/dT ≤ 2), and every measured point up to Z = 3 compared."""
+    """The full check (20 particles across). Its front runs 13–20 % ahead of the measurement
+    (docs/food.md; the 10 % criterion fails), a lag nearly constant in time; asserted here:
+    the physics it must obey whatever the measurement — the front only advances, never faster
+    than the inviscid shallow-water front (Ritter: dZ/dT ≤ 2), ahead of the measured one at
+    every point (an instant release beside a gate drawn away) but by less than the tiled
+    start's 38–50 %, and every measured point up to Z = 3 compared."""
     r = dam_break_check()
+    assert r["settling"]["rms_speed_at_release_m_s"] < 0.01
     t, z = np.asarray(r["t_star"]), np.asarray(r["z_star"])
     assert np.all(np.diff(z) >= -1e-3)
     assert np.all(z <= 1.0 + 2.0 * t + 0.05)
     assert r["compared_at_t_star"] == [0.832, 1.219, 1.997, 2.547]
+    ahead = np.asarray(r["measured_z_star"]) / np.asarray(r["law_z_star"]) - 1.0
+    assert np.all(ahead > 0) and r["max_rel_error_to_Z3"] < 0.3
     assert isinstance(r["pass"], bool) and r["pass"] == (r["max_rel_error_to_Z3"] <= 0.10)
 
 

@@ -97,10 +97,27 @@ def test_a_steady_turn_throws_outwards_and_coriolis_does_no_work(xv, w) -> None:
 
 @pytest.mark.parametrize("kw", [{"particle_radius": 0.0}, {"particle_radius": 1e-3, "max_dt": 0.0},
                                 {"particle_radius": 1e-3, "threads": 0},
-                                {"particle_radius": 1e-3, "cfl_factor": 2.0}])
+                                {"particle_radius": 1e-3, "cfl_factor": 2.0},
+                                {"particle_radius": 1e-3, "viscosity_method": "xsph"}])
 def test_settings_out_of_range_are_refused_naming_the_field(kw: dict[str, float]) -> None:
     with pytest.raises(ValueError, match="out of range"):
         SphSettings(**kw)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(("method", "nu"), [("standard", 1.0e-6), ("weiler2018", 0.01)])
+def test_the_library_runs_the_viscosity_it_is_given(method: str, nu: float) -> None:
+    """The scene file's method id and its parameters' namespace reach the library (a wrong
+    namespace would leave the method's default coefficient in place, silently)."""
+    with SphLiquid([Boundary("box", *BOX)], [FluidBlock((0.002, 0.002, 0.002),
+                                                        (0.01, 0.01, 0.01))],
+                   SphSettings(particle_radius=R, viscosity=nu, boundary_viscosity=2 * nu,
+                               viscosity_method=method)) as liq:
+        fm = liq._fluid
+        v = fm.getViscosityBase()
+        assert fm.getViscosityMethod() == {"standard": 1, "weiler2018": 6}[method]
+        assert v.getValueFloat(v.VISCOSITY_COEFFICIENT) == pytest.approx(nu, rel=1e-6)
+        assert v.getValueFloat(v.VISCOSITY_COEFFICIENT_BOUNDARY) == pytest.approx(2 * nu,
+                                                                                  rel=1e-6)
 
 
 def test_a_block_too_thin_for_two_particles_is_refused() -> None:

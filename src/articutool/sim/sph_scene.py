@@ -104,7 +104,9 @@ ExtraAcceleration = Callable[[NDArray[np.float64], NDArray[np.float64]], NDArray
 
 _DFSPH = 4  # SPlisHSPlasH's simulation method ids (scene file doc)
 _AKINCI2012 = 0  # boundary handling: boundary particles
-_STANDARD_VISCOSITY = 1
+# a viscosity method's scene id and its parameters' namespace in the scene file
+_VISCOSITY_METHODS = {"standard": (1, "Standard viscosity"),
+                      "weiler2018": (6, "Weiler et al. 2018")}
 _CFL = 1
 _REGULAR_SAMPLING = 1  # a boundary mesh's particles: the library's regular triangle sampling
 _FIRST_STOP = 1e-9  # s: runSimulation's stop time; it takes exactly one step
@@ -210,12 +212,15 @@ class SphSettings:
     """Solver settings (SI). ``max_density_error_pct``: DFSPH's tolerated mean density error
     (percent); ``max_divergence_error_pct``: its divergence solver's. ``viscosity``: kinematic
     (m²/s, the standard SPH viscosity of Monaghan's form); ``boundary_viscosity``: the same
-    coefficient at the walls (0: free slip). ``cfl_factor`` scales the CFL step."""
+    coefficient at the walls (0: free slip). ``viscosity_method``: ``"standard"`` (explicit;
+    unstable at large coefficients) or ``"weiler2018"`` (Weiler et al. 2018, implicit: stable
+    at large coefficients). ``cfl_factor`` scales the CFL step."""
 
     particle_radius: float
     density0: float = 1000.0
     viscosity: float = 1.0e-6
     boundary_viscosity: float = 1.0e-6
+    viscosity_method: str = "standard"
     max_dt: float = 2.0e-3
     min_dt: float = 1.0e-5
     cfl_factor: float = 0.5
@@ -227,6 +232,7 @@ class SphSettings:
         checks = {"particle_radius": 1e-5 <= self.particle_radius <= 0.1,
                   "density0": self.density0 > 0, "viscosity": self.viscosity >= 0,
                   "boundary_viscosity": self.boundary_viscosity >= 0,
+                  "viscosity_method": self.viscosity_method in _VISCOSITY_METHODS,
                   "max_dt": 0 < self.min_dt <= self.max_dt <= 0.05,
                   "cfl_factor": 0 < self.cfl_factor <= 1,
                   "max_density_error_pct": 0 < self.max_density_error_pct <= 10,
@@ -276,10 +282,10 @@ def _scene_json(boundaries: Sequence[Boundary], files: Sequence[Path],
         "Materials": [{
             "id": "Fluid",
             "density0": s.density0,
-            "viscosityMethod": _STANDARD_VISCOSITY,
+            "viscosityMethod": _VISCOSITY_METHODS[s.viscosity_method][0],
             "maxEmitterParticles": 0,
-            "Standard viscosity": {"viscosity": s.viscosity,
-                                   "viscosityBoundary": s.boundary_viscosity},
+            _VISCOSITY_METHODS[s.viscosity_method][1]: {
+                "viscosity": s.viscosity, "viscosityBoundary": s.boundary_viscosity},
         }],
         "RigidBodies": [{
             "geometryFile": str(path),
