@@ -219,6 +219,16 @@ def test_validating_the_spec_does_not_import_the_motor_sdk() -> None:
     assert out.stdout.strip() == "[]"
 
 
+def test_validating_the_spec_or_a_link_config_does_not_import_numpy() -> None:
+    # a command refusing a bad --spec, --utensil or endpoint answers before the numerics load
+    script = ("import sys\nfrom articutool.spec import load_spec\n"
+              "from articutool.link.config import LinkConfig\n"
+              "load_spec()\nLinkConfig()\nprint('numpy' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         timeout=120, check=True)
+    assert out.stdout.strip() == "False"
+
+
 def test_the_mujoco_drivers_do_not_see_the_world() -> None:
     # the world owns its drivers; they read its state through a MotorPlant
     assert "articutool.sim.world" not in GRAPH["articutool.sim.mj_drivers"]

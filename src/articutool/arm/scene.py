@@ -32,9 +32,8 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from articutool.datafile import read_document
+from articutool.datafile import Finite, Positive, StrictModel, Vec3, read_document
 from articutool.rotations import quaternion_to_matrix, rpy_matrix
-from articutool.spec import Finite, Positive, StrictModel, Vec3
 
 __all__ = [
     "SCOOP_HEADING",

@@ -37,8 +37,7 @@ from typing import Any, Literal
 
 from pydantic import Field, ValidationError, ValidationInfo, field_validator, model_validator
 
-from articutool.datafile import field_path
-from articutool.spec import StrictModel
+from articutool.datafile import StrictModel, field_path
 
 __all__ = ["DEFAULT_ENDPOINT", "MAX_DOMAIN_ID", "ConfigError", "LinkConfig", "check_endpoint",
            "check_ros_environment", "config_from_args",
