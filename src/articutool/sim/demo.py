@@ -150,11 +150,11 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
     if args.seed < 0:
         raise UsageError(f"--seed must be an integer >= 0; got {args.seed}")
-    plot = None if args.no_plot else _plot_path(args.plot or str(_DEFAULT_PLOT),
-                                                 default=args.plot is None)
     spec = spec_from_args(args)
     if args.utensil not in spec.utensils:
         raise UsageError(f"--utensil must be one of {sorted(spec.utensils)}; got {args.utensil!r}")
+    plot = None if args.no_plot else _plot_path(args.plot or str(_DEFAULT_PLOT),
+                                                 default=args.plot is None)  # loads matplotlib
     figures = run_demo(spec, utensil=args.utensil, seed=args.seed, timeout_s=args.timeout,
                        plot_path=plot)
     if args.json:
