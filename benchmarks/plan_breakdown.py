@@ -24,21 +24,25 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from articutool.bench.taskfile import TaskFileError, load_task_set
-from articutool.planning.ompl_planner import PlannerSettings, plan_transport
 from articutool.planning.types import PHASES, PLANNERS, PlanRequest, TransportTask
-from articutool.spec import load_spec
 
-# The baseline planner settings, OMPL's and toppra's defaults (toppra's constraint objects and the
-# decoupled check's buffer are reused regardless; they measured < 1 ms per plan).
-BASELINE = PlannerSettings(range_everywhere=False, try_direct=False, simplify="full",
+if TYPE_CHECKING:
+    from articutool.planning.ompl_planner import PlannerSettings
+
+def baseline_settings() -> PlannerSettings:
+    """The baseline planner settings, OMPL's and toppra's defaults (toppra's constraint objects
+    and the decoupled check's buffer are reused regardless; they measured < 1 ms per plan)."""
+    from articutool.planning.ompl_planner import PlannerSettings
+
+    return PlannerSettings(range_everywhere=False, try_direct=False, simplify="full",
                            broadphase=False, cache_models=False, toppra_grid=0.01)
 
 
 def _stats(x: list[float]) -> dict[str, float | None]:
+    import numpy as np
+
     if not x:
         return {"median_ms": None, "p90_ms": None}
     a = np.asarray(x) * 1e3
@@ -65,6 +69,8 @@ def selected_tasks(path: str | None, limit: int | None, timeout: float, systems:
         return [], f"--limit must be >= 1; got {limit}"
     if not timeout > 0:
         return [], f"--timeout must be > 0 s; got {timeout}"
+    from articutool.bench.taskfile import TaskFileError, load_task_set
+
     try:
         return list(load_task_set(path).tasks[:limit]), None
     except TaskFileError as err:
@@ -87,7 +93,13 @@ def main(argv: list[str] | None = None) -> int:
     if bad:
         print(bad, file=sys.stderr)
         return 2
+    import numpy as np  # the planner and the statistics: once the options are good
+
+    from articutool.planning.ompl_planner import plan_transport
+    from articutool.spec import load_spec
+
     spec = load_spec()
+    baseline = baseline_settings()
     runs: dict[str, list[dict]] = {s: [] for s in planners}
     baseline_runs: dict[str, list[dict]] = {s: [] for s in planners}
     t_start = time.perf_counter()
@@ -106,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
             req = PlanRequest(s, task, timeout_s=args.timeout, seed=args.seed)
             runs[s].append(record(req, None))
             if args.baseline:
-                baseline_runs[s].append(record(req, BASELINE))
+                baseline_runs[s].append(record(req, baseline))
     out: dict = {"tasks": len(tasks), "timeout_s": args.timeout, "seed": args.seed,
                  "wall_s": round(time.perf_counter() - t_start, 2),
                  "load_avg_before_after": [round(load_before[0], 2),

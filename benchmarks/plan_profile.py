@@ -26,20 +26,7 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
-from articutool.planning.ompl_planner import (
-    PlannerSettings,
-    _Phases,
-    _Problem,
-    _seed,
-    plan_transport,
-)
-from articutool.planning.queries import dense_times
-from articutool.planning.timing import time_parameterize
 from articutool.planning.types import PLANNERS, PlanRequest
-from articutool.spec import load_spec
-from articutool.verify.verifier import verify_trajectory
 from plan_breakdown import emit, selected_tasks
 
 # (label, (module path suffix, function name) ...): inclusive CPU time, summed.
@@ -77,6 +64,7 @@ def _collision_cost(spec, tasks) -> dict[str, float]:
     """CPU µs per collision check of the executed 8-DOF model at the tasks' start and goal
     configurations (wrist level at zero): one Python call per configuration through the
     overloaded ``computeCollisions``, the planner's batch-of-one call, and a batch call."""
+    import numpy as np
     import pinocchio as pin
 
     from articutool.arm.model import TOOL_BASE_FRAME, ArmModel
@@ -110,6 +98,19 @@ def _pieces(spec, requests: list[PlanRequest], cpu: list[float], count: int = 10
     the whole plan, the problem and endpoint checks, the search (the straight-motion check,
     or OMPL's search and simplification), time parameterisation, the dense re-check and its
     collision calls alone, verification."""
+    import numpy as np
+
+    from articutool.planning.ompl_planner import (
+        PlannerSettings,
+        _Phases,
+        _Problem,
+        _seed,
+        plan_transport,
+    )
+    from articutool.planning.queries import dense_times
+    from articutool.planning.timing import time_parameterize
+    from articutool.verify.verifier import verify_trajectory
+
     order = sorted(range(len(requests)), key=lambda k: abs(cpu[k] - float(np.median(cpu))))
     rows: dict[str, list[float]] = {}
     ids = []
@@ -182,6 +183,11 @@ def main(argv: list[str] | None = None) -> int:
     if bad:
         print(bad, file=sys.stderr)
         return 2
+    import numpy as np  # the planner and the statistics: once the options are good
+
+    from articutool.planning.ompl_planner import plan_transport
+    from articutool.spec import load_spec
+
     spec = load_spec()
     requests = [PlanRequest(args.system, t, timeout_s=args.timeout) for t in tasks]
     plan_transport(requests[0], spec)  # models built and cached outside the figures

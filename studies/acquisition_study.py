@@ -124,10 +124,9 @@ def turn(food: str) -> dict[str, Any]:
     import numpy as np
 
     from articutool.arm.model import ArmModel
-    from articutool.arm.scene import SCOOP_HEADING, Scene
+    from articutool.arm.scene import SCOOP_HEADING, Scene, container_floor
     from articutool.feeding.insertion import acquisition_waypoints, dish_outline
     from articutool.feeding.strategies import StrategyLibrary
-    from articutool.meal.bites import container_floor
     from articutool.planning.tip_paths import cartesian_path, first_ik, wrist_sweep
     from articutool.spec import load_spec
 

@@ -394,6 +394,22 @@ def test_the_report_writes_no_figure_or_page_through_a_link(name, exp1_results, 
     assert mine.read_bytes() == b"my own picture"
 
 
+@pytest.mark.parametrize("name", ["report.md", "report.html", "exp1/notes.md"])
+def test_a_report_page_or_notes_that_is_not_a_file_is_refused_before_any_figure(name, tmp_path):
+    from articutool.datafile import ResultsError
+    from articutool.experiments import report
+    from articutool.experiments.config import ExperimentsConfig
+
+    (tmp_path / "exp1").mkdir()
+    for f in ("trials.jsonl", "summary.json"):
+        (tmp_path / "exp1" / f).write_bytes((RESULTS / "exp1" / f).read_bytes())
+    (tmp_path / name).mkdir()
+    with pytest.raises(ResultsError, match=name.split("/")[-1]):
+        report.write_report(tmp_path, ExperimentsConfig.load())
+    assert sorted(p.name for p in (tmp_path / "exp1").iterdir()) == [
+        "notes.md", "summary.json", "trials.jsonl"][name != "exp1/notes.md":]
+
+
 def test_a_fifo_as_the_reports_notes_or_old_report_does_not_hang(exp1_results):
     for name in ("exp1/notes.md", "report.md"):
         (exp1_results / name).unlink(missing_ok=True)

@@ -246,8 +246,8 @@ def _dish_centre(model, q_arm, utensil_spec) -> np.ndarray:
 
 def test_the_shedding_pose_is_over_the_scenes_bowl_wherever_the_bowl_is(tmp_path) -> None:
     from articutool.arm.model import ArmModel
-    from articutool.arm.scene import Scene
-    from articutool.meal.bites import container_floor, shed_configuration
+    from articutool.arm.scene import Scene, container_floor
+    from articutool.meal.bites import shed_configuration
     from articutool.spec import load_spec
     from articutool.tool.kinematics import tilt_from_vertical
 

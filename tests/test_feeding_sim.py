@@ -103,7 +103,7 @@ def _assert_shed_over_the_bowl(world: FeedingWorld, at_shed: _AtShed, r: BiteRes
     """Every Articutool strategy's post-acquisition primitive runs after the lift out of the
     bowl: the tip is then over the bowl (thesis §4.4: shed "harmlessly back into the bowl"),
     and what the primitive moved off the utensil is what the shed stage counts."""
-    from articutool.meal.bites import container_floor
+    from articutool.arm.scene import container_floor
 
     bowl = world.scene.get("bowl")
     floor = container_floor(world.scene, "bowl")

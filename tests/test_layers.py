@@ -209,11 +209,13 @@ def test_the_planners_verifier_ros2_food_and_feeding_do_not_import_the_simulatio
             assert imports_from(GRAPH, f"articutool.{src}", f"articutool.{dst}") == []
 
 
-def test_validating_the_spec_does_not_import_the_motor_sdk() -> None:
-    # the Bus Watchdog check needs the register's units, not dynamixel_sdk
+def test_validating_the_spec_or_a_link_config_imports_neither_the_motor_sdk_nor_numpy() -> None:
+    # the Bus Watchdog check needs the register's units, not dynamixel_sdk; and a command
+    # refusing a bad --spec, --utensil or endpoint answers before the numerics load
     script = ("import sys\nfrom articutool.spec import load_spec\n"
-              "load_spec()\n"
-              "print(sorted(m for m in sys.modules if m.startswith('dynamixel')))\n")
+              "from articutool.link.config import LinkConfig\n"
+              "load_spec()\nLinkConfig()\n"
+              "print(sorted(m for m in sys.modules if m.startswith(('dynamixel', 'numpy'))))\n")
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                          timeout=120, check=True)
     assert out.stdout.strip() == "[]"

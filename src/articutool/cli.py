@@ -3,8 +3,9 @@
 Exit codes everywhere: 0 success, 1 the job ran and said no (e.g. infeasible), 2 bad input,
 3 internal error.
 Subsystems contribute subcommands through an ``add_commands(subparsers)`` function in the
-modules listed in ``_COMMAND_MODULES``; each handler imports its heavy dependencies lazily so
-``articutool --help`` stays fast.
+modules listed in ``_COMMAND_MODULES``. Building the parser imports neither numpy nor pydantic
+nor the spec: each handler imports its heavy dependencies once its arguments are checked, so
+``articutool --help`` and a mistyped option are answered at once.
 """
 
 from __future__ import annotations
@@ -18,10 +19,7 @@ import traceback
 from collections.abc import Sequence
 from typing import Any
 
-from articutool.cli_support import UsageError, add_spec_option, spec_from_args
-from articutool.datafile import ResultsError
-from articutool.spec import SpecError
-from articutool.trajectory import TrajectoryError
+from articutool.cli_support import add_spec_option, spec_from_args
 
 __all__ = ["main"]
 
@@ -43,6 +41,21 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "articutool.viewer.cli",
     "articutool.experiments.cli",
 )
+
+# The errors that mean bad input (exit 2), by the module that defines each. A module not yet
+# imported cannot have raised its error, so none is imported only to be caught.
+_BAD_INPUT_ERRORS: tuple[tuple[str, str], ...] = (
+    ("articutool.cli_support", "UsageError"),
+    ("articutool.spec", "SpecError"),
+    ("articutool.trajectory", "TrajectoryError"),
+    ("articutool.datafile", "ResultsError"),
+)
+
+
+def _is_bad_input(err: BaseException) -> bool:
+    """Whether ``err`` is one of :data:`_BAD_INPUT_ERRORS`."""
+    return any(isinstance(err, getattr(sys.modules[mod], name))
+               for mod, name in _BAD_INPUT_ERRORS if mod in sys.modules)
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
@@ -91,8 +104,10 @@ def _cmd_info(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The full argument parser."""
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The argument parser: every command, or with ``command`` only the command modules up
+    to the one that registers it (what parsing that command's arguments needs: the
+    experiments' registry is not imported to answer ``articutool sim --help``)."""
     parser = argparse.ArgumentParser(
         prog="articutool", description=DESCRIPTION, epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -102,6 +117,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the spec as JSON")
     p.set_defaults(func=_cmd_info)
     for mod in _COMMAND_MODULES:
+        if command in sub.choices:
+            break
         importlib.import_module(mod).add_commands(sub)
     return parser
 
@@ -150,7 +167,8 @@ def _silence_stdout() -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``articutool``; returns the exit code."""
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(argv[0] if argv and not argv[0].startswith("-") else None)
     try:
         args = parser.parse_args(argv)
     except SystemExit as done:  # argparse refused the arguments (2) or printed --help (0)
@@ -161,9 +179,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         code = int(args.func(args))
         sys.stdout.flush()
         return code
-    except (SpecError, UsageError, TrajectoryError, ResultsError) as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
     except _StdoutError as err:
         print(f"error: cannot write to standard output: {err}", file=sys.stderr)
         _silence_stdout()
@@ -173,7 +188,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into e.g. `head`
         _silence_stdout()
         return 0
-    except Exception:  # a bug, not bad input: keep it distinguishable from exit 1 ("no")
+    except Exception as err:
+        if _is_bad_input(err):
+            print(f"error: {err}", file=sys.stderr)
+            return 2
+        # a bug, not bad input: keep it distinguishable from exit 1 ("no")
         traceback.print_exc()
         print("error: internal error (please report it with the traceback above)",
               file=sys.stderr)

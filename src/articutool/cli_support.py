@@ -13,8 +13,10 @@ import math
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from articutool.spec import Spec, load_spec
+if TYPE_CHECKING:
+    from articutool.spec import Spec
 
 __all__ = ["MAX_RUN_S", "MAX_WAIT_S", "UsageError", "add_spec_option", "new_output_file",
            "output_dir", "seconds", "spec_from_args"]
@@ -115,4 +117,6 @@ def output_dir(opt: str, path: str | Path, files: tuple[str, ...] = (),
 
 def spec_from_args(args: argparse.Namespace) -> Spec:
     """Load the spec named by ``--spec`` (SpecError propagates as bad input)."""
+    from articutool.spec import load_spec
+
     return load_spec(args.spec)

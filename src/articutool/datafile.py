@@ -20,20 +20,43 @@ from __future__ import annotations
 import contextlib
 import errno
 import json
+import math
 import os
 import secrets
 import stat
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import ValidationError
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError
 
-__all__ = ["MAX_DOCUMENT_BYTES", "ResultsError", "append_own", "check_own", "field_path",
-           "file_kind", "format_validation_error", "own_folder", "parse_json", "publish_new",
-           "read_bytes", "read_document", "read_own_bytes", "read_own_json", "read_text",
-           "replace_own", "save_figure"]
+__all__ = [
+    "MAX_DOCUMENT_BYTES",
+    "Finite",
+    "NonNegative",
+    "Positive",
+    "ResultsError",
+    "StrictModel",
+    "Unit",
+    "Vec3",
+    "append_own",
+    "check_finite",
+    "check_own",
+    "field_path",
+    "file_kind",
+    "format_validation_error",
+    "own_folder",
+    "parse_json",
+    "publish_new",
+    "read_bytes",
+    "read_document",
+    "read_own_bytes",
+    "read_own_json",
+    "read_text",
+    "replace_own",
+    "save_figure",
+]
 
 # The largest input file read (the packaged task set is 0.2 MB, a long recorded trajectory a
 # few MB): a bound, so that a wrong path (a device, a huge log) is refused instead of filling
@@ -45,6 +68,28 @@ class ResultsError(ValueError):
     """A results file (a run's summary, trial log, report, figure) cannot be read or written
     as articutool writes it: unreadable, malformed, of the wrong shape, or a link, FIFO or
     folder where the run's own file belongs (bad input: the message names the file)."""
+
+
+def check_finite(v: float) -> float:
+    """``v`` if finite (a pydantic validator: NaN or an infinity is refused)."""
+    if not math.isfinite(v):
+        raise ValueError("must be a finite number (got NaN or inf)")
+    return v
+
+
+Finite = Annotated[float, AfterValidator(check_finite)]
+Positive = Annotated[float, AfterValidator(check_finite), Field(gt=0)]
+NonNegative = Annotated[float, AfterValidator(check_finite), Field(ge=0)]
+Unit = Annotated[float, AfterValidator(check_finite), Field(ge=0, le=1)]
+Vec3 = tuple[Finite, Finite, Finite]
+
+
+class StrictModel(BaseModel):
+    """The base of every validated data file's models (the spec, the scene, the physics
+    parameters, the action library, the experiments): an unknown field is an error (a typo
+    never passes silently) and a loaded value never changes."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
 
 
 _TOO_DEEP = ("is nested too deeply to read (arrays or tables inside each other hundreds of "

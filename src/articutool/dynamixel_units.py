@@ -3,15 +3,18 @@
 The spec validates ``motors.bus_watchdog_s`` against the Bus Watchdog register with
 ``bus_watchdog_units``, and the driver (``tool/drivers/dynamixel.py``) writes the registers
 with all of them: one definition, importable on a PC without the SDK (docs/hardware.md §3,
-ROBOTIS e-manual X-series control table; thesis §3.2).
+ROBOTIS e-manual X-series control table; thesis §3.2). numpy is imported by the array
+conversions that use it, so validating the spec does not load it.
 """
 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
-import numpy as np
-from numpy.typing import ArrayLike, NDArray
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "bus_watchdog_units",
@@ -39,6 +42,8 @@ def velocity_unit_rad_s(unit_rpm: float) -> float:
 
 def rad_s_to_velocity_units(qd: ArrayLike, unit_rpm: float) -> NDArray[np.int64]:
     """Joint rate (rad/s) → Goal Velocity units, rounded to nearest."""
+    import numpy as np
+
     return np.rint(np.asarray(qd, dtype=np.float64) / velocity_unit_rad_s(unit_rpm)).astype(
         np.int64
     )
@@ -46,12 +51,16 @@ def rad_s_to_velocity_units(qd: ArrayLike, unit_rpm: float) -> NDArray[np.int64]
 
 def velocity_units_to_rad_s(units: ArrayLike, unit_rpm: float) -> NDArray[np.float64]:
     """Present Velocity units → rad/s."""
+    import numpy as np
+
     return np.asarray(units, dtype=np.float64) * velocity_unit_rad_s(unit_rpm)
 
 
 def velocity_limit_units(max_velocity: ArrayLike, unit_rpm: float) -> NDArray[np.int64]:
     """Velocity Limit register value for a joint speed limit (rad/s), rounded *down* so the
     motor never allows more than the spec; refuses limits beyond the register range."""
+    import numpy as np
+
     v = np.asarray(max_velocity, dtype=np.float64)
     units = np.floor(v / velocity_unit_rad_s(unit_rpm) + 1e-9).astype(np.int64)
     if (units < 1).any() or (units > _VELOCITY_LIMIT_MAX_UNITS).any():
@@ -85,6 +94,8 @@ def turns_lost_in_reboot(before_ticks: int, after_ticks: int, ticks_per_rev: int
 
 def rad_to_ticks(q: ArrayLike, zero_ticks: ArrayLike, ticks_per_rev: int) -> NDArray[np.int64]:
     """Joint angle (rad) → encoder ticks, given the ticks at which the joint reads 0."""
+    import numpy as np
+
     q = np.asarray(q, dtype=np.float64)
     return np.rint(q * ticks_per_rev / (2.0 * math.pi)).astype(np.int64) + np.asarray(
         zero_ticks, dtype=np.int64
@@ -95,6 +106,8 @@ def ticks_to_rad(
     ticks: ArrayLike, zero_ticks: ArrayLike, ticks_per_rev: int
 ) -> NDArray[np.float64]:
     """Encoder ticks → joint angle (rad)."""
+    import numpy as np
+
     t = np.asarray(ticks, dtype=np.int64) - np.asarray(zero_ticks, dtype=np.int64)
     return t.astype(np.float64) * (2.0 * math.pi / ticks_per_rev)
 
@@ -117,6 +130,8 @@ def position_limit_ticks(
 ) -> NDArray[np.int64]:
     """(2, 2) joint limits (rad) → (2, 2) [min, max] ticks, clipped to the single-turn
     range 0..4095 that position mode accepts."""
+    import numpy as np
+
     lim = np.asarray(limits, dtype=np.float64)
     z = np.asarray(zero_ticks, dtype=np.int64)[:, None]
     ticks = rad_to_ticks(lim, z, ticks_per_rev)

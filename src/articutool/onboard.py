@@ -53,13 +53,12 @@ import time
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, TextIO
 
-import numpy as np
-
-from articutool.spec import Spec
-from articutool.tool.api import Mode, ToolState
-
 if TYPE_CHECKING:
+    import numpy as np
+
     from articutool.onboard_link import LinkProcess
+    from articutool.spec import Spec
+    from articutool.tool.api import ToolState
     from articutool.tool.drivers.sim import SimWrist
 
 __all__ = [
@@ -100,7 +99,7 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--serve", action=argparse.BooleanOptionalAction, default=True,
                    help="serve the Articutool API over Zenoh (default: on, loopback unless "
                         "--listen/--link-config say otherwise)")
-    from articutool.link.config import add_config_args
+    from articutool.link.options import add_config_args
 
     add_config_args(p)
     p.add_argument("--insecure-listen", action="store_true",
@@ -117,6 +116,8 @@ def gentle_base_motion(t: float) -> tuple[np.ndarray, np.ndarray]:
     """A slow demo motion of the tool base for ``--driver sim``: F0's +x (the wrist's up at
     zero) starts along world up; the base yaws ±40° and tilts ±20° about a tilted axis
     (periods 20 s and 8 s, peak rate ≈ 0.3 rad/s). Returns (R_world←F0, ω_world)."""
+    import numpy as np
+
     from articutool.tool.drivers.sim import axis_angle_rotation
 
     z = np.array([0.0, 0.0, 1.0])
@@ -190,6 +191,8 @@ def run_tool(
     with ``level``, to try engaging LEVELING (every 50 ms until it succeeds): the loop's is
     the only busy thread of the process.
     """
+    from articutool.tool.api import Mode
+
     out = sys.stdout if out is None else out
     stop = threading.Event() if stop_event is None else stop_event
     tty = out.isatty()

@@ -11,20 +11,25 @@ from __future__ import annotations
 import math
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
-import numpy as np
-from pydantic import (
-    AfterValidator,
-    BaseModel,
-    ConfigDict,
-    Field,
-    ValidationError,
-    model_validator,
+from pydantic import AfterValidator, Field, ValidationError, model_validator
+
+from articutool.datafile import (
+    Finite,
+    NonNegative,
+    Positive,
+    StrictModel,
+    Unit,
+    Vec3,
+    check_finite,
+    format_validation_error,
+    read_document,
 )
-
-from articutool.datafile import format_validation_error, read_document
 from articutool.dynamixel_units import bus_watchdog_units
+
+if TYPE_CHECKING:
+    import numpy as np
 
 __all__ = [
     "ArmJointSpec",
@@ -36,7 +41,6 @@ __all__ = [
     "PrimitivesSpec",
     "Spec",
     "SpecError",
-    "StrictModel",
     "UtensilSpec",
     "WristSpec",
     "default_spec_path",
@@ -46,27 +50,6 @@ __all__ = [
 
 class SpecError(ValueError):
     """A hardware spec file is missing, malformed or holds an invalid value."""
-
-
-def _finite(v: float) -> float:
-    if not math.isfinite(v):
-        raise ValueError("must be a finite number (got NaN or inf)")
-    return v
-
-
-Finite = Annotated[float, AfterValidator(_finite)]
-Positive = Annotated[float, AfterValidator(_finite), Field(gt=0)]
-NonNegative = Annotated[float, AfterValidator(_finite), Field(ge=0)]
-Unit = Annotated[float, AfterValidator(_finite), Field(ge=0, le=1)]
-Vec3 = tuple[Finite, Finite, Finite]
-
-
-class StrictModel(BaseModel):
-    """The base of every validated data file's models (the spec, the scene, the physics
-    parameters, the action library, the experiments): an unknown field is an error (a typo
-    never passes silently) and a loaded value never changes."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
 
 def _check_interval(lo: float, hi: float, name: str) -> None:
@@ -129,25 +112,35 @@ class ArmSpec(StrictModel):
     @property
     def lower(self) -> np.ndarray:
         """Lower position limits (rad), shape (6,)."""
+        import numpy as np
+
         return np.array([j.lower for j in self.joints])
 
     @property
     def upper(self) -> np.ndarray:
         """Upper position limits (rad), shape (6,)."""
+        import numpy as np
+
         return np.array([j.upper for j in self.joints])
 
     @property
     def max_velocity(self) -> np.ndarray:
         """Joint speed limits (rad/s), shape (6,)."""
+        import numpy as np
+
         return np.array([j.max_velocity for j in self.joints])
 
     @property
     def max_acceleration(self) -> np.ndarray:
         """Joint acceleration limits (rad/s²), shape (6,)."""
+        import numpy as np
+
         return np.array([j.max_acceleration for j in self.joints])
 
     def configuration(self, name: str) -> np.ndarray:
         """A named joint configuration, e.g. ``"AbovePlate"``."""
+        import numpy as np
+
         if name not in self.configurations:
             raise KeyError(
                 f"unknown configuration {name!r}; known: {sorted(self.configurations)}"
@@ -191,11 +184,15 @@ class WristSpec(StrictModel):
     @property
     def limits(self) -> np.ndarray:
         """Leveling/verification limits, (2, 2): [[pitch_lo, pitch_hi], [roll_lo, roll_hi]]."""
+        import numpy as np
+
         return np.array([self.pitch_limits, self.roll_limits])
 
     @property
     def velocity_limits(self) -> np.ndarray:
         """Commandable joint speed (rad/s), shape (2,)."""
+        import numpy as np
+
         return np.array(self.max_velocity)
 
     @property
@@ -264,8 +261,8 @@ class ControllerSpec(StrictModel):
     kd: NonNegative
     integral_clamp: NonNegative
     deadband: NonNegative
-    pinv_rcond: Annotated[float, AfterValidator(_finite), Field(gt=0, lt=1)]
-    damping_threshold: Annotated[float, AfterValidator(_finite), Field(gt=0, le=1)]
+    pinv_rcond: Annotated[float, AfterValidator(check_finite), Field(gt=0, lt=1)]
+    damping_threshold: Annotated[float, AfterValidator(check_finite), Field(gt=0, le=1)]
     damping_power: Positive
     limit_gain: Positive  # 1/s: speed towards a joint limit ≤ limit_gain × distance left
     stall_deg: Positive  # leveling error above which a near-zero command is a stall
@@ -277,7 +274,7 @@ class PrimitivesSpec(StrictModel):
 
     position_gain: Positive
     position_tolerance: Positive
-    timeout_factor: Annotated[float, AfterValidator(_finite), Field(ge=1)]
+    timeout_factor: Annotated[float, AfterValidator(check_finite), Field(ge=1)]
     timeout_margin_s: NonNegative
     max_hold_s: Positive  # longest wait inside a primitive (TILT hold, NOODLE_SHED delay)
     max_vibrate_s: Positive  # longest vibration (VIBRATE_ROLL, NOODLE_SHED)
@@ -359,9 +356,9 @@ class FTSpec(StrictModel):
 class PlanningSpec(StrictModel):
     """Transport planning tolerances (thesis §5.2, Exp. 2a; docs/hardware.md §7)."""
 
-    strict_tolerance_deg: Annotated[float, AfterValidator(_finite), Field(gt=0, lt=90)]
-    loose_roll_deg: Annotated[float, AfterValidator(_finite), Field(gt=0, le=90)]
-    loose_pitch_deg: Annotated[float, AfterValidator(_finite), Field(gt=0, le=180)]
+    strict_tolerance_deg: Annotated[float, AfterValidator(check_finite), Field(gt=0, lt=90)]
+    loose_roll_deg: Annotated[float, AfterValidator(check_finite), Field(gt=0, le=90)]
+    loose_pitch_deg: Annotated[float, AfterValidator(check_finite), Field(gt=0, le=180)]
 
 
 class PowerSpec(StrictModel):

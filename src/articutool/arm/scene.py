@@ -32,9 +32,8 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from articutool.datafile import read_document
+from articutool.datafile import Finite, Positive, StrictModel, Vec3, read_document
 from articutool.rotations import quaternion_to_matrix, rpy_matrix
-from articutool.spec import Finite, Positive, StrictModel, Vec3
 
 __all__ = [
     "SCOOP_HEADING",
@@ -49,6 +48,7 @@ __all__ = [
     "Sphere",
     "StagingGoal",
     "StagingSet",
+    "container_floor",
     "default_scene_path",
 ]
 
@@ -306,3 +306,11 @@ class Scene(BaseModel):
         p = Path(path) if path is not None else default_scene_path()
         data = read_document(p, "scene", SceneError)
         return cls.from_dict(data, str(p))
+
+
+def container_floor(scene: Scene, container: str) -> NDArray[np.float64]:
+    """Centre of the container's inner floor (arm base frame)."""
+    box = scene.get(container)
+    if not isinstance(box, Cylinder) or box.container_wall is None:
+        raise ValueError(f"container: {container!r} is not an open container of the scene")
+    return box.inner_floor()

@@ -35,15 +35,16 @@ def _stderr_console() -> Any:
 
 # ------------------------------------------------------------------- tasks --
 def _cmd_tasks(args: argparse.Namespace) -> int:
-    from articutool.bench.tasks import MAX_CANDIDATES
     from articutool.cli_support import new_output_file, spec_from_args
 
-    if not 1 <= args.count <= MAX_CANDIDATES:
-        raise _usage(f"--count must be in [1, {MAX_CANDIDATES}]; got {args.count}")
     if args.seed < 0:
         raise _usage(f"--seed must be >= 0; got {args.seed}")
     out = new_output_file("--out", args.out, (".json",))
     assert out is not None
+    from articutool.bench.tasks import MAX_CANDIDATES  # the IK and the scene: after --out
+
+    if not 1 <= args.count <= MAX_CANDIDATES:
+        raise _usage(f"--count must be in [1, {MAX_CANDIDATES}]; got {args.count}")
     spec = spec_from_args(args)
     if args.utensil not in spec.utensils:
         raise _usage(f"--utensil must be one of {sorted(spec.utensils)}; got {args.utensil!r}")

@@ -22,11 +22,13 @@ import threading
 from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from articutool.bench.executors import Executor
 from articutool.planning.types import ALGORITHMS, PLANNERS, PlanRequest, PlanResult, TransportTask
-from articutool.spec import Spec, load_spec
+
+if TYPE_CHECKING:
+    from articutool.spec import Spec
 
 __all__ = [
     "DEFAULT_TOLERANCES_DEG",
@@ -49,7 +51,7 @@ DEFAULT_TOLERANCES_DEG = (5.0, 10.0, 15.0, 20.0, 30.0, 45.0)
 # The largest trial log read (a record is ~0.5 kB, one with a traceback a few kB): far above
 # any run's, a bound so that a wrong file is refused instead of filling memory.
 _MAX_LOG_BYTES = 1 << 30
-PlanFn = Callable[[PlanRequest, Spec], PlanResult]
+PlanFn = Callable[[PlanRequest, "Spec"], PlanResult]
 
 
 class RunConfigError(ValueError):
@@ -129,6 +131,8 @@ def make_trials(
 # ----------------------------------------------------------------- worker --
 @functools.lru_cache(maxsize=4)
 def _spec(path: str | None) -> Spec:
+    from articutool.spec import load_spec
+
     return load_spec(path)
 
 

@@ -12,8 +12,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, ValidationError, model_validator
 
-from articutool.datafile import format_validation_error, read_document
-from articutool.spec import Positive, StrictModel
+from articutool.datafile import Positive, StrictModel, format_validation_error, read_document
 
 __all__ = ["ExperimentsConfig", "ExperimentsConfigError", "Names", "claims",
            "default_experiments_path"]

@@ -19,7 +19,7 @@ from typing import Any
 
 from pydantic import field_validator, model_validator
 
-from articutool.spec import StrictModel
+from articutool.datafile import StrictModel
 
 __all__ = ["BiteCondition", "BiteOutcome", "ConditionBase", "FoodCheck", "OutcomeBase",
            "TrialRecord"]

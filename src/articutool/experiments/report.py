@@ -598,9 +598,18 @@ def write_report(out: Path, cfg: Any, *,
     is checked against its run (:func:`check_log`), shown in the page's "Trial logs" section
     and given to ``on_log``; a log with bad lines or a condition short of its promised
     trials is flagged at the top of the page."""
-    from articutool.datafile import ResultsError, own_folder, read_text
+    from articutool.datafile import ResultsError, check_own, own_folder, read_text
     from articutool.experiments.runner import read_trial_log
 
+    # The pages and the notes are checked before any work: a link, FIFO or folder there is
+    # refused at once, not after every summary and figure.
+    for page in ("report.md", "report.html"):
+        check_own(out / page, "report")
+    notes: dict[str, str | None] = {}
+    for u in order():
+        npath = out / u.name / "notes.md"
+        notes[u.name] = (read_text(npath, "notes", ResultsError) if npath.exists()
+                         or npath.is_symlink() else None)
     parts = ["# The thesis' physical experiments in simulation\n",
              f"Generated {_dt.datetime.now(_dt.UTC).isoformat(timespec='seconds')} by "
              f"`articutool experiment report --out {out}`. Thesis: J. J. Martinez, *Articutool* "
@@ -646,10 +655,8 @@ def write_report(out: Path, cfg: Any, *,
         summary.update(u.report_extras(recs, cfg))
         fig = figure(exp, recs, summary, cfg, own_folder(out, exp))
         rel = f"{exp}/{fig.name}" if fig else None
-        npath = out / exp / "notes.md"
-        notes = (read_text(npath, "notes", ResultsError) if npath.exists()
-                 or npath.is_symlink() else "")
-        parts.append(section(exp, summary, cfg, rel, notes) + replays(exp, recs, summary, out))
+        parts.append(section(exp, summary, cfg, rel, notes[exp] or "")
+                     + replays(exp, recs, summary, out))
         summaries[exp] = summary
         m = old["run"].get("machine")
         if m:
@@ -667,10 +674,9 @@ def write_report(out: Path, cfg: Any, *,
         parts.append("## Not run yet\n\n" + ", ".join(missing) + " (no trials or no "
                      "summary under this directory).\n")
         for exp in missing:  # why not: the experiment's notes, when someone wrote them
-            npath = out / exp / "notes.md"
-            if npath.exists() or npath.is_symlink():
-                parts.append(f"**{unit(exp).title}.** "
-                             + read_text(npath, "notes", ResultsError).strip() + "\n")
+            text = notes[exp]
+            if text is not None:
+                parts.append(f"**{unit(exp).title}.** " + text.strip() + "\n")
     if machines:
         rows = [[e, m.get("host"), m.get("platform"), m.get("python"), m.get("cpus"),
                  m.get("load_avg"), d] for e, (m, d) in machines.items()]

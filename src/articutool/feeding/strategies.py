@@ -21,8 +21,14 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, ValidationError, model_validator
 
-from articutool.datafile import format_validation_error, read_document
-from articutool.spec import NonNegative, Positive, Spec, StrictModel
+from articutool.datafile import (
+    NonNegative,
+    Positive,
+    StrictModel,
+    format_validation_error,
+    read_document,
+)
+from articutool.spec import Spec
 from articutool.tool.primitive_base import PrimitiveError
 from articutool.tool.primitives import make_primitive, primitive_names
 

@@ -78,7 +78,7 @@ def add_commands(subparsers: Any) -> None:
     """Register ``client mode|primitive|state|take-over|release`` and ``pair``."""
     _add_pair(subparsers)
     from articutool.cli_support import MAX_WAIT_S, add_spec_option, seconds
-    from articutool.link.config import add_config_args
+    from articutool.link.options import add_config_args
 
     p = subparsers.add_parser("client", help="command an Articutool over the link (PC side)")
     add_config_args(p)

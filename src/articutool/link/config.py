@@ -37,11 +37,10 @@ from typing import Any, Literal
 
 from pydantic import Field, ValidationError, ValidationInfo, field_validator, model_validator
 
-from articutool.datafile import field_path
-from articutool.spec import StrictModel
+from articutool.datafile import StrictModel, field_path
 
-__all__ = ["DEFAULT_ENDPOINT", "MAX_DOMAIN_ID", "ConfigError", "LinkConfig", "add_config_args",
-           "check_endpoint", "check_ros_environment", "config_from_args",
+__all__ = ["DEFAULT_ENDPOINT", "MAX_DOMAIN_ID", "ConfigError", "LinkConfig", "check_endpoint",
+           "check_ros_environment", "config_from_args",
            "installed_rmw_implementations", "load_config"]
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
@@ -343,26 +342,6 @@ def load_config(path: str | Path) -> LinkConfig:
             if isinstance(table.get(k), str):
                 table[k] = str(base / table[k])
     return _from_mapping(data, str(path))
-
-
-def add_config_args(p: argparse.ArgumentParser) -> None:
-    """Add ``--link-config``, ``--listen``, ``--connect``, ``--mode`` … to a parser."""
-    p.add_argument("--link-config", metavar="FILE", default=None,
-                   help="link config TOML/JSON (default: loopback)")
-    p.add_argument("--listen", action="append", metavar="ENDPOINT", default=None,
-                   help="zenoh endpoint to listen on, e.g. tls/0.0.0.0:7447 (repeatable)")
-    p.add_argument("--connect", action="append", metavar="ENDPOINT", default=None,
-                   help="zenoh endpoint to connect to, e.g. tcp/192.168.1.20:7447 (repeatable)")
-    p.add_argument("--zenoh-mode", choices=("peer", "client"), default=None,
-                   help="zenoh session mode")
-    p.add_argument("--domain-id", type=int, default=None, help="ROS domain id (default 0)")
-    from articutool.cli_support import MAX_WAIT_S, seconds
-
-    p.add_argument("--tool-timeout", type=seconds(MAX_WAIT_S), default=None, metavar="S",
-                   help=f"seconds of silence before the tool is reported dead, in (0, "
-                        f"{MAX_WAIT_S:g}]")
-    p.add_argument("--tool-id", default=None, metavar="NAME",
-                   help="the tool's identity (default: the config's, else 'default')")
 
 
 def config_from_args(args: argparse.Namespace) -> LinkConfig:

@@ -31,7 +31,7 @@ import py_trees
 from numpy.typing import NDArray
 from py_trees.common import Status
 
-from articutool.arm.scene import SCOOP_HEADING, Cylinder, Scene
+from articutool.arm.scene import SCOOP_HEADING, Scene, container_floor
 from articutool.feeding.behaviours import BiteStage, CountedRetry, TakeBite
 from articutool.feeding.bite import BITE_STAGES, BiteSettings, bite_tree
 from articutool.feeding.insertion import acquisition_waypoints, dish_outline
@@ -47,8 +47,8 @@ from articutool.sim.world import FeedingWorld, SettleCache
 from articutool.spec import Spec, load_spec
 from articutool.tool.api import Mode, ToolAPI
 
-__all__ = ["BiteResult", "MealSetup", "SimUser", "StageLedger", "container_floor",
-           "make_bite_world", "run_bite", "run_meal", "shed_configuration"]
+__all__ = ["BiteResult", "MealSetup", "SimUser", "StageLedger", "make_bite_world", "run_bite",
+           "run_meal", "shed_configuration"]
 
 DEFAULT_SETTINGS = BiteSettings()
 
@@ -232,14 +232,6 @@ def make_bite_world(food: str, system: str, seed: int = 0, *,
         world.run(0.5)
     world.weighing.tare(0.3)  # level and empty, as one would before a meal
     return MealSetup(world, arm, name, strat, seed, chosen)
-
-
-def container_floor(scene: Scene, container: str) -> NDArray[np.float64]:
-    """Centre of the container's inner floor (arm base frame)."""
-    box = scene.get(container)
-    if not isinstance(box, Cylinder) or box.container_wall is None:
-        raise ValueError(f"container: {container!r} is not an open container of the scene")
-    return box.inner_floor()
 
 
 def shed_configuration(spec: Spec, scene: Scene, utensil: str, container: str = "bowl",

@@ -68,11 +68,10 @@ def _show_tree(args: argparse.Namespace, lib: Any, out: Path | None) -> int:
     import numpy as np
     import py_trees
 
-    from articutool.arm.scene import SCOOP_HEADING, Scene
+    from articutool.arm.scene import SCOOP_HEADING, Scene, container_floor
     from articutool.feeding.bite import bite_tree
     from articutool.feeding.insertion import acquisition_waypoints, dish_outline
     from articutool.feeding.system import System
-    from articutool.meal.bites import container_floor
     from articutool.sim.params import PhysicsParams
     from articutool.spec import load_spec
 

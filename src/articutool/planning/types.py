@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from articutool.trajectory import JointTrajectory
+if TYPE_CHECKING:
+    from articutool.trajectory import JointTrajectory
 
 __all__ = [
     "ALGORITHMS",

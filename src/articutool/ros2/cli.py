@@ -27,7 +27,7 @@ __all__ = ["add_commands", "run"]
 def add_commands(subparsers: Any) -> None:
     """Register ``articutool ros2``."""
     from articutool.cli_support import MAX_WAIT_S, seconds
-    from articutool.link.config import add_config_args
+    from articutool.link.options import add_config_args
     from articutool.ros2.exposure import ALLOW_FLAG
 
     p = subparsers.add_parser(

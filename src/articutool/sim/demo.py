@@ -14,11 +14,10 @@ import argparse
 import json
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from articutool.spec import Spec
+if TYPE_CHECKING:
+    from articutool.spec import Spec
 
 __all__ = ["add_commands", "run_demo"]
 
@@ -87,6 +86,7 @@ def run_demo(
 
 def _plot(sim: Any, path: Path) -> None:
     import matplotlib
+    import numpy as np
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -148,13 +148,13 @@ def _plot_path(arg: str, default: bool) -> Path:
 def _cmd_demo(args: argparse.Namespace) -> int:
     from articutool.cli_support import UsageError, spec_from_args
 
+    if args.seed < 0:
+        raise UsageError(f"--seed must be an integer >= 0; got {args.seed}")
     spec = spec_from_args(args)
     if args.utensil not in spec.utensils:
         raise UsageError(f"--utensil must be one of {sorted(spec.utensils)}; got {args.utensil!r}")
-    if args.seed < 0:
-        raise UsageError(f"--seed must be an integer >= 0; got {args.seed}")
     plot = None if args.no_plot else _plot_path(args.plot or str(_DEFAULT_PLOT),
-                                                 default=args.plot is None)
+                                                 default=args.plot is None)  # loads matplotlib
     figures = run_demo(spec, utensil=args.utensil, seed=args.seed, timeout_s=args.timeout,
                        plot_path=plot)
     if args.json:

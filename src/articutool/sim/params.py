@@ -15,9 +15,14 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, ValidationError, model_validator
 
-from articutool.datafile import format_validation_error, read_document
+from articutool.datafile import (
+    NonNegative,
+    Positive,
+    StrictModel,
+    format_validation_error,
+    read_document,
+)
 from articutool.food.definitions import FoodDefinition, default_physics_path, food_definition
-from articutool.spec import NonNegative, Positive, StrictModel
 
 __all__ = [
     "CONTACT_PARTNERS",

@@ -44,10 +44,7 @@ def _print_food(rep: object) -> None:
 
 
 def _cmd_verify(args: argparse.Namespace) -> int:
-    from articutool.arm.model import ArmModel
     from articutool.cli_support import UsageError, new_output_file, spec_from_args
-    from articutool.trajectory import JointTrajectory
-    from articutool.verify.verifier import verify_trajectory
 
     spec = spec_from_args(args)
     if args.utensil not in spec.utensils:
@@ -56,7 +53,12 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         raise UsageError("--slosh-free needs --load FOOD:GRAMS")
     load = _load(args, spec) if args.load is not None else None
     new_output_file("--wrist-out", args.wrist_out, (".json",))
+    from articutool.trajectory import JointTrajectory
+
     traj = JointTrajectory.load(args.trajectory)
+    from articutool.arm.model import ArmModel  # the kinematics: once the trajectory is good
+    from articutool.verify.verifier import verify_trajectory
+
     model = ArmModel(spec, utensil=args.utensil)
     rep = verify_trajectory(traj, model, spec, max_step_deg=args.max_step_deg,
                             load=load, utensil=args.utensil,  # type: ignore[arg-type]

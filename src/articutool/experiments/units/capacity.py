@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 from pydantic import Field, model_validator
 
+from articutool.datafile import StrictModel
 from articutool.experiments.analysis import measured, ok_records, rate
 from articutool.experiments.config import ExperimentsConfig, Names
 from articutool.experiments.markdown import ci95, mean_sd, num, table
@@ -16,7 +17,6 @@ from articutool.experiments.protocols import rounded, thesis_bite
 from articutool.experiments.records import ConditionBase, OutcomeBase, TrialRecord
 from articutool.experiments.stats import describe
 from articutool.experiments.unit import Experiment, Hook, Visitors, add_foods_argument
-from articutool.spec import StrictModel
 
 if TYPE_CHECKING:
     from articutool.sim.world import SettleCache

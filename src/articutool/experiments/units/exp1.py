@@ -8,6 +8,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
+from articutool.datafile import Positive, StrictModel
 from articutool.experiments.analysis import ok_records, summarize_mass
 from articutool.experiments.config import ExperimentsConfig, Names
 from articutool.experiments.figures import mass_bars
@@ -22,7 +23,6 @@ from articutool.experiments.unit import (
     add_physics_argument,
 )
 from articutool.experiments.verdicts import Verdict, judge, mean_sd_g
-from articutool.spec import Positive, StrictModel
 
 if TYPE_CHECKING:
     from articutool.sim.world import SettleCache

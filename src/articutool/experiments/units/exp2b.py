@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 from pydantic import Field, model_validator
 
+from articutool.datafile import Positive, StrictModel
 from articutool.experiments.analysis import (
     by_place,
     food_system,
@@ -39,7 +40,6 @@ from articutool.experiments.unit import (
     usage,
 )
 from articutool.experiments.verdicts import Verdict, judge, mean_sd_g
-from articutool.spec import Positive, StrictModel
 
 if TYPE_CHECKING:
     from articutool.planning.pc_arm import PCArm

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, get_args
 
 from pydantic import Field, model_validator
 
+from articutool.datafile import StrictModel
 from articutool.experiments.analysis import (
     by_place,
     class_counts,
@@ -40,7 +41,6 @@ from articutool.experiments.unit import (
 )
 from articutool.experiments.verdicts import Verdict, judge
 from articutool.sim import accounting as acc
-from articutool.spec import StrictModel
 
 if TYPE_CHECKING:
     from articutool.sim.world import SettleCache

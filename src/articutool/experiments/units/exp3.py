@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Annotated, Any, ClassVar
 
 from pydantic import Field
 
+from articutool.datafile import Positive, StrictModel
 from articutool.experiments.analysis import (
     class_counts,
     classify,
@@ -35,7 +36,6 @@ from articutool.experiments.unit import (
 )
 from articutool.experiments.verdicts import Verdict, judge, mean_sd_g
 from articutool.feeding.outcomes import OUTCOMES
-from articutool.spec import Positive, StrictModel
 
 if TYPE_CHECKING:
     from articutool.sim.world import SettleCache
