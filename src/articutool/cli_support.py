@@ -28,6 +28,10 @@ MAX_WAIT_S = 3600.0
 # The longest run a command is told to last (``tool --duration``, ``view --duration``): a week.
 MAX_RUN_S = 7 * 86400.0
 
+# The most food a load or a threshold may name on a command line (g): more than any utensil of
+# the spec holds (a soup spoon's capacity is ~15 g).
+MAX_MASS_G = 100.0
+
 
 class UsageError(Exception):
     """Bad input from the user: printed as ``error: …`` with exit code 2."""

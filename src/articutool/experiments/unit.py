@@ -20,6 +20,8 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
+from articutool.cli_support import MAX_MASS_G
+
 if TYPE_CHECKING:
     import py_trees
 
@@ -28,9 +30,8 @@ if TYPE_CHECKING:
 __all__ = ["MAX_LOAD_G", "Experiment", "Hook", "Visitors", "add_foods_argument",
            "add_physics_argument", "names", "parse_food_grams", "registry", "unit", "usage"]
 
-# The most food a load or a threshold may name (g): more than any utensil of the spec holds
-# (a soup spoon's capacity is ~15 g), as ``sim --load`` and ``meal --threshold`` bound it.
-MAX_LOAD_G = 100.0
+# The most food a load or a threshold may name (g), as ``meal --threshold`` bounds it.
+MAX_LOAD_G = MAX_MASS_G
 
 # The validated experiments file (:class:`articutool.experiments.config.ExperimentsConfig`,
 # not imported: the config reads this registry for each experiment's table).

@@ -23,12 +23,13 @@ _TREE_SUFFIXES = (".dot", ".png", ".svg")
 
 def _check(args: argparse.Namespace) -> Any:
     """Validate the arguments (exit 2 naming the field) and return the strategy library."""
-    from articutool.cli_support import UsageError, spec_from_args
+    from articutool.cli_support import MAX_MASS_G, UsageError, spec_from_args
     from articutool.feeding.strategies import StrategyError, StrategyLibrary
 
     if args.threshold is not None and not (math.isfinite(args.threshold)
-                                           and 0 <= args.threshold <= 100):
-        raise UsageError(f"--threshold must be a mass in [0, 100] g; got {args.threshold}")
+                                           and 0 <= args.threshold <= MAX_MASS_G):
+        raise UsageError(f"--threshold must be a mass in [0, {MAX_MASS_G:g}] g; "
+                         f"got {args.threshold}")
     if not 1 <= args.bites <= 100:
         raise UsageError(f"--bites must be an integer in [1, 100]; got {args.bites}")
     if args.seed < 0:
@@ -48,7 +49,7 @@ def _threshold(args: argparse.Namespace) -> float:
     """The meaningful-success threshold: ``--threshold``, else derived from our own Exp. 1
     data, as the thesis derived its own (exit 2 when there is none). Read after every
     argument is checked: the data are consulted only for a well-formed command."""
-    from articutool.cli_support import UsageError
+    from articutool.cli_support import MAX_MASS_G, UsageError
 
     if args.threshold is not None:
         return float(args.threshold)
@@ -59,8 +60,8 @@ def _threshold(args: argparse.Namespace) -> float:
         raise UsageError(f"--threshold: no Exp. 1 result for {args.food} in {DEFAULT_OUT} "
                          "to derive it from; run `articutool experiment exp1` or pass "
                          "--threshold G")
-    if not (math.isfinite(threshold) and 0 <= threshold <= 100):
-        raise UsageError(f"--threshold must be a mass in [0, 100] g; got {threshold}")
+    if not (math.isfinite(threshold) and 0 <= threshold <= MAX_MASS_G):
+        raise UsageError(f"--threshold must be a mass in [0, {MAX_MASS_G:g}] g; got {threshold}")
     return threshold
 
 
