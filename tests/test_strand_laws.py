@@ -89,8 +89,9 @@ def test_a_strand_on_a_fork_wide_bar_holds_the_capstan_ratio() -> None:
                                                                  - math.pi * rc) / 2
     r = sl.capstan_hold_ratio(FOOD, PARAMS, bar, sl._fork_law(FOOD, tack=False),
                               10 * ei / rc**2 - hang)
-    assert r["effective"]["mu"] == pytest.approx(FOOD.friction[0])
-    assert r["law_e_mu_pi"] == pytest.approx(math.exp(FOOD.friction[0] * math.pi), rel=1e-3)
+    mu = FOOD.contacts.utensil.friction[0]
+    assert r["effective"]["mu"] == pytest.approx(mu)
+    assert r["law_e_mu_pi"] == pytest.approx(math.exp(mu * math.pi), rel=1e-3)
     assert abs(r["hold_ratio"] / r["law_e_mu_pi"] - 1) <= sl.CAPSTAN_TOL
 
 
