@@ -123,6 +123,7 @@ def test_sim_calibrate_measures_the_pecan_model(capsys: pytest.CaptureFixture[st
     assert out["level_capacity_g"] > 0
 
 
+@pytest.mark.slow  # a heap of pieces poured and settled under the no-slip solver
 def test_a_small_pile_test_pours_a_heap_over_the_plate() -> None:
     from articutool.sim.calibrate import PLATE_RADIUS_M, angle_of_repose_deg
     from articutool.sim.params import PhysicsParams

@@ -103,6 +103,7 @@ def test_twirl_turns_range_is_the_cable_budget() -> None:
     assert r.returncode == 2 and f"[0, {hi:g}]" in r.stderr
 
 
+@pytest.mark.slow  # the laid nest stepped while it falls
 def test_a_noodle_recording_holds_every_capsule_where_the_world_has_it(tmp_path) -> None:
     from articutool.sim.recording import Recorder, Recording
 
