@@ -29,7 +29,9 @@ def test_a_terminated_runner_takes_the_processes_its_tests_started(tmp_path: Pat
 
         def test_waits():
             p = subprocess.Popen(["sleep", "300"], start_new_session=True)
-            Path({str(tmp_path / "pid")!r}).write_text(str(p.pid))
+            # written whole, then renamed: the waiting test never reads a file half written
+            Path({str(tmp_path / "pid.part")!r}).write_text(str(p.pid))
+            Path({str(tmp_path / "pid.part")!r}).replace({str(tmp_path / "pid")!r})
             time.sleep(300)
     """))
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "tests"),
