@@ -429,37 +429,6 @@ def test_toppra_speeds_equal_toppras_algorithm(seed: int) -> None:
     assert np.array_equal(ours, algo.problem_data.sd_vec)
 
 
-@pytest.mark.parametrize("system", ["decoupled", "strict6", "strict8"])
-def test_search_state_checker_agrees_with_valid(system: str) -> None:
-    # The search's validity callback is one flat function; state by state it must answer
-    # what the problem's valid() answers (the leveling wrist, the band, the collisions), on
-    # both leveling branches.
-    from articutool.bench.taskfile import load_task_set
-    from articutool.planning.ompl_planner import PlannerSettings, _Problem
-
-    rng = np.random.default_rng(11)
-    answers = set()
-    for task in list(load_task_set().tasks[:6]):
-        prob = _Problem(PlanRequest(system, task, timeout_s=1.0), SPEC, PlannerSettings(),
-                        "rejection")
-        variants = [prob]
-        if prob.loose is not None:
-            other = _Problem(PlanRequest(system, task, timeout_s=1.0), SPEC,
-                             PlannerSettings(), "rejection")
-            other.loose = dataclasses.replace(other.loose, branch=1 - other.loose.branch)
-            variants.append(other)
-        for p in variants:
-            check = p.state_checker()
-            ends = np.stack([p.start, p.goal])
-            qs = ends[rng.integers(0, 2, 60)] + rng.normal(0.0, 0.5, (60, p.kin.n))
-            qs = np.clip(qs, p.kin.lo, p.kin.hi)
-            for q in qs:
-                want = p.valid(q)
-                assert check(list(q)) == want
-                answers.add(want)
-    assert answers == {True, False}
-
-
 def _densify_loop(q: np.ndarray, step: float) -> np.ndarray:
     # densify's definition, segment by segment
     out = [q[:1]]

@@ -55,7 +55,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
 from numpy.typing import NDArray
 from ompl import base as ob
 from ompl import geometric as og
@@ -290,70 +289,6 @@ class _Problem:
             return not self.executed.collides(x)
         return self.constraint_ok(q) and not self.kin.collides(q)
 
-    def state_checker(self) -> Callable[[object], bool]:
-        """OMPL's state validity callback of rejection mode: :meth:`valid` of an OMPL state
-        (``s[i]``, the joints), as one Python function.
-
-        The same arithmetic on the same numbers as :meth:`leveling_wrist` /
-        :meth:`constraint_ok` and the broad phase's batch of one (``tests/test_planning.py``
-        compares them state by state); one call per state instead of five, which was most of
-        a callback's cost (the search calls it for every state it checks). Without the broad
-        phase (``PlannerSettings.broadphase``), :meth:`valid` itself.
-        """
-        n = self.kin.n
-        target = self.executed if self.executed is not None else self.kin
-        if target.pool is None:
-            buf = np.empty(n)
-            valid = self.valid
-
-            def checker(s) -> bool:
-                for i in range(n):
-                    buf[i] = s[i]
-                return valid(buf)
-
-            return checker
-        m, d, fid = self.kin.m, self.kin.d, self.kin.fid
-        fk, place = pin.forwardKinematics, pin.updateFramePlacement
-        collide, pool = pin.computeCollisionsInParallel, target.pool
-        col = np.zeros((target.n, 1))  # the configuration collided, as a batch of one
-        q = col[:n, 0]  # the arm part, a view
-        c = self.loose
-        if c is None:
-            b = self._band_bound
-
-            def strict_checker(s) -> bool:
-                for i in range(n):
-                    q[i] = s[i]
-                fk(m, d, q)
-                u0, u1, u2 = place(m, d, fid).rotation[2].tolist()  # Rᵀ ẑ
-                if not (u1 > 0.0 and abs(u0) <= b and abs(u2) <= b):
-                    return False
-                return not collide(1, pool, col, True, False)[0]
-
-            return strict_checker
-        pi, two_pi, branch = math.pi, _TWO_PI, c.branch
-        ref_p, ref_r = c.reference
-        pitch_tol, roll_tol = c.pitch_tol, c.roll_tol
-        p_lo, p_hi = c.pitch_limits
-
-        def leveling_checker(s) -> bool:
-            for i in range(n):
-                q[i] = s[i]
-            fk(m, d, q)
-            u0, u1, u2 = place(m, d, fid).rotation[2].tolist()  # Rᵀ ẑ
-            p, r = math.atan2(u2, u0), math.asin(min(1.0, max(-1.0, u1)))
-            if branch:
-                p, r = p + pi, pi - r
-            dp = (p - ref_p + pi) % two_pi - pi
-            dr = (r - ref_r + pi) % two_pi - pi
-            p = ref_p + dp
-            if not (abs(dp) <= pitch_tol and abs(dr) <= roll_tol and p_lo <= p <= p_hi):
-                return False
-            col[n, 0], col[n + 1, 0] = p, ref_r + dr  # the wrist that levels the tool
-            return not collide(1, pool, col, True, False)[0]
-
-        return leveling_checker
-
     def state_space(self) -> ob.RealVectorStateSpace:
         """OMPL's joint space of this problem, bounded by the arm's joint limits."""
         n = self.kin.n
@@ -441,16 +376,14 @@ class _Problem:
             return densify(np.stack([self.start, self.goal]), st.resolution), ""
         ou.RNG.setSeed(seed)  # before any OMPL object is built: their RNGs draw from it
         space = self.state_space()
-        if projected:
-            buf = np.empty(n)  # valid_bounded() reads the state and keeps none of it
-            valid = self.valid_bounded
+        valid = self.valid_bounded if projected else self.valid
 
-            def checker(s) -> bool:
-                for i in range(n):
-                    buf[i] = s[i]
-                return valid(buf)
-        else:
-            checker = self.state_checker()
+        buf = np.empty(n)  # valid() reads the state and keeps none of it
+
+        def checker(s) -> bool:
+            for i in range(n):
+                buf[i] = s[i]
+            return valid(buf)
 
         keep: list[object] = [checker]
         if projected:
