@@ -14,7 +14,13 @@ from articutool.food.loads import LoadError, food_load, parse_load
 from articutool.planning.timing import time_parameterize
 from articutool.tool.following import TrajectoryFollower
 from articutool.trajectory import JointTrajectory
-from articutool.verify.food import dish_poses, food_check, slosh_free_wrist, spill_model
+from articutool.verify.food import (
+    dish_poses,
+    food_check,
+    predict_transport,
+    slosh_free_wrist,
+    spill_model,
+)
 from articutool.verify.verifier import verify_trajectory
 from conftest import assert_refused, packaged_spec, run_cli
 
@@ -70,7 +76,9 @@ def test_acceleration_tilts_the_liquid_and_slosh_free_leveling_takes_it_out() ->
     p_lev, p_sf = lev.food.prediction, sf.food.prediction
     assert p_lev.peak_apparent_tilt_deg > 1.5
     assert p_lev.peak_surface_tilt_deg > p_lev.peak_apparent_tilt_deg  # it sloshes
-    assert p_sf.peak_surface_tilt_deg < 0.25 * p_lev.peak_surface_tilt_deg
+    # Less slosh, not none: the wrist takes out the acceleration it can follow (smoothed by
+    # σ ≥ 80 ms), so part of what excites the dish's modes remains.
+    assert p_sf.peak_surface_tilt_deg < 0.8 * p_lev.peak_surface_tilt_deg
     # slower: less tilt
     slow = verify_trajectory(_timed(0.5), MODEL, SPEC, load=WATER)
     assert slow.food.prediction.peak_apparent_tilt_deg < 0.5 * p_lev.peak_apparent_tilt_deg
@@ -88,6 +96,43 @@ def test_the_slosh_free_wrist_is_what_the_tool_accepts() -> None:
     rep = verify_trajectory(PATH, MODEL, SPEC)
     assert np.allclose(res.wrist.positions[0], rep.wrist_trajectory.positions[0], atol=1e-6)
     assert np.allclose(res.wrist.positions[-1], rep.wrist_trajectory.positions[-1], atol=1e-6)
+
+
+def _followed_by_the_tool(traj: JointTrajectory) -> JointTrajectory:
+    """``traj`` as the tool's trajectory follower drives the simulated wrist (its motor lag)
+    at the loop's rate: the positions read each tick."""
+    from articutool.tool.drivers.sim import SimWrist
+
+    wrist = SimWrist(SPEC)
+    wrist.set_joint_positions(traj.positions[0])
+    motors = wrist.motor_driver()
+    motors.open()
+    motors.enable_torque(True)
+    follower = TrajectoryFollower(SPEC)
+    follower.start(traj, 0.0)
+    period = 1.0 / SPEC.wrist.loop_rate_hz
+    ticks = math.ceil(traj.duration / period)
+    t = np.minimum(period * np.arange(ticks + 1), traj.duration)
+    q = [np.asarray(motors.read().position, dtype=float)]
+    for k in range(ticks):
+        motors.set_velocity(follower.command(q[-1], t[k]))
+        wrist.step(t[k + 1] - t[k])
+        q.append(np.asarray(motors.read().position, dtype=float))
+    qs = np.array(q)
+    return JointTrajectory(traj.joint_names, t, qs, np.gradient(qs, t, axis=0))
+
+
+def test_the_check_verifies_the_slosh_free_wrist_the_tool_executes() -> None:
+    """Plan-then-verify holds only if the wrist does what was verified: the prediction along
+    the wrist as the tool's loop follows it agrees with the prediction along its plan."""
+    res = slosh_free_wrist(_timed(1.0), MODEL, SPEC, "soup_spoon")
+    assert res.ok
+    model = spill_model(SPEC, "soup_spoon", WATER)
+    planned = predict_transport(res.arm, res.wrist, MODEL, SPEC, "soup_spoon", model)
+    done = predict_transport(res.arm, _followed_by_the_tool(res.wrist), MODEL, SPEC,
+                             "soup_spoon", model)
+    assert done.peak_surface_tilt_deg == pytest.approx(planned.peak_surface_tilt_deg, abs=0.5)
+    assert done.peak_apparent_tilt_deg == pytest.approx(planned.peak_apparent_tilt_deg, abs=0.5)
 
 
 def test_a_wrist_too_slow_for_slosh_free_leveling_falls_back() -> None:
