@@ -60,10 +60,31 @@ def test_tack_per_contact_is_stickiness_times_band_over_two_points_a_segment() -
     assert lo <= FOOD.stickiness_pa <= hi
 
 
+def test_a_crossings_tack_is_stickiness_over_the_disk_the_bands_film_wets() -> None:
+    # The band w = 2·√(2·r·h) fixes the film h; crossed cylinders wet a disk of area 2π·r·h.
+    h = FOOD.tack_width**2 / (8 * FOOD.strand_radius)
+    assert FOOD.film_thickness == pytest.approx(h)
+    assert FOOD.tack_per_crossing == pytest.approx(FOOD.stickiness_pa * 2 * math.pi
+                                                   * FOOD.strand_radius * h)
+    assert FOOD.tack_per_crossing == pytest.approx(FOOD.stickiness_pa * math.pi
+                                                   * FOOD.tack_width**2 / 4)
+    assert FOOD.tack_per_length_parallel == pytest.approx(FOOD.tack_per_length / math.sqrt(2))
+
+
 def test_tack_on_the_forks_steel_pulls_off_at_the_cited_stickiness() -> None:
     t = sl.tack_test(FOOD, PARAMS, "fork")
     assert t["contacts_at_rest"] == 2 * 4  # two contact points a segment lying flat
+    # The fork's adhesion alone (priority 1), not the strand's added to it.
+    assert t["contact_adhesion_N"] == [pytest.approx(FOOD.tack_per_contact, rel=1e-5)]
     assert abs(t["error"]) <= sl.TACK_TOL
+
+
+def test_two_crossed_strands_pull_off_at_the_crossing_law() -> None:
+    c = sl.crossing_tack_test(FOOD, PARAMS)
+    assert c["contacts_at_rest"] == 1
+    # The two strand geoms' halves, summed by MuJoCo (equal priorities).
+    assert c["contact_adhesion_N"] == [pytest.approx(FOOD.tack_per_crossing, rel=1e-5)]
+    assert abs(c["error"]) <= sl.TACK_TOL
 
 
 def test_a_cantilevered_strand_bends_as_the_elastica_of_its_modulus() -> None:
@@ -102,7 +123,7 @@ def test_sim_calibrate_noodles_reports_every_law_and_they_pass() -> None:
     assert r.returncode == 0, r.stderr
     cal = json.loads(r.stdout)
     for key in ("strand", "capstan_bar", "capstan_bar_frictionless", "capstan_tine",
-                "capstan_tine_frictionless", "cantilever", "tack"):
+                "capstan_tine_frictionless", "cantilever", "tack", "tack_crossing"):
         assert key in cal
     assert cal["all_pass"] is True
 

@@ -15,7 +15,9 @@ parameters) is put in four small worlds, built with ``MjSpec`` as the feeding wo
   modulus, exact for large deflections).
 - **tack** — a strand lying on the fork's steel (and on another strand) is pulled straight
   up, the pull raised slowly until it comes off; the pull-off force beyond its weight per
-  metre of strand against stickiness × band width (:attr:`Strands.tack_per_length`).
+  metre of strand against stickiness × band width (:attr:`Strands.tack_per_length`); a
+  segment lying across a fixed strand at right angles pulled off the same way, against
+  stickiness × the disk the film wets (:attr:`Strands.tack_per_crossing`).
 - **mass and diameter** — of the strand as MuJoCo compiled it, against the cooked strand's.
 
 The contact law of every strand pair is MuJoCo's *effective* one, read from its contacts.
@@ -37,7 +39,7 @@ from scipy.optimize import brentq
 
 from articutool.sim.food_strands import set_fork_strand, set_strand_geom, strand_chain
 from articutool.sim.params import PhysicsParams, Strands
-from articutool.sim.world_parts import GeomSetter, sigs, solver_spec
+from articutool.sim.world_parts import GeomSetter, sig, sigs, solver_spec
 from articutool.spec import Spec
 
 __all__ = [
@@ -45,6 +47,7 @@ __all__ = [
     "cantilever_tip_deflection",
     "capstan_hold_ratio",
     "capstan_law",
+    "crossing_tack_test",
     "run_strand_calibration",
     "table",
     "tack_test",
@@ -298,13 +301,40 @@ def cantilever_test(food: Strands, params: PhysicsParams, segments: int,
             "error": round(fall / law - 1.0, 3)}
 
 
+def _contact_adhesion(rig: _Rig, geom: int) -> list[float]:
+    """The adhesion MuJoCo applies (N, after mixing the two geoms' values by priority) on each
+    contact of ``geom``."""
+    d = rig.data
+    return sorted({sig(float(c.adhesion), 6) for c in d.contact[:d.ncon]
+                   if geom in (c.geom1, c.geom2)})
+
+
+def _pull_off(rig: _Rig, bodies: list[int], limit: float, gap: float,
+              ramp_n_per_s: float) -> float:
+    """N: after 0.5 s of settling, a pull straight up spread over ``bodies``, raised at
+    ``ramp_n_per_s`` until they leave their rest by more than ``gap`` + 0.5 mm (or it reaches
+    ``limit``)."""
+    m, d = rig.model, rig.data
+    dt = m.opt.timestep
+    z_rest = float(np.mean(d.xpos[bodies, 2]))
+    pull = 0.0
+    while pull < limit:
+        pull += ramp_n_per_s * dt
+        d.xfrc_applied[bodies, 2] = pull / len(bodies)
+        mujoco.mj_step(m, d)
+        if float(np.mean(d.xpos[bodies, 2])) - z_rest > gap + 0.5e-3:
+            break
+    return pull
+
+
 def tack_test(food: Strands, params: PhysicsParams, on: str = "fork", segments: int = 4,
               ramp_n_per_s: float = 0.01) -> dict[str, Any]:
     """A piece of strand (``segments`` segments) lying on the fork's steel (a plate carrying the
     fork's contact attributes) or along another strand (``on="strand"``, the lower one fixed),
     pulled straight up by a force spread over its segments and raised at ``ramp_n_per_s``
     until it leaves the surface by more than the adhesion gap; the pull beyond its weight, per
-    metre, against :attr:`Strands.tack_per_length`."""
+    metre, against its law: :attr:`Strands.tack_per_length` on steel,
+    :attr:`Strands.tack_per_length_parallel` along a strand."""
     ds, r = food.segment_length, food.strand_radius
     sub = food.model_copy(update={"segments": segments, "strand_length": ds * segments})
     z = 0.3
@@ -312,34 +342,64 @@ def tack_test(food: Strands, params: PhysicsParams, on: str = "fork", segments: 
         below = _geom("below", mujoco.mjtGeom.mjGEOM_BOX, [0.05, 0.02, 0.001],
                       _fork_law(food, tack=True), pos=[0.0, 0.0, z - 0.001])
         zc = z + r
+        law = food.tack_per_length
     else:
         # A fixed strand below, as long and with the strand geoms' own attributes.
         below = _geom("below", mujoco.mjtGeom.mjGEOM_CAPSULE, [r, 0.0, 0.0],
                       lambda g: set_strand_geom(g, food),
                       fromto=[-0.01, 0.0, z + r, sub.strand_length + 0.01, 0.0, z + r])
         zc = z + 3 * r
+        law = food.tack_per_length_parallel
     rig = _rig([below, _straight(sub, (0.0, 0.0, zc))], params, sub)
     m, d = rig.model, rig.data
-    dt = m.opt.timestep
     bodies = list(range(rig.first, rig.first + segments))
     weight = sub.piece_mass * GRAVITY
-    mujoco.mj_step(m, d, round(0.5 / dt))  # settle
-    z_rest = float(np.mean(d.xpos[bodies, 2]))
-    pull = 0.0
+    mujoco.mj_step(m, d, round(0.5 / m.opt.timestep))  # settle
     ncon = int(d.ncon)
-    while pull < 50 * (weight + sub.tack_per_length * sub.strand_length):
-        pull += ramp_n_per_s * dt
-        d.xfrc_applied[bodies, 2] = pull / segments
-        mujoco.mj_step(m, d)
-        if float(np.mean(d.xpos[bodies, 2])) - z_rest > food.adhesion_gap + 0.5e-3:
-            break
-    length = sub.strand_length
-    per_m = (pull - weight) / length
-    return {"on": on, "contacts_at_rest": ncon, "pull_off_N_per_m": round(per_m, 4),
-            "law_N_per_m": round(food.tack_per_length, 4),
-            "law_range_N_per_m": [round(s * food.tack_width, 4) for s in STICKINESS_PA],
-            "error": round(per_m / food.tack_per_length - 1.0, 3)
-            if food.tack_per_length > 0 else None}
+    adhesion = _contact_adhesion(rig, m.geom("below").id)
+    pull = _pull_off(rig, bodies, 50 * (weight + food.tack_per_length * sub.strand_length),
+                     food.adhesion_gap, ramp_n_per_s)
+    per_m = (pull - weight) / sub.strand_length
+    return {"on": on, "contacts_at_rest": ncon, "contact_adhesion_N": adhesion,
+            "pull_off_N_per_m": round(per_m, 4), "law_N_per_m": round(law, 4),
+            "law_range_N_per_m": [round(s * law / food.stickiness_pa, 4) for s in STICKINESS_PA]
+            if food.stickiness_pa > 0 else [0.0, 0.0],
+            "error": round(per_m / law - 1.0, 3) if law > 0 else None}
+
+
+def crossing_tack_test(food: Strands, params: PhysicsParams,
+                       ramp_n_per_s: float = 1e-4) -> dict[str, Any]:
+    """One segment of strand lying across a fixed strand at right angles, crossing at its
+    middle, on a carriage that only slides vertically (a lone capsule balanced on a crossing
+    would roll off it), pulled straight up by a force raised at ``ramp_n_per_s`` until it
+    leaves by more than the adhesion gap; the pull beyond its weight against
+    :attr:`Strands.tack_per_crossing`, with the adhesion MuJoCo applies on the contact."""
+    ds, r = food.segment_length, food.strand_radius
+    sub = food.model_copy(update={"segments": 1, "strand_length": ds})
+    z = 0.3
+    below = _geom("below", mujoco.mjtGeom.mjGEOM_CAPSULE, [r, 0.0, 0.0],
+                  lambda g: set_strand_geom(g, food), fromto=[0.0, -ds, z, 0.0, ds, z])
+
+    def upper(parent: mujoco.MjsBody) -> None:
+        car = parent.add_body(name="carriage", pos=[0.0, 0.0, z + 2 * r])
+        car.add_joint(type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0.0, 0.0, 1.0])
+        strand_chain(sub, car, "s", (-ds / 2, 0.0, 0.0), [np.eye(3)],
+                     lambda g: set_strand_geom(g, food), free=False)
+
+    rig = _rig([below, upper], params, sub)
+    m, d = rig.model, rig.data
+    weight = float(m.body_subtreemass[m.body("carriage").id]) * GRAVITY
+    mujoco.mj_step(m, d, round(0.5 / m.opt.timestep))  # settle
+    ncon = int(d.ncon)
+    adhesion = _contact_adhesion(rig, m.geom("below").id)
+    law = food.tack_per_crossing
+    pull = _pull_off(rig, [rig.first], 50 * (weight + law), food.adhesion_gap, ramp_n_per_s)
+    return {"contacts_at_rest": ncon, "contact_adhesion_N": adhesion,
+            "pull_off_N": round(pull - weight, 7), "law_N": round(law, 7),
+            "law_range_N": [round(s * law / food.stickiness_pa, 7) for s in STICKINESS_PA]
+            if food.stickiness_pa > 0 else [0.0, 0.0],
+            "film_thickness_um": round(food.film_thickness * 1e6, 1),
+            "error": round((pull - weight) / law - 1.0, 3) if law > 0 else None}
 
 
 def fork_half_width(spec: Spec, utensil: str) -> float:
@@ -394,15 +454,18 @@ def run_strand_calibration(food: Strands, params: PhysicsParams, spec: Spec,
     bends = [cantilever_test(food, params, k) for k in (3, 5, 8)]
     out["cantilever"] = {"overhangs": bends,
                          "pass": all(abs(b["error"]) <= BENDING_TOL for b in bends)}
-    # Tack on the fork's steel and on another strand.
-    # Tack on the fork's steel (the law); along another strand it is reported: MuJoCo gives
-    # two parallel capsules one or two contact points, not always two (docs/food.md).
+    # Tack on the fork's steel and across another strand (the laws); along another strand it
+    # is reported: the strand geoms carry a crossing's tack, and two parallel capsules touch
+    # at one or two points a segment (docs/food.md).
     if food.stickiness_pa > 0:
         tacks = [tack_test(food, params, on) for on in ("fork", "strand")]
         tacks[0]["pass"] = abs(tacks[0]["error"]) <= TACK_TOL
         tacks[1]["pass"] = None
-        out["tack"] = {"tests": tacks, "per_contact_N": round(food.tack_per_contact, 6),
+        cross = crossing_tack_test(food, params)
+        cross["pass"] = abs(cross["error"]) <= TACK_TOL
+        out["tack"] = {"tests": tacks, "per_contact_N": round(food.tack_per_contact, 7),
                        "pass": tacks[0]["pass"]}
+        out["tack_crossing"] = cross
     out["all_pass"] = all(v.get("pass", True) for v in out.values() if isinstance(v, dict))
     return out
 
@@ -440,4 +503,11 @@ def table(cal: dict[str, Any]) -> str:
         rows.append(f"| tack on {t['on']} | {t['pull_off_N_per_m']} N/m | {t['law_N_per_m']} N/m "
                     f"(cited {lo}–{hi}) | ±{TACK_TOL:.0%} | "
                     f"{yes(t.get('pass'))} |")
+    c = cal.get("tack_crossing")
+    if c:
+        lo, hi = c["law_range_N"]
+        rows.append(f"| tack across a strand (90°, adhesion {c['contact_adhesion_N']} N) | "
+                    f"{c['pull_off_N'] * 1e3:.3f} mN | {c['law_N'] * 1e3:.3f} mN "
+                    f"(cited {lo * 1e3:.3f}–{hi * 1e3:.3f}) | ±{TACK_TOL:.0%} | "
+                    f"{yes(c['pass'])} |")
     return "\n".join(rows)
