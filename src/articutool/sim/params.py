@@ -298,7 +298,8 @@ class Strands(_FoodBase):
         cylinders of radius r stand (x² + y²)/(2r) apart (each curves in one direction), so
         the film (:attr:`film_thickness` h) wets a disk of radius √(2rh), area 2π·r·h
         (= π·w²/4, a disk as wide as the band): stickiness × that area. MuJoCo gives a
-        crossing one contact point, so this is the adhesion of a strand–strand contact."""
+        crossing one contact point, so this is the adhesion of a strand–strand contact. At an
+        angle θ the wetted ellipse is 2π·r·h / sin θ: the right angle is the least."""
         return self.stickiness_pa * 2.0 * math.pi * self.strand_radius * self.film_thickness
 
     @property
