@@ -204,11 +204,11 @@ def test_tack_is_the_force_of_fork_and_strand_contacts() -> None:
     tine, s0, s1 = (m.geom(n).id for n in ("utensil/tine0", "strand0/3", "strand1/7"))
     # A fork-strand contact takes the fork's adhesion alone (the higher priority decides, as
     # for every food-partner law): a strand lying on it; two strands' contact sums theirs
-    # (equal priorities): a crossing.
+    # (equal priorities): the film's law averaged over a settled nest's contact angles.
     assert m.geom_priority[tine] > m.geom_priority[s0] == m.geom_priority[s1]
     assert m.geom_adhesion[tine] == pytest.approx(food.tack_per_contact, rel=1e-5)
-    assert m.geom_adhesion[s0] + m.geom_adhesion[s1] == pytest.approx(food.tack_per_crossing,
-                                                                      rel=1e-5)
+    assert m.geom_adhesion[s0] + m.geom_adhesion[s1] == pytest.approx(
+        food.tack_per_strand_contact, rel=1e-5)
     assert min(m.geom_gap[[tine, s0, s1]]) == pytest.approx(food.adhesion_gap)
     # The settled nest's crossings pull: an adhesive passive force acts on the strands,
     # where a friction-only nest has none.

@@ -52,13 +52,13 @@ def set_fork_strand(g: mujoco.MjsGeom, food: Strands, tack: bool = True) -> None
 
 def set_strand_geom(g: mujoco.MjsGeom, food: Strands, tack: bool = True) -> None:
     """A strand geom's contact: the strand-strand law at priority 0 and half the tack of a
-    crossing (:attr:`Strands.tack_per_crossing`). MuJoCo sums the adhesion of two geoms of
-    equal priority, so two strands crossed at right angles pull with the crossing's whole
-    tack: the least any crossing pulls (a shallower one wets more, and two strands lying along
-    each other pull with less than their band's law, docs/food.md)."""
+    strand–strand contact point (:attr:`Strands.tack_per_strand_contact`, the film's law
+    averaged over a settled nest's contact angles). MuJoCo sums the adhesion of two geoms of
+    equal priority, so every strand–strand contact pulls with that mean: more than a
+    right-angle crossing's law, less than two strands lying along each other (docs/food.md)."""
     set_contact(g, food.contacts.food, 0)
     if tack:
-        set_strand_tack(g, food, food.tack_per_crossing / 2.0)
+        set_strand_tack(g, food, food.tack_per_strand_contact / 2.0)
 
 
 def strand_chain(food: Strands, parent: mujoco.MjsBody, name: str,

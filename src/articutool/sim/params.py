@@ -248,6 +248,11 @@ class Strands(_FoodBase):
     stickiness_pa: NonNegative = 0.0
     tack_width: Positive = 0.001
     adhesion_gap: Annotated[float, Field(ge=0, le=0.002)] = 0.0
+    # The strand–strand contacts' tack over a right-angle crossing's: the mean, over a settled
+    # nest's strand–strand contact points, of the film's law at each one's angle
+    # (:func:`articutool.sim.strand_laws.contact_tack`) over its value at 90°. MuJoCo's adhesion
+    # is one value a geom, not a value an angle. 1 = the right angle's.
+    crossing_factor: Annotated[float, Field(ge=1.0, le=10.0)] = 1.0
 
     @model_validator(mode="after")
     def _adhesion_needs_a_gap(self) -> Strands:
@@ -297,10 +302,17 @@ class Strands(_FoodBase):
         """N: the pull-off force of two strands crossed at right angles. Near the crossing two
         cylinders of radius r stand (x² + y²)/(2r) apart (each curves in one direction), so
         the film (:attr:`film_thickness` h) wets a disk of radius √(2rh), area 2π·r·h
-        (= π·w²/4, a disk as wide as the band): stickiness × that area. MuJoCo gives a
-        crossing one contact point, so this is the adhesion of a strand–strand contact. At an
-        angle θ the wetted ellipse is 2π·r·h / sin θ: the right angle is the least."""
+        (= π·w²/4, a disk as wide as the band): stickiness × that area, over one contact point
+        (MuJoCo gives a crossing one). At an angle θ the wetted ellipse is 2π·r·h / sin θ:
+        the right angle is the least (:func:`articutool.sim.strand_laws.crossing_tack`)."""
         return self.stickiness_pa * 2.0 * math.pi * self.strand_radius * self.film_thickness
+
+    @property
+    def tack_per_strand_contact(self) -> float:
+        """N: the adhesion of one strand–strand contact point in the model: the right-angle
+        crossing's (:attr:`tack_per_crossing`) × :attr:`crossing_factor`, the mean of the film's
+        law over a settled nest's contact angles."""
+        return self.tack_per_crossing * self.crossing_factor
 
     @property
     def tack_per_length_parallel(self) -> float:
