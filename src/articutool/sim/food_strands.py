@@ -34,10 +34,11 @@ _RGBA = [0.95, 0.85, 0.45, 1.0]
 
 def set_strand_tack(g: mujoco.MjsGeom, food: Strands, adhesion: float) -> None:
     """Give geom ``g`` ``adhesion`` N of starch tack per contact point, acting across the
-    food's ``adhesion_gap``; none when the food is not sticky."""
+    food's ``adhesion_gap``; none when the food is not sticky. MuJoCo sums the gaps of a
+    pair's two geoms (whatever their priorities), so each sticky geom carries half."""
     if food.stickiness_pa > 0:
         g.adhesion = sig(adhesion, 6)
-        g.gap = sig(food.adhesion_gap, 6)
+        g.gap = sig(food.adhesion_gap / 2.0, 6)
 
 
 def set_fork_strand(g: mujoco.MjsGeom, food: Strands, tack: bool = True) -> None:
