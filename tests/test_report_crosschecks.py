@@ -27,6 +27,8 @@ def test_the_noodle_mechanisms_table_reads_the_calibration(tmp_path: Path) -> No
     assert "| capstan, frictionless bar | 10.95 mm | hold ratio 1.00 | e^(μπ) = 1.00 | pass |" in md
     assert "capstan, one tine" in md and "| reported |" in md
     assert "tack, on the fork" in md and "All pass: **True**" in md
+    assert "| tack, across a strand at 90° | 1 contact |" in md
+    assert "| tack, a settled nest's strand contacts summed | seed 8200," in md
 
 
 def test_the_static_tilt_table_and_the_slosh_rows_are_read_from_their_files(

@@ -203,11 +203,14 @@ def test_tack_is_the_force_of_fork_and_strand_contacts() -> None:
     m = w.model
     tine, s0, s1 = (m.geom(n).id for n in ("utensil/tine0", "strand0/3", "strand1/7"))
     # A fork-strand contact takes the fork's adhesion alone (the higher priority decides, as
-    # for every food-partner law); two strands' contact sums theirs (equal priorities).
+    # for every food-partner law): a strand lying on it; two strands' contact sums theirs
+    # (equal priorities): the film's law averaged over a settled nest's contact angles.
     assert m.geom_priority[tine] > m.geom_priority[s0] == m.geom_priority[s1]
-    assert m.geom_adhesion[tine] == pytest.approx(food.tack_per_contact)
-    assert m.geom_adhesion[s0] + m.geom_adhesion[s1] == pytest.approx(food.tack_per_contact)
-    assert min(m.geom_gap[[tine, s0, s1]]) == pytest.approx(food.adhesion_gap)
+    assert m.geom_adhesion[tine] == pytest.approx(food.tack_per_contact, rel=1e-5)
+    assert m.geom_adhesion[s0] + m.geom_adhesion[s1] == pytest.approx(
+        food.tack_per_strand_contact, rel=1e-5)
+    # Each carries half the gap: MuJoCo sums a pair's.
+    assert m.geom_gap[[tine, s0, s1]] == pytest.approx([food.adhesion_gap / 2] * 3)
     # The settled nest's crossings pull: an adhesive passive force acts on the strands,
     # where a friction-only nest has none.
     w.run(0.3, tick=False)
@@ -216,6 +219,30 @@ def test_tack_is_the_force_of_fork_and_strand_contacts() -> None:
                                params=_noodle_params(stickiness_pa=0.0))
     plain.run(0.3, tick=False)
     assert np.abs(plain.data.qfrc_adhesion).max() == 0
+
+
+@pytest.mark.parametrize("lower", ["strand", "fork"])
+def test_a_sticky_pair_pulls_across_the_adhesion_gap_and_no_further(lower: str) -> None:
+    # MuJoCo sums the two geoms' gaps (whatever their priorities): the pair's range is the
+    # food's adhesion_gap, not twice it.
+    from articutool.sim.food_strands import set_fork_strand, set_strand_geom
+
+    food = PhysicsParams.load().food("noodles")
+    r, gap = food.strand_radius, food.adhesion_gap
+    set_lower = set_strand_geom if lower == "strand" else set_fork_strand
+    for sep, pulls in ((0.9 * gap, True), (1.1 * gap, False)):
+        s = mujoco.MjSpec()
+        s.option.gravity = [0.0, 0.0, 0.0]
+        set_lower(s.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[r, 0, 0],
+                                       fromto=[0.0, -0.005, 0.0, 0.0, 0.005, 0.0]), food)
+        b = s.worldbody.add_body(pos=[0.0, 0.0, 2 * r + sep])
+        b.add_freejoint()
+        set_strand_geom(b.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[r, 0, 0],
+                                   fromto=[-0.005, 0.0, 0.0, 0.005, 0.0, 0.0]), food)
+        m = s.compile()
+        d = mujoco.MjData(m)
+        mujoco.mj_forward(m, d)
+        assert (np.abs(d.qfrc_adhesion).max() > 0) == pulls, (lower, sep)
 
 
 def test_a_twirl_before_insertion_frees_roll_budget_for_the_twirl_inside() -> None:

@@ -309,6 +309,18 @@ def _sec_strands(d: Mapping[str, Any]) -> str:
                      "contacts", f"pull-off {num(t.get('pull_off_N_per_m'))} N/m",
                      f"{num(t.get('law_N_per_m'))} N/m (cited "
                      f"{'–'.join(num(x) for x in t.get('law_range_N_per_m', []))})", verdict(t)])
+    c = d.get("tack_crossing")
+    if c:
+        rows.append(["tack, across a strand at 90°", f"{c.get('contacts_at_rest', '?')} contact",
+                     f"pull-off {num(c.get('pull_off_N', 0) * 1e3)} mN",
+                     f"{num(c.get('law_N', 0) * 1e3)} mN (the film's disk)", verdict(c)])
+    n = d.get("tack_nest")
+    if n:
+        rows.append(["tack, a settled nest's strand contacts summed",
+                     f"seed {n.get('seed', '?')}, {n.get('strand_contacts', '?')} contacts",
+                     f"{num(n.get('adhesion_sum_N', 0) * 1e3)} mN",
+                     f"{num(n.get('law_sum_N', 0) * 1e3)} mN (the film's law at each angle)",
+                     verdict(n)])
     st = d.get("strand", {})
     if st:
         rows.append(["strand", f"{st.get('segments', '?')} segments of "

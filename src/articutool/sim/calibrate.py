@@ -338,7 +338,8 @@ def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
     if isinstance(food, Strands):
         from articutool.sim.strand_laws import run_strand_calibration
 
-        out.update(run_strand_calibration(food, params, spec, utensil or food.utensil))
+        out.update(run_strand_calibration(food, params, spec, utensil or food.utensil,
+                                          food_name))
     return out
 
 

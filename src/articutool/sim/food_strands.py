@@ -32,30 +32,34 @@ __all__ = ["build_strands", "set_fork_strand", "set_strand_geom", "set_strand_ta
 _RGBA = [0.95, 0.85, 0.45, 1.0]
 
 
-def set_strand_tack(g: mujoco.MjsGeom, food: Strands, share: float) -> None:
-    """Give geom ``g`` ``share`` × the starch tack of one contact toward strands
-    (:attr:`Strands.tack_per_contact`), acting across the food's ``adhesion_gap``."""
+def set_strand_tack(g: mujoco.MjsGeom, food: Strands, adhesion: float) -> None:
+    """Give geom ``g`` ``adhesion`` N of starch tack per contact point, acting across the
+    food's ``adhesion_gap``; none when the food is not sticky. MuJoCo sums the gaps of a
+    pair's two geoms (whatever their priorities), so each sticky geom carries half."""
     if food.stickiness_pa > 0:
-        g.adhesion = sig(share * food.tack_per_contact, 6)
-        g.gap = sig(food.adhesion_gap, 6)
+        g.adhesion = sig(adhesion, 6)
+        g.gap = sig(food.adhesion_gap / 2.0, 6)
 
 
 def set_fork_strand(g: mujoco.MjsGeom, food: Strands, tack: bool = True) -> None:
     """A utensil geom's contact in a strand world: the strands' law for the utensil at
-    priority 1 and the whole tack of one contact. MuJoCo takes a contact's adhesion from the
+    priority 1 and the tack of one contact of a strand lying on it
+    (:attr:`Strands.tack_per_contact`). MuJoCo takes a contact's adhesion from the
     higher-priority geom alone, so the fork's tack is all a fork-strand contact pulls with."""
     set_contact(g, food.contacts.utensil, 1)
     if tack:
-        set_strand_tack(g, food, 1.0)
+        set_strand_tack(g, food, food.tack_per_contact)
 
 
 def set_strand_geom(g: mujoco.MjsGeom, food: Strands, tack: bool = True) -> None:
-    """A strand geom's contact: the strand-strand law at priority 0 and half the tack.
-    MuJoCo sums the adhesion of two geoms of equal priority, so two strands pull with the
-    whole tack."""
+    """A strand geom's contact: the strand-strand law at priority 0 and half the tack of a
+    strand–strand contact point (:attr:`Strands.tack_per_strand_contact`, the film's law
+    averaged over a settled nest's contact angles). MuJoCo sums the adhesion of two geoms of
+    equal priority, so every strand–strand contact pulls with that mean: more than a
+    right-angle crossing's law, less than two strands lying along each other (docs/food.md)."""
     set_contact(g, food.contacts.food, 0)
     if tack:
-        set_strand_tack(g, food, 0.5)
+        set_strand_tack(g, food, food.tack_per_strand_contact / 2.0)
 
 
 def strand_chain(food: Strands, parent: mujoco.MjsBody, name: str,

@@ -248,6 +248,11 @@ class Strands(_FoodBase):
     stickiness_pa: NonNegative = 0.0
     tack_width: Positive = 0.001
     adhesion_gap: Annotated[float, Field(ge=0, le=0.002)] = 0.0
+    # The strand–strand contacts' tack over a right-angle crossing's: the mean, over a settled
+    # nest's strand–strand contact points, of the film's law at each one's angle
+    # (:func:`articutool.sim.strand_laws.contact_tack`) over its value at 90°. MuJoCo's adhesion
+    # is one value a geom, not a value an angle. 1 = the right angle's.
+    crossing_factor: Annotated[float, Field(ge=1.0, le=10.0)] = 1.0
 
     @model_validator(mode="after")
     def _adhesion_needs_a_gap(self) -> Strands:
@@ -280,10 +285,41 @@ class Strands(_FoodBase):
 
     @property
     def tack_per_contact(self) -> float:
-        """N: MuJoCo's adhesion of one contact point. A segment lying along a surface touches
-        it at two points (its capsule's two ends), so each carries the tack of half a
-        segment: stickiness × width × ds / 2."""
+        """N: MuJoCo's adhesion of one contact point of a strand lying on the fork. A segment
+        lying along a surface touches it at two points (its capsule's two ends), so each
+        carries the tack of half a segment: stickiness × width × ds / 2."""
         return self.tack_per_length * self.segment_length / 2.0
+
+    @property
+    def film_thickness(self) -> float:
+        """m: the gap h below which the starch film wets, as the band implies it. A cylinder of
+        radius r on a plane stands x²/(2r) off it at x from its line of contact, so a band
+        ``tack_width`` w wide is where that gap is below h = w²/(8r)."""
+        return self.tack_width**2 / (8.0 * self.strand_radius)
+
+    @property
+    def tack_per_crossing(self) -> float:
+        """N: the pull-off force of two strands crossed at right angles. Near the crossing two
+        cylinders of radius r stand (x² + y²)/(2r) apart (each curves in one direction), so
+        the film (:attr:`film_thickness` h) wets a disk of radius √(2rh), area 2π·r·h
+        (= π·w²/4, a disk as wide as the band): stickiness × that area, over one contact point
+        (MuJoCo gives a crossing one). At an angle θ the wetted ellipse is 2π·r·h / sin θ:
+        the right angle is the least (:func:`articutool.sim.strand_laws.crossing_tack`)."""
+        return self.stickiness_pa * 2.0 * math.pi * self.strand_radius * self.film_thickness
+
+    @property
+    def tack_per_strand_contact(self) -> float:
+        """N: the adhesion of one strand–strand contact point in the model: the right-angle
+        crossing's (:attr:`tack_per_crossing`) × :attr:`crossing_factor`, the mean of the film's
+        law over a settled nest's contact angles."""
+        return self.tack_per_crossing * self.crossing_factor
+
+    @property
+    def tack_per_length_parallel(self) -> float:
+        """N/m: the pull-off force per metre of two parallel strands lying along each other.
+        Both curve across the line of contact, so they stand x²/r apart and the film wets a
+        band 2·√(r·h) = w/√2 wide: stickiness × w/√2."""
+        return self.stickiness_pa * 2.0 * math.sqrt(self.strand_radius * self.film_thickness)
 
 
 Food = Annotated[Granular | Liquid | Strands, Field(discriminator="kind")]
