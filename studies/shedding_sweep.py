@@ -244,8 +244,10 @@ def plot(out: dict, path: Path) -> None:
     fig, ax = plt.subplots(2, 1, figsize=(max(6, 0.55 * len(rows)), 6), sharex=True)
     ax[0].bar(x, [r["meaningful"] for r in rows], color="tab:green")
     ax[0].set_ylabel(f"meaningful / {out['seeds']}")
+    ax[0].set_ylim(0, out["seeds"])
     ax[0].set_title(f"{out['food']}, {out['condition']}: load {out['load_g']:g} g, threshold "
-                    f"{out['threshold_g']:.2f} g, tuning seeds (base {out['tuning_base_seed']})")
+                    f"{out['threshold_g']:.2f} g, tuning seeds (base {out['tuning_base_seed']})",
+                    fontsize=9)
     w = 0.27
     for i, (k, c) in enumerate((("delivered_g", "tab:blue"), ("shed_g", "tab:gray"),
                                 ("spilled_g", "tab:red"))):
