@@ -96,11 +96,13 @@ class Exp2cConfig(StrictModel):
 
 class Exp2cCondition(ConditionBase):
     """Exp. 2c: ``load_g`` of ``food`` over the bowl, then ``condition``; ``target_g``: the
-    closed-loop primitive's load target."""
+    closed-loop primitive's load target; ``strategies``: another action-library file (the
+    shedding sweep's candidates)."""
 
     condition: Exp2cArm
     load_g: float
     target_g: float | None = None
+    strategies: str | None = None
 
     def group(self) -> tuple[str, ...]:
         """The food and the condition."""
@@ -154,7 +156,7 @@ def exp2c_trial(cond: Exp2cCondition, seed: int, cfg: ExperimentsConfig,
 
     food, arm_cond, load = cond.food, cond.condition, float(cond.load_g)
     spec = load_spec()
-    strat = StrategyLibrary.load(spec).strategies[cfg.exp2c.strategy[food]]
+    strat = StrategyLibrary.load(spec, cond.strategies).strategies[cfg.exp2c.strategy[food]]
     stage = strat.stages.post_acquisition
     scene = Scene.load()
     q_shed = shed_configuration(spec, scene, strat.utensil)
