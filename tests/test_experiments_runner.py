@@ -209,14 +209,44 @@ def test_source_version_is_the_last_source_commit_and_flags_modified_sources() -
     from articutool.experiments.runner import source_version
 
     root = Path(__file__).resolve().parents[1]
-    head = subprocess.run(["git", "-C", str(root), "log", "-1", "--format=%h", "--abbrev=12",
-                           "--", "src"], capture_output=True, text=True)
+    head = subprocess.run(["git", "-C", str(root), "log", "-1", "--first-parent", "--format=%h",
+                           "--abbrev=12", "--", "src"], capture_output=True, text=True)
     if head.returncode != 0:
         pytest.skip("not a git checkout")
     modified = subprocess.run(["git", "-C", str(root), "diff", "--quiet", "HEAD", "--",
                                "src"]).returncode != 0
     assert source_version() == head.stdout.strip() + ("+modified" if modified else "")
 
+
+
+def test_source_version_after_a_merge_is_the_merge_not_a_later_dated_branch_commit(
+        tmp_path: Path) -> None:
+    """A branch commit dated after the line's own change has a tree without it: the code that
+    runs after the merge is the merge's."""
+    from articutool.experiments.runner import source_version
+
+    def git(*args: str, date: str = "2026-01-01T00:00:00") -> str:
+        env = {**os.environ, "GIT_AUTHOR_DATE": date, "GIT_COMMITTER_DATE": date,
+               "GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME": "t",
+               "GIT_COMMITTER_EMAIL": "t@t"}
+        return subprocess.run(["git", "-C", str(tmp_path), *args], env=env, check=True,
+                              capture_output=True, text=True).stdout.strip()
+
+    git("init", "-q", "-b", "main")
+    (tmp_path / "src").mkdir()
+    (tmp_path / "src" / "a.py").write_text("a = 1\n")
+    git("add", "-A")
+    git("commit", "-qm", "base")
+    git("checkout", "-q", "-b", "branch")
+    (tmp_path / "src" / "b.py").write_text("b = 1\n")
+    git("add", "-A")
+    git("commit", "-qm", "branch", date="2026-01-03T00:00:00")
+    git("checkout", "-q", "main")
+    (tmp_path / "src" / "a.py").write_text("a = 2\n")
+    git("commit", "-qam", "main", date="2026-01-02T00:00:00")
+    git("merge", "-q", "--no-ff", "branch", "-m", "merge", date="2026-01-04T00:00:00")
+    merge = git("rev-parse", "--short=12", "HEAD")
+    assert source_version(tmp_path) == merge
 
 
 class _TreeReachedError(Exception):

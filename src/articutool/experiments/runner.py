@@ -180,20 +180,23 @@ class DataChecked:
 
 
 @functools.cache
-def source_version() -> str:
-    """The code a trial ran: the last git commit that changed ``src/`` (``+modified`` when
-    ``src/`` differs from it; commits of results or docs do not count), or ``articutool
-    <version>`` outside a git checkout. Recorded in every trial, because a resumed log may
-    span commits, which ``run.json`` does not pin."""
+def source_version(root: Path | None = None) -> str:
+    """The code a trial ran: the last commit on the checked-out line (first parents: a merge,
+    not the merged branch's own commits, whose trees lack this line's) that changed ``src/``
+    (``+modified`` when ``src/`` differs from it; commits of results or docs do not count), or
+    ``articutool <version>`` outside a git checkout. ``root``: the checkout (default: this
+    package's). Recorded in every trial, because a resumed log may span commits, which
+    ``run.json`` does not pin."""
     from articutool import __version__
 
-    pkg = Path(__file__).resolve().parents[1]
-    root = pkg.parents[1]
-    if pkg != root / "src" / "articutool":  # an installed copy, not a source checkout
-        return f"articutool {__version__}"
+    if root is None:
+        pkg = Path(__file__).resolve().parents[1]
+        root = pkg.parents[1]
+        if pkg != root / "src" / "articutool":  # an installed copy, not a source checkout
+            return f"articutool {__version__}"
     try:
-        head = subprocess.run(["git", "-C", str(root), "log", "-1", "--format=%h",
-                               "--abbrev=12", "--", "src"],
+        head = subprocess.run(["git", "-C", str(root), "log", "-1", "--first-parent",
+                               "--format=%h", "--abbrev=12", "--", "src"],
                               capture_output=True, text=True, timeout=10, check=True)
         dirty = subprocess.run(["git", "-C", str(root), "diff", "--quiet", "HEAD", "--",
                                 "src"], capture_output=True, timeout=10).returncode != 0
