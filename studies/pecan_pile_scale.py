@@ -29,16 +29,14 @@ def main(argv: list[str] | None = None) -> int:
     from articutool.experiments.runner import source_version
     from articutool.sim.params import PhysicsParams
 
-    # The test's geometry is the module's (numerical choices): scaled here, not in the file.
-    cal.TUBE_RADIUS_M *= a.scale
-    cal.PLATE_RADIUS_M *= a.scale
     n = round(cal.PILE_PIECES * a.scale**3)
     p = PhysicsParams.load()
     food = p.foods["pecans"].model_copy(update={"noslip_iterations": a.passes})
     p = p.model_copy(update={"foods": {**p.foods, "pecans": food}})
-    r = cal.angle_of_repose_deg(food, p, n=n, seed=a.seed)
+    r = cal.angle_of_repose_deg(food, p, n=n, seed=a.seed, scale=a.scale)
     row = {"scale": a.scale, "seed": a.seed, "passes": a.passes, "pieces": n,
-           "plate_radius_mm": round(cal.PLATE_RADIUS_M * 1e3, 1), "source": source_version(),
+           "plate_radius_mm": round(cal.PLATE_RADIUS_M * a.scale * 1e3, 1),
+           "source": source_version(),
            **{k: v for k, v in r.items() if k != "state_sha256"}}
     doc = json.loads(a.out.read_text()) if a.out.exists() else {"piles": []}
     doc["piles"].append(row)

@@ -41,7 +41,6 @@ import itertools
 import json
 import math
 import os
-import statistics
 import sys
 import tempfile
 import time
@@ -53,6 +52,7 @@ from articutool.experiments.config import ExperimentsConfig
 from articutool.experiments.design import trial_seed
 from articutool.experiments.protocols import json_safe
 from articutool.experiments.records import TrialRecord
+from articutool.experiments.stats import describe
 from articutool.experiments.units.exp2c import Exp2cCondition, classify_exp2c, exp2c_trial
 from articutool.feeding.strategies import StrategyError, default_strategies_path
 from articutool.spec import load_spec
@@ -111,9 +111,9 @@ def label(change: dict[str, Any]) -> str:
 
 def spread(values: list[float]) -> dict[str, float | None]:
     """Mean, sample SD (None for one value), min and max, to 3 decimals."""
-    sd = statistics.stdev(values) if len(values) > 1 else None
+    d = describe(values).to_dict()
     return {k: None if v is None else round(v, 3)
-            for k, v in (("mean", statistics.fmean(values)), ("sd", sd),
+            for k, v in (("mean", d["mean"]), ("sd", d["sd"]),
                          ("min", min(values)), ("max", max(values)))}
 
 

@@ -87,11 +87,13 @@ CREEP_LIMIT_MM = 0.1
 
 
 def pile_test_model(food: Granular, params: PhysicsParams, n: int = PILE_PIECES,
-                    seed: int = 0) -> tuple[mujoco.MjModel, float, float]:
+                    seed: int = 0, scale: float = 1.0) -> tuple[mujoco.MjModel, float, float]:
     """The pile test's model (:func:`angle_of_repose_deg`): ``n`` pieces drawn with ``seed``
-    laid a layer at a time in the tube standing on the plate; the plate's top height and the
-    tube's height (m) beside it. Contacts as in the feeding world: piece–piece and
-    piece–plate laws of ``physics.toml``, the same solver and no-slip passes."""
+    laid a layer at a time in the tube standing on the plate (tube and plate ``scale`` × their
+    radii); the plate's top height and the tube's height (m) beside it. Contacts as in the
+    feeding world: piece–piece and piece–plate laws of ``physics.toml``, the same solver and
+    no-slip passes."""
+    tube_r, plate_r = TUBE_RADIUS_M * scale, PLATE_RADIUS_M * scale
     rng = np.random.default_rng(seed)
     pieces = [draw_piece(food, rng) for _ in range(n)]
     radii = [footprint(c) for c in pieces]
@@ -100,7 +102,7 @@ def pile_test_model(food: Granular, params: PhysicsParams, n: int = PILE_PIECES,
     pts: list[tuple[float, float, float]] = []
     z = z0 + cell_z / 2 + 0.001
     while len(pts) < n:
-        layer = pack_layer(radii[len(pts):], TUBE_RADIUS_M - 0.001, rng)
+        layer = pack_layer(radii[len(pts):], tube_r - 0.001, rng)
         if not layer:
             raise ValueError("a piece does not fit in the pile test's tube")
         pts += [(x, y, z) for x, y in layer]
@@ -111,7 +113,7 @@ def pile_test_model(food: Granular, params: PhysicsParams, n: int = PILE_PIECES,
     s = solver_spec(params.world, food)
     wb = s.worldbody
     wb.add_geom(type=_G.mjGEOM_PLANE, size=[1.0, 1.0, 0.1], contype=1, conaffinity=0)
-    set_contact(wb.add_geom(type=_G.mjGEOM_CYLINDER, size=[PLATE_RADIUS_M, z0 / 2, 0.0],
+    set_contact(wb.add_geom(type=_G.mjGEOM_CYLINDER, size=[plate_r, z0 / 2, 0.0],
                             pos=[0.0, 0.0, z0 / 2], contype=1, conaffinity=0),
                 food.contacts.utensil, 1)
     tube = wb.add_body(name="tube", mass=1.0, ipos=[0.0, 0.0, 0.0], inertia=[1.0, 1.0, 1.0],
@@ -119,12 +121,12 @@ def pile_test_model(food: Granular, params: PhysicsParams, n: int = PILE_PIECES,
     tube.add_joint(name="lift", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0.0, 0.0, 1.0])
     nw, t = 24, 0.004
     # Each wall's half-width reaches its neighbours' at the wall's outer face: a closed tube.
-    hw = (TUBE_RADIUS_M + t) * math.tan(math.pi / nw)
+    hw = (tube_r + t) * math.tan(math.pi / nw)
     for k in range(nw):
         a = 2 * math.pi * k / nw
         g = tube.add_geom(type=_G.mjGEOM_BOX, size=[t / 2, hw, height / 2],
-                          pos=[(TUBE_RADIUS_M + t / 2) * math.cos(a),
-                               (TUBE_RADIUS_M + t / 2) * math.sin(a), z0 + height / 2 + 5e-4],
+                          pos=[(tube_r + t / 2) * math.cos(a),
+                               (tube_r + t / 2) * math.sin(a), z0 + height / 2 + 5e-4],
                           contype=1, conaffinity=0)
         _euler(g, [0.0, 0.0, a])
         set_contact(g, food.contacts.utensil, 1)
@@ -159,7 +161,7 @@ def _capsule(body: mujoco.MjsBody, food: Granular, r: float,
 
 
 def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = PILE_PIECES,
-                        seed: int = 0) -> dict[str, Any]:
+                        seed: int = 0, scale: float = 1.0) -> dict[str, Any]:
     """The fixed-base ("lifted cylinder on a raised plate") angle of repose of ``n`` pieces
     on a plate of the utensil's material, the test of the nut-kernel measurements cited in
     ``physics.toml``: a tube standing on a round plate is filled a layer at a time with the
@@ -167,8 +169,10 @@ def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = PILE_PIE
     pour into a heap whose surplus falls over the plate's edge; the angle is ``atan(H / R)``
     with ``H`` the heap's top above the plate and ``R`` the plate's radius. Returns the
     angle, ``H`` (mm), the flank's angle and the surface's ring tops (mm), the pieces left on
-    the plate, a hash of the end state and the CPU time (s)."""
-    m, z0, height = pile_test_model(food, params, n, seed)
+    the plate, a hash of the end state and the CPU time (s). ``scale``: the tube's and the
+    plate's radii over the test's own (a wider test is given its ``n`` by the caller)."""
+    plate_r = PLATE_RADIUS_M * scale
+    m, z0, height = pile_test_model(food, params, n, seed, scale)
     d = mujoco.MjData(m)
     j = m.joint("lift")
     qa, va = int(j.qposadr[0]), int(j.dofadr[0])
@@ -196,38 +200,40 @@ def angle_of_repose_deg(food: Granular, params: PhysicsParams, n: int = PILE_PIE
         radius = [m.geom_size[i, 0] for i in g for _ in (0, 1)]
         k = int(np.argmax([e[2] + r for e, r in zip(ends, radius, strict=True)]))
         tops.append(float(ends[k][2] + radius[k]))
-        over = math.hypot(*d.xpos[b, :2]) < PLATE_RADIUS_M and d.xpos[b, 2] > z0
+        over = math.hypot(*d.xpos[b, :2]) < plate_r and d.xpos[b, 2] > z0
         on.append(over)
         if over:
             surface += [(math.hypot(*e[:2]), float(e[2] + r) - z0)
                         for e, r in zip(ends, radius, strict=True)]
     on_plate = np.array(on)
     h = float(np.max(np.array(tops)[on_plate])) - z0 if on_plate.any() else 0.0
-    return {"angle_deg": math.degrees(math.atan2(h, PLATE_RADIUS_M)), "height_mm": h * 1e3,
-            "flank_angle_deg": flank_angle_deg(surface), "pieces_on_plate": int(on_plate.sum()),
+    return {"angle_deg": math.degrees(math.atan2(h, plate_r)), "height_mm": h * 1e3,
+            "flank_angle_deg": flank_angle_deg(surface, plate_r=plate_r),
+            "pieces_on_plate": int(on_plate.sum()),
             "surface_mm": [(round(r * 1e3, 1), round(z * 1e3, 1))
-                           for r, z in surface_envelope(surface)],
+                           for r, z in surface_envelope(surface, plate_r=plate_r)],
             "state_sha256": hashlib.sha256(np.concatenate([d.qpos, d.qvel]).tobytes())
             .hexdigest(), "cpu_s": cpu}
 
 
-def surface_envelope(points: list[tuple[float, float]],
-                     bin_m: float = FLANK_BIN_M) -> list[tuple[float, float]]:
+def surface_envelope(points: list[tuple[float, float]], bin_m: float = FLANK_BIN_M,
+                     plate_r: float = PLATE_RADIUS_M) -> list[tuple[float, float]]:
     """A heap's free surface as (ring's mid radius, height), both m: ``points`` are (distance
     from the axis, height above the base) of the pieces' highest points, and each ring
-    ``bin_m`` wide out to the plate's edge keeps its highest point."""
+    ``bin_m`` wide out to the plate's edge (``plate_r``) keeps its highest point."""
     rings: dict[int, float] = {}
     for r, z in points:
-        if r < PLATE_RADIUS_M:
+        if r < plate_r:
             k = int(r // bin_m)
             rings[k] = max(rings.get(k, -math.inf), z)
     return [((k + 0.5) * bin_m, rings[k]) for k in sorted(rings)]
 
 
-def flank_angle_deg(points: list[tuple[float, float]], bin_m: float = FLANK_BIN_M) -> float:
+def flank_angle_deg(points: list[tuple[float, float]], bin_m: float = FLANK_BIN_M,
+                    plate_r: float = PLATE_RADIUS_M) -> float:
     """The slope (degrees) of a heap's free surface: the angle of the least-squares line
     through its :func:`surface_envelope` (0 for fewer than two rings)."""
-    env = surface_envelope(points, bin_m)
+    env = surface_envelope(points, bin_m, plate_r)
     if len(env) < 2:
         return 0.0
     slope = np.polyfit([r for r, _ in env], [z for _, z in env], 1)[0]

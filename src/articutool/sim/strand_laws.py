@@ -354,6 +354,13 @@ def _contact_adhesion(rig: _Rig, geom: int) -> list[float]:
                    if geom in (c.geom1, c.geom2)})
 
 
+def _cited_range(law: float, food: Strands, digits: int) -> list[float]:
+    """``law`` (a force for the food's stickiness) at the cited stickinesses' ends."""
+    if food.stickiness_pa <= 0:
+        return [0.0, 0.0]
+    return [round(s * law / food.stickiness_pa, digits) for s in STICKINESS_PA]
+
+
 def _pull_off(rig: _Rig, bodies: list[int], limit: float, gap: float,
               ramp_n_per_s: float) -> float:
     """N: after 0.5 s of settling, a pull straight up spread over ``bodies``, raised at
@@ -407,8 +414,7 @@ def tack_test(food: Strands, params: PhysicsParams, on: str = "fork", segments: 
     per_m = (pull - weight) / sub.strand_length
     return {"on": on, "contacts_at_rest": ncon, "contact_adhesion_N": adhesion,
             "pull_off_N_per_m": round(per_m, 4), "law_N_per_m": round(law, 4),
-            "law_range_N_per_m": [round(s * law / food.stickiness_pa, 4) for s in STICKINESS_PA]
-            if food.stickiness_pa > 0 else [0.0, 0.0],
+            "law_range_N_per_m": _cited_range(law, food, 4),
             "error": round(per_m / law - 1.0, 3) if law > 0 else None}
 
 
@@ -442,8 +448,7 @@ def crossing_tack_test(food: Strands, params: PhysicsParams,
     pull = _pull_off(rig, [rig.first], 50 * (weight + law), food.adhesion_gap, ramp_n_per_s)
     return {"contacts_at_rest": ncon, "contact_adhesion_N": adhesion,
             "pull_off_N": round(pull - weight, 7), "law_N": round(law, 7),
-            "law_range_N": [round(s * law / food.stickiness_pa, 7) for s in STICKINESS_PA]
-            if food.stickiness_pa > 0 else [0.0, 0.0],
+            "law_range_N": _cited_range(law, food, 7),
             "film_thickness_um": round(food.film_thickness * 1e6, 1),
             "error": round((pull - weight) / law - 1.0, 3) if law > 0 else None}
 
