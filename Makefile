@@ -47,8 +47,9 @@ demo: $(VENV)/.installed
 
 # The tests run on every core (pytest-xdist; TEST_WORKERS=0 for one process): each module's
 # tests together on one worker, the tests marked `floods` one after another on one worker
-# (tests/conftest.py); the 25 longest tests are listed at the end. Exit 5 (no test selected,
-# e.g. PYTEST_ARGS=-k that matches none) passes.
+# (tests/conftest.py); the 25 longest tests and the 25 costliest in CPU are listed at the
+# end with the suite's CPU total (on 2 cores it is CPU-bound: 3 workers were no faster).
+# Exit 5 (no test selected, e.g. PYTEST_ARGS=-k that matches none) passes.
 TEST_WORKERS ?= auto
 PYTEST = $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup $(PYTEST_ARGS)
 test: $(VENV)/.installed

@@ -30,6 +30,7 @@ import functools
 import json
 import os
 import random
+import resource
 import signal
 import socket
 import subprocess
@@ -158,6 +159,62 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):  # type: ignore[no-
             super()._assign_work_unit(node)
 
     return ModulesAndFloods(config, log)
+
+
+def _cpu_s() -> float:
+    """CPU seconds (user + system) of this process and of its children it has waited for."""
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None):  # type: ignore[no-untyped-def]
+    """Stamp the CPU clock as a test starts (its setup, call and teardown are charged to it)."""
+    item.stash[_CPU_AT_START] = _cpu_s()
+    yield
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):  # type: ignore[no-untyped-def]
+    """The teardown's report carries the test's CPU seconds (``user_properties``, which
+    pytest-xdist sends to the controller)."""
+    outcome = yield
+    if call.when == "teardown" and _CPU_AT_START in item.stash:
+        outcome.get_result().user_properties.append(
+            ("cpu_s", round(_cpu_s() - item.stash[_CPU_AT_START], 3)))
+
+
+_CPU_AT_START = pytest.StashKey[float]()
+_CPU_BY_TEST: dict[str, float] = {}
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    """Collect each test's CPU seconds where the summary is printed (the controller)."""
+    for key, value in report.user_properties:
+        if key == "cpu_s" and report.when == "teardown":
+            _CPU_BY_TEST[report.nodeid] = float(value)
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus: int, config: pytest.Config) -> None:  # type: ignore[no-untyped-def]
+    """With ``--durations=N``: beside pytest's wall-clock list, the N tests that cost the most
+    CPU (user + system, this worker's process and the processes the test started and waited
+    for; a module fixture is charged to its first test) and the suite's total: the suite is
+    CPU-bound, so its CPU, not the waits, sets its wall time on a given number of cores."""
+    n = config.getoption("durations", None)
+    if not n or not _CPU_BY_TEST:
+        return
+    tr = terminalreporter
+    tr.write_sep("=", f"most CPU {n} (user + system s, the test and its reaped children)")
+    for nodeid, cpu in sorted(_CPU_BY_TEST.items(), key=lambda kv: -kv[1])[:n]:
+        tr.write_line(f"{cpu:8.2f}s cpu  {nodeid}")
+    modules: dict[str, float] = {}
+    for nodeid, cpu in _CPU_BY_TEST.items():
+        modules[nodeid.partition("::")[0]] = modules.get(nodeid.partition("::")[0], 0.0) + cpu
+    top = ", ".join(f"{m.removeprefix('tests/')} {c:.0f}" for m, c in
+                    sorted(modules.items(), key=lambda kv: -kv[1])[:8])
+    tr.write_line(f"{sum(_CPU_BY_TEST.values()):.0f} CPU s in {len(_CPU_BY_TEST)} tests; "
+                  f"costliest modules (CPU s): {top}")
 
 
 @pytest.fixture(scope="session")
