@@ -150,7 +150,9 @@ def main(argv: list[str] | None = None) -> int:
                               r["loader"]["transport_spilled_g"] > 0 for r in doc["rows"])}
         doc["loadavg_end"] = [round(x, 2) for x in os.getloadavg()]
         tmp = a.out.with_name(a.out.name + ".tmp")
-        tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW, 0o644)
+        with os.fdopen(fd, "w", encoding="utf-8") as f:  # never through a link
+            f.write(json.dumps(doc, indent=1) + "\n")
         tmp.replace(a.out)
         worst_s = max((p["edge_mm"] for p in scoop_row["pieces"]), default=float("nan"))
         worst_l = max((p["edge_mm"] for p in placed["pieces"]), default=float("nan"))

@@ -36,6 +36,7 @@ import socket
 import subprocess
 import sys
 import time
+from collections import Counter
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 
@@ -161,6 +162,11 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):  # type: ignore[no-
     return ModulesAndFloods(config, log)
 
 
+# When the test now running started, on the CPU clock; each test's CPU seconds (controller).
+_CPU_AT_START = pytest.StashKey[float]()
+_CPU_BY_TEST: dict[str, float] = {}
+
+
 def _cpu_s() -> float:
     """CPU seconds (user + system) of this process and of its children it has waited for."""
     own = resource.getrusage(resource.RUSAGE_SELF)
@@ -185,10 +191,6 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):  # type
             ("cpu_s", round(_cpu_s() - item.stash[_CPU_AT_START], 3)))
 
 
-_CPU_AT_START = pytest.StashKey[float]()
-_CPU_BY_TEST: dict[str, float] = {}
-
-
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
     """Collect each test's CPU seconds where the summary is printed (the controller)."""
     for key, value in report.user_properties:
@@ -208,11 +210,10 @@ def pytest_terminal_summary(terminalreporter, exitstatus: int, config: pytest.Co
     tr.write_sep("=", f"most CPU {n} (user + system s, the test and its reaped children)")
     for nodeid, cpu in sorted(_CPU_BY_TEST.items(), key=lambda kv: -kv[1])[:n]:
         tr.write_line(f"{cpu:8.2f}s cpu  {nodeid}")
-    modules: dict[str, float] = {}
+    modules: Counter[str] = Counter()
     for nodeid, cpu in _CPU_BY_TEST.items():
-        modules[nodeid.partition("::")[0]] = modules.get(nodeid.partition("::")[0], 0.0) + cpu
-    top = ", ".join(f"{m.removeprefix('tests/')} {c:.0f}" for m, c in
-                    sorted(modules.items(), key=lambda kv: -kv[1])[:8])
+        modules[nodeid.partition("::")[0]] += cpu
+    top = ", ".join(f"{m.removeprefix('tests/')} {c:.0f}" for m, c in modules.most_common(8))
     tr.write_line(f"{sum(_CPU_BY_TEST.values()):.0f} CPU s in {len(_CPU_BY_TEST)} tests; "
                   f"costliest modules (CPU s): {top}")
 
