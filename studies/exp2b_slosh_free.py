@@ -35,6 +35,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"--out: {a.out} exists; not overwriting", file=sys.stderr)
         return 2
     from articutool.arm.scene import Scene
+    from articutool.datafile import replace_own
     from articutool.experiments.config import ExperimentsConfig
     from articutool.experiments.design import trial_seed
     from articutool.experiments.runner import source_version
@@ -62,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(row), flush=True)
         doc["trials"].append(row)
         a.out.parent.mkdir(parents=True, exist_ok=True)
-        a.out.write_text(json.dumps(doc, indent=1) + "\n")
+        replace_own(a.out, json.dumps(doc, indent=1) + "\n")
     return 0
 
 

@@ -108,6 +108,7 @@ def main(argv: list[str] | None = None) -> int:
     if a.out.exists() or a.out.is_symlink():
         print(f"--out: {a.out} exists; not overwriting", file=sys.stderr)
         return 2
+    from articutool.datafile import replace_own
     from articutool.experiments.config import ExperimentsConfig
     from articutool.experiments.runner import source_version
     from articutool.experiments.units.capacity import CapacityCondition, capacity_trial
@@ -149,11 +150,7 @@ def main(argv: list[str] | None = None) -> int:
                           "loader_transport_spills": sum(
                               r["loader"]["transport_spilled_g"] > 0 for r in doc["rows"])}
         doc["loadavg_end"] = [round(x, 2) for x in os.getloadavg()]
-        tmp = a.out.with_name(a.out.name + ".tmp")
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW, 0o644)
-        with os.fdopen(fd, "w", encoding="utf-8") as f:  # never through a link
-            f.write(json.dumps(doc, indent=1) + "\n")
-        tmp.replace(a.out)
+        replace_own(a.out, json.dumps(doc, indent=1) + "\n")
         worst_s = max((p["edge_mm"] for p in scoop_row["pieces"]), default=float("nan"))
         worst_l = max((p["edge_mm"] for p in placed["pieces"]), default=float("nan"))
         print(f"seed {seed}: scoop {scoop_row['g']:.2f} g, edge {worst_s:+.1f} mm; loader "
