@@ -538,7 +538,12 @@ def test_a_link_loss_during_the_shedding_primitive_follows_the_link_loss_policy(
 def test_a_link_blip_shorter_than_the_silence_bounds_leaves_the_bite_unharmed(
         paired: Path) -> None:
     # 0.2 s of wall time without the link 1 s into the transport: under the tree's stale_s
-    # (0.5 s), the PC's tool_timeout (0.5 s) and the tool's client_timeout (2 s).
+    # (0.5 s), the PC's tool_timeout (0.5 s) and the tool's client_timeout (2 s). Unharmed
+    # means what the same bite does without the link and the blip, to the gram (on seed 0
+    # that bite spills a piece it carries onto the table: what the physics does, not the
+    # blip).
+    ref_setup, _ = _loaded()
+    ref = _bite(ref_setup)
     setup, held = _loaded()
     w = setup.world
     link = Linked(setup, paired)
@@ -553,7 +558,9 @@ def test_a_link_blip_shorter_than_the_silence_bounds_leaves_the_bite_unharmed(
         r = _linked_bite(setup, link, fault)
         assert fault.fired_at is not None and not timer.is_alive()
         assert r.end_state == "completed" and r.completed and r.failed_stage == "", r
-        assert r.delivered_g > THRESHOLD_G and r.outcome == "meaningful_success"
+        assert (r.outcome, r.delivered_g, r.spilled_g) == (
+            ref.outcome, ref.delivered_g, ref.spilled_g)
+        assert r.delivered_g > THRESHOLD_G
         assert r.delivered_g + r.spilled_g <= held + 1e-6
         assert w.tool.mode == Mode.DISABLED and w.tool.fault == ""
         assert link.server.counters["link_losses"] == 0
