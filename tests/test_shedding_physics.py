@@ -87,27 +87,6 @@ def test_pieces_vary_in_size_and_the_world_weighs_each_one():
     assert abs(w.ledger.masses_g()["utensil"] - 5.0) <= g[placed].max() / 2 + 1e-9
 
 
-@pytest.mark.slow
-def test_a_heaped_load_spills_more_in_a_locked_carry_than_a_single_layer():
-    # The baseline's transport (wrist locked, strict ±20°) with Exp. 2b's 2.5 g — one layer in
-    # the dish — and with a heap above the rim, 8 g (the deposit's most, sim-calibrate).
-    from articutool.arm.scene import Scene
-    from articutool.experiments.units.exp2b import Exp2bCondition, exp2b_trial
-
-    cfg = ExperimentsConfig.load()
-    goals = [g.name for g in Scene.load().staging_set.goals]
-    spilled = {}
-    for load in (2.5, 8.0):
-        c = cfg.model_copy(update={"exp2b": cfg.exp2b.model_copy(
-            update={"load_g": {**cfg.exp2b.load_g, "pecans": load}})})
-        recs = [exp2b_trial(Exp2bCondition(food="pecans", system="baseline", goal=goals[s]),
-                            s, c) for s in (0, 1)]
-        assert all(r.completed for r in recs)
-        spilled[load] = sum(r.spilled_g for r in recs)
-    print(f"\nlocked carry, seeds 0-1, spilled in all: {spilled}")
-    assert spilled[8.0] > spilled[2.5]
-
-
 def test_closed_loop_primitives_are_strategy_data_checked_like_the_others():
     spec = load_spec()
     data = tomllib.loads(default_strategies_path().read_text())
