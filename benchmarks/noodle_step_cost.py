@@ -30,6 +30,7 @@ import contextlib
 import math
 import sys
 import time
+from unittest import mock
 
 import mujoco
 
@@ -82,11 +83,8 @@ def _capstan(change: dict[str, float]) -> dict[str, float]:
         spec.option.impratio = imp
         return spec
 
-    sl.solver_spec = with_impratio
-    try:
+    with mock.patch.object(sl, "solver_spec", with_impratio):
         r = sl.capstan_hold_ratio(food, p, bar, sl._fork_law(food, tack=False), load)
-    finally:
-        sl.solver_spec = shipped_spec
     return {"hold_ratio": r["hold_ratio"], "law_e_mu_pi": r["law_e_mu_pi"],
             "error": round(r["hold_ratio"] / r["law_e_mu_pi"] - 1, 3),
             "passes_20pct": abs(r["hold_ratio"] / r["law_e_mu_pi"] - 1) <= 0.2,

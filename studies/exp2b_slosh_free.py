@@ -49,6 +49,7 @@ def main(argv: list[str] | None = None) -> int:
            "source": source_version(), "command": " ".join(["studies/exp2b_slosh_free.py",
                                                             *(argv or sys.argv[1:])]),
            "trials": []}
+    a.out.parent.mkdir(parents=True, exist_ok=True)
     for r in range(a.trials):
         goal = goals[r % len(goals)]
         c0 = time.process_time()
@@ -62,7 +63,6 @@ def main(argv: list[str] | None = None) -> int:
                "before_source": old.get("source"), "cpu_s": round(time.process_time() - c0, 1)}
         print(json.dumps(row), flush=True)
         doc["trials"].append(row)
-        a.out.parent.mkdir(parents=True, exist_ok=True)
         replace_own(a.out, json.dumps(doc, indent=1) + "\n")
     return 0
 
