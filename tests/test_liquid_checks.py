@@ -117,7 +117,8 @@ def test_the_dam_break_front_is_reported_against_martin_and_moyce() -> None:
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason="measured 2.312 Hz against linear theory's 2.085 Hz "
                    "(+10.9 %, tolerance 10 %): the 4-particle slab and the zero-crossing "
-                   "reading add about 3 points each; the liquid itself rings +4.4 % "
+                   "reading add about 3 points each; the rest is within a particle's "
+                   "uncertainty of the geometry "
                    "(docs/notes/2026-11-29-tank-slosh-width.md)")
 def test_a_tank_sloshes_at_linear_theorys_frequency() -> None:
     r = tank_slosh_check()
