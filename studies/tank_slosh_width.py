@@ -12,12 +12,13 @@ settled depth and a reading error can be told apart. Deterministic: no seed.
     PYTHONPATH=src nice .venv/bin/python studies/tank_slosh_width.py --radius-mm 1.25 \\
         --widths 4 8 16 --out studies/results/tank_slosh_width.json
     PYTHONPATH=src nice .venv/bin/python studies/tank_slosh_width.py --radius-mm 1.0 \\
-        --widths 4 12 --out studies/results/tank_slosh_width.json
+        --widths 4 --out studies/results/tank_slosh_width.json
 """
 
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import math
 import os
@@ -27,9 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-G0 = 9.80665
-LENGTH_M, DEPTH_M = 0.1, 0.02  # the tank check's defaults
-PULSE_G, PULSE_S, SETTLE_S, RECORD_S, SAMPLE_S = 0.1, 0.04, 0.5, 3.0, 0.004
+RECORD_S = 3.0  # the ring-down read (the check reads 2.5 s)
 
 
 def fit_damped_cosine(t: np.ndarray, y: np.ndarray) -> dict[str, float]:
@@ -56,35 +55,29 @@ def fit_damped_cosine(t: np.ndarray, y: np.ndarray) -> dict[str, float]:
 
 
 def ring(radius: float, width_particles: int) -> dict[str, object]:
-    """The tank check's tank, pulse and reading with the slab ``width_particles`` wide."""
+    """The tank check's tank, pulse and settling (its defaults) with the slab
+    ``width_particles`` wide, read for ``RECORD_S``."""
     from articutool.food.slosh import rectangular_tank_mode
-    from articutool.sim.liquid_checks import oscillation
+    from articutool.sim.liquid_checks import G0, _ring_down, oscillation, tank_slosh_check
     from articutool.sim.sph_scene import Boundary, FluidBlock, SphLiquid, SphSettings, box_mesh
 
+    c = {k: v.default for k, v in inspect.signature(tank_slosh_check).parameters.items()}
+    length, depth = c["length"], c["depth"]
     t_cpu = time.process_time()
     r, w = radius, width_particles * radius
-    tank = box_mesh((-r, -w - r, -r), (LENGTH_M + r, w + r, 3.0 * DEPTH_M))
+    tank = box_mesh((-r, -w - r, -r), (length + r, w + r, 3.0 * depth))
     g = np.array([0.0, 0.0, -G0])
-    with SphLiquid([Boundary("tank", *tank)],
-                   [FluidBlock((0.0, -w, 0.0), (LENGTH_M, w, DEPTH_M))],
+    with SphLiquid([Boundary("tank", *tank)], [FluidBlock((0.0, -w, 0.0), (length, w, depth))],
                    SphSettings(particle_radius=r), g) as liq:
         n = liq.n_particles
-        liq.step_to(SETTLE_S)
-        rest = liq.positions().mean(axis=0)
-        liq.set_gravity(g + np.array([PULSE_G * G0, 0.0, 0.0]))
-        liq.step_to(SETTLE_S + PULSE_S)
-        liq.set_gravity(g)
-        t0, ts, xs = liq.time, [], []
-        while liq.time < t0 + RECORD_S:
-            liq.step_to(liq.time + SAMPLE_S)
-            ts.append(liq.time - t0)
-            xs.append(liq.positions()[:, 0].mean())
-    t, x = np.array(ts), np.array(xs) - rest[0]
+        rest, t, com = _ring_down(liq, g, np.array([c["pulse_g"] * G0, 0.0, 0.0]),
+                                  c["settle_s"], c["pulse_s"], RECORD_S, c["sample_s"])
+    x = com[:, 0] - rest[0]
     crossings = oscillation(t, x, 0.0)
     fit = fit_damped_cosine(t, x)
-    law = rectangular_tank_mode(LENGTH_M, 2 * w, DEPTH_M)[0] / (2 * math.pi)
-    depth = 2.0 * float(rest[2])
-    law_settled = rectangular_tank_mode(LENGTH_M, 2 * w, depth)[0] / (2 * math.pi)
+    law = rectangular_tank_mode(length, 2 * w, depth)[0] / (2 * math.pi)
+    settled = 2.0 * float(rest[2])
+    law_settled = rectangular_tank_mode(length, 2 * w, settled)[0] / (2 * math.pi)
     return {"radius_mm": r * 1e3, "width_particles": width_particles,
             "width_mm": round(2 * w * 1e3, 2), "particles": n,
             "crossings_hz": round(crossings["frequency_hz"], 4),
@@ -93,7 +86,7 @@ def ring(radius: float, width_particles: int) -> dict[str, object]:
             "law_hz": round(law, 4),
             "rel_error_crossings": round(crossings["frequency_hz"] / law - 1, 4),
             "rel_error_fit": round(fit["frequency_hz"] / law - 1, 4),
-            "settled_depth_mm": round(depth * 1e3, 3),
+            "settled_depth_mm": round(settled * 1e3, 3),
             "law_at_settled_depth_hz": round(law_settled, 4),
             "rel_error_fit_settled": round(fit["frequency_hz"] / law_settled - 1, 4),
             "cpu_s": round(time.process_time() - t_cpu, 1)}
@@ -105,15 +98,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--widths", type=int, nargs="+", default=[4, 8, 16])
     ap.add_argument("--out", type=Path, required=True)
     a = ap.parse_args(argv)
+    from articutool.datafile import replace_own
     from articutool.experiments.runner import source_version
 
     doc = json.loads(a.out.read_text()) if a.out.exists() else {"runs": []}
+    a.out.parent.mkdir(parents=True, exist_ok=True)
     for wp in a.widths:
         row = {**ring(a.radius_mm * 1e-3, wp), "source": source_version(),
                "load_average": round(os.getloadavg()[0], 1)}
         doc["runs"].append(row)
-        a.out.parent.mkdir(parents=True, exist_ok=True)
-        a.out.write_text(json.dumps(doc, indent=1) + "\n")
+        replace_own(a.out, json.dumps(doc, indent=1) + "\n")
         print(json.dumps(row), flush=True)
     return 0
 
