@@ -33,7 +33,7 @@ def model8(spec):
 @pytest.fixture(scope="module")
 def water_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     """A locked-wrist carry of 4 g of water, recorded through the sim CLI: it spills some
-    four hundred particles, each checked below, at half the cost of the 8 g load."""
+    four hundred particles, each checked below."""
     d = tmp_path_factory.mktemp("rec")
     path = d / "water.npz"
     r = run_cli("sim", "--food", "water", "--script", "carry", "--no-level", "--load", "4",
