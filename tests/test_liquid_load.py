@@ -143,6 +143,30 @@ def test_the_liquid_counts_in_the_static_tilt_as_hydrostatics_says(spec):
     assert res["min_dt_ms"] > 0.5
 
 
+def test_the_level_capacity_frees_the_solver_for_the_checks_after_it(spec):
+    """``sim-calibrate --food water`` measures what the level spoon holds with a placed load,
+    then opens its own liquids for the static tilt: SPlisHSPlasH holds one scene per process,
+    so the capacity's world frees it once measured (it stayed open, and the calibration
+    stopped with an internal error at the first static tilt)."""
+    from articutool.sim.calibrate import level_capacity_g
+    from articutool.sim.sph_scene import (
+        Boundary,
+        FluidBlock,
+        SphLiquid,
+        SphSettings,
+        box_mesh,
+        close_this_threads_liquid,
+    )
+
+    close_this_threads_liquid()  # a load an earlier test of this process left
+    held, loaded = level_capacity_g("water", spec, PhysicsParams.load(), None, load_g=2.0)
+    assert 0 < held <= loaded + 1e-9
+    with SphLiquid([Boundary("box", *box_mesh((-0.01, -0.01, 0.0), (0.01, 0.01, 0.02)))],
+                   [FluidBlock((-0.004, -0.004, 0.001), (0.004, 0.004, 0.005))],
+                   SphSettings(particle_radius=0.001)) as liquid:
+        assert liquid.n_particles == 32
+
+
 @pytest.mark.slow
 def test_a_locked_carry_spills_the_liquid_and_the_ledger_counts_it():
     """The locked soup spoon tilted 40° by the hand: the liquid leaves the dish, is handed to

@@ -1,7 +1,7 @@
-"""The particle water against the ideal liquid of the same dish (``articutool.food``): the
-collision dish is the ideal dish, a placed load settles at the liquid's level, and the
-static-tilt test (``articutool sim-calibrate --food water``) measures what spills at each tilt
-beside hydrostatics. The full table is slow (about 2 CPU-minutes with the level-capacity
+"""The particle water (MuJoCo spheres, ``--liquid spheres``) against the ideal liquid of the
+same dish (``articutool.food``): the collision dish is the ideal dish, a placed load settles at
+the liquid's level, and the static-tilt test (``articutool sim-calibrate --food water --liquid
+spheres``) measures what spills at each tilt beside hydrostatics. The full table is slow (about 2 CPU-minutes with the level-capacity
 run); one hold past the onset checks the mechanism in the default suite."""
 
 from __future__ import annotations
@@ -130,6 +130,8 @@ def test_a_water_load_the_spoon_cannot_hold_is_refused_before_any_motion(
 
 @pytest.fixture(scope="module")
 def calibration() -> dict:
+    """The spheres' calibration (``--liquid spheres``; the default water load is the SPH
+    liquid, whose checks are tests/test_liquid_load.py's and tests/test_liquid_checks.py's)."""
     from contextlib import redirect_stdout
     from io import StringIO
 
@@ -137,7 +139,8 @@ def calibration() -> dict:
 
     buf = StringIO()
     with redirect_stdout(buf):
-        assert main(["sim-calibrate", "--food", "water", "--load", "8", "--json"]) == 0
+        assert main(["sim-calibrate", "--food", "water", "--liquid", "spheres", "--load", "8",
+                     "--json"]) == 0
     return json.loads(buf.getvalue())
 
 

@@ -276,13 +276,18 @@ def level_capacity_g(food_name: str, spec: Spec, params: PhysicsParams, utensil:
     load_g = min(load_g, utensil_capacity_bound_g(spec, params, food_name, utensil))
     world = FeedingWorld.make(food_name, utensil, spec=spec, params=params, seed=seed,
                                load_g=load_g)
-    if world.placement.max_load_g() < load_g:
-        world = FeedingWorld.make(food_name, utensil, spec=spec, params=params, seed=seed,
-                                   load_g=world.placement.max_load_g() - 1e-6)
-    world.tool.set_mode(Mode.LEVELING)
-    world.run(1.0)
-    world.placement.place(settle_s=1.0)
-    return world.ledger.masses_g()["utensil"], world.report().total_g
+    try:
+        if world.placement.max_load_g() < load_g:
+            most = world.placement.max_load_g() - 1e-6
+            world.close()
+            world = FeedingWorld.make(food_name, utensil, spec=spec, params=params, seed=seed,
+                                       load_g=most)
+        world.tool.set_mode(Mode.LEVELING)
+        world.run(1.0)
+        world.placement.place(settle_s=1.0)
+        return world.ledger.masses_g()["utensil"], world.report().total_g
+    finally:
+        world.close()  # a liquid load frees the process's one solver for what comes next
 
 
 def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
