@@ -26,7 +26,8 @@ grains gave.
 Run (one process, niced): ``PYTHONPATH=src nice python studies/bowl_liquid_scoop.py record
 --out studies/results/bowl_liquid_scoop/paths.npz`` then ``... replay --paths
 studies/results/bowl_liquid_scoop/paths.npz --radius-mm 2.0 1.5 --out
-studies/results/bowl_liquid_scoop.json``.
+studies/results/bowl_liquid_scoop/replay.json`` (each replay stops 25 mm above the surface,
+``--stop-above-mm``; the JSON names the code that ran and the machine's load).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import resource
 import sys
 import time
@@ -280,7 +282,7 @@ def main(argv: list[str] | None = None) -> int:
     rep.add_argument("--paths", type=Path, required=True)
     rep.add_argument("--radius-mm", type=float, nargs="+", default=[2.0, 1.5])
     rep.add_argument("--settle-s", type=float, default=0.5)
-    rep.add_argument("--stop-above-mm", type=float, default=40.0)
+    rep.add_argument("--stop-above-mm", type=float, default=25.0)
     rep.add_argument("--systems", nargs="+", choices=SYSTEMS, default=list(SYSTEMS))
     rep.add_argument("--out", type=Path, required=True)
     a = ap.parse_args(argv)
@@ -289,16 +291,22 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{a.out} exists: not overwritten", file=sys.stderr)
             return 2
         a.out.parent.mkdir(parents=True, exist_ok=True)
-        runs = [record(s, SEED0 + a.k) for s in SYSTEMS]
+        from articutool.experiments.runner import source_version
+
+        runs = [{**record(s, SEED0 + a.k), "source": source_version()} for s in SYSTEMS]
         meta = [{k: v for k, v in x.items() if k != "path"} for x in runs]
         np.savez_compressed(a.out, meta=json.dumps(meta),
                             **{f"path_{x['system']}": x["path"] for x in runs})
         print(json.dumps(meta, indent=1))
         return 0
+    from articutool.experiments.runner import source_version
+
     paths = dict(np.load(a.paths))
-    out = {"radii": [replay(paths, mm / 1000.0, a.settle_s, a.stop_above_mm / 1000.0,
+    out = {"source": source_version(), "load_average_start": round(os.getloadavg()[0], 1),
+           "radii": [replay(paths, mm / 1000.0, a.settle_s, a.stop_above_mm / 1000.0,
                             tuple(a.systems))
                      for mm in a.radius_mm]}
+    out["load_average_end"] = round(os.getloadavg()[0], 1)
     a.out.write_text(json.dumps(out, indent=1) + "\n")
     return 0
 
