@@ -146,8 +146,7 @@ def test_the_liquid_counts_in_the_static_tilt_as_hydrostatics_says(spec):
 def test_the_level_capacity_frees_the_solver_for_the_checks_after_it(spec):
     """``sim-calibrate --food water`` measures what the level spoon holds with a placed load,
     then opens its own liquids for the static tilt: SPlisHSPlasH holds one scene per process,
-    so the capacity's world frees it once measured (it stayed open, and the calibration
-    stopped with an internal error at the first static tilt)."""
+    so the capacity's world frees it once measured, and a liquid opens after it."""
     from articutool.sim.calibrate import level_capacity_g
     from articutool.sim.sph_scene import (
         Boundary,

@@ -1,8 +1,9 @@
 """The particle water (MuJoCo spheres, ``--liquid spheres``) against the ideal liquid of the
 same dish (``articutool.food``): the collision dish is the ideal dish, a placed load settles at
 the liquid's level, and the static-tilt test (``articutool sim-calibrate --food water --liquid
-spheres``) measures what spills at each tilt beside hydrostatics. The full table is slow (about 2 CPU-minutes with the level-capacity
-run); one hold past the onset checks the mechanism in the default suite."""
+spheres``) measures what spills at each tilt beside hydrostatics. The full table is slow
+(about 2 CPU-minutes with the level-capacity run); one hold past the onset checks the
+mechanism in the default suite."""
 
 from __future__ import annotations
 
