@@ -36,7 +36,6 @@ import argparse
 import json
 import math
 import os
-import resource
 import sys
 import time
 from pathlib import Path
@@ -48,12 +47,6 @@ from numpy.typing import NDArray
 SYSTEMS = ("articutool", "baseline")
 SEED0 = 8_500_000
 STAGES = ("above", "acquire")
-
-
-def _cpu_s() -> float:
-    """User + system CPU seconds of this process (threads included)."""
-    r = resource.getrusage(resource.RUSAGE_SELF)
-    return r.ru_utime + r.ru_stime
 
 
 # ------------------------------------------------------------------------------ record --
@@ -75,7 +68,7 @@ def record(system: str, seed: int) -> dict[str, Any]:
                                     world.data.xmat[body], v[3:], v[:3]]))
 
     w.on_tick.append(tick)
-    cpu0 = _cpu_s()
+    cpu0 = time.process_time()
     try:
         r = run_bite(setup, stages=STAGES)
     finally:
@@ -84,7 +77,7 @@ def record(system: str, seed: int) -> dict[str, Any]:
     return {"system": system, "seed": seed, "strategy": setup.strategy_name,
             "completed": r.completed, "acquired_g": r.acquired_g,
             "grains_on_utensil_g": round(m.get("utensil", 0.0), 4),
-            "cpu_s": round(_cpu_s() - cpu0, 1), "path": np.array(rows)}
+            "cpu_s": round(time.process_time() - cpu0, 1), "path": np.array(rows)}
 
 
 # ------------------------------------------------------------------------------ replay --
@@ -197,14 +190,14 @@ def replay(paths: dict[str, Any], r: float, settle_s: float, stop_above: float,
             continue
         i0 = int(near[0])
         t0 = float(path[i0, 0])
-        cpu0 = _cpu_s()
+        cpu0 = time.process_time()
         p, R, v, w = _poses(path, t0)
         liq = SphLiquid([Boundary("bowl", bv, bf), Boundary("dish", dv, df, animated=True)],
                         [FluidParticles(fill)], st)
         try:
             liq.set_boundary_pose("dish", p, R)
-            build_cpu = _cpu_s() - cpu0
-            cpu0 = _cpu_s()
+            build_cpu = time.process_time() - cpu0
+            cpu0 = time.process_time()
             leaked = 0
 
             def drop_leavers(liq: SphLiquid = liq) -> int:
@@ -218,15 +211,15 @@ def replay(paths: dict[str, Any], r: float, settle_s: float, stop_above: float,
             for k in range(1, round(settle_s / 0.05) + 1):
                 liq.step_to(0.05 * k)
                 leaked += drop_leavers()
-            print(f"  settled in {_cpu_s() - cpu0:.0f} CPU s, {leaked} left the bowl, last step "
-                  f"{liq.last_dt * 1e3:.3f} ms", file=sys.stderr, flush=True)
+            print(f"  settled in {time.process_time() - cpu0:.0f} CPU s, {leaked} left the "
+                  f"bowl, last step {liq.last_dt * 1e3:.3f} ms", file=sys.stderr, flush=True)
             x = liq.positions()
-            settled = {"cpu_s": round(_cpu_s() - cpu0, 1),
+            settled = {"cpu_s": round(time.process_time() - cpu0, 1),
                        "surface_above_floor_mm": round(
                            (np.percentile(x[:, 2], 99) + r - floor_z) * 1e3, 2),
                        "max_speed_m_s": round(float(np.abs(liq.velocities()).max()), 4)}
             shift = liq.time - t0  # liquid time = path time + shift
-            cpu0, min_dt, steps, submerged = _cpu_s(), math.inf, 0, False
+            cpu0, min_dt, steps, submerged = time.process_time(), math.inf, 0, False
             series = []
             for i in range(i0 + 1, len(path)):
                 t_end = float(path[i, 0])
@@ -246,13 +239,13 @@ def replay(paths: dict[str, Any], r: float, settle_s: float, stop_above: float,
                 if i % 25 == 0:
                     print(f"  {system} r {r * 1e3:g} mm: t {t_end - t0:.2f} s, dish "
                           f"{series[-1][1]:+.1f} mm, {series[-1][2]:.2f} g in it, last step "
-                          f"{liq.last_dt * 1e3:.3f} ms, {_cpu_s() - cpu0:.0f} CPU s, "
+                          f"{liq.last_dt * 1e3:.3f} ms, {time.process_time() - cpu0:.0f} CPU s, "
                           f"{leaked} left the bowl", file=sys.stderr, flush=True)
                 submerged = submerged or low[i] < surface
                 if submerged and low[i] - surface > stop_above:
                     break
             sim_s = t_end - t0
-            scoop_cpu = _cpu_s() - cpu0
+            scoop_cpu = time.process_time() - cpu0
             out_of = [g for (_, above, g) in series[np.argmin([a for _, a, _ in series]):]
                       if above > 2e3 * r]
             out["systems"][system] = {
@@ -312,5 +305,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    t0 = time.time()
     sys.exit(main())
