@@ -60,3 +60,46 @@ def test_an_unreadable_cross_check_is_said_not_raised(tmp_path: Path) -> None:
     (tmp_path / "slosh_crosscheck.json").write_text("{not json")
     md = cross_checks(tmp_path)
     assert "could not be read" in md
+
+
+def test_the_sph_liquids_checks_are_tabled_beside_their_laws(tmp_path: Path) -> None:
+    """``sim-calibrate --food water --json`` on the SPH liquid writes its checks under
+    ``liquid``: every static tilt (load, direction, particle size), the weighing, the dam break
+    and the slosh modes reach the report, and the deviation row's onset is the 8 g load's over
+    the tip at the experiments' particle size."""
+    from articutool.experiments.report import _crosscheck_facts
+
+    def tilt(load: float, direction: str, r: float, onset: float, law: float) -> dict:
+        return {"load_g": load, "direction": direction, "particle_radius_mm": r,
+                "kept_g": load - 0.01, "grams_tolerance": 0.15,
+                "onset": {"measured_deg": onset, "law_deg": law, "tolerance_deg": 1.5,
+                          "passes": abs(onset - law) <= 1.5},
+                "holds": [{"tilt_deg": 15.0, "spilled_g": 2.53, "hydrostatic_g": 2.49},
+                          {"tilt_deg": 20.0, "spilled_g": 4.66, "hydrostatic_g": 4.64}],
+                "passes": abs(onset - law) <= 1.5}
+
+    liquid = {"backend": "SPlisHSPlasH (pysplishsplash)", "version": "2.19.0",
+              "particle_radius_mm": 1.0, "particle_radii_checked_mm": [1.0, 0.75],
+              "static_tilt": [tilt(8.0, "tip", 0.75, 11.9, 10.6), tilt(8.0, "tip", 1.0, 10.9, 10.6),
+                              tilt(10.0, "side", 1.0, 9.0, 11.0)],
+              "weighing": {"held_g": 8.0, "ft_sensor_g": 7.99, "scale_g": 8.01,
+                           "tolerance": 0.01, "passes": True},
+              "dynamic": [{"check": "dam_break", "max_rel_error_to_Z3": 0.162,
+                           "tolerance": 0.1, "pass": False},
+                          {"check": "slosh_modes", "tolerance": 0.1, "pass": True,
+                           "along": {"measured_hz": 3.1, "law_hz": 3.0,
+                                     "measured_damping_ratio": 0.05},
+                           "across": {"measured_hz": 4.2, "law_hz": 4.1,
+                                      "measured_damping_ratio": 0.04}}],
+              "passes": False}
+    (tmp_path / "static_tilt_water.json").write_text(json.dumps(
+        {"food": "water", "liquid": liquid}))
+    md = cross_checks(tmp_path)
+    assert "| 8 | tip | 1.00 | 7.99 | 10.9° / 10.6° | 2.53 / 2.49 · 4.66 / 4.64 | pass |" in md
+    assert "| 10 | side | 1.00 | 9.99 | 9.0° / 11.0° | 2.53 / 2.49 · 4.66 / 4.64 | **fail** |" in md
+    assert "| 8 | tip | 0.75 |" in md and "All pass: **False**" in md
+    assert "reads 7.99 g on the F/T sensor and 8.01 g on the scale" in md
+    assert "up to Z = 3, 16.2 % (within 10 %): **fail**" in md
+    assert "along 3.10 Hz against 3.00 Hz" in md and "across 4.20 Hz against 4.10 Hz" in md
+    facts = _crosscheck_facts(tmp_path)
+    assert facts["water_onset_deg"] == "10.9°" and facts["water_onset_hydro_deg"] == "10.6°"

@@ -233,9 +233,77 @@ def _run_line(s: Mapping[str, Any]) -> str:
     return "; ".join(parts)
 
 
+def _liquid_tip_onset(lq: Mapping[str, Any], load_g: float = 8.0) -> Mapping[str, Any]:
+    """The SPH liquid's onset over the tip for ``load_g`` at the experiments' particle size
+    (``sim-calibrate --food water --json``'s ``liquid``): ``measured_deg`` and ``law_deg``."""
+    for t in lq.get("static_tilt", []):
+        if (t.get("direction") == "tip" and t.get("load_g") == load_g
+                and t.get("particle_radius_mm") == lq.get("particle_radius_mm")):
+            return t.get("onset", {})
+    return {}
+
+
+def _sec_liquid(lq: Mapping[str, Any]) -> str:
+    """The SPH liquid's checks, each beside its law (``sim-calibrate --food water --json``'s
+    ``liquid``): the static tilt per load, direction and particle size against the dish's
+    hydrostatics, the weighing, the dam break and the slosh modes."""
+    def verdict(ok: Any) -> str:
+        return "pass" if ok else "**fail**"
+
+    tilts = lq.get("static_tilt", [])
+    holds = [f"{h['tilt_deg']:g}°" for h in (tilts[0].get("holds", []) if tilts else [])]
+    rows = []
+    for t in tilts:
+        on = t.get("onset", {})
+        rows.append([num(t.get("load_g"), 0), t.get("direction", "–"),
+                     num(t.get("particle_radius_mm")), num(t.get("kept_g")),
+                     f"{num(on.get('measured_deg'), 1)}° / {num(on.get('law_deg'), 1)}°",
+                     " · ".join(f"{num(h.get('spilled_g'))} / {num(h.get('hydrostatic_g'))}"
+                                for h in t.get("holds", [])),
+                     verdict(t.get("passes"))])
+    tol = tilts[0] if tilts else {}
+    out = (f"{lq.get('backend', 'SPH')} {lq.get('version', '')}; the experiments' particles "
+           f"{num(lq.get('particle_radius_mm'))} mm in radius, the checks at "
+           + " and ".join(f"{num(r)} mm" for r in lq.get("particle_radii_checked_mm", []))
+           + f". All pass: **{lq.get('passes', '?')}**.\n\n"
+           "**Static tilt**: each load poured into the soup spoon's dish, settled level, tilted "
+           "quasi-statically over the tip or sideways and held at "
+           + (", ".join(holds) or "each tilt")
+           + "; the onset (the tilt at which the first grams leave) and the grams spilled at "
+           "each hold, in the liquid / by the dish's hydrostatics for the volume kept (onset "
+           f"within {num((tol.get('onset') or {}).get('tolerance_deg'), 1)}°, grams within "
+           f"{100 * float(tol.get('grams_tolerance', 0.0)):.0f} %).\n\n"
+           + table(["load (g)", "direction", "particle radius (mm)", "kept (g)",
+                    "onset, liquid / law", "spilled at each hold, liquid / law (g)",
+                    "verdict"], rows) + "\n\n")
+    w = lq.get("weighing") or {}
+    if w:
+        out += (f"**Weighing**: a still {num(w.get('held_g'))} g load reads "
+                f"{num(w.get('ft_sensor_g'))} g on the F/T sensor and {num(w.get('scale_g'))} g "
+                f"on the scale (within {100 * float(w.get('tolerance', 0.0)):g} %): "
+                f"{verdict(w.get('passes'))}.\n\n")
+    for d in lq.get("dynamic", []):
+        if d.get("check") == "dam_break":
+            out += (f"**Dam break** (Martin & Moyce 1952, n² = 2): the surge front's largest "
+                    f"error up to Z = 3, {100 * float(d.get('max_rel_error_to_Z3', 0.0)):.1f} % "
+                    f"(within {100 * float(d.get('tolerance', 0.0)):g} %): "
+                    f"{verdict(d.get('pass'))}.\n\n")
+        elif d.get("check") == "slosh_modes":
+            modes = "; ".join(
+                f"{axis} {num(m.get('measured_hz'))} Hz against {num(m.get('law_hz'))} Hz "
+                f"(damping ratio {num(m.get('measured_damping_ratio'), 3)})"
+                for axis in ("along", "across") if (m := d.get(axis)))
+            out += (f"**First slosh modes** against the linear model (within "
+                    f"{100 * float(d.get('tolerance', 0.0)):g} %): {modes}: "
+                    f"{verdict(d.get('pass'))}.\n\n")
+    return out
+
+
 def _sec_static_tilt(d: Mapping[str, Any]) -> str:
     """The liquid's static-tilt test beside hydrostatics (``sim-calibrate --food water
-    --json``'s ``static_tilt``)."""
+    --json``: the SPH liquid's checks under ``liquid``, the spheres' ``static_tilt``)."""
+    if isinstance(d.get("liquid"), Mapping):
+        return _sec_liquid(d["liquid"])
     st = d.get("static_tilt", d)
     out = (f"Load {st.get('load_g', '?')} g on the {st.get('utensil', '?')}, the wrist "
            f"turned at {st.get('rate_rad_s', '?')} rad/s to each tilt and held "
@@ -508,7 +576,12 @@ def _crosscheck_facts(out: Path) -> dict[str, str]:
             d_sf = by.get("slosh_free", {}).get(f"{float(sf)}", {}).get("mean_duration_s")
             if d_lev and d_sf:
                 f["slosh_speedup_durations"] = f"{d_lev / d_sf:.2f}"
-    tip = (st.get("static_tilt", st) if isinstance(st, dict) else {}).get("tip") or {}
+    if isinstance(st, dict) and isinstance(st.get("liquid"), dict):
+        onset = _liquid_tip_onset(st["liquid"])  # the SPH liquid: 8 g, the experiments' size
+        tip = {"onset_deg": onset.get("measured_deg"),
+               "hydrostatic_onset_deg": onset.get("law_deg")}
+    else:
+        tip = (st.get("static_tilt", st) if isinstance(st, dict) else {}).get("tip") or {}
     if tip.get("onset_deg") is not None:
         f["water_onset_deg"] = f"{tip['onset_deg']:.1f}°"
     if tip.get("hydrostatic_onset_deg") is not None:
