@@ -312,9 +312,6 @@ def test_the_data_hash_reads_only_the_runs_foods(tmp_path) -> None:
     assert data_hash("exp1", cfg, {"pecans"}) != data_hash("exp1", cfg, {"water"})
 
 
-@pytest.mark.xfail(strict=True, reason="the committed runs predate this round's physics "
-                   "(SPH water, the pecans' no-slip passes): the re-run on the final code is "
-                   "pending; this passes again once it lands")
 def test_the_committed_runs_are_pinned_to_todays_data() -> None:
     """Every committed experiment's ``run.json`` pins the data it would read today, so its
     command resumes (and a change to a food's model that would change its trials is seen)."""
