@@ -247,8 +247,10 @@ def _sec_liquid(lq: Mapping[str, Any]) -> str:
     """The SPH liquid's checks, each beside its law (``sim-calibrate --food water --json``'s
     ``liquid``): the static tilt per load, direction and particle size against the dish's
     hydrostatics, the weighing, the dam break and the slosh modes."""
-    def verdict(ok: Any) -> str:
-        return "pass" if ok else "**fail**"
+    from articutool.sim.liquid_tilt import check_passes
+
+    def verdict(result: Mapping[str, Any]) -> str:
+        return "pass" if check_passes(result) else "**fail**"
 
     tilts = lq.get("static_tilt", [])
     holds = [f"{h['tilt_deg']:g}°" for h in (tilts[0].get("holds", []) if tilts else [])]
@@ -260,7 +262,7 @@ def _sec_liquid(lq: Mapping[str, Any]) -> str:
                      f"{num(on.get('measured_deg'), 1)}° / {num(on.get('law_deg'), 1)}°",
                      " · ".join(f"{num(h.get('spilled_g'))} / {num(h.get('hydrostatic_g'))}"
                                 for h in t.get("holds", [])),
-                     verdict(t.get("passes"))])
+                     verdict(t)])
     tol = tilts[0] if tilts else {}
     out = (f"{lq.get('backend', 'SPH')} {lq.get('version', '')}; the experiments' particles "
            f"{num(lq.get('particle_radius_mm'))} mm in radius, the checks at "
@@ -281,13 +283,13 @@ def _sec_liquid(lq: Mapping[str, Any]) -> str:
         out += (f"**Weighing**: a still {num(w.get('held_g'))} g load reads "
                 f"{num(w.get('ft_sensor_g'))} g on the F/T sensor and {num(w.get('scale_g'))} g "
                 f"on the scale (within {100 * float(w.get('tolerance', 0.0)):g} %): "
-                f"{verdict(w.get('passes'))}.\n\n")
+                f"{verdict(w)}.\n\n")
     for d in lq.get("dynamic", []):
         if d.get("check") == "dam_break":
             out += (f"**Dam break** (Martin & Moyce 1952, n² = 2): the surge front's largest "
                     f"error up to Z = 3, {100 * float(d.get('max_rel_error_to_Z3', 0.0)):.1f} % "
                     f"(within {100 * float(d.get('tolerance', 0.0)):g} %): "
-                    f"{verdict(d.get('pass'))}.\n\n")
+                    f"{verdict(d)}.\n\n")
         elif d.get("check") == "slosh_modes":
             modes = "; ".join(
                 f"{axis} {num(m.get('measured_hz'))} Hz against {num(m.get('law_hz'))} Hz "
@@ -295,7 +297,7 @@ def _sec_liquid(lq: Mapping[str, Any]) -> str:
                 for axis in ("along", "across") if (m := d.get(axis)))
             out += (f"**First slosh modes** against the linear model (within "
                     f"{100 * float(d.get('tolerance', 0.0)):g} %): {modes}: "
-                    f"{verdict(d.get('pass'))}.\n\n")
+                    f"{verdict(d)}.\n\n")
     return out
 
 
