@@ -41,24 +41,21 @@ def test_every_figure_of_the_deviations_table_is_computed_from_the_committed_run
     assert run is not None
     summaries["exp2a"] = {**summarize_exp2a(bench, run["timeout_s"]), "algorithm": "rrtconnect"}
     facts = report.deviation_facts(summaries, recs, out, CFG)
-    # The speed-up is the slosh cross-check's: without its file the row says "–".
-    crosscheck = out / "slosh_crosscheck.json"
-    speedup = {"slosh_speedup_settings", "slosh_speedup_durations"}
-    assert sorted(_figures() - set(facts)) == ([] if crosscheck.exists() else sorted(speedup))
+    assert sorted(_figures() - set(facts)) == []
     # The figures a review recomputes from the files themselves: the water held once placed
-    # (the records' held_g) and the speed-up both ways (the cross-check's summary).
+    # (the records' held_g) and the speed-up both ways (the slosh cross-check's summary; the
+    # row without that file is test_a_figure_not_measured_shows_a_dash_not_a_stale_number's).
     held = np.array([json.loads(line)["held_g"] for line in
                      (out / "exp2b" / "trials.jsonl").read_text().splitlines()
                      if json.loads(line)["food"] == "water"])
     assert facts["exp2b_water_held"] == f"{held.mean():.2f} ± {held.std(ddof=1):.2f} g"
-    if crosscheck.exists():
-        summ = json.loads(crosscheck.read_text())["summary"]
-        lev, sf = (summ["fastest_spill_free_scale"][k] for k in ("leveling", "slosh_free"))
-        by = summ["by_condition_and_scale"]
-        dur = by["leveling"][f"{float(lev)}"]["mean_duration_s"] / by["slosh_free"][
-            f"{float(sf)}"]["mean_duration_s"]
-        assert (facts["slosh_speedup_settings"], facts["slosh_speedup_durations"]) == (
-            f"{sf / lev:.2f}", f"{dur:.2f}")
+    summ = json.loads((out / "slosh_crosscheck.json").read_text())["summary"]
+    lev, sf = (summ["fastest_spill_free_scale"][k] for k in ("leveling", "slosh_free"))
+    by = summ["by_condition_and_scale"]
+    dur = by["leveling"][f"{float(lev)}"]["mean_duration_s"] / by["slosh_free"][
+        f"{float(sf)}"]["mean_duration_s"]
+    assert (facts["slosh_speedup_settings"], facts["slosh_speedup_durations"]) == (
+        f"{sf / lev:.2f}", f"{dur:.2f}")
     md = report.deviations_section(CFG, facts)
     assert "{" not in md and md.count("\n| ") == len(CFG.deviations) + 1
 
