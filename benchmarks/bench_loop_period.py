@@ -27,7 +27,7 @@ the 0.5 s poll of its telemetry) and counted as coinciding when the control was 
 steal burst came within 1 s of it. Writes JSON::
 
     .venv/bin/python benchmarks/bench_loop_period.py --out results/loop_period.json
-    .venv/bin/python benchmarks/bench_loop_period.py --short   # one 2x level for 10 s
+    .venv/bin/python benchmarks/bench_loop_period.py --short   # one 2x level for 4 s
 
 ``--without-cap-sys-nice`` runs the tool as a process without ``CAP_SYS_NICE`` would run
 (``setpriv --bounding-set -sys_nice``; Linux): what an unprivileged user gets on a Pi.
@@ -280,11 +280,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--without-cap-sys-nice", action="store_true",
                    help="run the tool without CAP_SYS_NICE (setpriv), as an unprivileged "
                         "user on a Pi: no real-time priority, no negative nice")
-    p.add_argument("--short", action="store_true", help="one 2x level for 10 s (for a test)")
+    p.add_argument("--short", action="store_true",
+                   help="one 2x level for 4 s after 1 s quiet (for a test)")
     p.add_argument("--out", default=None, help="write the JSON here too")
     a = p.parse_args(argv)
     if a.short:
-        a.levels, a.seconds = [2], 10.0
+        a.levels, a.seconds, a.settle = [2], 4.0, 1.0
     cpus = sorted(os.sched_getaffinity(0))
     folder = Path(tempfile.mkdtemp(prefix="articutool-loop-"))
     pair(folder, "wrist-1", ["pc-1"])

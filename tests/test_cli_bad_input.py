@@ -47,7 +47,7 @@ def test_a_100000_deep_document_is_refused_naming_the_file(command, deep, tmp_pa
     assert_refused(_cli(*args), path, "nested too deeply")
 
 
-def test_a_run_json_100000_deep_in_the_results_folder_isassert_refused(deep, tmp_path):
+def test_a_run_json_100000_deep_in_the_results_folder_is_refused(deep, tmp_path):
     (tmp_path / "run.json").write_text(deep["json"].read_text())
     assert_refused(_cli("bench", "transport", "--out", str(tmp_path), "--workers", "1", "--limit",
                   "1"), "run.json", "use another --out")
@@ -57,7 +57,7 @@ def test_a_run_json_100000_deep_in_the_results_folder_isassert_refused(deep, tmp
                   str(tmp_path)), "run.json", "use another --out")
 
 
-def test_a_recording_whose_meta_is_100000_deep_isassert_refused(deep, tmp_path):
+def test_a_recording_whose_meta_is_100000_deep_is_refused(deep, tmp_path):
     from articutool.sim.recording import _ARRAYS
 
     rec = tmp_path / "deep.npz"
@@ -81,7 +81,7 @@ def test_info_spec_reads_regular_files_only_and_does_not_hang(kind, tmp_path):
 
 # --------------------------------------------------------------- outputs --
 @pytest.mark.parametrize("where", ["under_a_file", "proc"])
-def test_an_out_folder_that_cannot_be_created_isassert_refused(where, tmp_path):
+def test_an_out_folder_that_cannot_be_created_is_refused(where, tmp_path):
     (tmp_path / "afile").write_text("x")
     out = tmp_path / "afile" / "o" if where == "under_a_file" else Path("/proc/articutool-o")
     assert_refused(_cli("bench", "transport", "--out", str(out), "--workers", "1", "--limit", "1"),
@@ -91,7 +91,7 @@ def test_an_out_folder_that_cannot_be_created_isassert_refused(where, tmp_path):
     assert (tmp_path / "afile").read_text() == "x" and not out.exists()
 
 
-def test_a_results_log_that_is_a_folder_isassert_refused(tmp_path):
+def test_a_results_log_that_is_a_folder_is_refused(tmp_path):
     (tmp_path / "results.jsonl").mkdir()
     assert_refused(_cli("bench", "transport", "--out", str(tmp_path), "--workers", "1", "--limit",
                   "1"), "--out", "results.jsonl")
@@ -245,14 +245,14 @@ def test_view_nonsense_is_refused_before_serving(args, words, tmp_path):
     assert "viewer: http" not in r.stdout
 
 
-def test_report_thresholds_for_an_unknown_food_areassert_refused(tmp_path):
+def test_report_thresholds_for_an_unknown_food_are_refused(tmp_path):
     r = _cli("experiment", "report", "--out", str(tmp_path), "--thresholds-g", "pizza=3")
     assert_refused(r, "--thresholds-g", "pecans", "water")
     assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize("ns", ["/*", "/**", "/articutool/*", "/a/$*", "//a", "/a/", "a"])
-def test_a_wildcard_or_malformed_namespace_isassert_refused(ns, tmp_path):
+def test_a_wildcard_or_malformed_namespace_is_refused(ns, tmp_path):
     with pytest.raises(ConfigError, match="namespace must be"):
         LinkConfig(namespace=ns)
     cfg = tmp_path / "link.json"
@@ -346,7 +346,7 @@ def test_an_experiments_own_file_as_a_link_is_refused_and_the_target_kept(name, 
     assert mine.read_text() == "my notes, no newline at the end"
 
 
-def test_an_experiments_own_folder_as_a_link_isassert_refused(tmp_path):
+def test_an_experiments_own_folder_as_a_link_is_refused(tmp_path):
     (tmp_path / "elsewhere").mkdir()
     (tmp_path / "out").mkdir()
     (tmp_path / "out" / "capacity").symlink_to(tmp_path / "elsewhere")
@@ -442,7 +442,7 @@ def test_workers_must_be_a_count_in_range(command, workers, tmp_path):
 
 @pytest.mark.parametrize("loads", ["pecans=1e308,water=15", "pecans=7,water=inf",
                                    "pecans=nan,water=15", "pecans=101,water=15"])
-def test_an_exp2c_load_beyond_any_utensil_isassert_refused(loads, tmp_path):
+def test_an_exp2c_load_beyond_any_utensil_is_refused(loads, tmp_path):
     assert_refused(_cli("experiment", "exp2c", "--trials", "1", "--workers", "1", "--out",
                   str(tmp_path), "--load-g", loads, timeout=60), "--load-g", "[0, 100]")
     assert list(tmp_path.iterdir()) == []

@@ -205,7 +205,7 @@ def _cmd_sim(args: argparse.Namespace) -> int:
 def _check_twirl(args: argparse.Namespace, kw: dict) -> None:
     """``--twirl-turns``: a fork's acquisition only, within the wrist's cable budget."""
     from articutool.cli_support import UsageError
-    from articutool.sim.scenes import max_twirl_turns
+    from articutool.sim.twirl import max_twirl_turns
 
     hi = max_twirl_turns(kw["spec"])
     n = args.twirl_turns

@@ -27,8 +27,8 @@ from numpy.typing import NDArray
 from articutool.arm.model import ArmModel
 from articutool.arm.scene import SCOOP_HEADING, Cylinder
 from articutool.planning.tip_paths import PathError, cartesian_path, first_ik, lift_trajectory
+from articutool.sim.twirl import max_twirl_turns
 from articutool.sim.world import FeedingWorld, WorldReport
-from articutool.spec import Spec
 from articutool.tool.api import Mode
 
 __all__ = [
@@ -121,12 +121,6 @@ def base_tilt_motion(world: FeedingWorld, tilt_deg: float = 40.0) -> NDArray[np.
             if math.degrees(math.acos(np.clip(up @ up0, -1.0, 1.0))) >= tilt_deg:
                 return qk[:6]
     raise ScriptError(f"turning the hand cannot tilt the utensil by {tilt_deg}°")
-
-
-def max_twirl_turns(spec: Spec) -> float:
-    """Turns a twirl may make from a roll near zero: the cable budget
-    (``spec.wrist.roll_turn_budget``) less 0.1 turn for the roll a leveling leaves."""
-    return spec.wrist.roll_turn_budget - 0.1
 
 
 def skewer(world: FeedingWorld, level: bool = True, twirl_turns: float | None = None,
