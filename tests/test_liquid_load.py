@@ -191,11 +191,15 @@ def test_a_locked_carry_spills_the_liquid_and_the_ledger_counts_it():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="measured: 10 g sideways starts 0.05 deg past the "
-                   "1.5 deg tolerance at r 1 mm, and at r 0.75 mm the hold just past the "
-                   "onset spills +20 % (tip) and +40 % (side) of hydrostatics (docs/food.md)")
-def test_the_static_tilt_sweep_follows_hydrostatics(spec):
-    """The full sweep of sim-calibrate: 6-12 g, both directions, both radii."""
+@pytest.mark.parametrize("r", [
+    0.001,
+    pytest.param(0.00075, marks=pytest.mark.xfail(
+        strict=True, reason="measured: at r 0.75 mm the hold just past the onset spills +16 "
+        "to +51 % of hydrostatics in five of eight rows, whatever the turning rate or the "
+        "counting margin (docs/food.md, docs/notes/2026-11-30-liquid-tilt-rate.md)")),
+])
+def test_the_static_tilt_sweep_follows_hydrostatics(spec, r):
+    """The full sweep of sim-calibrate at one particle radius: 6-12 g, both directions."""
     from articutool.sim.liquid_tilt import (
         ONSET_G,
         TILT_LOADS_G,
@@ -203,12 +207,12 @@ def test_the_static_tilt_sweep_follows_hydrostatics(spec):
         static_tilt_sph,
     )
 
+    assert r in TILT_RADII_M
     fp = PhysicsParams.load().food("water")
-    for r in TILT_RADII_M:
-        for g in TILT_LOADS_G:
-            for d in ("tip", "side"):
-                res = static_tilt_sph(fp, spec, "soup_spoon", g, d, r)
-                assert res["passes"], res
-                # the onset is where ONSET_G had left: at or below the first hold past it
-                past = [h["tilt_deg"] for h in res["holds"] if h["spilled_g"] >= ONSET_G]
-                assert res["onset"]["measured_deg"] <= min(past) + 1e-9, res
+    for g in TILT_LOADS_G:
+        for d in ("tip", "side"):
+            res = static_tilt_sph(fp, spec, "soup_spoon", g, d, r)
+            assert res["passes"], res
+            # the onset is where ONSET_G had left: at or below the first hold past it
+            past = [h["tilt_deg"] for h in res["holds"] if h["spilled_g"] >= ONSET_G]
+            assert res["onset"]["measured_deg"] <= min(past) + 1e-9, res
