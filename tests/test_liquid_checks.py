@@ -38,7 +38,8 @@ def test_a_damped_sine_gives_back_its_frequency_and_damping(f, zeta, phase) -> N
 @settings(max_examples=25, deadline=None)
 @given(st.floats(1.0, 5.0), st.floats(0.0, 0.08), st.floats(0.0, 2 * math.pi),
        st.floats(-2e-4, 2e-4))
-def test_a_fit_reads_a_drifting_ring_down_the_crossings_misread(f, zeta, phase, drift) -> None:
+def test_a_fit_gives_back_a_drifting_ring_downs_frequency_and_damping(f, zeta, phase,
+                                                                      drift) -> None:
     """A ring-down whose rest drifts (a liquid still settling): the fit gives back the
     frequency and damping whatever the drift."""
     t = np.arange(0.0, 3.0, 0.004)

@@ -5,7 +5,7 @@
   :func:`articutool.food.dish_mesh.dish_boundary_mesh`) settles level for ``SETTLE_S``; then
   gravity is turned in the dish's frame at ``TILT_RATE`` over the tip or sideways (slow
   beside the liquid's running over the lip, as the law's equilibrium asks: turned at
-  0.15 rad/s the onsets read 0.9–1.55° past the law's, at 0.05 rad/s 0.6–0.7°), held
+  0.15 rad/s the onsets read 0.9–1.55° past the law's, at 0.05 rad/s 0.5–1.1°), held
   ``HOLD_S`` at each of ``HOLD_DEG``, long
   enough for the liquid over the lip to drain to rest (the law is an equilibrium: after a 1 s
   hold 8 g over the tip had lost 0.61 g at 12° where it loses 0.86 g by 4 s, hydrostatics
