@@ -103,13 +103,13 @@ def static_tilt_sph(food: Liquid, spec: Spec, utensil: str, load_g: float, direc
         run_to(t)
         kept_g = liq.n_particles * mass_g
         volume = kept_g / (food.density * 1000.0)
-        tilt, step = 0.0, math.degrees(TILT_RATE) * 0.02
+        tilt, step = 0.0, math.degrees(TILT_RATE) * CHECK_S  # one turning step a check
         onset = None
         holds = []
         for target in holds_deg:
             while tilt < target - 1e-9:
                 tilt = min(target, tilt + step)
-                t += 0.02
+                t += CHECK_S
                 tilt_to(t, tilt)
                 if onset is None and spilled * mass_g >= ONSET_G:
                     onset = tilt
