@@ -81,54 +81,6 @@ def record(system: str, seed: int) -> dict[str, Any]:
 
 
 # ------------------------------------------------------------------------------ replay --
-def bowl_cup_mesh(radius: float, length: float, wall: float, segments: int = 96
-                  ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """The open container of the scene (a cylinder of ``radius`` and ``length`` with a floor
-    and a wall ``wall`` thick, centred on the origin) as a closed solid: its profile (outer
-    floor, outer wall, rim, inner wall, inner floor) turned about z; normals out of the
-    solid."""
-    h = length / 2.0
-    ri = radius - wall
-    prof = [(radius, -h), (radius, h), (ri, h), (ri, -h + wall)]  # rings, outside → inside
-    phi = 2.0 * math.pi * np.arange(segments) / segments
-    verts = [np.array([[0.0, 0.0, -h]])]
-    for rr, z in prof:
-        verts.append(np.column_stack([rr * np.cos(phi), rr * np.sin(phi), np.full(segments, z)]))
-    verts.append(np.array([[0.0, 0.0, -h + wall]]))
-    v = np.concatenate(verts)
-    n = segments
-    bottom, top = 0, len(v) - 1
-    f: list[tuple[int, int, int]] = []
-    f += [(bottom, 1 + (k + 1) % n, 1 + k) for k in range(n)]  # outer floor, facing −z
-    for i in range(len(prof) - 1):
-        lo, hi = 1 + i * n, 1 + (i + 1) * n
-        for k in range(n):
-            k1 = (k + 1) % n
-            f += [(lo + k, lo + k1, hi + k1), (lo + k, hi + k1, hi + k)]
-    last = 1 + (len(prof) - 1) * n
-    f += [(top, last + k, last + (k + 1) % n) for k in range(n)]  # inner floor, facing +z
-    return v, np.asarray(f, dtype=np.int64)
-
-
-def _fill(ri: float, floor_z: float, grams: float, r: float, density: float
-          ) -> NDArray[np.float64]:
-    """Particle centres on a cubic lattice of pitch 2r inside the inner wall (a particle's
-    cube inside the cylinder) from the floor up, as many as ``grams`` holds."""
-    d = 2.0 * r
-    n = round(grams / 1000.0 / (density * d ** 3))
-    k = int(ri / d) + 1
-    g = (np.arange(-k, k + 1) * d)
-    xx, yy = np.meshgrid(g, g, indexing="ij")
-    ring = np.hypot(np.abs(xx) + r, np.abs(yy) + r) <= ri - 0.5 * r
-    layer = np.column_stack([xx[ring], yy[ring]])
-    pts = []
-    z = floor_z + r + 0.5 * r
-    while sum(len(p) for p in pts) < n:
-        pts.append(np.column_stack([layer, np.full(len(layer), z)]))
-        z += d
-    return np.concatenate(pts)[:n]
-
-
 def _poses(path: NDArray[np.float64], t: float) -> tuple[NDArray[np.float64], ...]:
     """The recorded pose and velocities at ``t``, interpolated between ticks (linear in
     position and velocity, spherical in rotation)."""
@@ -150,6 +102,7 @@ def replay(paths: dict[str, Any], r: float, settle_s: float, stop_above: float,
     until its dish, having been in the liquid, is ``stop_above`` (m) above the ideal surface
     (or the path ends)."""
     from articutool.arm.scene import Cylinder, Scene
+    from articutool.food.container_liquid import container_boundary_mesh, container_fill
     from articutool.food.dish import spoon_dish
     from articutool.food.dish_mesh import dish_boundary_mesh
     from articutool.sim.liquid_frame import outside_dish
@@ -165,15 +118,15 @@ def replay(paths: dict[str, Any], r: float, settle_s: float, stop_above: float,
     assert isinstance(bowl, Cylinder) and bowl.container_wall is not None
     if not np.allclose(bowl.rotation, np.eye(3)):
         raise SystemExit("the study assumes an upright bowl")
-    bv, bf = bowl_cup_mesh(bowl.radius, bowl.length, bowl.container_wall)
+    bv, bf = container_boundary_mesh(bowl.radius, bowl.length, bowl.container_wall)
     bv = bv + np.asarray(bowl.xyz)
     water = PhysicsParams.load().food("water")
     st = SphSettings(particle_radius=r, density0=water.density, viscosity=water.viscosity,
                      boundary_viscosity=water.viscosity)
     floor_z = float(bowl.inner_floor()[2])
     ri = bowl.radius - bowl.container_wall
-    fill = _fill(ri, floor_z, water.fill_g, r, water.density) + np.array(
-        [bowl.xyz[0], bowl.xyz[1], 0.0])
+    count = round(water.fill_g / 1000.0 / (water.density * (2.0 * r) ** 3))
+    fill = container_fill(ri, floor_z, count, r) + np.array([bowl.xyz[0], bowl.xyz[1], 0.0])
     surface = floor_z + water.fill_g / 1e6 / (math.pi * ri ** 2)
     out: dict[str, Any] = {"particle_radius_mm": r * 1e3, "particles": len(fill),
                            "fill_g": round(len(fill) * st.particle_mass * 1e3, 3),

@@ -13,6 +13,7 @@ import pytest
 
 mujoco = pytest.importorskip("mujoco")
 
+from articutool.sim.params import PhysicsParams  # noqa: E402
 from articutool.sim.world import FeedingWorld, SettleCache  # noqa: E402
 from articutool.tool.api import Mode  # noqa: E402
 
@@ -34,12 +35,20 @@ def _scene(w: FeedingWorld) -> tuple:
     return _state(w), r.masses_g, len(r.spills)
 
 
+def _grains_params() -> PhysicsParams:
+    """The packaged physics with water's bowl as MuJoCo's 4 mm grains (the bowl's SPH liquid
+    is not MuJoCo's and settles apart: sim/bowl_liquid.py)."""
+    params = PhysicsParams.load()
+    grains = params.food("water").model_copy(update={"load_model": "spheres"})
+    return params.model_copy(update={"foods": {**params.foods, "water": grains}})
+
+
 @pytest.mark.parametrize("food,seed", [("pecans", 11), ("water", 12)])
 def test_a_restored_settle_is_bit_identical_to_a_fresh_one(food: str, seed: int) -> None:
-    cache = SettleCache()
-    fresh = FeedingWorld.make(food, seed=seed, settle_cache=cache)
-    restored = FeedingWorld.make(food, seed=seed, settle_cache=cache)
-    alone = FeedingWorld.make(food, seed=seed)  # no cache: settles afresh
+    cache, p = SettleCache(), _grains_params()
+    fresh = FeedingWorld.make(food, seed=seed, settle_cache=cache, params=p)
+    restored = FeedingWorld.make(food, seed=seed, settle_cache=cache, params=p)
+    alone = FeedingWorld.make(food, seed=seed, params=p)  # no cache: settles afresh
     # The second world did not settle: it stepped only what follows the settle.
     assert restored._sim_stepped < fresh._sim_stepped - 0.9 * fresh.params.world.settle_s
     assert alone._sim_stepped == pytest.approx(fresh._sim_stepped)
@@ -48,12 +57,14 @@ def test_a_restored_settle_is_bit_identical_to_a_fresh_one(food: str, seed: int)
 
 
 def test_another_seed_or_start_is_settled_afresh() -> None:
-    """The cache's key holds the seed and the start (on the bowl of water's grains, which
-    settle in about half the pecans' CPU time; the key is the same for every food)."""
+    """The cache's key holds the seed and the start (on the bowl of water as MuJoCo's grains,
+    which settle in about half the pecans' CPU time; the key is the same for every food)."""
+    params = _grains_params()
     cache = SettleCache()
-    a = FeedingWorld.make("water", seed=11, settle_cache=cache)
-    b = FeedingWorld.make("water", seed=13, settle_cache=cache)
-    c = FeedingWorld.make("water", seed=11, q_wrist=(0.1, 0.0), settle_cache=cache)
+    a = FeedingWorld.make("water", seed=11, settle_cache=cache, params=params)
+    b = FeedingWorld.make("water", seed=13, settle_cache=cache, params=params)
+    c = FeedingWorld.make("water", seed=11, q_wrist=(0.1, 0.0), settle_cache=cache,
+                          params=params)
     settle = a.params.world.settle_s
     assert b._sim_stepped >= a._sim_stepped - 1e-9 and c._sim_stepped >= a._sim_stepped - 1e-9
     assert a._sim_stepped > settle

@@ -608,7 +608,10 @@ def _physics_facts() -> dict[str, str]:
         bowl = (f"frictionless particles, {w.particle_radius * 1e3:g} mm in radius "
                 f"({w.particle_mass(w.particle_radius) * 1e3:.2f} g each) in the bowl")
         if w.sph_load:
-            load = (f"SPlisHSPlasH's liquid (DFSPH), particles {w.sph_particle_radius * 1e3:g} mm "
+            bowl = (f"SPlisHSPlasH's liquid (DFSPH) in the bowl, particles "
+                    f"{w.sph_bowl_particle_radius * 1e3:g} mm in radius, what a dip leaves "
+                    f"in the dish handed over at {w.sph_particle_radius * 1e3:g} mm")
+            load = (f"the same liquid, particles {w.sph_particle_radius * 1e3:g} mm "
                     "in radius, in a load placed on a spoon")
         else:
             spread = getattr(w, "load_radius_spread", 0.0)

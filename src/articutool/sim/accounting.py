@@ -186,6 +186,13 @@ class SpillTracker:
         self._where = np.full((2, n_items), -1, dtype=np.int64)  # first spill surface seen
         self.worst = np.zeros(n_items, dtype=np.int64)  # worst spill class counted
 
+    def forget(self, items: NDArray[np.int64]) -> None:
+        """Clear these items' history (an item reused as a new one)."""
+        self._time[:, items] = 0.0
+        self._since[:, items] = np.nan
+        self._where[:, items] = -1
+        self.worst[items] = 0
+
     def update(self, t: float, dt: float, codes: NDArray[np.int64], where: NDArray[np.int64],
                active: NDArray[np.bool_]) -> list[tuple[int, int, int, float]]:
         """Advance by one accounting step of ``dt`` s ending at ``t`` with the items'

@@ -333,8 +333,13 @@ def run_calibration(food_name: str, utensil: str | None, *, spec: Spec,
         assert isinstance(box, Cylinder) and box.container_wall is not None
         inner = box.radius - box.container_wall
         floor = float(box.inner_floor()[2])
-        z = np.array([world.data.xpos[b][2] for b in world.ledger.item_body])
-        top = float(np.quantile(z, 0.95)) + food.particle_radius
+        if world.bowl is not None:  # the SPH fill, settled
+            z, r = world.bowl.settled_positions()[:, 2], world.bowl.r
+        else:
+            z = np.array([world.data.xpos[b][2] for b in world.ledger.item_body])
+            r = food.particle_radius
+        top = float(np.quantile(z, 0.95)) + r
+        world.close()
         vol_ml = math.pi * inner**2 * (top - floor) * 1e6
         out["bulk_density_g_per_ml"] = round(world.ledger.masses_g()["container"] / vol_ml, 3)
         if food.sph_load:  # the SPH liquid, each mechanism beside its law

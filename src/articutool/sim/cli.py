@@ -41,7 +41,7 @@ def _world_args(args: argparse.Namespace) -> dict[str, Any]:
 def _liquid_options(args: argparse.Namespace, params: PhysicsParams) -> PhysicsParams:
     """``--liquid`` and ``--liquid-radius`` applied to a liquid food's parameters (exit 2
     outside the validated radii or for a food that is no liquid); the liquid solver loaded
-    when a liquid load will use it (exit 2 with the loader's message when it cannot be)."""
+    when the liquid is SPH (exit 2 with the loader's message when it cannot be)."""
     from articutool.cli_support import UsageError
     from articutool.sim.params import SPH_RADIUS_RANGE_M, Liquid
     from articutool.sim.sph_library import LiquidLibraryError, load_splishsplash
@@ -67,8 +67,7 @@ def _liquid_options(args: argparse.Namespace, params: PhysicsParams) -> PhysicsP
         assert isinstance(fp, Liquid)
         fp = fp.model_copy(update=update)
         params = params.model_copy(update={"foods": {**params.foods, args.food: fp}})
-    placed = getattr(args, "load", None) is not None or args.func is _cmd_calibrate
-    if isinstance(fp, Liquid) and fp.sph_load and placed:
+    if isinstance(fp, Liquid) and fp.sph_load:  # a load, and the container's fill
         try:
             load_splishsplash()
         except LiquidLibraryError as err:
@@ -313,9 +312,9 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="physics parameters TOML (default: the packaged physics.toml)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--liquid", choices=("sph", "spheres"), default=None,
-                   help="a liquid load placed on the utensil: sph (SPlisHSPlasH in the loop, "
-                        "the default of physics.toml) or spheres (MuJoCo spheres, for "
-                        "comparison)")
+                   help="what a liquid is, in its container and placed on the utensil: sph "
+                        "(SPlisHSPlasH in the loop, the default of physics.toml) or spheres "
+                        "(MuJoCo spheres, for comparison)")
     p.add_argument("--liquid-radius", type=float, metavar="MM", default=None,
                    help="the SPH particle radius (mm), within the validated 0.75-1.0 mm "
                         "(default: physics.toml's)")

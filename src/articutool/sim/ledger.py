@@ -95,9 +95,14 @@ class FoodLedger:
         self.item_g = np.array([m.body_mass[b] * 1000.0 for b in item_body[:n_bodies]]
                                + [lay.piece_mass * 1000.0] * len(lay.food_strands))
         self.active = np.full(self.n_items, not lay.parked, dtype=bool)
-        if lay.parked:  # parked pieces never sleep, so placing them needs no wake-up
+        if lay.parked:
+            # Parked pieces never sleep, so placing them needs no wake-up; the parked items of
+            # a container's liquid wait for most of a run, so they may (releasing one wakes
+            # it: MuJoCo wakes a tree whose state is written).
+            policy = (mujoco.mjtSleepPolicy.mjSLEEP_AUTO_ALLOWED if lay.container_liquid
+                      else mujoco.mjtSleepPolicy.mjSLEEP_NEVER)
             for b in item_body:
-                m.tree_sleep_policy[m.body_treeid[b]] = int(mujoco.mjtSleepPolicy.mjSLEEP_NEVER)
+                m.tree_sleep_policy[m.body_treeid[b]] = int(policy)
         self.codes = np.full(self.n_items, acc.AIRBORNE, dtype=np.int64)
         self.where = np.full(self.n_items, -1, dtype=np.int64)
         self._spill = acc.SpillTracker(self.n_items, spill_dwell_s)
@@ -112,6 +117,10 @@ class FoodLedger:
         # (``in_liquid``): on the utensil, until the liquid hands them to MuJoCo.
         self.in_liquid = np.zeros(self.n_items, dtype=bool)
         self.liquid: LiquidInDish | None = None
+        # Grams of the container's liquid simulated beside MuJoCo (:mod:`articutool.sim.
+        # bowl_liquid`): in the container, not items until they leave it.
+        self.container_liquid_g = 0.0
+        self.recycled_eaten_g = 0.0
 
     def contacts(self) -> tuple[NDArray, NDArray, NDArray]:
         """The food's contacts now: (item-item pairs, items on the utensil, [item, surface])."""
@@ -320,4 +329,24 @@ class FoodLedger:
         """Mass (g) per class: utensil, container, table, critical, airborne, eaten."""
         g = np.bincount(self.codes[self.active], weights=self.item_g[self.active],
                         minlength=len(acc.CLASS_NAMES))
-        return {name: float(g[i]) for i, name in enumerate(acc.CLASS_NAMES)}
+        out = {name: float(g[i]) for i, name in enumerate(acc.CLASS_NAMES)}
+        out["container"] += self.container_liquid_g
+        out["eaten"] += self.recycled_eaten_g
+        return out
+
+    def total_g(self) -> float:
+        """Grams of food in the world: its items, the container's liquid and what was eaten
+        by items since recycled."""
+        return (float(self.item_g[self.active].sum()) + self.container_liquid_g
+                + self.recycled_eaten_g)
+
+    def recycle_eaten(self, n: int) -> NDArray[np.int64]:
+        """Up to ``n`` eaten items made parked again for reuse (a container's liquid hands
+        out more particles over a meal than the world parked): their grams stay counted as
+        eaten (``recycled_eaten_g``), their spill history is cleared."""
+        k = np.flatnonzero(self.active & (self.codes == acc.EATEN))[:n]
+        self.recycled_eaten_g += float(self.item_g[k].sum())
+        self.active[k] = False
+        self.codes[k], self.where[k] = acc.AIRBORNE, -1
+        self._spill.forget(k)
+        return k

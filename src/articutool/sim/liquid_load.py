@@ -80,10 +80,16 @@ class LiquidLoad:
         ledger: the world's food ledger (its items are the liquid's particles, parked).
         utensil: the utensil's spec (its dish and thickness).
         food: the liquid's parameters.
+        particles: where the liquid starts, (positions, velocities) in the utensil body's
+            frame (m, m/s), e.g. what a dip into the container's liquid left in the dish;
+            ``None``: the ledger's items poured into the dish at rest.
+        items: the ledger's items the particles are, in order (default: every item).
     """
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, ledger: FoodLedger,
-                 utensil: UtensilSpec, food: Liquid) -> None:
+                 utensil: UtensilSpec, food: Liquid,
+                 particles: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+                 items: NDArray[np.int64] | None = None) -> None:
         me = threading.get_ident()  # a load this thread left open is closed; another
         for stale in [q for q in _OPEN if q._owner == me]:  # thread's is waited for (SphLiquid)
             stale.close()
@@ -95,20 +101,28 @@ class LiquidLoad:
         self.thickness = utensil.physics.thickness
         self.settings = sph_settings(food)
         r = self.settings.particle_radius
-        n_items = ledger.n_items
+        items = np.arange(ledger.n_items) if items is None else np.asarray(items, dtype=np.int64)
         verts, faces = dish_boundary_mesh(self.dish, self.x0, self.thickness)
         R = data.xmat[self.body].reshape(3, 3)
         g = np.asarray(model.opt.gravity, dtype=float)
-        try:
-            pour = dish_pour(self.dish, self.x0, r, n_items)
-        except ValueError as err:
-            raise ValueError(f"load_g: {err}; place less") from None
+        if particles is None:
+            try:
+                pour = dish_pour(self.dish, self.x0, r, len(items))
+            except ValueError as err:
+                raise ValueError(f"load_g: {err}; place less") from None
+        else:
+            pour = np.asarray(particles[0], dtype=float)
+            if pour.shape != (len(items), 3):
+                raise ValueError(f"particles: {len(items)} positions wanted, got {pour.shape}")
         self.liquid = SphLiquid([Boundary("dish", verts, faces)], [FluidParticles(pour)],
                                 self.settings, gravity=R.T @ g)
         self._closed = False
         _OPEN.append(self)
-        ids = np.sort(self.liquid.particle_ids())
-        self._item_of_id = {int(i): k for k, i in enumerate(ids)}
+        now = self.liquid.particle_ids()
+        ids = np.sort(now)  # in the order of the positions given
+        self._item_of_id = {int(i): int(k) for k, i in zip(items, ids, strict=True)}
+        if particles is not None:  # the library may reorder its particles: by id
+            self.liquid.set_velocities(np.asarray(particles[1])[np.searchsorted(ids, now)])
         self.mass = float(self.liquid.particle_mass)
         self._force_body = np.zeros(3)
         self._force_world = np.zeros(3)
@@ -116,8 +130,8 @@ class LiquidLoad:
         self._t0 = float(data.time) - self.liquid.time  # world time = liquid time + t0
         self._v_prev, self._w_prev = self._body_velocity()
         self.handed_off = 0
-        ledger.active[:] = True
-        ledger.in_liquid[:] = True
+        ledger.active[items] = True
+        ledger.in_liquid[items] = True
         ledger.liquid = self
 
     # ------------------------------------------------------------------------ state --
@@ -172,6 +186,22 @@ class LiquidLoad:
         gone = set(int(k) for k in items)
         self.liquid.remove_particles(np.array([int(k) in gone for k in self._items()],
                                               dtype=bool))
+
+    def release_all(self) -> None:
+        """Hand every particle still in the dish to MuJoCo (at its world position and
+        velocity), as if it had left the dish."""
+        if self._closed or self.liquid.n_particles == 0:
+            return
+        R, p = self.data.xmat[self.body].reshape(3, 3), self.data.xpos[self.body]
+        v_o, w = self._body_velocity()
+        x, v = self.liquid.positions(), self.liquid.velocities()
+        items = self._items()
+        xw = x @ R.T + p
+        vw = v_o + np.cross(w, xw - p) + v @ R.T
+        self.liquid.remove_particles(np.ones(len(x), dtype=bool))
+        for k, xk, vk in zip(items, xw, vw, strict=True):
+            self.ledger.release(int(k), xk, vk)
+        self.handed_off += len(items)
 
     # --------------------------------------------------------------------- stepping --
     def advance(self) -> None:

@@ -27,6 +27,7 @@ from articutool.food.definitions import FoodDefinition, default_physics_path, fo
 __all__ = [
     "CONTACT_PARTNERS",
     "FOOD_KINDS",
+    "SPH_BOWL_RADIUS_RANGE_M",
     "SPH_RADIUS_RANGE_M",
     "ContactParams",
     "Food",
@@ -43,6 +44,9 @@ FOOD_KINDS = ("granular", "liquid", "strands")
 # The SPH particle radii (m) the liquid's checks validated (``sim-calibrate --food water``:
 # static tilt at both ends against hydrostatics); a radius outside is refused.
 SPH_RADIUS_RANGE_M = (0.00075, 0.001)
+# The container's SPH liquid: the particle radii whose Exp. 1 scoops kept grams within 6 % of
+# each other (studies/bowl_liquid_scoop.py); it hands what the dish holds to the load's size.
+SPH_BOWL_RADIUS_RANGE_M = (0.0015, 0.002)
 # What a food item can touch, each with its own contact law (``FoodContacts``): another item
 # of the food, the utensil, its container (bowl, plate), any other surface (table, floor, the
 # user, the wheelchair, the arm's links).
@@ -195,6 +199,14 @@ class Liquid(_FoodBase):
     sph_particle_radius: Positive = 0.001
     # Kinematic viscosity (m²/s) of the SPH liquid.
     viscosity: NonNegative = 1.0e-6
+    # The container's SPH liquid (a fill, with ``load_model = "sph"``): its particle radius
+    # (m), and the dish's heights above the liquid's surface (m) at which the liquid starts
+    # being stepped (``sph_bowl_wake_m``) and, after a dip, is handed to the load
+    # (``sph_bowl_handover_m``); the fill settles ``sph_bowl_settle_s`` first.
+    sph_bowl_particle_radius: Positive = 0.002
+    sph_bowl_wake_m: Positive = 0.03
+    sph_bowl_handover_m: Positive = 0.015
+    sph_bowl_settle_s: Positive = 0.5
 
     @model_validator(mode="after")
     def _sph_radius(self) -> Liquid:
@@ -203,6 +215,13 @@ class Liquid(_FoodBase):
             raise ValueError(f"sph_particle_radius must be in [{lo * 1e3:g}, {hi * 1e3:g}] mm "
                              f"(the sizes the static-tilt checks validated); got "
                              f"{self.sph_particle_radius * 1e3:g} mm")
+        lo, hi = SPH_BOWL_RADIUS_RANGE_M
+        if not lo - 1e-12 <= self.sph_bowl_particle_radius <= hi + 1e-12:
+            raise ValueError(f"sph_bowl_particle_radius must be in [{lo * 1e3:g}, "
+                             f"{hi * 1e3:g}] mm (the sizes whose scoops were compared); got "
+                             f"{self.sph_bowl_particle_radius * 1e3:g} mm")
+        if not self.sph_bowl_handover_m < self.sph_bowl_wake_m:
+            raise ValueError("sph_bowl_handover_m must be below sph_bowl_wake_m")
         return self
 
     @property

@@ -106,7 +106,7 @@ class LoadPlacement:
         liquid poured in), so a load the spoon can hold stays. An SPH liquid
         (:class:`~articutool.sim.liquid_load.LiquidLoad`) is poured so, at rest in the dish.
         """
-        if not self.layout.parked or self.ledger.active.any():
+        if self.load_g is None or self.ledger.active.any():
             raise RuntimeError("placing a load needs a world built with load_g, not yet placed")
         body = self.model.body("utensil").id
         n = self.ledger.n_items

@@ -165,7 +165,7 @@ class Recorder:
                                  w.model.geom_rgba[w.model.geom(w.layout.food_bodies[0]).id])
         return {
             "format": FORMAT, "version": VERSION, "food": w.food, "utensil": w.utensil,
-            "seed": w.seed, "load": bool(w.layout.parked), "rate_hz": self.rate_hz,
+            "seed": w.seed, "load": w.load_g is not None, "rate_hz": self.rate_hz,
             "spec_version": w.spec.version,
             "joint_names": [*w.layout.arm_joints, *w.layout.wrist_joints],
             "modes": {int(m): m.name for m in Mode},

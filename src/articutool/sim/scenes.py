@@ -203,7 +203,7 @@ def load(world: FeedingWorld, level: bool = True) -> None:
 def acquire(world: FeedingWorld, level: bool = True, twirl_turns: float | None = None) -> None:
     """The utensil's acquisition: a placed load if the world holds one (``load_g``), else a
     twirling skewer with a fork (``twirl_turns``, see :func:`skewer`), a scoop with a spoon."""
-    if world.layout.parked:
+    if world.load_g is not None:
         load(world, level)
     elif world.spec.utensil(world.utensil).physics.kind == "fork":
         skewer(world, level, twirl_turns)

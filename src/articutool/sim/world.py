@@ -44,7 +44,9 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from articutool.arm.scene import Cylinder
 from articutool.sim import accounting as acc
+from articutool.sim.bowl_liquid import BowlLiquid
 from articutool.sim.build import (
     SettleCache,
     SettledState,
@@ -52,7 +54,7 @@ from articutool.sim.build import (
     WorldParts,
     build_parts,
 )
-from articutool.sim.params import Strands
+from articutool.sim.params import Liquid, Strands
 from articutool.sim.placement import LoadPlacement
 from articutool.sim.weighing import Weighing
 from articutool.trajectory import JointTrajectory, smooth_joint_motion
@@ -157,6 +159,14 @@ class FeedingWorld:
             self.model, self.data, self.layout, self.ledger, self.spec, self.utensil,
             self.params.food(self.food) if self.food is not None else None, self.load_g,
             self.seed, self.run)
+        # The container's SPH liquid (:mod:`articutool.sim.bowl_liquid`), stepped each tick.
+        self.bowl: BowlLiquid | None = None
+        if self.layout.container_liquid:
+            fp = self.params.food(str(self.food))
+            box = self.scene.get(self.layout.container)
+            assert isinstance(fp, Liquid) and isinstance(box, Cylinder)
+            self.bowl = BowlLiquid(self.model, self.data, self.ledger, box,
+                                   self.spec.utensil(self.utensil), fp, self.placement)
 
     @classmethod
     def build(cls, config: WorldConfig, *, settle: bool = True,
@@ -359,6 +369,8 @@ class FeedingWorld:
         if ticked:
             self.tool.tick(self.time)
             self.motors.check_stops()
+            if self.bowl is not None:  # the container's liquid, stepped to this time
+                self.bowl.advance()
             if self.placement.liquid is not None:  # the liquid load, stepped to this time
                 self.placement.liquid.advance()
             self.ledger.classify(self.time)
@@ -449,7 +461,9 @@ class FeedingWorld:
         return self.food is not None and isinstance(self.params.food(self.food), Strands)
 
     def close(self) -> None:
-        """Free what the world holds beside MuJoCo (a liquid load's solver); idempotent."""
+        """Free what the world holds beside MuJoCo (the liquids' solvers); idempotent."""
+        if self.bowl is not None:
+            self.bowl.close()
         if self.placement.liquid is not None:
             self.placement.liquid.close()
 
@@ -460,7 +474,7 @@ class FeedingWorld:
         return WorldReport(
             t=round(self.time, 4), food=self.food, utensil=self.utensil,
             masses_g=self.ledger.masses_g(),
-            total_g=float(self.ledger.item_g[self.ledger.active].sum()),
+            total_g=self.ledger.total_g(),
             spills=list(self.ledger.spills),
             ft_mass_g=(self.weighing.ft_mass_g() if measure_ft and self.weighing.comparable()
                        else None),

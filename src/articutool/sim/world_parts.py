@@ -52,6 +52,9 @@ class WorldLayout:
     utensil_geoms: list[str] = field(default_factory=list)
     container: str = ""
     parked: bool = False  # the food is a load waiting to be placed on the utensil
+    # The container's fill is an SPH liquid beside MuJoCo (sim/bowl_liquid.py); the parked
+    # items are the particles it hands to MuJoCo (what leaves it, what a dip takes).
+    container_liquid: bool = False
     piece_size: float = 0.0  # lattice cell of one piece (m)
     food_contype: int = 0
     food_conaffinity: int = 0

@@ -47,7 +47,8 @@ from articutool.rotations import rpy_matrix
 from articutool.sim.food_granular import build_granular
 from articutool.sim.food_liquid import build_liquid
 from articutool.sim.food_strands import build_strands, set_fork_strand
-from articutool.sim.params import ContactParams, PhysicsParams
+from articutool.sim.loading import max_load_g
+from articutool.sim.params import ContactParams, Liquid, PhysicsParams
 from articutool.sim.world_parts import (
     ALL,
     FOOD,
@@ -284,6 +285,12 @@ ARENA_MIN_BYTES = 256 << 20
 ARENA_PER_STRAND_BYTES = 64 << 20
 
 
+# Parked items of a world whose container holds an SPH liquid, per gram the utensil holds
+# level: what a dip leaves in the dish (at most that) and what leaves the container (a
+# numerical choice: headroom for splashes).
+BOWL_POOL_FACTOR = 1.5
+
+
 def arena_bytes(strands: int) -> int:
     """The arena MuJoCo reserves for a world with ``strands`` strands (see above)."""
     return max(ARENA_MIN_BYTES, ARENA_PER_STRAND_BYTES * strands)
@@ -346,6 +353,11 @@ def build_world_spec(spec: Spec, scene: Scene, params: PhysicsParams, utensil: s
     # scene's and before the food's.
     base = wb.add_body(name=arm.base_frame)
     if food_p is not None:
+        if load_g is None and isinstance(food_p, Liquid) and food_p.sph_load:
+            # The container's SPH liquid; parked items for the particles it hands over.
+            layout.container_liquid = True
+            load_g = BOWL_POOL_FACTOR * max_load_g(spec.utensil(utensil), "liquid",
+                                                   food_p.density)
         _food_bodies(food_p, scene, rng, layout, wb, load_g)
     world.memory = arena_bytes(len(layout.food_strands))
     add_robot(base, spec, utensil,

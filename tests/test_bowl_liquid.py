@@ -1,0 +1,134 @@
+"""The container's SPH liquid: its boundary and fill (pure geometry), the hand-over's
+refinement, and a world whose bowl holds it (sim/bowl_liquid.py)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from articutool.food.container_liquid import container_boundary_mesh, container_fill
+from articutool.food.dish_mesh import mesh_volume
+
+
+@settings(max_examples=25, deadline=None)
+@given(radius=st.floats(0.03, 0.2), length=st.floats(0.03, 0.2), wall_f=st.floats(0.02, 0.2),
+       segments=st.integers(8, 128))
+def test_the_containers_mesh_is_the_solid_of_its_floor_and_wall(
+        radius: float, length: float, wall_f: float, segments: int) -> None:
+    wall = wall_f * min(radius, length / 2)
+    v, f = container_boundary_mesh(radius, length, wall, segments)
+    # A closed mesh: every edge is shared by exactly two faces, once in each direction.
+    edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    assert len({tuple(e) for e in edges}) == len(edges)
+    assert {tuple(e) for e in edges} == {(b, a) for a, b in edges}
+    # Its volume is the wall's and the floor's, on the polygon of ``segments`` sides.
+    poly = segments / 2 * math.sin(2 * math.pi / segments)  # polygon area / r²
+    ri = radius - wall
+    solid = poly * (radius ** 2 * length - ri ** 2 * (length - wall))
+    assert mesh_volume(v, f) == pytest.approx(solid, rel=1e-9)  # positive: normals outward
+
+
+@settings(max_examples=25, deadline=None)
+@given(ri=st.floats(0.02, 0.1), r=st.floats(0.001, 0.003), count=st.integers(1, 3000))
+def test_a_containers_fill_is_a_lattice_of_cubes_inside_its_wall(ri: float, r: float,
+                                                                 count: int) -> None:
+    x = container_fill(ri, -0.01, count, r)
+    assert x.shape == (count, 3)
+    # Each particle's cube is inside the inner wall, half a radius to spare.
+    assert np.all(np.hypot(np.abs(x[:, 0]) + r, np.abs(x[:, 1]) + r) <= ri - 0.5 * r + 1e-12)
+    assert x[:, 2].min() == pytest.approx(-0.01 + 1.5 * r)
+    # On a lattice of pitch 2r: no two centres closer than 2r, none twice.
+    q = np.round((x - [0.0, 0.0, -0.01 + 1.5 * r]) / (2 * r), 6)
+    assert len({tuple(p) for p in q}) == count
+    assert np.allclose(q, np.round(q))
+
+
+@settings(max_examples=25, deadline=None)
+@given(n=st.integers(1, 50), r=st.floats(1e-4, 5e-3), seed=st.integers(0, 2**31))
+def test_refining_keeps_each_particles_cube_and_motion(n: int, r: float, seed: int) -> None:
+    from articutool.sim.bowl_liquid import refine
+
+    rng = np.random.default_rng(seed)
+    x, v = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    xs, vs = refine(x, v, r)
+    assert xs.shape == vs.shape == (8 * n, 3)
+    kids = xs.reshape(n, 8, 3)
+    assert np.allclose(kids.mean(axis=1), x)  # the same centre of mass (equal masses)
+    assert np.allclose(np.abs(kids - x[:, None]), r)  # the centres of its cube's 8 octants
+    assert np.array_equal(vs.reshape(n, 8, 3), np.repeat(v[:, None], 8, axis=1))
+
+
+def test_a_water_bowl_holds_its_fill_and_costs_nothing_while_the_dish_is_away() -> None:
+    from articutool.sim.world import FeedingWorld
+
+    w = FeedingWorld.make("water", seed=3)
+    try:
+        assert w.bowl is not None and not w.bowl.simulated
+        fill = w.params.food("water").fill_g
+        m = w.ledger.masses_g()
+        assert m["container"] == pytest.approx(fill, abs=w.bowl.mass * 1e3)
+        assert sum(m.values()) == pytest.approx(w.report().total_g)
+        assert not w.ledger.active.any()  # no item is in the world before a dip
+        w.run(1.0)  # the utensil far above the bowl: the liquid is not stepped
+        assert w.bowl.dips == 0 and not w.bowl.simulated
+    finally:
+        w.close()
+
+
+@pytest.mark.slow
+def test_a_dip_into_the_water_bowl_hands_what_the_dish_holds_to_the_load() -> None:
+    """The Articutool's Exp. 1 water acquisition through the feeding tree (3 CPU-min)."""
+    from articutool.meal.bites import make_bite_world, run_bite
+
+    setup = make_bite_world("water", "articutool", seed=777002)  # not an experiment seed
+    w = setup.world
+    try:
+        assert w.bowl is not None
+        fill = w.ledger.total_g()
+        r = run_bite(setup, stages=("above", "acquire"))
+        assert r.completed, r.failed_stage
+        assert w.bowl.dips == 1 and not w.bowl.simulated
+        (handed,) = w.bowl.handed_over_g
+        m = w.ledger.masses_g()
+        assert 1.0 < m["utensil"] <= handed
+        # Nothing made or lost: the bowl, the load and what MuJoCo holds add to the fill.
+        assert sum(m.values()) == pytest.approx(fill, abs=1e-6)
+        assert w.placement.liquid is not None
+        # The tool's F/T sensor weighs the load the liquid puts on the level spoon.
+        assert w.weighing.comparable()
+        assert w.weighing.ft_mass_g() == pytest.approx(m["utensil"], rel=0.05)
+    finally:
+        setup.arm.close()
+        w.close()
+
+
+def test_recycled_eaten_items_stay_counted_as_eaten() -> None:
+    """A meal's later dips reuse eaten items; what was eaten stays eaten and the world's total
+    does not change."""
+    from articutool.sim import accounting as acc
+    from articutool.sim.params import PhysicsParams
+    from articutool.sim.world import FeedingWorld
+
+    p = PhysicsParams.load()
+    spheres = p.food("water").model_copy(update={"load_model": "spheres"})
+    p = p.model_copy(update={"foods": {**p.foods, "water": spheres}})
+    w = FeedingWorld.make("water", load_g=2.0, params=p, settle=False)
+    try:
+        w.placement.place(settle_s=0.1)
+        w.ledger.classify(w.time)
+        eaten = w.ledger.eat_from_utensil()
+        assert eaten > 0
+        before, total = w.ledger.masses_g(), w.ledger.total_g()
+        k = w.ledger.recycle_eaten(5)
+        assert len(k) == 5 and not w.ledger.active[k].any()
+        assert w.ledger.masses_g() == pytest.approx(before)
+        assert w.ledger.total_g() == pytest.approx(total)
+        w.ledger.release(int(k[0]), np.array([0.45, -0.45, 0.2]), np.zeros(3))
+        assert w.ledger.active[k[0]] and w.ledger.codes[k[0]] == acc.AIRBORNE
+        assert w.ledger.total_g() == pytest.approx(total + w.ledger.item_g[k[0]])
+    finally:
+        w.close()
