@@ -13,10 +13,11 @@ boundary. Every control period (:meth:`BowlLiquid.advance`, called by the world 
    clock follows the world's). The first time the dish comes near, the fill is poured on a
    lattice and settled ``sph_bowl_settle_s`` with the dish held where it is (one settled
    fill per process serves every world: the fill is the same for every seed);
-2. while the dish is near, MuJoCo gives the utensil body's pose and velocity; the dish is
-   posed so and the liquid stepped to MuJoCo's time. The liquid's force on the dish does not
-   act back on the arm (open loop: the arm is stiff and its path is the tree's); the F/T
-   sensor reads the load from the hand-over on;
+2. while the dish is near, MuJoCo gives the utensil body's pose; the liquid is stepped to
+   MuJoCo's time with the dish moving from its last pose to this one (posed at least every
+   5 ms along the way: position linear, rotation spherical, with that motion's velocities).
+   The liquid's force on the dish does not act back on the arm (open loop: the arm is stiff
+   and its path is the tree's); the F/T sensor reads the load from the hand-over on;
 3. a particle that leaves the bowl (past its wall or below its floor) is taken out and handed
    to MuJoCo as the 2 × 2 × 2 load spheres of its cube (the world's parked items), so the
    ledger classifies it from its contacts;
@@ -41,6 +42,7 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
 from articutool.arm.scene import Cylinder
 from articutool.food.container_liquid import container_boundary_mesh, container_fill
@@ -66,7 +68,7 @@ __all__ = ["BowlLiquid", "refine"]
 
 # The settled fill per process, by its settings (the fill does not depend on the seed).
 _SETTLED: dict[tuple[float, ...], tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
-_SUB_DT = 0.005  # s: the dish's pose is updated at least this often while the liquid steps
+_SUB_DT = 0.005  # s: the dish is posed at least this often while the liquid steps
 
 
 def refine(x: NDArray[np.float64], v: NDArray[np.float64], r: float
@@ -121,6 +123,7 @@ class BowlLiquid:
         self._state: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._count = count
         self._liquid: SphLiquid | None = None
+        self._last = (np.zeros(3), np.eye(3))  # the dish's pose the liquid was last stepped to
         self._t0 = 0.0  # world time = liquid time + t0, while the liquid is simulated
         self._dipped = False
         self._armed = True
@@ -194,10 +197,20 @@ class BowlLiquid:
             self._wake(p, R)
         liq = self._liquid
         assert liq is not None
-        t_end = float(self.data.time) - self._t0
-        liq.set_boundary_pose("dish", p, R, v, w)
-        while liq.time < t_end - 1e-9:
-            liq.step_to(min(liq.time + _SUB_DT, t_end))
+        t0, t_end = liq.time, float(self.data.time) - self._t0
+        p0, R0 = self._last
+        if t_end > t0 + 1e-9:
+            # The dish moves from its last pose to this one over the period: posed along the
+            # way (position linear, rotation spherical) with that motion's velocities.
+            turn = Rotation.from_matrix(R @ R0.T)
+            lin, ang = (p - p0) / (t_end - t0), turn.as_rotvec() / (t_end - t0)
+            while liq.time < t_end - 1e-9:
+                t = min(liq.time + _SUB_DT, t_end)
+                u = (t - t0) / (t_end - t0)
+                Ru = (Rotation.from_rotvec(u * turn.as_rotvec()).as_matrix() @ R0)
+                liq.set_boundary_pose("dish", p0 + u * (p - p0), Ru, lin, ang)
+                liq.step_to(t)
+        self._last = (p, R)
         self._drop_leavers()
         self._dipped = self._dipped or above < 0.0
         if self._dipped and above >= self.food.sph_bowl_handover_m:
@@ -221,6 +234,7 @@ class BowlLiquid:
         now, ids = liq.particle_ids(), np.sort(liq.particle_ids())
         liq.set_velocities(v[np.searchsorted(ids, now)])
         liq.set_boundary_pose("dish", p, R)
+        self._last = (p, R)
         self._t0 = float(self.data.time) - liq.time
         self._dipped = False
         self.dips += 1
