@@ -90,3 +90,26 @@ def test_rendering_works_whichever_articutool_module_imports_mujoco_first(tmp_pa
                          text=True, timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip() == "(24, 32, 3)"
+
+
+def test_a_frame_draws_the_liquid_mujoco_does_not_hold() -> None:
+    """The bowl's SPH water is not MuJoCo's: a frame draws it as its particles, in the bowl."""
+    from articutool.sim.render import liquid_points, render_frame
+
+    w = FeedingWorld.make("water", seed=0, settle=False)
+    try:
+        ((x, radius),) = liquid_points(w)
+        assert w.bowl is not None and radius == w.bowl.r
+        assert len(x) * w.bowl.mass * 1e3 == pytest.approx(w.bowl.grams)
+        box = w.bowl.box
+        assert np.all(np.hypot(*(x[:, :2] - box.xyz[:2]).T) < box.radius - box.container_wall)
+        r = model_renderer(w.model, 160, 120)
+        r.update_scene(w.data, camera="bowl")
+        bare = r.scene.ngeom
+        frame = render_frame(w, "bowl", renderer=r)
+        assert r.scene.ngeom == bare + len(x)
+        r.update_scene(w.data, camera="bowl")
+        assert not np.array_equal(frame, r.render())  # the water is in view
+        r.close()
+    finally:
+        w.close()

@@ -151,6 +151,26 @@ class BowlLiquid:
             self._liquid.close()
             self._liquid = None
 
+    def positions_world(self) -> NDArray[np.float64]:
+        """Where the bowl's particles are now (world frame, m): simulated, kept from the last
+        dip, or, before the first, the fill settled in this process or else as poured."""
+        if self._liquid is not None:
+            return self._liquid.positions()
+        if self._state is not None:
+            return self._state[0].copy()
+        settled = _SETTLED.get(self._key())
+        if settled is not None:
+            return settled[0].copy()
+        fill = container_fill(self.inner_radius, self.floor_z, self._count, self.r)
+        fill[:, :2] += self.centre[:2]
+        return fill
+
+    def _key(self) -> tuple[float, ...]:
+        """The settled fill's key (its settings and the bowl's)."""
+        s, b, f = self.bowl_settings, self.box, self.food
+        return (s.particle_radius, s.density0, s.viscosity, float(self._count),
+                *self.centre, b.radius, b.length, b.container_wall or 0.0, f.sph_bowl_settle_s)
+
     def settled_positions(self) -> NDArray[np.float64]:
         """The fill's particle centres once settled (world frame, m; settles it if no world
         of this process has)."""
@@ -242,9 +262,7 @@ class BowlLiquid:
     def _settled(self, bounds: list[Boundary], p: NDArray[np.float64], R: NDArray[np.float64]
                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The fill poured on a lattice and settled (cached per process)."""
-        s, b, f = self.bowl_settings, self.box, self.food
-        key = (s.particle_radius, s.density0, s.viscosity, float(self._count),
-               *self.centre, b.radius, b.length, b.container_wall or 0.0, f.sph_bowl_settle_s)
+        s, f, key = self.bowl_settings, self.food, self._key()
         if key not in _SETTLED:
             fill = container_fill(self.inner_radius, self.floor_z, self._count, self.r)
             fill[:, :2] += self.centre[:2]

@@ -18,8 +18,8 @@ from numpy.typing import NDArray
 
 from articutool.sim.world import FeedingWorld
 
-__all__ = ["CAMERAS", "Recorder", "RenderError", "model_renderer", "render_frame", "save_png",
-           "scene_camera", "write_video"]
+__all__ = ["CAMERAS", "Recorder", "RenderError", "liquid_points", "model_renderer", "render_frame",
+           "save_png", "scene_camera", "write_video"]
 
 CAMERAS = ("utensil", "utensil_close", "overview", "bowl", "follow")
 # "follow": a free camera aimed at the utensil at a fixed distance and direction in the
@@ -30,6 +30,9 @@ FOLLOW_VIEW = {"distance": 0.25, "azimuth": 155.0, "elevation": -30.0}
 _HINT = ("offscreen rendering needs EGL: install the system packages libegl1 and "
          "libgl1-mesa-dri (Debian/Ubuntu; `make` does it), or set MUJOCO_GL to a working "
          "backend")
+
+
+_LIQUID_RGBA = np.array([0.3, 0.5, 0.95, 0.8], dtype=np.float32)  # as the water spheres
 
 
 class RenderError(RuntimeError):
@@ -74,12 +77,38 @@ def scene_camera(model: mujoco.MjModel, data: mujoco.MjData,
     return cam
 
 
+def liquid_points(world: FeedingWorld) -> list[tuple[NDArray[np.float64], float]]:
+    """The liquid MuJoCo does not hold, as (world positions (n, 3), particle radius) groups:
+    the container's SPH liquid (:mod:`~articutool.sim.bowl_liquid`) and a load's particles in
+    the dish (:mod:`~articutool.sim.liquid_load`; those that left it are MuJoCo's spheres)."""
+    out = []
+    if world.bowl is not None and world.bowl.grams > 0:
+        out.append((world.bowl.positions_world(), world.bowl.r))
+    load = world.placement.liquid
+    if load is not None and not load.closed and load.liquid.n_particles:
+        out.append((load.positions_world()[1], load.settings.particle_radius))
+    return out
+
+
+def _draw_liquid(scene: mujoco.MjvScene, world: FeedingWorld) -> None:
+    """Add the world's :func:`liquid_points` to ``scene`` as spheres (as many as it holds)."""
+    eye = np.eye(3).ravel()
+    for x, r in liquid_points(world):
+        size = np.array([r, 0.0, 0.0])
+        for xk in x[:max(0, scene.maxgeom - scene.ngeom)]:
+            mujoco.mjv_initGeom(scene.geoms[scene.ngeom], int(mujoco.mjtGeom.mjGEOM_SPHERE),
+                                size, xk, eye, _LIQUID_RGBA)
+            scene.ngeom += 1
+
+
 def render_frame(world: FeedingWorld, camera: str = "utensil", width: int = 640,
                  height: int = 480, renderer: mujoco.Renderer | None = None) -> NDArray[np.uint8]:
-    """One RGB frame (height, width, 3) of the world from a named camera (:data:`CAMERAS`)."""
+    """One RGB frame (height, width, 3) of the world from a named camera (:data:`CAMERAS`),
+    the liquid that is not MuJoCo's drawn as its particles."""
     cam = scene_camera(world.model, world.data, camera)
     r = renderer or _renderer(world, width, height)
     r.update_scene(world.data, camera=cam)
+    _draw_liquid(r.scene, world)
     return r.render().copy()
 
 
