@@ -96,13 +96,12 @@ class FoodLedger:
                                + [lay.piece_mass * 1000.0] * len(lay.food_strands))
         self.active = np.full(self.n_items, not lay.parked, dtype=bool)
         if lay.parked:
-            # Parked pieces never sleep, so placing them needs no wake-up; the parked items of
-            # a container's liquid wait for most of a run, so they may (releasing one wakes
-            # it: MuJoCo wakes a tree whose state is written).
-            policy = (mujoco.mjtSleepPolicy.mjSLEEP_AUTO_ALLOWED if lay.container_liquid
-                      else mujoco.mjtSleepPolicy.mjSLEEP_NEVER)
+            # Parked items (a load's supply, a liquid's particles while the liquid holds them)
+            # touch nothing and may sleep: an awake one costs MuJoCo's step as much as a
+            # moving piece. Placing or releasing one writes its state, which wakes it.
             for b in item_body:
-                m.tree_sleep_policy[m.body_treeid[b]] = int(policy)
+                m.tree_sleep_policy[m.body_treeid[b]] = int(
+                    mujoco.mjtSleepPolicy.mjSLEEP_AUTO_ALLOWED)
         self.codes = np.full(self.n_items, acc.AIRBORNE, dtype=np.int64)
         self.where = np.full(self.n_items, -1, dtype=np.int64)
         self._spill = acc.SpillTracker(self.n_items, spill_dwell_s)
@@ -175,9 +174,11 @@ class FoodLedger:
         asleep = self.data.body_awake[self.item_body] == 0
         # A sleeping item has no contacts to classify it by, but it is at rest on something
         # static: the robot never sleeps and wakes what it touches. One that was last seen on
-        # the utensil or in the air gets the place below it.
+        # the utensil or in the air gets the place below it. (Parked items, and a liquid's
+        # particles while the liquid holds them, are not where their bodies wait.)
         prev, prev_where = self.codes.copy(), self.where.copy()
-        for k in np.flatnonzero(asleep & ((prev == acc.UTENSIL) | (prev == acc.AIRBORNE))):
+        for k in np.flatnonzero(asleep & self.active & ~self.in_liquid
+                                & ((prev == acc.UTENSIL) | (prev == acc.AIRBORNE))):
             prev[k], prev_where[k] = self._place_below(self.data.xpos[self.item_body[k]])
         codes, where = acc.classify_items(self.n_items, ii, iu, isf, self.surface_codes,
                                           prev, prev_where, asleep)
