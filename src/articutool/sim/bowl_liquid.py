@@ -251,8 +251,7 @@ class BowlLiquid:
             self._state = self._settled(bounds, p, R)
         x, v = self._state
         self._liquid = liq = SphLiquid(bounds, [FluidParticles(x)], self.bowl_settings)
-        now, ids = liq.particle_ids(), np.sort(liq.particle_ids())
-        liq.set_velocities(v[np.searchsorted(ids, now)])
+        liq.set_velocities(v)
         liq.set_boundary_pose("dish", p, R)
         self._last = (p, R)
         self._t0 = float(self.data.time) - liq.time

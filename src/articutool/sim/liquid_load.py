@@ -118,11 +118,10 @@ class LiquidLoad:
                                 self.settings, gravity=R.T @ g)
         self._closed = False
         _OPEN.append(self)
-        now = self.liquid.particle_ids()
-        ids = np.sort(now)  # in the order of the positions given
+        ids = np.sort(self.liquid.particle_ids())  # in the order of the positions given
         self._item_of_id = {int(i): int(k) for k, i in zip(items, ids, strict=True)}
-        if particles is not None:  # the library may reorder its particles: by id
-            self.liquid.set_velocities(np.asarray(particles[1])[np.searchsorted(ids, now)])
+        if particles is not None:
+            self.liquid.set_velocities(particles[1])
         self.mass = float(self.liquid.particle_mass)
         self._force_body = np.zeros(3)
         self._force_world = np.zeros(3)
@@ -192,13 +191,22 @@ class LiquidLoad:
         velocity), as if it had left the dish."""
         if self._closed or self.liquid.n_particles == 0:
             return
-        R, p = self.data.xmat[self.body].reshape(3, 3), self.data.xpos[self.body]
         v_o, w = self._body_velocity()
-        x, v = self.liquid.positions(), self.liquid.velocities()
-        items = self._items()
-        xw = x @ R.T + p
-        vw = v_o + np.cross(w, xw - p) + v @ R.T
-        self.liquid.remove_particles(np.ones(len(x), dtype=bool))
+        self._hand_off(np.ones(self.liquid.n_particles, dtype=bool), self.liquid.positions(),
+                       self.liquid.velocities(), v_o, w)
+
+    def _hand_off(self, out: NDArray[np.bool_], x: NDArray[np.float64],
+                  v: NDArray[np.float64], v_o: NDArray[np.float64],
+                  w: NDArray[np.float64]) -> None:
+        """Take the particles ``out`` (at ``x``, ``v`` in the body's frame) out of the liquid
+        and give their items to MuJoCo at their world positions and velocities (the body's
+        ``v_o``, ``w``)."""
+        R, p = self.data.xmat[self.body].reshape(3, 3), self.data.xpos[self.body]
+        items = np.array([self._item_of_id[int(i)] for i in self.liquid.particle_ids()[out]],
+                         dtype=np.int64)
+        xw = x[out] @ R.T + p
+        vw = v_o + np.cross(w, xw - p) + v[out] @ R.T
+        self.liquid.remove_particles(out)
         for k, xk, vk in zip(items, xw, vw, strict=True):
             self.ledger.release(int(k), xk, vk)
         self.handed_off += len(items)
@@ -212,7 +220,6 @@ class LiquidLoad:
                                "in this process (SPlisHSPlasH holds one scene at a time)")
         m, d, liq = self.model, self.data, self.liquid
         R = d.xmat[self.body].reshape(3, 3).copy()
-        p = d.xpos[self.body].copy()
         v_o, w = self._body_velocity()
         t_world = float(d.time)
         t_liq0 = liq.time
@@ -246,10 +253,4 @@ class LiquidLoad:
         d.xfrc_applied[self.body, :3] = R @ f
         d.xfrc_applied[self.body, 3:] = R @ (tau - np.cross(c, f))
         if out.any():
-            items = np.array([self._item_of_id[int(i)] for i in ids1[out]], dtype=np.int64)
-            xw = x1[out] @ R.T + p
-            vw = v_o + np.cross(w, xw - p) + v1[out] @ R.T
-            liq.remove_particles(out)
-            for k, xk, vk in zip(items, xw, vw, strict=True):
-                self.ledger.release(int(k), xk, vk)
-            self.handed_off += len(items)
+            self._hand_off(out, x1, v1, v_o, w)

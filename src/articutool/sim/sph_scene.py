@@ -529,14 +529,16 @@ class SphLiquid:
     # -- driving ----------------------------------------------------------------------------
 
     def set_velocities(self, v: ArrayLike) -> None:
-        """Give the simulated particles these velocities (m/s, (n_particles, 3), aligned with
-        positions()): a liquid handed over from another scene keeps its motion."""
+        """Give the simulated particles these velocities (m/s, (n_particles, 3), in the order
+        the particles were given, i.e. by id; the library reorders its own arrays): a liquid
+        handed over from another scene keeps its motion."""
         self._check_open()
         n = self.n_particles
         a = np.asarray(v, dtype=float)
         if a.shape != (n, 3) or not np.all(np.isfinite(a)):
             raise ValueError(f"velocities must be ({n}, 3) finite; got {a.shape}")
-        self._field("velocity")[:n] = a
+        ids = self.particle_ids()
+        self._field("velocity")[:n] = a[np.searchsorted(np.sort(ids), ids)]
 
     def set_gravity(self, g: ArrayLike) -> None:
         """The (apparent) gravity from the next step on (m/s², 3 numbers)."""
