@@ -137,6 +137,8 @@ def test_recycled_eaten_items_stay_counted_as_eaten() -> None:
 class _RecordingLiquid:
     """Stands for the bowl's SPH liquid: records where the dish is posed at each step."""
 
+    closed = False
+
     def __init__(self, t: float) -> None:
         self.time, self.poses = t, []
 
@@ -186,4 +188,33 @@ def test_the_dish_moves_through_the_liquid_between_ticks_not_in_jumps() -> None:
         assert np.allclose(fake.poses[-1][1], p) and np.allclose(fake.poses[-1][2], R)
     finally:
         b._liquid = None
+        w.close()
+
+
+def test_a_bowl_whose_liquid_another_world_closed_closes_cleanly_with_its_state() -> None:
+    """Two worlds in one thread: the second's liquid closes the first's bowl solver (the
+    library holds one scene a process); the first world still closes, keeping the state its
+    liquid was closed in, and refuses to step a closed liquid."""
+    from articutool.sim import sph_scene as sph
+    from articutool.sim.world import FeedingWorld
+
+    w = FeedingWorld.make("water", seed=3, settle=False)
+    try:
+        b = w.bowl
+        assert b is not None
+        box = sph.box_mesh((-0.01, -0.01, 0.0), (0.01, 0.01, 0.03))
+        liq = sph.SphLiquid([sph.Boundary("dish", *box, animated=True)],
+                            [sph.FluidBlock((-0.009, -0.009, 0.001), (0.009, 0.009, 0.007))],
+                            sph.SphSettings(particle_radius=0.001))
+        liq.step_to(0.01)
+        x = liq.positions()
+        b._liquid = liq
+        assert b.simulated
+        sph.close_this_threads_liquid()  # what another world's liquid does when it opens
+        assert not b.simulated
+        with pytest.raises(RuntimeError, match="another world"):
+            b.advance()
+        b.close()
+        assert b._liquid is None and np.array_equal(b.positions_world(), x)
+    finally:
         w.close()

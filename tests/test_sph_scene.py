@@ -275,3 +275,22 @@ def test_a_scene_gives_the_same_bits_in_two_processes() -> None:
     runs = [subprocess.run([sys.executable, "-c", _SAME_SCENE], capture_output=True, text=True,
                            timeout=300, check=True).stdout.split()[-1] for _ in range(2)]
     assert runs[0] == runs[1]
+
+
+def test_a_liquid_another_world_closed_keeps_the_state_it_was_closed_in() -> None:
+    """SPlisHSPlasH holds one scene a process: opening a world's liquid closes the thread's
+    other one, whose state then stays readable (its world keeps it) and whose stepping is
+    refused."""
+    from articutool.sim.sph_scene import close_this_threads_liquid
+
+    liq = box_liquid()
+    liq.step_to(0.02)
+    x, v, ids, t = liq.positions(), liq.velocities(), liq.particle_ids(), liq.time
+    close_this_threads_liquid()
+    assert liq.closed
+    assert np.array_equal(liq.positions(), x) and np.array_equal(liq.velocities(), v)
+    assert np.array_equal(liq.particle_ids(), ids)
+    assert liq.n_particles == len(x) and liq.time == t
+    with pytest.raises(RuntimeError, match="closed"):
+        liq.step_to(0.04)
+    liq.close()  # idempotent

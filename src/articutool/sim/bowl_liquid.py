@@ -142,10 +142,11 @@ class BowlLiquid:
     @property
     def simulated(self) -> bool:
         """The bowl's liquid is being stepped now."""
-        return self._liquid is not None
+        return self._liquid is not None and not self._liquid.closed
 
     def close(self) -> None:
-        """Free the solver, keeping the liquid's state (idempotent)."""
+        """Free the solver, keeping the liquid's state (idempotent; a solver another world
+        of this thread closed is dropped with the state it was closed in)."""
         if self._liquid is not None:
             self._state = (self._liquid.positions(), self._liquid.velocities())
             self._liquid.close()
@@ -217,6 +218,10 @@ class BowlLiquid:
             self._wake(p, R)
         liq = self._liquid
         assert liq is not None
+        if liq.closed:
+            raise RuntimeError("this world's bowl liquid was closed: another world's liquid "
+                               "was opened in this thread (SPlisHSPlasH holds one scene at a "
+                               "time)")
         t0, t_end = liq.time, float(self.data.time) - self._t0
         p0, R0 = self._last
         if t_end > t0 + 1e-9:

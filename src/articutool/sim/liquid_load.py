@@ -145,8 +145,9 @@ class LiquidLoad:
 
     @property
     def closed(self) -> bool:
-        """The solver was freed (another liquid load was built in this process)."""
-        return self._closed
+        """The solver was freed (by close(), or by another world's liquid opened in this
+        thread)."""
+        return self._closed or self.liquid.closed
 
     def _body_velocity(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(linear velocity of the body's origin, angular velocity), world frame."""
@@ -189,7 +190,7 @@ class LiquidLoad:
     def release_all(self) -> None:
         """Hand every particle still in the dish to MuJoCo (at its world position and
         velocity), as if it had left the dish."""
-        if self._closed or self.liquid.n_particles == 0:
+        if self.closed or self.liquid.n_particles == 0:
             return
         v_o, w = self._body_velocity()
         self._hand_off(np.ones(self.liquid.n_particles, dtype=bool), self.liquid.positions(),
@@ -215,9 +216,9 @@ class LiquidLoad:
     def advance(self) -> None:
         """One control period (module doc): the liquid stepped to MuJoCo's time in the
         utensil's frame, its wrench put on the utensil, leavers handed to MuJoCo."""
-        if self._closed:
-            raise RuntimeError("this world's liquid was closed: another liquid load was built "
-                               "in this process (SPlisHSPlasH holds one scene at a time)")
+        if self.closed:
+            raise RuntimeError("this world's liquid was closed: another world's liquid was "
+                               "opened in this thread (SPlisHSPlasH holds one scene at a time)")
         m, d, liq = self.model, self.data, self.liquid
         R = d.xmat[self.body].reshape(3, 3).copy()
         v_o, w = self._body_velocity()

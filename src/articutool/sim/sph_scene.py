@@ -418,6 +418,9 @@ class SphLiquid:
         self._sph = _load(settings.threads)
         self._owner = threading.get_ident()
         self._closed = True
+        self._final: tuple[NDArray[Any], ...] = (np.zeros((0, 3)), np.zeros((0, 3)),
+                                                 np.zeros(0, dtype=np.int64))
+        self._final_time = 0.0
         _claim(self)
         self._dir = Path(tempfile.mkdtemp(prefix="articutool-sph-"))
         self._closed = False
@@ -460,9 +463,13 @@ class SphLiquid:
     # -- lifetime ---------------------------------------------------------------------------
 
     def close(self) -> None:
-        """Free the library's scene and remove the temporary directory (idempotent)."""
+        """Free the library's scene and remove the temporary directory (idempotent). The
+        particles' state at this moment stays readable (positions, velocities, ids), whoever
+        closes it: a world whose liquid another world of the thread closed keeps its state."""
         if self._closed:
             return
+        self._final = (self.positions(), self.velocities(), self.particle_ids())
+        self._final_time = self.time
         self._closed = True
         try:
             with _stdout_to(self._log):
@@ -490,7 +497,9 @@ class SphLiquid:
 
     @property
     def time(self) -> float:
-        """Simulated time (s)."""
+        """Simulated time (s; once closed: at the close)."""
+        if self._closed:
+            return self._final_time
         return float(self._tm.getTime())
 
     @property
@@ -500,7 +509,9 @@ class SphLiquid:
 
     @property
     def n_particles(self) -> int:
-        """Particles still simulated (removed ones excluded)."""
+        """Particles still simulated (removed ones excluded; once closed: at the close)."""
+        if self._closed:
+            return len(self._final[0])
         return int(self._fluid.numActiveParticles())
 
     @property
@@ -511,19 +522,30 @@ class SphLiquid:
     def _field(self, name: str) -> NDArray[Any]:
         return np.asarray(self._fluid.getFieldBuffer(name))
 
+    @property
+    def closed(self) -> bool:
+        """The library's scene is freed (by close(), or by another world of this thread)."""
+        return self._closed
+
     def positions(self) -> NDArray[np.float64]:
-        """Positions (m) of the simulated particles, (n_particles, 3), a copy."""
-        self._check_open()
+        """Positions (m) of the simulated particles, (n_particles, 3), a copy (once closed:
+        those it was closed with)."""
+        if self._closed:
+            return self._final[0].copy()
         return np.array(self._field("position")[: self.n_particles], dtype=float)
 
     def velocities(self) -> NDArray[np.float64]:
-        """Velocities (m/s) of the simulated particles, (n_particles, 3), a copy."""
-        self._check_open()
+        """Velocities (m/s) of the simulated particles, (n_particles, 3), a copy (once
+        closed: those it was closed with)."""
+        if self._closed:
+            return self._final[1].copy()
         return np.array(self._field("velocity")[: self.n_particles], dtype=float)
 
     def particle_ids(self) -> NDArray[np.int64]:
-        """Each simulated particle's id (stable over the run), aligned with positions()."""
-        self._check_open()
+        """Each simulated particle's id (stable over the run), aligned with positions()
+        (once closed: those it was closed with)."""
+        if self._closed:
+            return self._final[2].copy()
         return np.array(self._field("id")[: self.n_particles], dtype=np.int64)
 
     # -- driving ----------------------------------------------------------------------------
