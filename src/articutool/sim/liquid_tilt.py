@@ -224,6 +224,12 @@ def liquid_calibration(food_name: str, spec: Spec, params: PhysicsParams,
         if d.get("check") == "dam_break":  # the surge front, T = n·t·√(g/a), Z = x/a
             out["dam_break"] = {"t_star": d["t_star"], "z_star": d["z_star"],
                                 "reference": d["reference"]}
+            if food.load_model == "sph":  # the bowl's coarser liquid flows as the fine one
+                from articutool.sim.liquid_checks import coarse_dam_break_check
+
+                bowl = coarse_dam_break_check(food.sph_bowl_particle_radius, d)
+                out["bowl_resolution"] = bowl
+                out["passes"] = out["passes"] and bowl["pass"]
     return out
 
 
