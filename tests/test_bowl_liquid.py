@@ -218,3 +218,30 @@ def test_a_bowl_whose_liquid_another_world_closed_closes_cleanly_with_its_state(
         assert b._liquid is None and np.array_equal(b.positions_world(), x)
     finally:
         w.close()
+
+
+def test_the_bowls_settled_fill_does_not_depend_on_where_a_trials_dish_is() -> None:
+    """The fill settles once a process and every later world starts from it, so it must not
+    carry the first world's dish: with the dish anywhere in the scene the library's
+    neighbour grid moves, the sums' order changes and the settled particles land elsewhere
+    (measured: up to 23 mm apart after the 0.5 s settle, the dish 1 cm off), and a trial's
+    outcome depended on which trial its process ran first."""
+    from articutool.sim import bowl_liquid as bl
+    from articutool.sim.world import FeedingWorld
+
+    w = FeedingWorld.make("water", seed=3, settle=False)
+    try:
+        b = w.bowl
+        assert b is not None
+        b.food = b.food.model_copy(update={"sph_bowl_settle_s": 0.05})  # cheap; differs at 0.05 s
+        p, R, v, om = b._pose()
+        fills = []
+        for dx in (0.0, 0.01):
+            bl._SETTLED.clear()
+            b._state = None
+            b._pose = lambda dx=dx: (p + [dx, 0.0, 0.0], R, v, om)  # type: ignore[method-assign]
+            fills.append(b.settled_positions())
+        assert np.array_equal(fills[0], fills[1])
+    finally:
+        bl._SETTLED.clear()
+        w.close()

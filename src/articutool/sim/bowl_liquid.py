@@ -176,9 +176,8 @@ class BowlLiquid:
         """The fill's particle centres once settled (world frame, m; settles it if no world
         of this process has)."""
         if self._state is None:
-            p, R, _, _ = self._pose()
             close_this_threads_liquid()
-            self._state = self._settled(self._bounds(), p, R)
+            self._state = self._settled()
         return self._state[0].copy()
 
     def _bounds(self) -> list[Boundary]:
@@ -253,7 +252,7 @@ class BowlLiquid:
         bounds = self._bounds()
         close_this_threads_liquid()  # another world's, in this thread (one scene a process)
         if self._state is None:
-            self._state = self._settled(bounds, p, R)
+            self._state = self._settled()
         x, v = self._state
         self._liquid = liq = SphLiquid(bounds, [FluidParticles(x)], self.bowl_settings)
         liq.set_velocities(v)
@@ -263,15 +262,16 @@ class BowlLiquid:
         self._dipped = False
         self.dips += 1
 
-    def _settled(self, bounds: list[Boundary], p: NDArray[np.float64], R: NDArray[np.float64]
-                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The fill poured on a lattice and settled (cached per process)."""
+    def _settled(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The fill poured on a lattice and settled in the bowl alone (cached per process).
+        The dish is left out: a boundary anywhere moves the library's neighbour grid, which
+        changes the sums' order and so the settled particles' places, so a fill settled with
+        the dish where one trial had it would carry that trial into every later one."""
         s, f, key = self.bowl_settings, self.food, self._key()
         if key not in _SETTLED:
             fill = container_fill(self.inner_radius, self.floor_z, self._count, self.r)
             fill[:, :2] += self.centre[:2]
-            with SphLiquid(bounds, [FluidParticles(fill)], s) as liq:
-                liq.set_boundary_pose("dish", p, R)
+            with SphLiquid(self._bounds()[:1], [FluidParticles(fill)], s) as liq:
                 liq.step_to(liq.time + f.sph_bowl_settle_s)
                 keep = ~self._left(liq.positions())
                 _SETTLED[key] = (liq.positions()[keep], liq.velocities()[keep])
