@@ -313,8 +313,9 @@ def test_the_data_hash_reads_only_the_runs_foods(tmp_path) -> None:
 
 
 @pytest.mark.xfail(strict=True, reason="water's model gained its bowl's SPH liquid after the "
-                   "committed run (physics.toml [foods.water]): the runs with water predate "
-                   "today's data until they are re-run (docs/limits.md)")
+                   "committed run (physics.toml [foods.water]): Exp. 1's and capacity's water "
+                   "ran again on it and were folded in, Exp. 2b's and 2c's placed-load water "
+                   "trials predate it (docs/experiments.md)")
 def test_the_committed_runs_are_pinned_to_todays_data() -> None:
     """Every committed experiment's ``run.json`` pins the data it would read today, so its
     command resumes (and a change to a food's model that would change its trials is seen)."""

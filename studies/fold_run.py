@@ -1,0 +1,110 @@
+"""Fold a run of some of an experiment's foods (its own ``--out``) into the full run's trial log.
+
+When one food's model changes (water: the 250 g bowl became the SPH liquid), only that food's
+trials need running again: ``articutool experiment EXP --foods F --out PART`` runs them on the
+same seeds. This folds them into the full run ``FULL``: each of PART's records replaces FULL's
+record of the same condition and repeat (same seed), re-indexed to FULL's trial order; every
+other line of FULL's log is kept byte for byte. It refuses unless
+
+- PART's conditions are FULL's, its seeds are FULL's, and PART holds every repeat FULL does;
+- PART's trials ran on today's data for its foods (its pinned data hash is today's), and the
+  data of FULL's other foods is the same today as at the commit FULL's trials ran on (the
+  hash of that commit's data files, read from git, against today's).
+
+FULL's ``run.json`` then pins today's data hash (its trials are each on the data they ran on,
+and the data of every food is today's), so `articutool experiment EXP --out FULL` resumes it:
+with nothing to run it writes the summary from the folded log, keeping when and how the run
+was made. Each record keeps the commit it ran on (``source``): the report shows the mix.
+
+    PYTHONPATH=src .venv/bin/python studies/fold_run.py exp1 \\
+        --part results/experiments_water_bowl --full results/experiments
+    .venv/bin/articutool experiment exp1 --out results/experiments --workers 1
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+DATA = "src/articutool/data"
+
+
+def _data_at(commit: str, into: Path) -> Path:
+    """The data directory as it was at ``commit`` (from git), written under ``into``."""
+    names = subprocess.run(["git", "-C", str(REPO), "ls-tree", "--name-only", commit, DATA + "/"],
+                           check=True, capture_output=True, text=True).stdout.split()
+    for name in names:
+        blob = subprocess.run(["git", "-C", str(REPO), "show", f"{commit}:{name}"], check=True,
+                              capture_output=True).stdout
+        (into / Path(name).name).write_bytes(blob)
+    return into
+
+
+def fold(exp: str, part: Path, full: Path) -> dict[str, int]:
+    """Fold ``part/exp``'s records into ``full/exp``'s log (module doc); returns counts."""
+    from articutool.datafile import read_own_json, replace_own
+    from articutool.experiments.config import ExperimentsConfig
+    from articutool.experiments.runner import data_hash, log_path
+
+    cfg = ExperimentsConfig.load()
+    run_p, run_f = (read_own_json(d / exp / "run.json", "run") for d in (part, full))
+    if run_p is None or run_f is None:
+        raise SystemExit(f"{exp}: both runs need a run.json")
+    keys = sorted(run_f["conditions"][0])
+    cond_key = lambda c: tuple(c[k] for k in keys)  # noqa: E731
+    folded = {cond_key(c) for c in run_p["conditions"]}
+    if not folded <= {cond_key(c) for c in run_f["conditions"]}:
+        raise SystemExit(f"{exp}: {part}'s conditions are not all {full}'s")
+    if run_p["seed"] != run_f["seed"]:
+        raise SystemExit(f"{exp}: the runs' base seeds differ")
+    foods_p = {c["food"] for c in run_p["conditions"]}
+    foods_all = {c["food"] for c in run_f["conditions"]}
+    if run_p["data_hash"] != data_hash(exp, cfg, foods_p):
+        raise SystemExit(f"{exp}: {part}'s trials did not run on today's data for "
+                         f"{sorted(foods_p)}")
+    lines_f = log_path(full, exp).read_text().splitlines()
+    recs_f = [json.loads(x) for x in lines_f]
+    kept = sorted(foods_all - foods_p)
+    if kept:
+        commits = {r["source"].removesuffix("+modified") for r in recs_f
+                   if r["food"] in kept}
+        for c in commits:
+            with tempfile.TemporaryDirectory() as tmp:
+                then = data_hash(exp, cfg, kept, _data_at(c, Path(tmp)))
+            if then != data_hash(exp, cfg, kept):
+                raise SystemExit(f"{exp}: the data of {kept} changed since {c}; run them again")
+    index = {(cond_key(r), r["repeat"]): r["trial"] for r in recs_f
+             if cond_key(r) in folded}
+    recs_p = [json.loads(x) for x in log_path(part, exp).read_text().splitlines()]
+    mine = {(cond_key(r), r["repeat"]): r for r in recs_p}
+    if set(mine) != set(index):
+        raise SystemExit(f"{exp}: {part} holds {len(mine)} trials of the folded conditions, "
+                         f"{full} {len(index)}; finish the part's run first")
+    out = [x for x, r in zip(lines_f, recs_f, strict=True) if cond_key(r) not in folded]
+    for k, r in sorted(mine.items(), key=lambda kv: index[kv[0]]):
+        if r["seed"] != next(q["seed"] for q in recs_f if q["trial"] == index[k]):
+            raise SystemExit(f"{exp}: trial {index[k]}'s seed differs between the runs")
+        out.append(json.dumps({**r, "trial": index[k]}))
+    replace_own(log_path(full, exp), "\n".join(out) + "\n")
+    replace_own(full / exp / "run.json", json.dumps(
+        {**run_f, "data_hash": data_hash(exp, cfg, foods_all)}, indent=1) + "\n")
+    return {"kept": len(out) - len(mine), "folded": len(mine)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("experiment")
+    ap.add_argument("--part", type=Path, required=True)
+    ap.add_argument("--full", type=Path, required=True)
+    a = ap.parse_args(argv)
+    print(json.dumps({"experiment": a.experiment, **fold(a.experiment, a.part, a.full)}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
