@@ -225,7 +225,7 @@ def test_the_bowls_settled_fill_does_not_depend_on_where_a_trials_dish_is() -> N
     carry the first world's dish: with the dish anywhere in the scene the library's
     neighbour grid moves, the sums' order changes and the settled particles land elsewhere
     (measured: up to 23 mm apart after the 0.5 s settle, the dish 1 cm off), and a trial's
-    outcome depended on which trial its process ran first."""
+    outcome would depend on which trial its process ran first."""
     from articutool.sim import bowl_liquid as bl
     from articutool.sim.world import FeedingWorld
 
