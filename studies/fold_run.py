@@ -4,7 +4,8 @@ When one food's model changes (water: the 250 g bowl became the SPH liquid), onl
 trials need running again: ``articutool experiment EXP --foods F --out PART`` runs them on the
 same seeds. This folds them into the full run ``FULL``: each of PART's records replaces FULL's
 record of the same condition and repeat (same seed), re-indexed to FULL's trial order; every
-other line of FULL's log is kept byte for byte. It refuses unless
+other line of FULL's log is kept byte for byte, and the log is written in trial order, as a run
+appends it. It refuses unless
 
 - PART's conditions are FULL's, its seeds are FULL's, and PART holds every repeat FULL does;
 - PART's trials ran on today's data for its foods (its pinned data hash is today's), and the
@@ -85,12 +86,14 @@ def fold(exp: str, part: Path, full: Path) -> dict[str, int]:
     if set(mine) != set(index):
         raise SystemExit(f"{exp}: {part} holds {len(mine)} trials of the folded conditions, "
                          f"{full} {len(index)}; finish the part's run first")
-    out = [x for x, r in zip(lines_f, recs_f, strict=True) if cond_key(r) not in folded]
-    for k, r in sorted(mine.items(), key=lambda kv: index[kv[0]]):
+    out = [(r["trial"], x) for x, r in zip(lines_f, recs_f, strict=True)
+           if cond_key(r) not in folded]
+    for k, r in mine.items():
         if r["seed"] != next(q["seed"] for q in recs_f if q["trial"] == index[k]):
             raise SystemExit(f"{exp}: trial {index[k]}'s seed differs between the runs")
-        out.append(json.dumps({**r, "trial": index[k]}))
-    replace_own(log_path(full, exp), "\n".join(out) + "\n")
+        out.append((index[k], json.dumps({**r, "trial": index[k]})))
+    # In trial order, as a run appends them (its conditions interleaved, repeat by repeat).
+    replace_own(log_path(full, exp), "\n".join(x for _, x in sorted(out)) + "\n")
     replace_own(full / exp / "run.json", json.dumps(
         {**run_f, "data_hash": data_hash(exp, cfg, foods_all)}, indent=1) + "\n")
     return {"kept": len(out) - len(mine), "folded": len(mine)}
