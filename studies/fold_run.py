@@ -57,7 +57,10 @@ def fold(exp: str, part: Path, full: Path) -> dict[str, int]:
     if run_p is None or run_f is None:
         raise SystemExit(f"{exp}: both runs need a run.json")
     keys = sorted(run_f["conditions"][0])
-    cond_key = lambda c: tuple(c[k] for k in keys)  # noqa: E731
+
+    def cond_key(c: dict[str, object]) -> tuple[object, ...]:
+        return tuple(c[k] for k in keys)
+
     folded = {cond_key(c) for c in run_p["conditions"]}
     if not folded <= {cond_key(c) for c in run_f["conditions"]}:
         raise SystemExit(f"{exp}: {part}'s conditions are not all {full}'s")
@@ -79,7 +82,7 @@ def fold(exp: str, part: Path, full: Path) -> dict[str, int]:
                 then = data_hash(exp, cfg, kept, _data_at(c, Path(tmp)))
             if then != data_hash(exp, cfg, kept):
                 raise SystemExit(f"{exp}: the data of {kept} changed since {c}; run them again")
-    index = {(cond_key(r), r["repeat"]): r["trial"] for r in recs_f
+    index = {(cond_key(r), r["repeat"]): (r["trial"], r["seed"]) for r in recs_f
              if cond_key(r) in folded}
     recs_p = [json.loads(x) for x in log_path(part, exp).read_text().splitlines()]
     mine = {(cond_key(r), r["repeat"]): r for r in recs_p}
@@ -89,9 +92,10 @@ def fold(exp: str, part: Path, full: Path) -> dict[str, int]:
     out = [(r["trial"], x) for x, r in zip(lines_f, recs_f, strict=True)
            if cond_key(r) not in folded]
     for k, r in mine.items():
-        if r["seed"] != next(q["seed"] for q in recs_f if q["trial"] == index[k]):
-            raise SystemExit(f"{exp}: trial {index[k]}'s seed differs between the runs")
-        out.append((index[k], json.dumps({**r, "trial": index[k]})))
+        trial, seed = index[k]
+        if r["seed"] != seed:
+            raise SystemExit(f"{exp}: trial {trial}'s seed differs between the runs")
+        out.append((trial, json.dumps({**r, "trial": trial})))
     # In trial order, as a run appends them (its conditions interleaved, repeat by repeat).
     replace_own(log_path(full, exp), "\n".join(x for _, x in sorted(out)) + "\n")
     replace_own(full / exp / "run.json", json.dumps(

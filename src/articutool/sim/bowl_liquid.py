@@ -148,8 +148,8 @@ class BowlLiquid:
         """Free the solver, keeping the liquid's state (idempotent; a solver another world
         of this thread closed is dropped with the state it was closed in)."""
         if self._liquid is not None:
+            self._liquid.close()  # a closed liquid keeps the state it was closed in
             self._state = (self._liquid.positions(), self._liquid.velocities())
-            self._liquid.close()
             self._liquid = None
 
     def positions_world(self) -> NDArray[np.float64]:

@@ -28,12 +28,11 @@ in the dish the ledger counts it on the utensil (``FoodLedger.in_liquid``) and r
 liquid's force as the scale's.
 
 SPlisHSPlasH keeps its scene in process-wide singletons: one liquid is open per process. A new
-load closes the previous one (whose world can then no longer step its liquid).
+load closes the liquid its thread has open (a load's or a bowl's, whose world can then no
+longer step it: :func:`~articutool.sim.sph_scene.close_this_threads_liquid`).
 """
 
 from __future__ import annotations
-
-import threading
 
 import mujoco
 import numpy as np
@@ -53,6 +52,7 @@ from articutool.sim.sph_scene import (
     FluidParticles,
     SphLiquid,
     SphSettings,
+    close_this_threads_liquid,
     momentum_balance_force,
     momentum_balance_torque,
     rotating_frame_acceleration,
@@ -60,9 +60,6 @@ from articutool.sim.sph_scene import (
 from articutool.spec import UtensilSpec
 
 __all__ = ["LiquidLoad", "sph_settings"]
-
-_OPEN: list[LiquidLoad] = []
-
 
 def sph_settings(food: Liquid) -> SphSettings:
     """The solver settings of a liquid food (``physics.toml``): its particle radius, density
@@ -90,10 +87,7 @@ class LiquidLoad:
                  utensil: UtensilSpec, food: Liquid,
                  particles: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
                  items: NDArray[np.int64] | None = None) -> None:
-        me = threading.get_ident()  # a load this thread left open is closed; another
-        for stale in [q for q in _OPEN if q._owner == me]:  # thread's is waited for (SphLiquid)
-            stale.close()
-        self._owner = me
+        close_this_threads_liquid()  # one liquid a thread; another thread's is waited for
         self.model, self.data, self.ledger = model, data, ledger
         self.body = model.body("utensil").id
         self.dish = spoon_dish(utensil)
@@ -116,8 +110,6 @@ class LiquidLoad:
                 raise ValueError(f"particles: {len(items)} positions wanted, got {pour.shape}")
         self.liquid = SphLiquid([Boundary("dish", verts, faces)], [FluidParticles(pour)],
                                 self.settings, gravity=R.T @ g)
-        self._closed = False
-        _OPEN.append(self)
         ids = np.sort(self.liquid.particle_ids())  # in the order of the positions given
         self._item_of_id = {int(i): int(k) for k, i in zip(items, ids, strict=True)}
         if particles is not None:
@@ -135,19 +127,16 @@ class LiquidLoad:
 
     # ------------------------------------------------------------------------ state --
     def close(self) -> None:
-        """Free the solver (its world's liquid then no longer steps)."""
-        if not getattr(self, "_closed", True):
-            self._closed = True
-            self.liquid.close()
-            self.data.xfrc_applied[self.body] = 0.0
-        if self in _OPEN:
-            _OPEN.remove(self)
+        """Free the solver (its world's liquid then no longer steps) and take the liquid's
+        wrench off the utensil (idempotent)."""
+        self.liquid.close()
+        self.data.xfrc_applied[self.body] = 0.0
 
     @property
     def closed(self) -> bool:
         """The solver was freed (by close(), or by another world's liquid opened in this
         thread)."""
-        return self._closed or self.liquid.closed
+        return self.liquid.closed
 
     def _body_velocity(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(linear velocity of the body's origin, angular velocity), world frame."""
