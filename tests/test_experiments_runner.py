@@ -205,6 +205,39 @@ def test_resume_with_another_seed_is_refused(tmp_path, capsys) -> None:
     assert not log_path(out, "capacity").exists()
 
 
+def test_a_replay_runs_the_logged_runs_conditions_when_todays_inputs_moved(
+        tmp_path, capsys, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Exp. 2c's loads and target come from capacity's and Exp. 1's results: after those ran
+    again, ``--trial K`` still replays trial K with the load and target its run pinned (and
+    says so), not today's, so it can reproduce the record."""
+    import articutool.experiments.runner as runner
+
+    out = tmp_path / "r"
+    argv = ["experiment", "exp2c", "--out", str(out), "--load-g", "pecans=5,water=15",
+            "--thresholds-g", "pecans=2,water=8"]
+    cfg = ExperimentsConfig.load()
+    today = [c.fields() for c in conditions("exp2c", cfg, load_g={"pecans": 5.0, "water": 15.0},
+                                              target_g={"water": 8.5})]
+    pinned = [{**c, "load_g": 16.0 if c["food"] == "water" else c["load_g"]} for c in today]
+    (out / "exp2c").mkdir(parents=True)
+    pin_run(out / "exp2c" / "run.json", {"experiment": "exp2c", "seed": 0, "conditions": pinned})
+    got: list = []
+
+    def fake(spec, *_: object, **__: object):
+        got.append(spec)
+        return SimpleNamespace(error="stopped here")
+
+    monkeypatch.setattr(runner, "run_trial", fake)
+    water = next(i for i, c in enumerate(today) if c["food"] == "water")
+    assert cli.main([*argv, "--trial", str(water)]) == 1
+    err = capsys.readouterr().err
+    assert got[0].condition.load_g == 16.0 and got[0].condition.food == "water"
+    assert "logged run's conditions" in err and "load_g 15.0 → 16.0" in err
+    got.clear()
+    assert cli.main([*argv, "--trial", "0"]) == 1  # pecans: the same load either way
+    assert got[0].condition.load_g == 5.0 and got[0].condition.food == "pecans"
+
+
 def test_source_version_is_the_last_source_commit_and_flags_modified_sources() -> None:
     from articutool.experiments.runner import source_version
 
@@ -294,6 +327,68 @@ def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
     assert got == [mine] and got[0] is mine
 
 
+@pytest.mark.parametrize("experiment", ["capacity", "exp1", "exp2b", "exp2c", "exp3"])
+def test_an_experiment_declares_it_places_its_load_exactly_when_its_worlds_get_one(
+        monkeypatch: pytest.MonkeyPatch, experiment: str) -> None:
+    """``places_load`` (which leaves the container fill's settings out of a run's pin) is
+    what the trial does: its world is made with a placed load, so it never fills the
+    container. The physics is stubbed out, as above."""
+    from types import SimpleNamespace
+    from unittest import mock
+
+    import articutool.feeding.tree as tree
+    import articutool.meal.bites as meal
+    import articutool.sim.arm_driver as arm_driver
+    import articutool.sim.world as world
+    from articutool.experiments.runner import run_trial
+    from articutool.experiments.unit import registry
+    from articutool.experiments.units import capacity
+
+    def runner(*_: object, **__: object) -> None:
+        raise _TreeReachedError
+
+    bite_worlds: list[object] = []
+    monkeypatch.setattr(tree, "run_tree", runner)
+    monkeypatch.setattr(meal, "run_bite", runner)
+    monkeypatch.setattr(tree, "transport_tree", mock.MagicMock())
+    monkeypatch.setattr(meal, "make_bite_world", lambda *a, **k: bite_worlds.append(k) or
+                        SimpleNamespace(world=mock.MagicMock(), arm=mock.MagicMock(),
+                                        strategy=mock.MagicMock()))
+    monkeypatch.setattr(capacity, "capacity_strategy", lambda s, _: s)
+    monkeypatch.setattr(meal, "shed_configuration", lambda *a, **k: None)
+    made = mock.MagicMock()
+    monkeypatch.setattr(world, "FeedingWorld", made)
+    monkeypatch.setattr(arm_driver, "sim_arm", mock.MagicMock())
+    goals = ["centre"]
+    conds = conditions(experiment, ExperimentsConfig.load(), goals=goals,
+                       load_g={"pecans": 5.0, "water": 5.0})
+    for spec in make_trials(experiment, conds, 1, 0, goals=goals):
+        assert run_trial(spec).error is not None  # stopped once its world was made
+    loads = [c.kwargs.get("load_g") for c in made.make.call_args_list]
+    placed = bool(loads) and all(g is not None and g > 0 for g in loads)
+    assert registry()[experiment].places_load == placed, (loads, bite_worlds)
+    assert placed or bite_worlds  # an experiment that places no load acquires its bites
+
+
+def test_a_placed_load_experiments_pin_does_not_read_the_container_fill(tmp_path) -> None:
+    """A container-fill setting moves the pin of an experiment that fills the container, not
+    that of one whose loads are placed; a placed load's own setting moves both."""
+    from articutool.sim.params import Liquid
+
+    data = _data_copy(tmp_path)
+    physics = data / "physics.toml"
+    text = physics.read_text()
+    cfg = ExperimentsConfig.load()
+    assert "\nsph_bowl_settle_s = 0.5\n" in text and Liquid.BOWL_FIELDS
+    physics.write_text(text.replace("\nsph_bowl_settle_s = 0.5\n", "\nsph_bowl_settle_s = 0.4\n"))
+    for exp, moves in (("exp1", True), ("capacity", True), ("exp2b", False), ("exp2c", False)):
+        assert (data_hash(exp, cfg, {"water"}, data) != data_hash(exp, cfg, {"water"})) == moves
+    physics.write_text(text.replace("\nsph_particle_radius = 0.001\n",
+                                    "\nsph_particle_radius = 0.0009\n"))
+    for exp in ("exp1", "capacity", "exp2b", "exp2c"):
+        assert data_hash(exp, cfg, {"water"}, data) != data_hash(exp, cfg, {"water"})
+
+
 def test_the_data_hash_reads_only_the_runs_foods(tmp_path) -> None:
     """Another food's model does not change a run's pin; its own does."""
     import shutil
@@ -312,10 +407,6 @@ def test_the_data_hash_reads_only_the_runs_foods(tmp_path) -> None:
     assert data_hash("exp1", cfg, {"pecans"}) != data_hash("exp1", cfg, {"water"})
 
 
-@pytest.mark.xfail(strict=True, reason="water's model gained its bowl's SPH liquid after the "
-                   "committed run (physics.toml [foods.water]): Exp. 1's and capacity's water "
-                   "ran again on it and were folded in, Exp. 2b's and 2c's placed-load water "
-                   "trials predate it (docs/experiments.md)")
 def test_the_committed_runs_are_pinned_to_todays_data() -> None:
     """Every committed experiment's ``run.json`` pins the data it would read today, so its
     command resumes (and a change to a food's model that would change its trials is seen)."""

@@ -110,6 +110,53 @@ def _machine() -> dict[str, Any]:
             "load_avg": [round(x, 2) for x in os.getloadavg()]}
 
 
+def _as_pinned(exp: str, trials: list[Any], extra: dict[str, Any], out: Path, seed: int,
+               cfg: Any) -> list[Any]:
+    """``trials`` with the conditions the logged run pinned (``out/exp/run.json``) where
+    today's inputs give other values for the same conditions (Exp. 2c's loads and target
+    once capacity or Exp. 1 ran again), so a replay runs the trial as it was logged; what
+    differs, and data that changed since the run, are said on stderr."""
+    from articutool.datafile import ResultsError, read_own_json
+    from articutool.experiments.design import TrialSpec
+    from articutool.experiments.runner import data_hash
+
+    try:
+        run = read_own_json(out / exp / "run.json", "the run's settings")
+    except ResultsError as err:
+        print(f"warning: {err}; replaying today's conditions", file=sys.stderr)
+        return trials
+    if not isinstance(run, dict) or not isinstance(run.get("conditions"), list):
+        return trials
+    pinned, today = run["conditions"], extra["conditions"]
+    foods = {c["food"] for c in today}
+    if run.get("data_hash") not in (None, data_hash(exp, cfg, foods)):
+        print(f"warning: the data a trial of {exp} reads ({', '.join(sorted(foods))}) changed "
+              "since the logged run, so the replay may differ from its record", file=sys.stderr)
+    if pinned == today or run.get("seed", seed) != seed:
+        return trials
+    u = unit(exp)
+    try:
+        conds = [u.condition.model_validate(c) for c in pinned]
+    except ValueError:
+        return trials
+    now = [u.condition.model_validate(c) for c in today]
+    if [c.group() for c in conds] != [c.group() for c in now]:
+        print("warning: the logged run pinned other conditions; replaying today's",
+              file=sys.stderr)
+        return trials
+    moved = [f"{'/'.join(a.group())}: {k} {a.fields().get(k)} → {b.fields().get(k)}"
+             for a, b in zip(now, conds, strict=True)
+             for k in sorted(a.fields().keys() | b.fields().keys())
+             if a.fields().get(k) != b.fields().get(k)]
+    print(f"note: replaying the logged run's conditions where today's inputs differ "
+          f"({'; '.join(moved)})", file=sys.stderr)
+    by_group = {c.group(): c for c in conds}
+    return [TrialSpec(t.experiment, t.trial, t.repeat, t.seed, by_group[t.condition.group()]
+                      .model_copy(update={k: v for k, v in t.condition.fields().items()
+                                          if k not in by_group[t.condition.group()].fields()}))
+            for t in trials]
+
+
 def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) -> int:
     from articutool.experiments.runner import read_trial_log, run_trial
 
@@ -195,7 +242,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     # Checked before any trial runs; the trials themselves do not depend on it.
     given = u.analysis(args, out, cfg)
     if args.trial is not None:
-        return _replay(args, exp, trials, out)
+        return _replay(args, exp, _as_pinned(exp, trials, extra, out, args.seed, cfg), out)
     from articutool.cli_support import output_dir
     from articutool.experiments import report  # scipy.stats: imported once the input is good
     from articutool.experiments.analysis import summarize

@@ -125,15 +125,23 @@ def data_hash(experiment: str, cfg: ExperimentsConfig, foods: Iterable[str],
     scene, physics and strategies files of ``data`` (default: the packaged ones; their parsed
     content: comments do not count) with only ``foods``' tables of the physics file, and the
     experiments file's shared settings and this experiment's own section (another food's
-    model or another experiment's section does not matter)."""
+    model or another experiment's section does not matter). An experiment whose trials place
+    their load (:attr:`~articutool.experiments.unit.Experiment.places_load`) does not read
+    the container fill's settings (:attr:`~articutool.sim.params.Liquid.BOWL_FIELDS`)."""
+    from articutool.experiments.unit import registry
+    from articutool.sim.params import Liquid
+
     h = hashlib.sha256()
     base = resources.files("articutool") / "data" if data is None else data
     keep = set(foods)
+    unit = registry().get(experiment)
+    unread = set(Liquid.BOWL_FIELDS) if unit is not None and unit.places_load else set()
     for name in ("hardware.toml", "scene.toml", "physics.toml", "strategies.toml"):
         h.update(name.encode())
         content = tomllib.loads((base / name).read_text(encoding="utf-8"))
         if name == "physics.toml":
-            content["foods"] = {k: v for k, v in content["foods"].items() if k in keep}
+            content["foods"] = {k: {f: x for f, x in v.items() if f not in unread}
+                                for k, v in content["foods"].items() if k in keep}
         h.update(json.dumps(content, sort_keys=True).encode())
     own = cfg.model_dump(mode="json", include={"settings", experiment})
     h.update(json.dumps(own, sort_keys=True).encode())

@@ -66,6 +66,10 @@ class Experiment:
     noted_inputs: ClassVar[tuple[str, ...]] = ()
     # What the analysis settings (:meth:`analysis`) note in the summary.
     noted_settings: ClassVar[tuple[str, ...]] = ()
+    # Its trials start with a load placed on the utensil (``load_g``), so they never fill
+    # the food's container: the container fill's settings do not bear on them
+    # (:func:`~articutool.experiments.runner.data_hash`).
+    places_load: ClassVar[bool] = False
 
     # ------------------------------------------------------------------ command line --
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import Field, ValidationError, model_validator
@@ -182,10 +182,17 @@ class Granular(_FoodBase):
 
 
 class Liquid(_FoodBase):
-    """A liquid (e.g. water). A load placed on the utensil is, by default, an SPH liquid
-    (SPlisHSPlasH) in the utensil's frame coupled to MuJoCo (``load_model = "sph"``,
-    :mod:`articutool.sim.liquid_load`); a container fill, and a placed load with
-    ``load_model = "spheres"``, are frictionless MuJoCo spheres standing in for it."""
+    """A liquid (e.g. water). By default (``load_model = "sph"``) it is an SPH liquid
+    (SPlisHSPlasH) coupled to MuJoCo: a load placed on the utensil in the utensil's frame
+    (:mod:`articutool.sim.liquid_load`), a container's fill in the container with the dish an
+    animated boundary (:mod:`articutool.sim.bowl_liquid`). With ``load_model = "spheres"``
+    both are frictionless MuJoCo spheres standing in for it."""
+
+    # The fields only the container's SPH fill reads: a world whose load is placed on the
+    # utensil never fills the container, so they do not bear on its trials.
+    BOWL_FIELDS: ClassVar[tuple[str, ...]] = (
+        "sph_bowl_particle_radius", "sph_bowl_wake_m", "sph_bowl_handover_m",
+        "sph_bowl_settle_s")
 
     kind: Literal["liquid"]
     particle_radius: Positive  # a container fill

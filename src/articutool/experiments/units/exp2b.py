@@ -428,6 +428,7 @@ class Exp2bExperiment(Experiment):
     order = 20
     condition = Exp2bCondition
     config_model = Exp2bConfig
+    places_load = True
     claims: ClassVar[dict[str, str]] = {"exp2b": "Exp. 2b spilled mass (H2)"}
     outcome = Exp2bOutcome
     noted_inputs = ("goals",)

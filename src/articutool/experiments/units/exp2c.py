@@ -476,6 +476,7 @@ class Exp2cExperiment(Experiment):
     order = 30
     condition = Exp2cCondition
     config_model = Exp2cConfig
+    places_load = True
     claims: ClassVar[dict[str, str]] = {"exp2c": "Exp. 2c meaningful success (H2)"}
     outcome = Exp2cOutcome
     noted_inputs = ("load_g", "load_source", "closed_loop_target_g")
