@@ -22,21 +22,10 @@ from articutool.sim.scenes import base_tilt_motion
 from articutool.sim.sph_library import library_version
 from articutool.sim.world import FeedingWorld
 from articutool.tool.api import Mode
+from bench_io import cpu
 
 TRANSPORT_S = 10.0
 GOAL_CPU_S = 60.0
-
-
-def _cpu() -> dict[str, object]:
-    """The CPU's model and whether it has AVX-512 (the machines this figure was measured on
-    differed in both, and NumPy picks its kernels by them)."""
-    info = Path("/proc/cpuinfo")
-    text = info.read_text() if info.exists() else ""
-    model = next((ln.split(":", 1)[1].strip() for ln in text.splitlines()
-                  if ln.startswith("model name")), platform.processor())
-    flags = next((ln.split(":", 1)[1].split() for ln in text.splitlines()
-                  if ln.startswith("flags")), [])
-    return {"model": model, "cores": os.cpu_count(), "avx512f": "avx512f" in flags}
 
 
 def main() -> None:
@@ -79,7 +68,7 @@ def main() -> None:
         "handed_off_particles": liquid.handed_off if liquid else None,
         "omp_num_threads": os.environ.get("OMP_NUM_THREADS"),
         "machine": platform.processor() or platform.machine(),
-        "cpu": _cpu(),
+        "cpu": cpu(),
         "load_average": os.getloadavg(),
     }
     w.close()
