@@ -259,6 +259,29 @@ def test_same_seed_same_plan() -> None:
     assert np.array_equal(a.trajectory.positions, b.trajectory.positions)
 
 
+def test_a_plans_linear_algebra_runs_on_one_blas_thread_and_the_process_keeps_its_own(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """While a plan runs, every BLAS library of the process (NumPy's and SciPy's OpenBLAS)
+    has one thread; before and after, the process's own setting holds."""
+    import articutool.planning.ompl_planner as op
+
+    blas = [i for i in op._blas().info() if i["user_api"] == "blas"]
+    assert {i["filepath"] for i in blas}  # some BLAS is loaded
+    with op._blas().limit(limits=2, user_api="blas"):
+        seen: list[list[int]] = []
+        real = op._plan_seeded
+
+        def spy(*args, **kwargs):
+            seen.append([i["num_threads"] for i in op._blas().info() if i["user_api"] == "blas"])
+            return real(*args, **kwargs)
+
+        monkeypatch.setattr(op, "_plan_seeded", spy)
+        assert plan(PlanRequest("decoupled", TASK, seed=7)).success
+        assert seen == [[1] * len(blas)]
+        assert [i["num_threads"] for i in op._blas().info()
+                if i["user_api"] == "blas"] == [2] * len(blas)
+
+
 def test_time_parameterisation_respects_limits_and_wrist_rates() -> None:
     m = ArmModel(SPEC, dof=6)
     wp = np.linspace(TASK.start, TASK.goal, 40)

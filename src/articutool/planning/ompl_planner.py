@@ -23,9 +23,12 @@ Speed (per-phase times in ``PlanResult.phases``, ``benchmarks/plan_breakdown.py`
 RRT-Connect extends at most ``range`` rad in every mode; in rejection mode the straight
 start→goal motion is tried first (it is the whole path of most decoupled tasks); paths are
 simplified with shortcuts and a few B-spline steps; collisions go through coal's broad phase;
-the arm models and toppra's joint-limit constraints are reused across plans. None of this
-skips a check: every motion still passes the search's motion check, the dense re-check and,
-for ``decoupled``, verification.
+the arm models and toppra's joint-limit constraints are reused across plans; a plan's
+linear algebra runs on one BLAS thread (its matrices are a few joints wide, and OpenBLAS's
+worker threads, spinning between calls, cost more CPU than they save: a decoupled plan's CPU
+median measured 8.0 ms on one thread against 12.3 ms on two, Exp. 2a in one run,
+docs/planning.md). None of this skips a check: every motion still passes the search's
+motion check, the dense re-check and, for ``decoupled``, verification.
 
 Every accepted trajectory is checked again after time parameterisation, sampled at most
 ``check_step`` rad apart (joint limits, collisions, the strict tolerance); a failure counts
@@ -48,6 +51,7 @@ wall budget starts once it holds the lock.
 
 from __future__ import annotations
 
+import functools
 import math
 import threading
 import time
@@ -59,6 +63,7 @@ from numpy.typing import NDArray
 from ompl import base as ob
 from ompl import geometric as og
 from ompl import util as ou
+from threadpoolctl import ThreadpoolController
 
 from articutool.arm.model import TOOL_BASE_FRAME, ArmModel, tip_frame_name
 from articutool.arm.scene import default_scene_path
@@ -533,8 +538,14 @@ def plan_transport(
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}; got {method!r}")
-    with _SEEDED:
+    with _SEEDED, _blas().limit(limits=1, user_api="blas"):
         return _plan_seeded(request, spec, method, settings)
+
+
+@functools.cache
+def _blas() -> ThreadpoolController:
+    """The process's BLAS thread pools (NumPy's and SciPy's OpenBLAS, loaded by now)."""
+    return ThreadpoolController()
 
 
 def _plan_seeded(request: PlanRequest, spec: Spec, method: str,
