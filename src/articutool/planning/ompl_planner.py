@@ -25,9 +25,8 @@ start→goal motion is tried first (it is the whole path of most decoupled tasks
 simplified with shortcuts and a few B-spline steps; collisions go through coal's broad phase;
 the arm models and toppra's joint-limit constraints are reused across plans; a plan's
 linear algebra runs on one BLAS thread (its matrices are a few joints wide, and OpenBLAS's
-worker threads, spinning between calls, cost more CPU than they save: a decoupled plan's CPU
-median measured 8.0 ms on one thread against 12.3 ms on two, Exp. 2a in one run,
-docs/planning.md). None of this skips a check: every motion still passes the search's
+worker threads, spinning between calls, cost more CPU than they save: docs/planning.md, *One
+BLAS thread per plan*). None of this skips a check: every motion still passes the search's
 motion check, the dense re-check and, for ``decoupled``, verification.
 
 Every accepted trajectory is checked again after time parameterisation, sampled at most
