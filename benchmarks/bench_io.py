@@ -21,15 +21,15 @@ def machine() -> dict[str, Any]:
 
 
 def cpu() -> dict[str, Any]:
-    """The CPU's model, its core count and whether it has AVX-512: the machines these
-    figures were measured on differed in both, and NumPy picks its kernels by them."""
+    """The CPU's model and whether it has AVX-512: the machines these figures were measured
+    on differed in both, and NumPy picks its kernels by them."""
     info = Path("/proc/cpuinfo")
     text = info.read_text() if info.exists() else ""
     model = next((ln.split(":", 1)[1].strip() for ln in text.splitlines()
                   if ln.startswith("model name")), platform.processor())
     flags = next((ln.split(":", 1)[1].split() for ln in text.splitlines()
                   if ln.startswith("flags")), [])
-    return {"model": model, "cores": os.cpu_count(), "avx512f": "avx512f" in flags}
+    return {"model": model, "avx512f": "avx512f" in flags}
 
 
 def write_json(path: str | Path, doc: dict[str, Any]) -> None:

@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import time
 from pathlib import Path
 
@@ -22,7 +21,7 @@ from articutool.sim.scenes import base_tilt_motion
 from articutool.sim.sph_library import library_version
 from articutool.sim.world import FeedingWorld
 from articutool.tool.api import Mode
-from bench_io import cpu
+from bench_io import machine
 
 TRANSPORT_S = 10.0
 GOAL_CPU_S = 60.0
@@ -67,9 +66,7 @@ def main() -> None:
         "on_utensil_after_g": round(masses["utensil"], 3),
         "handed_off_particles": liquid.handed_off if liquid else None,
         "omp_num_threads": os.environ.get("OMP_NUM_THREADS"),
-        "machine": platform.processor() or platform.machine(),
-        "cpu": cpu(),
-        "load_average": os.getloadavg(),
+        "machine": machine(),
     }
     w.close()
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -286,12 +286,12 @@ class _TreeReachedError(Exception):
     """Raised by the stand-ins for the tree runners: the trial got as far as its tree."""
 
 
-@pytest.mark.parametrize("experiment", ["capacity", "exp1", "exp2b", "exp2c", "exp3"])
-def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
-        monkeypatch: pytest.MonkeyPatch, experiment: str) -> None:
-    """``run_trial(…, visitors=…)`` reaches the feeding tree of every protocol that runs one
-    (what ``--record`` relies on for ``/feeding/tree``). The physics is stubbed out here; a
-    real recording is in test_mcap_recording.py."""
+def _stub_trial_physics(monkeypatch: pytest.MonkeyPatch, runner: object
+                        ) -> tuple[object, list[dict[str, object]]]:
+    """Every protocol's physics stubbed out: ``runner`` stands for the feeding tree's run
+    (transport: Exp. 2b, 2c) and the bite's (capacity, Exp. 1, Exp. 3). Returns the stub
+    ``FeedingWorld`` (its ``make`` calls record the worlds a trial asked for) and the keyword
+    arguments of every bite world made."""
     from types import SimpleNamespace
     from unittest import mock
 
@@ -299,8 +299,30 @@ def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
     import articutool.meal.bites as meal
     import articutool.sim.arm_driver as arm_driver
     import articutool.sim.world as world
-    from articutool.experiments.runner import run_trial
     from articutool.experiments.units import capacity
+
+    bite_worlds: list[dict[str, object]] = []
+    monkeypatch.setattr(tree, "run_tree", runner)
+    monkeypatch.setattr(meal, "run_bite", runner)
+    monkeypatch.setattr(tree, "transport_tree", mock.MagicMock())
+    monkeypatch.setattr(meal, "make_bite_world", lambda *a, **k: bite_worlds.append(k) or
+                        SimpleNamespace(world=mock.MagicMock(), arm=mock.MagicMock(),
+                                        strategy=mock.MagicMock()))
+    monkeypatch.setattr(capacity, "capacity_strategy", lambda s, _: s)
+    monkeypatch.setattr(meal, "shed_configuration", lambda *a, **k: None)
+    made = mock.MagicMock()
+    monkeypatch.setattr(world, "FeedingWorld", made)
+    monkeypatch.setattr(arm_driver, "sim_arm", mock.MagicMock())
+    return made, bite_worlds
+
+
+@pytest.mark.parametrize("experiment", ["capacity", "exp1", "exp2b", "exp2c", "exp3"])
+def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
+        monkeypatch: pytest.MonkeyPatch, experiment: str) -> None:
+    """``run_trial(…, visitors=…)`` reaches the feeding tree of every protocol that runs one
+    (what ``--record`` relies on for ``/feeding/tree``). The physics is stubbed out here; a
+    real recording is in test_mcap_recording.py."""
+    from articutool.experiments.runner import run_trial
 
     got: list[object] = []
 
@@ -308,15 +330,7 @@ def test_every_trial_that_runs_a_tree_gives_it_the_callers_visitors(
         got.append(kw.get("visitors"))
         raise _TreeReachedError
 
-    monkeypatch.setattr(tree, "run_tree", runner)  # exp2b, exp2c (transport)
-    monkeypatch.setattr(meal, "run_bite", runner)  # capacity, exp1, exp3
-    monkeypatch.setattr(tree, "transport_tree", mock.MagicMock())
-    monkeypatch.setattr(meal, "make_bite_world", lambda *a, **k: SimpleNamespace(
-        world=mock.MagicMock(), arm=mock.MagicMock(), strategy=mock.MagicMock()))
-    monkeypatch.setattr(capacity, "capacity_strategy", lambda s, _: s)
-    monkeypatch.setattr(meal, "shed_configuration", lambda *a, **k: None)
-    monkeypatch.setattr(world, "FeedingWorld", mock.MagicMock())
-    monkeypatch.setattr(arm_driver, "sim_arm", mock.MagicMock())
+    _stub_trial_physics(monkeypatch, runner)
     goals = ["centre"]
     conds = conditions(experiment, ExperimentsConfig.load(), goals=goals,
                        load_g={"pecans": 5.0, "water": 5.0})
@@ -333,32 +347,13 @@ def test_an_experiment_declares_it_places_its_load_exactly_when_its_worlds_get_o
     """``places_load`` (which leaves the container fill's settings out of a run's pin) is
     what the trial does: its world is made with a placed load, so it never fills the
     container. The physics is stubbed out, as above."""
-    from types import SimpleNamespace
-    from unittest import mock
-
-    import articutool.feeding.tree as tree
-    import articutool.meal.bites as meal
-    import articutool.sim.arm_driver as arm_driver
-    import articutool.sim.world as world
     from articutool.experiments.runner import run_trial
     from articutool.experiments.unit import registry
-    from articutool.experiments.units import capacity
 
     def runner(*_: object, **__: object) -> None:
         raise _TreeReachedError
 
-    bite_worlds: list[object] = []
-    monkeypatch.setattr(tree, "run_tree", runner)
-    monkeypatch.setattr(meal, "run_bite", runner)
-    monkeypatch.setattr(tree, "transport_tree", mock.MagicMock())
-    monkeypatch.setattr(meal, "make_bite_world", lambda *a, **k: bite_worlds.append(k) or
-                        SimpleNamespace(world=mock.MagicMock(), arm=mock.MagicMock(),
-                                        strategy=mock.MagicMock()))
-    monkeypatch.setattr(capacity, "capacity_strategy", lambda s, _: s)
-    monkeypatch.setattr(meal, "shed_configuration", lambda *a, **k: None)
-    made = mock.MagicMock()
-    monkeypatch.setattr(world, "FeedingWorld", made)
-    monkeypatch.setattr(arm_driver, "sim_arm", mock.MagicMock())
+    made, bite_worlds = _stub_trial_physics(monkeypatch, runner)
     goals = ["centre"]
     conds = conditions(experiment, ExperimentsConfig.load(), goals=goals,
                        load_g={"pecans": 5.0, "water": 5.0})

@@ -71,7 +71,8 @@ def trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
                ) -> tuple[list[Any], dict[str, Any]]:
     """The trials ``experiment EXP`` runs (``args.trials``, ``args.seed``, and what the
     experiment takes beyond its config: :meth:`~articutool.experiments.unit.Experiment.
-    inputs`) and the run's conditions with what they came from."""
+    inputs`; a replay, ``--trial K``, takes the conditions its logged run pinned:
+    :func:`_pinned_conditions`) and the run's conditions with what they came from."""
     from articutool.experiments.design import make_trials
 
     u = unit(exp)
@@ -98,6 +99,8 @@ def trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
             raise usage(f"--physics {physics}: no parameters for {missing}")
         conds = [c.model_copy(update={"physics": str(Path(physics).resolve())})
                  for c in conds]
+    if getattr(args, "trial", None) is not None:
+        conds = _pinned_conditions(exp, conds, out, args.seed, cfg)
     return make_trials(exp, conds, args.trials, args.seed, **inputs), {
         "conditions": [c.fields() for c in conds], **noted}
 
@@ -110,51 +113,44 @@ def _machine() -> dict[str, Any]:
             "load_avg": [round(x, 2) for x in os.getloadavg()]}
 
 
-def _as_pinned(exp: str, trials: list[Any], extra: dict[str, Any], out: Path, seed: int,
-               cfg: Any) -> list[Any]:
-    """``trials`` with the conditions the logged run pinned (``out/exp/run.json``) where
-    today's inputs give other values for the same conditions (Exp. 2c's loads and target
-    once capacity or Exp. 1 ran again), so a replay runs the trial as it was logged; what
-    differs, and data that changed since the run, are said on stderr."""
+def _pinned_conditions(exp: str, conds: list[Any], out: Path, seed: int, cfg: Any
+                       ) -> list[Any]:
+    """For a replay: the conditions the logged run pinned (``out/exp/run.json``) where today's
+    inputs give other values for the same conditions (Exp. 2c's loads and target once
+    capacity or Exp. 1 ran again), so the trial runs as it was logged; what differs, and data
+    that changed since the run, are said on stderr. ``conds`` (today's) otherwise."""
     from articutool.datafile import ResultsError, read_own_json
-    from articutool.experiments.design import TrialSpec
     from articutool.experiments.runner import data_hash
 
     try:
         run = read_own_json(out / exp / "run.json", "the run's settings")
     except ResultsError as err:
         print(f"warning: {err}; replaying today's conditions", file=sys.stderr)
-        return trials
+        return conds
     if not isinstance(run, dict) or not isinstance(run.get("conditions"), list):
-        return trials
-    pinned, today = run["conditions"], extra["conditions"]
+        return conds
+    today = [c.fields() for c in conds]
     foods = {c["food"] for c in today}
     if run.get("data_hash") not in (None, data_hash(exp, cfg, foods)):
         print(f"warning: the data a trial of {exp} reads ({', '.join(sorted(foods))}) changed "
               "since the logged run, so the replay may differ from its record", file=sys.stderr)
-    if pinned == today or run.get("seed", seed) != seed:
-        return trials
-    u = unit(exp)
+    if run["conditions"] == today or run.get("seed", seed) != seed:
+        return conds
     try:
-        conds = [u.condition.model_validate(c) for c in pinned]
+        pinned = [unit(exp).condition.model_validate(c) for c in run["conditions"]]
     except ValueError:
-        return trials
-    now = [u.condition.model_validate(c) for c in today]
-    if [c.group() for c in conds] != [c.group() for c in now]:
+        return conds
+    if [c.group() for c in pinned] != [c.group() for c in conds]:
         print("warning: the logged run pinned other conditions; replaying today's",
               file=sys.stderr)
-        return trials
+        return conds
     moved = [f"{'/'.join(a.group())}: {k} {a.fields().get(k)} → {b.fields().get(k)}"
-             for a, b in zip(now, conds, strict=True)
+             for a, b in zip(conds, pinned, strict=True)
              for k in sorted(a.fields().keys() | b.fields().keys())
              if a.fields().get(k) != b.fields().get(k)]
     print(f"note: replaying the logged run's conditions where today's inputs differ "
           f"({'; '.join(moved)})", file=sys.stderr)
-    by_group = {c.group(): c for c in conds}
-    return [TrialSpec(t.experiment, t.trial, t.repeat, t.seed, by_group[t.condition.group()]
-                      .model_copy(update={k: v for k, v in t.condition.fields().items()
-                                          if k not in by_group[t.condition.group()].fields()}))
-            for t in trials]
+    return pinned
 
 
 def _replay(args: argparse.Namespace, exp: str, trials: list[Any], out: Path) -> int:
@@ -242,7 +238,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     # Checked before any trial runs; the trials themselves do not depend on it.
     given = u.analysis(args, out, cfg)
     if args.trial is not None:
-        return _replay(args, exp, _as_pinned(exp, trials, extra, out, args.seed, cfg), out)
+        return _replay(args, exp, trials, out)
     from articutool.cli_support import output_dir
     from articutool.experiments import report  # scipy.stats: imported once the input is good
     from articutool.experiments.analysis import summarize
