@@ -382,6 +382,12 @@ def test_a_placed_load_experiments_pin_does_not_read_the_container_fill(tmp_path
                                     "\nsph_particle_radius = 0.0009\n"))
     for exp in ("exp1", "capacity", "exp2b", "exp2c"):
         assert data_hash(exp, cfg, {"water"}, data) != data_hash(exp, cfg, {"water"})
+    # the pecans' passes while the spoon is in the bowl: a filled container's setting too
+    assert "\nnoslip_iterations_digging = 0\n" in text
+    physics.write_text(text.replace("\nnoslip_iterations_digging = 0\n",
+                                    "\nnoslip_iterations_digging = 1\n"))
+    for exp, moves in (("exp1", True), ("capacity", True), ("exp2c", False)):
+        assert (data_hash(exp, cfg, {"pecans"}, data) != data_hash(exp, cfg, {"pecans"})) == moves
 
 
 def test_the_data_hash_reads_only_the_runs_foods(tmp_path) -> None:

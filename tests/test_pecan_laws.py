@@ -116,3 +116,29 @@ def test_the_settled_bowl_sleeps() -> None:
     w.run(1.0)
     awake = w.data.body_awake[w.ledger.item_body]
     assert not awake.any(), f"{int(awake.sum())} of {awake.size} pieces awake"
+
+
+def test_the_pile_s_no_slip_passes_follow_the_spoon_s_tip() -> None:
+    # While the spoon's tip is in the bowl, below its rim, the pile runs without no-slip
+    # passes (``noslip_iterations_digging``); above the rim the food's passes hold the
+    # disturbed pile and the spoon's load.
+    from articutool.sim.scenes import scoop
+    from articutool.sim.world import FeedingWorld
+
+    w = FeedingWorld.make("pecans", seed=3)
+    food = w.params.food("pecans")
+    box = w.scene.get("bowl")
+    rim = box.xyz[2] + box.length / 2
+    seen: list[tuple[bool, int]] = []
+
+    def record(world: FeedingWorld) -> None:
+        tip = world.data.site_xpos[world.index.tip_site]
+        inside = tip[2] < rim and math.dist(tip[:2], box.xyz[:2]) < box.radius
+        seen.append((inside, int(world.model.opt.noslip_iterations)))
+
+    w.on_tick.append(record)
+    scoop(w)
+    assert any(inside for inside, _ in seen) and not seen[-1][0]
+    for inside, passes in seen:
+        assert passes == (food.noslip_iterations_digging if inside else food.noslip_iterations)
+    assert food.noslip_iterations_digging != food.noslip_iterations

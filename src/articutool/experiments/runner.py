@@ -127,15 +127,17 @@ def data_hash(experiment: str, cfg: ExperimentsConfig, foods: Iterable[str],
     experiments file's shared settings and this experiment's own section (another food's
     model or another experiment's section does not matter). An experiment whose trials place
     their load (:attr:`~articutool.experiments.unit.Experiment.places_load`) does not read
-    the container fill's settings (:attr:`~articutool.sim.params.Liquid.BOWL_FIELDS`)."""
+    the container fill's settings (:attr:`~articutool.sim.params.Liquid.BOWL_FIELDS`,
+    :attr:`~articutool.sim.params.Granular.BOWL_FIELDS`)."""
     from articutool.experiments.unit import registry
-    from articutool.sim.params import Liquid
+    from articutool.sim.params import Granular, Liquid
 
     h = hashlib.sha256()
     base = resources.files("articutool") / "data" if data is None else data
     keep = set(foods)
     unit = registry().get(experiment)
-    unread = set(Liquid.BOWL_FIELDS) if unit is not None and unit.places_load else set()
+    unread = ({*Liquid.BOWL_FIELDS, *Granular.BOWL_FIELDS}
+              if unit is not None and unit.places_load else set())
     for name in ("hardware.toml", "scene.toml", "physics.toml", "strategies.toml"):
         h.update(name.encode())
         content = tomllib.loads((base / name).read_text(encoding="utf-8"))

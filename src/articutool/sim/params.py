@@ -162,6 +162,14 @@ class Granular(_FoodBase):
     # soft contacts' creep (a resting heap must not flow); the creep law of ``sim-calibrate``
     # (:func:`articutool.sim.calibrate.creep_mm`) checks what they give.
     noslip_iterations: Annotated[int, Field(ge=0, le=1000)] = 0
+    # The passes while the utensil's tip is inside the filled container (within its radius,
+    # below its rim; ``None``: ``noslip_iterations`` there too). The world sets them each tool
+    # tick (:class:`articutool.sim.world.FeedingWorld`).
+    noslip_iterations_digging: Annotated[int, Field(ge=0, le=1000)] | None = None
+
+    # The fields only a filled container reads: a world whose load is placed on the utensil
+    # never fills the container, so they do not bear on its trials.
+    BOWL_FIELDS: ClassVar[tuple[str, ...]] = ("noslip_iterations_digging",)
 
     @model_validator(mode="after")
     def _ranges(self) -> Granular:

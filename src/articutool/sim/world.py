@@ -54,7 +54,7 @@ from articutool.sim.build import (
     WorldParts,
     build_parts,
 )
-from articutool.sim.params import Liquid, Strands
+from articutool.sim.params import Granular, Liquid, Strands
 from articutool.sim.placement import LoadPlacement
 from articutool.sim.weighing import Weighing
 from articutool.trajectory import JointTrajectory, smooth_joint_motion
@@ -159,6 +159,17 @@ class FeedingWorld:
             self.model, self.data, self.layout, self.ledger, self.spec, self.utensil,
             self.params.food(self.food) if self.food is not None else None, self.load_g,
             self.seed, self.run)
+        # A filled container of a granular food: its no-slip passes follow the utensil's tip
+        # (``Granular.noslip_iterations_digging``, :meth:`_set_digging`).
+        fp = self.params.food(self.food) if self.food is not None else None
+        self._passes = int(self.model.opt.noslip_iterations)
+        self._digging: tuple[int, NDArray[np.float64], float, float] | None = None
+        if (isinstance(fp, Granular) and fp.noslip_iterations_digging is not None
+                and self.layout.container and not self.layout.parked):
+            box = self.scene.get(self.layout.container)
+            assert isinstance(box, Cylinder)
+            self._digging = (fp.noslip_iterations_digging, np.asarray(box.xyz[:2], float),
+                             float(box.radius), float(box.xyz[2] + box.length / 2))
         # The container's SPH liquid (:mod:`articutool.sim.bowl_liquid`), stepped each tick.
         self.bowl: BowlLiquid | None = None
         if self.layout.container_liquid:
@@ -374,11 +385,22 @@ class FeedingWorld:
             if self.placement.liquid is not None:  # the liquid load, stepped to this time
                 self.placement.liquid.advance()
             self.ledger.classify(self.time)
+            if self._digging is not None:
+                self._set_digging(self._digging)
         self._cpu += time.thread_time() - c0
         self._sim_stepped += n * dt
         if ticked:
             for fn in self.on_tick:
                 fn(self)
+
+    def _set_digging(self, digging: tuple[int, NDArray[np.float64], float, float]) -> None:
+        """The no-slip passes for the next tick: the food's ``noslip_iterations_digging``
+        while the utensil's tip is inside the container (within its radius, below its rim),
+        its ``noslip_iterations`` elsewhere."""
+        passes, centre, radius, rim = digging
+        p = self.data.site_xpos[self.index.tip_site]
+        inside = p[2] < rim and math.hypot(p[0] - centre[0], p[1] - centre[1]) < radius
+        self.model.opt.noslip_iterations = passes if inside else self._passes
 
     def _raise_reset(self, t_start: float, n: int) -> None:
         """Raise :class:`PhysicsResetError` naming the warning, the time and the body whose degree
