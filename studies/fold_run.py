@@ -7,10 +7,13 @@ record of the same condition and repeat (same seed), re-indexed to FULL's trial 
 other line of FULL's log is kept byte for byte, and the log is written in trial order, as a run
 appends it. It refuses unless
 
-- PART's conditions are FULL's, its seeds are FULL's, and PART holds every repeat FULL does;
+- PART's conditions are FULL's for PART's foods, in FULL's order, but for the values other
+  runs measured (``MEASURED``: Exp. 2c's load and target, which follow capacity and Exp. 1;
+  the part's replace FULL's in its ``run.json``), its seeds are FULL's, and PART holds every
+  repeat FULL does;
 - PART's trials ran on today's data for its foods (its pinned data hash is today's), and the
-  data of FULL's other foods is the same today as at the commit FULL's trials ran on (the
-  hash of that commit's data files, read from git, against today's).
+  data of each of FULL's other foods is the same today as at each commit its trials ran on
+  (the hash of that commit's data files, read from git, against today's).
 
 FULL's ``run.json`` then pins today's data hash (its trials are each on the data they ran on,
 and the data of every food is today's), so `articutool experiment EXP --out FULL` resumes it:
@@ -32,6 +35,9 @@ import tempfile
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+# A condition's values measured by other runs (Exp. 2c's load: capacity's mean; its closed
+# loop's target: Exp. 1's): the part's, run on today's results, replace the full run's.
+MEASURED = ("load_g", "target_g")
 DATA = "src/articutool/data"
 
 
@@ -61,36 +67,41 @@ def fold(exp: str, part: Path, full: Path) -> dict[str, int]:
     def cond_key(c: dict[str, object]) -> tuple[object, ...]:
         return tuple(c[k] for k in keys)
 
-    folded = {cond_key(c) for c in run_p["conditions"]}
-    if not folded <= {cond_key(c) for c in run_f["conditions"]}:
-        raise SystemExit(f"{exp}: {part}'s conditions are not all {full}'s")
+    def same_but_measured(c: dict[str, object]) -> tuple[object, ...]:
+        return tuple(c[k] for k in keys if k not in MEASURED)
+
+    foods_p = {c["food"] for c in run_p["conditions"]}
+    conds_p = run_p["conditions"]
+    conds_f = [c for c in run_f["conditions"] if c["food"] in foods_p]
+    if [same_but_measured(c) for c in conds_p] != [same_but_measured(c) for c in conds_f]:
+        raise SystemExit(f"{exp}: {part}'s conditions are not {full}'s for "
+                         f"{sorted(foods_p)}")
+    # FULL's condition → PART's (the same but for the values measured by other runs)
+    renamed = {cond_key(f): cond_key(c) for c, f in zip(conds_p, conds_f, strict=True)}
     if run_p["seed"] != run_f["seed"]:
         raise SystemExit(f"{exp}: the runs' base seeds differ")
-    foods_p = {c["food"] for c in run_p["conditions"]}
     foods_all = {c["food"] for c in run_f["conditions"]}
     if run_p["data_hash"] != data_hash(exp, cfg, foods_p):
         raise SystemExit(f"{exp}: {part}'s trials did not run on today's data for "
                          f"{sorted(foods_p)}")
     lines_f = log_path(full, exp).read_text().splitlines()
     recs_f = [json.loads(x) for x in lines_f]
-    kept = sorted(foods_all - foods_p)
-    if kept:
-        commits = {r["source"].removesuffix("+modified") for r in recs_f
-                   if r["food"] in kept}
-        for c in commits:
+    for food in sorted(foods_all - foods_p):  # each kept food, at each commit it ran on
+        commits = {r["source"].removesuffix("+modified") for r in recs_f if r["food"] == food}
+        for c in sorted(commits):
             with tempfile.TemporaryDirectory() as tmp:
-                then = data_hash(exp, cfg, kept, _data_at(c, Path(tmp)))
-            if then != data_hash(exp, cfg, kept):
-                raise SystemExit(f"{exp}: the data of {kept} changed since {c}; run them again")
-    index = {(cond_key(r), r["repeat"]): (r["trial"], r["seed"]) for r in recs_f
-             if cond_key(r) in folded}
+                then = data_hash(exp, cfg, {food}, _data_at(c, Path(tmp)))
+            if then != data_hash(exp, cfg, {food}):
+                raise SystemExit(f"{exp}: the data of {food} changed since {c}; run it again")
+    index = {(renamed[cond_key(r)], r["repeat"]): (r["trial"], r["seed"]) for r in recs_f
+             if cond_key(r) in renamed}
     recs_p = [json.loads(x) for x in log_path(part, exp).read_text().splitlines()]
     mine = {(cond_key(r), r["repeat"]): r for r in recs_p}
     if set(mine) != set(index):
         raise SystemExit(f"{exp}: {part} holds {len(mine)} trials of the folded conditions, "
                          f"{full} {len(index)}; finish the part's run first")
     out = [(r["trial"], x) for x, r in zip(lines_f, recs_f, strict=True)
-           if cond_key(r) not in folded]
+           if cond_key(r) not in renamed]
     for k, r in mine.items():
         trial, seed = index[k]
         if r["seed"] != seed:
@@ -98,8 +109,11 @@ def fold(exp: str, part: Path, full: Path) -> dict[str, int]:
         out.append((trial, json.dumps({**r, "trial": trial})))
     # In trial order, as a run appends them (its conditions interleaved, repeat by repeat).
     replace_own(log_path(full, exp), "\n".join(x for _, x in sorted(out)) + "\n")
+    mapped = iter(conds_p)
+    conditions = [next(mapped) if c["food"] in foods_p else c for c in run_f["conditions"]]
     replace_own(full / exp / "run.json", json.dumps(
-        {**run_f, "data_hash": data_hash(exp, cfg, foods_all)}, indent=1) + "\n")
+        {**run_f, "conditions": conditions, "data_hash": data_hash(exp, cfg, foods_all)},
+        indent=1) + "\n")
     return {"kept": len(out) - len(mine), "folded": len(mine)}
 
 

@@ -538,3 +538,28 @@ def test_exp2c_trials_carry_the_closed_loop_target_derived_from_the_threshold(
     for t in trials:
         c = t.condition
         assert c.target_g == (targets.get(c.food) if c.condition == "closed_loop" else None)
+
+
+def test_exp2c_of_one_food_needs_only_that_food_s_load_and_threshold(
+        tmp_path, capsys, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--foods pecans`` runs pecans' three conditions from pecans' load and threshold alone
+    (re-running one food after its capacity and Exp. 1 moved); without ``--foods`` every
+    food's load is still needed."""
+    import articutool.experiments.runner as runner
+
+    got: list = []
+
+    def fake(spec, *_: object, **__: object):
+        got.append(spec)
+        return SimpleNamespace(error="stopped here")
+
+    monkeypatch.setattr(runner, "run_trial", fake)
+    out = tmp_path / "r"
+    argv = ["experiment", "exp2c", "--out", str(out), "--load-g", "pecans=5",
+            "--thresholds-g", "pecans=2"]
+    assert cli.main([*argv, "--foods", "pecans", "--trial", "2"]) == 1
+    assert got[0].condition.food == "pecans" and got[0].condition.load_g == 5.0
+    capsys.readouterr()
+    assert cli.main(argv) == 2
+    assert "--load-g: no load > 0 g for ['water']" in capsys.readouterr().err
+    assert len(got) == 1
