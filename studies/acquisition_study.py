@@ -19,14 +19,15 @@ the first in the grid. Runs go seed by seed (every candidate and system on one s
 next; the baseline's, the cheaper, first; the grid from its end, so a noodle search reaches the
 nest's centre, where a twirl wakes every strand, last), and the JSON is rewritten after every
 run, so an interrupted search keeps what finished; ``--resume`` keeps the runs already in
-``--out`` and runs the rest.
+``--out`` and runs the rest. ``--workers N`` runs N at once, each in its own process, in that
+order of starting; each run is its own seeded world, so the runs do not depend on it.
 
 Run (one process, niced): ``PYTHONPATH=src nice python studies/acquisition_study.py
 measure --foods water --seeds 10 --out studies/results/acquisition_study_water.json``
 (pecans: ``--foods pecans --out studies/results/acquisition_study_pecans.json``) and
 ``... search --foods water --seeds 3 --out studies/results/strategy_search.json`` (pecans:
-``studies/results/strategy_search_pecans.json``; noodles: ``--foods noodles --out
-studies/results/strategy_search_noodles.json``).
+``studies/results/strategy_search_pecans.json``; noodles: ``--foods noodles --seeds 3
+--workers 2 --out studies/results/strategy_search_noodles.json``).
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ import json
 import math
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
@@ -237,11 +239,16 @@ def main(argv: list[str] | None = None) -> int:
                     choices=sorted(CANDIDATES))
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--workers", type=int, default=1,
+                    help="search: runs at once, each in its own process")
     ap.add_argument("--resume", action="store_true",
                     help="search: keep the runs already in --out and run the rest")
     args = ap.parse_args(argv)
     if args.seeds < 1 or args.seeds > 1000:
         print("--seeds must be in 1..1000", file=sys.stderr)
+        return 2
+    if args.workers < 1 or args.workers > 64:
+        print("--workers must be in 1..64", file=sys.stderr)
         return 2
     if args.mode == "turn":  # kinematics only: who makes the turn, how long it takes
         for food in args.foods:
@@ -269,16 +276,26 @@ def main(argv: list[str] | None = None) -> int:
             doc["runs"] = old["runs"]
         done = {(r["food"], r["system"], r["seed"], r["candidate"]) for r in doc["runs"]}
         shipped = shipped_insertions(args.foods)
-        for food in args.foods:
-            for k, system, (c, cand) in itertools.product(
-                    range(args.seeds), SYSTEMS[::-1], list(enumerate(CANDIDATES[food]))[::-1]):
-                if (food, system, TUNING_SEED0 + k, c) in done:
-                    continue
-                run = one(food, system, TUNING_SEED0 + k, cand)
-                run["candidate"] = c
-                doc["runs"].append(run)
-                doc["best"] = best(doc["runs"], args.foods, shipped)
-                _write(args.out, doc)
+        todo = [(food, system, TUNING_SEED0 + k, c, cand) for food in args.foods
+                for k, system, (c, cand) in itertools.product(
+                    range(args.seeds), SYSTEMS[::-1], list(enumerate(CANDIDATES[food]))[::-1])
+                if (food, system, TUNING_SEED0 + k, c) not in done]
+
+        def keep(run: dict[str, Any], c: int) -> None:
+            run["candidate"] = c
+            doc["runs"].append(run)
+            doc["best"] = best(doc["runs"], args.foods, shipped)
+            _write(args.out, doc)
+
+        if args.workers == 1:
+            for food, system, seed, c, cand in todo:
+                keep(one(food, system, seed, cand), c)
+        else:  # each run is its own seeded world: the order they finish in changes nothing
+            with ProcessPoolExecutor(args.workers) as pool:
+                futures = {pool.submit(one, food, system, seed, cand): c
+                           for food, system, seed, c, cand in todo}
+                for f in as_completed(futures):
+                    keep(f.result(), futures[f])
     return 0
 
 
