@@ -357,6 +357,13 @@ def _thresholds(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str
     return None, "none: run exp1 first or pass --thresholds-g"
 
 
+def _run_foods(args: argparse.Namespace, cfg: Any) -> list[str]:
+    """The foods of Exp. 2c this run runs: those ``--foods`` names (all without it; a name
+    that is not Exp. 2c's is the command's to refuse)."""
+    wanted = {f.strip() for f in (getattr(args, "foods", None) or "").split(",")}
+    return [f for f in cfg.exp2c.foods if f in wanted] or list(cfg.exp2c.foods)
+
+
 def _exp2c_loads(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str, float], str]:
     from articutool.thresholds import capacity_means
 
@@ -370,7 +377,7 @@ def _exp2c_loads(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[st
             raise usage(f"exp2c needs the capacity load: run `articutool experiment capacity "
                          f"--out {out}` first, or pass --load-g pecans=G,water=G")
         src = f"our capacity means ({p})"
-    missing = [f for f in cfg.exp2c.foods if f not in loads or loads[f] <= 0]
+    missing = [f for f in _run_foods(args, cfg) if f not in loads or loads[f] <= 0]
     if missing:
         raise usage(f"--load-g: no load > 0 g for {missing}")
     unknown = sorted(set(loads) - set(cfg.exp2c.foods))
@@ -502,14 +509,16 @@ class Exp2cExperiment(Experiment):
     def inputs(self, args: argparse.Namespace, out: Path, cfg: ExperimentsConfig
                ) -> tuple[dict[str, Any], dict[str, Any]]:
         """The load per food and the closed-loop targets (from the thresholds)."""
+        foods = _run_foods(args, cfg)
         loads, src = _exp2c_loads(args, out, cfg)
+        loads = {f: g for f, g in loads.items() if f in foods}
         th, _ = _thresholds(args, out, cfg)
-        if th is None or any(f not in th for f in cfg.exp2c.foods):
+        if th is None or any(f not in th for f in foods):
             raise usage("exp2c needs each food's meaningful-success threshold (its "
                         "closed-loop target is derived from it): run `articutool experiment "
                         f"exp1 --out {out}` first, or pass --thresholds-g "
-                        + ",".join(f"{f}=G" for f in cfg.exp2c.foods))
-        targets = _closed_loop_targets(th, cfg)
+                        + ",".join(f"{f}=G" for f in foods))
+        targets = _closed_loop_targets({f: th[f] for f in foods}, cfg)
         return ({"load_g": loads, "target_g": targets},
                 {"load_g": loads, "load_source": src, "closed_loop_target_g": targets})
 
@@ -520,16 +529,16 @@ class Exp2cExperiment(Experiment):
 
     def conditions(self, cfg: ExperimentsConfig, *, load_g: Mapping[str, float] | None = None,
                    target_g: Mapping[str, float] | None = None, **inputs: Any) -> list[Any]:
-        """Per food, the three conditions at ``load_g`` (the capacity); the closed loop's
-        load target ``target_g``, derived from the food's meaningful-success threshold
-        (:func:`closed_loop_target_g`)."""
+        """Per food of ``load_g`` (the capacity), the three conditions at its load; the
+        closed loop's load target ``target_g``, derived from the food's meaningful-success
+        threshold (:func:`closed_loop_target_g`)."""
         if load_g is None:
             raise ValueError("exp2c needs the load per food (the capacity)")
         return [Exp2cCondition(food=f, condition=c, load_g=round(float(load_g[f]), 2),
                                target_g=round(float(target_g[f]), 3)
                                if c == "closed_loop" and target_g is not None
                                and f in target_g else None)
-                for f in cfg.exp2c.foods for c in EXP2C_CONDITIONS]
+                for f in cfg.exp2c.foods if f in load_g for c in EXP2C_CONDITIONS]
 
     def summarize(self, records: Sequence[TrialRecord], cfg: ExperimentsConfig,
                   thresholds_g: Mapping[str, float] | None = None, **settings: Any
