@@ -72,15 +72,15 @@ def bite(food: str, seed: int) -> dict:
     load = os.getloadavg()[0]
     setup = make_bite_world(food, "articutool", seed)
     w = setup.world
-    sim0, cpu0 = w._sim_stepped, w._cpu
+    sim0, cpu0 = w.stepped_s, w.stepping_cpu_s
     c0, t0 = time.thread_time(), time.perf_counter()
     try:
         r = run_bite(setup)
     finally:
         setup.arm.close()
     cpu, wall = time.thread_time() - c0, time.perf_counter() - t0
-    step_cpu = w._cpu - cpu0
-    return {"seed": seed, "realtime_factor": round((w._sim_stepped - sim0) / step_cpu, 3),
+    step_cpu = w.stepping_cpu_s - cpu0
+    return {"seed": seed, "realtime_factor": round((w.stepped_s - sim0) / step_cpu, 3),
             "realtime_factor_end_to_end": round(r.sim_time_s / cpu, 3),
             "simulated_s": round(r.sim_time_s, 2), "cpu_s": round(cpu, 2),
             "stepping_cpu_s": round(step_cpu, 2), "wall_s": round(wall, 2),

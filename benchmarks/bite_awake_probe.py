@@ -37,7 +37,7 @@ def probe(food: str, seed: int, physics: str | None, top: int) -> dict:
             if m.body_jntnum[b] == 1 and m.jnt_type[m.body_jntadr[b]] == free_joint]
     dofs = np.array([m.jnt_dofadr[m.body_jntadr[b]] for b in free], dtype=int)
     rows: list[dict] = []
-    acc = {"t": w.time, "cpu": w._cpu, "ncon": 0, "awake": 0, "n": 0}
+    acc = {"t": w.time, "cpu": w.stepping_cpu_s, "ncon": 0, "awake": 0, "n": 0}
 
     def tick(world) -> None:
         d = world.data
@@ -50,13 +50,14 @@ def probe(food: str, seed: int, physics: str | None, top: int) -> dict:
         om = np.linalg.norm(d.qvel[dofs[:, None] + np.arange(3, 6)], axis=1)
         fastest = np.argsort(-v)[:top]
         rows.append({
-            "t_s": round(world.time, 2), "stepping_cpu_s": round(world._cpu - acc["cpu"], 3),
+            "t_s": round(world.time, 2),
+            "stepping_cpu_s": round(world.stepping_cpu_s - acc["cpu"], 3),
             "contacts": round(acc["ncon"] / acc["n"]),
             "awake_bodies": round(acc["awake"] / acc["n"]),
             "fastest": [{"body": mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, free[i]),
                          "speed_m_s": round(float(v[i]), 4), "spin_rad_s": round(float(om[i]), 2),
                          "pos_m": np.round(d.xpos[free[i]], 4).tolist()} for i in fastest]})
-        acc.update(t=world.time, cpu=world._cpu, ncon=0, awake=0, n=0)
+        acc.update(t=world.time, cpu=world.stepping_cpu_s, ncon=0, awake=0, n=0)
 
     w.on_tick.append(tick)
     c0 = time.thread_time()
@@ -66,7 +67,8 @@ def probe(food: str, seed: int, physics: str | None, top: int) -> dict:
         setup.arm.close()
     return {"food": food, "seed": seed, "physics": physics or "packaged",
             "sleep_tolerance": float(m.opt.sleep_tolerance), "simulated_s": round(r.sim_time_s, 2),
-            "stepping_cpu_s": round(w._cpu, 2), "thread_cpu_s": round(time.thread_time() - c0, 2),
+            "stepping_cpu_s": round(w.stepping_cpu_s, 2),
+            "thread_cpu_s": round(time.thread_time() - c0, 2),
             "delivered_g": round(r.delivered_g, 3), "seconds": rows}
 
 

@@ -74,7 +74,7 @@ def profile(food: str, seed: int, top: int) -> dict:
     mj_cpu = [0.0]
     w, build_s, total_s = _run(food, seed, mj_cpu)
     tm = _timers(w)
-    step_cpu = w._cpu
+    step_cpu = w.stepping_cpu_s
     mj = round(mj_cpu[0], 3)
     res = {
         "simulated_s": round(w.time, 3), "physics_steps": tm["step"]["calls"],

@@ -287,15 +287,12 @@ def main(argv: list[str] | None = None) -> int:
             doc["best"] = best(doc["runs"], args.foods, shipped)
             _write(args.out, doc)
 
-        if args.workers == 1:
-            for food, system, seed, c, cand in todo:
-                keep(one(food, system, seed, cand), c)
-        else:  # each run is its own seeded world: the order they finish in changes nothing
-            with ProcessPoolExecutor(args.workers) as pool:
-                futures = {pool.submit(one, food, system, seed, cand): c
-                           for food, system, seed, c, cand in todo}
-                for f in as_completed(futures):
-                    keep(f.result(), futures[f])
+        # each run is its own seeded world: the order they finish in changes nothing
+        with ProcessPoolExecutor(args.workers) as pool:
+            futures = {pool.submit(one, food, system, seed, cand): c
+                       for food, system, seed, c, cand in todo}
+            for f in as_completed(futures):
+                keep(f.result(), futures[f])
     return 0
 
 

@@ -205,13 +205,26 @@ def test_resume_with_another_seed_is_refused(tmp_path, capsys) -> None:
     assert not log_path(out, "capacity").exists()
 
 
+def _trials_stopped_before_physics(monkeypatch: pytest.MonkeyPatch) -> list:
+    """The trial specs the command hands to ``run_trial``, which stops each at once (an
+    error, no physics)."""
+    import articutool.experiments.runner as runner
+
+    got: list = []
+
+    def fake(spec, *_: object, **__: object):
+        got.append(spec)
+        return SimpleNamespace(error="stopped here")
+
+    monkeypatch.setattr(runner, "run_trial", fake)
+    return got
+
+
 def test_a_replay_runs_the_logged_runs_conditions_when_todays_inputs_moved(
         tmp_path, capsys, monkeypatch: pytest.MonkeyPatch) -> None:
     """Exp. 2c's loads and target come from capacity's and Exp. 1's results: after those ran
     again, ``--trial K`` still replays trial K with the load and target its run pinned (and
     says so), not today's, so it can reproduce the record."""
-    import articutool.experiments.runner as runner
-
     out = tmp_path / "r"
     argv = ["experiment", "exp2c", "--out", str(out), "--load-g", "pecans=5,water=15",
             "--thresholds-g", "pecans=2,water=8"]
@@ -221,13 +234,7 @@ def test_a_replay_runs_the_logged_runs_conditions_when_todays_inputs_moved(
     pinned = [{**c, "load_g": 16.0 if c["food"] == "water" else c["load_g"]} for c in today]
     (out / "exp2c").mkdir(parents=True)
     pin_run(out / "exp2c" / "run.json", {"experiment": "exp2c", "seed": 0, "conditions": pinned})
-    got: list = []
-
-    def fake(spec, *_: object, **__: object):
-        got.append(spec)
-        return SimpleNamespace(error="stopped here")
-
-    monkeypatch.setattr(runner, "run_trial", fake)
+    got = _trials_stopped_before_physics(monkeypatch)
     water = next(i for i, c in enumerate(today) if c["food"] == "water")
     assert cli.main([*argv, "--trial", str(water)]) == 1
     err = capsys.readouterr().err
@@ -545,15 +552,7 @@ def test_exp2c_of_one_food_needs_only_that_food_s_load_and_threshold(
     """``--foods pecans`` runs pecans' three conditions from pecans' load and threshold alone
     (re-running one food after its capacity and Exp. 1 moved); without ``--foods`` every
     food's load is still needed."""
-    import articutool.experiments.runner as runner
-
-    got: list = []
-
-    def fake(spec, *_: object, **__: object):
-        got.append(spec)
-        return SimpleNamespace(error="stopped here")
-
-    monkeypatch.setattr(runner, "run_trial", fake)
+    got = _trials_stopped_before_physics(monkeypatch)
     out = tmp_path / "r"
     argv = ["experiment", "exp2c", "--out", str(out), "--load-g", "pecans=5",
             "--thresholds-g", "pecans=2"]

@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from articutool.experiments.unit import registry, unit, usage
+from articutool.experiments.unit import foods_asked, registry, unit, usage
 
 __all__ = ["BOOKKEEPING_FIELDS", "TIMING_FIELDS", "add_commands", "trials_for"]
 
@@ -78,13 +78,12 @@ def trials_for(exp: str, args: argparse.Namespace, out: Path, cfg: Any
     u = unit(exp)
     inputs, noted = u.inputs(args, out, cfg)
     conds = u.conditions(cfg, **inputs)
-    foods = getattr(args, "foods", None)
-    if foods:
-        wanted = [f.strip() for f in foods.split(",") if f.strip()]
+    wanted = foods_asked(args)
+    if wanted is not None:
         known = sorted({c.food for c in conds})
         if not wanted or any(f not in known for f in wanted):
             raise usage(f"--foods must name foods of {exp} ({', '.join(known)}), "
-                        f"comma-separated; got {foods!r}")
+                        f"comma-separated; got {args.foods!r}")
         conds = [c for c in conds if c.food in wanted]
     physics = getattr(args, "physics", None)
     if physics is not None:

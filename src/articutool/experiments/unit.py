@@ -212,7 +212,14 @@ def add_physics_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def add_foods_argument(parser: argparse.ArgumentParser) -> None:
-    """``--foods FOOD,…``: a subset of the conditions' foods."""
+    """``--foods FOOD,…``: a subset of the conditions' foods (:func:`foods_asked`)."""
     parser.add_argument("--foods", metavar="FOOD,…", default=None,
                         help="run only these foods' conditions (same seeds as a full run; "
                              "use its own --out)")
+
+
+def foods_asked(args: argparse.Namespace) -> list[str] | None:
+    """The foods ``--foods`` names, in its order (``None`` without it; ``[]`` if it names
+    none)."""
+    foods = getattr(args, "foods", None)
+    return None if not foods else [f.strip() for f in foods.split(",") if f.strip()]

@@ -411,8 +411,8 @@ def static_tilt(food_name: str, spec: Spec, params: PhysicsParams, utensil: str 
             "kept_g": round(kept, 3), "rows": rows, "onset_deg": onset,
             "hydrostatic_onset_deg": round(math.degrees(float(h.onset_tilt(
                 volume - ONSET_G / (food.density * 1000.0), dirn))), 2)}
-        cpu += world._cpu
-        sim += world._sim_stepped
+        cpu += world.stepping_cpu_s
+        sim += world.stepped_s
     out["cpu_s"] = round(cpu, 1)
     out["realtime_factor"] = round(sim / cpu, 3) if cpu > 0 else math.nan
     return out

@@ -155,13 +155,12 @@ class FeedingWorld:
         self.arm_tracking_error = 0.0
         self.weighing = Weighing(self.spec, self.data, self.ft, self.index.ft_site, self.ledger,
                                  self.strands, self.run, self.run_until)
+        fp = self.params.food(self.food) if self.food is not None else None
         self.placement = LoadPlacement(
             self.model, self.data, self.layout, self.ledger, self.spec, self.utensil,
-            self.params.food(self.food) if self.food is not None else None, self.load_g,
-            self.seed, self.run)
+            fp, self.load_g, self.seed, self.run)
         # A filled container of a granular food: its no-slip passes follow the utensil's tip
         # (``Granular.noslip_iterations_digging``, :meth:`_set_digging`).
-        fp = self.params.food(self.food) if self.food is not None else None
         self._passes = int(self.model.opt.noslip_iterations)
         self._digging: tuple[int, NDArray[np.float64], float, float] | None = None
         if (isinstance(fp, Granular) and fp.noslip_iterations_digging is not None
@@ -173,7 +172,6 @@ class FeedingWorld:
         # The container's SPH liquid (:mod:`articutool.sim.bowl_liquid`), stepped each tick.
         self.bowl: BowlLiquid | None = None
         if self.layout.container_liquid:
-            fp = self.params.food(str(self.food))
             box = self.scene.get(self.layout.container)
             assert isinstance(fp, Liquid) and isinstance(box, Cylinder)
             self.bowl = BowlLiquid(self.model, self.data, self.ledger, box,
@@ -293,6 +291,17 @@ class FeedingWorld:
         """Simulated seconds per CPU second of this thread, over every step so far."""
         return self._sim_stepped / self._cpu if self._cpu > 0 else math.nan
 
+    @property
+    def stepping_cpu_s(self) -> float:
+        """CPU seconds of the stepping thread spent in this world's steps so far (the clock
+        of :attr:`realtime_factor`)."""
+        return self._cpu
+
+    @property
+    def stepped_s(self) -> float:
+        """Simulated seconds this world has stepped so far."""
+        return self._sim_stepped
+
     # ------------------------------------------------------------------ stepping --
     def step(self, tick: bool = True) -> None:
         """One physics step; the tool ticks every loop period (``tick=False``: tool off)."""
@@ -386,18 +395,19 @@ class FeedingWorld:
                 self.placement.liquid.advance()
             self.ledger.classify(self.time)
             if self._digging is not None:
-                self._set_digging(self._digging)
+                self._set_digging(*self._digging)
         self._cpu += time.thread_time() - c0
         self._sim_stepped += n * dt
         if ticked:
             for fn in self.on_tick:
                 fn(self)
 
-    def _set_digging(self, digging: tuple[int, NDArray[np.float64], float, float]) -> None:
-        """The no-slip passes for the next tick: the food's ``noslip_iterations_digging``
-        while the utensil's tip is inside the container (within its radius, below its rim),
-        its ``noslip_iterations`` elsewhere."""
-        passes, centre, radius, rim = digging
+    def _set_digging(self, passes: int, centre: NDArray[np.float64], radius: float,
+                     rim: float) -> None:
+        """The no-slip passes for the next tick: ``passes`` (the food's
+        ``noslip_iterations_digging``) while the utensil's tip is inside the container (within
+        ``radius`` of its axis through ``centre``, below its ``rim``), the food's
+        ``noslip_iterations`` elsewhere."""
         p = self.data.site_xpos[self.index.tip_site]
         inside = p[2] < rim and math.hypot(p[0] - centre[0], p[1] - centre[1]) < radius
         self.model.opt.noslip_iterations = passes if inside else self._passes

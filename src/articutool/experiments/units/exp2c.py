@@ -36,6 +36,7 @@ from articutool.experiments.unit import (
     Hook,
     Visitors,
     add_foods_argument,
+    foods_asked,
     parse_food_grams,
     usage,
 )
@@ -360,7 +361,7 @@ def _thresholds(args: argparse.Namespace, out: Path, cfg: Any) -> tuple[dict[str
 def _run_foods(args: argparse.Namespace, cfg: Any) -> list[str]:
     """The foods of Exp. 2c this run runs: those ``--foods`` names (all without it; a name
     that is not Exp. 2c's is the command's to refuse)."""
-    wanted = {f.strip() for f in (getattr(args, "foods", None) or "").split(",")}
+    wanted = foods_asked(args) or []
     return [f for f in cfg.exp2c.foods if f in wanted] or list(cfg.exp2c.foods)
 
 
