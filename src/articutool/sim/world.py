@@ -407,7 +407,9 @@ class FeedingWorld:
         """The no-slip passes for the next tick: ``passes`` (the food's
         ``noslip_iterations_digging``) while the utensil's tip is inside the container (within
         ``radius`` of its axis through ``centre``, below its ``rim``), the food's
-        ``noslip_iterations`` elsewhere."""
+        ``noslip_iterations`` elsewhere. No bottom bound: a spoon's tip site is the floor's
+        plane at the rim's far end, outside the metal, so it reads below the container's
+        floor while a spoon tilted tip-down rests on it."""
         p = self.data.site_xpos[self.index.tip_site]
         inside = p[2] < rim and math.hypot(p[0] - centre[0], p[1] - centre[1]) < radius
         self.model.opt.noslip_iterations = passes if inside else self._passes
