@@ -17,7 +17,9 @@ boundary. Every control period (:meth:`BowlLiquid.advance`, called by the world 
    MuJoCo's time with the dish moving from its last pose to this one (posed at least every
    5 ms along the way: position linear, rotation spherical, with that motion's velocities).
    The liquid's force on the dish does not act back on the arm (open loop: the arm is stiff
-   and its path is the tree's); the F/T sensor reads the load from the hand-over on;
+   and its path is the tree's, and at the bowl's particle the liquid's gap off the shell
+   swells its buoyancy up to 3.7×, docs/limits.md); the F/T sensor reads the load from the
+   hand-over on;
 3. a particle that leaves the bowl (past its wall or below its floor) is taken out and handed
    to MuJoCo as the 2 × 2 × 2 load spheres of its cube (the world's parked items), so the
    ledger classifies it from its contacts;
