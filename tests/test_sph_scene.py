@@ -213,6 +213,15 @@ def test_a_held_box_reads_the_weight_of_the_water_it_holds_and_stays_put() -> No
     assert np.all(np.abs(x[:, :2]) < 0.01) and np.all((x[:, 2] > 0) & (x[:, 2] < 0.03))
 
 
+def test_a_boundary_is_animated_or_held_and_only_a_held_one_reads_a_force() -> None:
+    with pytest.raises(ValueError, match="animated or held, not both"):
+        Boundary("box", *BOX, animated=True, held=True)
+    with box_liquid(animated=True) as liq, pytest.raises(ValueError, match="not held"):
+        liq.held_force("box")
+    with box_liquid() as liq, pytest.raises(ValueError, match="neither animated nor held"):
+        liq.set_boundary_pose("box", [0.0, 0.0, 0.0], np.eye(3))
+
+
 def test_the_forces_on_held_bodies_add_up_to_the_liquids_momentum_balance() -> None:
     """A small block held in the water and moved through it, the box held still: over the
     run, what the library reads on the two is all that acts on the liquid besides gravity,
