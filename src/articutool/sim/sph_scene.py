@@ -96,6 +96,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
 
 from articutool.sim.sph_library import library_version, load_splishsplash
 
@@ -616,17 +617,10 @@ class SphLiquid:
         v, w = _vec3(linear_velocity, "linear_velocity"), _vec3(angular_velocity,
                                                                 "angular_velocity")
         if name in self._held:
-            self._held[name].pose = (p, R, v, w)
+            self._held[name].hold(p, R, v, w)
             self._pose_held()
             return
-        from scipy.spatial.transform import Rotation
-
-        rb = self._rigid_body(name)
-        rb.setPosition(p)
-        rb.setRotation(Rotation.from_matrix(R).as_quat())  # (x, y, z, w), Eigen's coeffs
-        rb.setVelocity(v)
-        rb.setAngularVelocity(w)
-        rb.updateMeshTransformation()
+        _place(self._rigid_body(name), p, Rotation.from_matrix(R), v, w)
         self._base.updateBoundaryParticles(False)
 
     def _pose_held(self) -> None:
@@ -703,17 +697,25 @@ class SphLiquid:
         return k
 
 
+def _place(rb: Any, position: NDArray[np.float64], rotation: Rotation,
+           velocity: NDArray[np.float64], angular_velocity: NDArray[np.float64]) -> None:
+    """Pose a library rigid body and move its mesh (not yet its boundary particles)."""
+    rb.setPosition(position)
+    rb.setRotation(rotation.as_quat())  # (x, y, z, w), Eigen's coeffs
+    rb.setVelocity(velocity)
+    rb.setAngularVelocity(angular_velocity)
+    rb.updateMeshTransformation()
+
+
 class _Held:
-    """A held body: its rigid body in the library, the pose and velocities it is kept at,
-    and the liquid's impulse on it since the last read.
+    """A held body: its rigid body in the library, the state it is put back to before every
+    step, and the liquid's impulse on it since the last read.
 
     The library's rigid body is posed by its centre of mass and principal axes; the mesh's
     pose maps through them (``com``: the centre of mass in the mesh's frame, ``axes``: the
     principal axes' rotation in it), read once from the body as built."""
 
     def __init__(self, rb: Any) -> None:
-        from scipy.spatial.transform import Rotation
-
         self.rb = rb
         self.mass = float(rb.getMass())
         R_mesh = np.array(rb.getWorldSpaceRotation(), dtype=float)
@@ -721,21 +723,19 @@ class _Held:
         self.com = R_mesh.T @ (np.array(rb.getPosition(), dtype=float) - p_mesh)
         self.axes = (Rotation.from_matrix(R_mesh).inv()
                      * Rotation.from_quat(np.array(rb.getRotation(), dtype=float)))
-        self.pose = (np.zeros(3), np.eye(3), np.zeros(3), np.zeros(3))
-        self.v0 = np.zeros(3)
+        self.hold(np.zeros(3), np.eye(3), np.zeros(3), np.zeros(3))
         self.impulse, self.duration = np.zeros(3), 0.0
 
-    def apply(self) -> None:
-        from scipy.spatial.transform import Rotation
-
-        p, R, v, w = self.pose
+    def hold(self, p: NDArray[np.float64], R: NDArray[np.float64], v: NDArray[np.float64],
+             w: NDArray[np.float64]) -> None:
+        """Keep the mesh at pose (``p``, ``R``) with velocities ``v`` (at ``p``) and ``w``:
+        the library body's state, computed once."""
         arm = R @ self.com
-        self.v0 = v + np.cross(w, arm)
-        self.rb.setPosition(p + arm)
-        self.rb.setRotation((Rotation.from_matrix(R) * self.axes).as_quat())
-        self.rb.setVelocity(self.v0)
-        self.rb.setAngularVelocity(w)
-        self.rb.updateMeshTransformation()
+        self.v0 = v + np.cross(w, arm)  # the centre of mass's velocity
+        self.state = (p + arm, Rotation.from_matrix(R) * self.axes, self.v0, w)
+
+    def apply(self) -> None:
+        _place(self.rb, *self.state)
 
     def read(self, dt: float) -> None:
         """Add the step's impulse, read from the velocity the library gave the body."""
