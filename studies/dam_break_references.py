@@ -73,10 +73,10 @@ def main(argv: list[str] | None = None) -> int:
     dam = calib["liquid"]["dam_break"]
     check = next(c for c in calib["liquid"]["dynamic"] if c.get("check") == "dam_break")
     t_sim, z_sim = np.asarray(dam["t_star"]), np.asarray(dam["z_star"])
-    refs = {f"Martin & Moyce 1952, a = {s['a_m'] * 1000:.2f} mm": s
-            for s in martin_moyce_1952()["series"]}
+    mm_data = martin_moyce_1952()
+    refs = {f"Martin & Moyce 1952, a = {s['a_m'] * 1000:.2f} mm": s for s in mm_data["series"]}
     refs["Koshizuka & Oka 1996"] = KOSHIZUKA_OKA_1996
-    against = {name: {"source": s.get("source", martin_moyce_1952()["source"]),
+    against = {name: {"source": s.get("source", mm_data["source"]),
                       **compare(t_sim, z_sim, np.asarray(s["t_star"]), np.asarray(s["z_star"]),
                                 DAM_BREAK_Z_LIMIT)}
                for name, s in refs.items()}
