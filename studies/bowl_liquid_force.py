@@ -28,7 +28,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -39,7 +38,6 @@ import numpy as np
 SYSTEMS = ("articutool", "baseline")
 SEED0 = 8_600_000
 STAGES = ("above", "acquire")
-G0 = 9.80665
 
 
 def _held_dish() -> None:
@@ -104,7 +102,7 @@ def run(system: str, seed: int) -> dict[str, Any]:
             "mean_force_in_liquid_N": ([round(float(x), 5) for x in fb[k][sub].mean(axis=0)]
                                        if sub.any() else None),
             "force_before_hand_over_N": [round(float(x), 5) for x in fb[last]],
-            "weight_handed_over_N": round(handed * 1e-3 * G0, 5),
+            "weight_handed_over_N": round(handed * 1e-3 * -float(w.model.opt.gravity[2]), 5),
             "load_force_after_hand_over_N": ([round(float(x), 5) for x in fl[after[0]]]
                                              if len(after) else None),
         })
@@ -123,14 +121,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.out.exists() or args.out.is_symlink():
         print(f"--out {args.out} exists; give a new file", file=sys.stderr)
         return 2
+    from articutool.experiments.runner import source_version
+
     _held_dish()
-    src = Path(__file__).resolve().parents[1]
-    head = subprocess.run(["git", "-C", str(src), "rev-parse", "--short=12", "HEAD"],
-                          capture_output=True, text=True).stdout.strip()
-    dirty = subprocess.run(["git", "-C", str(src), "status", "--porcelain", "src"],
-                           capture_output=True, text=True).stdout.strip()
     runs = [run(s, args.seed + i) for i, s in enumerate(SYSTEMS)]
-    doc = {"study": "bowl_liquid_force", "source": head + ("+modified" if dirty else ""),
+    doc = {"study": "bowl_liquid_force", "source": source_version(),
            "clock": "process CPU (time.process_time)", "load_average": os.getloadavg(),
            "runs": runs}
     args.out.parent.mkdir(parents=True, exist_ok=True)

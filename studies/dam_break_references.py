@@ -44,13 +44,13 @@ KOSHIZUKA_OKA_1996 = {
 def compare(t_sim: np.ndarray, z_sim: np.ndarray, t_ref: np.ndarray, z_ref: np.ndarray,
             z_limit: float) -> dict[str, Any]:
     """A front ``(t_sim, z_sim)`` (Z increasing in T) against measured points
-    ``(t_ref, z_ref)``, at the points with ``0 < T ≤ t_sim[-1]`` and ``Z ≤ z_limit``: the
-    simulated Z at each measured T, its relative error, and the lag in T at each measured Z
-    (positive: the simulation got there first)."""
-    use = (t_ref > 0) & (t_ref <= t_sim[-1]) & (z_ref <= z_limit)
-    tr, zr = t_ref[use], z_ref[use]
-    z_at = np.interp(tr, t_sim, z_sim)
-    rel = (z_at - zr) / zr
+    ``(t_ref, z_ref)`` at the points the check compares
+    (:func:`~articutool.sim.liquid_checks.front_errors`): the simulated Z at each measured T,
+    its relative error, and the lag in T at each measured Z (positive: the simulation got
+    there first)."""
+    from articutool.sim.liquid_checks import front_errors
+
+    tr, zr, z_at, rel = front_errors(t_sim, z_sim, t_ref, z_ref, z_limit)
     lag = tr - np.interp(zr, np.maximum.accumulate(z_sim), t_sim)
     return {
         "t_star": [float(x) for x in tr],

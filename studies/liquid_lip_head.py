@@ -28,7 +28,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -100,9 +99,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.out.exists() or args.out.is_symlink():
         print(f"--out {args.out} exists; give a new file", file=sys.stderr)
         return 2
-    root = Path(__file__).resolve().parents[1]
-    head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short=12", "HEAD"],
-                          capture_output=True, text=True).stdout.strip()
+    from articutool.experiments.runner import source_version
+
     rows = []
     for radius in RADII_M:
         for load_g, direction, tilt in CASES:
@@ -110,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
             print(json.dumps(rows[-1]), flush=True)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     with open(args.out, "x") as f:
-        json.dump({"study": "liquid_lip_head", "source": head,
+        json.dump({"study": "liquid_lip_head", "source": source_version(),
                    "clock": "process CPU (time.process_time)", "rows": rows}, f, indent=1)
     return 0
 
