@@ -62,14 +62,19 @@ CANDIDATES: dict[str, list[dict[str, float]]] = {
         (0.0, 0.025), (0.002, 0.006))]}
 
 
-def one(food: str, system: str, seed: int, insertion: dict[str, float] | None = None
-        ) -> dict[str, Any]:
-    """One acquisition through the tree up to Resting; its record."""
+def one(food: str, system: str, seed: int, insertion: dict[str, float] | None = None,
+        stages: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
+    """One acquisition through the tree up to Resting; its record. ``insertion`` and
+    ``stages`` (a stage's name to its ``primitive`` and ``params``) replace those fields of
+    the system's own strategy."""
     setup = make_bite_world(food, system, seed)
+    s: Strategy = setup.strategy
     if insertion:
-        s: Strategy = setup.strategy
-        setup.strategy = s.model_copy(update={"insertion": s.insertion.model_copy(
-            update=insertion)})
+        s = s.model_copy(update={"insertion": s.insertion.model_copy(update=insertion)})
+    if stages:
+        s = s.model_copy(update={"stages": s.stages.model_copy(update={
+            n: type(getattr(s.stages, n)).model_validate(v) for n, v in stages.items()})})
+    setup.strategy = s
     root = _tree(setup, STAGES_TO_RESTING, DEFAULT_SETTINGS)
     wall0, cpu0 = time.perf_counter(), time.process_time()
     try:
@@ -82,6 +87,7 @@ def one(food: str, system: str, seed: int, insertion: dict[str, float] | None = 
     w = setup.world
     return {"food": food, "system": system, "seed": seed, "strategy": setup.strategy_name,
             "insertion": setup.strategy.insertion.model_dump(),
+            "stages": setup.strategy.stages.model_dump(),
             "acquired_g": r.acquired_g,
             "at_resting_g": r.masses_after.get("resting", {}).get("utensil", 0.0),
             "end_state": r.end_state, "failed_stage": r.failed_stage,
