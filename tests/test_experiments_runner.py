@@ -415,6 +415,23 @@ def test_the_data_hash_reads_only_the_runs_foods(tmp_path) -> None:
     assert data_hash("exp1", cfg, {"pecans"}) != data_hash("exp1", cfg, {"water"})
 
 
+def test_another_foods_strategy_does_not_move_a_runs_pin(tmp_path) -> None:
+    """A noodle strategy's twirl read only by noodle trials: changing it moves the pin of a
+    run with noodles, not that of a run of pecans and water."""
+    data = _data_copy(tmp_path)
+    strategies = data / "strategies.toml"
+    text = strategies.read_text()
+    twirl = 'stages.post_move_into = { primitive = "TWIRL_CCW", params = [2.0, 3.0] }'
+    assert text.count(twirl) == 1
+    strategies.write_text(text.replace(twirl, twirl.replace("2.0, 3.0", "3.0, 3.0")))
+    cfg = ExperimentsConfig.load()
+    for exp in ("exp1", "exp2c", "capacity"):
+        assert data_hash(exp, cfg, {"pecans", "water"}, data) == data_hash(
+            exp, cfg, {"pecans", "water"})
+    for exp in ("exp1", "exp3"):
+        assert data_hash(exp, cfg, {"noodles"}, data) != data_hash(exp, cfg, {"noodles"})
+
+
 def test_the_committed_runs_are_pinned_to_todays_data() -> None:
     """Every committed experiment's ``run.json`` pins the data it would read today, so its
     command resumes (and a change to a food's model that would change its trials is seen)."""

@@ -123,9 +123,10 @@ def data_hash(experiment: str, cfg: ExperimentsConfig, foods: Iterable[str],
               data: Path | None = None) -> str:
     """Short SHA-256 over the data a trial of ``experiment`` on ``foods`` reads: the spec,
     scene, physics and strategies files of ``data`` (default: the packaged ones; their parsed
-    content: comments do not count) with only ``foods``' tables of the physics file, and the
-    experiments file's shared settings and this experiment's own section (another food's
-    model or another experiment's section does not matter). An experiment whose trials place
+    content: comments do not count) with only ``foods``' tables of the physics file and only
+    the strategies for ``foods``, and the experiments file's shared settings and this
+    experiment's own section (another food's model or strategies or another experiment's
+    section does not matter). An experiment whose trials place
     their load (:attr:`~articutool.experiments.unit.Experiment.places_load`) does not read
     the container fill's settings (:attr:`~articutool.sim.params.Liquid.BOWL_FIELDS`,
     :attr:`~articutool.sim.params.Granular.BOWL_FIELDS`)."""
@@ -144,6 +145,9 @@ def data_hash(experiment: str, cfg: ExperimentsConfig, foods: Iterable[str],
         if name == "physics.toml":
             content["foods"] = {k: {f: x for f, x in v.items() if f not in unread}
                                 for k, v in content["foods"].items() if k in keep}
+        if name == "strategies.toml":
+            content["strategies"] = {k: v for k, v in content["strategies"].items()
+                                     if v.get("food") in keep}
         h.update(json.dumps(content, sort_keys=True).encode())
     own = cfg.model_dump(mode="json", include={"settings", experiment})
     h.update(json.dumps(own, sort_keys=True).encode())
