@@ -15,6 +15,12 @@ appends it. It refuses unless
   data of each of FULL's other foods is the same today as at each commit its trials ran on
   (the hash of that commit's data files, read from git, against today's).
 
+When only one system's strategy of a food changed (a search moved the baseline's), ``--drop
+FOOD/SYSTEM`` instead removes that condition's records from FULL's log and pins today's data,
+so that resuming FULL runs exactly them again on their seeds. It refuses unless every kept
+record's data is today's at its commit: its food's model and, for FOOD's other conditions,
+their own system's strategies (``data_hash(..., systems=)``).
+
 FULL's ``run.json`` then pins today's data hash (its trials are each on the data they ran on,
 and the data of every food is today's), so `articutool experiment EXP --out FULL` resumes it:
 with nothing to run it writes the summary from the folded log, keeping when and how the run
@@ -117,13 +123,59 @@ def fold(exp: str, part: Path, full: Path) -> dict[str, int]:
     return {"kept": len(out) - len(mine), "folded": len(mine)}
 
 
+def drop(exp: str, full: Path, food: str, system: str) -> dict[str, int]:
+    """Drop the records of ``food``'s ``system`` condition from ``full/exp``'s log and pin
+    today's data, so that resuming ``full`` runs them again on the same seeds (module doc).
+    Refuses unless every kept record's data is today's at the commit it ran on: its food's
+    model, and for ``food``'s other conditions their own system's strategies."""
+    from articutool.datafile import read_own_json, replace_own
+    from articutool.experiments.config import ExperimentsConfig
+    from articutool.experiments.runner import data_hash, log_path
+
+    cfg = ExperimentsConfig.load()
+    run = read_own_json(full / exp / "run.json", "run")
+    if run is None:
+        raise SystemExit(f"{exp}: {full} holds no run.json")
+    if not any(c["food"] == food and c.get("system") == system for c in run["conditions"]):
+        raise SystemExit(f"{exp}: no condition {food}/{system} in {full}")
+    lines = log_path(full, exp).read_text().splitlines()
+    recs = [json.loads(x) for x in lines]
+
+    def dropped(r: dict[str, object]) -> bool:
+        return r["food"] == food and r.get("system") == system
+
+    kept = {(str(r["food"]), r.get("system") if r["food"] == food else None,
+             str(r["source"]).removesuffix("+modified")) for r in recs if not dropped(r)}
+    for f, sysname, commit in sorted(kept, key=str):
+        only = None if sysname is None else {sysname}
+        with tempfile.TemporaryDirectory() as tmp:
+            then = data_hash(exp, cfg, {f}, _data_at(commit, Path(tmp)), systems=only)
+        if then != data_hash(exp, cfg, {f}, systems=only):
+            what = f if sysname is None else f"{f}/{sysname}"
+            raise SystemExit(f"{exp}: the data of {what} changed since {commit}; run it again")
+    out = [x for x, r in zip(lines, recs, strict=True) if not dropped(r)]
+    replace_own(log_path(full, exp), "\n".join(out) + "\n")
+    foods_all = {c["food"] for c in run["conditions"]}
+    replace_own(full / exp / "run.json", json.dumps(
+        {**run, "data_hash": data_hash(exp, cfg, foods_all)}, indent=1) + "\n")
+    return {"kept": len(out), "dropped": len(lines) - len(out)}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("experiment")
-    ap.add_argument("--part", type=Path, required=True)
     ap.add_argument("--full", type=Path, required=True)
+    how = ap.add_mutually_exclusive_group(required=True)
+    how.add_argument("--part", type=Path)
+    how.add_argument("--drop", metavar="FOOD/SYSTEM",
+                     help="drop one condition's records to run them again by resuming")
     a = ap.parse_args(argv)
-    print(json.dumps({"experiment": a.experiment, **fold(a.experiment, a.part, a.full)}))
+    if a.drop is not None:
+        food, _, system = a.drop.partition("/")
+        done = drop(a.experiment, a.full, food, system)
+    else:
+        done = fold(a.experiment, a.part, a.full)
+    print(json.dumps({"experiment": a.experiment, **done}))
     return 0
 
 

@@ -120,13 +120,14 @@ def _records(lines: Iterable[dict[str, Any]], path: Path) -> list[TrialRecord]:
 
 
 def data_hash(experiment: str, cfg: ExperimentsConfig, foods: Iterable[str],
-              data: Path | None = None) -> str:
+              data: Path | None = None, systems: Iterable[str] | None = None) -> str:
     """Short SHA-256 over the data a trial of ``experiment`` on ``foods`` reads: the spec,
     scene, physics and strategies files of ``data`` (default: the packaged ones; their parsed
     content: comments do not count) with only ``foods``' tables of the physics file and only
     the strategies for ``foods``, and the experiments file's shared settings and this
     experiment's own section (another food's model or strategies or another experiment's
-    section does not matter). An experiment whose trials place
+    section does not matter); with ``systems``, only the strategies of those systems (what
+    one condition's trials read). An experiment whose trials place
     their load (:attr:`~articutool.experiments.unit.Experiment.places_load`) does not read
     the container fill's settings (:attr:`~articutool.sim.params.Liquid.BOWL_FIELDS`,
     :attr:`~articutool.sim.params.Granular.BOWL_FIELDS`)."""
@@ -136,6 +137,7 @@ def data_hash(experiment: str, cfg: ExperimentsConfig, foods: Iterable[str],
     h = hashlib.sha256()
     base = resources.files("articutool") / "data" if data is None else data
     keep = set(foods)
+    only = None if systems is None else set(systems)
     unit = registry().get(experiment)
     unread = ({*Liquid.BOWL_FIELDS, *Granular.BOWL_FIELDS}
               if unit is not None and unit.places_load else set())
@@ -146,8 +148,9 @@ def data_hash(experiment: str, cfg: ExperimentsConfig, foods: Iterable[str],
             content["foods"] = {k: {f: x for f, x in v.items() if f not in unread}
                                 for k, v in content["foods"].items() if k in keep}
         if name == "strategies.toml":
-            content["strategies"] = {k: v for k, v in content["strategies"].items()
-                                     if v.get("food") in keep}
+            content["strategies"] = {
+                k: v for k, v in content["strategies"].items() if v.get("food") in keep
+                and (only is None or v.get("system") in only)}
         h.update(json.dumps(content, sort_keys=True).encode())
     own = cfg.model_dump(mode="json", include={"settings", experiment})
     h.update(json.dumps(own, sort_keys=True).encode())
