@@ -7,7 +7,6 @@ from __future__ import annotations
 import importlib
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -22,12 +21,10 @@ STUDIES = REPO / "studies"
 OLD = "a1c6e5f^"
 
 
-def _study():  # type: ignore[no-untyped-def]
-    sys.path.insert(0, str(STUDIES))
-    try:
-        return importlib.import_module("fold_run")
-    finally:
-        sys.path.remove(str(STUDIES))
+@pytest.fixture
+def fold_run(monkeypatch):  # type: ignore[no-untyped-def]
+    monkeypatch.syspath_prepend(str(STUDIES))
+    return importlib.import_module("fold_run")
 
 
 def _head() -> str:
@@ -50,9 +47,9 @@ def _run(tmp_path: Path, articutool_source: str) -> Path:
     return tmp_path / "full"
 
 
-def test_drop_removes_one_condition_and_pins_todays_data(tmp_path: Path) -> None:
+def test_drop_removes_one_condition_and_pins_todays_data(fold_run, tmp_path: Path) -> None:
     full = _run(tmp_path, _head())
-    done = _study().drop("exp3", full, "noodles", "baseline")
+    done = fold_run.drop("exp3", full, "noodles", "baseline")
     assert done == {"kept": 2, "dropped": 2}
     recs = [json.loads(x) for x in (full / "exp3" / "trials.jsonl").read_text().splitlines()]
     assert [(r["trial"], r["system"]) for r in recs] == [(0, "articutool"), (2, "articutool")]
@@ -60,9 +57,9 @@ def test_drop_removes_one_condition_and_pins_todays_data(tmp_path: Path) -> None
     assert run["data_hash"] == data_hash("exp3", ExperimentsConfig.load(), {"noodles"})
 
 
-def test_drop_refuses_a_kept_record_on_other_data(tmp_path: Path) -> None:
+def test_drop_refuses_a_kept_record_on_other_data(fold_run, tmp_path: Path) -> None:
     full = _run(tmp_path, OLD)
     before = {p.name: p.read_bytes() for p in (full / "exp3").iterdir()}
     with pytest.raises(SystemExit, match="noodles/articutool changed since"):
-        _study().drop("exp3", full, "noodles", "baseline")
+        fold_run.drop("exp3", full, "noodles", "baseline")
     assert {p.name: p.read_bytes() for p in (full / "exp3").iterdir()} == before
