@@ -203,12 +203,28 @@ def shipped_insertions(foods: list[str]) -> dict[tuple[str, str], dict[str, Any]
             for f, s in itertools.product(foods, SYSTEMS)}
 
 
+def score(runs: list[dict[str, Any]], shipped: bool) -> dict[str, Any]:
+    """One candidate's runs, as the search ranks them; ``shipped``: it is the system's shipped
+    value."""
+    return {"n": len(runs),
+            "acquired_g": describe([r["acquired_g"] for r in runs]).to_dict(),
+            "at_resting_g": describe([r["at_resting_g"] for r in runs]).to_dict(),
+            "completed": sum(r["end_state"] == "completed" for r in runs),
+            "shipped": shipped}
+
+
+def choose(scores: dict[int, dict[str, Any]]) -> int:
+    """The search's rule over candidates' :func:`score`: the highest mean acquired mass; a tie
+    goes to the higher mean at Resting, then to the shipped value, then to the first."""
+    return max(scores, key=lambda j: (scores[j]["acquired_g"]["mean"],
+                                      scores[j]["at_resting_g"]["mean"],
+                                      scores[j]["shipped"], -j))
+
+
 def best(runs: list[dict[str, Any]], foods: list[str],
          shipped_by: dict[tuple[str, str], dict[str, Any]]) -> dict[str, Any]:
-    """Per food/system, the search's choice among the candidates run so far: the highest mean
-    acquired mass; a tie goes to the higher mean at Resting, then to the system's shipped
-    insertion (``shipped_by``, :func:`shipped_insertions`), then to the first candidate in the
-    grid."""
+    """Per food/system, the search's choice (:func:`choose`) among the candidates run so far;
+    the shipped insertion is ``shipped_by``'s (:func:`shipped_insertions`)."""
     out: dict[str, Any] = {}
     for food, system in itertools.product(foods, SYSTEMS):
         shipped = shipped_by[food, system]
@@ -217,15 +233,9 @@ def best(runs: list[dict[str, Any]], foods: list[str],
             rs = [r for r in runs if r["food"] == food and r["system"] == system
                   and r["candidate"] == i]
             if rs:
-                scores[i] = {"n": len(rs),
-                             "acquired_g": describe([r["acquired_g"] for r in rs]).to_dict(),
-                             "at_resting_g": describe([r["at_resting_g"] for r in rs]).to_dict(),
-                             "completed": sum(r["end_state"] == "completed" for r in rs),
-                             "shipped": all(shipped[k] == v for k, v in cand.items())}
+                scores[i] = score(rs, all(shipped[k] == v for k, v in cand.items()))
         if scores:
-            i = max(scores, key=lambda j: (scores[j]["acquired_g"]["mean"],
-                                           scores[j]["at_resting_g"]["mean"],
-                                           scores[j]["shipped"], -j))
+            i = choose(scores)
             out[f"{food}/{system}"] = {"candidate": i, **CANDIDATES[food][i],
                                        "mean_acquired_g": scores[i]["acquired_g"]["mean"],
                                        "scores": {str(j): v for j, v in scores.items()}}

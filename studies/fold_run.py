@@ -58,6 +58,21 @@ def _data_at(commit: str, into: Path) -> Path:
     return into
 
 
+def _check_unchanged(exp: str, food: str, commit: str, system: str | None = None) -> None:
+    """Refuse unless the data a trial of ``exp`` on ``food`` (of ``system`` only, if given)
+    reads is the same today as at ``commit``."""
+    from articutool.experiments.config import ExperimentsConfig
+    from articutool.experiments.runner import data_hash
+
+    cfg = ExperimentsConfig.load()
+    only = None if system is None else {system}
+    with tempfile.TemporaryDirectory() as tmp:
+        then = data_hash(exp, cfg, {food}, _data_at(commit, Path(tmp)), systems=only)
+    if then != data_hash(exp, cfg, {food}, systems=only):
+        what = food if system is None else f"{food}/{system}"
+        raise SystemExit(f"{exp}: the data of {what} changed since {commit}; run it again")
+
+
 def fold(exp: str, part: Path, full: Path) -> dict[str, int]:
     """Fold ``part/exp``'s records into ``full/exp``'s log (module doc); returns counts."""
     from articutool.datafile import read_own_json, replace_own
@@ -95,10 +110,7 @@ def fold(exp: str, part: Path, full: Path) -> dict[str, int]:
     for food in sorted(foods_all - foods_p):  # each kept food, at each commit it ran on
         commits = {r["source"].removesuffix("+modified") for r in recs_f if r["food"] == food}
         for c in sorted(commits):
-            with tempfile.TemporaryDirectory() as tmp:
-                then = data_hash(exp, cfg, {food}, _data_at(c, Path(tmp)))
-            if then != data_hash(exp, cfg, {food}):
-                raise SystemExit(f"{exp}: the data of {food} changed since {c}; run it again")
+            _check_unchanged(exp, food, c)
     index = {(renamed[cond_key(r)], r["repeat"]): (r["trial"], r["seed"]) for r in recs_f
              if cond_key(r) in renamed}
     recs_p = [json.loads(x) for x in log_path(part, exp).read_text().splitlines()]
@@ -147,12 +159,7 @@ def drop(exp: str, full: Path, food: str, system: str) -> dict[str, int]:
     kept = {(str(r["food"]), r.get("system") if r["food"] == food else None,
              str(r["source"]).removesuffix("+modified")) for r in recs if not dropped(r)}
     for f, sysname, commit in sorted(kept, key=str):
-        only = None if sysname is None else {sysname}
-        with tempfile.TemporaryDirectory() as tmp:
-            then = data_hash(exp, cfg, {f}, _data_at(commit, Path(tmp)), systems=only)
-        if then != data_hash(exp, cfg, {f}, systems=only):
-            what = f if sysname is None else f"{f}/{sysname}"
-            raise SystemExit(f"{exp}: the data of {what} changed since {commit}; run it again")
+        _check_unchanged(exp, f, commit, sysname)
     out = [x for x, r in zip(lines, recs, strict=True) if not dropped(r)]
     replace_own(log_path(full, exp), "\n".join(out) + "\n")
     foods_all = {c["food"] for c in run["conditions"]}

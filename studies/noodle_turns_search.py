@@ -12,9 +12,9 @@ candidate is one acquisition through the feeding tree up to Resting
 highest mean acquired mass; a tie goes to the higher mean at Resting, then to the shipped
 value, then to the first candidate.
 
-The turns are the post-insertion ``TWIRL_CCW``'s rotations at its shipped speed; the turn
-before insertion (in the air, winding the F/T cable) stays, so 1–3 turns inside keep the
-roll within the spec's turn budget (the tool refuses more) and end at whole turns.
+The turns are the post-insertion ``TWIRL_CCW``'s rotations at its shipped speed, the shipped
+2 and one either side; the turn before insertion (in the air, winding the F/T cable) stays,
+so every candidate keeps the roll within the spec's turn budget and ends at whole turns.
 
 Run (niced, from the repository root): ``PYTHONPATH=src nice .venv/bin/python
 studies/noodle_turns_search.py --seeds 3 --workers 2 --out
@@ -31,40 +31,45 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
-from acquisition_study import SYSTEMS, TUNING_SEED0, _write, one, shipped_insertions
+from acquisition_study import (
+    SYSTEMS,
+    TUNING_SEED0,
+    _write,
+    choose,
+    one,
+    score,
+    shipped_insertions,
+)
 from articutool.experiments.runner import source_version
-from articutool.experiments.stats import describe
 
 FOOD = "noodles"
 TURNS = (1.0, 2.0, 3.0)
 BASELINE_OFFSET_M, BASELINE_DEPTHS_M = 0.0125, (0.002, 0.004, 0.006)
 
 
-def candidates() -> dict[str, list[dict[str, Any]]]:
-    """Each system's candidates: the Articutool's turns inside the nest (its
-    ``post_move_into`` stage), the still fork's insertion; as many for each."""
+def _twirl_inside():  # type: ignore[no-untyped-def]
+    """The Articutool's shipped noodle strategy's stage inside the nest."""
     from articutool.feeding.strategies import StrategyLibrary
     from articutool.spec import load_spec
 
-    twirl = next(iter(StrategyLibrary.load(load_spec()).for_food(FOOD, "articutool")
-                      .values())).stages.post_move_into
-    speed = twirl.params[1]
+    lib = StrategyLibrary.load(load_spec())
+    return next(iter(lib.for_food(FOOD, "articutool").values())).stages.post_move_into
+
+
+def candidates() -> dict[str, list[dict[str, Any]]]:
+    """Each system's candidates: the Articutool's turns inside the nest (its
+    ``post_move_into`` stage), the still fork's insertion; as many for each."""
+    twirl = _twirl_inside()
     return {"articutool": [{"stages": {"post_move_into": {
-                "primitive": twirl.primitive, "params": [t, speed]}}} for t in TURNS],
+                "primitive": twirl.primitive, "params": [t, twirl.params[1]]}}} for t in TURNS],
             "baseline": [{"insertion": {"offset_m": BASELINE_OFFSET_M, "depth_m": d}}
                          for d in BASELINE_DEPTHS_M]}
 
 
 def shipped_values() -> dict[str, dict[str, Any]]:
     """What each system ships in the fields its candidates set."""
-    from articutool.feeding.strategies import StrategyLibrary
-    from articutool.spec import load_spec
-
-    lib = StrategyLibrary.load(load_spec())
-    ins = shipped_insertions([FOOD])
-    return {"articutool": {"stages": {"post_move_into": next(iter(lib.for_food(
-                FOOD, "articutool").values())).stages.post_move_into.model_dump()}},
-            "baseline": {"insertion": ins[FOOD, "baseline"]}}
+    return {"articutool": {"stages": {"post_move_into": _twirl_inside().model_dump()}},
+            "baseline": {"insertion": shipped_insertions([FOOD])[FOOD, "baseline"]}}
 
 
 def _is_shipped(cand: dict[str, Any], shipped: dict[str, Any]) -> bool:
@@ -75,24 +80,18 @@ def _is_shipped(cand: dict[str, Any], shipped: dict[str, Any]) -> bool:
 
 def best(runs: list[dict[str, Any]], cands: dict[str, list[dict[str, Any]]],
          shipped: dict[str, dict[str, Any]]) -> dict[str, Any]:
-    """Per system, the choice among the candidates run so far (see the module's rule), with
-    every candidate's scores."""
+    """Per system, the choice among the candidates run so far (:func:`acquisition_study.choose`),
+    with every candidate's scores and CPU."""
     out: dict[str, Any] = {}
     for system in SYSTEMS:
         scores: dict[int, dict[str, Any]] = {}
         for i, cand in enumerate(cands[system]):
             rs = [r for r in runs if r["system"] == system and r["candidate"] == i]
             if rs:
-                scores[i] = {"n": len(rs),
-                             "acquired_g": describe([r["acquired_g"] for r in rs]).to_dict(),
-                             "at_resting_g": describe([r["at_resting_g"] for r in rs]).to_dict(),
-                             "completed": sum(r["end_state"] == "completed" for r in rs),
-                             "cpu_s_process": sum(r["cpu_s_process"] for r in rs),
-                             "shipped": _is_shipped(cand, shipped[system])}
+                scores[i] = {**score(rs, _is_shipped(cand, shipped[system])),
+                             "cpu_s_process": sum(r["cpu_s_process"] for r in rs)}
         if scores:
-            i = max(scores, key=lambda j: (scores[j]["acquired_g"]["mean"],
-                                           scores[j]["at_resting_g"]["mean"],
-                                           scores[j]["shipped"], -j))
+            i = choose(scores)
             out[system] = {"candidate": i, **cands[system][i],
                            "mean_acquired_g": scores[i]["acquired_g"]["mean"],
                            "scores": {str(j): v for j, v in scores.items()}}
