@@ -39,6 +39,10 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from articutool.experiments.config import ExperimentsConfig
 
 REPO = Path(__file__).resolve().parents[1]
 # A condition's values measured by other runs (Exp. 2c's load: capacity's mean; its closed
@@ -58,13 +62,12 @@ def _data_at(commit: str, into: Path) -> Path:
     return into
 
 
-def _check_unchanged(exp: str, food: str, commit: str, system: str | None = None) -> None:
+def _check_unchanged(exp: str, cfg: ExperimentsConfig, food: str, commit: str,
+                     system: str | None = None) -> None:
     """Refuse unless the data a trial of ``exp`` on ``food`` (of ``system`` only, if given)
-    reads is the same today as at ``commit``."""
-    from articutool.experiments.config import ExperimentsConfig
+    reads is the same today as at ``commit``; ``cfg`` is today's experiments config."""
     from articutool.experiments.runner import data_hash
 
-    cfg = ExperimentsConfig.load()
     only = None if system is None else {system}
     with tempfile.TemporaryDirectory() as tmp:
         then = data_hash(exp, cfg, {food}, _data_at(commit, Path(tmp)), systems=only)
@@ -110,7 +113,7 @@ def fold(exp: str, part: Path, full: Path) -> dict[str, int]:
     for food in sorted(foods_all - foods_p):  # each kept food, at each commit it ran on
         commits = {r["source"].removesuffix("+modified") for r in recs_f if r["food"] == food}
         for c in sorted(commits):
-            _check_unchanged(exp, food, c)
+            _check_unchanged(exp, cfg, food, c)
     index = {(renamed[cond_key(r)], r["repeat"]): (r["trial"], r["seed"]) for r in recs_f
              if cond_key(r) in renamed}
     recs_p = [json.loads(x) for x in log_path(part, exp).read_text().splitlines()]
@@ -159,7 +162,7 @@ def drop(exp: str, full: Path, food: str, system: str) -> dict[str, int]:
     kept = {(str(r["food"]), r.get("system") if r["food"] == food else None,
              str(r["source"]).removesuffix("+modified")) for r in recs if not dropped(r)}
     for f, sysname, commit in sorted(kept, key=str):
-        _check_unchanged(exp, f, commit, sysname)
+        _check_unchanged(exp, cfg, f, commit, sysname)
     out = [x for x, r in zip(lines, recs, strict=True) if not dropped(r)]
     replace_own(log_path(full, exp), "\n".join(out) + "\n")
     foods_all = {c["food"] for c in run["conditions"]}

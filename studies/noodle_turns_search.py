@@ -24,6 +24,7 @@ studies/results/noodle_turns_search.json``; ``--resume`` keeps the runs in ``--o
 from __future__ import annotations
 
 import argparse
+import functools
 import itertools
 import json
 import sys
@@ -47,8 +48,9 @@ TURNS = (1.0, 2.0, 3.0)
 BASELINE_OFFSET_M, BASELINE_DEPTHS_M = 0.0125, (0.002, 0.004, 0.006)
 
 
+@functools.cache
 def _twirl_inside():  # type: ignore[no-untyped-def]
-    """The Articutool's shipped noodle strategy's stage inside the nest."""
+    """The Articutool's shipped noodle strategy's stage inside the nest (read once)."""
     from articutool.feeding.strategies import StrategyLibrary
     from articutool.spec import load_spec
 
