@@ -12,9 +12,10 @@ candidate is one acquisition through the feeding tree up to Resting
 highest mean acquired mass; a tie goes to the higher mean at Resting, then to the shipped
 value, then to the first candidate.
 
-The turns are the post-insertion ``TWIRL_CCW``'s rotations at its shipped speed, the shipped
-2 and one either side; the turn before insertion (in the air, winding the F/T cable) stays,
-so every candidate keeps the roll within the spec's turn budget and ends at whole turns.
+The turns are the post-insertion ``TWIRL_CCW``'s rotations at its shipped speed: 1, 2 and 3
+(the 2 shipped before this search and one either side); the turn before insertion (in the
+air, winding the F/T cable) stays, so every candidate keeps the roll within the spec's turn
+budget and ends at whole turns.
 
 Run (niced, from the repository root): ``PYTHONPATH=src nice .venv/bin/python
 studies/noodle_turns_search.py --seeds 3 --workers 2 --out

@@ -423,9 +423,9 @@ def test_another_foods_strategy_does_not_move_a_runs_pin(tmp_path) -> None:
     data = _data_copy(tmp_path)
     strategies = data / "strategies.toml"
     text = strategies.read_text()
-    twirl = 'stages.post_move_into = { primitive = "TWIRL_CCW", params = [2.0, 3.0] }'
+    twirl = 'stages.post_move_into = { primitive = "TWIRL_CCW", params = [3.0, 3.0] }'
     assert text.count(twirl) == 1
-    strategies.write_text(text.replace(twirl, twirl.replace("2.0, 3.0", "3.0, 3.0")))
+    strategies.write_text(text.replace(twirl, twirl.replace("3.0, 3.0", "2.0, 3.0")))
     cfg = ExperimentsConfig.load()
     for exp in ("exp1", "exp2c", "capacity"):
         assert data_hash(exp, cfg, {"pecans", "water"}, data) == data_hash(
