@@ -114,3 +114,17 @@ def test_the_water_models_deviation_names_the_load_model_the_world_builds(
     monkeypatch.setattr(PhysicsParams, "load", classmethod(lambda cls, path=None: spheres))
     text = report._physics_facts()["water_model"]
     assert "SPlisHSPlasH" not in text and "in a load placed on a spoon" in text
+
+
+@pytest.mark.parametrize(("errors", "resets", "want", "not_want"), [
+    (1, 1, "1 error, of them 1 run that MuJoCo reset", ("1 errors", "1 runs")),
+    (2, 2, "2 errors, of them 2 runs that MuJoCo reset", ("2 error,", "2 run ")),
+    (0, 0, "0 errors)", ("of them",)),
+])
+def test_run_line_counts_agree_with_their_nouns(errors: int, resets: int, want: str,
+                                               not_want: tuple[str, ...]) -> None:
+    line = report._run_line({"run": {"trials": 40, "trials_per_condition": 20,
+                                     "errors": errors, "physics_resets": resets}})
+    assert want in line
+    for bad in not_want:
+        assert bad not in line

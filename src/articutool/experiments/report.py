@@ -209,14 +209,19 @@ def figure(exp: str, records: Sequence[TrialRecord], summary: Mapping[str, Any],
 
 
 # ----------------------------------------------------------------------- sections --
+def _count(n: int, noun: str) -> str:
+    """``n`` and ``noun``, plural unless ``n`` is 1: "1 error", "2 errors"."""
+    return f"{n} {noun}" + ("" if n == 1 else "s")
+
+
 def _run_line(s: Mapping[str, Any]) -> str:
     r = s.get("run", {})
     w = r.get("wall_time_per_trial_s") or {}
     resets = r.get("physics_resets", 0)
     parts = [f"{r.get('trials', 0)} trials ({r.get('trials_per_condition', '?')} per "
-             f"condition; {r.get('errors', 0)} errors"
-             + (f", of them {resets} runs that MuJoCo reset after a numerical instability, "
-                "not counted" if resets else "") + ")"]
+             f"condition; {_count(r.get('errors', 0), 'error')}"
+             + (f", of them {_count(resets, 'run')} that MuJoCo reset after a numerical "
+                "instability, not counted" if resets else "") + ")"]
     if w.get("mean") is not None:
         parts.append(f"wall time per trial {w['mean']:.1f} ± {num(w.get('sd'), 1)} s, "
                      f"sum {r.get('wall_time_total_s')} s")
