@@ -160,6 +160,15 @@ def test_a_killed_run_resumes_and_loses_or_repeats_no_trial(tmp_path: Path) -> N
     assert summary["run"]["trials"] == n
     assert summary["spilled_g"]["pecans"]["articutool"]["n"] == 2
     assert read_trial_log(out, "exp2b").records[0].trial == 0
+    assert summary["run"]["ran_now"] == n - len(done_before)
+    # Run again with nothing left: the summary is rewritten from the log and still says what
+    # the last invocation that ran trials did.
+    again = subprocess.run([*cmd, "--json"], capture_output=True, text=True, env=env,
+                           timeout=600)
+    assert again.returncode == 0, again.stderr
+    kept = json.loads(again.stdout)["run"]
+    for k in ("ran_now", "experiment_wall_time_s", "date", "command"):
+        assert kept[k] == summary["run"][k], k
 
 
 @pytest.mark.parametrize("argv, field", [

@@ -278,8 +278,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         machine_load={"before": [round(x, 2) for x in load_before],
                       "after": [round(x, 2) for x in load_after]})
     if summary_run.ran == 0 and old_summary is not None:  # nothing ran: keep when and how
-        for k in ("experiment_wall_time_s", "executor", "machine", "date", "command",
-                  "machine_load"):
+        for k in ("experiment_wall_time_s", "ran_now", "executor", "machine", "date",
+                  "command", "machine_load"):
             if k in old_summary["run"]:
                 summary["run"][k] = old_summary["run"][k]
     summary.update({k: v for k, v in extra.items() if k != "conditions"})
