@@ -266,22 +266,23 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return 130
     records = summary_run.records
     summary = summarize(exp, records, cfg, **given)
-    summary["run"].update(
-        trials_per_condition=args.trials, base_seed=args.seed, executor=executor.description,
-        experiment_wall_time_s=round(summary_run.wall_time_s, 1), ran_now=summary_run.ran,
-        machine=_machine(), date=_dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+    # What this invocation did; with nothing run, the last invocation that ran trials keeps
+    # its account (each field it has).
+    invocation = dict(
+        executor=executor.description, experiment_wall_time_s=round(summary_run.wall_time_s, 1),
+        ran_now=summary_run.ran, machine=_machine(),
+        date=_dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         command="articutool " + " ".join(shlex.quote(a) for a in sys.argv[1:])
         if sys.argv[1:2] == ["experiment"] else f"articutool experiment {exp}",
-        data_hash=settings["data_hash"],
         # The machine's run-queue load averages (os.getloadavg: 1, 5, 15 min) as the run
         # began and ended; the run's own workers are part of the second.
         machine_load={"before": [round(x, 2) for x in load_before],
                       "after": [round(x, 2) for x in load_after]})
-    if summary_run.ran == 0 and old_summary is not None:  # nothing ran: keep when and how
-        for k in ("experiment_wall_time_s", "ran_now", "executor", "machine", "date",
-                  "command", "machine_load"):
-            if k in old_summary["run"]:
-                summary["run"][k] = old_summary["run"][k]
+    if summary_run.ran == 0 and old_summary is not None:
+        invocation.update({k: old_summary["run"][k] for k in invocation
+                           if k in old_summary["run"]})
+    summary["run"].update(trials_per_condition=args.trials, base_seed=args.seed,
+                          data_hash=settings["data_hash"], **invocation)
     summary.update({k: v for k, v in extra.items() if k != "conditions"})
     summary.update({k: given[k] for k in u.noted_settings if k in given})
     from articutool.datafile import replace_own
