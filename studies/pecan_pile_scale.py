@@ -4,10 +4,14 @@ The plate test (:func:`articutool.sim.calibrate.angle_of_repose_deg`) puts 110 p
 50 mm plate, two to five piece lengths across, and its heap is a mesa a few pieces thick
 (docs/food.md). This runs the same test with the tube and plate scaled by ``--scale`` and the
 pieces by its cube (the same fill height), with the no-slip passes given, and writes the
-test's result.
+test's result, appended to ``--out``. ``--parts`` instead reads the piles in ``--out`` and
+prints each heap's three parts, least-squares lines through its ring tops (``surface_mm``):
+the top's slope over the inner 60 % of the plate's radius, the outer face's slope beyond it,
+and the foot (the last ring's top).
 
-    PYTHONPATH=src nice .venv/bin/python studies/pecan_pile_scale.py --scale 1.5 --seed 0 \\
+    PYTHONPATH=src nice .venv/bin/python studies/pecan_pile_scale.py --scale 2 --seed 0 \\
         --passes 10 --out studies/results/pecan_pile_scale.json
+    .venv/bin/python studies/pecan_pile_scale.py --parts --out studies/results/pecan_pile_scale.json
 """
 
 from __future__ import annotations
@@ -17,6 +21,22 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
+
+INNER = 0.6  # the top's share of the plate's radius
+
+
+def heap_parts(surface_mm: list[list[float]], plate_radius_mm: float) -> dict[str, float]:
+    """The top's and the outer face's slopes (degrees, positive falling outwards) and the
+    foot's height (mm) of a heap's ring tops ``(radius, height)`` in mm."""
+    s = np.asarray(surface_mm, dtype=float)
+    inner = s[:, 0] < INNER * plate_radius_mm
+
+    def slope(m: np.ndarray) -> float:
+        return float(np.degrees(np.arctan(-np.polyfit(s[m, 0], s[m, 1], 1)[0])))
+
+    return {"top_deg": slope(inner), "outer_face_deg": slope(~inner), "foot_mm": float(s[-1, 1])}
+
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -24,7 +44,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--passes", type=int, default=10)
     ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--parts", action="store_true", help="print the piles' parts in --out")
     a = ap.parse_args(argv)
+    if a.parts:
+        for r in json.loads(a.out.read_text())["piles"]:
+            parts = heap_parts(r["surface_mm"], r["plate_radius_mm"])
+            print(json.dumps({k: r[k] for k in ("scale", "seed", "passes", "angle_deg",
+                                                "flank_angle_deg")} | parts))
+        return 0
     import articutool.sim.calibrate as cal
     from articutool.experiments.runner import source_version
     from articutool.sim.params import PhysicsParams

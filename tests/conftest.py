@@ -233,6 +233,21 @@ def scene():  # type: ignore[no-untyped-def]
     return Scene.load()
 
 
+STUDIES = Path(__file__).resolve().parents[1] / "studies"
+
+
+def import_study(name: str):  # type: ignore[no-untyped-def]
+    """The module ``studies/<name>.py``, imported with ``studies/`` on the path only while it
+    loads (usable inside hypothesis tests, where function-scoped fixtures are not)."""
+    import importlib
+
+    sys.path.insert(0, str(STUDIES))
+    try:
+        return importlib.import_module(name)
+    finally:
+        sys.path.remove(str(STUDIES))
+
+
 def free_port() -> int:
     """A TCP port on 127.0.0.1 that nobody listens on now."""
     with socket.socket() as s:

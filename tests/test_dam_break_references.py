@@ -4,25 +4,18 @@ what the study computes from the committed calibration today."""
 
 from __future__ import annotations
 
-import importlib
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-STUDIES = Path(__file__).resolve().parents[1] / "studies"
+from conftest import STUDIES, import_study
 
 
 def _study():  # type: ignore[no-untyped-def]
-    sys.path.insert(0, str(STUDIES))
-    try:
-        return importlib.import_module("dam_break_references")
-    finally:
-        sys.path.remove(str(STUDIES))
+    return import_study("dam_break_references")
 
 
 @pytest.fixture
