@@ -43,6 +43,6 @@ def test_the_committed_piles_parts_are_the_docs() -> None:
     doc = json.loads((STUDIES / "results" / "pecan_pile_scale.json").read_text())
     faces = [_study().heap_parts(r["surface_mm"], r["plate_radius_mm"])["outer_face_deg"]
              for r in doc["piles"] if r["passes"] == 10]
-    quoted = faces[:4]  # 1.5x seeds 0-2 and 2x seed 0, the four the docs quote
+    quoted = faces[:5]  # 1.5x seeds 0-2 and 2x seeds 0-1, the five the docs quote
     assert min(quoted) > 26.5 and max(quoted) < 38.0
-    assert sum(quoted) / 4 == pytest.approx(31.5, abs=0.05)
+    assert sum(quoted) / 5 == pytest.approx(31.2, abs=0.05)
