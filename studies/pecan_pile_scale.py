@@ -21,21 +21,18 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 INNER = 0.6  # the top's share of the plate's radius
 
 
 def heap_parts(surface_mm: list[list[float]], plate_radius_mm: float) -> dict[str, float]:
     """The top's and the outer face's slopes (degrees, positive falling outwards) and the
     foot's height (mm) of a heap's ring tops ``(radius, height)`` in mm."""
-    s = np.asarray(surface_mm, dtype=float)
-    inner = s[:, 0] < INNER * plate_radius_mm
+    from articutool.sim.calibrate import envelope_slope_deg
 
-    def slope(m: np.ndarray) -> float:
-        return float(np.degrees(np.arctan(-np.polyfit(s[m, 0], s[m, 1], 1)[0])))
-
-    return {"top_deg": slope(inner), "outer_face_deg": slope(~inner), "foot_mm": float(s[-1, 1])}
+    inner = [(r, z) for r, z in surface_mm if r < INNER * plate_radius_mm]
+    outer = [(r, z) for r, z in surface_mm if r >= INNER * plate_radius_mm]
+    return {"top_deg": envelope_slope_deg(inner), "outer_face_deg": envelope_slope_deg(outer),
+            "foot_mm": float(surface_mm[-1][1])}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 pytest.importorskip("mujoco")
 
@@ -17,6 +19,7 @@ from articutool.sim.calibrate import (
     PLATE_RADIUS_M,
     angle_of_repose_deg,
     creep_mm,
+    envelope_slope_deg,
     flank_angle_deg,
     pile_test_model,
     surface_envelope,
@@ -84,6 +87,19 @@ def test_every_contact_of_the_pile_test_carries_the_file_s_law(params: PhysicsPa
             np.testing.assert_allclose(c.solimp, law.solimp)
             seen.add("plate" if plate else "tube" if tube else "piece")
     assert {"plate", "piece"} <= seen
+
+
+@given(st.floats(-60.0, 60.0), st.floats(0.0, 0.05), st.floats(1e-3, 10.0))
+def test_an_envelope_s_slope_is_signed_in_any_unit_and_the_flank_clamps_a_rise(
+        angle: float, top: float, unit: float) -> None:
+    # Ring tops on a line falling outwards at ``angle`` (rising where negative), in m scaled
+    # by ``unit``: the slope reads the angle whatever the unit; the flank reads it where the
+    # surface falls and 0 where it rises.
+    t = math.tan(math.radians(angle))
+    env = [(r * unit, (top - r * t) * unit) for r in (0.0025, 0.0075, 0.0125, 0.0175)]
+    assert envelope_slope_deg(env) == pytest.approx(angle, abs=1e-6)
+    pts = [(r / unit, z / unit) for r, z in env]
+    assert flank_angle_deg(pts) == pytest.approx(max(angle, 0.0), abs=1e-6)
 
 
 def test_the_surface_envelope_keeps_each_ring_s_highest_point_on_the_plate() -> None:

@@ -234,10 +234,14 @@ def flank_angle_deg(points: list[tuple[float, float]], bin_m: float = FLANK_BIN_
     """The slope (degrees) of a heap's free surface: the angle of the least-squares line
     through its :func:`surface_envelope` (0 for fewer than two rings)."""
     env = surface_envelope(points, bin_m, plate_r)
-    if len(env) < 2:
-        return 0.0
+    return max(envelope_slope_deg(env), 0.0) if len(env) >= 2 else 0.0
+
+
+def envelope_slope_deg(env: list[tuple[float, float]]) -> float:
+    """The angle (degrees, positive where the surface falls outwards, negative where it
+    rises) of the least-squares line through ring tops ``(radius, height)`` in one unit."""
     slope = np.polyfit([r for r, _ in env], [z for _, z in env], 1)[0]
-    return math.degrees(math.atan(max(-float(slope), 0.0)))
+    return math.degrees(math.atan(-float(slope)))
 
 
 def creep_mm(food: Granular, params: PhysicsParams, slope_deg: float,
