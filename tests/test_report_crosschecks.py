@@ -99,7 +99,7 @@ def test_the_sph_liquids_checks_are_tabled_beside_their_laws(tmp_path: Path) -> 
     assert "| 10 | side | 1.00 | 9.99 | 9.0° / 11.0° | 2.53 / 2.49 · 4.66 / 4.64 | **fail** |" in md
     assert "| 8 | tip | 0.75 |" in md and "All pass: **False**" in md
     assert "reads 7.99 g on the F/T sensor and 8.01 g on the scale" in md
-    assert "up to Z = 3, 16.2 % (within 10 %): **fail**" in md
+    assert "up to Z = 3, 16.2 % (within 10 %): **fail**. What is known of the lead" in md
     assert "along 3.10 Hz against 3.00 Hz" in md and "across 4.20 Hz against 4.10 Hz" in md
     facts = _crosscheck_facts(tmp_path)
     assert facts["water_onset_deg"] == "10.9°" and facts["water_onset_hydro_deg"] == "10.6°"

@@ -294,7 +294,9 @@ def _sec_liquid(lq: Mapping[str, Any]) -> str:
             out += (f"**Dam break** (Martin & Moyce 1952, n² = 2): the surge front's largest "
                     f"error up to Z = 3, {100 * float(d.get('max_rel_error_to_Z3', 0.0)):.1f} % "
                     f"(within {100 * float(d.get('tolerance', 0.0)):g} %): "
-                    f"{verdict(d)}.\n\n")
+                    f"{verdict(d)}."
+                    + ("" if d.get("pass") else " What is known of the lead, and what is not: "
+                       "docs/food.md, the liquid engine.") + "\n\n")
         elif d.get("check") == "slosh_modes":
             modes = "; ".join(
                 f"{axis} {num(m.get('measured_hz'))} Hz against {num(m.get('law_hz'))} Hz "
