@@ -75,7 +75,7 @@ def energy_balance(samples: list[tuple[float, float, float]]) -> dict[str, list[
             "lost_share": [None if math.isnan(x) else round(float(x), 4) for x in lost]}
 
 
-def run_variant(name: str, method: int, boundary: int, release_dt: float | None,
+def run_variant(name: str, change: str, method: int, boundary: int, release_dt: float | None,
                 stiffness: float | None) -> dict[str, Any]:
     """The check at :data:`ACROSS` across with one variant: its front against Martin &
     Moyce, the settled column's height (in column widths) and the release's energy."""
@@ -139,7 +139,7 @@ def run_variant(name: str, method: int, boundary: int, release_dt: float | None,
         sc._scene_json, lc.SphLiquid, lc._settled_column = scene_json, liquid, settled_column
     a = r["column_width_m"]
     return {
-        "variant": name, "simulation_method": method, "boundary_method": boundary,
+        "variant": name, "change": change, "simulation_method": method, "boundary_method": boundary,
         "release_max_dt_s": release_dt, "stiffness_pa": stiffness,
         "sound_speed_m_s": round(sound_speed(stiffness), 2) if stiffness else None,
         "particles": r["particles"], "settling": r["settling"],
@@ -202,11 +202,7 @@ def main(argv: list[str] | None = None) -> int:
     from articutool.experiments.runner import source_version
     from articutool.sim.liquid_checks import martin_moyce_1952
 
-    runs = [run_variant(n, m, b, dt, k) for n, _, m, b, dt, k in VARIANTS
-            if not a.only or n in a.only]
-    for r, (_, what, *_rest) in zip(runs, [v for v in VARIANTS
-                                           if not a.only or v[0] in a.only], strict=True):
-        r["change"] = what
+    runs = [run_variant(*v) for v in VARIANTS if not a.only or v[0] in a.only]
     doc = {"question": __doc__.splitlines()[0], "source": source_version(),
            "machine": {"cpu": _cpu_model(),
                        "load_average": [round(x, 2) for x in os.getloadavg()]},

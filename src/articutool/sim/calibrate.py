@@ -47,9 +47,9 @@ from articutool.spec import Spec
 from articutool.tool.api import Mode
 
 __all__ = ["CREEP_HOLD_S", "CREEP_LIMIT_MM", "CREEP_SLOPES_DEG", "ONSET_G", "TILT_HOLD_S",
-           "TILT_RATE", "TILT_STEPS_DEG", "angle_of_repose_deg", "creep_mm", "flank_angle_deg",
-           "level_capacity_g", "pile_test_model", "run_calibration", "static_tilt",
-           "surface_envelope"]
+           "TILT_RATE", "TILT_STEPS_DEG", "angle_of_repose_deg", "creep_mm", "envelope_slope_deg",
+           "flank_angle_deg", "level_capacity_g", "pile_test_model", "run_calibration",
+           "static_tilt", "surface_envelope"]
 
 # The static-tilt protocol (numerical choices of the test, not of the model): 1° steps where
 # the onsets lie, coarser beyond; the wrist turns at ≤ 0.15 rad/s (quasi-static: the liquid's
@@ -232,7 +232,8 @@ def surface_envelope(points: list[tuple[float, float]], bin_m: float = FLANK_BIN
 def flank_angle_deg(points: list[tuple[float, float]], bin_m: float = FLANK_BIN_M,
                     plate_r: float = PLATE_RADIUS_M) -> float:
     """The slope (degrees) of a heap's free surface: the angle of the least-squares line
-    through its :func:`surface_envelope` (0 for fewer than two rings)."""
+    through its :func:`surface_envelope` (:func:`envelope_slope_deg`), 0 where that line
+    rises outwards or there are fewer than two rings."""
     env = surface_envelope(points, bin_m, plate_r)
     return max(envelope_slope_deg(env), 0.0) if len(env) >= 2 else 0.0
 
